@@ -1,0 +1,1 @@
+"""Compensators: estimators that predict the internal wrench from joint states."""

@@ -1,0 +1,122 @@
+"""The contract every compensator follows (scikit-learn's estimator API).
+
+A compensator maps joint states ``X = [q, q̇, q̈]`` (N × 3n) to the wrench the sensor reads
+without contact (N × k targets; k = 6 for a wrench, or n for joint torques on other data).
+Subclasses implement ``_fit(Z, Y)`` and ``_predict(Z)`` on the already selected feature
+columns ``Z`` and 2-D targets ``Y``; everything shared (validation, the feature set, the
+training ranges used for out-of-domain checks) lives here.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from sklearn.base import BaseEstimator, RegressorMixin
+from sklearn.utils.validation import check_is_fitted, validate_data
+
+from .features import check_feature_set, joints_in_layout, select_features
+
+
+def describe_nonfinite(a: np.ndarray, name: str) -> str | None:
+    """A message naming how many rows of `a` hold NaN/inf and the first one, or None."""
+    bad = ~np.isfinite(a)
+    if a.ndim > 1:
+        bad = bad.any(axis=tuple(range(1, a.ndim)))
+    if not bad.any():
+        return None
+    rows = np.flatnonzero(bad)
+    return (
+        f"Input {name} contains NaN or infinity in {rows.size} of {a.shape[0]} rows "
+        f"(first at row {rows[0]}); clean or drop them explicitly before fitting"
+    )
+
+
+class Compensator(RegressorMixin, BaseEstimator):
+    """Base class: predicts internal wrench (or joint torques) from ``[q, q̇, q̈]``.
+
+    Parameters
+    ----------
+    features : {"q", "q,qd", "q,qd,qdd"}
+        Which blocks of the ``[q, q̇, q̈]`` layout the model uses.
+
+    Fitted attributes
+    -----------------
+    n_features_in_ : int       always 3n
+    n_joints_ : int
+    n_outputs_ : int
+    input_min_, input_max_ : (3n,) arrays, the training range of every input column
+    """
+
+    #: True for models whose ``predict_std`` returns a real standard deviation.
+    provides_std = False
+
+    def __init__(self, features: str = "q,qd,qdd"):
+        self.features = features
+
+    # -- the sklearn API -------------------------------------------------------------------
+    def fit(self, X, y):
+        check_feature_set(self.features)
+        X, y = validate_data(
+            self, X, y, multi_output=True, y_numeric=True, ensure_all_finite=False,
+            dtype=np.float64,
+        )
+        for arr, name in ((X, "X"), (y, "y")):
+            message = describe_nonfinite(arr, name)
+            if message:
+                raise ValueError(message)
+        self.n_joints_ = joints_in_layout(X.shape[1])
+        self._y_was_1d = y.ndim == 1
+        Y = y.reshape(len(y), -1)
+        self.n_outputs_ = Y.shape[1]
+        self.input_min_ = X.min(axis=0)
+        self.input_max_ = X.max(axis=0)
+        self._fit(select_features(X, self.features), Y)
+        return self
+
+    def predict(self, X):
+        Y = self._predict(self._validated_features(X))
+        return Y.ravel() if self._y_was_1d else Y
+
+    def predict_std(self, X):
+        """Predictive standard deviation per output; zeros for models that give none."""
+        Z = self._validated_features(X)
+        std = self._predict_std(Z) if self.provides_std else np.zeros((len(Z), self.n_outputs_))
+        return std.ravel() if self._y_was_1d else std
+
+    def out_of_domain(self, X, margin: float = 0.0) -> np.ndarray:
+        """Boolean per row: True where a used input lies outside the training range.
+
+        `margin` widens each column's range by that fraction of its width.
+        """
+        check_is_fitted(self)
+        X = np.atleast_2d(np.asarray(X, dtype=float))
+        used = select_features(X, self.features).shape[1]
+        width = self.input_max_[:used] - self.input_min_[:used]
+        lo = self.input_min_[:used] - margin * width
+        hi = self.input_max_[:used] + margin * width
+        Z = X[:, :used]
+        return ((Z < lo) | (Z > hi)).any(axis=1)
+
+    # -- subclass hooks -------------------------------------------------------------------
+    def _fit(self, Z: np.ndarray, Y: np.ndarray) -> None:
+        raise NotImplementedError
+
+    def _predict(self, Z: np.ndarray) -> np.ndarray:
+        raise NotImplementedError
+
+    def _predict_std(self, Z: np.ndarray) -> np.ndarray:
+        raise NotImplementedError
+
+    # -- helpers ----------------------------------------------------------------------------
+    def _validated_features(self, X) -> np.ndarray:
+        check_is_fitted(self)
+        X = validate_data(self, X, reset=False, ensure_all_finite=False, dtype=np.float64)
+        message = describe_nonfinite(X, "X")
+        if message:
+            raise ValueError(message.replace("before fitting", "before predicting"))
+        return select_features(X, self.features)
+
+    def __sklearn_tags__(self):
+        tags = super().__sklearn_tags__()
+        tags.target_tags.multi_output = True
+        tags.target_tags.single_output = True
+        return tags

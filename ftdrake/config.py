@@ -1,0 +1,359 @@
+"""Typed configuration of a scenario, loadable and writable as YAML.
+
+Every dataclass here can be read with :func:`load_config` / written with :func:`save_config`
+(Drake's ``yaml_load_typed`` / ``yaml_dump_typed``). Errors name the offending field, e.g.
+``scenario.sensor.noise_std: must have 6 entries, got 5``.
+
+Units: SI throughout (s, m, kg, N, N·m, rad). Wrench vectors are ``[Fx, Fy, Fz, Tx, Ty, Tz]``.
+"""
+
+# No `from __future__ import annotations`: Drake's YAML loader needs real type objects.
+
+import dataclasses as dc
+import math
+from importlib import resources
+from pathlib import Path
+from typing import Optional
+
+import yaml as pyyaml
+from pydrake.common.yaml import yaml_dump_typed, yaml_load_typed
+
+from .io import atomic_write_text
+
+
+class ConfigError(ValueError):
+    """A configuration value is missing, malformed or out of range; the message names it."""
+
+
+# ----------------------------------------------------------------------------------------------
+# Sensor presets. Each number's source is in the comment beside it.
+# ----------------------------------------------------------------------------------------------
+@dc.dataclass(frozen=True)
+class SensorSpec:
+    """Resolved numbers of a sensor (no Optional fields)."""
+
+    rate_hz: float
+    range: tuple  # (6,) N, N·m: saturation limits (symmetric)
+    resolution: tuple  # (6,) N, N·m: quantization step
+    noise_std: tuple  # (6,) N, N·m: white noise per sample
+    bandwidth_hz: float  # first-order low-pass cut-off
+
+
+SENSOR_PRESETS: dict[str, SensorSpec] = {
+    # ATI Gamma, calibration SI-130-10 (ATI F/T catalog, Gamma page): range Fx,Fy ±130 N,
+    # Fz ±400 N, Tx,Ty,Tz ±10 N·m; resolution with Net F/T 1/40 N (Fx,Fy), 1/20 N (Fz),
+    # 1/800 N·m (T). Net F/T streams up to 7 kHz; we sample at 1 kHz. ATI publishes no noise
+    # σ; we assume σ ≈ one resolution step (typical of Net F/T readings at rest).
+    "ati_gamma": SensorSpec(
+        rate_hz=1000.0,
+        range=(130.0, 130.0, 400.0, 10.0, 10.0, 10.0),
+        resolution=(1 / 40, 1 / 40, 1 / 20, 1 / 800, 1 / 800, 1 / 800),
+        noise_std=(1 / 40, 1 / 40, 1 / 20, 1 / 800, 1 / 800, 1 / 800),
+        bandwidth_hz=400.0,  # assumption: DAQ low-pass set below the 500 Hz Nyquist limit
+    ),
+    # ATI Mini45, calibration SI-290-10 (ATI F/T catalog, Mini45 page): range Fx,Fy ±290 N,
+    # Fz ±580 N, T ±10 N·m; resolution 1/8 N (Fx,Fy), 1/8 N (Fz), 1/376 N·m (T) as listed for
+    # Net F/T. Check against your sensor's calibration certificate. Noise σ assumed = resolution.
+    "ati_mini45": SensorSpec(
+        rate_hz=1000.0,
+        range=(290.0, 290.0, 580.0, 10.0, 10.0, 10.0),
+        resolution=(1 / 8, 1 / 8, 1 / 8, 1 / 376, 1 / 376, 1 / 376),
+        noise_std=(1 / 8, 1 / 8, 1 / 8, 1 / 376, 1 / 376, 1 / 376),
+        bandwidth_hz=400.0,
+    ),
+    # Robotiq FT 300-S (instruction manual): range ±300 N, ±30 N·m; data stream at 100 Hz with
+    # Fx·100 and Mx·1000 as 16-bit counts (so 0.01 N, 0.001 N·m steps); signal noise 0.1 N and
+    # 0.005 N·m (Robotiq spec sheet).
+    "robotiq_ft300": SensorSpec(
+        rate_hz=100.0,
+        range=(300.0, 300.0, 300.0, 30.0, 30.0, 30.0),
+        resolution=(0.01, 0.01, 0.01, 0.001, 0.001, 0.001),
+        noise_std=(0.1, 0.1, 0.1, 0.005, 0.005, 0.005),
+        bandwidth_hz=40.0,  # assumption: the stream is filtered below its 50 Hz Nyquist limit
+    ),
+}
+
+
+@dc.dataclass
+class SensorConfig:
+    """The noisy F/T sensor. Fields left unset (null) take the preset's value."""
+
+    preset: str = "ati_gamma"
+    rate_hz: Optional[float] = None
+    range: Optional[list[float]] = None
+    resolution: Optional[list[float]] = None
+    noise_std: Optional[list[float]] = None
+    bandwidth_hz: Optional[float] = None
+    # Constant offset of the reading (N, N·m); a real sensor is tared, never perfectly.
+    bias: list[float] = dc.field(default_factory=lambda: [0.6, -0.4, 1.2, 0.02, -0.015, 0.01])
+    # Thermal drift as a random walk: σ of its increment per √s (N/√s, N·m/√s).
+    drift_std: list[float] = dc.field(
+        default_factory=lambda: [2e-3, 2e-3, 3e-3, 5e-5, 5e-5, 5e-5]
+    )
+    # Calibration cross-talk: off-diagonal entries of the calibration error matrix are drawn
+    # uniformly in ±crosstalk (relative, torque rows scaled by crosstalk_length_m).
+    crosstalk: float = 0.01
+    crosstalk_length_m: float = 0.05
+    # Set False to get an ideal sensor (no noise, bias, drift, cross-talk, quantization, filter,
+    # saturation); the sample rate still applies.
+    imperfections: bool = True
+    seed: int = 0
+
+    def spec(self) -> SensorSpec:
+        """The resolved numbers: preset values with this config's overrides applied."""
+        if self.preset not in SENSOR_PRESETS:
+            raise ConfigError(
+                f"sensor.preset: unknown preset {self.preset!r}; "
+                f"expected one of {sorted(SENSOR_PRESETS)}"
+            )
+        base = SENSOR_PRESETS[self.preset]
+        return SensorSpec(
+            rate_hz=base.rate_hz if self.rate_hz is None else float(self.rate_hz),
+            range=tuple(base.range if self.range is None else self.range),
+            resolution=tuple(base.resolution if self.resolution is None else self.resolution),
+            noise_std=tuple(base.noise_std if self.noise_std is None else self.noise_std),
+            bandwidth_hz=(
+                base.bandwidth_hz if self.bandwidth_hz is None else float(self.bandwidth_hz)
+            ),
+        )
+
+    def validate(self, where: str = "sensor") -> None:
+        spec = self.spec()
+        _positive(spec.rate_hz, f"{where}.rate_hz")
+        _positive(spec.bandwidth_hz, f"{where}.bandwidth_hz")
+        for name, values, allow_zero in (
+            ("range", spec.range, False),
+            ("resolution", spec.resolution, True),
+            ("noise_std", spec.noise_std, True),
+            ("bias", self.bias, None),
+            ("drift_std", self.drift_std, True),
+        ):
+            _six(values, f"{where}.{name}")
+            if allow_zero is not None:
+                for v in values:
+                    (_non_negative if allow_zero else _positive)(v, f"{where}.{name}")
+        _non_negative(self.crosstalk, f"{where}.crosstalk")
+        if self.crosstalk >= 0.2:
+            raise ConfigError(f"{where}.crosstalk: {self.crosstalk} is implausibly large (< 0.2)")
+
+
+@dc.dataclass
+class CableConfig:
+    """A cable/hose from the forearm to the tool: a configuration-dependent force on the tool.
+
+    Tension = stiffness · softplus(distance − rest_length) along the cable, from the tool's
+    attachment point towards the anchor on `anchor_body`, plus `weight_n` of hanging cable
+    pulling the attachment point down (world −z). Rigid-body models of the tool miss it.
+    """
+
+    enabled: bool = True
+    anchor_body: str = "link_r"
+    p_anchor: list[float] = dc.field(default_factory=lambda: [0.07, 0.0, 0.12])  # m, in anchor
+    p_SAttach: list[float] = dc.field(default_factory=lambda: [-0.04, 0.0, 0.04])  # m, in S
+    stiffness: float = 25.0  # N/m
+    rest_length: float = 0.20  # m
+    weight_n: float = 1.2  # N
+
+    def validate(self, where: str = "cable") -> None:
+        _vec(self.p_anchor, 3, f"{where}.p_anchor")
+        _vec(self.p_SAttach, 3, f"{where}.p_SAttach")
+        _non_negative(self.stiffness, f"{where}.stiffness")
+        _non_negative(self.rest_length, f"{where}.rest_length")
+        _non_negative(self.weight_n, f"{where}.weight_n")
+
+
+@dc.dataclass
+class ControllerConfig:
+    """Inverse-dynamics control on a plant with a nominal (imperfect) model of the tool."""
+
+    kp: float = 400.0  # 1/s², per joint
+    kd: float = 40.0  # 1/s
+    ki: float = 0.0  # 1/s³
+    # The controller's estimate of the tool: true mass × (1 + tool_mass_error), CoM shifted.
+    tool_mass_error: float = -0.15
+    tool_com_error: list[float] = dc.field(default_factory=lambda: [0.01, -0.01, 0.0])  # m, in S
+
+    def validate(self, where: str = "controller") -> None:
+        _positive(self.kp, f"{where}.kp")
+        _non_negative(self.kd, f"{where}.kd")
+        _non_negative(self.ki, f"{where}.ki")
+        if not -0.9 < self.tool_mass_error < 2.0:
+            raise ConfigError(f"{where}.tool_mass_error: {self.tool_mass_error} not in (-0.9, 2)")
+        _vec(self.tool_com_error, 3, f"{where}.tool_com_error")
+
+
+TRAJECTORY_KINDS = ("random", "fourier", "reference", "z_rich", "contact")
+
+
+@dc.dataclass
+class TrajectoryConfig:
+    """What the arm does. See :mod:`ftdrake.trajectories` for each kind."""
+
+    kind: str = "contact"
+    duration_s: float = 12.0
+    seed: int = 0
+    # Fraction of each joint's speed / acceleration limit the excitation may use.
+    speed_fraction: float = 0.3
+    acceleration_limit: float = 4.0  # rad/s², every joint
+    # Fourier excitation: harmonics of the base frequency.
+    base_frequency_hz: float = 0.1
+    harmonics: int = 4
+    # Contact scenario.
+    contact_target: str = "table"  # "table" or "wall"
+    press_depth_m: float = 0.012  # commanded penetration of the target surface
+    press_duration_s: float = 3.0
+
+    def validate(self, where: str = "trajectory") -> None:
+        if self.kind not in TRAJECTORY_KINDS:
+            raise ConfigError(
+                f"{where}.kind: unknown kind {self.kind!r}; expected one of {TRAJECTORY_KINDS}"
+            )
+        _positive(self.duration_s, f"{where}.duration_s")
+        if not 0 < self.speed_fraction <= 1:
+            raise ConfigError(f"{where}.speed_fraction: {self.speed_fraction} not in (0, 1]")
+        _positive(self.acceleration_limit, f"{where}.acceleration_limit")
+        _positive(self.base_frequency_hz, f"{where}.base_frequency_hz")
+        if self.harmonics < 1:
+            raise ConfigError(f"{where}.harmonics: must be >= 1, got {self.harmonics}")
+        if self.contact_target not in ("table", "wall"):
+            raise ConfigError(
+                f"{where}.contact_target: {self.contact_target!r} is not 'table' or 'wall'"
+            )
+        _non_negative(self.press_depth_m, f"{where}.press_depth_m")
+        _positive(self.press_duration_s, f"{where}.press_duration_s")
+
+
+@dc.dataclass
+class ModelsConfig:
+    """Where the models come from. package://ftdrake/ resolves to the shipped models/."""
+
+    arm: str = "package://ftdrake/sda10d_arm.sdf"
+    tool: str = "package://ftdrake/ft_sensor_tool.sdf"
+    environment: str = "package://ftdrake/environment.sdf"
+    arm_base_frame: str = "arm_base"
+    flange_frame: str = "flange"  # on the arm; the tool's mount frame is welded to it
+    tool_mount_frame: str = "ft_sensor"
+    sensor_joint: str = "ft_sensor_weld"
+    p_WArmBase: list[float] = dc.field(default_factory=lambda: [0.0, 0.0, 0.95])  # m
+    # Extra package.xml files for a user's own models.
+    package_xmls: list[str] = dc.field(default_factory=list)
+
+
+@dc.dataclass
+class ScenarioConfig:
+    """One simulated scenario: plant, controller, sensor, cable, trajectory and logging."""
+
+    time_step: float = 1e-3  # s, discrete plant step
+    contact_approximation: str = "sap"
+    models: ModelsConfig = dc.field(default_factory=ModelsConfig)
+    # Joint configuration the trajectories start from and move around (rad).
+    home_q: list[float] = dc.field(
+        default_factory=lambda: [0.0, 0.55, 0.0, 1.45, 0.0, 1.14, 0.0]
+    )
+    controller: ControllerConfig = dc.field(default_factory=ControllerConfig)
+    sensor: SensorConfig = dc.field(default_factory=SensorConfig)
+    cable: CableConfig = dc.field(default_factory=CableConfig)
+    trajectory: TrajectoryConfig = dc.field(default_factory=TrajectoryConfig)
+
+    def validate(self) -> "ScenarioConfig":
+        _positive(self.time_step, "scenario.time_step")
+        if self.time_step > 0.01:
+            raise ConfigError(f"scenario.time_step: {self.time_step} s is too coarse (<= 0.01)")
+        if self.contact_approximation not in ("sap", "tamsi", "similar", "lagged"):
+            raise ConfigError(
+                f"scenario.contact_approximation: unknown {self.contact_approximation!r}"
+            )
+        _vec(self.models.p_WArmBase, 3, "scenario.models.p_WArmBase")
+        _vec(self.home_q, len(self.home_q) or 1, "scenario.home_q")
+        self.controller.validate("scenario.controller")
+        self.sensor.validate("scenario.sensor")
+        self.cable.validate("scenario.cable")
+        self.trajectory.validate("scenario.trajectory")
+        rate = self.sensor.spec().rate_hz
+        ratio = 1.0 / (rate * self.time_step)
+        if abs(ratio - round(ratio)) > 1e-6 or round(ratio) < 1:
+            raise ConfigError(
+                f"scenario.sensor.rate_hz: {rate} Hz must divide the plant rate "
+                f"{1 / self.time_step:g} Hz"
+            )
+        return self
+
+
+# ----------------------------------------------------------------------------------------------
+# YAML in and out.
+# ----------------------------------------------------------------------------------------------
+def default_scenario_path() -> Path:
+    """The scenario file shipped with ftdrake (the defaults, written out)."""
+    return Path(str(resources.files("ftdrake") / "scenarios" / "default.yaml"))
+
+
+def load_config(path: "str | Path | None" = None, schema=ScenarioConfig):
+    """Reads a YAML file into `schema` and validates it. None → the shipped default."""
+    path = Path(path) if path is not None else default_scenario_path()
+    try:
+        text = path.read_text()
+    except OSError as e:
+        raise ConfigError(f"cannot read config {path}: {e.strerror}") from None
+    return parse_config(text, schema, source=str(path))
+
+
+def parse_config(text: str, schema=ScenarioConfig, source: str = "<string>"):
+    """Parses YAML text into `schema`, naming the bad field on error."""
+    try:
+        data = pyyaml.safe_load(text)
+    except pyyaml.YAMLError as e:
+        raise ConfigError(f"{source}: malformed YAML: {e}") from None
+    if data is None:
+        data = {}
+    if not isinstance(data, dict):
+        raise ConfigError(f"{source}: expected a mapping of fields, got {type(data).__name__}")
+    _check_fields(data, schema, "scenario" if schema is ScenarioConfig else schema.__name__)
+    try:
+        config = yaml_load_typed(schema=schema, data=text)
+    except (RuntimeError, ValueError, TypeError) as e:
+        raise ConfigError(f"{source}: {e}") from None
+    if hasattr(config, "validate"):
+        config.validate()
+    return config
+
+
+def save_config(config, path: "str | Path") -> None:
+    """Writes `config` as YAML, atomically."""
+    atomic_write_text(Path(path), dump_config(config))
+
+
+def dump_config(config) -> str:
+    return yaml_dump_typed(config)
+
+
+def _check_fields(data: dict, schema, where: str) -> None:
+    """Names unknown fields with their full path (Drake's loader names only the leaf)."""
+    fields = {f.name: f for f in dc.fields(schema)}
+    for key, value in data.items():
+        if key not in fields:
+            raise ConfigError(f"{where}.{key}: unknown field; known fields: {sorted(fields)}")
+        sub = fields[key].default_factory if fields[key].default_factory is not dc.MISSING else None
+        if sub is not None and dc.is_dataclass(sub) and isinstance(value, dict):
+            _check_fields(value, sub, f"{where}.{key}")
+
+
+def _positive(v, name):
+    if not (isinstance(v, (int, float)) and math.isfinite(v) and v > 0):
+        raise ConfigError(f"{name}: must be a positive number, got {v!r}")
+
+
+def _non_negative(v, name):
+    if not (isinstance(v, (int, float)) and math.isfinite(v) and v >= 0):
+        raise ConfigError(f"{name}: must be a non-negative number, got {v!r}")
+
+
+def _vec(values, n, name):
+    if values is None or len(values) != n:
+        raise ConfigError(f"{name}: must have {n} entries, got {0 if values is None else len(values)}")
+    for v in values:
+        if not (isinstance(v, (int, float)) and math.isfinite(v)):
+            raise ConfigError(f"{name}: entries must be finite numbers, got {v!r}")
+
+
+def _six(values, name):
+    _vec(values, 6, name)

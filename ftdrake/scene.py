@@ -1,0 +1,235 @@
+"""The MultibodyPlant: arm, F/T sensor weld, tool and environment, all from `models/`.
+
+Nothing is fetched at run time: ``package://ftdrake/...`` resolves to the `models/` folder
+shipped with ftdrake (its `package.xml`), and users can add their own package.xml files.
+"""
+
+from __future__ import annotations
+
+import dataclasses as dc
+from pathlib import Path
+
+import numpy as np
+from pydrake.geometry import CollisionFilterDeclaration, GeometrySet, SceneGraph
+from pydrake.math import RigidTransform
+from pydrake.multibody.parsing import Parser
+from pydrake.multibody.plant import (
+    AddMultibodyPlant,
+    ContactModel,
+    MultibodyPlant,
+    MultibodyPlantConfig,
+)
+from pydrake.multibody.tree import (
+    BodyIndex,
+    ModelInstanceIndex,
+    SpatialInertia,
+    WeldJoint,
+)
+from pydrake.systems.framework import DiagramBuilder
+
+from .config import ConfigError, ModelsConfig, ScenarioConfig
+
+
+def models_dir() -> Path:
+    """The folder holding ftdrake's SDF files and package.xml."""
+    here = Path(__file__).resolve().parent
+    for candidate in (here.parent / "models", here / "models"):
+        if (candidate / "package.xml").is_file():
+            return candidate
+    raise FileNotFoundError(
+        "ftdrake's models/ folder (with package.xml) was not found next to the package; "
+        "install ftdrake from a source checkout (pip install -e .)"
+    )
+
+
+def make_parser(plant: MultibodyPlant, models: ModelsConfig) -> Parser:
+    """A parser that resolves package://ftdrake/ offline, plus the user's package.xml files."""
+    parser = Parser(plant)
+    parser.package_map().AddPackageXml(str(models_dir() / "package.xml"))
+    for xml in models.package_xmls:
+        if not Path(xml).is_file():
+            raise ConfigError(f"scenario.models.package_xmls: no such file {xml!r}")
+        parser.package_map().AddPackageXml(xml)
+    return parser
+
+
+def add_model(parser: Parser, url: str, field: str) -> ModelInstanceIndex:
+    """Adds one model by URL or path, with an error naming the config field on failure."""
+    try:
+        if "://" in url:
+            instances = parser.AddModels(url=url)
+        else:
+            if not Path(url).is_file():
+                raise ConfigError(f"scenario.models.{field}: no such model file {url!r}")
+            instances = parser.AddModels(file_name=url)
+    except ConfigError:
+        raise
+    except Exception as e:  # Drake raises RuntimeError with a long message
+        raise ConfigError(f"scenario.models.{field}: cannot load {url!r}: {e}") from None
+    if len(instances) != 1:
+        raise ConfigError(f"scenario.models.{field}: {url!r} must hold exactly one model")
+    return instances[0]
+
+
+@dc.dataclass
+class Scene:
+    """Handles into the plant that the rest of ftdrake needs."""
+
+    plant: MultibodyPlant
+    scene_graph: SceneGraph
+    arm: ModelInstanceIndex
+    tool: ModelInstanceIndex
+    environment: ModelInstanceIndex
+    sensor_joint: WeldJoint
+    tool_bodies: list[BodyIndex]  # every body rigidly attached on the sensor's tool side
+    environment_bodies: list[BodyIndex]
+
+    @property
+    def sensor_frame(self):
+        """Frame S: the sensor weld's child frame."""
+        return self.sensor_joint.frame_on_child()
+
+
+def add_scene(builder: DiagramBuilder, config: ScenarioConfig) -> Scene:
+    """Adds plant + scene graph for `config` to `builder` and finalizes the plant."""
+    plant, scene_graph = AddMultibodyPlant(
+        MultibodyPlantConfig(
+            time_step=config.time_step,
+            discrete_contact_approximation=config.contact_approximation,
+        ),
+        builder,
+    )
+    plant.set_contact_model(ContactModel.kPoint)
+    models = config.models
+    parser = make_parser(plant, models)
+    arm = add_model(parser, models.arm, "arm")
+    tool = add_model(parser, models.tool, "tool")
+    env = add_model(parser, models.environment, "environment")
+    plant.WeldFrames(
+        plant.world_frame(),
+        _frame(plant, models.arm_base_frame, arm, "arm_base_frame"),
+        RigidTransform(np.asarray(models.p_WArmBase, dtype=float)),
+    )
+    plant.WeldFrames(
+        _frame(plant, models.flange_frame, arm, "flange_frame"),
+        _frame(plant, models.tool_mount_frame, tool, "tool_mount_frame"),
+    )
+    plant.Finalize()
+    if plant.num_positions(arm) != len(config.home_q):
+        raise ConfigError(
+            f"scenario.home_q: has {len(config.home_q)} entries but the arm has "
+            f"{plant.num_positions(arm)} joints"
+        )
+    joint = sensor_weld(plant, models.sensor_joint, tool)
+    _filter_robot_self_collisions(plant, scene_graph, [arm, tool])
+    return Scene(
+        plant=plant,
+        scene_graph=scene_graph,
+        arm=arm,
+        tool=tool,
+        environment=env,
+        sensor_joint=joint,
+        tool_bodies=bodies_outboard_of(plant, joint),
+        environment_bodies=list(plant.GetBodyIndices(env)),
+    )
+
+
+def sensor_weld(plant: MultibodyPlant, name: str, instance=None) -> WeldJoint:
+    """The weld joint named `name`; a clear error when it is missing or not a weld."""
+    has = plant.HasJointNamed(name, instance) if instance is not None else plant.HasJointNamed(name)
+    if not has:
+        raise ConfigError(f"scenario.models.sensor_joint: no joint named {name!r} in the plant")
+    joint = plant.GetJointByName(name, instance) if instance is not None else plant.GetJointByName(
+        name
+    )
+    if not isinstance(joint, WeldJoint):
+        raise ConfigError(
+            f"scenario.models.sensor_joint: {name!r} is a {joint.type_name()} joint; "
+            "an F/T sensor must be a weld"
+        )
+    return joint
+
+
+def bodies_outboard_of(plant: MultibodyPlant, joint) -> list[BodyIndex]:
+    """Bodies on the child side of `joint` that are welded to its child (the sensed load)."""
+    child = joint.child_body()
+    welded = plant.GetBodiesWeldedTo(child)
+    # GetBodiesWeldedTo also returns the parent side if it is welded; keep only bodies whose
+    # path to the child body does not pass through the sensor joint.
+    result, frontier = {child.index()}, [child.index()]
+    while frontier:
+        current = frontier.pop()
+        for j in plant.GetJointIndices():
+            other = plant.get_joint(j)
+            if other.index() == joint.index() or not isinstance(other, WeldJoint):
+                continue
+            pair = (other.parent_body().index(), other.child_body().index())
+            if current in pair:
+                nxt = pair[1] if pair[0] == current else pair[0]
+                if nxt not in result and plant.get_body(nxt) in welded:
+                    result.add(nxt)
+                    frontier.append(nxt)
+    return sorted(result, key=int)
+
+
+def _frame(plant, name, instance, field):
+    if not plant.HasFrameNamed(name, instance):
+        raise ConfigError(f"scenario.models.{field}: no frame {name!r} in that model")
+    return plant.GetFrameByName(name, instance)
+
+
+def _filter_robot_self_collisions(plant, scene_graph, instances):
+    """The robot (arm + sensor + tool) may touch the environment, never itself."""
+    geometries = []
+    for instance in instances:
+        for body_index in plant.GetBodyIndices(instance):
+            geometries += plant.GetCollisionGeometriesForBody(plant.get_body(body_index))
+    scene_graph.collision_filter_manager().Apply(
+        CollisionFilterDeclaration().ExcludeWithin(GeometrySet(geometries))
+    )
+
+
+# ----------------------------------------------------------------------------------------------
+# The controller's model: the arm plus a nominal, imperfect estimate of sensor + tool.
+# ----------------------------------------------------------------------------------------------
+def make_control_plant(config: ScenarioConfig, scene: Scene) -> MultibodyPlant:
+    """A continuous plant of the arm with one rigid body standing in for sensor + tool.
+
+    Its mass is the true load's mass × (1 + tool_mass_error) and its centre of mass is shifted
+    by tool_com_error (in S): a real controller never knows its tool exactly.
+    """
+    plant = MultibodyPlant(0.0)
+    parser = make_parser(plant, config.models)
+    arm = add_model(parser, config.models.arm, "arm")
+    plant.WeldFrames(
+        plant.world_frame(),
+        plant.GetFrameByName(config.models.arm_base_frame, arm),
+        RigidTransform(np.asarray(config.models.p_WArmBase, dtype=float)),
+    )
+    true_plant = scene.plant
+    context = true_plant.CreateDefaultContext()
+    flange = true_plant.GetFrameByName(config.models.flange_frame, scene.arm)
+    load = [*scene.tool_bodies, scene.sensor_joint.parent_body().index()]
+    M_FFo_F = true_plant.CalcSpatialInertia(context, flange, load)
+    mass = M_FFo_F.get_mass() * (1.0 + config.controller.tool_mass_error)
+    R_FS = scene.sensor_frame.CalcPose(context, flange).rotation()
+    p_FoLcm_F = M_FFo_F.get_com() + R_FS @ np.asarray(config.controller.tool_com_error)
+    # Keep the true rotational inertia about the centre of mass, moved to the shifted one.
+    G_Lcm_F = M_FFo_F.Shift(M_FFo_F.get_com()).get_unit_inertia()
+    G_FoNominal_F = G_Lcm_F.ShiftFromCenterOfMass(-p_FoLcm_F)
+    nominal = plant.AddRigidBody(
+        "nominal_tool", arm, SpatialInertia(mass, p_FoLcm_F, G_FoNominal_F)
+    )
+    plant.WeldFrames(plant.GetFrameByName(config.models.flange_frame, arm), nominal.body_frame())
+    plant.Finalize()
+    return plant
+
+
+__all__ = [
+    "Scene",
+    "add_scene",
+    "bodies_outboard_of",
+    "make_control_plant",
+    "models_dir",
+    "sensor_weld",
+]

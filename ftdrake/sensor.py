@@ -1,0 +1,205 @@
+"""Force/torque sensors as Drake systems.
+
+Convention (used everywhere in ftdrake; tested in tests/test_sensor_physics.py):
+
+* A wrench is ``[Fx, Fy, Fz, Tx, Ty, Tz]`` in N and N·m (force first, as ROS WrenchStamped and
+  the study). Drake's ``SpatialForce`` is ``[torque; force]``; the conversion happens in
+  :func:`wrench_from_spatial_force` / :func:`spatial_force_from_wrench` and nowhere else.
+* The sensor reports the load that the **tool side applies to the sensor** (ATI's convention),
+  about the origin So of the sensor frame S, expressed in S. S is the sensor weld joint's child
+  frame ``Jc``; the tool is the weld's child side.
+* Drake's reaction-forces port gives ``F_CJc_Jc``: the force the joint applies to the child body C
+  at Jc, expressed in Jc. By Newton's third law the tool applies ``-F_CJc_Jc`` to the sensor, so
+  the sensor reads ``wrench = -F_CJc_Jc`` (same point, same frame).
+* Consequence, at rest: the reading is the tool's weight ``m·g`` expressed in S (pointing down in
+  the world) and the torque ``p_SoScm × m·g`` about So.
+"""
+
+from __future__ import annotations
+
+import functools
+
+import numba
+import numpy as np
+from pydrake.common.value import AbstractValue
+from pydrake.multibody.math import SpatialForce
+from pydrake.multibody.tree import WeldJoint
+from pydrake.systems.framework import BasicVector, LeafSystem
+
+from .config import SensorConfig
+
+
+def wrench_from_spatial_force(F: SpatialForce) -> np.ndarray:
+    """Drake ``[τ; f]`` → ftdrake ``[Fx, Fy, Fz, Tx, Ty, Tz]``."""
+    return np.concatenate([F.translational(), F.rotational()])
+
+
+def spatial_force_from_wrench(w) -> SpatialForce:
+    """ftdrake ``[Fx, Fy, Fz, Tx, Ty, Tz]`` → Drake ``SpatialForce(τ, f)``."""
+    w = np.asarray(w, dtype=float)
+    return SpatialForce(tau=w[3:], f=w[:3])
+
+
+class ForceTorqueSensor(LeafSystem):
+    """Ideal 6-axis F/T sensor at a weld joint of any MultibodyPlant.
+
+    Input ports:
+      reaction_forces (abstract, list of SpatialForce): connect the plant's
+        ``get_reaction_forces_output_port()``.
+    Output ports:
+      wrench (6): ``[Fx Fy Fz Tx Ty Tz]`` in N, N·m: the load the child (tool) side applies to
+        the sensor, about the weld's child-frame origin So, expressed in that frame S.
+
+    With a discrete plant, the reaction port is sampled: it reads all zeros until the plant has
+    taken its first step, so this sensor reads zero at t = 0.
+    """
+
+    def __init__(self, plant, joint):
+        super().__init__()
+        if not isinstance(joint, WeldJoint):
+            raise TypeError(
+                f"ForceTorqueSensor needs a weld joint; {joint.name()!r} is a "
+                f"{joint.type_name()} joint"
+            )
+        if plant.get_joint(joint.index()).name() != joint.name():
+            raise ValueError(f"joint {joint.name()!r} does not belong to this plant")
+        self._joint_index = int(joint.index())
+        self._num_joints = plant.num_joints()
+        self.DeclareAbstractInputPort(
+            "reaction_forces", AbstractValue.Make([SpatialForce()] * self._num_joints)
+        )
+        self.DeclareVectorOutputPort(
+            "wrench", 6, self._calc_wrench,
+            prerequisites_of_calc={self.input_port_ticket(self.get_input_port().get_index())},
+        )
+
+    def _calc_wrench(self, context, output: BasicVector):
+        forces = self.get_input_port().Eval(context)
+        if len(forces) != self._num_joints:
+            raise ValueError(
+                f"reaction_forces has {len(forces)} entries; the plant has {self._num_joints} "
+                "joints (is the port connected to the right plant?)"
+            )
+        output.SetFromVector(-wrench_from_spatial_force(forces[self._joint_index]))
+
+
+class NoisyForceTorqueSensor(LeafSystem):
+    """Adds a real sensor's imperfections to an ideal wrench, sampled at ``rate_hz``.
+
+    Input ports:
+      wrench_ideal (6): ``[Fx Fy Fz Tx Ty Tz]`` in N, N·m, sensor frame S.
+    Output ports:
+      wrench_measured (6): same frame and units, held between samples.
+      saturated (1): 1.0 while any axis is at its range limit.
+    State (discrete, updated every 1/rate_hz s):
+      low-pass filter (6), drift (6), held reading (6), saturated (1), sample count (1).
+
+    Per sample, in this order: calibration cross-talk ``C·w``; first-order low-pass at
+    ``bandwidth_hz``; + constant bias + random-walk drift + white noise; saturation at
+    ``±range``; quantization to ``resolution``. Noise is a pure function of (seed, sample
+    index), so a run is reproducible from its seed and contexts can be cloned freely.
+    """
+
+    _BLOCK = 4096  # samples of noise drawn at once
+
+    def __init__(self, config: SensorConfig):
+        super().__init__()
+        config.validate()
+        self.config = config
+        spec = config.spec()
+        self.period = 1.0 / spec.rate_hz
+        self._on = bool(config.imperfections)
+        self._range = np.asarray(spec.range, dtype=float)
+        self._resolution = np.asarray(spec.resolution, dtype=float)
+        self._noise_std = np.asarray(spec.noise_std, dtype=float)
+        self._bias = np.asarray(config.bias, dtype=float)
+        self._drift_step = np.asarray(config.drift_std, dtype=float) * np.sqrt(self.period)
+        self._alpha = 1.0 - np.exp(-2 * np.pi * spec.bandwidth_hz * self.period)
+        self.crosstalk_matrix = crosstalk_matrix(
+            config.crosstalk, config.crosstalk_length_m, config.seed
+        )
+        self.DeclareVectorInputPort("wrench_ideal", 6)
+        self.DeclareDiscreteState(20)
+        self.DeclarePeriodicDiscreteUpdateEvent(self.period, 0.0, self._sample)
+        self.DeclareVectorOutputPort(
+            "wrench_measured", 6, lambda c, o: o.SetFromVector(self._x(c)[12:18]),
+            prerequisites_of_calc={self.xd_ticket()},
+        )
+        self.DeclareVectorOutputPort(
+            "saturated", 1, lambda c, o: o.SetFromVector(self._x(c)[18:19]),
+            prerequisites_of_calc={self.xd_ticket()},
+        )
+
+    # -- what the sensor does to a wrench without randomness ---------------------------------
+    def deterministic_reading(self, wrench) -> np.ndarray:
+        """``C·w + bias`` for (N, 6) or (6,) wrenches: the static reading without noise/drift."""
+        w = np.asarray(wrench, dtype=float)
+        if not self._on:
+            return w.copy()
+        return w @ self.crosstalk_matrix.T + self._bias
+
+    # -- the discrete update -----------------------------------------------------------------
+    def _x(self, context):
+        return context.get_discrete_state_vector().value()
+
+    def _sample(self, context, discrete_state):
+        x = self._x(context)
+        w = self.get_input_port().Eval(context)
+        if not self._on:
+            new = np.zeros(20)
+            new[:6] = w
+            new[12:18] = w
+            new[19] = x[19] + 1
+        else:
+            block, row = divmod(int(x[19]), self._BLOCK)
+            noise = _noise_block(self.config.seed, block, self._BLOCK)[row]
+            new = _imperfect_sample(
+                x, w, self.crosstalk_matrix, self._alpha, self._bias, self._noise_std,
+                self._drift_step, self._range, self._resolution, noise,
+            )
+        discrete_state.get_mutable_vector().SetFromVector(new)
+
+
+@numba.njit(cache=True)
+def _imperfect_sample(x, w, C, alpha, bias, noise_std, drift_step, limit, resolution, noise):
+    """One sample of the imperfect sensor; state layout as in NoisyForceTorqueSensor."""
+    new = np.empty(20)
+    first = x[19] == 0
+    saturated = 0.0
+    for i in range(6):
+        wi = 0.0
+        for j in range(6):
+            wi += C[i, j] * w[j]
+        filtered = wi if first else x[i] + alpha * (wi - x[i])
+        drift = x[6 + i] + drift_step[i] * noise[6 + i]
+        reading = filtered + bias[i] + drift + noise_std[i] * noise[i]
+        if abs(reading) >= limit[i]:
+            saturated = 1.0
+            reading = limit[i] if reading > 0 else -limit[i]
+        if resolution[i] > 0:
+            reading = np.round(reading / resolution[i]) * resolution[i]
+        new[i], new[6 + i], new[12 + i] = filtered, drift, reading
+    new[18] = saturated
+    new[19] = x[19] + 1
+    return new
+
+
+@functools.lru_cache(maxsize=4)
+def _noise_block(seed: int, block: int, size: int) -> np.ndarray:
+    """Standard normal draws (size × 12) for samples [block·size, (block+1)·size)."""
+    return np.random.default_rng([seed, block]).standard_normal((size, 12))
+
+
+def crosstalk_matrix(magnitude: float, length_m: float, seed: int) -> np.ndarray:
+    """Calibration matrix ``C = I + E``: small off-diagonal coupling between axes.
+
+    Entries of E are uniform in ±magnitude (dimensionless between like axes); a force leaking
+    into a torque channel is scaled by `length_m` (N·m per N), a torque into a force channel by
+    1/length_m. Drawn from `seed`, so a sensor's calibration error is fixed per seed.
+    """
+    rng = np.random.default_rng([seed, 7919])
+    E = rng.uniform(-magnitude, magnitude, size=(6, 6))
+    np.fill_diagonal(E, 0.0)
+    E[3:, :3] *= length_m
+    E[:3, 3:] /= length_m
+    return np.eye(6) + E

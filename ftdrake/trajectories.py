@@ -1,0 +1,320 @@
+"""Joint trajectories that drive the arm: excitation, the study's reference motion, contact.
+
+Every trajectory is a ``PiecewisePolynomial`` q(t) (rad) with continuous second derivative,
+fitted through samples of an analytic motion at 200 Hz; the diagram takes q̇ and q̈ from its
+derivatives. Every trajectory is checked against the joint position, speed and acceleration
+limits before use (:func:`check_limits`), and free-motion kinds also against collisions with
+the environment (the motion is scaled down until the tool clears the table and wall).
+
+Kinds (``TrajectoryConfig.kind``):
+
+* ``random``    smooth random waypoints (min-jerk between them) around the home pose.
+* ``fourier``   a sum of sines per joint (finite Fourier series, as for dynamic
+                identification), faded in and out so the arm starts and ends at rest.
+* ``reference`` like the study's: slow, the tool moving mostly in a horizontal plane with
+                little Z motion (mostly the S, R and T joints turn).
+* ``z_rich``    the same kind of motion with the pitch joints (L, U, B) moving a lot: the
+                tool's orientation and height change, exciting Fz and Tz.
+* ``contact``   free motion, then the tool tip pressing into the table (or wall) by
+                ``press_depth_m`` for ``press_duration_s``, then leaving and moving freely.
+"""
+
+from __future__ import annotations
+
+import dataclasses as dc
+
+import numpy as np
+from pydrake.multibody.inverse_kinematics import InverseKinematics
+from pydrake.solvers import Solve
+from pydrake.trajectories import PiecewisePolynomial
+
+from .config import TrajectoryConfig
+
+SAMPLE_RATE_HZ = 200.0
+FADE_S = 2.0  # fade-in/out of periodic excitations
+TABLE_TOP_Z = 0.75  # m, environment.sdf
+WALL_FACE_X = 0.95  # m, environment.sdf
+# Tool tip (end of the workpiece's rounded end) in the sensor frame S, ft_sensor_tool.sdf.
+P_STIP = np.array([0.03, 0.0, 0.215])
+
+
+class TrajectoryError(ValueError):
+    """A trajectory violates a limit or cannot be built; the message says where and when."""
+
+
+@dc.dataclass
+class JointLimits:
+    """Per-joint limits (rad, rad/s, rad/s²)."""
+
+    lower: np.ndarray
+    upper: np.ndarray
+    velocity: np.ndarray
+    acceleration: np.ndarray
+    names: list[str]
+
+    @classmethod
+    def from_plant(cls, plant, instance, acceleration_limit: float) -> "JointLimits":
+        joints = [plant.get_joint(j) for j in plant.GetJointIndices(instance)]
+        joints = [j for j in joints if j.num_positions() == 1]
+        return cls(
+            lower=np.array([j.position_lower_limits()[0] for j in joints]),
+            upper=np.array([j.position_upper_limits()[0] for j in joints]),
+            velocity=np.array([j.velocity_upper_limits()[0] for j in joints]),
+            acceleration=np.full(len(joints), float(acceleration_limit)),
+            names=[j.name() for j in joints],
+        )
+
+
+def check_limits(traj: PiecewisePolynomial, limits: JointLimits, dt: float = 0.005) -> None:
+    """Raises TrajectoryError naming the joint, time and value of the first violation."""
+    t = _times(traj, dt)
+    checks = (
+        ("position", traj, limits.lower, limits.upper, "rad"),
+        ("velocity", traj.derivative(1), -limits.velocity, limits.velocity, "rad/s"),
+        ("acceleration", traj.derivative(2), -limits.acceleration, limits.acceleration, "rad/s²"),
+    )
+    for what, f, lo, hi, unit in checks:
+        values = np.hstack([f.value(ti) for ti in t]).T  # (T, n)
+        bad = (values < lo - 1e-9) | (values > hi + 1e-9)
+        if bad.any():
+            k, j = np.argwhere(bad)[0]
+            raise TrajectoryError(
+                f"trajectory exceeds the {what} limit of {limits.names[j]} at t = {t[k]:.3f} s: "
+                f"{values[k, j]:.4f} {unit} not in [{lo[j]:.4f}, {hi[j]:.4f}]"
+            )
+
+
+def make_trajectory(config: TrajectoryConfig, home_q, limits: JointLimits, robot=None):
+    """Builds and checks the trajectory `config.kind` starting and ending at `home_q`.
+
+    `robot` (a :class:`RobotGeometry`) is needed for the contact scenario (inverse kinematics)
+    and used to keep free motion clear of the environment.
+    """
+    config.validate()
+    home_q = np.asarray(home_q, dtype=float)
+    if np.any(home_q < limits.lower) or np.any(home_q > limits.upper):
+        raise TrajectoryError(f"home_q {home_q.round(3).tolist()} is outside the joint limits")
+    if config.kind == "contact":
+        if robot is None:
+            raise TrajectoryError("the contact scenario needs the robot's geometry for IK")
+        traj = _contact(config, home_q, limits, robot)
+    else:
+        traj = _free_motion(config, home_q, limits, robot)
+    check_limits(traj, limits)
+    return traj
+
+
+# ----------------------------------------------------------------------------------------------
+# Free motion.
+# ----------------------------------------------------------------------------------------------
+# Amplitude (rad) per joint S, L, E, U, R, B, T of the periodic kinds.
+_REFERENCE_AMPLITUDE = np.array([0.7, 0.06, 0.25, 0.06, 0.6, 0.1, 0.9])
+_Z_RICH_AMPLITUDE = np.array([0.35, 0.3, 0.3, 0.45, 0.7, 0.55, 0.9])
+_FOURIER_AMPLITUDE = np.array([0.5, 0.25, 0.4, 0.35, 0.6, 0.45, 0.8])
+
+
+def _free_motion(config, home_q, limits, robot):
+    rng = np.random.default_rng(config.seed)
+    n = len(home_q)
+    if config.kind == "random":
+        motion = _random_waypoints(config, home_q, rng)
+    else:
+        amplitude = {
+            "fourier": _FOURIER_AMPLITUDE,
+            "reference": _REFERENCE_AMPLITUDE,
+            "z_rich": _Z_RICH_AMPLITUDE,
+        }[config.kind][:n]
+        base_hz = config.base_frequency_hz * (0.5 if config.kind == "reference" else 1.0)
+        motion = _fourier(config.duration_s, home_q, amplitude, base_hz, config.harmonics, rng)
+    # Shrink the motion about home until it respects every limit and clears the environment.
+    scale = 1.0
+    for _ in range(40):
+        traj = _spline(lambda t: home_q + scale * (motion(t) - home_q), config.duration_s)
+        if _within_limits(traj, limits, config.speed_fraction) and (
+            robot is None or robot.clear_of_environment(traj)
+        ):
+            return traj
+        scale *= 0.85
+    raise TrajectoryError(
+        f"cannot fit a {config.kind} trajectory within the limits around home_q; "
+        "move home_q away from the limits and the environment"
+    )
+
+
+def _fourier(duration, home_q, amplitude, base_hz, harmonics, rng):
+    """q(t) = home + fade(t)·A·Σ_l c_l sin(2π l f t + φ_l), Σ|c_l| = 1 per joint."""
+    n = len(home_q)
+    c = rng.uniform(0.2, 1.0, size=(n, harmonics)) / np.arange(1, harmonics + 1)
+    c /= c.sum(axis=1, keepdims=True)
+    phase = rng.uniform(0, 2 * np.pi, size=(n, harmonics))
+    omega = 2 * np.pi * base_hz * np.arange(1, harmonics + 1)
+
+    def q(t):
+        series = (c * np.sin(omega * t + phase)).sum(axis=1)
+        return home_q + _fade(t, duration) * amplitude * series
+
+    return q
+
+
+def _random_waypoints(config, home_q, rng):
+    """Min-jerk moves between random waypoints, about 2.5 s apart, ending at home."""
+    count = max(2, int(config.duration_s / 2.5))
+    spread = _FOURIER_AMPLITUDE[: len(home_q)]
+    points = [home_q] + [home_q + rng.uniform(-1, 1, len(home_q)) * spread for _ in range(count - 1)]
+    points.append(home_q)
+    times = np.linspace(0.0, config.duration_s, len(points))
+    return _min_jerk_path(times, np.array(points))
+
+
+# ----------------------------------------------------------------------------------------------
+# The contact scenario.
+# ----------------------------------------------------------------------------------------------
+def _contact(config, home_q, limits, robot):
+    hover, press = robot.press_poses(config.contact_target, config.press_depth_m, home_q)
+    approach, descend, ascend, back = 2.0, 1.5, 1.5, 2.0
+    fixed = approach + descend + config.press_duration_s + ascend + back
+    free = config.duration_s - fixed
+    if free < 2.0:
+        raise TrajectoryError(
+            f"trajectory.duration_s: {config.duration_s} s leaves {free:.1f} s of free motion "
+            f"before the press; need at least {fixed + 2.0:.1f} s"
+        )
+    rng = np.random.default_rng(config.seed)
+    wiggle = _fourier(free, home_q, 0.5 * _REFERENCE_AMPLITUDE[: len(home_q)], 0.25, 2, rng)
+    times = np.cumsum([0, free, approach, descend, config.press_duration_s, ascend, back])
+    waypoints = np.array([home_q, home_q, hover, press, press, hover, home_q])
+    path = _min_jerk_path(times[1:], waypoints[1:])
+
+    def q(t):
+        return wiggle(t) if t < free else path(t)
+
+    traj = _spline(q, config.duration_s)
+    if not _within_limits(traj, limits, 1.0):
+        raise TrajectoryError(
+            "the contact scenario exceeds a joint limit; lengthen it or move home_q"
+        )
+    return traj
+
+
+class RobotGeometry:
+    """Kinematic queries on the scene's plant: IK for the press and clearance checks."""
+
+    def __init__(self, diagram, plant, scene_graph, scene):
+        self._diagram = diagram
+        self._plant = plant
+        self._scene = scene
+        self._context = diagram.CreateDefaultContext()
+        self._plant_context = plant.GetMyMutableContextFromRoot(self._context)
+        self._sg_context = scene_graph.GetMyContextFromRoot(self._context)
+        self._query_port = scene_graph.get_query_output_port()
+
+    def tip_position(self, q) -> np.ndarray:
+        """Tool tip position in W (m) at arm configuration q."""
+        self._plant.SetPositions(self._plant_context, self._scene.arm, q)
+        X_WS = self._scene.sensor_frame.CalcPoseInWorld(self._plant_context)
+        return X_WS @ P_STIP
+
+    def clear_of_environment(self, traj, dt: float = 0.05, margin: float = 0.02) -> bool:
+        """True if the robot stays `margin` m away from the environment along `traj`."""
+        for t in _times(traj, dt):
+            self._plant.SetPositions(self._plant_context, self._scene.arm, traj.value(t).ravel())
+            query = self._query_port.Eval(self._sg_context)
+            for pair in query.ComputeSignedDistancePairwiseClosestPoints(margin):
+                if pair.distance < margin:
+                    return False
+        return True
+
+    def press_poses(self, target: str, depth: float, home_q):
+        """Configurations with the tool tip 5 cm off the target surface and `depth` into it."""
+        if target == "table":
+            p_hover = np.array([0.5, 0.0, TABLE_TOP_Z + 0.05])
+            p_press = np.array([0.5, 0.0, TABLE_TOP_Z - depth])
+            axis_W = np.array([0.0, 0.0, -1.0])
+        else:
+            p_hover = np.array([WALL_FACE_X - 0.05, 0.0, 1.2])
+            p_press = np.array([WALL_FACE_X + depth, 0.0, 1.2])
+            axis_W = np.array([1.0, 0.0, 0.0])
+        hover = self._solve_ik(p_hover, axis_W, home_q)
+        press = self._solve_ik(p_press, axis_W, hover)
+        return hover, press
+
+    def _solve_ik(self, p_WTip, axis_W, q_guess):
+        plant = self._plant
+        ik = InverseKinematics(plant, with_joint_limits=True)
+        S = self._scene.sensor_frame
+        ik.AddPositionConstraint(S, P_STIP, plant.world_frame(), p_WTip - 5e-4, p_WTip + 5e-4)
+        ik.AddAngleBetweenVectorsConstraint(S, [0, 0, 1], plant.world_frame(), axis_W, 0, 0.02)
+        arm_q = ik.q()  # the plant's only free joints are the arm's
+        prog = ik.get_mutable_prog()
+        prog.AddQuadraticErrorCost(np.eye(len(q_guess)), np.asarray(q_guess), arm_q)
+        prog.SetInitialGuess(arm_q, q_guess)
+        result = Solve(prog)
+        if not result.is_success():
+            raise TrajectoryError(
+                f"no arm configuration puts the tool tip at {np.round(p_WTip, 3).tolist()} "
+                f"pointing along {axis_W.tolist()}"
+            )
+        return result.GetSolution(arm_q)
+
+
+# ----------------------------------------------------------------------------------------------
+# Helpers.
+# ----------------------------------------------------------------------------------------------
+def _spline(q_of_t, duration: float) -> PiecewisePolynomial:
+    t = np.linspace(0.0, duration, max(4, int(round(duration * SAMPLE_RATE_HZ)) + 1))
+    Q = np.column_stack([q_of_t(ti) for ti in t])
+    zero = np.zeros((Q.shape[0], 1))
+    return PiecewisePolynomial.CubicWithContinuousSecondDerivatives(t, Q, zero, zero)
+
+
+def _min_jerk_path(times, points):
+    """Rest-to-rest min-jerk moves through `points` at `times`."""
+
+    def q(t):
+        k = int(np.clip(np.searchsorted(times, t, side="right") - 1, 0, len(times) - 2))
+        s = np.clip((t - times[k]) / (times[k + 1] - times[k]), 0.0, 1.0)
+        return points[k] + (points[k + 1] - points[k]) * (10 * s**3 - 15 * s**4 + 6 * s**5)
+
+    return q
+
+
+def _fade(t, duration):
+    """0 → 1 over FADE_S at the start and 1 → 0 at the end, C² smooth."""
+    def smoothstep(s):
+        s = np.clip(s, 0.0, 1.0)
+        return 10 * s**3 - 15 * s**4 + 6 * s**5
+    fade = min(FADE_S, duration / 3)
+    return smoothstep(t / fade) * smoothstep((duration - t) / fade)
+
+
+def _within_limits(traj, limits, speed_fraction) -> bool:
+    try:
+        scaled = dc.replace(limits, velocity=limits.velocity * speed_fraction)
+        check_limits(traj, scaled, dt=0.02)
+        return True
+    except TrajectoryError:
+        return False
+
+
+def _times(traj, dt):
+    return np.arange(traj.start_time(), traj.end_time() + 1e-12, dt)
+
+
+def trajectory_extent(traj, robot: RobotGeometry, dt: float = 0.05) -> dict:
+    """Tool-tip min/max/mean per axis along `traj` (m), like the study's Table 3."""
+    tips = np.array([robot.tip_position(traj.value(t).ravel()) for t in _times(traj, dt)])
+    return {
+        axis: {"max": float(tips[:, i].max()), "min": float(tips[:, i].min()),
+               "mean": float(tips[:, i].mean()), "std": float(tips[:, i].std())}
+        for i, axis in enumerate("xyz")
+    }
+
+
+__all__ = [
+    "JointLimits",
+    "RobotGeometry",
+    "TrajectoryError",
+    "check_limits",
+    "make_trajectory",
+    "trajectory_extent",
+]
