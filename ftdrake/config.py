@@ -190,7 +190,7 @@ class TrajectoryConfig:
     """What the arm does. See :mod:`ftdrake.trajectories` for each kind."""
 
     kind: str = "contact"
-    duration_s: float = 12.0
+    duration_s: float = 14.0
     seed: int = 0
     # Fraction of each joint's speed / acceleration limit the excitation may use.
     speed_fraction: float = 0.3

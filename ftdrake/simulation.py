@@ -42,6 +42,7 @@ def run(sim: Simulation, *, progress: bool = True, duration: float | None = None
     duration = sim.trajectory.end_time() if duration is None else float(duration)
     simulator = Simulator(sim.diagram)
     simulator.set_target_realtime_rate(realtime_rate)
+    set_initial_state(sim, simulator.get_mutable_context())
     simulator.Initialize()
     chunk = 0.25  # s between progress updates
     start = time.perf_counter()
@@ -60,6 +61,17 @@ def run(sim: Simulation, *, progress: bool = True, duration: float | None = None
         "real_time_factor": duration / wall if wall > 0 else float("inf"),
         "samples": len(log),
     }
+
+
+def set_initial_state(sim: Simulation, root_context) -> None:
+    """Puts the arm at the trajectory's start, moving with its start velocity."""
+    plant = sim.scene.plant
+    plant_context = plant.GetMyMutableContextFromRoot(root_context)
+    t0 = sim.trajectory.start_time()
+    plant.SetPositions(plant_context, sim.scene.arm, sim.trajectory.value(t0).ravel())
+    plant.SetVelocities(
+        plant_context, sim.scene.arm, sim.trajectory.derivative(1).value(t0).ravel()
+    )
 
 
 def assemble_log(sim: Simulation, root_context) -> pd.DataFrame:

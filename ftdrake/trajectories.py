@@ -170,9 +170,10 @@ def _random_waypoints(config, home_q, rng):
 # The contact scenario.
 # ----------------------------------------------------------------------------------------------
 def _contact(config, home_q, limits, robot):
-    hover, press = robot.press_poses(config.contact_target, config.press_depth_m, home_q)
-    approach, descend, ascend, back = 2.0, 1.5, 1.5, 2.0
-    fixed = approach + descend + config.press_duration_s + ascend + back
+    hover, near, press = robot.press_poses(config.contact_target, config.press_depth_m, home_q)
+    # Fast to 5 cm off the surface, slowly to 5 mm off it, then press: a careful approach.
+    approach, descend, touch, ascend, back = 2.0, 1.0, 1.0, 1.5, 1.5
+    fixed = approach + descend + touch + config.press_duration_s + ascend + back
     free = config.duration_s - fixed
     if free < 2.0:
         raise TrajectoryError(
@@ -180,20 +181,17 @@ def _contact(config, home_q, limits, robot):
             f"before the press; need at least {fixed + 2.0:.1f} s"
         )
     rng = np.random.default_rng(config.seed)
-    wiggle = _fourier(free, home_q, 0.5 * _REFERENCE_AMPLITUDE[: len(home_q)], 0.25, 2, rng)
-    times = np.cumsum([0, free, approach, descend, config.press_duration_s, ascend, back])
-    waypoints = np.array([home_q, home_q, hover, press, press, hover, home_q])
+    # Short free phases fade in and out faster, so their amplitude shrinks with (free / 4 s)².
+    amplitude = 0.5 * _REFERENCE_AMPLITUDE[: len(home_q)] * min(1.0, (free / 4.0) ** 2)
+    wiggle = _fourier(free, home_q, amplitude, 0.25, 2, rng)
+    times = np.cumsum([0, free, approach, descend, touch, config.press_duration_s, ascend, back])
+    waypoints = np.array([home_q, home_q, hover, near, press, press, hover, home_q])
     path = _min_jerk_path(times[1:], waypoints[1:])
 
     def q(t):
         return wiggle(t) if t < free else path(t)
 
-    traj = _spline(q, config.duration_s)
-    if not _within_limits(traj, limits, 1.0):
-        raise TrajectoryError(
-            "the contact scenario exceeds a joint limit; lengthen it or move home_q"
-        )
-    return traj
+    return _spline(q, config.duration_s)  # make_trajectory checks its limits
 
 
 class RobotGeometry:
@@ -225,18 +223,17 @@ class RobotGeometry:
         return True
 
     def press_poses(self, target: str, depth: float, home_q):
-        """Configurations with the tool tip 5 cm off the target surface and `depth` into it."""
+        """Configurations with the tool tip 5 cm and 5 mm off the target surface, and `depth`
+        into it (the controller's stiffness turns that depth into the pressing force)."""
         if target == "table":
-            p_hover = np.array([0.5, 0.0, TABLE_TOP_Z + 0.05])
-            p_press = np.array([0.5, 0.0, TABLE_TOP_Z - depth])
-            axis_W = np.array([0.0, 0.0, -1.0])
+            surface, normal = np.array([0.5, 0.0, TABLE_TOP_Z]), np.array([0.0, 0.0, 1.0])
         else:
-            p_hover = np.array([WALL_FACE_X - 0.05, 0.0, 1.2])
-            p_press = np.array([WALL_FACE_X + depth, 0.0, 1.2])
-            axis_W = np.array([1.0, 0.0, 0.0])
-        hover = self._solve_ik(p_hover, axis_W, home_q)
-        press = self._solve_ik(p_press, axis_W, hover)
-        return hover, press
+            surface, normal = np.array([WALL_FACE_X, 0.0, 1.2]), np.array([-1.0, 0.0, 0.0])
+        axis_W = -normal  # the tool points into the surface
+        hover = self._solve_ik(surface + 0.05 * normal, axis_W, home_q)
+        near = self._solve_ik(surface + 0.005 * normal, axis_W, hover)
+        press = self._solve_ik(surface - depth * normal, axis_W, near)
+        return hover, near, press
 
     def _solve_ik(self, p_WTip, axis_W, q_guess):
         plant = self._plant

@@ -1,0 +1,334 @@
+"""Saving and loading fitted compensators without running code from the file.
+
+A pickle runs whatever code its author chose when it is loaded. A model file here instead
+holds a skops payload (a zip of JSON and numpy arrays) that is rebuilt only from the types
+on an explicit list, inside an envelope that records what the model is::
+
+    FTDRAKE-MODEL\\n                  magic line
+    {"format_version": 1, ...}\\n    manifest: one line of JSON (read it with `head -2`)
+    <payload_bytes bytes>            skops payload
+    <32 bytes>                       SHA-256 of everything above
+
+The manifest names the model class, the joint count, the feature set, target names and
+units, the sensor frame, the training range of every input column, the ftdrake and
+scikit-learn versions, and the payload's size and SHA-256. The checksums catch corruption,
+truncation and careless edits; they are not a signature (anyone can recompute them), which is
+why loading also refuses types off the list and checks every decision tree's node indices.
+
+Every problem with a file raises :class:`ModelFileError` naming it.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import os
+import tempfile
+import warnings
+import zipfile
+from pathlib import Path
+
+import numpy as np
+import sklearn
+import skops.io as sio
+from sklearn.base import BaseEstimator
+from sklearn.utils.validation import check_is_fitted
+
+from .base import Compensator
+from .features import feature_names
+
+MAGIC = b"FTDRAKE-MODEL\n"
+FORMAT_VERSION = 1
+_DIGEST = 32  # bytes of SHA-256
+
+#: Types a model file may contain beyond skops's defaults (builtins, numpy arrays and most
+#: scikit-learn estimators and transformers). A new compensator, or an sklearn type skops
+#: does not trust by default (e.g. a GPR kernel), is registered by adding one line here.
+TRUSTED_TYPES: tuple[str, ...] = (
+    "ftdrake.compensation.forest.RandomForestCompensator",
+    "ftdrake.compensation.svr.SVRCompensator",
+    "ftdrake.compensation.tuning.PerOutputCompensator",
+    # scikit-learn's tree node storage. sklearn follows its node indices without bounds
+    # checks, so every loaded tree is checked by _check_trees before the model is returned.
+    "sklearn.tree._tree.Tree",
+)
+
+
+class ModelFileError(ValueError):
+    """A model file is corrupt, truncated, modified, unsafe, or not the model expected."""
+
+
+# -- saving -------------------------------------------------------------------------------
+def save_model(
+    model: Compensator,
+    path,
+    *,
+    target_names,
+    target_units,
+    sensor_frame: str = "S",
+    extra: dict | None = None,
+) -> Path:
+    """Writes fitted `model` to `path` atomically; returns the path.
+
+    `target_names`/`target_units` give one name and unit per output column (e.g.
+    ``columns.WRENCH_AXES`` and ``columns.WRENCH_UNITS``); `sensor_frame` names the frame the
+    targets are expressed in; `extra` is any JSON-serialisable dict kept in the manifest.
+    """
+    manifest = _manifest(model, target_names, target_units, sensor_frame, extra)
+    payload = sio.dumps(model, compression=zipfile.ZIP_DEFLATED)
+    # Refuse to write a file that load_model would refuse to read.
+    untrusted = _untrusted(payload)
+    if untrusted:
+        raise ValueError(
+            f"model contains types not on TRUSTED_TYPES: {untrusted}; register them in "
+            "ftdrake/compensation/persistence.py"
+        )
+    manifest["payload_bytes"] = len(payload)
+    manifest["payload_sha256"] = hashlib.sha256(payload).hexdigest()
+    path = Path(path)
+    _write_atomically(path, _pack(manifest, payload))
+    return path
+
+
+def _manifest(model, target_names, target_units, sensor_frame, extra) -> dict:
+    if not isinstance(model, Compensator):
+        raise TypeError(f"expected a Compensator; got {type(model).__name__}")
+    check_is_fitted(model)
+    if _qualified_name(type(model)) not in TRUSTED_TYPES:
+        raise ValueError(f"{_qualified_name(type(model))} is not on TRUSTED_TYPES; add it there")
+    target_names = [str(t) for t in target_names]
+    target_units = [str(u) for u in target_units]
+    if not len(target_names) == len(target_units) == model.n_outputs_:
+        raise ValueError(
+            f"model has {model.n_outputs_} outputs but {len(target_names)} target names and "
+            f"{len(target_units)} target units"
+        )
+    inputs = feature_names("q,qd,qdd", model.n_joints_)
+    manifest = {
+        "format_version": FORMAT_VERSION,
+        "model_class": _qualified_name(type(model)),
+        "ftdrake_version": ftdrake_version(),
+        "sklearn_version": sklearn.__version__,
+        "n_joints": int(model.n_joints_),
+        "features": model.features,
+        "n_outputs": int(model.n_outputs_),
+        "target_names": target_names,
+        "target_units": target_units,
+        "sensor_frame": str(sensor_frame),
+        "input_range": {
+            name: [float(lo), float(hi)]
+            for name, lo, hi in zip(inputs, model.input_min_, model.input_max_)
+        },
+        "extra": extra or {},
+    }
+    try:
+        json.dumps(manifest, allow_nan=False)
+    except (TypeError, ValueError) as e:
+        raise ValueError(f"extra must be JSON-serialisable (finite numbers): {e}") from None
+    return manifest
+
+
+def _pack(manifest: dict, payload: bytes) -> bytes:
+    line = json.dumps(manifest, allow_nan=False, separators=(",", ":")).encode() + b"\n"
+    body = MAGIC + line + payload
+    return body + hashlib.sha256(body).digest()
+
+
+def _write_atomically(path: Path, data: bytes) -> None:
+    # A temporary file in the same directory, then os.replace: readers see the old file or
+    # the complete new one, never a partial write.
+    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
+    try:
+        with os.fdopen(fd, "wb") as f:
+            f.write(data)
+            f.flush()
+            os.fsync(f.fileno())
+        os.replace(tmp, path)
+    except BaseException:
+        Path(tmp).unlink(missing_ok=True)
+        raise
+
+
+# -- loading ------------------------------------------------------------------------------
+def read_manifest(path) -> dict:
+    """The manifest of the model file at `path`, after checking the file's integrity."""
+    manifest, _ = _unpack(Path(path).read_bytes(), path)
+    return manifest
+
+
+def load_model(path, *, expect_n_joints: int | None = None, expect_features: str | None = None):
+    """Loads a compensator saved by :func:`save_model`; raises ModelFileError on any problem.
+
+    `expect_n_joints` / `expect_features`: refuse a model made for another robot or feature
+    set. The manifest (target names, units, frame, ranges) is available via
+    :func:`read_manifest`.
+    """
+    manifest, payload = _unpack(Path(path).read_bytes(), path)
+    _check_expectations(manifest, path, expect_n_joints, expect_features)
+    untrusted = _untrusted(payload)
+    if untrusted:
+        raise ModelFileError(f"{path}: refusing to load types not on TRUSTED_TYPES: {untrusted}")
+    if manifest.get("sklearn_version") != sklearn.__version__:
+        warnings.warn(
+            f"{path} was saved with scikit-learn {manifest.get('sklearn_version')}, loading "
+            f"with {sklearn.__version__}; check its predictions",
+            stacklevel=2,
+        )
+    try:
+        model = sio.loads(payload, trusted=list(TRUSTED_TYPES))
+    except Exception as e:  # whatever skops raises, the file is at fault
+        raise ModelFileError(f"{path}: payload could not be rebuilt: {e}") from e
+    _check_model(model, manifest, path)
+    return model
+
+
+def _unpack(data: bytes, path) -> tuple[dict, bytes]:
+    """Verifies the envelope; returns (manifest, payload)."""
+    if not data.startswith(MAGIC):
+        raise ModelFileError(f"{path}: not an ftdrake model file (no {MAGIC[:-1].decode()} line)")
+    manifest, header_end = _parse_manifest(data)
+    if len(data) < len(MAGIC) + _DIGEST or (
+        hashlib.sha256(data[:-_DIGEST]).digest() != data[-_DIGEST:]
+    ):
+        expected = _expected_size(manifest, header_end)
+        if expected is not None and len(data) < expected:
+            raise ModelFileError(f"{path}: truncated ({len(data)} of {expected} bytes)")
+        raise ModelFileError(f"{path}: checksum mismatch; the file is corrupted or was modified")
+    if manifest is None:
+        raise ModelFileError(f"{path}: manifest line is not valid JSON")
+    if manifest.get("format_version") != FORMAT_VERSION:
+        raise ModelFileError(
+            f"{path}: format version {manifest.get('format_version')!r} is not supported "
+            f"(this ftdrake reads {FORMAT_VERSION})"
+        )
+    payload = data[header_end:-_DIGEST]
+    if len(payload) != manifest.get("payload_bytes"):
+        raise ModelFileError(f"{path}: payload is {len(payload)} bytes, manifest says "
+                             f"{manifest.get('payload_bytes')}")
+    if hashlib.sha256(payload).hexdigest() != manifest.get("payload_sha256"):
+        raise ModelFileError(f"{path}: payload SHA-256 does not match the manifest")
+    return manifest, payload
+
+
+def _parse_manifest(data: bytes) -> tuple[dict | None, int]:
+    """(manifest or None if unreadable, offset of the payload)."""
+    end = data.find(b"\n", len(MAGIC))
+    if end < 0:
+        return None, len(data)
+    try:
+        manifest = json.loads(data[len(MAGIC) : end])
+    except (UnicodeDecodeError, json.JSONDecodeError):
+        return None, end + 1
+    return (manifest if isinstance(manifest, dict) else None), end + 1
+
+
+def _expected_size(manifest: dict | None, header_end: int) -> int | None:
+    size = manifest.get("payload_bytes") if manifest else None
+    return header_end + size + _DIGEST if isinstance(size, int) else None
+
+
+def _check_expectations(manifest, path, expect_n_joints, expect_features) -> None:
+    if expect_n_joints is not None and manifest.get("n_joints") != expect_n_joints:
+        raise ModelFileError(
+            f"{path}: model is for {manifest.get('n_joints')} joints, expected {expect_n_joints}"
+        )
+    if expect_features is not None and manifest.get("features") != expect_features:
+        raise ModelFileError(
+            f"{path}: model uses features {manifest.get('features')!r}, "
+            f"expected {expect_features!r}"
+        )
+
+
+def _check_model(model, manifest: dict, path) -> None:
+    """The rebuilt object is the model the manifest describes, and its trees are sound."""
+    name = _qualified_name(type(model))
+    if name != manifest.get("model_class") or not isinstance(model, Compensator):
+        raise ModelFileError(f"{path}: payload holds {name}, manifest says "
+                             f"{manifest.get('model_class')}")
+    for attr, key in (("n_joints_", "n_joints"), ("features", "features"),
+                      ("n_outputs_", "n_outputs")):
+        if getattr(model, attr, None) != manifest.get(key):
+            raise ModelFileError(f"{path}: model's {attr} is {getattr(model, attr, None)!r}, "
+                                 f"manifest says {manifest.get(key)!r}")
+    try:
+        _check_trees(model)
+    except (AttributeError, TypeError, ValueError) as e:
+        raise ModelFileError(f"{path}: unsound decision tree: {e}") from None
+
+
+def _check_trees(model) -> None:
+    """Every tree's node indices stay inside its node array and its owner's input columns.
+
+    A forest hands its trees the X it validated against its own ``n_features_in_``, and a
+    lone tree validates against its own; so each owner's ``n_features_in_`` bounds the split
+    features. Children are always created after their parent, so a child index above its
+    parent's also rules out cycles.
+    """
+    for owner in _estimators_in(model):
+        state = vars(owner)
+        if "tree_" in state:
+            trees = [state["tree_"]]
+        else:
+            trees = [vars(e)["tree_"] for e in state.get("estimators_", ())
+                     if isinstance(e, BaseEstimator) and "tree_" in vars(e)]
+        for tree in trees:
+            _check_tree(tree, int(owner.n_features_in_))
+
+
+def _check_tree(tree, n_features: int) -> None:
+    n = int(tree.node_count)
+    node = np.arange(n)
+    left, right, feature = (np.asarray(a)[:n] for a in
+                            (tree.children_left, tree.children_right, tree.feature))
+    if len(left) != n or len(right) != n or len(feature) != n:
+        raise ValueError("node arrays shorter than node_count")
+    leaf = left == -1
+    split = ~leaf
+    sound = (
+        np.all(right[leaf] == -1)
+        and np.all((left[split] > node[split]) & (left[split] < n))
+        and np.all((right[split] > node[split]) & (right[split] < n))
+        and np.all((feature[split] >= 0) & (feature[split] < n_features))
+    )
+    if not sound:
+        raise ValueError(f"node indices out of range (tree of {n} nodes, {n_features} features)")
+
+
+def _estimators_in(obj):
+    """Every scikit-learn estimator reachable through attributes, lists, tuples and dicts."""
+    if isinstance(obj, BaseEstimator):
+        yield obj
+        children = vars(obj).values()
+    elif isinstance(obj, (list, tuple)):
+        children = obj
+    elif isinstance(obj, dict):
+        children = obj.values()
+    else:
+        return
+    for child in children:
+        yield from _estimators_in(child)
+
+
+def _untrusted(payload: bytes) -> list[str]:
+    try:
+        found = sio.get_untrusted_types(data=payload)
+    except Exception as e:  # an unreadable payload is a bad file, whatever the reason
+        raise ModelFileError(f"payload is not a readable skops archive: {e}") from e
+    return sorted(t for t in found if t not in TRUSTED_TYPES)
+
+
+# -- helpers ------------------------------------------------------------------------------
+def _qualified_name(cls: type) -> str:
+    return f"{cls.__module__}.{cls.__qualname__}"
+
+
+def ftdrake_version() -> str:
+    """The installed ftdrake's version, or ``ftdrake.__version__``, or ``"unknown"``."""
+    from importlib.metadata import PackageNotFoundError, version
+
+    try:
+        return version("ftdrake")
+    except PackageNotFoundError:
+        import ftdrake
+
+        return str(getattr(ftdrake, "__version__", "unknown"))
