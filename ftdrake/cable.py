@@ -1,75 +1,76 @@
-"""A cable/hose dragging on the tool: the configuration-dependent force rigid models miss."""
+"""A cable/hose dragging on the tool: the configuration-dependent force rigid models miss.
+
+Modelled with Drake's own (C++) elements so it costs nothing per step in Python:
+
+* a ``LinearSpringDamper`` from a point on the forearm (`anchor_body`, `p_anchor`) to a
+  point on the tool (`p_SAttach`, given in the sensor frame S): tension
+  ``stiffness · (ℓ − rest_length)`` along the cable, depending on the arm's configuration;
+* the hanging part of the cable's weight, ``weight_n`` pulling the attachment point straight
+  down (a constant world-frame force, fed to the plant's applied-spatial-force port).
+
+The sensor reads both (they act on the tool); a tool-only payload model cannot explain them.
+The spring also pushes if compressed below its rest length, like a stiff hose.
+"""
 
 from __future__ import annotations
 
 import numpy as np
-from pydrake.common.value import AbstractValue
 from pydrake.multibody.math import SpatialForce
 from pydrake.multibody.plant import ExternallyAppliedSpatialForce
-from pydrake.systems.framework import LeafSystem
+from pydrake.multibody.tree import LinearSpringDamper
 
 from .config import CableConfig
 
-_SOFTPLUS_WIDTH = 0.01  # m: the cable goes from slack to taut over about this length
+_DAMPING = 0.5  # N·s/m: a cable is not a perfect spring
 
 
-class CableForce(LeafSystem):
-    """Force of a cable running from a point on the forearm to a point on the tool.
+def attach_point_in_body(sensor_frame, config: CableConfig) -> np.ndarray:
+    """The cable's attachment point, given in S, measured in the tool body's frame."""
+    return sensor_frame.GetFixedPoseInBodyFrame() @ np.asarray(config.p_SAttach, dtype=float)
 
-    Input ports:
-      state (plant q, v): the plant's state output port.
-    Output ports:
-      spatial_forces (abstract, list of ExternallyAppliedSpatialForce): one force on the
-        sensor's child (tool) body at the cable's attachment point, expressed in W. Connect to
-        the plant's ``get_applied_spatial_force_input_port()``.
 
-    The force is a tension ``stiffness · softplus(‖d‖ − rest_length)`` along ``d`` (attachment
-    → anchor) plus ``weight_n`` pulling straight down: it depends on the configuration, so the
-    sensor reads it and a tool-only payload model cannot explain it.
-    """
-
-    def __init__(self, plant, sensor_frame, config: CableConfig):
-        super().__init__()
-        config.validate()
-        self._config = config
-        self._plant = plant
-        self._plant_context = plant.CreateDefaultContext()
-        self._anchor_frame = plant.GetBodyByName(config.anchor_body).body_frame()
-        self._tool_body = sensor_frame.body()
-        # The attachment point, given in S, re-expressed in the tool body's frame.
-        X_BS = sensor_frame.GetFixedPoseInBodyFrame()
-        self._p_BoAttach_B = X_BS @ np.asarray(config.p_SAttach, dtype=float)
-        self._p_AnchorBody = np.asarray(config.p_anchor, dtype=float).reshape(3, 1)
-        self.DeclareVectorInputPort("state", plant.num_multibody_states())
-        self.DeclareAbstractOutputPort(
-            "spatial_forces", lambda: AbstractValue.Make([ExternallyAppliedSpatialForce()]),
-            self._calc, prerequisites_of_calc={self.all_input_ports_ticket()},
+def add_cable_spring(plant, arm, sensor_frame, config: CableConfig) -> LinearSpringDamper:
+    """Adds the cable's spring to `plant` (before Finalize)."""
+    config.validate()
+    if not plant.HasBodyNamed(config.anchor_body, arm):
+        raise ValueError(f"scenario.cable.anchor_body: no body {config.anchor_body!r} in the arm")
+    anchor = plant.GetBodyByName(config.anchor_body, arm)
+    return plant.AddForceElement(
+        LinearSpringDamper(
+            anchor, np.asarray(config.p_anchor, dtype=float),
+            sensor_frame.body(), attach_point_in_body(sensor_frame, config),
+            free_length=config.rest_length, stiffness=config.stiffness, damping=_DAMPING,
         )
+    )
 
-    def force_W(self, q: np.ndarray) -> np.ndarray:
-        """The cable's force on the tool (N, in W) at configuration `q` (full plant q)."""
-        self._plant.SetPositions(self._plant_context, q)
-        world = self._plant.world_frame()
-        p_WAnchor = self._plant.CalcPointsPositions(
-            self._plant_context, self._anchor_frame, self._p_AnchorBody, world
-        ).ravel()
-        p_WAttach = self._plant.CalcPointsPositions(
-            self._plant_context, self._tool_body.body_frame(),
-            self._p_BoAttach_B.reshape(3, 1), world,
-        ).ravel()
-        d = p_WAnchor - p_WAttach
-        length = np.linalg.norm(d)
-        stretch = (length - self._config.rest_length) / _SOFTPLUS_WIDTH
-        tension = self._config.stiffness * _SOFTPLUS_WIDTH * np.logaddexp(0.0, stretch)
-        return tension * d / length + np.array([0.0, 0.0, -self._config.weight_n])
 
-    def _calc(self, context, output):
-        if not self._config.enabled:
-            output.set_value([])
-            return
-        x = self.get_input_port().Eval(context)
-        force = ExternallyAppliedSpatialForce()
-        force.body_index = self._tool_body.index()
-        force.p_BoBq_B = self._p_BoAttach_B
-        force.F_Bq_W = SpatialForce(tau=np.zeros(3), f=self.force_W(x[: self._plant.num_positions()]))
-        output.set_value([force])
+def cable_weight_forces(sensor_frame, config: CableConfig) -> list:
+    """The cable's hanging weight on the tool, for the plant's applied-spatial-force port."""
+    if not config.enabled or config.weight_n == 0:
+        return []
+    force = ExternallyAppliedSpatialForce()
+    force.body_index = sensor_frame.body().index()
+    force.p_BoBq_B = attach_point_in_body(sensor_frame, config)
+    force.F_Bq_W = SpatialForce(tau=np.zeros(3), f=np.array([0.0, 0.0, -config.weight_n]))
+    return [force]
+
+
+def cable_force_W(plant, context, spring: LinearSpringDamper, config: CableConfig):
+    """Total cable force on the tool (N, in W) and its application point (m, in W).
+
+    Computed from kinematics and the spring law, independently of the plant's dynamics.
+    """
+    X_WA = plant.EvalBodyPoseInWorld(context, spring.bodyA())
+    X_WB = plant.EvalBodyPoseInWorld(context, spring.bodyB())
+    p_WP, p_WQ = X_WA @ spring.p_AP(), X_WB @ spring.p_BQ()
+    V_WA = plant.EvalBodySpatialVelocityInWorld(context, spring.bodyA())
+    V_WB = plant.EvalBodySpatialVelocityInWorld(context, spring.bodyB())
+    v_WP = V_WA.Shift(p_WP - X_WA.translation()).translational()
+    v_WQ = V_WB.Shift(p_WQ - X_WB.translation()).translational()
+    d = p_WP - p_WQ
+    length = np.linalg.norm(d)
+    u = d / length
+    tension = spring.stiffness() * (length - spring.free_length()) + spring.damping() * (
+        (v_WP - v_WQ) @ u
+    )
+    return tension * u + np.array([0.0, 0.0, -config.weight_n]), p_WQ

@@ -2,7 +2,7 @@
 
     trajectory ──► inverse-dynamics controller ──► plant ──► reaction forces ──► F/T sensor
         (q_d, v_d, v̇_d)     (nominal tool model)      │                          │ wrench_ideal
-                                                      │◄── cable force           ▼
+                                                      │◄── cable (spring + weight)          ▼
                                                       ├──► contact truth    noisy sensor
                                                       └──► loggers ◄──────── wrench_measured
 
@@ -17,9 +17,14 @@ import dataclasses as dc
 import numpy as np
 from pydrake.systems.controllers import InverseDynamicsController
 from pydrake.systems.framework import Diagram, DiagramBuilder
-from pydrake.systems.primitives import LogVectorOutput, TrajectorySource, VectorLogSink
+from pydrake.systems.primitives import (
+    ConstantValueSource,
+    LogVectorOutput,
+    TrajectorySource,
+    VectorLogSink,
+)
 
-from .cable import CableForce
+from .cable import cable_weight_forces
 from .config import ScenarioConfig
 from .scene import Scene, add_scene, make_control_plant
 from .sensor import ForceTorqueSensor, NoisyForceTorqueSensor
@@ -51,7 +56,6 @@ class Simulation:
     sensor: ForceTorqueSensor
     noisy_sensor: NoisyForceTorqueSensor
     truth: ContactTruth
-    cable: CableForce
     loggers: Loggers
     builder_extras: dict = dc.field(default_factory=dict)
 
@@ -89,9 +93,11 @@ def build_diagram(config: ScenarioConfig, *, trajectory=None, extra=None, meshca
     builder.Connect(vd_source.get_output_port(), controller.get_input_port_desired_acceleration())
     builder.Connect(controller.get_output_port_control(), plant.get_actuation_input_port(scene.arm))
 
-    cable = builder.AddNamedSystem("cable", CableForce(plant, scene.sensor_frame, config.cable))
-    builder.Connect(plant.get_state_output_port(), cable.GetInputPort("state"))
-    builder.Connect(cable.GetOutputPort("spatial_forces"), plant.get_applied_spatial_force_input_port())
+    # The cable's spring is in the plant (scene.cable); its hanging weight is a constant force.
+    weight = plant.get_applied_spatial_force_input_port().Allocate()  # the port's C++ type
+    weight.set_value(cable_weight_forces(scene.sensor_frame, config.cable))
+    cable_weight = builder.AddNamedSystem("cable_weight", ConstantValueSource(weight))
+    builder.Connect(cable_weight.get_output_port(), plant.get_applied_spatial_force_input_port())
 
     sensor = builder.AddNamedSystem("ft_sensor", ForceTorqueSensor(plant, scene.sensor_joint))
     builder.Connect(plant.get_reaction_forces_output_port(), sensor.GetInputPort("reaction_forces"))
@@ -100,7 +106,8 @@ def build_diagram(config: ScenarioConfig, *, trajectory=None, extra=None, meshca
 
     truth = builder.AddNamedSystem(
         "contact_truth",
-        ContactTruth(plant, scene.sensor_frame, scene.tool_bodies, scene.environment_bodies),
+        ContactTruth(plant, scene.sensor_frame, scene.tool_bodies, scene.environment_bodies,
+                     noisy.period),
     )
     builder.Connect(plant.get_contact_results_output_port(), truth.GetInputPort("contact_results"))
     builder.Connect(plant.get_body_poses_output_port(), truth.GetInputPort("body_poses"))
@@ -125,7 +132,7 @@ def build_diagram(config: ScenarioConfig, *, trajectory=None, extra=None, meshca
         AddDefaultVisualization(builder, meshcat=meshcat)
     diagram = builder.Build()
     diagram.set_name("ftdrake")
-    return Simulation(config, diagram, scene, trajectory, sensor, noisy, truth, cable, loggers,
+    return Simulation(config, diagram, scene, trajectory, sensor, noisy, truth, loggers,
                       extras or {})
 
 

@@ -23,10 +23,12 @@ from pydrake.multibody.tree import (
     BodyIndex,
     ModelInstanceIndex,
     SpatialInertia,
+    LinearSpringDamper,
     WeldJoint,
 )
 from pydrake.systems.framework import DiagramBuilder
 
+from .cable import add_cable_spring
 from .config import ConfigError, ModelsConfig, ScenarioConfig
 
 
@@ -83,6 +85,7 @@ class Scene:
     sensor_joint: WeldJoint
     tool_bodies: list[BodyIndex]  # every body rigidly attached on the sensor's tool side
     environment_bodies: list[BodyIndex]
+    cable: LinearSpringDamper | None  # the cable's spring, None when the cable is disabled
 
     @property
     def sensor_frame(self):
@@ -114,13 +117,17 @@ def add_scene(builder: DiagramBuilder, config: ScenarioConfig) -> Scene:
         _frame(plant, models.flange_frame, arm, "flange_frame"),
         _frame(plant, models.tool_mount_frame, tool, "tool_mount_frame"),
     )
+    joint = sensor_weld(plant, models.sensor_joint, tool)
+    cable = (
+        add_cable_spring(plant, arm, joint.frame_on_child(), config.cable)
+        if config.cable.enabled else None
+    )
     plant.Finalize()
     if plant.num_positions(arm) != len(config.home_q):
         raise ConfigError(
             f"scenario.home_q: has {len(config.home_q)} entries but the arm has "
             f"{plant.num_positions(arm)} joints"
         )
-    joint = sensor_weld(plant, models.sensor_joint, tool)
     _filter_robot_self_collisions(plant, scene_graph, [arm, tool])
     return Scene(
         plant=plant,
@@ -131,6 +138,7 @@ def add_scene(builder: DiagramBuilder, config: ScenarioConfig) -> Scene:
         sensor_joint=joint,
         tool_bodies=bodies_outboard_of(plant, joint),
         environment_bodies=list(plant.GetBodyIndices(env)),
+        cable=cable,
     )
 
 

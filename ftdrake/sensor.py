@@ -91,8 +91,8 @@ class NoisyForceTorqueSensor(LeafSystem):
     Output ports:
       wrench_measured (6): same frame and units, held between samples.
       saturated (1): 1.0 while any axis is at its range limit.
-    State (discrete, updated every 1/rate_hz s):
-      low-pass filter (6), drift (6), held reading (6), saturated (1), sample count (1).
+    State (discrete, updated every 1/rate_hz s): low-pass filter and drift (12) with the
+      sample count (1); the held reading (6); the saturation flag (1).
 
     Per sample, in this order: calibration cross-talk ``C·w``; first-order low-pass at
     ``bandwidth_hz``; + constant bias + random-walk drift + white noise; saturation at
@@ -119,16 +119,13 @@ class NoisyForceTorqueSensor(LeafSystem):
             config.crosstalk, config.crosstalk_length_m, config.seed
         )
         self.DeclareVectorInputPort("wrench_ideal", 6)
-        self.DeclareDiscreteState(20)
+        # Three state groups so the outputs are plain state ports (no Python call per read).
+        self._internal = self.DeclareDiscreteState(13)  # filter (6), drift (6), sample count
+        self._reading = self.DeclareDiscreteState(6)
+        self._saturated = self.DeclareDiscreteState(1)
         self.DeclarePeriodicDiscreteUpdateEvent(self.period, 0.0, self._sample)
-        self.DeclareVectorOutputPort(
-            "wrench_measured", 6, lambda c, o: o.SetFromVector(self._x(c)[12:18]),
-            prerequisites_of_calc={self.xd_ticket()},
-        )
-        self.DeclareVectorOutputPort(
-            "saturated", 1, lambda c, o: o.SetFromVector(self._x(c)[18:19]),
-            prerequisites_of_calc={self.xd_ticket()},
-        )
+        self.DeclareStateOutputPort("wrench_measured", self._reading)
+        self.DeclareStateOutputPort("saturated", self._saturated)
 
     # -- what the sensor does to a wrench without randomness ---------------------------------
     def deterministic_reading(self, wrench) -> np.ndarray:
@@ -139,48 +136,49 @@ class NoisyForceTorqueSensor(LeafSystem):
         return w @ self.crosstalk_matrix.T + self._bias
 
     # -- the discrete update -----------------------------------------------------------------
-    def _x(self, context):
-        return context.get_discrete_state_vector().value()
-
     def _sample(self, context, discrete_state):
-        x = self._x(context)
+        internal = context.get_discrete_state(self._internal).value()
         w = self.get_input_port().Eval(context)
-        if not self._on:
-            new = np.zeros(20)
-            new[:6] = w
-            new[12:18] = w
-            new[19] = x[19] + 1
-        else:
-            block, row = divmod(int(x[19]), self._BLOCK)
+        if self._on:
+            block, row = divmod(int(internal[12]), self._BLOCK)
             noise = _noise_block(self.config.seed, block, self._BLOCK)[row]
             new = _imperfect_sample(
-                x, w, self.crosstalk_matrix, self._alpha, self._bias, self._noise_std,
+                internal, w, self.crosstalk_matrix, self._alpha, self._bias, self._noise_std,
                 self._drift_step, self._range, self._resolution, noise,
             )
-        discrete_state.get_mutable_vector().SetFromVector(new)
+        else:
+            new = np.concatenate([w, np.zeros(6), [internal[12] + 1], w, [0.0]])
+        discrete_state.get_mutable_vector(self._internal).SetFromVector(new[:13])
+        discrete_state.get_mutable_vector(self._reading).SetFromVector(new[13:19])
+        discrete_state.get_mutable_vector(self._saturated).SetFromVector(new[19:])
 
 
 @numba.njit(cache=True)
-def _imperfect_sample(x, w, C, alpha, bias, noise_std, drift_step, limit, resolution, noise):
-    """One sample of the imperfect sensor; state layout as in NoisyForceTorqueSensor."""
+def _imperfect_sample(internal, w, C, alpha, bias, noise_std, drift_step, limit, resolution,
+                      noise):
+    """One sample of the imperfect sensor.
+
+    `internal` is [filter (6), drift (6), sample count]; returns [new internal (13),
+    reading (6), saturated (1)].
+    """
     new = np.empty(20)
-    first = x[19] == 0
+    first = internal[12] == 0
     saturated = 0.0
     for i in range(6):
         wi = 0.0
         for j in range(6):
             wi += C[i, j] * w[j]
-        filtered = wi if first else x[i] + alpha * (wi - x[i])
-        drift = x[6 + i] + drift_step[i] * noise[6 + i]
+        filtered = wi if first else internal[i] + alpha * (wi - internal[i])
+        drift = internal[6 + i] + drift_step[i] * noise[6 + i]
         reading = filtered + bias[i] + drift + noise_std[i] * noise[i]
         if abs(reading) >= limit[i]:
             saturated = 1.0
             reading = limit[i] if reading > 0 else -limit[i]
         if resolution[i] > 0:
             reading = np.round(reading / resolution[i]) * resolution[i]
-        new[i], new[6 + i], new[12 + i] = filtered, drift, reading
-    new[18] = saturated
-    new[19] = x[19] + 1
+        new[i], new[6 + i], new[13 + i] = filtered, drift, reading
+    new[12] = internal[12] + 1
+    new[19] = saturated
     return new
 
 

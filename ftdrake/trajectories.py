@@ -108,8 +108,8 @@ def make_trajectory(config: TrajectoryConfig, home_q, limits: JointLimits, robot
 # Free motion.
 # ----------------------------------------------------------------------------------------------
 # Amplitude (rad) per joint S, L, E, U, R, B, T of the periodic kinds.
-_REFERENCE_AMPLITUDE = np.array([0.7, 0.06, 0.25, 0.06, 0.6, 0.1, 0.9])
-_Z_RICH_AMPLITUDE = np.array([0.35, 0.3, 0.3, 0.45, 0.7, 0.55, 0.9])
+_REFERENCE_AMPLITUDE = np.array([0.7, 0.05, 0.12, 0.05, 0.25, 0.06, 0.9])
+_Z_RICH_AMPLITUDE = np.array([0.35, 0.3, 0.3, 0.45, 0.8, 0.6, 0.9])
 _FOURIER_AMPLITUDE = np.array([0.5, 0.25, 0.4, 0.35, 0.6, 0.45, 0.8])
 
 
@@ -206,11 +206,11 @@ class RobotGeometry:
         self._sg_context = scene_graph.GetMyContextFromRoot(self._context)
         self._query_port = scene_graph.get_query_output_port()
 
-    def tip_position(self, q) -> np.ndarray:
-        """Tool tip position in W (m) at arm configuration q."""
+    def tip_and_axis(self, q) -> tuple[np.ndarray, np.ndarray]:
+        """Tool tip position (m) and tool axis z_S, both in W, at arm configuration q."""
         self._plant.SetPositions(self._plant_context, self._scene.arm, q)
         X_WS = self._scene.sensor_frame.CalcPoseInWorld(self._plant_context)
-        return X_WS @ P_STIP
+        return X_WS @ P_STIP, X_WS.rotation().matrix()[:, 2].copy()
 
     def clear_of_environment(self, traj, dt: float = 0.05, margin: float = 0.02) -> bool:
         """True if the robot stays `margin` m away from the environment along `traj`."""
@@ -298,12 +298,17 @@ def _times(traj, dt):
 
 
 def trajectory_extent(traj, robot: RobotGeometry, dt: float = 0.05) -> dict:
-    """Tool-tip min/max/mean per axis along `traj` (m), like the study's Table 3."""
-    tips = np.array([robot.tip_position(traj.value(t).ravel()) for t in _times(traj, dt)])
+    """Tool-tip min/max/mean/std per axis along `traj` (m), like the study's Table 3, plus
+    ``tilt``: the angle (rad) between the tool axis z_S and straight down."""
+    samples = [robot.tip_and_axis(traj.value(t).ravel()) for t in _times(traj, dt)]
+    tips = np.array([tip for tip, _ in samples])
+    tilt = np.arccos(np.clip([-axis[2] for _, axis in samples], -1.0, 1.0))
+    table = {axis: tips[:, i] for i, axis in enumerate("xyz")}
+    table["tilt"] = tilt
     return {
-        axis: {"max": float(tips[:, i].max()), "min": float(tips[:, i].min()),
-               "mean": float(tips[:, i].mean()), "std": float(tips[:, i].std())}
-        for i, axis in enumerate("xyz")
+        name: {"max": float(v.max()), "min": float(v.min()), "mean": float(v.mean()),
+               "std": float(v.std())}
+        for name, v in table.items()
     }
 
 

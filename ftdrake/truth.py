@@ -6,7 +6,7 @@ import numpy as np
 from pydrake.common.value import AbstractValue
 from pydrake.math import RigidTransform
 from pydrake.multibody.plant import ContactResults
-from pydrake.systems.framework import LeafSystem, ValueProducer
+from pydrake.systems.framework import LeafSystem
 
 
 class ContactTruth(LeafSystem):
@@ -15,7 +15,7 @@ class ContactTruth(LeafSystem):
     Input ports:
       contact_results (abstract ContactResults): the plant's contact results port.
       body_poses (abstract, list of RigidTransform): the plant's body poses port (X_WB).
-    Output ports:
+    Output ports (sampled every `period` s, like the sensor):
       wrench_external (6): ``[Fx Fy Fz Tx Ty Tz]`` N, N·m: the sum of contact forces the
         environment applies to the tool, about the sensor origin So, expressed in S. This is
         what the sensor reads on top of the internal wrench.
@@ -25,7 +25,7 @@ class ContactTruth(LeafSystem):
     no contact before the first step.
     """
 
-    def __init__(self, plant, sensor_frame, tool_bodies, environment_bodies):
+    def __init__(self, plant, sensor_frame, tool_bodies, environment_bodies, period: float):
         super().__init__()
         self._tool = {int(b) for b in tool_bodies}
         self._env = {int(b) for b in environment_bodies}
@@ -35,39 +35,25 @@ class ContactTruth(LeafSystem):
         self.DeclareAbstractInputPort(
             "body_poses", AbstractValue.Make([RigidTransform()] * plant.num_bodies())
         )
-        self._cache = self.DeclareCacheEntry(
-            "wrench_and_flag",
-            ValueProducer(allocate=lambda: AbstractValue.Make(np.zeros(7)), calc=self._calc),
-            prerequisites_of_calc={self.all_input_ports_ticket()},
-        ).cache_index()
-        self.DeclareVectorOutputPort(
-            "wrench_external", 6, lambda c, o: o.SetFromVector(self._eval(c)[:6]),
-            prerequisites_of_calc={self.all_input_ports_ticket()},
-        )
-        self.DeclareVectorOutputPort(
-            "contact", 1, lambda c, o: o.SetFromVector(self._eval(c)[6:]),
-            prerequisites_of_calc={self.all_input_ports_ticket()},
-        )
+        # Sampled like the sensor; outputs are state ports, so reading them costs no Python.
+        self._wrench = self.DeclareDiscreteState(6)
+        self._contact = self.DeclareDiscreteState(1)
+        self.DeclarePeriodicDiscreteUpdateEvent(period, 0.0, self._sample)
+        self.DeclareStateOutputPort("wrench_external", self._wrench)
+        self.DeclareStateOutputPort("contact", self._contact)
 
-    def _eval(self, context):
-        return self.get_cache_entry(self._cache).Eval(context)
-
-    def _calc(self, context, value):
+    def _sample(self, context, discrete_state):
         results = self.get_input_port(0).Eval(context)
         contacts = list(self._contacts_on_tool(results))
-        if not contacts:  # the common case; skip evaluating every body's pose
-            value.set_value(np.zeros(7))
-            return
-        X_WS = self.get_input_port(1).Eval(context)[self._S_body] @ self._X_BS
-        f_W, tau_So_W, touching = np.zeros(3), np.zeros(3), False
-        for f_on_tool_W, p_WP in contacts:
-            touching = True
-            f_W += f_on_tool_W
-            tau_So_W += np.cross(p_WP - X_WS.translation(), f_on_tool_W)
-        R_SW = X_WS.rotation().inverse()
-        value.set_value(
-            np.concatenate([R_SW @ f_W, R_SW @ tau_So_W, [1.0 if touching else 0.0]])
-        )
+        wrench = np.zeros(6)
+        if contacts:  # skip evaluating every body's pose in the common, contact-free case
+            X_WS = self.get_input_port(1).Eval(context)[self._S_body] @ self._X_BS
+            R_SW = X_WS.rotation().inverse()
+            for f_on_tool_W, p_WP in contacts:
+                wrench[:3] += R_SW @ f_on_tool_W
+                wrench[3:] += R_SW @ np.cross(p_WP - X_WS.translation(), f_on_tool_W)
+        discrete_state.get_mutable_vector(self._wrench).SetFromVector(wrench)
+        discrete_state.get_mutable_vector(self._contact).SetFromVector([float(bool(contacts))])
 
     def _contacts_on_tool(self, results):
         """Yields (force on the tool in W, application point in W) for tool–environment pairs."""

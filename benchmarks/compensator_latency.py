@@ -1,0 +1,181 @@
+"""Single-row latency of a random-forest compensator: ours vs scikit-learn vs ONNX Runtime.
+
+Trains, on synthetic joint states of a 7-joint arm (21 features [q, q̇, q̈] → 6 wrench axes),
+a 100-tree multi-output forest and a per-axis variant (6 forests of 100 trees, the study's and
+``RandomForestCompensator``'s default), then times one prediction per call, the way a 1 kHz
+control loop calls it:
+
+* ours: ``CompiledForest.predict_one`` (numba),
+* sklearn: ``forest.predict`` on a 1 × 21 array (``np.column_stack`` of 6 for per-axis),
+* onnxruntime: ``InferenceSession.run`` on a 1 × 21 array, one intra-op thread.
+
+Rows are consecutive samples of an unseen stretch of trajectory at 1 kHz (successive rows take
+nearly the same paths through the trees, as in a control loop), and for ours also random
+rows (cold paths, the worst case). Medians in µs; on a shared machine only the ratios travel.
+
+    python benchmarks/compensator_latency.py
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import platform
+import tempfile
+import time
+
+import numba
+import numpy as np
+import onnxruntime
+import sklearn
+from sklearn.ensemble import RandomForestRegressor
+
+from ftdrake.compensation.fast import CompiledForest
+from ftdrake.compensation.onnx_export import export_onnx
+
+N_JOINTS, N_OUTPUTS, N_TREES, TRAIN_ROWS = 7, 6, 100, 3000
+
+
+def excitation(t: np.ndarray, seed: int = 0) -> np.ndarray:
+    """[q, q̇, q̈] (len(t), 21) of a 5-harmonic Fourier trajectory per joint (base 0.05 Hz)."""
+    rng = np.random.default_rng(seed)
+    harmonics = np.arange(1, 6)
+    w = 2 * np.pi * 0.05 * harmonics  # rad/s
+    a, b = rng.normal(scale=0.8 / harmonics, size=(2, N_JOINTS, len(harmonics)))
+    s, c = np.sin(np.outer(t, w)), np.cos(np.outer(t, w))  # (T, harmonics)
+    q = s @ a.T + c @ b.T
+    qd = (c * w) @ a.T - (s * w) @ b.T
+    qdd = -(s * w**2) @ a.T - (c * w**2) @ b.T
+    return np.hstack([q, qd, qdd])
+
+
+def internal_wrench(X: np.ndarray, seed: int = 1) -> np.ndarray:
+    """A smooth stand-in (N, 6) for the gravity and inertia of a tool seen by the sensor."""
+    rng = np.random.default_rng(seed)
+    q, qd, qdd = np.split(X, 3, axis=1)
+    angles = np.cumsum(q, axis=1)  # orientation-like angles along the chain
+    W = rng.normal(size=(4, N_JOINTS, N_OUTPUTS))
+    return 5 * np.sin(angles) @ W[0] + 3 * np.cos(angles) @ W[1] + 0.3 * qd**2 @ W[2] + qdd @ W[3]
+
+
+def median_us(call, rows: np.ndarray, repeats: int) -> float:
+    """Median wall time of call(row) in µs, cycling through rows after a few warm-up calls."""
+    for row in rows[:5]:
+        call(row)
+    times = np.empty(repeats)
+    for i in range(repeats):
+        row = rows[i % len(rows)]
+        start = time.perf_counter_ns()
+        call(row)
+        times[i] = time.perf_counter_ns() - start
+    return float(np.median(times)) / 1e3
+
+
+def batch_ms(call, X: np.ndarray) -> float:
+    """Best of 3 wall times of call(X) in ms."""
+    best = np.inf
+    for _ in range(3):
+        start = time.perf_counter()
+        call(X)
+        best = min(best, time.perf_counter() - start)
+    return best * 1e3
+
+
+def machine() -> dict:
+    cpu = platform.processor()
+    try:
+        with open("/proc/cpuinfo") as f:
+            cpu = next(line.split(":", 1)[1].strip() for line in f if "model name" in line)
+    except (OSError, StopIteration):
+        pass
+    return {
+        "cpu": cpu, "cores": os.cpu_count(), "python": platform.python_version(),
+        "numpy": np.__version__, "sklearn": sklearn.__version__, "numba": numba.__version__,
+        "onnxruntime": onnxruntime.__version__,
+    }
+
+
+def main() -> None:
+    X_train = excitation(np.linspace(0, 60, TRAIN_ROWS))  # 50 Hz
+    Y_train = internal_wrench(X_train)
+    smooth = excitation(70 + np.arange(2000) * 1e-3)  # unseen, 1 kHz
+    random_rows = np.random.default_rng(2).uniform(X_train.min(0), X_train.max(0), (2000, 21))
+
+    def forest(y):
+        # min_samples_leaf=2 is RandomForestCompensator's default; predict single-threaded.
+        f = RandomForestRegressor(N_TREES, min_samples_leaf=2, random_state=0, n_jobs=2)
+        return f.fit(X_train, y).set_params(n_jobs=None)
+
+    start = time.perf_counter()
+    variants = {
+        "multi-output": [forest(Y_train)],
+        "per-axis": [forest(Y_train[:, j]) for j in range(N_OUTPUTS)],
+    }
+    print(f"trained in {time.perf_counter() - start:.0f} s on {TRAIN_ROWS} rows")
+
+    options = onnxruntime.SessionOptions()
+    options.intra_op_num_threads = 1
+    results = {}
+    with tempfile.TemporaryDirectory() as tmp:
+        for name, forests in variants.items():
+            ours = CompiledForest(forests, "q,qd,qdd")
+            path = export_onnx(forests, os.path.join(tmp, "forest.onnx"), N_JOINTS, "q,qd,qdd")
+            session = onnxruntime.InferenceSession(str(path), options)
+            out = np.empty(N_OUTPUTS)
+            calls = {
+                "ours": lambda x, ours=ours, out=out: ours.predict_one(x, out),
+                "sklearn": lambda x, fs=forests: np.column_stack(
+                    [f.predict(x[None, :]) for f in fs]
+                ),
+                "onnxruntime": lambda x, s=session: s.run(None, {"X": np.atleast_2d(x)})[0],
+            }
+            reference = np.column_stack([f.predict(smooth) for f in forests])
+            assert np.allclose(ours.predict(smooth), reference, rtol=0, atol=1e-9)
+            assert np.allclose(calls["onnxruntime"](smooth), reference, rtol=0, atol=1e-9)
+            depth = np.mean([e.tree_.max_depth for f in forests for e in f.estimators_])
+            results[name] = {
+                "trees": sum(len(f.estimators_) for f in forests),
+                "mean_depth": round(float(depth), 1),
+                "ours_us": median_us(calls["ours"], smooth, 20000),
+                "sklearn_us": median_us(calls["sklearn"], smooth, 200),
+                "onnxruntime_us": median_us(calls["onnxruntime"], smooth, 5000),
+                "ours_random_rows_us": median_us(calls["ours"], random_rows, 20000),
+                "batch_1000_ms": {
+                    "ours": batch_ms(ours.predict, smooth[:1000]),
+                    "sklearn": batch_ms(lambda X, fs=forests: [f.predict(X) for f in fs],
+                                        smooth[:1000]),
+                    "onnxruntime": batch_ms(calls["onnxruntime"], smooth[:1000]),
+                },
+            }
+
+    print(f"\nsingle-row latency, median µs ({N_TREES} trees per forest, 21 features, "
+          f"{N_OUTPUTS} outputs, rows of a 1 kHz trajectory)")
+    print(f"{'variant':<14}{'trees':>6}{'depth':>7}{'ours':>9}{'sklearn':>10}{'onnxrt':>9}"
+          f"{'sk/ours':>9}{'ort/ours':>9}{'ours, random rows':>19}")
+    for name, r in results.items():
+        print(f"{name:<14}{r['trees']:>6}{r['mean_depth']:>7}{r['ours_us']:>9.1f}"
+              f"{r['sklearn_us']:>10.0f}{r['onnxruntime_us']:>9.1f}"
+              f"{r['sklearn_us'] / r['ours_us']:>9.0f}{r['onnxruntime_us'] / r['ours_us']:>9.1f}"
+              f"{r['ours_random_rows_us']:>19.1f}")
+    print("\nbatch of 1000 rows, best of 3, ms")
+    for name, r in results.items():
+        b = r["batch_1000_ms"]
+        print(f"{name:<14} ours {b['ours']:.1f}  sklearn {b['sklearn']:.1f}  "
+              f"onnxruntime {b['onnxruntime']:.1f}")
+    multi = results["multi-output"]
+    print(json.dumps({
+        "ours_us": round(multi["ours_us"], 2),
+        "sklearn_us": round(multi["sklearn_us"], 1),
+        "onnxruntime_us": round(multi["onnxruntime_us"], 2),
+        "ours_random_rows_us": round(multi["ours_random_rows_us"], 2),
+        "per_axis": {k: round(v, 2) for k, v in results["per-axis"].items()
+                     if k.endswith("_us")},
+        "batch_1000_ms": {name: {k: round(v, 2) for k, v in r["batch_1000_ms"].items()}
+                          for name, r in results.items()},
+        "n_trees": N_TREES, "n_features": 3 * N_JOINTS, "n_outputs": N_OUTPUTS,
+        "train_rows": TRAIN_ROWS, "machine": machine(),
+    }))
+
+
+if __name__ == "__main__":
+    main()

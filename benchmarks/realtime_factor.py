@@ -1,0 +1,95 @@
+"""Real-time factor of the free-motion diagram at 1 kHz (goal: >= 10x real time on 2 cores).
+
+Prints a small table and one JSON line. In the same run it also times the diagram without
+ftdrake's Python systems (plant + controller + loggers only), so the cost of the sensor,
+cable and contact-truth systems shows as a ratio that does not depend on the machine's load.
+
+    python benchmarks/realtime_factor.py [--duration 10] [--repeats 3]
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import platform
+import time
+
+import numpy as np
+from pydrake.systems.analysis import Simulator
+from pydrake.systems.controllers import InverseDynamicsController
+from pydrake.systems.framework import DiagramBuilder
+from pydrake.systems.primitives import TrajectorySource
+
+from ftdrake import ScenarioConfig, build_diagram
+from ftdrake.diagram import plan_trajectory
+from ftdrake.scene import add_scene, make_control_plant
+from ftdrake.simulation import set_initial_state
+
+
+def time_full(config, trajectory, duration):
+    sim = build_diagram(config, trajectory=trajectory)
+    simulator = Simulator(sim.diagram)
+    set_initial_state(sim, simulator.get_mutable_context())
+    simulator.Initialize()
+    simulator.AdvanceTo(0.05)  # warm-up (numba, caches)
+    start = time.perf_counter()
+    simulator.AdvanceTo(0.05 + duration)
+    return duration / (time.perf_counter() - start)
+
+
+def time_plant_and_controller(config, trajectory, duration):
+    builder = DiagramBuilder()
+    scene = add_scene(builder, config)
+    plant = scene.plant
+    q = builder.AddSystem(TrajectorySource(trajectory, output_derivative_order=1))
+    vd = builder.AddSystem(TrajectorySource(trajectory.derivative(2)))
+    n = plant.num_positions(scene.arm)
+    c = config.controller
+    controller = builder.AddSystem(InverseDynamicsController(
+        make_control_plant(config, scene), np.full(n, c.kp), np.full(n, c.ki), np.full(n, c.kd),
+        True))
+    builder.Connect(plant.get_state_output_port(scene.arm), controller.get_input_port_estimated_state())
+    builder.Connect(q.get_output_port(), controller.get_input_port_desired_state())
+    builder.Connect(vd.get_output_port(), controller.get_input_port_desired_acceleration())
+    builder.Connect(controller.get_output_port_control(), plant.get_actuation_input_port(scene.arm))
+    simulator = Simulator(builder.Build())
+    plant.SetPositions(plant.GetMyMutableContextFromRoot(simulator.get_mutable_context()),
+                       scene.arm, trajectory.value(0).ravel())
+    simulator.Initialize()
+    start = time.perf_counter()
+    simulator.AdvanceTo(duration)
+    return duration / (time.perf_counter() - start)
+
+
+def main():
+    parser = argparse.ArgumentParser(description=__doc__)
+    parser.add_argument("--duration", type=float, default=10.0)
+    parser.add_argument("--repeats", type=int, default=3)
+    args = parser.parse_args()
+    config = ScenarioConfig()
+    config.trajectory.kind = "fourier"
+    config.trajectory.duration_s = args.duration + 1.0
+    trajectory = plan_trajectory(config)
+    full = [time_full(config, trajectory, args.duration) for _ in range(args.repeats)]
+    core = [time_plant_and_controller(config, trajectory, args.duration)
+            for _ in range(args.repeats)]
+    result = {
+        "benchmark": "free_motion_realtime_factor",
+        "plant_rate_hz": 1.0 / config.time_step,
+        "sensor_rate_hz": config.sensor.spec().rate_hz,
+        "simulated_s": args.duration,
+        "rtf_full_median": float(np.median(full)),
+        "rtf_plant_controller_only_median": float(np.median(core)),
+        "python_systems_cost_ratio": float(np.median(core) / np.median(full)),
+        "goal_rtf": 10.0,
+        "machine": f"{platform.machine()} {os.cpu_count()} cpus, {platform.python_version()}",
+    }
+    print(f"{'diagram':<36}{'real-time factor (median)':>28}")
+    print(f"{'full (sensor, cable, truth, loggers)':<36}{result['rtf_full_median']:>28.1f}")
+    print(f"{'plant + controller only':<36}{result['rtf_plant_controller_only_median']:>28.1f}")
+    print(json.dumps(result))
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,93 @@
+"""Kinematics of the sensor frame and the Newton–Euler wrench of a rigid tool.
+
+Independent of the plant's reaction-forces port: this is what the tests check the sensor
+against, and what the physics payload compensator is built on.
+
+Notation (Drake monogram): S is the sensor frame, So its origin, Scm the tool's centre of mass.
+Everything is expressed in S unless the name says otherwise.
+"""
+
+from __future__ import annotations
+
+import dataclasses as dc
+
+import numpy as np
+
+GRAVITY_W = np.array([0.0, 0.0, -9.81])  # m/s², Drake's default
+
+
+@dc.dataclass
+class SensorKinematics:
+    """Motion of frame S at N samples, expressed in S (arrays of shape (N, 3) / (N, 3, 3))."""
+
+    R_WS: np.ndarray  # (N, 3, 3)
+    w_WS_S: np.ndarray  # angular velocity, rad/s
+    alpha_WS_S: np.ndarray  # angular acceleration, rad/s²
+    a_WSo_S: np.ndarray  # translational acceleration of So, m/s²
+    g_S: np.ndarray  # gravity, m/s²
+
+
+def sensor_kinematics(plant, context, frame_S, q, v, vdot, instance=None) -> SensorKinematics:
+    """Evaluates S's motion for rows of (q, v, v̇) of `instance` (the arm) in `plant`.
+
+    Uses ``CalcSpatialAccelerationsFromVdot`` with the given v̇, so it needs no forces.
+    """
+    q, v, vdot = (np.atleast_2d(np.asarray(a, dtype=float)) for a in (q, v, vdot))
+    n = len(q)
+    out = {k: np.empty((n, 3)) for k in ("w", "alpha", "a", "g")}
+    R = np.empty((n, 3, 3))
+    body = frame_S.body()
+    X_BS = frame_S.GetFixedPoseInBodyFrame()
+    full_vdot = np.zeros(plant.num_velocities())
+    for k in range(n):
+        if instance is None:
+            plant.SetPositions(context, q[k])
+            plant.SetVelocities(context, v[k])
+            full_vdot[:] = vdot[k]
+        else:
+            plant.SetPositions(context, instance, q[k])
+            plant.SetVelocities(context, instance, v[k])
+            plant.SetVelocitiesInArray(instance, vdot[k], full_vdot)
+        X_WB = plant.EvalBodyPoseInWorld(context, body)
+        V_WB = plant.EvalBodySpatialVelocityInWorld(context, body)
+        A_WB = plant.CalcSpatialAccelerationsFromVdot(context, full_vdot)[int(body.index())]
+        p_BoSo_W = X_WB.rotation() @ X_BS.translation()
+        A_WSo = A_WB.Shift(p_BoSo_W, V_WB.rotational())
+        R_WS = X_WB.rotation() @ X_BS.rotation()
+        R_SW = R_WS.inverse()
+        R[k] = R_WS.matrix()
+        out["w"][k] = R_SW @ V_WB.rotational()
+        out["alpha"][k] = R_SW @ A_WSo.rotational()
+        out["a"][k] = R_SW @ A_WSo.translational()
+        out["g"][k] = R_SW @ GRAVITY_W
+    return SensorKinematics(R, out["w"], out["alpha"], out["a"], out["g"])
+
+
+def newton_euler_wrench(mass, p_SoScm_S, I_Scm_S, kin: SensorKinematics) -> np.ndarray:
+    """The wrench (N × 6, ``[F; T]`` about So in S) a rigid tool applies to the sensor.
+
+    It is the tool's weight minus its inertial force: ``F = m (g − a_Scm)``,
+    ``T = p_SoScm × F − (I α + ω × I ω)``, with ``a_Scm = a_So + α × p + ω × (ω × p)``.
+    """
+    p = np.asarray(p_SoScm_S, dtype=float)
+    I = np.asarray(I_Scm_S, dtype=float)
+    w, alpha = kin.w_WS_S, kin.alpha_WS_S
+    a_Scm = kin.a_WSo_S + np.cross(alpha, p) + np.cross(w, np.cross(w, p))
+    force = mass * (kin.g_S - a_Scm)
+    torque = np.cross(p, force) - (alpha @ I.T + np.cross(w, w @ I.T))
+    return np.hstack([force, torque])
+
+
+def tool_inertia(plant, context, frame_S, bodies) -> tuple[float, np.ndarray, np.ndarray]:
+    """(mass, p_SoScm_S, I_Scm_S) of the rigid assembly `bodies`, from the plant's model."""
+    M_SSo_S = plant.CalcSpatialInertia(context, frame_S, bodies)
+    p = M_SSo_S.get_com()
+    I_Scm = M_SSo_S.Shift(p).CalcRotationalInertia().CopyToFullMatrix3()
+    return M_SSo_S.get_mass(), p, I_Scm
+
+
+def wrench_about(point_So_S, force_S, p_SoP_S) -> np.ndarray:
+    """Wrench about So of a force applied at P (all in S); `point_So_S` kept for clarity."""
+    del point_So_S
+    f = np.asarray(force_S, dtype=float)
+    return np.concatenate([f, np.cross(p_SoP_S, f)], axis=-1)

@@ -1,0 +1,131 @@
+"""NoisyForceTorqueSensor: its statistics, quantization, saturation and rate match its config."""
+
+import numpy as np
+import pytest
+from pydrake.systems.analysis import Simulator
+from pydrake.systems.framework import DiagramBuilder
+from pydrake.systems.primitives import ConstantVectorSource, LogVectorOutput, TrajectorySource
+from pydrake.trajectories import PiecewisePolynomial
+
+from ftdrake import ConfigError, NoisyForceTorqueSensor, SensorConfig
+
+W = np.array([3.0, -2.0, 15.0, 0.2, -0.1, 0.05])
+ZERO6 = [0.0] * 6
+
+
+def run_sensor(config, source_system, duration, log_period=None):
+    builder = DiagramBuilder()
+    source = builder.AddSystem(source_system)
+    dut = builder.AddSystem(NoisyForceTorqueSensor(config))
+    builder.Connect(source.get_output_port(), dut.GetInputPort("wrench_ideal"))
+    period = log_period or dut.period
+    measured = LogVectorOutput(dut.GetOutputPort("wrench_measured"), builder, period)
+    saturated = LogVectorOutput(dut.GetOutputPort("saturated"), builder, period)
+    simulator = Simulator(builder.Build())
+    simulator.AdvanceTo(duration)
+    context = simulator.get_context()
+    t = measured.FindLog(context).sample_times()
+    keep = t > 0  # the first sample is taken at t = 0 but logged before it lands
+    return (t[keep], measured.FindLog(context).data().T[keep],
+            saturated.FindLog(context).data().T[keep, 0], dut)
+
+
+def test_mean_and_std_match_config():
+    config = SensorConfig(drift_std=ZERO6, seed=3)
+    _, y, _, dut = run_sensor(config, ConstantVectorSource(W), 5.0)
+    spec = config.spec()
+    sigma = np.asarray(spec.noise_std)
+    res = np.asarray(spec.resolution)
+    expected_std = np.sqrt(sigma**2 + res**2 / 12)  # white noise + quantization
+    n = len(y)
+    assert n == pytest.approx(5000, abs=2)
+    mean_error = np.abs(y.mean(axis=0) - dut.deterministic_reading(W))
+    assert np.all(mean_error <= 5 * expected_std / np.sqrt(n)), mean_error
+    np.testing.assert_allclose(y.std(axis=0), expected_std, rtol=0.08)
+
+
+def test_readings_are_quantized_to_resolution():
+    config = SensorConfig(seed=1)
+    _, y, _, _ = run_sensor(config, ConstantVectorSource(W), 0.5)
+    res = np.asarray(config.spec().resolution)
+    steps = y / res
+    np.testing.assert_allclose(steps, np.round(steps), atol=1e-6)
+    assert np.all(np.ptp(y, axis=0) > 0)  # noise really moves the quantized reading
+
+
+def test_saturation_clips_and_flags():
+    config = SensorConfig(preset="ati_gamma", seed=0)
+    big = W.copy()
+    big[2] = 1000.0  # beyond the Gamma's ±400 N in Fz
+    _, y, sat, _ = run_sensor(config, ConstantVectorSource(big), 0.1)
+    assert np.all(sat == 1.0)
+    np.testing.assert_allclose(y[:, 2], 400.0)
+    _, _, sat_ok, _ = run_sensor(config, ConstantVectorSource(W), 0.1)
+    assert np.all(sat_ok == 0.0)
+
+
+def test_output_is_sampled_at_rate_and_held():
+    config = SensorConfig(preset="robotiq_ft300", seed=2)
+    assert config.spec().rate_hz == 100.0
+    t, y, _, _ = run_sensor(config, ConstantVectorSource(W), 1.0, log_period=1e-3)
+    changes = np.flatnonzero(np.any(np.diff(y, axis=0) != 0, axis=1))
+    assert 90 <= len(changes) <= 100  # one new reading per 10 ms
+    np.testing.assert_allclose(np.diff(t[changes + 1]), 0.01, atol=1e-9)
+
+
+def test_same_seed_reproduces_other_seed_differs():
+    a = run_sensor(SensorConfig(seed=5), ConstantVectorSource(W), 0.3)[1]
+    b = run_sensor(SensorConfig(seed=5), ConstantVectorSource(W), 0.3)[1]
+    c = run_sensor(SensorConfig(seed=6), ConstantVectorSource(W), 0.3)[1]
+    np.testing.assert_array_equal(a, b)
+    assert np.any(a != c)
+
+
+def test_drift_is_a_random_walk_of_configured_rate():
+    drift = [0.05, 0.05, 0.05, 1e-3, 1e-3, 1e-3]
+    config = SensorConfig(noise_std=ZERO6, resolution=ZERO6, drift_std=drift, crosstalk=0.0,
+                          bias=ZERO6, seed=4)
+    _, y, _, dut = run_sensor(config, ConstantVectorSource(np.zeros(6)), 4.0)
+    steps = np.diff(y, axis=0)
+    np.testing.assert_allclose(steps.std(axis=0), np.asarray(drift) * np.sqrt(dut.period),
+                               rtol=0.08)
+
+
+def test_bandwidth_first_order_step_response():
+    fc = 10.0
+    config = SensorConfig(noise_std=ZERO6, resolution=ZERO6, drift_std=ZERO6, crosstalk=0.0,
+                          bias=ZERO6, bandwidth_hz=fc)
+    step = PiecewisePolynomial.ZeroOrderHold([0.0, 0.5, 2.0],
+                                             np.column_stack([np.zeros(6), W, W]))
+    t, y, _, _ = run_sensor(config, TrajectorySource(step), 1.5)
+    tau = 1.0 / (2 * np.pi * fc)
+    k = np.argmin(np.abs(t - (0.5 + tau)))
+    np.testing.assert_allclose(y[k] / W, 1 - np.exp(-1), atol=0.04)
+    np.testing.assert_allclose(y[-1], W, rtol=1e-6)
+
+
+def test_crosstalk_couples_axes():
+    config = SensorConfig(noise_std=ZERO6, resolution=ZERO6, drift_std=ZERO6, bias=ZERO6,
+                          crosstalk=0.02)
+    force_only = np.array([0.0, 0.0, 20.0, 0.0, 0.0, 0.0])
+    _, y, _, dut = run_sensor(config, ConstantVectorSource(force_only), 0.05)
+    C = dut.crosstalk_matrix
+    assert np.all(np.abs(np.diag(C) - 1) == 0) and np.abs(C - np.eye(6)).max() > 0
+    np.testing.assert_allclose(y[-1], C @ force_only, rtol=1e-9)
+    assert np.abs(y[-1, [0, 1, 3, 4, 5]]).max() > 0.01  # leaks into other axes
+
+
+@pytest.mark.parametrize(
+    "field, value, message",
+    [
+        ("noise_std", [-0.1] + [0.0] * 5, "noise_std"),
+        ("range", [0.0] * 6, "range"),
+        ("bias", [0.0] * 5, "bias: must have 6 entries"),
+        ("preset", "nope", "unknown preset"),
+        ("rate_hz", -5.0, "rate_hz"),
+    ],
+)
+def test_bad_sensor_config_names_the_field(field, value, message):
+    config = SensorConfig(**{field: value})
+    with pytest.raises(ConfigError, match=message):
+        NoisyForceTorqueSensor(config)
