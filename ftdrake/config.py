@@ -97,7 +97,8 @@ class SensorConfig:
     # Set False to get an ideal sensor (no noise, bias, drift, cross-talk, quantization, filter,
     # saturation); the sample rate still applies.
     imperfections: bool = True
-    seed: int = 0
+    seed: int = 0  # noise and drift of this run
+    calibration_seed: int = 0  # the cross-talk matrix: a property of the physical sensor
 
     def spec(self) -> SensorSpec:
         """The resolved numbers: preset values with this config's overrides applied."""

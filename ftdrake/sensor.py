@@ -116,7 +116,7 @@ class NoisyForceTorqueSensor(LeafSystem):
         self._drift_step = np.asarray(config.drift_std, dtype=float) * np.sqrt(self.period)
         self._alpha = 1.0 - np.exp(-2 * np.pi * spec.bandwidth_hz * self.period)
         self.crosstalk_matrix = crosstalk_matrix(
-            config.crosstalk, config.crosstalk_length_m, config.seed
+            config.crosstalk, config.crosstalk_length_m, config.calibration_seed
         )
         self.DeclareVectorInputPort("wrench_ideal", 6)
         # Three state groups so the outputs are plain state ports (no Python call per read).
