@@ -45,14 +45,19 @@ class _GraphBuilder:
     def __init__(self):
         self.nodes: list[onnx.NodeProto] = []
         self.initializers: list[onnx.TensorProto] = []
+        self._names = 0
+
+    def _unique(self, name: str) -> str:
+        self._names += 1
+        return f"{name}_{self._names}"
 
     def const(self, array, name: str) -> str:
-        name = f"{name}_{len(self.initializers)}"
+        name = self._unique(name)
         self.initializers.append(numpy_helper.from_array(np.asarray(array), name))
         return name
 
     def op(self, op_type: str, *inputs: str, output: str | None = None, **attributes) -> str:
-        output = output or f"{op_type.lower()}_{len(self.nodes)}"
+        output = output or self._unique(op_type.lower())
         domain = "ai.onnx.ml" if op_type == "TreeEnsemble" else ""
         self.nodes.append(
             helper.make_node(op_type, list(inputs), [output], domain=domain, **attributes)
@@ -68,9 +73,8 @@ def _forest_graph(g: _GraphBuilder, Z: str, flat: FlatForest) -> str:
     lone = np.flatnonzero(trees["root"] < 0)
     roots = trees["root"].astype(np.int64)
     roots[lone] = len(nodes) + np.arange(len(lone))
-    lone_leaf = -1 - trees["root"][lone].astype(np.int64)
-    left = np.concatenate([nodes["left"], -1 - lone_leaf])
-    right = np.concatenate([nodes["right"], -1 - lone_leaf])
+    left = np.concatenate([nodes["left"], trees["root"][lone]])  # child indices, as in fast.py
+    right = np.concatenate([nodes["right"], trees["root"][lone]])
     # Leaves of tree t are numbered first_leaf[t] .. first_leaf[t+1]-1.
     leaf_tree = np.repeat(np.arange(n_trees), np.diff(np.append(trees["first_leaf"], n_leaves)))
     leaf_index = g.op(
@@ -101,7 +105,7 @@ def _forest_graph(g: _GraphBuilder, Z: str, flat: FlatForest) -> str:
     # `alpha` attribute, a 1e-7 relative error.
     sums = []
     starts = np.flatnonzero(np.diff(trees["column"], prepend=-1))
-    for start, stop in zip(starts, np.append(starts[1:], n_trees)):
+    for start, stop in zip(starts, np.append(starts[1:], n_trees), strict=True):
         forest = g.op("Slice", values, g.const(np.array([start, 0]), "starts"),
                       g.const(np.array([stop, trees[start]["width"]]), "ends"),
                       g.const(np.array([1, 2]), "axes"))

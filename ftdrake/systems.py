@@ -1,0 +1,240 @@
+"""The LeafSystems users put in their own diagrams: CompensatorSystem and ContactDetector."""
+
+from __future__ import annotations
+
+import dataclasses as dc
+import math
+
+import numpy as np
+from pydrake.systems.framework import LeafSystem
+
+from .compensation.features import check_feature_set
+
+
+class CompensatorSystem(LeafSystem):
+    """Runs a trained compensator in the loop: predicts the internal wrench, subtracts it.
+
+    Input ports:
+      wrench_measured (6): sensor reading ``[Fx Fy Fz Tx Ty Tz]`` in N, N·m, sensor frame S.
+      joint_state (2n): ``[q; v]`` in rad, rad/s, as a plant's (model instance) state port.
+      joint_acceleration (n, optional): v̇ in rad/s². When not connected, it is estimated
+        inside by a causal difference of v low-passed at ``acceleration_cutoff_hz`` (a real
+        controller has no q̈ sensor).
+    Output ports (held between samples; updated every `period` s):
+      wrench_internal (6): predicted internal wrench, N, N·m, S.
+      wrench_external (6): wrench_measured − wrench_internal, N, N·m, S.
+      wrench_std (6): the model's predictive standard deviation; zeros where it gives none.
+      out_of_domain (1): 1.0 when a used joint input lies outside the training range.
+      fault (1): 1.0 when the latest inputs held NaN/inf; all other outputs then hold their
+        last good values (never a NaN downstream).
+
+    `model` is any fitted ftdrake compensator (or one loaded with ``load_model``): it must have
+    ``predict``, ``features``, ``n_joints_`` and ``n_outputs_ == 6``. `n_joints`, if given,
+    must match the model (e.g. ``plant.num_positions(arm)``).
+    """
+
+    def __init__(self, model, period: float, *, n_joints: int | None = None,
+                 acceleration_cutoff_hz: float = 25.0, fast: bool = True):
+        super().__init__()
+        check_model_fits(model, n_joints)
+        if not (period > 0 and math.isfinite(period)):
+            raise ValueError(f"period must be a positive number of seconds, got {period!r}")
+        self.model = model
+        self.period = float(period)
+        n = self.n = int(model.n_joints_)
+        self._predict = _predictor(model, fast)
+        self._has_std = bool(getattr(model, "provides_std", False))
+        self._alpha = 1.0 - math.exp(-2 * math.pi * acceleration_cutoff_hz * self.period)
+        self._lo, self._hi = _training_box(model)
+
+        self.DeclareVectorInputPort("wrench_measured", 6)
+        self.DeclareVectorInputPort("joint_state", 2 * n)
+        self.DeclareVectorInputPort("joint_acceleration", n)
+        # Acceleration estimator: previous v (n), filtered v̇ (n), primed flag (1).
+        self._estimator = self.DeclareDiscreteState(2 * n + 1)
+        self._internal = self.DeclareDiscreteState(6)
+        self._external = self.DeclareDiscreteState(6)
+        self._std = self.DeclareDiscreteState(6)
+        self._ood = self.DeclareDiscreteState(1)
+        self._fault = self.DeclareDiscreteState(1)
+        self.DeclarePeriodicDiscreteUpdateEvent(self.period, 0.0, self._update)
+        for name, index in (("wrench_internal", self._internal), ("wrench_external", self._external),
+                            ("wrench_std", self._std), ("out_of_domain", self._ood),
+                            ("fault", self._fault)):
+            self.DeclareStateOutputPort(name, index)
+
+    def _update(self, context, state):
+        n = self.n
+        wrench = self.get_input_port(0).Eval(context)
+        x = self.get_input_port(1).Eval(context)
+        accel_port = self.get_input_port(2)
+        measured_accel = accel_port.Eval(context) if accel_port.HasValue(context) else None
+        inputs = (wrench, x) if measured_accel is None else (wrench, x, measured_accel)
+        if not all(np.all(np.isfinite(a)) for a in inputs):
+            state.get_mutable_vector(self._fault).SetFromVector([1.0])
+            return  # everything else keeps its last good value
+        q, v = x[:n], x[n:]
+        est = context.get_discrete_state(self._estimator).value()
+        if measured_accel is not None:
+            vdot = measured_accel
+        elif est[-1] == 0.0:
+            vdot = np.zeros(n)  # first sample: no difference yet
+        else:
+            raw = (v - est[:n]) / self.period
+            vdot = est[n:2 * n] + self._alpha * (raw - est[n:2 * n])
+        state.get_mutable_vector(self._estimator).SetFromVector(np.concatenate([v, vdot, [1.0]]))
+        row = np.concatenate([q, v, vdot])
+        internal, std = self._predict(row)
+        used = self._lo.size
+        ood = float(np.any((row[:used] < self._lo) | (row[:used] > self._hi)))
+        state.get_mutable_vector(self._internal).SetFromVector(internal)
+        state.get_mutable_vector(self._external).SetFromVector(wrench - internal)
+        state.get_mutable_vector(self._std).SetFromVector(std if self._has_std else np.zeros(6))
+        state.get_mutable_vector(self._ood).SetFromVector([ood])
+        state.get_mutable_vector(self._fault).SetFromVector([0.0])
+
+
+def check_model_fits(model, n_joints: int | None) -> None:
+    """Raises ValueError unless `model` is a fitted 6-output compensator for `n_joints`."""
+    for attr in ("predict", "features", "n_joints_", "n_outputs_"):
+        if not hasattr(model, attr):
+            raise ValueError(f"model lacks {attr!r}: is it a fitted ftdrake compensator?")
+    check_feature_set(model.features)
+    if model.n_outputs_ != 6:
+        raise ValueError(f"model predicts {model.n_outputs_} outputs; a wrench needs 6")
+    if n_joints is not None and int(model.n_joints_) != int(n_joints):
+        raise ValueError(
+            f"model was trained for {model.n_joints_} joints; this robot has {n_joints}"
+        )
+
+
+def _predictor(model, fast: bool):
+    """A function row (3n,) → (internal (6,), std (6,)), compiled where ftdrake can."""
+    if fast:
+        try:
+            from .compensation.fast import fast_predictor
+
+            compiled = fast_predictor(model)
+        except (ImportError, TypeError, ValueError, AttributeError):
+            compiled = None
+        if compiled is not None:
+            def predict(row):
+                out = compiled.predict_one(row) if hasattr(compiled, "predict_one") else \
+                    compiled.predict(row[None, :])[0]
+                std = model.predict_std(row[None, :])[0] if getattr(
+                    model, "provides_std", False) else np.zeros(6)
+                return np.asarray(out, dtype=float), std
+            return predict
+
+    def predict(row):
+        X = row[None, :]
+        std = model.predict_std(X)[0] if getattr(model, "provides_std", False) else np.zeros(6)
+        return np.asarray(model.predict(X)[0], dtype=float), std
+
+    return predict
+
+
+def _training_box(model):
+    """Lower/upper training range of the inputs the model uses (empty if unknown)."""
+    lo, hi = getattr(model, "input_min_", None), getattr(model, "input_max_", None)
+    if lo is None or hi is None:
+        return np.empty(0), np.empty(0)
+    used = {"q": 1, "q,qd": 2, "q,qd,qdd": 3}[model.features] * int(model.n_joints_)
+    return np.asarray(lo[:used], dtype=float), np.asarray(hi[:used], dtype=float)
+
+
+# ----------------------------------------------------------------------------------------------
+@dc.dataclass
+class DetectorConfig:
+    """Thresholds of the contact detector.
+
+    Contact switches on when ‖F‖ > force_on (N) or ‖T‖ > torque_on (N·m) for `debounce_on`
+    consecutive samples, and off when both are below ``release_ratio`` × those thresholds for
+    `debounce_off` samples (hysteresis). With `std_gain` > 0 the thresholds grow by
+    ``std_gain · ‖std‖`` of the model's predictive standard deviation.
+    """
+
+    force_on: float = 2.5
+    torque_on: float = 0.25
+    release_ratio: float = 0.6
+    debounce_on: int = 3
+    debounce_off: int = 10
+    std_gain: float = 0.0
+
+    def validate(self) -> "DetectorConfig":
+        for name in ("force_on", "torque_on"):
+            value = getattr(self, name)
+            if not (value > 0 and math.isfinite(value)):
+                raise ValueError(f"detector.{name}: must be positive, got {value!r}")
+        if not 0 < self.release_ratio <= 1:
+            raise ValueError(f"detector.release_ratio: {self.release_ratio} not in (0, 1]")
+        for name in ("debounce_on", "debounce_off"):
+            if int(getattr(self, name)) < 1:
+                raise ValueError(f"detector.{name}: must be >= 1")
+        if self.std_gain < 0:
+            raise ValueError(f"detector.std_gain: must be >= 0, got {self.std_gain}")
+        return self
+
+    @classmethod
+    def from_residuals(cls, force_rms: float, torque_rms: float, k: float = 5.0,
+                       **overrides) -> "DetectorConfig":
+        """Thresholds at `k` times the free-motion residual RMS norm (compensation error plus
+        sensor noise), floored at 0.5 N and 0.02 N·m."""
+        return cls(force_on=max(0.5, k * force_rms), torque_on=max(0.02, k * torque_rms),
+                   **overrides).validate()
+
+
+class ContactDetector(LeafSystem):
+    """Detects contact from the external wrench, with hysteresis and debouncing.
+
+    Input ports:
+      wrench_external (6): ``[Fx Fy Fz Tx Ty Tz]`` N, N·m (e.g. CompensatorSystem's output).
+      wrench_std (6, optional): the compensator's predictive std; raises the thresholds by
+        ``std_gain · ‖std‖`` when connected.
+    Output ports (updated every `period` s):
+      contact (1): 1.0 while in contact.
+      contact_force (1): ‖F‖ of the external wrench in N while in contact, else 0.
+    State: contact flag, consecutive-sample counter.
+    """
+
+    def __init__(self, config: DetectorConfig, period: float):
+        super().__init__()
+        self.config = config.validate()
+        self.period = float(period)
+        self.DeclareVectorInputPort("wrench_external", 6)
+        self.DeclareVectorInputPort("wrench_std", 6)
+        self._flag = self.DeclareDiscreteState(1)
+        self._force = self.DeclareDiscreteState(1)
+        self._counter = self.DeclareDiscreteState(1)
+        self.DeclarePeriodicDiscreteUpdateEvent(self.period, 0.0, self._update)
+        self.DeclareStateOutputPort("contact", self._flag)
+        self.DeclareStateOutputPort("contact_force", self._force)
+
+    def _update(self, context, state):
+        w = self.get_input_port(0).Eval(context)
+        if not np.all(np.isfinite(w)):
+            return  # hold: a NaN is not evidence either way
+        std_port = self.get_input_port(1)
+        grow_f = grow_t = 0.0
+        if self.config.std_gain > 0 and std_port.HasValue(context):
+            std = std_port.Eval(context)
+            grow_f = self.config.std_gain * float(np.linalg.norm(std[:3]))
+            grow_t = self.config.std_gain * float(np.linalg.norm(std[3:]))
+        force, torque = float(np.linalg.norm(w[:3])), float(np.linalg.norm(w[3:]))
+        in_contact = context.get_discrete_state(self._flag).value()[0] > 0.5
+        counter = context.get_discrete_state(self._counter).value()[0]
+        c = self.config
+        if in_contact:
+            quiet = (force < c.release_ratio * (c.force_on + grow_f)
+                     and torque < c.release_ratio * (c.torque_on + grow_t))
+            counter = counter + 1 if quiet else 0
+            if counter >= c.debounce_off:
+                in_contact, counter = False, 0
+        else:
+            loud = force > c.force_on + grow_f or torque > c.torque_on + grow_t
+            counter = counter + 1 if loud else 0
+            if counter >= c.debounce_on:
+                in_contact, counter = True, 0
+        state.get_mutable_vector(self._flag).SetFromVector([float(in_contact)])
+        state.get_mutable_vector(self._force).SetFromVector([force if in_contact else 0.0])
+        state.get_mutable_vector(self._counter).SetFromVector([counter])

@@ -1,0 +1,108 @@
+"""Physics payload compensator and the hybrid physics + learned residual."""
+
+import warnings
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+from hypothesis.extra.numpy import arrays
+
+from ftdrake import columns as col
+from ftdrake.compensation.hybrid import HybridCompensator
+from ftdrake.compensation.physics import (
+    ExcitationWarning,
+    PhysicsPayloadCompensator,
+    payload_regressor,
+)
+from ftdrake.compensation.forest import RandomForestCompensator
+from ftdrake.data import joint_state_layout, wrench_targets
+from ftdrake.rigid_body import SensorKinematics, newton_euler_wrench
+
+from conftest import split_by_trajectory
+
+TRUE_MASS = 1.5
+TRUE_COM = np.array([0.02, 0.2 / 30, 0.26 / 3])  # m, from ft_sensor_tool.sdf
+
+vec3 = arrays(np.float64, (4, 3), elements=st.floats(-5, 5))
+
+
+@settings(max_examples=30, deadline=None)
+@given(w=vec3, alpha=vec3, a=vec3, g=vec3)
+def test_regressor_matches_newton_euler(w, alpha, a, g):
+    rng = np.random.default_rng(1)
+    mass, com = 1.3, rng.uniform(-0.1, 0.1, 3)
+    L = rng.normal(size=(3, 3))
+    I_cm = L @ L.T * 0.01 + np.eye(3) * 1e-3
+    kin = SensorKinematics(np.tile(np.eye(3), (4, 1, 1)), w, alpha, a, g)
+    expected = newton_euler_wrench(mass, com, I_cm, kin)
+    I_So = I_cm + mass * (com @ com * np.eye(3) - np.outer(com, com))  # parallel axis
+    phi = np.concatenate([[mass], mass * com, I_So[0], I_So[1, 1:], [I_So[2, 2]], np.zeros(6)])
+    phi[4:10] = [I_So[0, 0], I_So[0, 1], I_So[0, 2], I_So[1, 1], I_So[1, 2], I_So[2, 2]]
+    got = payload_regressor(w, alpha, a - g) @ phi
+    np.testing.assert_allclose(got, expected, atol=1e-9 * (1 + np.abs(expected).max()))
+
+
+def test_dynamic_identification_recovers_the_tool(rigid_dataset):
+    X = joint_state_layout(rigid_dataset, source="plant")
+    Y = wrench_targets(rigid_dataset)  # noisy, biased, drifting measured wrench
+    dut = PhysicsPayloadCompensator().fit(X[::4], Y[::4])
+    p = dut.identified()
+    assert p["m"]["value"] == pytest.approx(TRUE_MASS, rel=0.01)
+    np.testing.assert_allclose(p["com"]["value"], TRUE_COM, atol=2e-3)
+    # The bias the sensor config adds (drift is small over 10 s runs).
+    np.testing.assert_allclose(dut.parameters_[10:13], [0.6, -0.4, 1.2], atol=0.1)
+    # Standard errors are reported and small for the well-excited mass.
+    assert 0 < p["m"]["std_error"] < 0.01
+    assert dut.condition_number_ > 1
+
+
+def test_physics_predicts_internal_wrench_near_noise_floor(rigid_dataset):
+    train, test = split_by_trajectory(rigid_dataset, [2])
+    dut = PhysicsPayloadCompensator().fit(joint_state_layout(train, "plant")[::3],
+                                          wrench_targets(train)[::3])
+    error = dut.predict(joint_state_layout(test, "plant")) - wrench_targets(test, col.INTERNAL)
+    rms = np.sqrt(np.mean(error**2, axis=0))
+    sigma = np.array([1 / 40, 1 / 40, 1 / 20, 1 / 800, 1 / 800, 1 / 800])  # ati_gamma preset
+    assert np.all(rms < 6 * sigma), rms / sigma
+
+
+def test_static_hold_data_warns_about_excitation(rigid_dataset):
+    X = joint_state_layout(rigid_dataset, "plant")[:200]  # the first 0.2 s: nearly at rest
+    Y = wrench_targets(rigid_dataset)[:200]
+    with pytest.warns(ExcitationWarning, match="does not excite"):
+        PhysicsPayloadCompensator().fit(X, Y)
+
+
+def test_dynamic_mode_refuses_position_only_features():
+    X = np.zeros((20, 21))
+    with pytest.raises(ValueError, match="needs features='q,qd,qdd'"):
+        PhysicsPayloadCompensator(features="q").fit(X, np.zeros((20, 6)))
+
+
+def test_robot_joint_count_must_match():
+    X = np.random.default_rng(0).normal(size=(30, 18))  # 6 joints
+    with pytest.raises(ValueError, match="6 joints; the robot model has 7"):
+        PhysicsPayloadCompensator().fit(X, np.zeros((30, 6)))
+
+
+def test_hybrid_beats_physics_and_forest_with_cable_and_crosstalk(realistic_dataset):
+    train, test = split_by_trajectory(realistic_dataset, [3])
+    Xtr, Ytr = joint_state_layout(train), wrench_targets(train)
+    Xte, truth = joint_state_layout(test), wrench_targets(test, col.INTERNAL)
+    forest = RandomForestCompensator(features="q", n_estimators=40, min_samples_leaf=5,
+                                     random_state=0, n_jobs=2)
+    models = {
+        "physics": PhysicsPayloadCompensator(),
+        "forest": forest,
+        "hybrid": HybridCompensator(residual=forest),
+    }
+    rms = {}
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", ExcitationWarning)
+        for name, model in models.items():
+            model.fit(Xtr[::3], Ytr[::3])
+            rms[name] = np.sqrt(np.mean((model.predict(Xte) - truth) ** 2, axis=0))
+    force = {k: np.linalg.norm(v[:3]) for k, v in rms.items()}
+    assert force["hybrid"] < force["physics"], force
+    assert force["hybrid"] < force["forest"], force
