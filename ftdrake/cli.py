@@ -15,6 +15,7 @@ def main(argv=None) -> int:
     sub = parser.add_subparsers(dest="command", required=True)
     _add_simulate(sub)
     _add_collect(sub)
+    _add_demo(sub)
     for register in _EXTRA_COMMANDS:
         register(sub)
     args = parser.parse_args(argv)
@@ -102,8 +103,9 @@ def _add_collect(sub):
     p.add_argument("--config", type=Path, help="scenario YAML (default: the shipped one)")
     p.add_argument("--trajectories", type=int, default=8)
     p.add_argument("--duration", type=float, default=20.0, help="seconds per trajectory")
-    p.add_argument("--kind", choices=["random", "fourier", "reference", "z_rich"],
-                   default="fourier")
+    p.add_argument("--kind", choices=["random", "fourier", "reference", "z_rich", "rehearsal"],
+                   default="fourier",
+                   help="rehearsal: the contact scenario stopping 3 cm above the surface")
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--jobs", type=int, default=-1, help="local worker processes (-1: all cores)")
     p.add_argument("--dask", metavar="ADDRESS", help="run on this Dask scheduler instead")
@@ -123,6 +125,29 @@ def _collect(args):
     print(json.dumps({"out": str(args.out), "rows": len(frame),
                       "trajectories": int(frame["trajectory"].nunique()),
                       "contact_rows": int(frame["contact"].sum())}))
+    return 0
+
+
+def _add_demo(sub):
+    p = sub.add_parser("demo", help="collect → train → contact scenario in the loop (main job)")
+    p.add_argument("--config", type=Path, help="scenario YAML (default: the shipped one)")
+    p.add_argument("--out", type=Path, default=Path("out/demo"))
+    p.add_argument("--trajectories", type=int, default=4, help="Fourier runs to train on")
+    p.add_argument("--duration", type=float, default=20.0, help="seconds per training run")
+    p.add_argument("--no-html", action="store_true", help="skip the Meshcat replay")
+    p.add_argument("--quiet", action="store_true")
+    p.set_defaults(run=_demo)
+
+
+def _demo(args):
+    from .demo import print_table, run_demo
+
+    summary = run_demo(args.out, load_config(args.config), fourier=args.trajectories,
+                       duration=args.duration, meshcat_html=not args.no_html,
+                       progress=not args.quiet)
+    print_table(summary)
+    print(f"wrote {args.out}/summary.json, contact.png, model.ftd"
+          + ("" if args.no_html else ", replay.html"))
     return 0
 
 

@@ -201,7 +201,9 @@ class TrajectoryConfig:
     harmonics: int = 4
     # Contact scenario.
     contact_target: str = "table"  # "table" or "wall"
-    press_depth_m: float = 0.012  # commanded penetration of the target surface
+    # Commanded penetration of the target surface; negative: stop that far above it (a
+    # rehearsal of the task in the air, for collecting contact-free training data).
+    press_depth_m: float = 0.012
     press_duration_s: float = 3.0
 
     def validate(self, where: str = "trajectory") -> None:
@@ -220,7 +222,8 @@ class TrajectoryConfig:
             raise ConfigError(
                 f"{where}.contact_target: {self.contact_target!r} is not 'table' or 'wall'"
             )
-        _non_negative(self.press_depth_m, f"{where}.press_depth_m")
+        if not -0.2 <= self.press_depth_m <= 0.05:
+            raise ConfigError(f"{where}.press_depth_m: {self.press_depth_m} not in [-0.2, 0.05] m")
         _positive(self.press_duration_s, f"{where}.press_duration_s")
 
 

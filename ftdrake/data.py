@@ -28,7 +28,8 @@ from . import columns as col
 from .config import ConfigError, ScenarioConfig, dump_config, parse_config
 from .io import atomic_path
 
-FREE_KINDS = ("random", "fourier", "reference", "z_rich")
+FREE_KINDS = ("random", "fourier", "reference", "z_rich", "rehearsal")
+REHEARSAL_HEIGHT_M = 0.03  # a rehearsal stops the contact scenario this far above the surface
 META_SCENARIO = b"ftdrake.scenario"
 META_UNITS = b"ftdrake.units"
 META_VERSION = b"ftdrake.version"
@@ -66,7 +67,10 @@ def collect(base: ScenarioConfig, trajectories: int, *, seed: int = 0, kind: str
         base.trajectory.kind = kind
     if duration is not None:
         base.trajectory.duration_s = duration
-    if base.trajectory.kind not in FREE_KINDS:
+    if base.trajectory.kind == "rehearsal":
+        base.trajectory.kind = "contact"
+        base.trajectory.press_depth_m = -REHEARSAL_HEIGHT_M
+    elif base.trajectory.kind not in FREE_KINDS:
         raise ConfigError(
             f"scenario.trajectory.kind: collect needs free motion {FREE_KINDS}, "
             f"got {base.trajectory.kind!r}"

@@ -58,6 +58,7 @@ class Simulation:
     truth: ContactTruth
     loggers: Loggers
     builder_extras: dict = dc.field(default_factory=dict)
+    simulator: object = None  # the Simulator of the last `simulation.run` (its context holds logs)
 
 
 def build_diagram(config: ScenarioConfig, *, trajectory=None, extra=None, meshcat=None) -> Simulation:

@@ -54,6 +54,7 @@ def run(sim: Simulation, *, progress: bool = True, duration: float | None = None
             simulator.AdvanceTo(t)
             bar.update(round(t - bar.n, 3))
     wall = time.perf_counter() - start
+    sim.simulator = simulator  # keeps the final context alive for further logs
     log = assemble_log(sim, simulator.get_context())
     return log, {
         "duration_s": duration,

@@ -158,7 +158,7 @@ class DetectorConfig:
     torque_on: float = 0.25
     release_ratio: float = 0.6
     debounce_on: int = 3
-    debounce_off: int = 10
+    debounce_off: int = 25
     std_gain: float = 0.0
 
     def validate(self) -> "DetectorConfig":
