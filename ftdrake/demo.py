@@ -68,7 +68,7 @@ def run_demo(out: Path, config: ScenarioConfig | None = None, *, fourier: int = 
     residual = wrench_targets(validation) - model.predict(joint_state_layout(validation))
     force_rms = float(np.sqrt(np.mean(np.sum(residual[:, :3] ** 2, axis=1))))
     torque_rms = float(np.sqrt(np.mean(np.sum(residual[:, 3:] ** 2, axis=1))))
-    detector = DetectorConfig.from_residuals(force_rms, torque_rms)
+    detector = DetectorConfig.from_residuals(residual)
 
     stage("contact scenario")
     scenario = ScenarioConfig(**{**config.__dict__})

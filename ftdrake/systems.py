@@ -176,11 +176,18 @@ class DetectorConfig:
         return self
 
     @classmethod
-    def from_residuals(cls, force_rms: float, torque_rms: float, k: float = 5.0,
+    def from_residuals(cls, residual, margin: float = 1.5, quantile: float = 0.999,
                        **overrides) -> "DetectorConfig":
-        """Thresholds at `k` times the free-motion residual RMS norm (compensation error plus
-        sensor noise), floored at 0.5 N and 0.02 N·m."""
-        return cls(force_on=max(0.5, k * force_rms), torque_on=max(0.02, k * torque_rms),
+        """Thresholds from free-motion residuals (N × 6: measured − predicted wrench on
+        held-out contact-free data): `margin` × the `quantile` of ‖F‖ and ‖T‖, floored at
+        0.5 N and 0.02 N·m. A quantile, not k·RMS: a learned model's residuals are
+        heavy-tailed (largest where the motion leaves the training data)."""
+        r = np.asarray(residual, dtype=float)
+        if r.ndim != 2 or r.shape[1] != 6 or len(r) < 100:
+            raise ValueError(f"residual must be N × 6 with N >= 100; got shape {r.shape}")
+        force = np.quantile(np.linalg.norm(r[:, :3], axis=1), quantile)
+        torque = np.quantile(np.linalg.norm(r[:, 3:], axis=1), quantile)
+        return cls(force_on=max(0.5, margin * force), torque_on=max(0.02, margin * torque),
                    **overrides).validate()
 
 

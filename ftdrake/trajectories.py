@@ -183,7 +183,7 @@ def _contact(config, home_q, limits, robot):
     rng = np.random.default_rng(config.seed)
     # Short free phases fade in and out faster, so their amplitude shrinks with (free / 4 s)².
     amplitude = 0.5 * _REFERENCE_AMPLITUDE[: len(home_q)] * min(1.0, (free / 4.0) ** 2)
-    wiggle = _fourier(free, home_q, amplitude, 0.25, 2, rng)
+    wiggle = _fourier(free, home_q, amplitude, 0.15, 2, rng)
     times = np.cumsum([0, free, approach, descend, touch, config.press_duration_s, ascend, back])
     waypoints = np.array([home_q, home_q, hover, near, press, press, hover, home_q])
     path = _min_jerk_path(times[1:], waypoints[1:])

@@ -48,7 +48,7 @@ class RandomForestCompensator(Compensator):
         self,
         features: str = "q,qd,qdd",
         n_estimators: int = 100,
-        max_features: int | float = 1.0,
+        max_features: float = 1.0,  # or an int count
         min_samples_leaf: int = 2,
         per_output: bool = True,
         random_state=None,
@@ -76,7 +76,7 @@ class RandomForestCompensator(Compensator):
             # 1-D targets: a single-output forest, and no column-vector warning from sklearn.
             self.forests_ = [self._new_forest().fit(Z, Y[:, j]) for j in range(Y.shape[1])]
         else:
-            self.forests_ = [self._new_forest().fit(Z, Y)]
+            self.forests_ = [self._new_forest().fit(Z, Y if Y.shape[1] > 1 else Y[:, 0])]
 
     def _predict(self, Z: np.ndarray) -> np.ndarray:
         if self.per_output:

@@ -48,6 +48,15 @@ TRUSTED_TYPES: tuple[str, ...] = (
     "ftdrake.compensation.forest.RandomForestCompensator",
     "ftdrake.compensation.svr.SVRCompensator",
     "ftdrake.compensation.tuning.PerOutputCompensator",
+    "ftdrake.compensation.gpr.GPRCompensator",
+    "ftdrake.compensation.physics.PhysicsPayloadCompensator",
+    "ftdrake.compensation.hybrid.HybridCompensator",
+    # GPRCompensator keeps its fitted kernels (hyper-parameters only).
+    "sklearn.gaussian_process.kernels.ConstantKernel",
+    "sklearn.gaussian_process.kernels.Product",
+    "sklearn.gaussian_process.kernels.RBF",
+    "sklearn.gaussian_process.kernels.Sum",
+    "sklearn.gaussian_process.kernels.WhiteKernel",
     # scikit-learn's tree node storage. sklearn follows its node indices without bounds
     # checks, so every loaded tree is checked by _check_trees before the model is returned.
     "sklearn.tree._tree.Tree",
@@ -203,8 +212,10 @@ def _unpack(data: bytes, path) -> tuple[dict, bytes]:
         )
     payload = data[header_end:-_DIGEST]
     if len(payload) != manifest.get("payload_bytes"):
-        raise ModelFileError(f"{path}: payload is {len(payload)} bytes, manifest says "
-                             f"{manifest.get('payload_bytes')}")
+        raise ModelFileError(
+            f"{path}: payload is {len(payload)} bytes, manifest says "
+            f"{manifest.get('payload_bytes')}"
+        )
     if hashlib.sha256(payload).hexdigest() != manifest.get("payload_sha256"):
         raise ModelFileError(f"{path}: payload SHA-256 does not match the manifest")
     return manifest, payload
@@ -243,13 +254,19 @@ def _check_model(model, manifest: dict, path) -> None:
     """The rebuilt object is the model the manifest describes, and its trees are sound."""
     name = _qualified_name(type(model))
     if name != manifest.get("model_class") or not isinstance(model, Compensator):
-        raise ModelFileError(f"{path}: payload holds {name}, manifest says "
-                             f"{manifest.get('model_class')}")
-    for attr, key in (("n_joints_", "n_joints"), ("features", "features"),
-                      ("n_outputs_", "n_outputs")):
+        raise ModelFileError(
+            f"{path}: payload holds {name}, manifest says {manifest.get('model_class')}"
+        )
+    for attr, key in (
+        ("n_joints_", "n_joints"),
+        ("features", "features"),
+        ("n_outputs_", "n_outputs"),
+    ):
         if getattr(model, attr, None) != manifest.get(key):
-            raise ModelFileError(f"{path}: model's {attr} is {getattr(model, attr, None)!r}, "
-                                 f"manifest says {manifest.get(key)!r}")
+            raise ModelFileError(
+                f"{path}: model's {attr} is {getattr(model, attr, None)!r}, "
+                f"manifest says {manifest.get(key)!r}"
+            )
     try:
         _check_trees(model)
     except (AttributeError, TypeError, ValueError) as e:
@@ -269,8 +286,11 @@ def _check_trees(model) -> None:
         if "tree_" in state:
             trees = [state["tree_"]]
         else:
-            trees = [vars(e)["tree_"] for e in state.get("estimators_", ())
-                     if isinstance(e, BaseEstimator) and "tree_" in vars(e)]
+            trees = [
+                vars(e)["tree_"]
+                for e in state.get("estimators_", ())
+                if isinstance(e, BaseEstimator) and "tree_" in vars(e)
+            ]
         for tree in trees:
             _check_tree(tree, int(owner.n_features_in_))
 
@@ -278,8 +298,9 @@ def _check_trees(model) -> None:
 def _check_tree(tree, n_features: int) -> None:
     n = int(tree.node_count)
     node = np.arange(n)
-    left, right, feature = (np.asarray(a)[:n] for a in
-                            (tree.children_left, tree.children_right, tree.feature))
+    left, right, feature = (
+        np.asarray(a)[:n] for a in (tree.children_left, tree.children_right, tree.feature)
+    )
     if len(left) != n or len(right) != n or len(feature) != n:
         raise ValueError("node arrays shorter than node_count")
     leaf = left == -1

@@ -85,7 +85,10 @@ class SVRCompensator(Compensator):
 
     def _new_svr(self) -> SVR:
         return SVR(
-            kernel=self.kernel, C=self.C, gamma=self.gamma, epsilon=self.epsilon,
+            kernel=self.kernel,
+            C=self.C,
+            gamma=self.gamma,
+            epsilon=self.epsilon,
             degree=self.degree,
         )
 

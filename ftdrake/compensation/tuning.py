@@ -60,7 +60,7 @@ PRESETS: dict[str, dict[str, list[dict]]] = {
         "RandomForestCompensator": [
             {"n_estimators": [40], "max_features": [0.33, 1.0], "min_samples_leaf": [2, 12]}
         ],
-        "SVRCompensator": [{"kernel": ["rbf"], "C": [1.0, 10.0, 100.0], "gamma": [0.03, 0.3]}],
+        "SVRCompensator": [{"kernel": ["rbf"], "C": [1.0, 10.0, 100.0], "gamma": [0.03, 0.1]}],
     },
 }
 
@@ -145,12 +145,12 @@ def cv_splits(
     if n_repeats < 1:
         raise ValueError(f"n_repeats must be at least 1; got {n_repeats}")
     if n_rows < n_splits:
-        raise ValueError(f"{n_splits}-fold cross-validation needs at least {n_splits} rows; "
-                         f"got {n_rows}")
+        raise ValueError(
+            f"{n_splits}-fold cross-validation needs at least {n_splits} rows; got {n_rows}"
+        )
     rows = np.zeros((n_rows, 1))  # splitters only look at the row count
     if cv == "shuffled":
-        splitter = RepeatedKFold(n_splits=n_splits, n_repeats=n_repeats,
-                                 random_state=random_state)
+        splitter = RepeatedKFold(n_splits=n_splits, n_repeats=n_repeats, random_state=random_state)
         return list(splitter.split(rows))
     if cv != "grouped":
         raise ValueError(f"unknown cv {cv!r}; expected 'grouped' or 'shuffled'")
@@ -229,24 +229,30 @@ def tune(
     blocks = check_feature_set(estimator.get_params()["features"])
     n_used = blocks * joints_in_layout(X.shape[1])
     candidates = list(ParameterGrid(param_grid(preset, estimator, n_used)))
-    splits = cv_splits(len(X), cv=cv, groups=groups, n_splits=n_splits, n_repeats=n_repeats,
-                       random_state=random_state)
-    columns = [[j] for j in range(Y.shape[1])] if per_output else [list(range(Y.shape[1]))]
-    names = _target_names(target_names, Y.shape[1]) if per_output else ["all"]
-    y_is_1d = np.ndim(y) == 1
+    splits = cv_splits(
+        len(X),
+        cv=cv,
+        groups=groups,
+        n_splits=n_splits,
+        n_repeats=n_repeats,
+        random_state=random_state,
+    )
+    if per_output:
+        targets = [Y[:, j] for j in range(Y.shape[1])]
+        names = _target_names(target_names, Y.shape[1])
+    else:
+        targets, names = [Y[:, 0] if np.ndim(y) == 1 else Y], ["all"]
 
-    bar = tqdm(total=len(columns) * len(candidates) * len(splits), disable=not progress,
-               desc=f"tuning {type(estimator).__name__}", unit="fit")
-    searches = []
-    with bar:
-        for cols in columns:
-            target = Y[:, cols[0]] if len(cols) == 1 and (per_output or y_is_1d) else Y
-            scores = _score_grid(estimator, X, target, candidates, splits, n_jobs, bar)
-            searches.append(scores)
+    with tqdm(
+        total=len(targets) * len(candidates) * len(splits),
+        disable=not progress,
+        desc=f"tuning {type(estimator).__name__}",
+        unit="fit",
+    ) as bar:
+        scores = [_score_grid(estimator, X, t, candidates, splits, n_jobs, bar) for t in targets]
 
-    best = [int(np.argmax(s.mean(axis=1))) for s in searches]
-    best_params = [candidates[b] for b in best]
-    model = _refit(estimator, X, y, Y, best_params, per_output)
+    best = [int(np.argmax(s.mean(axis=1))) for s in scores]
+    model = _refit(estimator, X, y, Y, [candidates[b] for b in best], per_output)
     result = TuneResult(
         estimator=type(estimator).__name__,
         preset=preset if isinstance(preset, str) else "custom",
@@ -255,13 +261,16 @@ def tune(
         n_repeats=n_repeats,
         n_candidates=len(candidates),
         targets=names,
-        best_params=[_jsonable(p) for p in best_params],
-        mean_score=[float(s.mean(axis=1)[b]) for s, b in zip(searches, best)],
-        std_score=[float(s.std(axis=1)[b]) for s, b in zip(searches, best)],
+        best_params=[_jsonable(candidates[b]) for b in best],
+        mean_score=[float(s[b].mean()) for s, b in zip(scores, best)],
+        std_score=[float(s[b].std()) for s, b in zip(scores, best)],
         candidates=[
-            {"params": [_jsonable(p) for p in candidates],
-             "mean_score": s.mean(axis=1).tolist(), "std_score": s.std(axis=1).tolist()}
-            for s in searches
+            {
+                "params": [_jsonable(p) for p in candidates],
+                "mean_score": s.mean(axis=1).tolist(),
+                "std_score": s.std(axis=1).tolist(),
+            }
+            for s in scores
         ],
     )
     return model, result

@@ -1,0 +1,200 @@
+"""CompensatorSystem and ContactDetector, alone and in the loop of the simulated arm."""
+
+import numpy as np
+import pytest
+from pydrake.systems.analysis import Simulator
+from pydrake.systems.framework import DiagramBuilder
+from pydrake.systems.primitives import ConstantVectorSource, LogVectorOutput, TrajectorySource
+from pydrake.trajectories import PiecewisePolynomial
+
+from ftdrake import ScenarioConfig
+from ftdrake import columns as col
+from ftdrake.closed_loop import evaluate_detection, run_closed_loop
+from ftdrake.compensation.forest import RandomForestCompensator
+from ftdrake.compensation.persistence import load_model, save_model
+from ftdrake.data import collect, joint_state_layout, wrench_targets
+from ftdrake.systems import CompensatorSystem, ContactDetector, DetectorConfig
+
+PERIOD = 1e-3
+N = 7
+
+
+@pytest.fixture(scope="module")
+def forest():
+    rng = np.random.default_rng(0)
+    X = rng.uniform(-1, 1, size=(400, 3 * N))
+    Y = np.column_stack([np.sin(X[:, j]) + X[:, N + j] for j in range(6)])
+    return RandomForestCompensator(features="q,qd,qdd", n_estimators=10, random_state=0).fit(X, Y)
+
+
+def source(builder, value):
+    if isinstance(value, PiecewisePolynomial):
+        return builder.AddSystem(TrajectorySource(value))
+    return builder.AddSystem(ConstantVectorSource(np.asarray(value, dtype=float)))
+
+
+def run_compensator(model, wrench, state, accel=None, duration=0.01, **kwargs):
+    builder = DiagramBuilder()
+    dut = builder.AddSystem(CompensatorSystem(model, PERIOD, **kwargs))
+    builder.Connect(source(builder, wrench).get_output_port(), dut.GetInputPort("wrench_measured"))
+    builder.Connect(source(builder, state).get_output_port(), dut.GetInputPort("joint_state"))
+    if accel is not None:
+        builder.Connect(source(builder, accel).get_output_port(),
+                        dut.GetInputPort("joint_acceleration"))
+    logs = {name: LogVectorOutput(dut.GetOutputPort(name), builder, PERIOD)
+            for name in ("wrench_internal", "wrench_external", "wrench_std", "out_of_domain",
+                         "fault")}
+    simulator = Simulator(builder.Build())
+    simulator.AdvanceTo(duration)
+    context = simulator.get_context()
+    return {name: log.FindLog(context).data().T for name, log in logs.items()}
+
+
+def test_outputs_equal_predict_and_external_is_exact_difference(forest):
+    rng = np.random.default_rng(1)
+    q, v, a = rng.uniform(-0.8, 0.8, (3, N))
+    wrench = rng.normal(size=6) * 5
+    out = run_compensator(forest, wrench, np.concatenate([q, v]), accel=a)
+    expected = forest.predict(np.concatenate([q, v, a])[None, :])[0]
+    np.testing.assert_allclose(out["wrench_internal"][-1], expected, rtol=0, atol=1e-9)
+    np.testing.assert_array_equal(out["wrench_external"][-1],
+                                  wrench - out["wrench_internal"][-1])
+    np.testing.assert_array_equal(out["wrench_std"][-1], np.zeros(6))
+    assert out["out_of_domain"][-1, 0] == 0.0 and out["fault"][-1, 0] == 0.0
+
+
+def test_acceleration_is_estimated_when_port_unconnected(forest):
+    accel = np.linspace(0.1, 0.7, N)  # rad/s², constant
+    t = np.array([0.0, 1.0])
+    q = np.zeros((N, 2))
+    v = np.column_stack([np.zeros(N), accel])  # v = accel · t
+    state = PiecewisePolynomial.FirstOrderHold(t, np.vstack([q, v]))
+    out = run_compensator(forest, np.zeros(6), state, duration=0.4)
+    # The filtered difference has converged to the true acceleration after 0.4 s.
+    q_end, v_end = np.zeros(N), accel * 0.4
+    expected = forest.predict(np.concatenate([q_end, v_end, accel])[None, :])[0]
+    got = out["wrench_internal"][-1]
+    reference_zero_accel = forest.predict(np.concatenate([q_end, v_end, 0 * accel])[None, :])[0]
+    assert np.abs(got - expected).max() <= np.abs(got - reference_zero_accel).max()
+
+
+def test_nan_input_holds_last_good_value_and_raises_fault(forest):
+    t = [0.0, 0.005, 1.0]
+    good = np.full(6, 1.0)
+    wrench = PiecewisePolynomial.ZeroOrderHold(t, np.column_stack([good, np.full(6, np.nan),
+                                                                   np.full(6, np.nan)]))
+    out = run_compensator(forest, wrench, np.zeros(2 * N), accel=np.zeros(N), duration=0.01)
+    assert np.all(np.isfinite(out["wrench_external"]))
+    assert out["fault"][-1, 0] == 1.0 and out["fault"][2, 0] == 0.0
+    np.testing.assert_array_equal(out["wrench_external"][-1], out["wrench_external"][4])
+
+
+def test_out_of_domain_flag(forest):
+    state = np.concatenate([np.full(N, 3.0), np.zeros(N)])  # q far beyond training's ±1
+    out = run_compensator(forest, np.zeros(6), state, accel=np.zeros(N))
+    assert out["out_of_domain"][-1, 0] == 1.0
+
+
+def test_refuses_models_that_do_not_fit(forest):
+    with pytest.raises(ValueError, match="trained for 7 joints; this robot has 6"):
+        CompensatorSystem(forest, PERIOD, n_joints=6)
+    three = RandomForestCompensator(n_estimators=3).fit(np.zeros((10, 21)), np.zeros((10, 3)))
+    with pytest.raises(ValueError, match="3 outputs; a wrench needs 6"):
+        CompensatorSystem(three, PERIOD)
+    with pytest.raises(ValueError, match="fitted ftdrake compensator"):
+        CompensatorSystem(object(), PERIOD)
+
+
+def test_accepts_model_loaded_from_file(forest, tmp_path):
+    path = save_model(forest, tmp_path / "m.ftd", target_names=col.WRENCH_AXES,
+                      target_units=col.WRENCH_UNITS)
+    loaded = load_model(path, expect_n_joints=N)
+    out = run_compensator(loaded, np.zeros(6), np.zeros(2 * N), accel=np.zeros(N))
+    np.testing.assert_allclose(out["wrench_internal"][-1],
+                               forest.predict(np.zeros((1, 3 * N)))[0], atol=1e-12)
+
+
+def test_wrong_port_size_fails_when_connecting(forest):
+    builder = DiagramBuilder()
+    dut = builder.AddSystem(CompensatorSystem(forest, PERIOD))
+    five = builder.AddSystem(ConstantVectorSource(np.zeros(5)))
+    with pytest.raises(RuntimeError, match="[Mm]ismatched|size"):
+        builder.Connect(five.get_output_port(), dut.GetInputPort("wrench_measured"))
+
+
+# ----------------------------------------------------------------------------------------------
+def run_detector(forces, config, std=None):
+    t = np.arange(len(forces)) * PERIOD
+    W = np.zeros((6, len(forces)))
+    W[2] = forces
+    builder = DiagramBuilder()
+    dut = builder.AddSystem(ContactDetector(config, PERIOD))
+    builder.Connect(builder.AddSystem(TrajectorySource(
+        PiecewisePolynomial.ZeroOrderHold(t, W))).get_output_port(),
+        dut.GetInputPort("wrench_external"))
+    if std is not None:
+        builder.Connect(source(builder, std).get_output_port(), dut.GetInputPort("wrench_std"))
+    log = LogVectorOutput(dut.GetOutputPort("contact"), builder, PERIOD)
+    simulator = Simulator(builder.Build())
+    simulator.AdvanceTo(t[-1])
+    return log.FindLog(simulator.get_context()).data()[0]
+
+
+def test_detector_debounce_and_hysteresis():
+    config = DetectorConfig(force_on=2.0, torque_on=1.0, release_ratio=0.5, debounce_on=3,
+                            debounce_off=5)
+    forces = np.concatenate([np.zeros(10), np.full(2, 3.0), np.zeros(10),  # 2-sample blip
+                             np.full(20, 3.0),  # contact
+                             np.full(10, 1.5),  # inside the hysteresis band: stays on
+                             np.zeros(20)])  # release
+    flag = run_detector(forces, config)
+    assert flag[:22].max() == 0  # the blip is shorter than debounce_on
+    on = np.flatnonzero(flag)[0]
+    assert 22 + 3 <= on <= 22 + 4
+    assert flag[42:52].min() == 1  # hysteresis
+    assert flag[-1] == 0
+    off = on + np.flatnonzero(flag[on:] == 0)[0]
+    assert 52 + 5 <= off <= 52 + 6
+
+
+def test_detector_threshold_grows_with_uncertainty():
+    forces = np.concatenate([np.zeros(5), np.full(30, 3.0)])
+    base = DetectorConfig(force_on=2.0, debounce_on=2, std_gain=2.0)
+    assert run_detector(forces, base, std=np.zeros(6)).max() == 1
+    assert run_detector(forces, base, std=np.array([0.5, 0, 0, 0, 0, 0])).max() == 0
+
+
+def test_detector_config_validation():
+    with pytest.raises(ValueError, match="force_on"):
+        DetectorConfig(force_on=-1).validate()
+    with pytest.raises(ValueError, match="release_ratio"):
+        DetectorConfig(release_ratio=1.5).validate()
+
+
+# ----------------------------------------------------------------------------------------------
+@pytest.mark.slow
+def test_contact_scenario_detected_on_held_out_trajectory():
+    """Trained on free motion and rehearsals in the air; thresholds from a held-out rehearsal;
+    tested on a contact run whose trajectory and noise seeds were never seen."""
+    base = ScenarioConfig()
+    free = collect(base, 4, kind="fourier", duration=15.0, n_jobs=2, progress=False)
+    rehearsal = collect(base, 3, kind="rehearsal", seed=50, n_jobs=2, progress=False)
+    train = rehearsal[rehearsal["trajectory"] < 2]
+    validation = rehearsal[rehearsal["trajectory"] == 2]
+    X = np.vstack([joint_state_layout(free), joint_state_layout(train)])
+    Y = np.vstack([wrench_targets(free), wrench_targets(train)])
+    model = RandomForestCompensator(features="q", n_estimators=40, per_output=False,
+                                    max_features=0.33, random_state=0, n_jobs=2)
+    model.fit(X[::4], Y[::4])
+    residual = wrench_targets(validation) - model.predict(joint_state_layout(validation))
+    detector = DetectorConfig.from_residuals(residual)
+    scenario = ScenarioConfig()
+    scenario.trajectory.seed = scenario.sensor.seed = 777  # not in training
+    log, _ = run_closed_loop(scenario, model, detector, progress=False)
+    metrics = evaluate_detection(log, scenario.sensor.spec().noise_std)
+    assert metrics["true_contacts"] == 1
+    assert metrics["missed_contacts"] == 0
+    assert metrics["false_positives"] == 0
+    assert 0 <= metrics["detection_delay_s"] <= 0.02  # s
+    # Pressing ~25 N: the estimated external force is within 1.5 N of the truth in contact.
+    assert np.linalg.norm(metrics["external_wrench_error_rms"][:3]) < 1.5
