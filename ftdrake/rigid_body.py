@@ -30,15 +30,18 @@ class SensorKinematics:
 def sensor_kinematics(plant, context, frame_S, q, v, vdot, instance=None) -> SensorKinematics:
     """Evaluates S's motion for rows of (q, v, v̇) of `instance` (the arm) in `plant`.
 
-    Uses ``CalcSpatialAccelerationsFromVdot`` with the given v̇, so it needs no forces.
+    Uses S's Jacobian and bias acceleration (``A = J·v̇ + J̇·v``) with the given v̇, so it needs
+    no forces and no dynamics.
     """
+    from pydrake.multibody.tree import JacobianWrtVariable
+
     q, v, vdot = (np.atleast_2d(np.asarray(a, dtype=float)) for a in (q, v, vdot))
     n = len(q)
     out = {k: np.empty((n, 3)) for k in ("w", "alpha", "a", "g")}
     R = np.empty((n, 3, 3))
-    body = frame_S.body()
-    X_BS = frame_S.GetFixedPoseInBodyFrame()
+    W = plant.world_frame()
     full_vdot = np.zeros(plant.num_velocities())
+    origin = np.zeros(3)
     for k in range(n):
         if instance is None:
             plant.SetPositions(context, q[k])
@@ -48,18 +51,18 @@ def sensor_kinematics(plant, context, frame_S, q, v, vdot, instance=None) -> Sen
             plant.SetPositions(context, instance, q[k])
             plant.SetVelocities(context, instance, v[k])
             plant.SetVelocitiesInArray(instance, vdot[k], full_vdot)
-        X_WB = plant.EvalBodyPoseInWorld(context, body)
-        V_WB = plant.EvalBodySpatialVelocityInWorld(context, body)
-        A_WB = plant.CalcSpatialAccelerationsFromVdot(context, full_vdot)[int(body.index())]
-        p_BoSo_W = X_WB.rotation() @ X_BS.translation()
-        A_WSo = A_WB.Shift(p_BoSo_W, V_WB.rotational())
-        R_WS = X_WB.rotation() @ X_BS.rotation()
-        R_SW = R_WS.inverse()
-        R[k] = R_WS.matrix()
-        out["w"][k] = R_SW @ V_WB.rotational()
-        out["alpha"][k] = R_SW @ A_WSo.rotational()
-        out["a"][k] = R_SW @ A_WSo.translational()
-        out["g"][k] = R_SW @ GRAVITY_W
+        J = plant.CalcJacobianSpatialVelocity(
+            context, JacobianWrtVariable.kV, frame_S, origin, W, W)
+        bias = plant.CalcBiasSpatialAcceleration(
+            context, JacobianWrtVariable.kV, frame_S, origin, W, W)
+        V_WS_W = J @ plant.GetVelocities(context)
+        A_WS_W = J @ full_vdot + np.concatenate([bias.rotational(), bias.translational()])
+        R_WS = frame_S.CalcPoseInWorld(context).rotation().matrix()
+        R[k] = R_WS
+        out["w"][k] = V_WS_W[:3] @ R_WS
+        out["alpha"][k] = A_WS_W[:3] @ R_WS
+        out["a"][k] = A_WS_W[3:] @ R_WS
+        out["g"][k] = GRAVITY_W @ R_WS
     return SensorKinematics(R, out["w"], out["alpha"], out["a"], out["g"])
 
 

@@ -109,29 +109,35 @@ def check_model_fits(model, n_joints: int | None) -> None:
 
 
 def _predictor(model, fast: bool):
-    """A function row (3n,) → (internal (6,), std (6,)), compiled where ftdrake can."""
+    """A function row (3n,) → (internal (6,), std (6,)); compiled or lean where possible.
+
+    Forests and SVRs go through ftdrake's compiled predictors, the physics model through its
+    per-row path, a hybrid through both; anything else through ``predict``. The per-row
+    paths skip scikit-learn's input validation, which costs more than a compiled forest.
+    """
+    mean = _mean_predictor(model, fast)
+    if not getattr(model, "provides_std", False):
+        zeros = np.zeros(6)
+        return lambda row: (mean(row), zeros)
+    return lambda row: (mean(row), np.asarray(model.predict_std(row[None, :])[0], dtype=float))
+
+
+def _mean_predictor(model, fast: bool):
+    if fast and hasattr(model, "physics_") and hasattr(model, "residual_"):
+        physics = _mean_predictor(model.physics_, fast)
+        residual = _mean_predictor(model.residual_, fast)
+        return lambda row: physics(row) + residual(row)
+    if fast and hasattr(model, "predict_row"):
+        return model.predict_row
     if fast:
         try:
             from .compensation.fast import fast_predictor
 
             compiled = fast_predictor(model)
-        except (ImportError, TypeError, ValueError, AttributeError):
-            compiled = None
-        if compiled is not None:
-            def predict(row):
-                out = compiled.predict_one(row) if hasattr(compiled, "predict_one") else \
-                    compiled.predict(row[None, :])[0]
-                std = model.predict_std(row[None, :])[0] if getattr(
-                    model, "provides_std", False) else np.zeros(6)
-                return np.asarray(out, dtype=float), std
-            return predict
-
-    def predict(row):
-        X = row[None, :]
-        std = model.predict_std(X)[0] if getattr(model, "provides_std", False) else np.zeros(6)
-        return np.asarray(model.predict(X)[0], dtype=float), std
-
-    return predict
+            return lambda row: np.asarray(compiled.predict_one(row), dtype=float)
+        except TypeError:  # not a forest or SVR: fall back to predict
+            pass
+    return lambda row: np.asarray(model.predict(row[None, :])[0], dtype=float)
 
 
 def _training_box(model):
@@ -160,6 +166,9 @@ class DetectorConfig:
     debounce_on: int = 3
     debounce_off: int = 25
     std_gain: float = 0.0
+    # Detection is off for this long after start: the sensor chain and the compensator's
+    # acceleration filter settle first (a real detector arms after the sensor is tared).
+    arm_after_s: float = 0.05
 
     def validate(self) -> "DetectorConfig":
         for name in ("force_on", "torque_on"):
@@ -173,6 +182,8 @@ class DetectorConfig:
                 raise ValueError(f"detector.{name}: must be >= 1")
         if self.std_gain < 0:
             raise ValueError(f"detector.std_gain: must be >= 0, got {self.std_gain}")
+        if not self.arm_after_s >= 0:
+            raise ValueError(f"detector.arm_after_s: must be >= 0, got {self.arm_after_s}")
         return self
 
     @classmethod
@@ -201,7 +212,8 @@ class ContactDetector(LeafSystem):
     Output ports (updated every `period` s):
       contact (1): 1.0 while in contact.
       contact_force (1): ‖F‖ of the external wrench in N while in contact, else 0.
-    State: contact flag, consecutive-sample counter.
+    State: contact flag, contact force, consecutive-sample counter. Disarmed (no contact)
+    for the first ``arm_after_s`` seconds.
     """
 
     def __init__(self, config: DetectorConfig, period: float):
@@ -218,6 +230,8 @@ class ContactDetector(LeafSystem):
         self.DeclareStateOutputPort("contact_force", self._force)
 
     def _update(self, context, state):
+        if context.get_time() < self.config.arm_after_s:
+            return  # not armed yet
         w = self.get_input_port(0).Eval(context)
         if not np.all(np.isfinite(w)):
             return  # hold: a NaN is not evidence either way

@@ -104,6 +104,10 @@ class PhysicsPayloadCompensator(Compensator):
         X = _full_layout(Z, self.n_joints_)
         return self.regressor(X) @ self.parameters_
 
+    def predict_row(self, x) -> np.ndarray:
+        """One full-layout row (3n,) → wrench (6,), without input validation (control loops)."""
+        return self.regressor(np.asarray(x, dtype=float)[None, :])[0] @ self.parameters_
+
     # -- reporting --------------------------------------------------------------------------
     def identified(self) -> dict:
         """Identified parameters with standard errors and units, plus derived CoM (m)."""
