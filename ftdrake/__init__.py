@@ -20,12 +20,30 @@ from .config import (  # noqa: E402
     load_config,
     save_config,
 )
+from .compensation.forest import RandomForestCompensator  # noqa: E402
+from .compensation.gpr import GPRCompensator  # noqa: E402
+from .compensation.hybrid import HybridCompensator  # noqa: E402
+from .compensation.persistence import ModelFileError, load_model, save_model  # noqa: E402
+from .compensation.physics import PhysicsPayloadCompensator  # noqa: E402
+from .compensation.svr import SVRCompensator  # noqa: E402
 from .diagram import Simulation, build_diagram  # noqa: E402
+from .systems import CompensatorSystem, ContactDetector, DetectorConfig  # noqa: E402
 from .sensor import ForceTorqueSensor, NoisyForceTorqueSensor  # noqa: E402
 from .simulation import run  # noqa: E402
 from .trajectories import TrajectoryError  # noqa: E402
 
 __all__ = [
+    "CompensatorSystem",
+    "ContactDetector",
+    "DetectorConfig",
+    "GPRCompensator",
+    "HybridCompensator",
+    "ModelFileError",
+    "PhysicsPayloadCompensator",
+    "RandomForestCompensator",
+    "SVRCompensator",
+    "load_model",
+    "save_model",
     "CableConfig",
     "ConfigError",
     "ControllerConfig",

@@ -16,6 +16,7 @@ def main(argv=None) -> int:
     _add_simulate(sub)
     _add_collect(sub)
     _add_demo(sub)
+    _add_export(sub)
     for register in _EXTRA_COMMANDS:
         register(sub)
     args = parser.parse_args(argv)
@@ -148,6 +149,24 @@ def _demo(args):
     print_table(summary)
     print(f"wrote {args.out}/summary.json, contact.png, model.ftd"
           + ("" if args.no_html else ", replay.html"))
+    return 0
+
+
+def _add_export(sub):
+    p = sub.add_parser("export", help="a saved compensator → ONNX (for controllers outside Python)")
+    p.add_argument("--model", type=Path, required=True)
+    p.add_argument("--out", type=Path, required=True, help="FILE.onnx")
+    p.set_defaults(run=_export)
+
+
+def _export(args):
+    from .compensation.onnx_export import export_onnx
+    from .compensation.persistence import load_model
+
+    model = load_model(args.model)
+    path = export_onnx(model, args.out)
+    print(json.dumps({"out": str(path), "input": f"X float64 (N x {3 * model.n_joints_}) "
+                      "= [q, qd, qdd]", "output": f"float64 (N x {model.n_outputs_})"}))
     return 0
 
 

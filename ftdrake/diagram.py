@@ -18,13 +18,11 @@ import numpy as np
 from pydrake.systems.controllers import InverseDynamicsController
 from pydrake.systems.framework import Diagram, DiagramBuilder
 from pydrake.systems.primitives import (
-    ConstantValueSource,
     LogVectorOutput,
     TrajectorySource,
     VectorLogSink,
 )
 
-from .cable import cable_weight_forces
 from .config import ScenarioConfig
 from .scene import Scene, add_scene, make_control_plant
 from .sensor import ForceTorqueSensor, NoisyForceTorqueSensor
@@ -93,12 +91,6 @@ def build_diagram(config: ScenarioConfig, *, trajectory=None, extra=None, meshca
     builder.Connect(q_source.get_output_port(), controller.get_input_port_desired_state())
     builder.Connect(vd_source.get_output_port(), controller.get_input_port_desired_acceleration())
     builder.Connect(controller.get_output_port_control(), plant.get_actuation_input_port(scene.arm))
-
-    # The cable's spring is in the plant (scene.cable); its hanging weight is a constant force.
-    weight = plant.get_applied_spatial_force_input_port().Allocate()  # the port's C++ type
-    weight.set_value(cable_weight_forces(scene.sensor_frame, config.cable))
-    cable_weight = builder.AddNamedSystem("cable_weight", ConstantValueSource(weight))
-    builder.Connect(cable_weight.get_output_port(), plant.get_applied_spatial_force_input_port())
 
     sensor = builder.AddNamedSystem("ft_sensor", ForceTorqueSensor(plant, scene.sensor_joint))
     builder.Connect(plant.get_reaction_forces_output_port(), sensor.GetInputPort("reaction_forces"))

@@ -27,8 +27,9 @@ from pydrake.multibody.tree import (
     WeldJoint,
 )
 from pydrake.systems.framework import DiagramBuilder
+from pydrake.systems.primitives import ConstantValueSource
 
-from .cable import add_cable_spring
+from .cable import add_cable_spring, cable_weight_forces
 from .config import ConfigError, ModelsConfig, ScenarioConfig
 
 
@@ -94,7 +95,11 @@ class Scene:
 
 
 def add_scene(builder: DiagramBuilder, config: ScenarioConfig) -> Scene:
-    """Adds plant + scene graph for `config` to `builder` and finalizes the plant."""
+    """Adds plant + scene graph for `config` to `builder` and finalizes the plant.
+
+    The scene includes the cable (its spring in the plant, its weight through the plant's
+    applied-spatial-force input, which is therefore connected).
+    """
     plant, scene_graph = AddMultibodyPlant(
         MultibodyPlantConfig(
             time_step=config.time_step,
@@ -123,6 +128,7 @@ def add_scene(builder: DiagramBuilder, config: ScenarioConfig) -> Scene:
         if config.cable.enabled else None
     )
     plant.Finalize()
+    _add_cable_weight(builder, plant, joint.frame_on_child(), config)
     if plant.num_positions(arm) != len(config.home_q):
         raise ConfigError(
             f"scenario.home_q: has {len(config.home_q)} entries but the arm has "
@@ -140,6 +146,15 @@ def add_scene(builder: DiagramBuilder, config: ScenarioConfig) -> Scene:
         environment_bodies=list(plant.GetBodyIndices(env)),
         cable=cable,
     )
+
+
+def _add_cable_weight(builder, plant, sensor_frame, config):
+    """The cable's hanging weight: a constant force on the tool, into the plant's
+    applied-spatial-force port (which the scene therefore occupies)."""
+    weight = plant.get_applied_spatial_force_input_port().Allocate()  # the port's C++ type
+    weight.set_value(cable_weight_forces(sensor_frame, config.cable))
+    source = builder.AddNamedSystem("cable_weight", ConstantValueSource(weight))
+    builder.Connect(source.get_output_port(), plant.get_applied_spatial_force_input_port())
 
 
 def sensor_weld(plant: MultibodyPlant, name: str, instance=None) -> WeldJoint:

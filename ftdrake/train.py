@@ -9,12 +9,14 @@ torques in N·m; any number of columns)::
     ftdrake evaluate --model m.ftd --data id2.csv --json eval.json
 
 Column options are a glob (``'q_*'``), a comma-separated list of names, or a regular
-expression after ``re:`` (``'re:qd_\\d+'``). For bags, ``--positions`` lists joint names and
-``--targets`` is ``effort`` or ``wrench``. ``--t-start``/``--t-end`` keep the rows in a time
-window (s, on the log's own time axis: a table's time column, a bag's time since its first
-joint state); derivatives are computed on the whole log first. A table with a ``trajectory``
-column (``ftdrake collect``'s datasets; ``--group`` names another) is read per trajectory,
-and cross-validation folds never split a trajectory segment.
+expression after ``re:`` (``'re:qd_\\d+'``). For bags, ``--positions`` selects JointState
+joint names (default: all), ``--targets`` is ``effort`` (default) or ``wrench`` (default with
+``--wrench-topic``) or selects among the names read (``tau_0..``, ``meas_Fx..``); velocities
+are the messages' own. ``--t-start``/``--t-end`` keep the rows in a time window (s, on the
+log's own time axis: a table's time column, a bag's time since its first joint state);
+derivatives are computed on the whole log first. A table with a ``trajectory`` column
+(``ftdrake collect``'s datasets; ``--group`` names another) is read per trajectory, and
+cross-validation folds never split a trajectory segment.
 
 `train` tunes the model with the ``quick`` grid and grouped CV (``--preset none`` fits the
 defaults), locally or on a Dask cluster (``--dask ADDRESS``), and saves it with
@@ -22,9 +24,10 @@ defaults), locally or on a Dask cluster (``--dask ADDRESS``), and saves it with
 file and options, the columns used and which were Savitzky–Golay derivatives, the training
 ranges of time and targets (those of the inputs are the manifest's ``input_range``), the
 row counts (in the file, dropped by the reader, outside the time window, used) with the
-reader's warnings, and the search result. `evaluate` reads the same columns unless told
-otherwise and reports per-target MSE, NMSE and variance score on all rows, on the rows inside
-the training range of every input, and on the rows outside it.
+reader's warnings, and the search result. `evaluate` reads the same columns as training
+unless told otherwise (when the data is of the same kind, table or bag) and reports
+per-target MSE, NMSE and variance score on all rows, on the rows inside the training range
+of every input, and on the rows outside it.
 
 Every problem with the input is a one-line error (exit code 2); rows the reader dropped or
 reordered are printed as warnings with counts.
@@ -247,21 +250,23 @@ def _read_group(frame, label: str, kwargs):
 
 
 def _read_bag(path: Path, options: dict) -> LogData:
-    from .logs import read_bag
+    """A bag's JointState rows; --positions/--targets select joints and targets by name."""
+    from .logs import expand_columns, read_bag
 
-    joints = _column_spec(options["positions"])
-    if isinstance(joints, str) and not set("*?[") & set(joints):
-        joints = [joints]
-    if joints is not None and not isinstance(joints, list):
-        raise LogError(f"{path.name}: for a bag, --positions lists joint names "
-                       f"(comma-separated), got {options['positions']!r}")
-    targets = options["targets"]
-    if targets not in (None, "effort", "wrench"):
-        raise LogError(f"{path.name}: for a bag, --targets is 'effort' (the JointState "
-                       f"efforts) or 'wrench' (with --wrench-topic), got {targets!r}")
+    positions, targets = _column_spec(options["positions"]), options["targets"]
+    kind = targets if targets in ("effort", "wrench") else None
     topic = options["joint_topic"] or "/joint_states"
-    log = read_bag(path, topic, wrench_topic=options["wrench_topic"], targets=targets,
-                   joints=joints)
+    listed = positions if isinstance(positions, list) else None  # names: skip other messages
+    log = read_bag(path, topic, wrench_topic=options["wrench_topic"], targets=kind,
+                   joints=listed)
+    if positions is not None and listed is None:
+        keep = expand_columns(positions, log.joint_names, f"{path.name} joints on {topic}")
+        i = [log.joint_names.index(n) for n in keep]
+        log.q, log.qd, log.qdd, log.joint_names = log.q[:, i], log.qd[:, i], log.qdd[:, i], keep
+    if kind is None and targets is not None:
+        keep = expand_columns(_column_spec(targets), log.target_names, f"{path.name} targets")
+        i = [log.target_names.index(n) for n in keep]
+        log.targets, log.target_names = log.targets[:, i], keep
     data = _stack([log], [0], path.name)
     data.rows["in_file"] = _bag_message_count(path, topic)
     return data
@@ -434,6 +439,7 @@ def _provenance(args, options, data: LogData, model, search) -> dict:
     return {
         "data": {
             "file": str(args.data),
+            "kind": "bag" if _is_bag(args.data) else "table",
             "source": data.source,
             "options": options,
             "time_window_s": [args.t_start, args.t_end],
@@ -480,8 +486,9 @@ def run_evaluate(args) -> int:
 
     say = _reporter(args.quiet)
     manifest = read_manifest(args.model)
-    stored = manifest.get("extra", {}).get("data", {}).get("options", {})
-    options = data_options(args, stored)
+    trained_on = manifest.get("extra", {}).get("data", {})
+    same_kind = trained_on.get("kind") == ("bag" if _is_bag(args.data) else "table")
+    options = data_options(args, trained_on.get("options") if same_kind else None)
     say(f"reading {args.data} …")
     data = read_data(args.data, options, t_start=args.t_start, t_end=args.t_end, report=_warn)
     say(_describe(data))

@@ -22,8 +22,6 @@ from __future__ import annotations
 
 import hashlib
 import json
-import os
-import tempfile
 import warnings
 import zipfile
 from pathlib import Path
@@ -34,6 +32,7 @@ import skops.io as sio
 from sklearn.base import BaseEstimator
 from sklearn.utils.validation import check_is_fitted
 
+from ..io import atomic_write_bytes
 from .base import Compensator
 from .features import feature_names
 
@@ -95,7 +94,7 @@ def save_model(
     manifest["payload_bytes"] = len(payload)
     manifest["payload_sha256"] = hashlib.sha256(payload).hexdigest()
     path = Path(path)
-    _write_atomically(path, _pack(manifest, payload))
+    atomic_write_bytes(path, _pack(manifest, payload))
     return path
 
 
@@ -143,22 +142,6 @@ def _pack(manifest: dict, payload: bytes) -> bytes:
     return body + hashlib.sha256(body).digest()
 
 
-def _write_atomically(path: Path, data: bytes) -> None:
-    # A temporary file in the same directory, then os.replace: readers see the old file or
-    # the complete new one, never a partial write.
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
-    try:
-        with os.fdopen(fd, "wb") as f:
-            f.write(data)
-            f.flush()
-            os.fsync(f.fileno())
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
-
-
-# -- loading ------------------------------------------------------------------------------
 def read_manifest(path) -> dict:
     """The manifest of the model file at `path`, after checking the file's integrity."""
     manifest, _ = _unpack(Path(path).read_bytes(), path)

@@ -1,0 +1,90 @@
+"""Put a trained ftdrake compensator and contact detector into your own Drake diagram.
+
+Your diagram has a robot (here: a plant built from ftdrake's models, but any MultibodyPlant
+with a weld for the sensor works), a source of F/T readings, and the robot's joint state.
+ftdrake adds two systems:
+
+    wrench_measured ──► CompensatorSystem ── wrench_external ──► ContactDetector ──► contact
+    joint_state ──────►                   ── wrench_std ───────►
+
+Run:  python examples/compensate_in_your_diagram.py [--model MODEL.ftd]
+Without --model it trains a small forest first (a few seconds of simulated data).
+"""
+
+import argparse
+from pathlib import Path
+
+import numpy as np
+from pydrake.systems.analysis import Simulator
+from pydrake.systems.controllers import InverseDynamicsController
+from pydrake.systems.framework import DiagramBuilder
+from pydrake.systems.primitives import ConstantVectorSource, LogVectorOutput
+
+import ftdrake
+from ftdrake import columns as col
+from ftdrake.data import collect, joint_state_layout, wrench_targets
+from ftdrake.scene import add_scene, make_control_plant
+
+
+def train_small_model(path: Path) -> Path:
+    data = collect(ftdrake.ScenarioConfig(), 2, kind="fourier", duration=5.0, progress=False)
+    model = ftdrake.RandomForestCompensator(features="q", n_estimators=20, per_output=False)
+    model.fit(joint_state_layout(data), wrench_targets(data))
+    return ftdrake.save_model(model, path, target_names=col.WRENCH_AXES,
+                              target_units=col.WRENCH_UNITS, sensor_frame="S")
+
+
+def main():
+    parser = argparse.ArgumentParser(description=__doc__)
+    parser.add_argument("--model", type=Path)
+    args = parser.parse_args()
+    model_path = args.model or train_small_model(Path("out/example_model.ftd"))
+
+    # --- your diagram --------------------------------------------------------------------
+    builder = DiagramBuilder()
+    scene = add_scene(builder, ftdrake.ScenarioConfig())  # or your own plant
+    plant = scene.plant
+    ideal = builder.AddSystem(ftdrake.ForceTorqueSensor(plant, scene.sensor_joint))
+    builder.Connect(plant.get_reaction_forces_output_port(), ideal.GetInputPort("reaction_forces"))
+    # Your sensor's readings (simulated here with the same sensor the model was trained on).
+    sensor = builder.AddSystem(ftdrake.NoisyForceTorqueSensor(ftdrake.SensorConfig(seed=42)))
+    builder.Connect(ideal.GetOutputPort("wrench"), sensor.GetInputPort("wrench_ideal"))
+    # Your controller: here inverse dynamics holding the arm at its home pose.
+    config = ftdrake.ScenarioConfig()
+    home, n = np.asarray(config.home_q), plant.num_positions(scene.arm)
+    controller = builder.AddSystem(InverseDynamicsController(
+        make_control_plant(config, scene), np.full(n, 400.0), np.zeros(n), np.full(n, 40.0),
+        False))
+    target = builder.AddSystem(ConstantVectorSource(np.concatenate([home, np.zeros(n)])))
+    builder.Connect(target.get_output_port(), controller.get_input_port_desired_state())
+    builder.Connect(plant.get_state_output_port(scene.arm),
+                    controller.get_input_port_estimated_state())
+    builder.Connect(controller.get_output_port_control(), plant.get_actuation_input_port(scene.arm))
+
+    # --- the two ftdrake systems, from a saved model ---------------------------------------
+    model = ftdrake.load_model(model_path, expect_n_joints=n)
+    period = 1e-3  # s: run at your sensor's rate
+    compensator = builder.AddSystem(
+        ftdrake.CompensatorSystem(model, period, n_joints=n))
+    detector = builder.AddSystem(ftdrake.ContactDetector(ftdrake.DetectorConfig(), period))
+    builder.Connect(sensor.GetOutputPort("wrench_measured"),
+                    compensator.GetInputPort("wrench_measured"))
+    builder.Connect(plant.get_state_output_port(scene.arm), compensator.GetInputPort("joint_state"))
+    builder.Connect(compensator.GetOutputPort("wrench_external"),
+                    detector.GetInputPort("wrench_external"))
+    builder.Connect(compensator.GetOutputPort("wrench_std"), detector.GetInputPort("wrench_std"))
+    external = LogVectorOutput(compensator.GetOutputPort("wrench_external"), builder, period)
+    contact = LogVectorOutput(detector.GetOutputPort("contact"), builder, period)
+
+    simulator = Simulator(builder.Build())
+    plant.SetPositions(plant.GetMyMutableContextFromRoot(simulator.get_mutable_context()),
+                       scene.arm, home)
+    simulator.AdvanceTo(0.5)
+    root = simulator.get_context()
+    w = external.FindLog(root).data()[:, -1]
+    print(f"external wrench at rest (should be near zero): {np.round(w, 3)}")
+    print(f"contact detected: {bool(contact.FindLog(root).data()[0, -1])}")
+
+
+if __name__ == "__main__":
+    main()
