@@ -47,9 +47,9 @@ class CompensatorSystem(LeafSystem):
         self._alpha = 1.0 - math.exp(-2 * math.pi * acceleration_cutoff_hz * self.period)
         self._lo, self._hi = _training_box(model)
 
-        self.DeclareVectorInputPort("wrench_measured", 6)
-        self.DeclareVectorInputPort("joint_state", 2 * n)
-        self.DeclareVectorInputPort("joint_acceleration", n)
+        self._wrench_port = self.DeclareVectorInputPort("wrench_measured", 6)
+        self._state_port = self.DeclareVectorInputPort("joint_state", 2 * n)
+        self._accel_port = self.DeclareVectorInputPort("joint_acceleration", n)
         # Acceleration estimator: previous v (n), filtered v̇ (n), primed flag (1).
         self._estimator = self.DeclareDiscreteState(2 * n + 1)
         self._internal = self.DeclareDiscreteState(6)
@@ -64,34 +64,42 @@ class CompensatorSystem(LeafSystem):
             self.DeclareStateOutputPort(name, index)
 
     def _update(self, context, state):
+        # Drake starts `state` as a copy of the current state: only groups that change are
+        # written (this runs at the sensor rate, so Python work here is the loop's cost).
         n = self.n
-        wrench = self.get_input_port(0).Eval(context)
-        x = self.get_input_port(1).Eval(context)
-        accel_port = self.get_input_port(2)
-        measured_accel = accel_port.Eval(context) if accel_port.HasValue(context) else None
-        inputs = (wrench, x) if measured_accel is None else (wrench, x, measured_accel)
-        if not all(np.all(np.isfinite(a)) for a in inputs):
-            state.get_mutable_vector(self._fault).SetFromVector([1.0])
+        wrench = self._wrench_port.Eval(context)
+        x = self._state_port.Eval(context)
+        measured_accel = (self._accel_port.Eval(context)
+                          if self._accel_port.HasValue(context) else None)
+        finite = np.isfinite(wrench).all() and np.isfinite(x).all() and (
+            measured_accel is None or np.isfinite(measured_accel).all())
+        fault = state.get_mutable_vector(self._fault)
+        if not finite:
+            fault.SetAtIndex(0, 1.0)
             return  # everything else keeps its last good value
+        if fault.GetAtIndex(0) != 0.0:
+            fault.SetAtIndex(0, 0.0)
         q, v = x[:n], x[n:]
-        est = context.get_discrete_state(self._estimator).value()
+        est = state.get_mutable_vector(self._estimator)
+        previous = est.value()
         if measured_accel is not None:
             vdot = measured_accel
-        elif est[-1] == 0.0:
+        elif previous[-1] == 0.0:
             vdot = np.zeros(n)  # first sample: no difference yet
         else:
-            raw = (v - est[:n]) / self.period
-            vdot = est[n:2 * n] + self._alpha * (raw - est[n:2 * n])
-        state.get_mutable_vector(self._estimator).SetFromVector(np.concatenate([v, vdot, [1.0]]))
+            raw = (v - previous[:n]) / self.period
+            vdot = previous[n:2 * n] + self._alpha * (raw - previous[n:2 * n])
+        est.SetFromVector(np.concatenate([v, vdot, [1.0]]))
         row = np.concatenate([q, v, vdot])
         internal, std = self._predict(row)
-        used = self._lo.size
-        ood = float(np.any((row[:used] < self._lo) | (row[:used] > self._hi)))
         state.get_mutable_vector(self._internal).SetFromVector(internal)
         state.get_mutable_vector(self._external).SetFromVector(wrench - internal)
-        state.get_mutable_vector(self._std).SetFromVector(std if self._has_std else np.zeros(6))
-        state.get_mutable_vector(self._ood).SetFromVector([ood])
-        state.get_mutable_vector(self._fault).SetFromVector([0.0])
+        if self._has_std:
+            state.get_mutable_vector(self._std).SetFromVector(std)
+        if self._lo.size:
+            used = row[: self._lo.size]
+            ood = float(((used < self._lo) | (used > self._hi)).any())
+            state.get_mutable_vector(self._ood).SetAtIndex(0, ood)
 
 
 def check_model_fits(model, n_joints: int | None) -> None:
@@ -220,8 +228,8 @@ class ContactDetector(LeafSystem):
         super().__init__()
         self.config = config.validate()
         self.period = float(period)
-        self.DeclareVectorInputPort("wrench_external", 6)
-        self.DeclareVectorInputPort("wrench_std", 6)
+        self._wrench_port = self.DeclareVectorInputPort("wrench_external", 6)
+        self._std_port = self.DeclareVectorInputPort("wrench_std", 6)
         self._flag = self.DeclareDiscreteState(1)
         self._force = self.DeclareDiscreteState(1)
         self._counter = self.DeclareDiscreteState(1)
@@ -232,30 +240,30 @@ class ContactDetector(LeafSystem):
     def _update(self, context, state):
         if context.get_time() < self.config.arm_after_s:
             return  # not armed yet
-        w = self.get_input_port(0).Eval(context)
-        if not np.all(np.isfinite(w)):
+        w = self._wrench_port.Eval(context)
+        if not np.isfinite(w).all():
             return  # hold: a NaN is not evidence either way
-        std_port = self.get_input_port(1)
-        grow_f = grow_t = 0.0
-        if self.config.std_gain > 0 and std_port.HasValue(context):
-            std = std_port.Eval(context)
-            grow_f = self.config.std_gain * float(np.linalg.norm(std[:3]))
-            grow_t = self.config.std_gain * float(np.linalg.norm(std[3:]))
-        force, torque = float(np.linalg.norm(w[:3])), float(np.linalg.norm(w[3:]))
-        in_contact = context.get_discrete_state(self._flag).value()[0] > 0.5
-        counter = context.get_discrete_state(self._counter).value()[0]
         c = self.config
+        grow_f = grow_t = 0.0
+        if c.std_gain > 0 and self._std_port.HasValue(context):
+            std = self._std_port.Eval(context)
+            grow_f = c.std_gain * math.hypot(std[0], std[1], std[2])
+            grow_t = c.std_gain * math.hypot(std[3], std[4], std[5])
+        force, torque = math.hypot(w[0], w[1], w[2]), math.hypot(w[3], w[4], w[5])
+        flag = state.get_mutable_vector(self._flag)
+        counter = state.get_mutable_vector(self._counter)
+        in_contact, count = flag.GetAtIndex(0) > 0.5, counter.GetAtIndex(0)
         if in_contact:
             quiet = (force < c.release_ratio * (c.force_on + grow_f)
                      and torque < c.release_ratio * (c.torque_on + grow_t))
-            counter = counter + 1 if quiet else 0
-            if counter >= c.debounce_off:
-                in_contact, counter = False, 0
+            count = count + 1 if quiet else 0
+            if count >= c.debounce_off:
+                in_contact, count = False, 0
         else:
             loud = force > c.force_on + grow_f or torque > c.torque_on + grow_t
-            counter = counter + 1 if loud else 0
-            if counter >= c.debounce_on:
-                in_contact, counter = True, 0
-        state.get_mutable_vector(self._flag).SetFromVector([float(in_contact)])
-        state.get_mutable_vector(self._force).SetFromVector([force if in_contact else 0.0])
-        state.get_mutable_vector(self._counter).SetFromVector([counter])
+            count = count + 1 if loud else 0
+            if count >= c.debounce_on:
+                in_contact, count = True, 0
+        flag.SetAtIndex(0, float(in_contact))
+        counter.SetAtIndex(0, count)
+        state.get_mutable_vector(self._force).SetAtIndex(0, force if in_contact else 0.0)

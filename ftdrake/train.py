@@ -225,8 +225,10 @@ def _read_frame(path: Path):
             table = pq.read_table(path)
         except Exception as e:  # noqa: BLE001 - any pyarrow failure means an unreadable file
             raise LogError(f"{path.name}: not a readable Parquet file: {e}") from None
+        from .data import META_SCENARIO
+
         frame = table.to_pandas()
-        scenario = (table.schema.metadata or {}).get(b"ftdrake.scenario")
+        scenario = (table.schema.metadata or {}).get(META_SCENARIO)
         frame.attrs["scenario"] = scenario.decode() if scenario else None
         return frame
     raise LogError(f"{path}: unknown format; expected .csv, .parquet, a .bag file or a ROS 2 "
