@@ -10,7 +10,13 @@ try:
 except PackageNotFoundError:  # running from a source tree without installing
     __version__ = "0.0.0+unknown"
 
-from .config import (  # noqa: E402
+from .compensation.forest import RandomForestCompensator
+from .compensation.gpr import GPRCompensator
+from .compensation.hybrid import HybridCompensator
+from .compensation.persistence import ModelFileError, load_model, save_model
+from .compensation.physics import PhysicsPayloadCompensator
+from .compensation.svr import SVRCompensator
+from .config import (
     CableConfig,
     ConfigError,
     ControllerConfig,
@@ -20,35 +26,27 @@ from .config import (  # noqa: E402
     load_config,
     save_config,
 )
-from .compensation.forest import RandomForestCompensator  # noqa: E402
-from .compensation.gpr import GPRCompensator  # noqa: E402
-from .compensation.hybrid import HybridCompensator  # noqa: E402
-from .compensation.persistence import ModelFileError, load_model, save_model  # noqa: E402
-from .compensation.physics import PhysicsPayloadCompensator  # noqa: E402
-from .compensation.svr import SVRCompensator  # noqa: E402
-from .diagram import Simulation, build_diagram  # noqa: E402
-from .systems import CompensatorSystem, ContactDetector, DetectorConfig  # noqa: E402
-from .sensor import ForceTorqueSensor, NoisyForceTorqueSensor  # noqa: E402
-from .simulation import run  # noqa: E402
-from .trajectories import TrajectoryError  # noqa: E402
+from .diagram import Simulation, build_diagram
+from .sensor import ForceTorqueSensor, NoisyForceTorqueSensor
+from .simulation import run
+from .systems import CompensatorSystem, ContactDetector, DetectorConfig
+from .trajectories import TrajectoryError
 
 __all__ = [
+    "CableConfig",
     "CompensatorSystem",
+    "ConfigError",
     "ContactDetector",
+    "ControllerConfig",
     "DetectorConfig",
+    "ForceTorqueSensor",
     "GPRCompensator",
     "HybridCompensator",
     "ModelFileError",
+    "NoisyForceTorqueSensor",
     "PhysicsPayloadCompensator",
     "RandomForestCompensator",
     "SVRCompensator",
-    "load_model",
-    "save_model",
-    "CableConfig",
-    "ConfigError",
-    "ControllerConfig",
-    "ForceTorqueSensor",
-    "NoisyForceTorqueSensor",
     "ScenarioConfig",
     "SensorConfig",
     "Simulation",
@@ -57,6 +55,8 @@ __all__ = [
     "__version__",
     "build_diagram",
     "load_config",
+    "load_model",
     "run",
     "save_config",
+    "save_model",
 ]

@@ -13,6 +13,7 @@
 
 from __future__ import annotations
 
+import dataclasses as dc
 import json
 import time
 from pathlib import Path
@@ -71,12 +72,11 @@ def run_demo(out: Path, config: ScenarioConfig | None = None, *, fourier: int = 
     detector = DetectorConfig.from_residuals(residual)
 
     stage("contact scenario")
-    scenario = ScenarioConfig(**{**config.__dict__})
-    scenario.trajectory = type(config.trajectory)(**{**config.trajectory.__dict__})
-    scenario.sensor = type(config.sensor)(**{**config.sensor.__dict__})
-    scenario.trajectory.kind = "contact"
-    scenario.trajectory.seed = HELD_OUT_SEED
-    scenario.sensor.seed = HELD_OUT_SEED
+    scenario = dc.replace(
+        config,
+        trajectory=dc.replace(config.trajectory, kind="contact", seed=HELD_OUT_SEED),
+        sensor=dc.replace(config.sensor, seed=HELD_OUT_SEED),
+    )
     meshcat = None
     if meshcat_html:
         from pydrake.geometry import Meshcat
@@ -91,7 +91,7 @@ def run_demo(out: Path, config: ScenarioConfig | None = None, *, fourier: int = 
         **metrics,
         "real_time_factor": timing["real_time_factor"],
         "contact_scenario_s": timing["duration_s"],
-        "training_rows": int(len(X)),
+        "training_rows": len(X),
         "training_trajectories": int(train["trajectory"].nunique()),
         "model": {"class": "RandomForestCompensator", "features": "q", "per_output": False,
                   **search.best_params[0]},

@@ -117,7 +117,8 @@ def build_diagram(config: ScenarioConfig, *, trajectory=None, extra=None, meshca
         external=LogVectorOutput(truth.GetOutputPort("wrench_external"), builder, period),
         contact=LogVectorOutput(truth.GetOutputPort("contact"), builder, period),
     )
-    parts = dict(scene=scene, sensor=sensor, noisy_sensor=noisy, truth=truth, period=period)
+    parts = {"scene": scene, "sensor": sensor, "noisy_sensor": noisy, "truth": truth,
+             "period": period}
     extras = extra(builder, parts) if extra is not None else {}
     if meshcat is not None:
         from pydrake.visualization import AddDefaultVisualization

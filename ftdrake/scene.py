@@ -21,9 +21,9 @@ from pydrake.multibody.plant import (
 )
 from pydrake.multibody.tree import (
     BodyIndex,
+    LinearSpringDamper,
     ModelInstanceIndex,
     SpatialInertia,
-    LinearSpringDamper,
     WeldJoint,
 )
 from pydrake.systems.framework import DiagramBuilder
@@ -67,7 +67,7 @@ def add_model(parser: Parser, url: str, field: str) -> ModelInstanceIndex:
             instances = parser.AddModels(file_name=url)
     except ConfigError:
         raise
-    except Exception as e:  # Drake raises RuntimeError with a long message
+    except RuntimeError as e:  # Drake's parser reports every problem as RuntimeError
         raise ConfigError(f"scenario.models.{field}: cannot load {url!r}: {e}") from None
     if len(instances) != 1:
         raise ConfigError(f"scenario.models.{field}: {url!r} must hold exactly one model")

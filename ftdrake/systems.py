@@ -178,7 +178,7 @@ class DetectorConfig:
     # acceleration filter settle first (a real detector arms after the sensor is tared).
     arm_after_s: float = 0.05
 
-    def validate(self) -> "DetectorConfig":
+    def validate(self) -> DetectorConfig:
         for name in ("force_on", "torque_on"):
             value = getattr(self, name)
             if not (value > 0 and math.isfinite(value)):
@@ -196,7 +196,7 @@ class DetectorConfig:
 
     @classmethod
     def from_residuals(cls, residual, margin: float = 1.5, quantile: float = 0.999,
-                       **overrides) -> "DetectorConfig":
+                       **overrides) -> DetectorConfig:
         """Thresholds from free-motion residuals (N × 6: measured − predicted wrench on
         held-out contact-free data): `margin` × the `quantile` of ‖F‖ and ‖T‖, floored at
         0.5 N and 0.02 N·m. A quantile, not k·RMS: a learned model's residuals are

@@ -53,7 +53,7 @@ class JointLimits:
     names: list[str]
 
     @classmethod
-    def from_plant(cls, plant, instance, acceleration_limit: float) -> "JointLimits":
+    def from_plant(cls, plant, instance, acceleration_limit: float) -> JointLimits:
         joints = [plant.get_joint(j) for j in plant.GetJointIndices(instance)]
         joints = [j for j in joints if j.num_positions() == 1]
         return cls(
@@ -129,7 +129,7 @@ def _free_motion(config, home_q, limits, robot):
     # Shrink the motion about home until it respects every limit and clears the environment.
     scale = 1.0
     for _ in range(40):
-        traj = _spline(lambda t: home_q + scale * (motion(t) - home_q), config.duration_s)
+        traj = _spline(lambda t, s=scale: home_q + s * (motion(t) - home_q), config.duration_s)
         if _within_limits(traj, limits, config.speed_fraction) and (
             robot is None or robot.clear_of_environment(traj)
         ):
@@ -258,7 +258,7 @@ class RobotGeometry:
 # Helpers.
 # ----------------------------------------------------------------------------------------------
 def _spline(q_of_t, duration: float) -> PiecewisePolynomial:
-    t = np.linspace(0.0, duration, max(4, int(round(duration * SAMPLE_RATE_HZ)) + 1))
+    t = np.linspace(0.0, duration, max(4, round(duration * SAMPLE_RATE_HZ) + 1))
     Q = np.column_stack([q_of_t(ti) for ti in t])
     zero = np.zeros((Q.shape[0], 1))
     return PiecewisePolynomial.CubicWithContinuousSecondDerivatives(t, Q, zero, zero)

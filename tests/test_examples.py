@@ -12,7 +12,7 @@ EXAMPLE = Path(__file__).resolve().parents[1] / "examples" / "compensate_in_your
 
 def test_example_builds_own_diagram_and_compensates_at_rest(tmp_path):
     result = subprocess.run([sys.executable, str(EXAMPLE)], cwd=tmp_path, capture_output=True,
-                            text=True, timeout=300)
+                            text=True, timeout=300, check=False)
     assert result.returncode == 0, result.stderr
     numbers = re.search(r"near zero\): \[([^\]]*)\]", result.stdout).group(1)
     external = np.array([float(x) for x in numbers.split()])

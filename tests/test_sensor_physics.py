@@ -7,9 +7,9 @@ is (q_{k−1}, v_{k−1}) with v̇_k. With that alignment the checks below hold 
 
 import numpy as np
 import pytest
+from pydrake.math import RigidTransform, RollPitchYaw
 from pydrake.multibody.plant import MultibodyPlant
 from pydrake.multibody.tree import SpatialInertia, UnitInertia
-from pydrake.math import RigidTransform, RollPitchYaw
 from pydrake.systems.analysis import Simulator
 from pydrake.systems.framework import DiagramBuilder
 from pydrake.systems.primitives import ConstantVectorSource
@@ -113,7 +113,7 @@ def test_sampled_outputs_read_zero_before_first_step():
 def contact_run():
     config = ideal_config("contact", 12.0)
     sim = build_diagram(config)
-    log, summary = run(sim, progress=False)
+    log, _ = run(sim, progress=False)
     return sim, log
 
 
@@ -178,7 +178,7 @@ def test_cable_force_is_read_by_the_sensor():
     sim = build_diagram(config)
     log, _ = run(sim, progress=False)
     rows = np.arange(50, len(log), 41)
-    newton_euler, kin = newton_euler_for_rows(sim, log, rows)
+    newton_euler, _ = newton_euler_for_rows(sim, log, rows)
     plant, frame_S = sim.scene.plant, sim.scene.sensor_frame
     context = plant.CreateDefaultContext()
     q = log[col.joint_columns(col.Q)].to_numpy()

@@ -164,7 +164,7 @@ def weighted_least_squares(A, Y):
     Returns (θ, covariance of θ, per-axis residual RMS, condition number of the
     column-normalised weighted regressor).
     """
-    N, k, p = A.shape
+    p = A.shape[-1]
     theta = np.linalg.lstsq(A.reshape(-1, p), Y.reshape(-1), rcond=None)[0]
     rms = np.sqrt(np.mean((Y - A @ theta) ** 2, axis=0))
     weights = 1.0 / np.maximum(rms, 1e-9 * (1 + np.abs(Y).max()))
@@ -252,7 +252,7 @@ def _kinematics_for(robot, sensor_frame, base_frame, gravity, package_xmls, scen
     try:
         instances = parser.AddModels(url=robot) if "://" in robot else parser.AddModels(
             file_name=robot)
-    except Exception as e:
+    except RuntimeError as e:  # Drake's parser reports every problem as RuntimeError
         raise ValueError(f"cannot load robot model {robot!r}: {e}") from None
     if not sensor_frame or not plant.HasFrameNamed(sensor_frame):
         raise ValueError(f"robot model {robot!r} has no frame named {sensor_frame!r}")
