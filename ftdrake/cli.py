@@ -17,23 +17,16 @@ def main(argv=None) -> int:
     _add_collect(sub)
     _add_demo(sub)
     _add_export(sub)
-    for register in _EXTRA_COMMANDS:
-        register(sub)
+    from . import study, train
+
+    study.register(sub)
+    train.register(sub)
     args = parser.parse_args(argv)
     try:
         return args.run(args) or 0
     except (ConfigError, ValueError, FileNotFoundError) as e:
         print(f"ftdrake {args.command}: error: {e}", file=sys.stderr)
         return 2
-
-
-_EXTRA_COMMANDS: list = []
-
-
-def command(register):
-    """Registers a function that adds a subcommand (used by modules that add commands)."""
-    _EXTRA_COMMANDS.append(register)
-    return register
 
 
 def scenario_from_args(args, kind: str | None = None) -> ScenarioConfig:

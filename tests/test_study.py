@@ -1,0 +1,187 @@
+"""The study end to end on a tiny configuration, its outputs, findings and command line."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+
+import pytest
+
+from ftdrake import ScenarioConfig
+from ftdrake import study as dut
+from ftdrake.data import collect
+
+# A grid of one candidate each: the test checks the plumbing, not the tuning.
+TINY_GRID = {
+    "RandomForestCompensator": [
+        {"n_estimators": [8], "max_features": [1.0], "min_samples_leaf": [5]}],
+    "SVRCompensator": [{"kernel": ["rbf"], "C": [10.0], "gamma": [0.1]}],
+}
+TINY = {"preset": TINY_GRID, "trajectories": 3, "test_trajectories": 1, "duration": 4.0,
+        "train_hz": 25.0, "test_hz": 50.0, "n_splits": 3, "n_jobs": 2, "progress": False}
+
+
+@pytest.fixture(scope="module")
+def tiny_data():
+    """Three 4 s runs of each dataset's motion (collected once for the module)."""
+    return {kind: collect(ScenarioConfig(), TINY["trajectories"], kind=kind,
+                          duration=TINY["duration"], n_jobs=2, progress=False)
+            for kind in dut.DATASETS}
+
+
+@pytest.fixture(scope="module")
+def tiny_run(tiny_data, tmp_path_factory):
+    out = tmp_path_factory.mktemp("study")
+    return out, dut.run_study(out, data=tiny_data, **TINY)
+
+
+@pytest.mark.slow
+def test_results_hold_every_cell(tiny_run):
+    out, returned = tiny_run
+    results = json.loads((out / "results.json").read_text())
+    assert results["findings"] == returned["findings"]
+    for dataset in dut.DATASETS:
+        table = results["metrics"][dataset]
+        assert set(table) == set(dut.METHODS)
+        for method in dut.METHODS:
+            assert set(table[method]) == set(dut.FEATURES)
+            for features in dut.FEATURES:
+                cell = table[method][features]
+                assert list(cell) == list(dut.AXES)
+                for axis in dut.AXES:
+                    assert set(cell[axis]) == set(dut.METRICS)
+                    values = cell[axis].values()
+                    assert all(isinstance(v, float) and math.isfinite(v) for v in values), (
+                        dataset, method, features, axis, cell[axis])
+                timing = results["timings"][dataset][method][features]
+                assert timing["fit_s"] >= 0 and timing["predict_s"] >= 0
+        for method in ("rf", "svr"):
+            for features in dut.FEATURES:
+                assert set(results["best_params"][dataset][method][features]) == set(dut.AXES)
+
+
+@pytest.mark.slow
+def test_results_hold_the_study_tables(tiny_run):
+    _, results = tiny_run
+    for dataset in dut.DATASETS:
+        sizes = results["sizes"][dataset]
+        # Whole trajectories are held out: none is on both sides.
+        assert sizes["test_trajectories"] == [2]
+        assert sizes["train_trajectories"] == [0, 1]
+        assert sizes["train_rows"] == 2 * 4.0 * 25.0  # 2 runs × 4 s × 25 Hz
+        tip = results["tool_tip"][dataset]
+        assert set(tip) == {"x", "y", "z", "tilt"}
+        assert tip["z"]["min"] <= tip["z"]["mean"] <= tip["z"]["max"]
+        fx = results["feature_importances"][dataset]
+        assert len(fx["q,qd,qdd"]) == 21 and len(fx["q"]) == 7
+        assert sum(fx["q"].values()) == pytest.approx(1.0)
+        disagreement = results["cv_disagreement"][dataset]
+        for scheme in ("grouped", "shuffled"):
+            assert math.isfinite(disagreement[scheme]["median_test_over_cv"])
+    assert results["grid_sizes"]["RandomForestCompensator"] == {"q": 1, "q,qd": 1,
+                                                                "q,qd,qdd": 1}
+    # The study-like motion moves the tool tip less in z than z_rich.
+    assert (results["tool_tip"]["reference"]["z"]["std"]
+            < results["tool_tip"]["z_rich"]["z"]["std"])
+
+
+@pytest.mark.slow
+def test_figures_and_markdown_are_written(tiny_run):
+    out, _ = tiny_run
+    for dataset in dut.DATASETS:
+        for name in dut._FIGURES:
+            png = out / f"{name}_{dataset}.png"
+            assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    text = (out / "results.md").read_text()
+    assert "## Findings" in text and "Grouped vs shuffled CV" in text
+    assert not list(out.glob(".*")), "staging or temporary files left behind"
+
+
+@pytest.mark.slow
+def test_findings_are_computed(tiny_run):
+    _, results = tiny_run
+    found = dut.findings(results)
+    assert [f["id"] for f in found] == ["a", "b", "c", "d", "e", "f"]
+    for f in found:
+        assert isinstance(f["reproduced"], bool) and f["evidence"]
+        assert (f["why"] is None) == f["reproduced"]
+
+
+@pytest.mark.slow
+def test_a_failing_run_leaves_no_partial_output(tiny_data, tmp_path, monkeypatch):
+    out = tmp_path / "study"
+    out.mkdir()
+    (out / "earlier.txt").write_text("kept")
+
+    def broken(*args, **kwargs):
+        raise RuntimeError("figure failed")
+
+    monkeypatch.setitem(dut._FIGURE_MAKERS, "importances", broken)
+    with pytest.raises(RuntimeError, match="figure failed"):
+        dut.run_study(out, data=tiny_data, **TINY)
+    assert sorted(p.name for p in out.iterdir()) == ["earlier.txt"]
+
+
+def test_a_failure_before_writing_creates_nothing(tmp_path):
+    out = tmp_path / "study"
+    with pytest.raises(ValueError, match="test_trajectories"):
+        dut.run_study(out, trajectories=2, test_trajectories=2, progress=False)
+    assert not out.exists()
+
+
+def test_only_keeps_the_feature_blocks():
+    import numpy as np
+
+    X = np.arange(2 * 21, dtype=float).reshape(2, 21) + 1
+    Z = dut.only(X, "q,qd")
+    assert np.array_equal(Z[:, :14], X[:, :14]) and not Z[:, 14:].any()
+
+
+# -- command line ----------------------------------------------------------------------------
+def _parser():
+    parser = argparse.ArgumentParser(prog="ftdrake")
+    dut.register(parser.add_subparsers(dest="command", required=True))
+    return parser
+
+
+def test_cli_defaults_are_the_quick_study():
+    args = _parser().parse_args(["study"])
+    assert args.preset == "quick" and args.cv == "grouped" and not args.quiet
+    assert str(args.out) == "out/study"
+    assert (args.trajectories, args.duration) == (dut.TRAJECTORIES, dut.DURATION_S)
+    assert args.run is dut.run_command
+
+
+def test_cli_parses_every_option():
+    args = _parser().parse_args(["study", "--paper", "--out", "x", "--trajectories", "4",
+                                 "--duration", "8", "--cv", "shuffled", "--seed", "3",
+                                 "--train-hz", "50", "--quiet"])
+    assert (args.preset, str(args.out), args.trajectories, args.duration, args.cv, args.seed,
+            args.train_hz, args.quiet) == ("paper", "x", 4, 8.0, "shuffled", 3, 50.0, True)
+    with pytest.raises(SystemExit):
+        _parser().parse_args(["study", "--quick", "--paper"])
+
+
+def test_cli_prints_estimate_then_findings(monkeypatch, capsys):
+    calls = {}
+    finding = {"id": "a", "claim": "RF beats SVR", "reproduced": False, "evidence": "3/18"}
+
+    def fake_run_study(out_dir, **kwargs):
+        calls.update(kwargs, out_dir=out_dir)
+        return {"wall_time_s": 1.0, "findings": [finding]}
+
+    monkeypatch.setattr(dut, "run_study", fake_run_study)
+    args = _parser().parse_args(["study", "--paper", "--quiet", "--out", "o"])
+    assert args.run(args) == 0
+    printed = capsys.readouterr().out
+    first = printed.splitlines()[0]
+    assert "preset paper" in first and "2400" in first and "estimated time" in first
+    assert "wrote o/results.json" in printed and "RF beats SVR" in printed
+    assert calls["preset"] == "paper" and calls["progress"] is False
+
+
+def test_paper_estimate_dwarfs_quick():
+    quick, paper = dut.estimate_seconds("quick"), dut.estimate_seconds("paper")
+    assert 60 < quick < 600
+    assert paper > 100 * quick
