@@ -77,7 +77,7 @@ def collect(base: ScenarioConfig, trajectories: int, *, seed: int = 0, kind: str
         )
     base.validate()
     jobs = [dump_config(trajectory_config(base, i, seed)) for i in range(trajectories)]
-    with _backend(dask_address):
+    with dask_backend(dask_address):
         results = Parallel(n_jobs=n_jobs, return_as="generator")(
             delayed(simulate_one)(yaml_text, i) for i, yaml_text in enumerate(jobs)
         )
@@ -89,7 +89,8 @@ def collect(base: ScenarioConfig, trajectories: int, *, seed: int = 0, kind: str
 
 
 @contextlib.contextmanager
-def _backend(dask_address: str | None):
+def dask_backend(dask_address: str | None):
+    """joblib's Dask backend on a Client of `dask_address`; nothing when it is None."""
     if dask_address is None:
         yield
         return

@@ -50,27 +50,42 @@ from .logs import LogError, LogWarning
 
 MODELS = ("rf", "svr", "gpr", "physics", "hybrid")
 FEATURE_SETS = ("q", "q,qd", "q,qd,qdd")
-DATA_OPTIONS = ("positions", "targets", "velocities", "accelerations", "time", "group",
-                "joint_topic", "wrench_topic")
 TABLE_DEFAULTS = {"positions": "q_*", "targets": "meas_*", "time": "t"}
 GROUP_DEFAULT = "trajectory"
 BUILTIN_ROBOT = "ftdrake"  # --robot value naming ftdrake's simulated arm
 
+_COLUMNS_HELP = ("PAT is a glob ('q_*'), a comma-separated list of names, or a regular "
+                 "expression after 're:'. Times are in s on the log's own axis (a bag's: since "
+                 "its first joint state).")
+_DATA_HELP = {
+    "positions": ("PAT", "joint position columns (rad), default 'q_*'; bags: joint names"),
+    "targets": ("PAT", "target columns, default 'meas_*'; bags: effort, wrench or a pattern"),
+    "velocities": ("PAT", "velocity columns (rad/s); default: Savitzky–Golay of q"),
+    "accelerations": ("PAT", "acceleration columns (rad/s²); default: Savitzky–Golay of q"),
+    "time": ("COL", "time column (s), default 't'"),
+    "group": ("COL", f"trajectory id column, default '{GROUP_DEFAULT}' if there is one"),
+    "joint_topic": ("T", "bags: JointState topic, default /joint_states"),
+    "wrench_topic": ("T", "bags: WrenchStamped topic"),
+}
+DATA_OPTIONS = tuple(_DATA_HELP)  # how a log is read; kept in the model's manifest
+
 
 def register(subparsers) -> None:
     """Adds ``train`` and ``evaluate`` to an ``argparse`` subparsers object."""
-    p = subparsers.add_parser("train", help="fit a compensator on a robot log; save it")
+    p = subparsers.add_parser("train", help="fit a compensator on a robot log; save it",
+                              description=_COLUMNS_HELP)
     p.add_argument("--data", type=Path, required=True, metavar="FILE",
                    help="CSV/Parquet table, ROS 1 .bag file or ROS 2 bag folder")
-    _add_data_options(p, table_defaults=True)
+    _add_data_options(p)
     p.add_argument("--model", choices=MODELS, required=True,
                    help="rf, svr, gpr; physics (rigid payload) or hybrid (physics + forest on "
                         "the residual) need 6 wrench targets and --robot")
-    p.add_argument("--features", choices=FEATURE_SETS,
+    p.add_argument("--features", choices=FEATURE_SETS, metavar="q|q,qd|q,qd,qdd",
                    help="inputs the model uses (default q,qd,qdd; physics: q = static, "
                         "q,qd,qdd = dynamic; hybrid: the residual forest's, default q)")
     p.add_argument("--preset", choices=["quick", "none"], default="quick",
-                   help="quick: grid search with grouped CV; none: default parameters")
+                   help="quick: grid search with grouped CV (rf, svr; gpr, physics and hybrid "
+                        "fit their parameters from data); none: default parameters")
     p.add_argument("--robot", metavar="FILE",
                    help=f"URDF/SDF holding the sensor frame, or '{BUILTIN_ROBOT}' for the "
                         "simulated arm (physics, hybrid)")
@@ -85,31 +100,21 @@ def register(subparsers) -> None:
     p.add_argument("--quiet", action="store_true", help="no progress output")
     p.set_defaults(run=run_train)
 
-    p = subparsers.add_parser("evaluate", help="score a saved compensator on a robot log")
+    p = subparsers.add_parser(
+        "evaluate", help="score a saved compensator on a robot log",
+        description=_COLUMNS_HELP + " Column and topic options not given are those the model "
+        "was trained with (when the file is of the same kind, table or bag), else the defaults.")
     p.add_argument("--model", type=Path, required=True, metavar="MODEL")
     p.add_argument("--data", type=Path, required=True, metavar="FILE")
-    _add_data_options(p, table_defaults=False)
+    _add_data_options(p)
     p.add_argument("--json", type=Path, metavar="OUT", help="also write the results as JSON")
     p.add_argument("--quiet", action="store_true")
     p.set_defaults(run=run_evaluate)
 
 
-def _add_data_options(p, *, table_defaults: bool) -> None:
-    default = "" if table_defaults else " (default: as in training)"
-    p.add_argument("--positions", metavar="PAT",
-                   help=f"joint position columns (rad), default 'q_*'; bags: joint names{default}")
-    p.add_argument("--targets", metavar="PAT",
-                   help=f"target columns, default 'meas_*'; bags: effort|wrench{default}")
-    p.add_argument("--velocities", metavar="PAT",
-                   help=f"velocity columns (rad/s); default: Savitzky–Golay of q{default}")
-    p.add_argument("--accelerations", metavar="PAT",
-                   help=f"acceleration columns (rad/s²); default: Savitzky–Golay{default}")
-    p.add_argument("--time", metavar="COL", help=f"time column (s), default 't'{default}")
-    p.add_argument("--group", metavar="COL",
-                   help=f"trajectory id column, default '{GROUP_DEFAULT}' if present{default}")
-    p.add_argument("--joint-topic", metavar="T",
-                   help=f"bags: JointState topic, default /joint_states{default}")
-    p.add_argument("--wrench-topic", metavar="T", help=f"bags: WrenchStamped topic{default}")
+def _add_data_options(p) -> None:
+    for name, (metavar, text) in _DATA_HELP.items():
+        p.add_argument("--" + name.replace("_", "-"), metavar=metavar, help=text)
     p.add_argument("--t-start", type=float, metavar="S", help="drop rows before this time (s)")
     p.add_argument("--t-end", type=float, metavar="S", help="drop rows after this time (s)")
 
@@ -223,7 +228,7 @@ def _read_frame(path: Path):
 
         try:
             table = pq.read_table(path)
-        except Exception as e:  # noqa: BLE001 - any pyarrow failure means an unreadable file
+        except Exception as e:  # noqa: BLE001 - any pyarrow failure: unreadable
             raise LogError(f"{path.name}: not a readable Parquet file: {e}") from None
         from .data import META_SCENARIO
 
@@ -259,8 +264,13 @@ def _read_bag(path: Path, options: dict) -> LogData:
     kind = targets if targets in ("effort", "wrench") else None
     topic = options["joint_topic"] or "/joint_states"
     listed = positions if isinstance(positions, list) else None  # names: skip other messages
-    log = read_bag(path, topic, wrench_topic=options["wrench_topic"], targets=kind,
-                   joints=listed)
+    try:
+        log = read_bag(path, topic, wrench_topic=options["wrench_topic"], targets=kind,
+                       joints=listed)
+    except LogError:
+        raise
+    except Exception as e:  # noqa: BLE001 - rosbags' errors have various types
+        raise LogError(f"{path.name}: not a readable ROS 1 or ROS 2 bag: {e}") from None
     if positions is not None and listed is None:
         keep = expand_columns(positions, log.joint_names, f"{path.name} joints on {topic}")
         i = [log.joint_names.index(n) for n in keep]
@@ -331,7 +341,7 @@ def run_train(args) -> int:
     search = None
     if args.preset == "quick" and _has_grid(estimator):
         from .compensation.tuning import segment_groups, tune
-        from .data import _backend as dask_backend
+        from .data import dask_backend
 
         where = f"Dask scheduler {args.dask}" if args.dask else "local processes"
         say(f"tuning {args.model} (quick grid, grouped 5-fold CV) on {where} …")
@@ -361,7 +371,10 @@ def make_estimator(args, data: LogData):
 
     features = args.features
     if args.model == "rf":
-        return RandomForestCompensator(features=features or "q,qd,qdd", random_state=args.seed)
+        # One thread per forest: the search runs fits in parallel, and a forest's own threads
+        # would add its trees' predictions in a varying order (round-off differences).
+        return RandomForestCompensator(features=features or "q,qd,qdd", random_state=args.seed,
+                                       n_jobs=1)
     if args.model == "svr":
         from .compensation.svr import SVRCompensator
 
@@ -605,13 +618,14 @@ def _describe(data: LogData) -> str:
 
 
 def main(argv=None) -> int:
-    """Runs train/evaluate alone (``python -m ftdrake.train``); ``ftdrake`` is the usual way."""
+    """Runs train/evaluate alone (``python -m ftdrake.train``), with errors reported as the
+    ``ftdrake`` command does; ``ftdrake train|evaluate`` is the usual way."""
     parser = argparse.ArgumentParser(prog="ftdrake")
     register(parser.add_subparsers(dest="command", required=True))
     args = parser.parse_args(argv)
     try:
         return args.run(args)
-    except (ValueError, FileNotFoundError) as e:
+    except (ValueError, FileNotFoundError) as e:  # ConfigError, LogError, ModelFileError too
         print(f"ftdrake {args.command}: error: {e}", file=sys.stderr)
         return 2
 

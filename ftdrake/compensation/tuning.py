@@ -23,7 +23,7 @@ from __future__ import annotations
 from dataclasses import asdict, dataclass
 
 import numpy as np
-from joblib import Parallel, delayed
+from joblib import Parallel, delayed, parallel_config
 from sklearn.base import clone
 from sklearn.model_selection import GroupKFold, ParameterGrid, RepeatedKFold
 from tqdm.auto import tqdm
@@ -315,7 +315,10 @@ def _score_grid(estimator, X, y, candidates, splits, n_jobs, bar) -> np.ndarray:
 
 
 def _fit_and_score(estimator, params, X, y, train, test, key):
-    model = clone(estimator).set_params(**params).fit(X[train], y[train])
+    # One fit is one task: on a Dask cluster, joblib would otherwise ship every tree of a
+    # forest back to the cluster as its own tiny task (measured: 29 s → 7 s quick search).
+    with parallel_config(backend="sequential"):
+        model = clone(estimator).set_params(**params).fit(X[train], y[train])
     error = model.predict(X[test]) - y[test]
     return key, -float(np.mean(error**2))
 
