@@ -105,3 +105,53 @@ def test_hybrid_beats_physics_and_forest_with_cable_and_crosstalk(realistic_data
     force = {k: np.linalg.norm(v[:3]) for k, v in rms.items()}
     assert force["hybrid"] < force["physics"], force
     assert force["hybrid"] < force["forest"], force
+
+
+URDF = """<?xml version="1.0"?>
+<robot name="two_link">
+  <link name="base"/>
+  <link name="upper">
+    <inertial><mass value="1"/><inertia ixx="0.01" iyy="0.01" izz="0.01" ixy="0" ixz="0" iyz="0"/></inertial>
+  </link>
+  <link name="forearm">
+    <inertial><mass value="1"/><inertia ixx="0.01" iyy="0.01" izz="0.01" ixy="0" ixz="0" iyz="0"/></inertial>
+  </link>
+  <link name="ft_frame"/>
+  <joint name="j1" type="revolute"><parent link="base"/><child link="upper"/>
+    <axis xyz="0 0 1"/><limit lower="-3" upper="3" effort="10" velocity="3"/></joint>
+  <joint name="j2" type="revolute"><parent link="upper"/><child link="forearm"/>
+    <origin xyz="0 0 0.3"/><axis xyz="0 1 0"/><limit lower="-3" upper="3" effort="10" velocity="3"/></joint>
+  <joint name="sensor_mount" type="fixed"><parent link="forearm"/><child link="ft_frame"/>
+    <origin xyz="0 0 0.4" rpy="0.3 0 0"/></joint>
+</robot>
+"""
+
+
+def test_identifies_payload_on_a_users_urdf(tmp_path):
+    """A user's robot: readings made from known payload parameters are identified back."""
+    path = tmp_path / "two_link.urdf"
+    path.write_text(URDF)
+    dut = PhysicsPayloadCompensator(robot=str(path), sensor_frame="ft_frame", base_frame="base")
+    rng = np.random.default_rng(3)
+    t = np.linspace(0, 20, 2000)[:, None]
+    w = np.array([0.7, 1.3])
+    q = np.hstack([np.sin(w[0] * t), 1.2 * np.sin(w[1] * t + 1)])
+    qd = np.hstack([w[0] * np.cos(w[0] * t), 1.2 * w[1] * np.cos(w[1] * t + 1)])
+    qdd = np.hstack([-w[0] ** 2 * np.sin(w[0] * t), -1.2 * w[1] ** 2 * np.sin(w[1] * t + 1)])
+    X = np.hstack([q, qd, qdd])
+    mass, com = 0.8, np.array([0.01, -0.02, 0.05])
+    phi = np.concatenate([[mass], mass * com, [0.004, 0, 0, 0.004, 0, 0.002],
+                          [0.3, -0.2, 0.5, 0.01, 0.02, -0.01]])
+    Y = dut.regressor(X) @ phi + rng.normal(0, 0.01, (len(X), 6))
+    dut.fit(X, Y)
+    assert dut.identified()["m"]["value"] == pytest.approx(mass, rel=0.01)
+    np.testing.assert_allclose(dut.identified()["com"]["value"], com, atol=2e-3)
+    np.testing.assert_allclose(dut.parameters_[10:], phi[10:], atol=0.01)
+
+
+def test_users_robot_without_the_sensor_frame_is_refused(tmp_path):
+    path = tmp_path / "two_link.urdf"
+    path.write_text(URDF)
+    dut = PhysicsPayloadCompensator(robot=str(path), sensor_frame="nope", base_frame="base")
+    with pytest.raises(ValueError, match="no frame named 'nope'"):
+        dut.fit(np.zeros((50, 6)), np.zeros((50, 6)))

@@ -123,14 +123,19 @@ class PhysicsPayloadCompensator(Compensator):
         return table
 
     def _warn_if_poorly_excited(self, cols):
-        rel = np.abs(self.standard_errors_[cols]) / np.maximum(
-            np.abs(self.parameters_[cols]), 1e-9
-        )
-        poor = [PARAMETER_NAMES[c] for c, r in zip(cols, rel) if r > 0.5 and c < 10]
+        # A standard error is compared with its parameter group's scale (mass, first moment,
+        # inertia), not the value itself: a true product of inertia of 0 is no failure.
+        p = np.abs(self.parameters_)
+        scale = np.empty(16)
+        for group in (slice(0, 1), slice(1, 4), slice(4, 10), slice(10, 16)):
+            scale[group] = max(p[group].max(), 1e-9)
+        rel = np.abs(self.standard_errors_[cols]) / scale[cols]
+        poor = [PARAMETER_NAMES[c] for c, r in zip(cols, rel) if r > 0.25 and c < 10]
         if self.condition_number_ > 1e4 or poor:
             warnings.warn(
                 f"the data does not excite the payload parameters well (condition number "
-                f"{self.condition_number_:.3g}; standard error > 50% of value: {poor or 'none'}); "
+                f"{self.condition_number_:.3g}; standard error > 25% of its group's scale: "
+                f"{poor or 'none'}); "
                 "use a richer trajectory (e.g. kind 'fourier' or 'z_rich')",
                 ExcitationWarning, stacklevel=3,
             )
