@@ -155,3 +155,16 @@ def test_failure_while_writing_leaves_no_partial_outputs(tmp_path, monkeypatch):
     with pytest.raises(RuntimeError, match="disk full"):
         main(["simulate", "--scenario", "free", "--duration", "2", "--out", str(out), "--quiet"])
     assert list(out.iterdir()) == []  # no log.parquet left behind, no staging folder
+
+
+def test_atomic_outputs_get_the_usual_permissions(tmp_path):
+    import os
+    import stat
+
+    from ftdrake.io import atomic_write_text
+
+    atomic_write_text(tmp_path / "a.json", "{}")
+    mode = stat.S_IMODE((tmp_path / "a.json").stat().st_mode)
+    mask = os.umask(0)
+    os.umask(mask)
+    assert mode == 0o666 & ~mask
