@@ -234,3 +234,24 @@ def test_hybrid_in_the_loop_compensates_to_the_noise_floor(task_data):
     metrics = held_out_contact_run(model, task_data)
     assert_detected_cleanly(metrics)
     assert max(metrics["compensation_error_over_noise"]) < 3.0  # within 3 σ on every axis
+
+
+def test_meshcat_replay_holds_the_wrench_arrows(forest):
+    import base64
+    import re
+
+    from pydrake.geometry import Meshcat
+
+    config = ScenarioConfig()
+    config.trajectory.kind, config.trajectory.duration_s = "fourier", 1.0
+    single = RandomForestCompensator(features="q", n_estimators=3, random_state=0).fit(
+        np.random.default_rng(0).uniform(-1, 1, (50, 3 * N)), np.zeros((50, 6)))
+    meshcat = Meshcat()
+    meshcat.StartRecording(set_visualizations_while_recording=False)
+    run_closed_loop(config, single, DetectorConfig(), meshcat=meshcat, progress=False)
+    meshcat.StopRecording()
+    meshcat.PublishRecording()
+    html = meshcat.StaticHtml()
+    blobs = [base64.b64decode(b) for b in re.findall(r"base64,([A-Za-z0-9+/=]{100,})", html)]
+    for name in (b"wrench/measured", b"wrench/external"):
+        assert sum(blob.count(name) for blob in blobs) >= 2  # the object and its animation
