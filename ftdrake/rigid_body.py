@@ -87,10 +87,3 @@ def tool_inertia(plant, context, frame_S, bodies) -> tuple[float, np.ndarray, np
     p = M_SSo_S.get_com()
     I_Scm = M_SSo_S.Shift(p).CalcRotationalInertia().CopyToFullMatrix3()
     return M_SSo_S.get_mass(), p, I_Scm
-
-
-def wrench_about(point_So_S, force_S, p_SoP_S) -> np.ndarray:
-    """Wrench about So of a force applied at P (all in S); `point_So_S` kept for clarity."""
-    del point_So_S
-    f = np.asarray(force_S, dtype=float)
-    return np.concatenate([f, np.cross(p_SoP_S, f)], axis=-1)

@@ -153,7 +153,7 @@ def _training_box(model):
     lo, hi = getattr(model, "input_min_", None), getattr(model, "input_max_", None)
     if lo is None or hi is None:
         return np.empty(0), np.empty(0)
-    used = {"q": 1, "q,qd": 2, "q,qd,qdd": 3}[model.features] * int(model.n_joints_)
+    used = check_feature_set(model.features) * int(model.n_joints_)
     return np.asarray(lo[:used], dtype=float), np.asarray(hi[:used], dtype=float)
 
 
