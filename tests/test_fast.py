@@ -21,6 +21,8 @@ from sklearn.svm import SVR
 from ftdrake.compensation import fast
 from ftdrake.compensation.fast import CompiledForest, FastKernelModel, fast_predictor
 from ftdrake.compensation.features import FEATURE_SETS, select_features
+from ftdrake.compensation.forest import RandomForestCompensator
+from ftdrake.compensation.svr import SVRCompensator
 
 RTOL = ATOL = 1e-9
 FEATURES = st.sampled_from(sorted(FEATURE_SETS))
@@ -217,9 +219,8 @@ def compensator_data(n_joints=3, n_outputs=6, n_rows=150):
 
 @pytest.mark.parametrize("per_output", [True, False])
 def test_fast_predictor_of_a_forest_compensator(per_output):
-    forest = pytest.importorskip("ftdrake.compensation.forest")
     X, Y = compensator_data()
-    model = forest.RandomForestCompensator("q,qd", n_estimators=5, per_output=per_output,
+    model = RandomForestCompensator("q,qd", n_estimators=5, per_output=per_output,
                                            random_state=0).fit(X, Y)
     dut = fast_predictor(model)
     assert isinstance(dut, CompiledForest)
@@ -227,9 +228,8 @@ def test_fast_predictor_of_a_forest_compensator(per_output):
 
 
 def test_fast_predictor_of_an_svr_compensator():
-    svr = pytest.importorskip("ftdrake.compensation.svr")
     X, Y = compensator_data()
-    model = svr.SVRCompensator("q,qd,qdd").fit(X, Y)
+    model = SVRCompensator("q,qd,qdd").fit(X, Y)
     dut = fast_predictor(model)
     assert isinstance(dut, FastKernelModel)
     assert_equal_to_sklearn(dut.predict(X), model.predict(X))

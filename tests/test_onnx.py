@@ -21,10 +21,11 @@ from sklearn.exceptions import ConvergenceWarning
 from sklearn.preprocessing import MinMaxScaler
 from sklearn.svm import SVR
 
-from ftdrake.compensation import onnx_export
 from ftdrake.compensation.fast import CompiledForest
 from ftdrake.compensation.features import FEATURE_SETS, select_features
+from ftdrake.compensation.forest import RandomForestCompensator
 from ftdrake.compensation.onnx_export import export_onnx
+from ftdrake.compensation.svr import SVRCompensator
 
 FEATURES = st.sampled_from(sorted(FEATURE_SETS))
 
@@ -120,9 +121,8 @@ def compensator_data(n_joints=3, n_outputs=6):
 
 @pytest.mark.parametrize("per_output", [True, False])
 def test_forest_compensator_exports(tmp_path, per_output):
-    forest = pytest.importorskip("ftdrake.compensation.forest")
     X, Y = compensator_data()
-    model = forest.RandomForestCompensator("q", n_estimators=4, per_output=per_output,
+    model = RandomForestCompensator("q", n_estimators=4, per_output=per_output,
                                            random_state=1).fit(X, Y)
 
     path = export_onnx(model, tmp_path / "rf.onnx")
@@ -133,9 +133,8 @@ def test_forest_compensator_exports(tmp_path, per_output):
 
 
 def test_svr_compensator_exports(tmp_path):
-    svr = pytest.importorskip("ftdrake.compensation.svr")
     X, Y = compensator_data()
-    model = svr.SVRCompensator("q,qd").fit(X, Y)
+    model = SVRCompensator("q,qd").fit(X, Y)
 
     assert_equal_to_sklearn(run_onnx(export_onnx(model, tmp_path / "svr.onnx"), X),
                             model.predict(X))
@@ -179,7 +178,9 @@ def test_export_replaces_the_file_atomically(tmp_path, monkeypatch):
     def failing_replace(src, dst):
         raise OSError("disk full")
 
-    monkeypatch.setattr(onnx_export.os, "replace", failing_replace)
+    import ftdrake.io
+
+    monkeypatch.setattr(ftdrake.io.os, "replace", failing_replace)
     with pytest.raises(OSError, match="disk full"):
         export_onnx(forest, path, features="q,qd,qdd")
     assert path.read_bytes() == b"previous model"  # untouched, and no temporary file left

@@ -24,14 +24,13 @@ double input). Here:
 
 from __future__ import annotations
 
-import os
-import tempfile
 from pathlib import Path
 
 import numpy as np
 import onnx
 from onnx import TensorProto, helper, numpy_helper
 
+from ..io import atomic_write_bytes
 from .fast import CompiledForest, FastKernelModel, FlatForest, _joints_for, flatten_forests
 
 OPSET = 21  # default domain
@@ -217,14 +216,5 @@ def export_onnx(
     """
     model = build_onnx(model_or_parts, n_joints, features)
     path = Path(path)
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
-    try:
-        with os.fdopen(fd, "wb") as f:
-            f.write(model.SerializeToString())
-            f.flush()
-            os.fsync(f.fileno())
-        os.replace(tmp, path)
-    except BaseException:
-        os.unlink(tmp)
-        raise
+    atomic_write_bytes(path, model.SerializeToString())
     return path
