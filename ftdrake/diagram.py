@@ -15,7 +15,6 @@ from __future__ import annotations
 import dataclasses as dc
 
 import numpy as np
-from pydrake.systems.controllers import InverseDynamicsController
 from pydrake.systems.framework import Diagram, DiagramBuilder
 from pydrake.systems.primitives import (
     LogVectorOutput,
@@ -24,6 +23,7 @@ from pydrake.systems.primitives import (
 )
 
 from .config import ScenarioConfig
+from .controller import DiscreteInverseDynamicsController
 from .scene import Scene, add_scene, make_control_plant
 from .sensor import ForceTorqueSensor, NoisyForceTorqueSensor
 from .trajectories import JointLimits, RobotGeometry, make_trajectory
@@ -78,13 +78,11 @@ def build_diagram(config: ScenarioConfig, *, trajectory=None, extra=None, meshca
     )
     vd_source = builder.AddNamedSystem("trajectory_acceleration", TrajectorySource(trajectory.derivative(2)))
 
-    n = plant.num_positions(scene.arm)
     c = config.controller
     controller = builder.AddNamedSystem(
         "controller",
-        InverseDynamicsController(
-            make_control_plant(config, scene), kp=np.full(n, c.kp), ki=np.full(n, c.ki),
-            kd=np.full(n, c.kd), has_reference_acceleration=True,
+        DiscreteInverseDynamicsController(
+            make_control_plant(config, scene), kp=c.kp, ki=c.ki, kd=c.kd, period=config.time_step
         ),
     )
     builder.Connect(plant.get_state_output_port(scene.arm), controller.get_input_port_estimated_state())

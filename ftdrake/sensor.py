@@ -65,22 +65,31 @@ class ForceTorqueSensor(LeafSystem):
             raise ValueError(f"joint {joint.name()!r} does not belong to this plant")
         self._joint_index = int(joint.index())
         self._num_joints = plant.num_joints()
-        self.DeclareAbstractInputPort(
+        self._reaction_forces = self.DeclareAbstractInputPort(
             "reaction_forces", AbstractValue.Make([SpatialForce()] * self._num_joints)
         )
         self.DeclareVectorOutputPort(
             "wrench", 6, self._calc_wrench,
-            prerequisites_of_calc={self.input_port_ticket(self.get_input_port().get_index())},
+            prerequisites_of_calc={self.input_port_ticket(self._reaction_forces.get_index())},
         )
 
     def _calc_wrench(self, context, output: BasicVector):
-        forces = self.get_input_port().Eval(context)
+        # Runs every plant step, so it makes as few Python calls as it can.
+        forces = self._reaction_forces.Eval(context)
         if len(forces) != self._num_joints:
             raise ValueError(
                 f"reaction_forces has {len(forces)} entries; the plant has {self._num_joints} "
                 "joints (is the port connected to the right plant?)"
             )
-        output.SetFromVector(-wrench_from_spatial_force(forces[self._joint_index]))
+        _negated_wrench(forces[self._joint_index].get_coeffs(), output.get_mutable_value())
+
+
+@numba.njit(cache=True)
+def _negated_wrench(tau_f, out):
+    """``out = -[f; τ]`` from Drake's spatial-force coefficients ``[τ; f]``."""
+    for i in range(3):
+        out[i] = -tau_f[3 + i]
+        out[3 + i] = -tau_f[i]
 
 
 class NoisyForceTorqueSensor(LeafSystem):
@@ -118,7 +127,7 @@ class NoisyForceTorqueSensor(LeafSystem):
         self.crosstalk_matrix = crosstalk_matrix(
             config.crosstalk, config.crosstalk_length_m, config.calibration_seed
         )
-        self.DeclareVectorInputPort("wrench_ideal", 6)
+        self._input = self.DeclareVectorInputPort("wrench_ideal", 6)
         # Three state groups so the outputs are plain state ports (no Python call per read).
         self._internal = self.DeclareDiscreteState(13)  # filter (6), drift (6), sample count
         self._reading = self.DeclareDiscreteState(6)
@@ -126,6 +135,15 @@ class NoisyForceTorqueSensor(LeafSystem):
         self.DeclarePeriodicDiscreteUpdateEvent(self.period, 0.0, self._sample)
         self.DeclareStateOutputPort("wrench_measured", self._reading)
         self.DeclareStateOutputPort("saturated", self._saturated)
+        # All constants in one array, so the compiled update takes few arguments (each costs
+        # time at every call): rows 0–5 the cross-talk matrix, then per axis bias, noise σ,
+        # drift step, range, resolution and the filter's α.
+        self._constants = np.vstack([
+            self.crosstalk_matrix, self._bias, self._noise_std, self._drift_step, self._range,
+            self._resolution, np.full(6, self._alpha),
+        ])
+        # (block index, its draws): the last noise block this sensor used.
+        self._noise = (-1, np.zeros((self._BLOCK, 12)))
 
     # -- what the sensor does to a wrench without randomness ---------------------------------
     def deterministic_reading(self, wrench) -> np.ndarray:
@@ -137,49 +155,68 @@ class NoisyForceTorqueSensor(LeafSystem):
 
     # -- the discrete update -----------------------------------------------------------------
     def _sample(self, context, discrete_state):
-        internal = context.get_discrete_state(self._internal).value()
-        w = self.get_input_port().Eval(context)
-        if self._on:
-            block, row = divmod(int(internal[12]), self._BLOCK)
-            noise = _noise_block(self.config.seed, block, self._BLOCK)[row]
-            new = _imperfect_sample(
-                internal, w, self.crosstalk_matrix, self._alpha, self._bias, self._noise_std,
-                self._drift_step, self._range, self._resolution, noise,
-            )
-        else:
-            new = np.concatenate([w, np.zeros(6), [internal[12] + 1], w, [0.0]])
-        discrete_state.get_mutable_vector(self._internal).SetFromVector(new[:13])
-        discrete_state.get_mutable_vector(self._reading).SetFromVector(new[13:19])
-        discrete_state.get_mutable_vector(self._saturated).SetFromVector(new[19:])
+        # Runs every sample (1 kHz by default), so it makes few Python calls: the update
+        # buffer starts as a copy of the current state and is updated in place.
+        internal = discrete_state.get_mutable_value(self._internal)
+        reading = discrete_state.get_mutable_value(self._reading)
+        saturated = discrete_state.get_mutable_value(self._saturated)
+        w = self._input.Eval(context)
+        if not self._on:
+            _ideal_sample(internal, w, reading, saturated)
+            return
+        block, noise = self._noise
+        if not _imperfect_sample(internal, w, self._constants, block, noise, reading, saturated):
+            # This sample's draws are in another block (every 4096 samples, or a new run).
+            block = int(internal[12]) // self._BLOCK
+            self._noise = (block, _noise_block(self.config.seed, block, self._BLOCK))
+            _imperfect_sample(internal, w, self._constants, *self._noise, reading, saturated)
 
 
 @numba.njit(cache=True)
-def _imperfect_sample(internal, w, C, alpha, bias, noise_std, drift_step, limit, resolution,
-                      noise):
-    """One sample of the imperfect sensor.
+def _imperfect_sample(internal, w, constants, block, noise_block, reading, saturated):
+    """One sample of the imperfect sensor, written in place; False (nothing written) if this
+    sample's draws are not in `noise_block`.
 
-    `internal` is [filter (6), drift (6), sample count]; returns [new internal (13),
-    reading (6), saturated (1)].
+    `internal` is [filter (6), drift (6), sample count]; `constants` as built in
+    NoisyForceTorqueSensor.__init__; `noise_block` is block number `block` of the draws
+    (12 per sample: white noise then drift increments).
     """
-    new = np.empty(20)
+    count = int(internal[12])
+    size = noise_block.shape[0]
+    if count // size != block:
+        return False
+    C, axis = constants[:6], constants[6:]
+    alpha = axis[5, 0]
+    noise = noise_block[count % size]
     first = internal[12] == 0
-    saturated = 0.0
+    saturated[0] = 0.0
     for i in range(6):
         wi = 0.0
         for j in range(6):
             wi += C[i, j] * w[j]
         filtered = wi if first else internal[i] + alpha * (wi - internal[i])
-        drift = internal[6 + i] + drift_step[i] * noise[6 + i]
-        reading = filtered + bias[i] + drift + noise_std[i] * noise[i]
-        if abs(reading) >= limit[i]:
-            saturated = 1.0
-            reading = limit[i] if reading > 0 else -limit[i]
-        if resolution[i] > 0:
-            reading = np.round(reading / resolution[i]) * resolution[i]
-        new[i], new[6 + i], new[13 + i] = filtered, drift, reading
-    new[12] = internal[12] + 1
-    new[19] = saturated
-    return new
+        drift = internal[6 + i] + axis[2, i] * noise[6 + i]
+        value = filtered + axis[0, i] + drift + axis[1, i] * noise[i]
+        limit = axis[3, i]
+        if abs(value) >= limit:
+            saturated[0] = 1.0
+            value = limit if value > 0 else -limit
+        resolution = axis[4, i]
+        if resolution > 0:
+            value = np.round(value / resolution) * resolution
+        internal[i], internal[6 + i], reading[i] = filtered, drift, value
+    internal[12] += 1
+    return True
+
+
+@numba.njit(cache=True)
+def _ideal_sample(internal, w, reading, saturated):
+    """Sample-and-hold only (imperfections off)."""
+    for i in range(6):
+        internal[i] = w[i]
+        reading[i] = w[i]
+    saturated[0] = 0.0
+    internal[12] += 1
 
 
 @functools.lru_cache(maxsize=4)

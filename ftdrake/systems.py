@@ -5,9 +5,11 @@ from __future__ import annotations
 import dataclasses as dc
 import math
 
+import numba
 import numpy as np
 from pydrake.systems.framework import LeafSystem
 
+from .compensation.fast import CompiledForest, _forest_accumulate, fast_predictor
 from .compensation.features import check_feature_set
 
 
@@ -43,15 +45,20 @@ class CompensatorSystem(LeafSystem):
         self.period = float(period)
         n = self.n = int(model.n_joints_)
         self._predict = _predictor(model, fast)
+        self._forest = _compiled_forest(model, fast)
         self._has_std = bool(getattr(model, "provides_std", False))
-        self._alpha = 1.0 - math.exp(-2 * math.pi * acceleration_cutoff_hz * self.period)
         self._lo, self._hi = _training_box(model)
+        alpha = 1.0 - math.exp(-2 * math.pi * acceleration_cutoff_hz * self.period)
+        self._constants = np.array([alpha, self.period])
+        self._row = np.zeros(3 * n)
+        self._no_acceleration = np.zeros(n)
 
         self._wrench_port = self.DeclareVectorInputPort("wrench_measured", 6)
         self._state_port = self.DeclareVectorInputPort("joint_state", 2 * n)
         self._accel_port = self.DeclareVectorInputPort("joint_acceleration", n)
-        # Acceleration estimator: previous v (n), filtered v̇ (n), primed flag (1).
-        self._estimator = self.DeclareDiscreteState(2 * n + 1)
+        # Previous v (n), filtered v̇ (n), primed flag, and copies of the fault and
+        # out-of-domain outputs (so the compiled update knows when those change).
+        self._estimator = self.DeclareDiscreteState(2 * n + 3)
         self._internal = self.DeclareDiscreteState(6)
         self._external = self.DeclareDiscreteState(6)
         self._std = self.DeclareDiscreteState(6)
@@ -64,42 +71,99 @@ class CompensatorSystem(LeafSystem):
             self.DeclareStateOutputPort(name, index)
 
     def _update(self, context, state):
-        # Drake starts `state` as a copy of the current state: only groups that change are
-        # written (this runs at the sensor rate, so Python work here is the loop's cost).
-        n = self.n
+        # Runs at the sensor rate, so it makes as few Python calls as it can: Drake starts
+        # `state` as a copy of the current state, and compiled code updates it in place.
         wrench = self._wrench_port.Eval(context)
         x = self._state_port.Eval(context)
-        measured_accel = (self._accel_port.Eval(context)
-                          if self._accel_port.HasValue(context) else None)
-        finite = np.isfinite(wrench).all() and np.isfinite(x).all() and (
-            measured_accel is None or np.isfinite(measured_accel).all())
-        fault = state.get_mutable_vector(self._fault)
-        if not finite:
-            fault.SetAtIndex(0, 1.0)
-            return  # everything else keeps its last good value
-        if fault.GetAtIndex(0) != 0.0:
-            fault.SetAtIndex(0, 0.0)
-        q, v = x[:n], x[n:]
-        est = state.get_mutable_vector(self._estimator)
-        previous = est.value()
-        if measured_accel is not None:
-            vdot = measured_accel
-        elif previous[-1] == 0.0:
-            vdot = np.zeros(n)  # first sample: no difference yet
+        measured = self._accel_port.HasValue(context)
+        accel = self._accel_port.Eval(context) if measured else self._no_acceleration
+        estimator = state.get_mutable_value(self._estimator)
+        internal = state.get_mutable_value(self._internal)
+        external = state.get_mutable_value(self._external)
+        if self._forest is not None:
+            status = _compensate_with_forest(
+                wrench, x, accel, measured, estimator, self._row, self._lo, self._hi,
+                self._constants, *self._forest, internal, external,
+            )
         else:
-            raw = (v - previous[:n]) / self.period
-            vdot = previous[n:2 * n] + self._alpha * (raw - previous[n:2 * n])
-        est.SetFromVector(np.concatenate([v, vdot, [1.0]]))
-        row = np.concatenate([q, v, vdot])
-        internal, std = self._predict(row)
-        state.get_mutable_vector(self._internal).SetFromVector(internal)
-        state.get_mutable_vector(self._external).SetFromVector(wrench - internal)
-        if self._has_std:
-            state.get_mutable_vector(self._std).SetFromVector(std)
-        if self._lo.size:
-            used = row[: self._lo.size]
-            ood = float(((used < self._lo) | (used > self._hi)).any())
-            state.get_mutable_vector(self._ood).SetAtIndex(0, ood)
+            status = _prepare_row(wrench, x, accel, measured, estimator, self._row, self._lo,
+                                  self._hi, self._constants)
+            if not status & _FAULT:
+                mean, std = self._predict(self._row)
+                internal[:] = mean
+                external[:] = wrench - mean
+                if self._has_std:
+                    state.get_mutable_value(self._std)[:] = std
+        if status & _FAULT_CHANGED:
+            state.get_mutable_value(self._fault)[0] = float(status & _FAULT != 0)
+        if status & _OOD_CHANGED:
+            state.get_mutable_value(self._ood)[0] = float(status & _OOD != 0)
+
+
+# Bits of the status the compiled update returns.
+_FAULT, _FAULT_CHANGED, _OOD, _OOD_CHANGED = 1, 2, 4, 8
+
+
+@numba.njit(cache=True)
+def _prepare_row(wrench, x, accel, measured, estimator, row, lo, hi, constants):
+    """Checks the inputs and builds the feature row [q, v, v̇] in place.
+
+    On NaN/inf in any input, writes nothing but the fault copy and returns _FAULT. Otherwise
+    updates the acceleration estimator (a causal difference of v, low-passed with
+    ``constants = [α, period]``) unless `measured`, and checks the used inputs against
+    [lo, hi]. Returns the status bits.
+    """
+    n = len(accel)
+    fault_slot, ood_slot = 2 * n + 1, 2 * n + 2
+    finite = True
+    for value in wrench:
+        finite = finite and np.isfinite(value)
+    for value in x:
+        finite = finite and np.isfinite(value)
+    if measured:
+        for value in accel:
+            finite = finite and np.isfinite(value)
+    status = 0
+    if not finite:
+        if estimator[fault_slot] == 0.0:
+            estimator[fault_slot] = 1.0
+            status |= _FAULT_CHANGED
+        return status | _FAULT
+    if estimator[fault_slot] != 0.0:
+        estimator[fault_slot] = 0.0
+        status |= _FAULT_CHANGED
+    alpha, period = constants[0], constants[1]
+    primed = estimator[2 * n] != 0.0
+    for i in range(n):
+        v = x[n + i]
+        if measured:
+            vdot = accel[i]
+        elif primed:
+            vdot = estimator[n + i] + alpha * ((v - estimator[i]) / period - estimator[n + i])
+        else:
+            vdot = 0.0  # first sample: no difference yet
+        estimator[i], estimator[n + i] = v, vdot
+        row[i], row[n + i], row[2 * n + i] = x[i], v, vdot
+    estimator[2 * n] = 1.0
+    ood = False
+    for i in range(len(lo)):
+        ood = ood or row[i] < lo[i] or row[i] > hi[i]
+    if ood != (estimator[ood_slot] != 0.0):
+        estimator[ood_slot] = 1.0 if ood else 0.0
+        status |= _OOD_CHANGED
+    return status | (_OOD if ood else 0)
+
+
+@numba.njit(cache=True)
+def _compensate_with_forest(wrench, x, accel, measured, estimator, row, lo, hi, constants,
+                            nodes, leaf_values, trees, n_trees, internal, external):
+    """_prepare_row, then the compiled forest into `internal` and measured − internal."""
+    status = _prepare_row(wrench, x, accel, measured, estimator, row, lo, hi, constants)
+    if not status & _FAULT:
+        _forest_accumulate(row, nodes, leaf_values, trees, n_trees, internal)
+        for j in range(6):
+            external[j] = wrench[j] - internal[j]
+    return status
 
 
 def check_model_fits(model, n_joints: int | None) -> None:
@@ -130,6 +194,14 @@ def _predictor(model, fast: bool):
     return lambda row: (mean(row), np.asarray(model.predict_std(row[None, :])[0], dtype=float))
 
 
+def _compiled_forest(model, fast: bool):
+    """The flat arrays of a forest compensator's compiled predictor, or None if not a forest."""
+    if not fast or getattr(model, "forests_", None) is None:
+        return None
+    forest = fast_predictor(model)
+    return forest._arrays if isinstance(forest, CompiledForest) else None
+
+
 def _mean_predictor(model, fast: bool):
     if fast and hasattr(model, "physics_") and hasattr(model, "residual_"):
         physics = _mean_predictor(model.physics_, fast)
@@ -139,8 +211,6 @@ def _mean_predictor(model, fast: bool):
         return model.predict_row
     if fast:
         try:
-            from .compensation.fast import fast_predictor
-
             compiled = fast_predictor(model)
             return lambda row: np.asarray(compiled.predict_one(row), dtype=float)
         except TypeError:  # not a forest or SVR: fall back to predict
@@ -236,34 +306,49 @@ class ContactDetector(LeafSystem):
         self.DeclarePeriodicDiscreteUpdateEvent(self.period, 0.0, self._update)
         self.DeclareStateOutputPort("contact", self._flag)
         self.DeclareStateOutputPort("contact_force", self._force)
+        c = self.config
+        self._constants = np.array([c.force_on, c.torque_on, c.release_ratio, c.debounce_on,
+                                    c.debounce_off, c.std_gain])
+        self._no_std = np.zeros(6)
 
     def _update(self, context, state):
+        # Runs at the sensor rate: few Python calls, the logic compiled (_detect).
         if context.get_time() < self.config.arm_after_s:
             return  # not armed yet
         w = self._wrench_port.Eval(context)
-        if not np.isfinite(w).all():
-            return  # hold: a NaN is not evidence either way
-        c = self.config
-        grow_f = grow_t = 0.0
-        if c.std_gain > 0 and self._std_port.HasValue(context):
-            std = self._std_port.Eval(context)
-            grow_f = c.std_gain * math.hypot(std[0], std[1], std[2])
-            grow_t = c.std_gain * math.hypot(std[3], std[4], std[5])
-        force, torque = math.hypot(w[0], w[1], w[2]), math.hypot(w[3], w[4], w[5])
-        flag = state.get_mutable_vector(self._flag)
-        counter = state.get_mutable_vector(self._counter)
-        in_contact, count = flag.GetAtIndex(0) > 0.5, counter.GetAtIndex(0)
-        if in_contact:
-            quiet = (force < c.release_ratio * (c.force_on + grow_f)
-                     and torque < c.release_ratio * (c.torque_on + grow_t))
-            count = count + 1 if quiet else 0
-            if count >= c.debounce_off:
-                in_contact, count = False, 0
-        else:
-            loud = force > c.force_on + grow_f or torque > c.torque_on + grow_t
-            count = count + 1 if loud else 0
-            if count >= c.debounce_on:
-                in_contact, count = True, 0
-        flag.SetAtIndex(0, float(in_contact))
-        counter.SetAtIndex(0, count)
-        state.get_mutable_vector(self._force).SetAtIndex(0, force if in_contact else 0.0)
+        std = (self._std_port.Eval(context)
+               if self.config.std_gain > 0 and self._std_port.HasValue(context) else self._no_std)
+        _detect(w, std, self._constants, state.get_mutable_value(self._flag),
+                state.get_mutable_value(self._counter), state.get_mutable_value(self._force))
+
+
+@numba.njit(cache=True)
+def _detect(w, std, constants, flag, counter, force_out):
+    """One detector sample: hysteresis + debounce on ‖F‖ and ‖T‖; updates the state in place.
+
+    `constants` = [force_on, torque_on, release_ratio, debounce_on, debounce_off, std_gain].
+    A NaN/inf wrench changes nothing (it is not evidence either way).
+    """
+    for value in w:
+        if not np.isfinite(value):
+            return
+    force_on, torque_on, release, n_on, n_off, gain = constants
+    force = math.sqrt(w[0] * w[0] + w[1] * w[1] + w[2] * w[2])
+    torque = math.sqrt(w[3] * w[3] + w[4] * w[4] + w[5] * w[5])
+    if gain > 0:
+        force_on += gain * math.sqrt(std[0] * std[0] + std[1] * std[1] + std[2] * std[2])
+        torque_on += gain * math.sqrt(std[3] * std[3] + std[4] * std[4] + std[5] * std[5])
+    in_contact, count = flag[0] > 0.5, counter[0]
+    if in_contact:
+        quiet = force < release * force_on and torque < release * torque_on
+        count = count + 1 if quiet else 0.0
+        if count >= n_off:
+            in_contact, count = False, 0.0
+    else:
+        loud = force > force_on or torque > torque_on
+        count = count + 1 if loud else 0.0
+        if count >= n_on:
+            in_contact, count = True, 0.0
+    flag[0] = 1.0 if in_contact else 0.0
+    counter[0] = count
+    force_out[0] = force if in_contact else 0.0

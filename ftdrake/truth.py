@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 from pydrake.common.value import AbstractValue
 from pydrake.math import RigidTransform
-from pydrake.multibody.plant import ContactResults
+from pydrake.multibody.plant import ContactModel, ContactResults
 from pydrake.systems.framework import LeafSystem
 
 
@@ -31,7 +31,11 @@ class ContactTruth(LeafSystem):
         self._env = {int(b) for b in environment_bodies}
         self._S_body = int(sensor_frame.body().index())
         self._X_BS = sensor_frame.GetFixedPoseInBodyFrame()
-        self.DeclareAbstractInputPort("contact_results", AbstractValue.Make(ContactResults()))
+        # With point contact only, a hydroelastic contact cannot occur and is not checked for.
+        self._may_be_hydroelastic = plant.get_contact_model() != ContactModel.kPoint
+        self._results = self.DeclareAbstractInputPort(
+            "contact_results", AbstractValue.Make(ContactResults())
+        )
         self.DeclareAbstractInputPort(
             "body_poses", AbstractValue.Make([RigidTransform()] * plant.num_bodies())
         )
@@ -43,7 +47,17 @@ class ContactTruth(LeafSystem):
         self.DeclareStateOutputPort("contact", self._contact)
 
     def _sample(self, context, discrete_state):
-        results = self.get_input_port(0).Eval(context)
+        results = self._results.Eval(context)
+        if not results.num_point_pair_contacts() and not (
+            self._may_be_hydroelastic and results.num_hydroelastic_contacts()
+        ):
+            # The common case, every step of free motion: nothing touches. The update starts
+            # from the held state, so only leaving contact needs a write.
+            contact = discrete_state.get_mutable_vector(self._contact)
+            if contact.GetAtIndex(0):
+                contact.SetAtIndex(0, 0.0)
+                discrete_state.get_mutable_vector(self._wrench).SetZero()
+            return
         contacts = list(self._contacts_on_tool(results))
         wrench = np.zeros(6)
         if contacts:  # skip evaluating every body's pose in the common, contact-free case
