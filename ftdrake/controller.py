@@ -83,7 +83,10 @@ class DiscreteInverseDynamicsController(Diagram):
 
 
 def _gain(value, n: int, name: str) -> np.ndarray:
-    g = np.broadcast_to(np.asarray(value, dtype=float), (n,)).copy()
+    g = np.asarray(value, dtype=float)
+    if g.size not in (1, n) or g.ndim > 1:
+        raise ValueError(f"{name} must be one number or {n} (one per joint), got {value!r}")
+    g = np.broadcast_to(g, (n,)).copy()
     if not np.all(np.isfinite(g)) or np.any(g < 0):
         raise ValueError(f"{name} must be finite and >= 0 per joint, got {value!r}")
     return g

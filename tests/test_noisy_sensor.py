@@ -129,3 +129,27 @@ def test_bad_sensor_config_names_the_field(field, value, message):
     config = SensorConfig(**{field: value})
     with pytest.raises(ConfigError, match=message):
         NoisyForceTorqueSensor(config)
+
+
+def test_runs_sharing_one_sensor_each_get_the_draws_of_their_own_samples():
+    # Noise is a pure function of (seed, sample number). The sensor keeps one block of 4096
+    # samples' draws; a run past a block boundary, and a second run starting over with the same
+    # system, must each read the draws of their own sample numbers.
+    config = SensorConfig(seed=9, resolution=ZERO6, drift_std=ZERO6, crosstalk=0.0, bias=ZERO6)
+    builder = DiagramBuilder()
+    source = builder.AddSystem(ConstantVectorSource(W))
+    dut = builder.AddSystem(NoisyForceTorqueSensor(config))
+    builder.Connect(source.get_output_port(), dut.GetInputPort("wrench_ideal"))
+    logger = LogVectorOutput(dut.GetOutputPort("wrench_measured"), builder, dut.period)
+    diagram = builder.Build()
+    long_run, short_run = Simulator(diagram), Simulator(diagram)
+    long_run.AdvanceTo(5.0)  # 5000 samples: into the second block
+    short_run.AdvanceTo(0.3)  # back to the first
+    sigma = np.asarray(config.spec().noise_std)
+    draws = np.vstack([np.random.default_rng([9, block]).standard_normal((4096, 12))
+                       for block in (0, 1)])
+    for run in (long_run, short_run):
+        log = logger.FindLog(run.get_context()).data().T
+        k = np.arange(len(log) - 1)  # row i holds sample i - 1 (logged before the update lands)
+        # The filter starts at the first input, so with a constant input only noise remains.
+        np.testing.assert_allclose(log[1:], W + sigma * draws[k, :6], rtol=1e-12, atol=1e-12)

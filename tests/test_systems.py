@@ -264,3 +264,30 @@ def test_meshcat_replay_holds_the_wrench_arrows(forest):
     blobs = [base64.b64decode(b) for b in re.findall(r"base64,([A-Za-z0-9+/=]{100,})", html)]
     for name in (b"wrench/measured", b"wrench/external"):
         assert sum(blob.count(name) for blob in blobs) >= 2  # the object and its animation
+
+
+def _svr_compensator():
+    from ftdrake.compensation.svr import SVRCompensator
+
+    rng = np.random.default_rng(1)
+    X = rng.uniform(-1, 1, size=(150, 3 * N))
+    Y = np.column_stack([np.sin(X[:, j]) for j in range(6)])
+    return SVRCompensator(features="q", C=10.0).fit(X, Y)
+
+
+@pytest.mark.parametrize("kind", ["forest", "svr"])  # the compiled-forest and generic paths
+def test_fault_and_out_of_domain_clear_when_inputs_recover(forest, kind):
+    model = forest if kind == "forest" else _svr_compensator()
+    t = [0.0, 0.003, 0.006, 0.009, 1.0]  # each column holds from its time to the next
+    nan, good = np.full(6, np.nan), np.full(6, 1.0)
+    wrench = PiecewisePolynomial.ZeroOrderHold(t, np.column_stack([good, nan, good, good, good]))
+    far, near = np.full(2 * N, 3.0), np.zeros(2 * N)  # q outside / inside the training range
+    state = PiecewisePolynomial.ZeroOrderHold(t, np.column_stack([near, near, far, near, near]))
+    out = run_compensator(model, wrench, state, accel=np.zeros(N), duration=0.012)
+    fault, ood = out["fault"][:, 0], out["out_of_domain"][:, 0]
+    # Samples land one period after they are taken: rows 4–6 hold the NaN samples (3–5 ms).
+    np.testing.assert_array_equal(fault[1:12], [0, 0, 0, 1, 1, 1, 0, 0, 0, 0, 0])
+    np.testing.assert_array_equal(ood[1:12], [0, 0, 0, 0, 0, 0, 1, 1, 1, 0, 0])
+    expected = model.predict(np.zeros((1, 3 * N)))[0]
+    np.testing.assert_allclose(out["wrench_internal"][-1], expected, rtol=1e-9, atol=1e-12)
+    np.testing.assert_array_equal(out["wrench_external"][-1], good - out["wrench_internal"][-1])
