@@ -17,11 +17,11 @@ import time
 
 import numpy as np
 from pydrake.systems.analysis import Simulator
-from pydrake.systems.controllers import InverseDynamicsController
 from pydrake.systems.framework import DiagramBuilder
 from pydrake.systems.primitives import TrajectorySource
 
 from ftdrake import ScenarioConfig, build_diagram
+from ftdrake.controller import DiscreteInverseDynamicsController
 from ftdrake.diagram import plan_trajectory
 from ftdrake.scene import add_scene, make_control_plant
 from ftdrake.simulation import set_initial_state
@@ -44,11 +44,9 @@ def time_plant_and_controller(config, trajectory, duration):
     plant = scene.plant
     q = builder.AddSystem(TrajectorySource(trajectory, output_derivative_order=1))
     vd = builder.AddSystem(TrajectorySource(trajectory.derivative(2)))
-    n = plant.num_positions(scene.arm)
     c = config.controller
-    controller = builder.AddSystem(InverseDynamicsController(
-        make_control_plant(config, scene), np.full(n, c.kp), np.full(n, c.ki), np.full(n, c.kd),
-        True))
+    controller = builder.AddSystem(DiscreteInverseDynamicsController(
+        make_control_plant(config, scene), c.kp, c.ki, c.kd, config.time_step))
     builder.Connect(plant.get_state_output_port(scene.arm), controller.get_input_port_estimated_state())
     builder.Connect(q.get_output_port(), controller.get_input_port_desired_state())
     builder.Connect(vd.get_output_port(), controller.get_input_port_desired_acceleration())

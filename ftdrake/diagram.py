@@ -14,7 +14,6 @@ from __future__ import annotations
 
 import dataclasses as dc
 
-import numpy as np
 from pydrake.systems.framework import Diagram, DiagramBuilder
 from pydrake.systems.primitives import (
     LogVectorOutput,
