@@ -26,6 +26,7 @@ from .config import (
     load_config,
     save_config,
 )
+from .controller import DiscreteInverseDynamicsController
 from .diagram import Simulation, build_diagram
 from .sensor import ForceTorqueSensor, NoisyForceTorqueSensor
 from .simulation import run
@@ -39,6 +40,7 @@ __all__ = [
     "ContactDetector",
     "ControllerConfig",
     "DetectorConfig",
+    "DiscreteInverseDynamicsController",
     "ForceTorqueSensor",
     "GPRCompensator",
     "HybridCompensator",
