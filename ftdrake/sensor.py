@@ -4,7 +4,8 @@ Convention (used everywhere in ftdrake; tested in tests/test_sensor_physics.py):
 
 * A wrench is ``[Fx, Fy, Fz, Tx, Ty, Tz]`` in N and N·m (force first, as ROS WrenchStamped and
   the study). Drake's ``SpatialForce`` is ``[torque; force]``; the conversion happens in
-  :func:`wrench_from_spatial_force` / :func:`spatial_force_from_wrench` and nowhere else.
+  :func:`wrench_from_spatial_force` / :func:`spatial_force_from_wrench` (and, compiled for the
+  1 kHz loop, in ``_negated_wrench``, tested equal to them).
 * The sensor reports the load that the **tool side applies to the sensor** (ATI's convention),
   about the origin So of the sensor frame S, expressed in S. S is the sensor weld joint's child
   frame ``Jc``; the tool is the weld's child side.

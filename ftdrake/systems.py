@@ -44,8 +44,8 @@ class CompensatorSystem(LeafSystem):
         self.model = model
         self.period = float(period)
         n = self.n = int(model.n_joints_)
-        self._predict = _predictor(model, fast)
         self._forest = _compiled_forest(model, fast)
+        self._predict = None if self._forest is not None else _predictor(model, fast)
         self._has_std = bool(getattr(model, "provides_std", False))
         self._lo, self._hi = _training_box(model)
         alpha = 1.0 - math.exp(-2 * math.pi * acceleration_cutoff_hz * self.period)

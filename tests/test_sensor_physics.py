@@ -194,3 +194,17 @@ def test_cable_force_is_read_by_the_sensor():
     ideal = log[col.wrench_columns(col.IDEAL)].to_numpy()[rows]
     assert np.linalg.norm(cable[:, :3], axis=1).min() > 1.0  # N: the cable really pulls
     np.testing.assert_allclose(ideal, newton_euler + cable, rtol=0, atol=1e-3)
+
+
+def test_wrench_conversions_follow_the_convention():
+    from pydrake.multibody.math import SpatialForce
+
+    from ftdrake.sensor import _negated_wrench, spatial_force_from_wrench, wrench_from_spatial_force
+
+    F = SpatialForce(tau=np.array([0.1, 0.2, 0.3]), f=np.array([1.0, 2.0, 3.0]))
+    w = wrench_from_spatial_force(F)
+    np.testing.assert_array_equal(w, [1.0, 2.0, 3.0, 0.1, 0.2, 0.3])  # force first
+    np.testing.assert_array_equal(spatial_force_from_wrench(w).get_coeffs(), F.get_coeffs())
+    out = np.empty(6)
+    _negated_wrench(F.get_coeffs(), out)  # the sensor's compiled form: −F as a wrench
+    np.testing.assert_array_equal(out, -w)
