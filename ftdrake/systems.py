@@ -50,7 +50,6 @@ class CompensatorSystem(LeafSystem):
         self._lo, self._hi = _training_box(model)
         alpha = 1.0 - math.exp(-2 * math.pi * acceleration_cutoff_hz * self.period)
         self._constants = np.array([alpha, self.period])
-        self._row = np.zeros(3 * n)
         self._no_acceleration = np.zeros(n)
 
         self._wrench_port = self.DeclareVectorInputPort("wrench_measured", 6)
@@ -82,14 +81,15 @@ class CompensatorSystem(LeafSystem):
         external = state.get_mutable_value(self._external)
         if self._forest is not None:
             status = _compensate_with_forest(
-                wrench, x, accel, measured, estimator, self._row, self._lo, self._hi,
-                self._constants, *self._forest, internal, external,
+                wrench, x, accel, measured, estimator, self._lo, self._hi, self._constants,
+                *self._forest, internal, external,
             )
         else:
-            status = _prepare_row(wrench, x, accel, measured, estimator, self._row, self._lo,
+            row = np.empty(3 * self.n)
+            status = _prepare_row(wrench, x, accel, measured, estimator, row, self._lo,
                                   self._hi, self._constants)
             if not status & _FAULT:
-                mean, std = self._predict(self._row)
+                mean, std = self._predict(row)
                 internal[:] = mean
                 external[:] = wrench - mean
                 if self._has_std:
@@ -155,9 +155,10 @@ def _prepare_row(wrench, x, accel, measured, estimator, row, lo, hi, constants):
 
 
 @numba.njit(cache=True)
-def _compensate_with_forest(wrench, x, accel, measured, estimator, row, lo, hi, constants,
+def _compensate_with_forest(wrench, x, accel, measured, estimator, lo, hi, constants,
                             nodes, leaf_values, trees, n_trees, internal, external):
     """_prepare_row, then the compiled forest into `internal` and measured − internal."""
+    row = np.empty(3 * len(accel))
     status = _prepare_row(wrench, x, accel, measured, estimator, row, lo, hi, constants)
     if not status & _FAULT:
         _forest_accumulate(row, nodes, leaf_values, trees, n_trees, internal)
@@ -306,18 +307,20 @@ class ContactDetector(LeafSystem):
         self.DeclarePeriodicDiscreteUpdateEvent(self.period, 0.0, self._update)
         self.DeclareStateOutputPort("contact", self._flag)
         self.DeclareStateOutputPort("contact_force", self._force)
+        # The thresholds are read once, here: changing `config` later has no effect.
         c = self.config
         self._constants = np.array([c.force_on, c.torque_on, c.release_ratio, c.debounce_on,
                                     c.debounce_off, c.std_gain])
+        self._arm_after_s, self._uses_std = c.arm_after_s, c.std_gain > 0
         self._no_std = np.zeros(6)
 
     def _update(self, context, state):
         # Runs at the sensor rate: few Python calls, the logic compiled (_detect).
-        if context.get_time() < self.config.arm_after_s:
+        if context.get_time() < self._arm_after_s:
             return  # not armed yet
         w = self._wrench_port.Eval(context)
         std = (self._std_port.Eval(context)
-               if self.config.std_gain > 0 and self._std_port.HasValue(context) else self._no_std)
+               if self._uses_std and self._std_port.HasValue(context) else self._no_std)
         _detect(w, std, self._constants, state.get_mutable_value(self._flag),
                 state.get_mutable_value(self._counter), state.get_mutable_value(self._force))
 

@@ -138,6 +138,10 @@ def test_contact_flag_matches_force(contact_run):
     contact = log[col.CONTACT].to_numpy() == 1
     assert not np.any(force[~contact] > 0)
     assert np.median(force[contact]) > 5.0
+    # The tool presses once and leaves: one interval of contact, and truth clears after it.
+    assert np.count_nonzero(np.diff(contact.astype(int)) == 1) == 1
+    assert np.count_nonzero(np.diff(contact.astype(int)) == -1) == 1
+    assert not contact[-500:].any() and not force[-500:].any()
 
 
 def test_sensor_works_on_any_plant_weld():
