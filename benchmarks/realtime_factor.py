@@ -1,8 +1,11 @@
 """Real-time factor of the free-motion diagram at 1 kHz (goal: >= 10x real time on 2 cores).
 
 Prints a small table and one JSON line. In the same run it also times the diagram without
-ftdrake's Python systems (plant + controller + loggers only), so the cost of the sensor,
-cable and contact-truth systems shows as a ratio that does not depend on the machine's load.
+ftdrake's Python systems (plant + controller only), so the cost of the sensor, cable and
+contact-truth systems shows as a ratio that does not depend on the machine's load; and the
+core plus one Python system whose 1 kHz update only reads a constant input and writes
+nothing: the least any Python system in the loop can cost, i.e. the ceiling for a diagram
+that runs any Python code every step.
 
     python benchmarks/realtime_factor.py [--duration 10] [--repeats 3]
 """
@@ -17,8 +20,8 @@ import time
 
 import numpy as np
 from pydrake.systems.analysis import Simulator
-from pydrake.systems.framework import DiagramBuilder
-from pydrake.systems.primitives import TrajectorySource
+from pydrake.systems.framework import DiagramBuilder, LeafSystem
+from pydrake.systems.primitives import ConstantVectorSource, TrajectorySource
 
 from ftdrake import ScenarioConfig, build_diagram
 from ftdrake.controller import DiscreteInverseDynamicsController
@@ -38,7 +41,20 @@ def time_full(config, trajectory, duration):
     return duration / (time.perf_counter() - start)
 
 
-def time_plant_and_controller(config, trajectory, duration):
+class EmptyUpdate(LeafSystem):
+    """A Python system whose periodic update reads its 6-vector input and does nothing else."""
+
+    def __init__(self, period):
+        super().__init__()
+        self._input = self.DeclareVectorInputPort("u", 6)
+        self.DeclareDiscreteState(6)
+        self.DeclarePeriodicDiscreteUpdateEvent(period, 0.0, self._update)
+
+    def _update(self, context, discrete_state):
+        self._input.Eval(context)
+
+
+def time_plant_and_controller(config, trajectory, duration, python_floor=False):
     builder = DiagramBuilder()
     scene = add_scene(builder, config)
     plant = scene.plant
@@ -51,6 +67,10 @@ def time_plant_and_controller(config, trajectory, duration):
     builder.Connect(q.get_output_port(), controller.get_input_port_desired_state())
     builder.Connect(vd.get_output_port(), controller.get_input_port_desired_acceleration())
     builder.Connect(controller.get_output_port_control(), plant.get_actuation_input_port(scene.arm))
+    if python_floor:
+        source = builder.AddSystem(ConstantVectorSource(np.zeros(6)))
+        empty = builder.AddSystem(EmptyUpdate(config.time_step))
+        builder.Connect(source.get_output_port(), empty.get_input_port())
     simulator = Simulator(builder.Build())
     plant.SetPositions(plant.GetMyMutableContextFromRoot(simulator.get_mutable_context()),
                        scene.arm, trajectory.value(0).ravel())
@@ -74,8 +94,10 @@ def main():
     config_500 = ScenarioConfig()
     config_500.sensor.rate_hz = 500.0
     half = [time_full(config_500, trajectory, args.duration) for _ in range(args.repeats)]
-    core = [time_plant_and_controller(config, trajectory, args.duration)
-            for _ in range(args.repeats)]
+    core, floor = [], []
+    for _ in range(args.repeats):  # interleaved, so both see the same machine load
+        core.append(time_plant_and_controller(config, trajectory, args.duration))
+        floor.append(time_plant_and_controller(config, trajectory, args.duration, True))
     result = {
         "benchmark": "free_motion_realtime_factor",
         "plant_rate_hz": 1.0 / config.time_step,
@@ -84,6 +106,7 @@ def main():
         "rtf_full_median": float(np.median(full)),
         "rtf_plant_controller_only_median": float(np.median(core)),
         "rtf_full_sensor_500hz_median": float(np.median(half)),
+        "rtf_core_plus_one_empty_python_update_median": float(np.median(floor)),
         "python_systems_cost_ratio": float(np.median(core) / np.median(full)),
         "goal_rtf": 10.0,
         "machine": f"{platform.machine()} {os.cpu_count()} cpus, {platform.python_version()}",
@@ -92,6 +115,8 @@ def main():
     print(f"{'full (sensor, cable, truth, loggers)':<36}{result['rtf_full_median']:>28.1f}")
     print(f"{'full, sensor at 500 Hz':<36}{result['rtf_full_sensor_500hz_median']:>28.1f}")
     print(f"{'plant + controller only':<36}{result['rtf_plant_controller_only_median']:>28.1f}")
+    print(f"{'  + one empty Python update':<36}"
+          f"{result['rtf_core_plus_one_empty_python_update_median']:>28.1f}")
     print(json.dumps(result))
 
 
