@@ -9,6 +9,11 @@ control loop calls it:
 * sklearn: ``forest.predict`` on a 1 × 21 array (``np.column_stack`` of 6 for per-axis),
 * onnxruntime: ``InferenceSession.run`` on a 1 × 21 array, one intra-op thread.
 
+Then a Gaussian-process compensator (``GPRCompensator``, m = 500 kept rows, one kernel per
+axis) on the same data: its mean and standard deviation for one row, ours
+(``CompiledGaussianProcess.predict_one_with_std``) vs the model's ``predict`` +
+``predict_std``; the std costs O(axes · m²) per row whatever the code.
+
 Rows are consecutive samples of an unseen stretch of trajectory at 1 kHz (successive rows take
 nearly the same paths through the trees, as in a control loop), and for ours also random
 rows (cold paths, the worst case). Medians in µs; on a shared machine only the ratios travel.
@@ -30,10 +35,12 @@ import onnxruntime
 import sklearn
 from sklearn.ensemble import RandomForestRegressor
 
-from ftdrake.compensation.fast import CompiledForest
+from ftdrake.compensation.fast import CompiledForest, CompiledGaussianProcess
+from ftdrake.compensation.gpr import GPRCompensator
 from ftdrake.compensation.onnx_export import export_onnx
 
 N_JOINTS, N_OUTPUTS, N_TREES, TRAIN_ROWS = 7, 6, 100, 3000
+GP_POINTS = 500
 
 
 def excitation(t: np.ndarray, seed: int = 0) -> np.ndarray:
@@ -162,6 +169,9 @@ def main() -> None:
         b = r["batch_1000_ms"]
         print(f"{name:<14} ours {b['ours']:.1f}  sklearn {b['sklearn']:.1f}  "
               f"onnxruntime {b['onnxruntime']:.1f}")
+    gp = gp_latency(X_train, Y_train, smooth)
+    print(f"\nGaussian process (m = {GP_POINTS}, 6 kernels), mean + std of one row, median µs: "
+          f"ours {gp['ours_us']:.0f}, predict + predict_std {gp['predict_and_std_us']:.0f}")
     multi = results["multi-output"]
     print(json.dumps({
         "ours_us": round(multi["ours_us"], 2),
@@ -172,9 +182,27 @@ def main() -> None:
                      if k.endswith("_us")},
         "batch_1000_ms": {name: {k: round(v, 2) for k, v in r["batch_1000_ms"].items()}
                           for name, r in results.items()},
+        "gp": gp,
         "n_trees": N_TREES, "n_features": 3 * N_JOINTS, "n_outputs": N_OUTPUTS,
         "train_rows": TRAIN_ROWS, "machine": machine(),
     }))
+
+
+def gp_latency(X_train, Y_train, rows) -> dict:
+    model = GPRCompensator(max_points=GP_POINTS, random_state=0).fit(X_train, Y_train)
+    ours = CompiledGaussianProcess(model)
+    mean, std = ours.predict_with_std(rows[:50])
+    assert np.allclose(mean, model.predict(rows[:50]), rtol=1e-9, atol=1e-9)
+    # Variances, to 1e-9 of the signal variance: with noise-free data the std is the root of
+    # a difference that cancels to ~1e-10 of its terms, for sklearn's formula as for ours.
+    signal = (model.signal_variance_ * model.target_scale_**2).max()
+    assert np.allclose(std**2, model.predict_std(rows[:50]) ** 2, rtol=1e-9, atol=1e-9 * signal)
+    return {
+        "points": GP_POINTS,
+        "ours_us": median_us(ours.predict_one_with_std, rows, 2000),
+        "predict_and_std_us": median_us(
+            lambda x: (model.predict(x[None, :]), model.predict_std(x[None, :])), rows, 300),
+    }
 
 
 if __name__ == "__main__":

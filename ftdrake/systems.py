@@ -184,15 +184,36 @@ def check_model_fits(model, n_joints: int | None) -> None:
 def _predictor(model, fast: bool):
     """A function row (3n,) → (internal (6,), std (6,)); compiled or lean where possible.
 
-    Forests and SVRs go through ftdrake's compiled predictors, the physics model through its
-    per-row path, a hybrid through both; anything else through ``predict``. The per-row
+    Forests, SVRs and GPs (mean and std in one call) go through ftdrake's compiled
+    predictors, the physics model through its per-row path, a hybrid through both; anything
+    else through ``predict`` (and ``predict_std``). The per-row
     paths skip scikit-learn's input validation, which costs more than a compiled forest.
     """
-    mean = _mean_predictor(model, fast)
     if not getattr(model, "provides_std", False):
+        mean = _mean_predictor(model, fast)
         zeros = np.zeros(6)
         return lambda row: (mean(row), zeros)
+    if fast and hasattr(model, "physics_") and hasattr(model, "residual_"):
+        physics = _mean_predictor(model.physics_, fast)
+        residual = _predictor(model.residual_, fast)  # a hybrid's std is its residual's
+
+        def hybrid(row):
+            internal, std = residual(row)
+            return physics(row) + internal, std
+        return hybrid
+    compiled = _compiled(model) if fast else None
+    if hasattr(compiled, "predict_one_with_std"):
+        return compiled.predict_one_with_std
+    mean = _mean_predictor(model, fast)
     return lambda row: (mean(row), np.asarray(model.predict_std(row[None, :])[0], dtype=float))
+
+
+def _compiled(model):
+    """ftdrake's fast predictor for `model`, or None if there is none."""
+    try:
+        return fast_predictor(model)
+    except TypeError:
+        return None
 
 
 def _compiled_forest(model, fast: bool):
@@ -210,12 +231,9 @@ def _mean_predictor(model, fast: bool):
         return lambda row: physics(row) + residual(row)
     if fast and hasattr(model, "predict_row"):
         return model.predict_row
-    if fast:
-        try:
-            compiled = fast_predictor(model)
-            return lambda row: np.asarray(compiled.predict_one(row), dtype=float)
-        except TypeError:  # not a forest or SVR: fall back to predict
-            pass
+    compiled = _compiled(model) if fast else None
+    if compiled is not None:
+        return lambda row: np.asarray(compiled.predict_one(row), dtype=float)
     return lambda row: np.asarray(model.predict(row[None, :])[0], dtype=float)
 
 

@@ -19,9 +19,15 @@ from sklearn.preprocessing import MinMaxScaler
 from sklearn.svm import SVR
 
 from ftdrake.compensation import fast
-from ftdrake.compensation.fast import CompiledForest, FastKernelModel, fast_predictor
+from ftdrake.compensation.fast import (
+    CompiledForest,
+    CompiledGaussianProcess,
+    FastKernelModel,
+    fast_predictor,
+)
 from ftdrake.compensation.features import FEATURE_SETS, select_features
 from ftdrake.compensation.forest import RandomForestCompensator
+from ftdrake.compensation.gpr import GPRCompensator
 from ftdrake.compensation.svr import SVRCompensator
 
 RTOL = ATOL = 1e-9
@@ -233,6 +239,66 @@ def test_fast_predictor_of_an_svr_compensator():
     dut = fast_predictor(model)
     assert isinstance(dut, FastKernelModel)
     assert_equal_to_sklearn(dut.predict(X), model.predict(X))
+
+
+gp_shapes = {
+    "seed": st.integers(0, 2**31 - 1),
+    "n_joints": st.integers(1, 3),
+    "features": FEATURES,
+    "n_outputs": st.integers(1, 4),
+    "shared_kernel": st.booleans(),
+    "include_noise": st.booleans(),
+    "one_d_target": st.booleans(),
+}
+
+
+@settings(max_examples=25, deadline=None)
+@given(**gp_shapes)
+def test_compiled_gp_equals_predict_and_predict_std(seed, n_joints, features, n_outputs,
+                                                    shared_kernel, include_noise, one_d_target):
+    rng = np.random.default_rng(seed)
+    X = rng.uniform(-1, 1, (60, 3 * n_joints))
+    Y = np.sin(X @ rng.normal(size=(3 * n_joints, n_outputs))) * rng.uniform(0.1, 30, n_outputs)
+    Y += rng.normal(scale=0.05, size=Y.shape) + rng.normal(scale=10, size=n_outputs)
+    y = Y[:, 0] if one_d_target else Y
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", ConvergenceWarning)
+        model = GPRCompensator(features, max_points=40, optimize_points=30,
+                               shared_kernel=shared_kernel, include_noise=include_noise,
+                               random_state=seed).fit(X, y)
+    # Training rows (where a noise-free std nearly vanishes), rows between them, rows beyond.
+    probe = np.vstack([X[model.subset_indices_[:5]], rng.uniform(-3, 3, (15, 3 * n_joints))])
+    mean_ref = np.asarray(model.predict(probe)).reshape(len(probe), -1)
+    std_ref = np.asarray(model.predict_std(probe)).reshape(len(probe), -1)
+
+    dut = fast_predictor(model)
+    assert isinstance(dut, CompiledGaussianProcess)
+    mean, std = dut.predict_with_std(probe)
+    assert_equal_to_sklearn(mean, mean_ref)
+    # Compare variances: where the noise-free std nearly vanishes its square root amplifies
+    # rounding, and the variance is what the formula computes.
+    scale = model.target_scale_[: std.shape[1]] ** 2 * model.signal_variance_.max()
+    np.testing.assert_allclose(std**2, std_ref**2, rtol=RTOL, atol=ATOL * scale.max())
+    one_mean, one_std = dut.predict_one_with_std(probe[7])
+    assert_equal_to_sklearn(one_mean, mean_ref[7])
+    assert_equal_to_sklearn(one_std, std_ref[7])
+    assert_equal_to_sklearn(dut.predict_one(probe[8]), mean_ref[8])
+
+
+def test_compiled_gp_rejects_bad_rows_and_non_gps():
+    X, Y = compensator_data(n_joints=2, n_rows=40)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", ConvergenceWarning)
+        model = GPRCompensator("q", max_points=20, optimize_points=0).fit(X, Y)
+    dut = CompiledGaussianProcess(model)
+    with pytest.raises(ValueError, match="6 columns for 2 joints"):
+        dut.predict_one_with_std(np.zeros(4))
+    row = np.zeros(6)
+    row[5] = np.nan  # a column "q" does not use: the state is still broken
+    with pytest.raises(ValueError, match="NaN or infinity"):
+        dut.predict_one_with_std(row)
+    with pytest.raises(ValueError, match="not a fitted GPRCompensator"):
+        CompiledGaussianProcess(GPRCompensator())
 
 
 def test_fast_predictor_rejects_other_models():

@@ -291,3 +291,32 @@ def test_fault_and_out_of_domain_clear_when_inputs_recover(forest, kind):
     expected = model.predict(np.zeros((1, 3 * N)))[0]
     np.testing.assert_allclose(out["wrench_internal"][-1], expected, rtol=1e-9, atol=1e-12)
     np.testing.assert_array_equal(out["wrench_external"][-1], good - out["wrench_internal"][-1])
+
+
+@pytest.mark.parametrize("hybrid", [False, True])
+def test_gp_in_the_diagram_outputs_its_predict_and_predict_std(hybrid):
+    import warnings
+
+    from ftdrake.compensation.gpr import GPRCompensator
+    from ftdrake.compensation.hybrid import HybridCompensator
+    from ftdrake.compensation.physics import PhysicsPayloadCompensator
+
+    rng = np.random.default_rng(3)
+    X = rng.uniform(-0.5, 0.5, size=(120, 3 * N))
+    Y = np.column_stack([np.sin(X[:, j]) * 5 + 0.1 * rng.normal(size=120) for j in range(6)])
+    gp = GPRCompensator(features="q", max_points=60, optimize_points=40, random_state=0)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        model = (HybridCompensator(PhysicsPayloadCompensator(mode="static", features="q"), gp)
+                 if hybrid else gp).fit(X, Y)
+    q, v, a = rng.uniform(-0.4, 0.4, (3, N))
+    wrench = rng.normal(size=6) * 5
+    out = run_compensator(model, wrench, np.concatenate([q, v]), accel=a)
+    row = np.concatenate([q, v, a])[None, :]
+    np.testing.assert_allclose(out["wrench_internal"][-1], model.predict(row)[0],
+                               rtol=1e-9, atol=1e-9)
+    np.testing.assert_allclose(out["wrench_std"][-1], model.predict_std(row)[0],
+                               rtol=1e-9, atol=1e-12)
+    assert (out["wrench_std"][-1] > 0).all()
+    np.testing.assert_array_equal(out["wrench_external"][-1],
+                                  wrench - out["wrench_internal"][-1])
