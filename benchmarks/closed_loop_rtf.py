@@ -18,15 +18,14 @@ import warnings
 import numpy as np
 from pydrake.systems.analysis import Simulator
 
-from ftdrake import HybridCompensator, RandomForestCompensator, ScenarioConfig, build_diagram
-from ftdrake.closed_loop import add_compensation
-from ftdrake.data import collect, joint_state_layout, wrench_targets
-from ftdrake.simulation import set_initial_state
-from ftdrake.systems import DetectorConfig
+from ftdrake import HybridCompensator, RandomForestCompensator, ScenarioConfig, build_station
+from ftdrake.data.dataset import joint_state_layout, wrench_targets
+from ftdrake.sim.collection import collect
+from ftdrake.sim.simulate import set_initial_state
 
 
-def rtf(config, extra=None, duration=6.0):
-    sim = build_diagram(config, extra=extra)
+def rtf(config, compensator=None, duration=6.0):
+    sim = build_station(config, compensator)
     simulator = Simulator(sim.diagram)
     set_initial_state(sim, simulator.get_mutable_context())
     simulator.Initialize()
@@ -45,12 +44,11 @@ def main():
         warnings.simplefilter("ignore")
         hybrid = HybridCompensator(residual=forest).fit(X, Y)
     config = ScenarioConfig()
-    detector = DetectorConfig()
     result = {
         "benchmark": "closed_loop_realtime_factor",
         "rtf_no_compensation": rtf(config),
-        "rtf_forest_in_loop": rtf(config, add_compensation(forest, detector)),
-        "rtf_hybrid_in_loop": rtf(config, add_compensation(hybrid, detector)),
+        "rtf_forest_in_loop": rtf(config, forest),
+        "rtf_hybrid_in_loop": rtf(config, hybrid),
         "goal_rtf": 10.0,
         "machine": f"{platform.machine()} {os.cpu_count()} cpus, {platform.python_version()}",
         "load_average_1min": os.getloadavg()[0],

@@ -18,11 +18,11 @@ import numpy as np
 from pydrake.systems.analysis import Simulator
 from pydrake.systems.framework import BasicVector
 
-from ftdrake import ScenarioConfig, build_diagram
-from ftdrake.diagram import plan_trajectory
-from ftdrake.sensor import ForceTorqueSensor, NoisyForceTorqueSensor
-from ftdrake.simulation import set_initial_state
-from ftdrake.truth import ContactTruth
+from ftdrake import ScenarioConfig, build_station
+from ftdrake.sim.simulate import set_initial_state
+from ftdrake.sim.station import plan_trajectory
+from ftdrake.systems.contact_truth import ContactTruth
+from ftdrake.systems.ft_sensor import ForceTorqueSensor, NoisyForceTorqueSensor
 
 UPDATES = {  # system class → the method Drake calls at every sample
     "ideal sensor": (ForceTorqueSensor, "_calc_wrench"),
@@ -47,7 +47,7 @@ def timed_simulation(config, trajectory, duration):
     for name, (cls, method) in UPDATES.items():
         setattr(cls, method, timer(name, originals[name]))
     try:
-        sim = build_diagram(config, trajectory=trajectory)
+        sim = build_station(config, trajectory=trajectory)
         simulator = Simulator(sim.diagram)
         set_initial_state(sim, simulator.get_mutable_context())
         simulator.Initialize()

@@ -23,15 +23,15 @@ from pydrake.systems.analysis import Simulator
 from pydrake.systems.framework import DiagramBuilder, LeafSystem
 from pydrake.systems.primitives import ConstantVectorSource, TrajectorySource
 
-from ftdrake import ScenarioConfig, build_diagram
-from ftdrake.controller import DiscreteInverseDynamicsController
-from ftdrake.diagram import plan_trajectory
-from ftdrake.scene import add_scene, make_control_plant
-from ftdrake.simulation import set_initial_state
+from ftdrake import ScenarioConfig, build_station
+from ftdrake.sim.scene import add_scene, make_control_plant
+from ftdrake.sim.simulate import set_initial_state
+from ftdrake.sim.station import plan_trajectory
+from ftdrake.systems.controller import DiscreteInverseDynamicsController
 
 
 def time_full(config, trajectory, duration):
-    sim = build_diagram(config, trajectory=trajectory)
+    sim = build_station(config, trajectory=trajectory)
     simulator = Simulator(sim.diagram)
     set_initial_state(sim, simulator.get_mutable_context())
     simulator.Initialize()

@@ -21,17 +21,14 @@ from pydrake.systems.framework import DiagramBuilder
 from pydrake.systems.primitives import ConstantVectorSource, LogVectorOutput
 
 import ftdrake
-from ftdrake import columns as col
-from ftdrake.data import collect, joint_state_layout, wrench_targets
-from ftdrake.scene import add_scene, make_control_plant
 
 
 def train_small_model(path: Path) -> Path:
-    data = collect(ftdrake.ScenarioConfig(), 2, kind="fourier", duration=5.0, progress=False)
+    data = ftdrake.collect(ftdrake.ScenarioConfig(), 2, kind="fourier", duration=5.0, progress=False)
     model = ftdrake.RandomForestCompensator(features="q", n_estimators=20, per_output=False)
-    model.fit(joint_state_layout(data), wrench_targets(data))
-    return ftdrake.save_model(model, path, target_names=col.WRENCH_AXES,
-                              target_units=col.WRENCH_UNITS, sensor_frame="S")
+    model.fit(ftdrake.joint_state_layout(data), ftdrake.wrench_targets(data))
+    return ftdrake.save_model(model, path, target_names=ftdrake.WRENCH_AXES,
+                              target_units=ftdrake.WRENCH_UNITS, sensor_frame="S")
 
 
 def main():
@@ -42,7 +39,7 @@ def main():
 
     # --- your diagram --------------------------------------------------------------------
     builder = DiagramBuilder()
-    scene = add_scene(builder, ftdrake.ScenarioConfig())  # or your own plant
+    scene = ftdrake.add_scene(builder, ftdrake.ScenarioConfig())  # or your own plant
     plant = scene.plant
     ideal = builder.AddSystem(ftdrake.ForceTorqueSensor(plant, scene.sensor_joint))
     builder.Connect(plant.get_reaction_forces_output_port(), ideal.GetInputPort("reaction_forces"))
@@ -53,7 +50,7 @@ def main():
     config = ftdrake.ScenarioConfig()
     home, n = np.asarray(config.home_q), plant.num_positions(scene.arm)
     controller = builder.AddSystem(InverseDynamicsController(
-        make_control_plant(config, scene), np.full(n, 400.0), np.zeros(n), np.full(n, 40.0),
+        ftdrake.make_control_plant(config, scene), np.full(n, 400.0), np.zeros(n), np.full(n, 40.0),
         False))
     target = builder.AddSystem(ConstantVectorSource(np.concatenate([home, np.zeros(n)])))
     builder.Connect(target.get_output_port(), controller.get_input_port_desired_state())

@@ -15,14 +15,12 @@ from importlib import resources
 from pathlib import Path
 from typing import Optional
 
+import numpy as np
 import yaml as pyyaml
 from pydrake.common.yaml import yaml_dump_typed, yaml_load_typed
 
+from .errors import ConfigError
 from .io import atomic_write_text
-
-
-class ConfigError(ValueError):
-    """A configuration value is missing, malformed or out of range; the message names it."""
 
 
 # ----------------------------------------------------------------------------------------------
@@ -228,6 +226,70 @@ class TrajectoryConfig:
 
 
 @dc.dataclass
+class DetectorConfig:
+    """Thresholds of the contact detector.
+
+    Contact switches on when ‖F‖ > force_on (N) or ‖T‖ > torque_on (N·m) for `debounce_on`
+    consecutive samples, and off when both are below ``release_ratio`` × those thresholds for
+    `debounce_off` samples (hysteresis). With `std_gain` > 0 the thresholds grow by
+    ``std_gain · ‖std‖`` of the model's predictive standard deviation.
+    """
+
+    force_on: float = 2.5
+    torque_on: float = 0.25
+    release_ratio: float = 0.6
+    debounce_on: int = 3
+    debounce_off: int = 25
+    std_gain: float = 0.0
+    # Detection is off for this long after start: the sensor chain and the compensator's
+    # acceleration filter settle first (a real detector arms after the sensor is tared).
+    arm_after_s: float = 0.05
+
+    def validate(self, where: str = "detector") -> "DetectorConfig":
+        for name in ("force_on", "torque_on"):
+            value = getattr(self, name)
+            if not (value > 0 and math.isfinite(value)):
+                raise ConfigError(f"{where}.{name}: must be positive, got {value!r}")
+        if not 0 < self.release_ratio <= 1:
+            raise ConfigError(f"{where}.release_ratio: {self.release_ratio} not in (0, 1]")
+        for name in ("debounce_on", "debounce_off"):
+            if int(getattr(self, name)) < 1:
+                raise ConfigError(f"{where}.{name}: must be >= 1")
+        if self.std_gain < 0:
+            raise ConfigError(f"{where}.std_gain: must be >= 0, got {self.std_gain}")
+        if not self.arm_after_s >= 0:
+            raise ConfigError(f"{where}.arm_after_s: must be >= 0, got {self.arm_after_s}")
+        return self
+
+    @classmethod
+    def from_residuals(cls, residual, margin: float = 1.5, quantile: float = 0.999,
+                       **overrides) -> "DetectorConfig":
+        """Thresholds from free-motion residuals (N × 6: measured − predicted wrench on
+        held-out contact-free data): `margin` × the `quantile` of ‖F‖ and ‖T‖, floored at
+        0.5 N and 0.02 N·m. A quantile, not k·RMS: a learned model's residuals are
+        heavy-tailed (largest where the motion leaves the training data)."""
+        r = np.asarray(residual, dtype=float)
+        if r.ndim != 2 or r.shape[1] != 6 or len(r) < 100:
+            raise ValueError(f"residual must be N × 6 with N >= 100; got shape {r.shape}")
+        force = np.quantile(np.linalg.norm(r[:, :3], axis=1), quantile)
+        torque = np.quantile(np.linalg.norm(r[:, 3:], axis=1), quantile)
+        return cls(force_on=max(0.5, margin * force), torque_on=max(0.02, margin * torque),
+                   **overrides).validate()
+
+
+@dc.dataclass
+class CompensatorConfig:
+    """How a trained compensator runs in the loop (``CompensatorSystem``)."""
+
+    # Cut-off (Hz) of the first-order low-pass on the causal difference of q̇ that estimates q̈
+    # in the loop (a real controller has no q̈ sensor); training can use the same estimate.
+    acceleration_cutoff_hz: float = 25.0
+
+    def validate(self, where: str = "compensator") -> None:
+        _positive(self.acceleration_cutoff_hz, f"{where}.acceleration_cutoff_hz")
+
+
+@dc.dataclass
 class ModelsConfig:
     """Where the models come from. package://ftdrake/ resolves to the shipped models/."""
 
@@ -258,6 +320,8 @@ class ScenarioConfig:
     sensor: SensorConfig = dc.field(default_factory=SensorConfig)
     cable: CableConfig = dc.field(default_factory=CableConfig)
     trajectory: TrajectoryConfig = dc.field(default_factory=TrajectoryConfig)
+    compensator: CompensatorConfig = dc.field(default_factory=CompensatorConfig)
+    detector: DetectorConfig = dc.field(default_factory=DetectorConfig)
 
     def validate(self) -> "ScenarioConfig":
         _positive(self.time_step, "scenario.time_step")
@@ -273,6 +337,8 @@ class ScenarioConfig:
         self.sensor.validate("scenario.sensor")
         self.cable.validate("scenario.cable")
         self.trajectory.validate("scenario.trajectory")
+        self.compensator.validate("scenario.compensator")
+        self.detector.validate("scenario.detector")
         rate = self.sensor.spec().rate_hz
         ratio = 1.0 / (rate * self.time_step)
         if abs(ratio - round(ratio)) > 1e-6 or round(ratio) < 1:

@@ -10,7 +10,7 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt
 import numpy as np
 
-from . import columns as col
+from . import conventions as col
 
 
 def shade_contact(ax, t, contact, label="true contact"):

@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 from ftdrake import ScenarioConfig
-from ftdrake.data import collect
+from ftdrake.sim.collection import collect
 
 
 def _collect(trajectories, duration, kind="fourier", seed=0, **changes):

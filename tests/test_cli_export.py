@@ -4,8 +4,8 @@ import numpy as np
 import onnxruntime as ort
 
 from ftdrake import RandomForestCompensator, save_model
-from ftdrake import columns as col
-from ftdrake.cli import main
+from ftdrake import conventions as col
+from ftdrake.cli.main import main
 
 
 def test_export_cli_matches_predict(tmp_path):

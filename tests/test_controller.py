@@ -6,9 +6,9 @@ from pydrake.systems.analysis import Simulator
 from pydrake.systems.controllers import InverseDynamicsController
 from pydrake.systems.framework import DiagramBuilder
 
-from ftdrake import ScenarioConfig, build_diagram
-from ftdrake.controller import DiscreteInverseDynamicsController
-from ftdrake.scene import add_scene, make_control_plant
+from ftdrake import ScenarioConfig, build_station
+from ftdrake.sim.scene import add_scene, make_control_plant
+from ftdrake.systems.controller import DiscreteInverseDynamicsController
 
 PERIOD = 1e-3
 
@@ -66,8 +66,8 @@ def test_integral_accumulates_once_per_period(control_plant):
 
 
 def test_scenario_diagram_has_no_continuous_state():
-    sim = build_diagram(ScenarioConfig())
-    assert sim.diagram.CreateDefaultContext().num_continuous_states() == 0
+    station = build_station(ScenarioConfig())
+    assert station.diagram.CreateDefaultContext().num_continuous_states() == 0
 
 
 @pytest.mark.parametrize("kwargs, message", [

@@ -14,10 +14,10 @@ import pandas as pd
 import pytest
 
 from ftdrake import ScenarioConfig
+from ftdrake.cli.train import main as train_cli
 from ftdrake.compensation.persistence import load_model, read_manifest
-from ftdrake.data import collect
-from ftdrake.logs import read_table
-from ftdrake.train import main as train_cli
+from ftdrake.data.logs import read_table
+from ftdrake.sim.collection import collect
 
 UR3 = Path(__file__).parent / "data" / "ur3"
 

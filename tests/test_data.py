@@ -8,7 +8,8 @@ import pyarrow.parquet as pq
 import pytest
 
 from ftdrake import ConfigError, ScenarioConfig
-from ftdrake.data import collect, load_dataset, save_dataset
+from ftdrake.data.dataset import load_dataset, save_dataset
+from ftdrake.sim.collection import collect
 
 
 @pytest.fixture(scope="module")

@@ -12,8 +12,8 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
-from ftdrake.columns import wrench_columns
-from ftdrake.logs import (
+from ftdrake.conventions import wrench_columns
+from ftdrake.data.logs import (
     LogError,
     LogWarning,
     expand_columns,

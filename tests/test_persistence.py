@@ -13,20 +13,15 @@ import skops.io as sio
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from ftdrake.columns import WRENCH_AXES, WRENCH_UNITS
 from ftdrake.compensation import persistence
 from ftdrake.compensation.forest import RandomForestCompensator
 from ftdrake.compensation.gpr import GPRCompensator
 from ftdrake.compensation.hybrid import HybridCompensator
-from ftdrake.compensation.persistence import (
-    ModelFileError,
-    load_model,
-    read_manifest,
-    save_model,
-)
+from ftdrake.compensation.persistence import ModelFileError, load_model, read_manifest, save_model
 from ftdrake.compensation.physics import PhysicsPayloadCompensator
 from ftdrake.compensation.svr import SVRCompensator
 from ftdrake.compensation.tuning import PerOutputCompensator
+from ftdrake.conventions import WRENCH_AXES, WRENCH_UNITS
 
 N_JOINTS = 7
 

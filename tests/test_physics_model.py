@@ -9,7 +9,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from hypothesis.extra.numpy import arrays
 
-from ftdrake import columns as col
+from ftdrake import conventions as col
 from ftdrake.compensation.forest import RandomForestCompensator
 from ftdrake.compensation.hybrid import HybridCompensator
 from ftdrake.compensation.physics import (
@@ -17,8 +17,8 @@ from ftdrake.compensation.physics import (
     PhysicsPayloadCompensator,
     payload_regressor,
 )
-from ftdrake.data import joint_state_layout, wrench_targets
-from ftdrake.rigid_body import SensorKinematics, newton_euler_wrench
+from ftdrake.data.dataset import joint_state_layout, wrench_targets
+from ftdrake.physics.rigid_body import SensorKinematics, newton_euler_wrench
 
 TRUE_MASS = 1.5
 TRUE_COM = np.array([0.02, 0.2 / 30, 0.26 / 3])  # m, from ft_sensor_tool.sdf

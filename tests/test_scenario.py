@@ -7,12 +7,12 @@ import pandas as pd
 import pytest
 from pydrake.trajectories import PiecewisePolynomial
 
-from ftdrake import ConfigError, ScenarioConfig, TrajectoryError, build_diagram, load_config
-from ftdrake import columns as col
-from ftdrake.cli import main
+from ftdrake import ConfigError, ScenarioConfig, TrajectoryError, build_station, load_config
+from ftdrake import conventions as col
+from ftdrake.cli.main import main
 from ftdrake.config import default_scenario_path, dump_config, parse_config
-from ftdrake.diagram import robot_geometry
-from ftdrake.trajectories import JointLimits, check_limits, make_trajectory, trajectory_extent
+from ftdrake.sim.station import robot_geometry
+from ftdrake.sim.trajectories import JointLimits, check_limits, make_trajectory, trajectory_extent
 
 
 def test_shipped_default_yaml_equals_defaults_and_round_trips(tmp_path):
@@ -38,7 +38,7 @@ def test_bad_yaml_names_the_problem(tmp_path, text, message):
     path.write_text(text)
     with pytest.raises(ConfigError, match=message):
         config = load_config(path)
-        build_diagram(config)
+        build_station(config)
 
 
 def test_missing_config_file_is_a_clear_error(tmp_path):
@@ -51,14 +51,14 @@ def test_unknown_model_path_names_the_field(field):
     config = ScenarioConfig()
     setattr(config.models, field, "/no/such/model.sdf")
     with pytest.raises(ConfigError, match=f"scenario.models.{field}: no such model file"):
-        build_diagram(config)
+        build_station(config)
 
 
 def test_unknown_package_model_names_the_field():
     config = ScenarioConfig()
     config.models.tool = "package://ftdrake/no_such_tool.sdf"
     with pytest.raises(ConfigError, match="scenario.models.tool: cannot load"):
-        build_diagram(config)
+        build_station(config)
 
 
 @pytest.fixture(scope="module")

@@ -14,10 +14,15 @@ from pydrake.systems.analysis import Simulator
 from pydrake.systems.framework import DiagramBuilder
 from pydrake.systems.primitives import ConstantVectorSource
 
-from ftdrake import ForceTorqueSensor, ScenarioConfig, build_diagram, run
-from ftdrake import columns as col
-from ftdrake.rigid_body import GRAVITY_W, newton_euler_wrench, sensor_kinematics, tool_inertia
-from ftdrake.scene import add_scene
+from ftdrake import ForceTorqueSensor, ScenarioConfig, build_station, simulate
+from ftdrake import conventions as col
+from ftdrake.physics.rigid_body import (
+    GRAVITY_W,
+    newton_euler_wrench,
+    sensor_kinematics,
+    tool_inertia,
+)
+from ftdrake.sim.scene import add_scene
 
 
 def ideal_config(kind="fourier", duration=4.0):
@@ -70,8 +75,8 @@ def test_static_pose_reads_weight_and_gravity_torque(seed):
 def free_motion():
     config = ideal_config("fourier", 4.0)
     config.trajectory.speed_fraction = 0.6
-    sim = build_diagram(config)
-    log, _ = run(sim, progress=False)
+    sim = build_station(config)
+    log = simulate(sim, progress=False).log
     return sim, log
 
 
@@ -103,7 +108,7 @@ def test_moving_sensor_equals_newton_euler(free_motion):
 
 def test_sampled_outputs_read_zero_before_first_step():
     config = ideal_config()
-    sim = build_diagram(config)
+    sim = build_station(config)
     context = sim.diagram.CreateDefaultContext()
     wrench = sim.sensor.get_output_port().Eval(sim.sensor.GetMyContextFromRoot(context))
     np.testing.assert_array_equal(wrench, np.zeros(6))
@@ -112,8 +117,8 @@ def test_sampled_outputs_read_zero_before_first_step():
 @pytest.fixture(scope="module")
 def contact_run():
     config = ideal_config("contact", 12.0)
-    sim = build_diagram(config)
-    log, _ = run(sim, progress=False)
+    sim = build_station(config)
+    log = simulate(sim, progress=False).log
     return sim, log
 
 
@@ -175,12 +180,12 @@ def test_sensor_refuses_non_weld_joint():
 
 def test_cable_force_is_read_by_the_sensor():
     """With the cable on: reading = tool Newton–Euler + cable force at its attachment point."""
-    from ftdrake.cable import cable_force_W
+    from ftdrake.sim.cable import cable_force_W
 
     config = ideal_config("fourier", 3.0)
     config.cable.enabled = True
-    sim = build_diagram(config)
-    log, _ = run(sim, progress=False)
+    sim = build_station(config)
+    log = simulate(sim, progress=False).log
     rows = np.arange(50, len(log), 41)
     newton_euler, _ = newton_euler_for_rows(sim, log, rows)
     plant, frame_S = sim.scene.plant, sim.scene.sensor_frame
@@ -203,7 +208,11 @@ def test_cable_force_is_read_by_the_sensor():
 def test_wrench_conversions_follow_the_convention():
     from pydrake.multibody.math import SpatialForce
 
-    from ftdrake.sensor import _negated_wrench, spatial_force_from_wrench, wrench_from_spatial_force
+    from ftdrake.systems.ft_sensor import (
+        _negated_wrench,
+        spatial_force_from_wrench,
+        wrench_from_spatial_force,
+    )
 
     F = SpatialForce(tau=np.array([0.1, 0.2, 0.3]), f=np.array([1.0, 2.0, 3.0]))
     w = wrench_from_spatial_force(F)

@@ -9,8 +9,8 @@ import math
 import pytest
 
 from ftdrake import ScenarioConfig
-from ftdrake import study as dut
-from ftdrake.data import collect
+from ftdrake.experiments import study as dut
+from ftdrake.sim.collection import collect
 
 # A grid of one candidate each: the test checks the plumbing, not the tuning.
 TINY_GRID = {

@@ -7,14 +7,16 @@ from pydrake.systems.framework import DiagramBuilder
 from pydrake.systems.primitives import ConstantVectorSource, LogVectorOutput, TrajectorySource
 from pydrake.trajectories import PiecewisePolynomial
 
-from ftdrake import ScenarioConfig
-from ftdrake import columns as col
-from ftdrake.closed_loop import evaluate_detection, run_closed_loop
+from ftdrake import ScenarioConfig, build_station, evaluate_detection, simulate
+from ftdrake import conventions as col
 from ftdrake.compensation.base import Compensator
 from ftdrake.compensation.forest import RandomForestCompensator
 from ftdrake.compensation.persistence import load_model, save_model
-from ftdrake.data import collect, joint_state_layout, wrench_targets
-from ftdrake.systems import CompensatorSystem, ContactDetector, DetectorConfig
+from ftdrake.config import DetectorConfig
+from ftdrake.data.dataset import joint_state_layout, wrench_targets
+from ftdrake.sim.collection import collect
+from ftdrake.systems.compensator import CompensatorSystem
+from ftdrake.systems.detector import ContactDetector
 
 PERIOD = 1e-3
 N = 7
@@ -206,8 +208,8 @@ def held_out_contact_run(model, task_data, seed=777):
     residual = wrench_targets(validation) - model.predict(joint_state_layout(validation))
     scenario = ScenarioConfig()
     scenario.trajectory.seed = scenario.sensor.seed = seed  # not in training
-    log, _ = run_closed_loop(scenario, model, DetectorConfig.from_residuals(residual),
-                             progress=False)
+    scenario.detector = DetectorConfig.from_residuals(residual)
+    log = simulate(build_station(scenario, model), progress=False).log
     return evaluate_detection(log, scenario.sensor.spec().noise_std)
 
 
@@ -257,7 +259,7 @@ def test_meshcat_replay_holds_the_wrench_arrows(forest):
         np.random.default_rng(0).uniform(-1, 1, (50, 3 * N)), np.zeros((50, 6)))
     meshcat = Meshcat()
     meshcat.StartRecording(set_visualizations_while_recording=False)
-    run_closed_loop(config, single, DetectorConfig(), meshcat=meshcat, progress=False)
+    simulate(build_station(config, single, meshcat=meshcat), progress=False)
     meshcat.StopRecording()
     meshcat.PublishRecording()
     html = meshcat.StaticHtml()

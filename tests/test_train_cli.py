@@ -17,8 +17,8 @@ import pandas as pd
 import pytest
 from threadpoolctl import threadpool_limits
 
+from ftdrake.cli.train import main as train_cli
 from ftdrake.compensation.persistence import read_manifest
-from ftdrake.train import main as train_cli
 
 UR3 = Path(__file__).parent / "data" / "ur3"
 BAG = UR3 / "ur3_2019-11-27-11-55-35.bag"
@@ -180,7 +180,8 @@ def test_physics_extrapolates_where_a_forest_cannot(ftdrake, tmp_path):
     the same; forest alone 0.92..1.51, no better than the mean.
     """
     from ftdrake import ScenarioConfig
-    from ftdrake.data import collect, save_dataset
+    from ftdrake.data.dataset import save_dataset
+    from ftdrake.sim.collection import collect
 
     frame = collect(ScenarioConfig(), 2, kind="fourier", duration=2.0, n_jobs=2,
                     progress=False)

@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..columns import WRENCH_AXES
+from ..conventions import WRENCH_AXES
 from .base import describe_nonfinite
 
 

@@ -32,7 +32,9 @@ import skops.io as sio
 from sklearn.base import BaseEstimator
 from sklearn.utils.validation import check_is_fitted
 
+from ..errors import ModelFileError
 from ..io import atomic_write_bytes
+from ..version import ftdrake_version
 from .base import Compensator
 from .features import feature_names
 
@@ -60,10 +62,6 @@ TRUSTED_TYPES: tuple[str, ...] = (
     # checks, so every loaded tree is checked by _check_trees before the model is returned.
     "sklearn.tree._tree.Tree",
 )
-
-
-class ModelFileError(ValueError):
-    """A model file is corrupt, truncated, modified, unsafe, or not the model expected."""
 
 
 # -- saving -------------------------------------------------------------------------------
@@ -324,15 +322,3 @@ def _untrusted(payload: bytes) -> list[str]:
 # -- helpers ------------------------------------------------------------------------------
 def _qualified_name(cls: type) -> str:
     return f"{cls.__module__}.{cls.__qualname__}"
-
-
-def ftdrake_version() -> str:
-    """The installed ftdrake's version, or ``ftdrake.__version__``, or ``"unknown"``."""
-    from importlib.metadata import PackageNotFoundError, version
-
-    try:
-        return version("ftdrake")
-    except PackageNotFoundError:
-        import ftdrake
-
-        return str(getattr(ftdrake, "__version__", "unknown"))

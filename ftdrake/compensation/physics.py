@@ -226,7 +226,7 @@ class _Kinematics:
         self.gravity = np.asarray(gravity, dtype=float)
 
     def evaluate(self, q, v, vdot):
-        from ..rigid_body import sensor_kinematics
+        from ..physics.rigid_body import sensor_kinematics
 
         kin = sensor_kinematics(self.plant, self.context, self.frame_S, q, v, vdot, self.instance)
         kin.g_S[:] = np.einsum("nji,j->ni", kin.R_WS, self.gravity)
@@ -242,7 +242,7 @@ def _kinematics_for(robot, sensor_frame, base_frame, gravity, package_xmls, scen
 
     if robot is None:
         from ..config import ScenarioConfig, parse_config
-        from ..scene import add_scene
+        from ..sim.scene import add_scene
 
         config = parse_config(scenario_yaml) if scenario_yaml else ScenarioConfig()
         builder = DiagramBuilder()

@@ -51,17 +51,18 @@ import pandas as pd
 from sklearn.base import clone
 from threadpoolctl import threadpool_limits
 
-from . import columns as col
-from .compensation.features import FEATURE_SETS, check_feature_set, feature_names
-from .compensation.forest import RandomForestCompensator
-from .compensation.hybrid import HybridCompensator
-from .compensation.metrics import report
-from .compensation.physics import ExcitationWarning, PhysicsPayloadCompensator
-from .compensation.svr import SVRCompensator
-from .compensation.tuning import PRESETS, grid_size, segment_groups, tune
-from .config import ScenarioConfig
-from .data import collect, joint_state_layout, trajectory_config, wrench_targets
-from .io import atomic_path, staged_outputs
+from .. import conventions as col
+from ..compensation.features import FEATURE_SETS, check_feature_set, feature_names
+from ..compensation.forest import RandomForestCompensator
+from ..compensation.hybrid import HybridCompensator
+from ..compensation.metrics import report
+from ..compensation.physics import ExcitationWarning, PhysicsPayloadCompensator
+from ..compensation.svr import SVRCompensator
+from ..compensation.tuning import PRESETS, grid_size, segment_groups, tune
+from ..config import ScenarioConfig
+from ..data.dataset import joint_state_layout, wrench_targets
+from ..io import atomic_path, staged_outputs
+from ..sim.collection import collect, trajectory_config
 
 DATASETS = ("reference", "z_rich")
 METHODS = ("rf", "svr", "svr_scaled", "hybrid", "physics")
@@ -395,8 +396,8 @@ def tool_tip_extent(config: ScenarioConfig, kind: str, trajectories: int, durati
     trajectories (max, min, mean, std), from the planned motions."""
     import dataclasses as dc
 
-    from .diagram import plan_trajectory, robot_geometry
-    from .trajectories import trajectory_extent
+    from ..sim.station import plan_trajectory, robot_geometry
+    from ..sim.trajectories import trajectory_extent
 
     base = dc.replace(config, trajectory=dc.replace(config.trajectory, kind=kind,
                                                     duration_s=duration))
@@ -469,7 +470,7 @@ def _rf_fit_s(trees, max_features, n_features, rows) -> float:
 def _candidates(preset, name, n_features):
     from sklearn.model_selection import ParameterGrid
 
-    from .compensation.tuning import param_grid
+    from ..compensation.tuning import param_grid
 
     return list(ParameterGrid(param_grid(_grid(preset, name), name, n_features)))
 
@@ -914,7 +915,7 @@ def register(subparsers) -> None:
 
 def run_command(args) -> int:
     """``ftdrake study``: prints the grid and time estimate, runs, prints the findings."""
-    from .config import load_config
+    from ..config import load_config
 
     sizes = grid_sizes(args.preset)
     estimate = estimate_seconds(args.preset, trajectories=args.trajectories,

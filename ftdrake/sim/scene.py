@@ -29,20 +29,9 @@ from pydrake.multibody.tree import (
 from pydrake.systems.framework import DiagramBuilder
 from pydrake.systems.primitives import ConstantValueSource
 
+from ..assets import models_dir
+from ..config import ConfigError, ModelsConfig, ScenarioConfig
 from .cable import add_cable_spring, cable_weight_forces
-from .config import ConfigError, ModelsConfig, ScenarioConfig
-
-
-def models_dir() -> Path:
-    """The folder holding ftdrake's SDF files and package.xml."""
-    here = Path(__file__).resolve().parent
-    for candidate in (here.parent / "models", here / "models"):
-        if (candidate / "package.xml").is_file():
-            return candidate
-    raise FileNotFoundError(
-        "ftdrake's models/ folder (with package.xml) was not found next to the package; "
-        "install ftdrake from a source checkout (pip install -e .)"
-    )
 
 
 def make_parser(plant: MultibodyPlant, models: ModelsConfig) -> Parser:
@@ -253,6 +242,5 @@ __all__ = [
     "add_scene",
     "bodies_outboard_of",
     "make_control_plant",
-    "models_dir",
     "sensor_weld",
 ]

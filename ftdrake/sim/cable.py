@@ -19,7 +19,7 @@ from pydrake.multibody.math import SpatialForce
 from pydrake.multibody.plant import ExternallyAppliedSpatialForce
 from pydrake.multibody.tree import LinearSpringDamper
 
-from .config import CableConfig
+from ..config import CableConfig
 
 _DAMPING = 0.5  # N·s/m: a cable is not a perfect spring
 

@@ -36,8 +36,10 @@ import numpy as np
 import pandas as pd
 from scipy.signal import savgol_filter
 
-from ftdrake.columns import MEASURED, QD, QDD, TIME, Q, joint_columns, wrench_columns
 from ftdrake.compensation.features import stack_layout
+from ftdrake.conventions import MEASURED, QD, QDD, TIME, Q, joint_columns, wrench_columns
+
+from ..errors import LogError
 
 MIN_ROWS = 10
 TORQUE = "tau"  # target prefix for joint efforts read from a JointState topic
@@ -46,10 +48,6 @@ _ANGLE_UNITS = {"rad": 1.0, "deg": np.pi / 180}
 _GLOB_CHARS = set("*?[")
 
 Columns = str | re.Pattern | Sequence[str]
-
-
-class LogError(ValueError):
-    """A log cannot be read as asked: missing column or topic, bad values, wrong units."""
 
 
 class LogWarning(UserWarning):

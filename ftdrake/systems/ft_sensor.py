@@ -27,7 +27,7 @@ from pydrake.multibody.math import SpatialForce
 from pydrake.multibody.tree import WeldJoint
 from pydrake.systems.framework import BasicVector, LeafSystem
 
-from .config import SensorConfig
+from ..config import SensorConfig
 
 
 def wrench_from_spatial_force(F: SpatialForce) -> np.ndarray:
@@ -73,6 +73,12 @@ class ForceTorqueSensor(LeafSystem):
             "wrench", 6, self._calc_wrench,
             prerequisites_of_calc={self.input_port_ticket(self._reaction_forces.get_index())},
         )
+
+    def get_input_port_reaction_forces(self):
+        return self.GetInputPort("reaction_forces")
+
+    def get_output_port_wrench(self):
+        return self.GetOutputPort("wrench")
 
     def _calc_wrench(self, context, output: BasicVector):
         # Runs every plant step, so it makes as few Python calls as it can.
@@ -147,6 +153,15 @@ class NoisyForceTorqueSensor(LeafSystem):
         self._noise = (-1, np.zeros((self._BLOCK, 12)))
 
     # -- what the sensor does to a wrench without randomness ---------------------------------
+    def get_input_port_wrench_ideal(self):
+        return self.GetInputPort("wrench_ideal")
+
+    def get_output_port_wrench_measured(self):
+        return self.GetOutputPort("wrench_measured")
+
+    def get_output_port_saturated(self):
+        return self.GetOutputPort("saturated")
+
     def deterministic_reading(self, wrench) -> np.ndarray:
         """``C·w + bias`` for (N, 6) or (6,) wrenches: the static reading without noise/drift."""
         w = np.asarray(wrench, dtype=float)

@@ -7,7 +7,7 @@ import json
 import sys
 from pathlib import Path
 
-from .config import ConfigError, ScenarioConfig, load_config
+from ..config import ConfigError, ScenarioConfig, load_config
 
 
 def main(argv=None) -> int:
@@ -17,7 +17,8 @@ def main(argv=None) -> int:
     _add_collect(sub)
     _add_demo(sub)
     _add_export(sub)
-    from . import study, train
+    from ..experiments import study
+    from . import train
 
     study.register(sub)
     train.register(sub)
@@ -56,17 +57,18 @@ def _add_simulate(sub):
 
 
 def _simulate(args):
-    from .diagram import build_diagram
-    from .io import atomic_path, staged_outputs
-    from .plots import plot_wrench_log
-    from .simulation import run
+    from ..io import atomic_path, staged_outputs
+    from ..plots import plot_wrench_log
+    from ..sim.simulate import simulate
+    from ..sim.station import build_station
 
     config = scenario_from_args(args, "fourier" if args.scenario == "free" else "contact")
     meshcat = _meshcat() if args.meshcat_html else None
-    sim = build_diagram(config, meshcat=meshcat)
+    station = build_station(config, meshcat=meshcat)
     if meshcat is not None:
         meshcat.StartRecording(set_visualizations_while_recording=False)
-    log, summary = run(sim, progress=not args.quiet)
+    result = simulate(station, progress=not args.quiet)
+    log, summary = result.log, dict(result.timing)
     contact_times = log.loc[log["contact"] == 1, "t"]
     summary.update(
         scenario=args.scenario,
@@ -109,7 +111,8 @@ def _add_collect(sub):
 
 
 def _collect(args):
-    from .data import collect, save_dataset
+    from ..data.dataset import save_dataset
+    from ..sim.collection import collect
 
     config = load_config(args.config)
     frame = collect(config, args.trajectories, seed=args.seed, kind=args.kind,
@@ -134,7 +137,7 @@ def _add_demo(sub):
 
 
 def _demo(args):
-    from .demo import print_table, run_demo
+    from ..experiments.demo import print_table, run_demo
 
     summary = run_demo(args.out, load_config(args.config), fourier=args.trajectories,
                        duration=args.duration, meshcat_html=not args.no_html,
@@ -153,8 +156,8 @@ def _add_export(sub):
 
 
 def _export(args):
-    from .compensation.onnx_export import export_onnx
-    from .compensation.persistence import load_model
+    from ..compensation.onnx_export import export_onnx
+    from ..compensation.persistence import load_model
 
     model = load_model(args.model)
     path = export_onnx(model, args.out)

@@ -45,8 +45,8 @@ from pathlib import Path
 
 import numpy as np
 
-from .columns import WRENCH_AXES, WRENCH_UNITS
-from .logs import LogError, LogWarning
+from ..conventions import WRENCH_AXES, WRENCH_UNITS
+from ..data.logs import LogError, LogWarning
 
 MODELS = ("rf", "svr", "gpr", "physics", "hybrid")
 FEATURE_SETS = ("q", "q,qd", "q,qd,qdd")
@@ -230,7 +230,7 @@ def _read_frame(path: Path):
             table = pq.read_table(path)
         except Exception as e:  # noqa: BLE001 - any pyarrow failure: unreadable
             raise LogError(f"{path.name}: not a readable Parquet file: {e}") from None
-        from .data import META_SCENARIO
+        from ..data.dataset import META_SCENARIO
 
         frame = table.to_pandas()
         scenario = (table.schema.metadata or {}).get(META_SCENARIO)
@@ -242,7 +242,7 @@ def _read_frame(path: Path):
 
 def _read_group(frame, label: str, kwargs):
     """read_table on a DataFrame, naming it `label` in errors and warnings."""
-    from .logs import read_table
+    from ..data.logs import read_table
 
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always", LogWarning)
@@ -258,7 +258,7 @@ def _read_group(frame, label: str, kwargs):
 
 def _read_bag(path: Path, options: dict) -> LogData:
     """A bag's JointState rows; --positions/--targets select joints and targets by name."""
-    from .logs import expand_columns, read_bag
+    from ..data.logs import expand_columns, read_bag
 
     positions, targets = _column_spec(options["positions"]), options["targets"]
     kind = targets if targets in ("effort", "wrench") else None
@@ -340,8 +340,8 @@ def run_train(args) -> int:
     units = _target_units(args.target_units, data.target_names)
     search = None
     if args.preset == "quick" and _has_grid(estimator):
-        from .compensation.tuning import segment_groups, tune
-        from .data import dask_backend
+        from ..compensation.tuning import segment_groups, tune
+        from ..sim.collection import dask_backend
 
         where = f"Dask scheduler {args.dask}" if args.dask else "local processes"
         say(f"tuning {args.model} (quick grid, grouped 5-fold CV) on {where} …")
@@ -355,7 +355,7 @@ def run_train(args) -> int:
         say(f"fitting {args.model}{why} …")
         model = estimator.fit(data.X, data.Y)
     extra = _provenance(args, options, data, model, search)
-    from .compensation.persistence import save_model
+    from ..compensation.persistence import save_model
 
     args.out.parent.mkdir(parents=True, exist_ok=True)
     sensor_frame = args.sensor_frame or ("S" if _is_wrench(data.target_names) else "joints")
@@ -367,7 +367,7 @@ def run_train(args) -> int:
 
 def make_estimator(args, data: LogData):
     """The unfitted compensator `args` ask for, checked against the data's targets."""
-    from .compensation.forest import RandomForestCompensator
+    from ..compensation.forest import RandomForestCompensator
 
     features = args.features
     if args.model == "rf":
@@ -376,16 +376,16 @@ def make_estimator(args, data: LogData):
         return RandomForestCompensator(features=features or "q,qd,qdd", random_state=args.seed,
                                        n_jobs=1)
     if args.model == "svr":
-        from .compensation.svr import SVRCompensator
+        from ..compensation.svr import SVRCompensator
 
         return SVRCompensator(features=features or "q,qd,qdd")
     if args.model == "gpr":
-        from .compensation.gpr import GPRCompensator
+        from ..compensation.gpr import GPRCompensator
 
         return GPRCompensator(features=features or "q,qd,qdd", random_state=args.seed)
     if args.model == "physics":
         return _physics(args, data, features or "q,qd,qdd")
-    from .compensation.hybrid import HybridCompensator
+    from ..compensation.hybrid import HybridCompensator
 
     residual = RandomForestCompensator(features=features or "q", min_samples_leaf=5,
                                        random_state=args.seed)
@@ -393,7 +393,7 @@ def make_estimator(args, data: LogData):
 
 
 def _physics(args, data: LogData, features: str):
-    from .compensation.physics import PhysicsPayloadCompensator
+    from ..compensation.physics import PhysicsPayloadCompensator
 
     if not _is_wrench(data.target_names):
         raise ValueError(
@@ -429,7 +429,7 @@ def _is_wrench(names) -> bool:
 
 
 def _has_grid(estimator) -> bool:
-    from .compensation.tuning import PRESETS
+    from ..compensation.tuning import PRESETS
 
     return type(estimator).__name__ in PRESETS["quick"]
 
@@ -448,7 +448,7 @@ def _target_units(text: str | None, names: list[str]) -> list[str]:
 
 def _provenance(args, options, data: LogData, model, search) -> dict:
     """What the manifest's ``extra`` keeps about the training run."""
-    from .logs import read_table
+    from ..data.logs import read_table
 
     sg = read_table.__kwdefaults__  # the readers' Savitzky–Golay window (s) and order
     return {
@@ -496,8 +496,8 @@ def _plain(params: dict) -> dict:
 
 # -- evaluate -----------------------------------------------------------------------------------
 def run_evaluate(args) -> int:
-    from .compensation.metrics import report
-    from .compensation.persistence import load_model, read_manifest
+    from ..compensation.metrics import report
+    from ..compensation.persistence import load_model, read_manifest
 
     say = _reporter(args.quiet)
     manifest = read_manifest(args.model)
@@ -533,7 +533,7 @@ def run_evaluate(args) -> int:
     }
     print_evaluation(result)
     if args.json is not None:
-        from .io import atomic_write_text
+        from ..io import atomic_write_text
 
         atomic_write_text(args.json, json.dumps(result, indent=2))
         say(f"wrote {args.json}")
@@ -560,7 +560,7 @@ def _check_compatible(manifest: dict, data: LogData, args) -> None:
 
 def _outside_by_input(model, X) -> dict:
     """Rows outside the training range, per used input column (only columns with any)."""
-    from .compensation.features import feature_names
+    from ..compensation.features import feature_names
 
     used = feature_names(model.features, model.n_joints_)
     Z = X[:, : len(used)]

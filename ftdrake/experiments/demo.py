@@ -20,15 +20,17 @@ from pathlib import Path
 
 import numpy as np
 
-from . import columns as col
-from .closed_loop import evaluate_detection, run_closed_loop
-from .compensation.forest import RandomForestCompensator
-from .compensation.persistence import save_model
-from .compensation.tuning import segment_groups, tune
-from .config import ScenarioConfig
-from .data import collect, joint_state_layout, wrench_targets
-from .io import atomic_path, staged_outputs
-from .systems import DetectorConfig
+from .. import conventions as col
+from ..compensation.forest import RandomForestCompensator
+from ..compensation.persistence import save_model
+from ..compensation.tuning import segment_groups, tune
+from ..config import DetectorConfig, ScenarioConfig
+from ..data.dataset import joint_state_layout, wrench_targets
+from ..io import atomic_path, staged_outputs
+from ..sim.collection import collect
+from ..sim.evaluation import evaluate_detection
+from ..sim.simulate import simulate
+from ..sim.station import build_station
 
 HELD_OUT_SEED = 1000
 
@@ -76,6 +78,7 @@ def run_demo(out: Path, config: ScenarioConfig | None = None, *, fourier: int = 
         config,
         trajectory=dc.replace(config.trajectory, kind="contact", seed=HELD_OUT_SEED),
         sensor=dc.replace(config.sensor, seed=HELD_OUT_SEED),
+        detector=detector,
     )
     meshcat = None
     if meshcat_html:
@@ -83,7 +86,8 @@ def run_demo(out: Path, config: ScenarioConfig | None = None, *, fourier: int = 
 
         meshcat = Meshcat()
         meshcat.StartRecording(set_visualizations_while_recording=False)
-    log, timing = run_closed_loop(scenario, model, detector, meshcat=meshcat, progress=progress)
+    result = simulate(build_station(scenario, model, meshcat=meshcat), progress=progress)
+    log, timing = result.log, result.timing
     metrics = evaluate_detection(log, scenario.sensor.spec().noise_std)
 
     stage("write")
@@ -102,7 +106,7 @@ def run_demo(out: Path, config: ScenarioConfig | None = None, *, fourier: int = 
         "sensor_preset": scenario.sensor.preset,
         "held_out_seed": HELD_OUT_SEED,
     }
-    from .plots import plot_contact
+    from ..plots import plot_contact
 
     with staged_outputs(out) as staging:
         plot_contact(log, staging / "contact.png")

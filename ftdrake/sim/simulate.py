@@ -1,4 +1,4 @@
-"""Running a built diagram and turning its loggers into one table.
+"""Running a built station and turning its loggers into one table.
 
 Log columns (one row per sensor sample; units SI; wrenches in S about So):
 
@@ -19,12 +19,25 @@ Log columns (one row per sensor sample; units SI; wrenches in S about So):
 ``saturated``       1 while any sensor axis is at its range limit
 ==================  ============================================================
 
+With a compensator in the station, also (same rows):
+
+==================  ============================================================
+``pred_*``          the compensator's predicted internal wrench
+``est_external_*``  measured − predicted: the estimated contact wrench
+``pred_std_*``      the model's predictive std (0 where it gives none)
+``out_of_domain``   1 while a used joint input is outside the training range
+``fault``           1 while the compensator's inputs held NaN/inf
+``detected``        the detector's contact flag
+``detected_force``  the detector's ‖F‖ while in contact, N
+==================  ============================================================
+
 The plant's sampled output ports read zero before its first step, so the row at t = 0 is
 dropped (and only that row): every log starts at the first sensor sample after t = 0.
 """
 
 from __future__ import annotations
 
+import dataclasses as dc
 import time
 
 import numpy as np
@@ -32,17 +45,29 @@ import pandas as pd
 from pydrake.systems.analysis import Simulator
 from tqdm.auto import tqdm
 
-from . import columns as col
-from .diagram import Simulation
+from .. import conventions as col
+from ..signals import differentiate
+from .station import Station
+
+PREDICTED, ESTIMATED, PREDICTED_STD = "pred", "est_external", "pred_std"
 
 
-def run(sim: Simulation, *, progress: bool = True, duration: float | None = None,
-        realtime_rate: float = 0.0) -> tuple[pd.DataFrame, dict]:
-    """Simulates `sim` for its trajectory's duration; returns (log, timing summary)."""
-    duration = sim.trajectory.end_time() if duration is None else float(duration)
-    simulator = Simulator(sim.diagram)
+@dc.dataclass
+class SimResult:
+    """What a simulation returns: its log, timing, and the final context (loggers, state)."""
+
+    log: pd.DataFrame
+    timing: dict  # duration_s, wall_time_s, real_time_factor, samples
+    context: object  # the root Context at the end; keeps the simulator alive
+
+
+def simulate(station: Station, *, progress: bool = True, duration: float | None = None,
+             realtime_rate: float = 0.0) -> SimResult:
+    """Simulates `station` for its trajectory's duration (or `duration` s)."""
+    duration = station.trajectory.end_time() if duration is None else float(duration)
+    simulator = Simulator(station.diagram)
     simulator.set_target_realtime_rate(realtime_rate)
-    set_initial_state(sim, simulator.get_mutable_context())
+    set_initial_state(station, simulator.get_mutable_context())
     simulator.Initialize()
     chunk = 0.25  # s between progress updates
     start = time.perf_counter()
@@ -54,40 +79,41 @@ def run(sim: Simulation, *, progress: bool = True, duration: float | None = None
             simulator.AdvanceTo(t)
             bar.update(round(t - bar.n, 3))
     wall = time.perf_counter() - start
-    sim.simulator = simulator  # keeps the final context alive for further logs
-    log = assemble_log(sim, simulator.get_context())
-    return log, {
+    context = simulator.get_context()
+    log = assemble_log(station, context)
+    timing = {
         "duration_s": duration,
         "wall_time_s": wall,
         "real_time_factor": duration / wall if wall > 0 else float("inf"),
         "samples": len(log),
     }
+    return SimResult(log, timing, context)
 
 
-def set_initial_state(sim: Simulation, root_context) -> None:
+def set_initial_state(station: Station, root_context) -> None:
     """Puts the arm at the trajectory's start, moving with its start velocity."""
-    plant = sim.scene.plant
+    plant = station.scene.plant
     plant_context = plant.GetMyMutableContextFromRoot(root_context)
-    t0 = sim.trajectory.start_time()
-    plant.SetPositions(plant_context, sim.scene.arm, sim.trajectory.value(t0).ravel())
+    t0 = station.trajectory.start_time()
+    plant.SetPositions(plant_context, station.scene.arm, station.trajectory.value(t0).ravel())
     plant.SetVelocities(
-        plant_context, sim.scene.arm, sim.trajectory.derivative(1).value(t0).ravel()
+        plant_context, station.scene.arm, station.trajectory.derivative(1).value(t0).ravel()
     )
 
 
-def assemble_log(sim: Simulation, root_context) -> pd.DataFrame:
+def assemble_log(station: Station, root_context) -> pd.DataFrame:
     """The loggers' contents as one DataFrame with the documented columns."""
-    n = sim.scene.plant.num_positions(sim.scene.arm)
+    n = station.scene.plant.num_positions(station.scene.arm)
 
     def data(logger):
         log = logger.FindLog(root_context)
         return log.sample_times(), log.data().T
 
-    t, x = data(sim.loggers.state)
-    keep = t > 0.5 * sim.config.time_step  # see module docstring: drop the t = 0 row
+    t, x = data(station.loggers.state)
+    keep = t > 0.5 * station.config.time_step  # see module docstring: drop the t = 0 row
     series = {"t": t, "x": x}
     for name in ("acceleration", "ideal", "measured", "saturated", "external", "contact"):
-        ti, values = data(getattr(sim.loggers, name))
+        ti, values = data(getattr(station.loggers, name))
         if len(ti) != len(t) or not np.allclose(ti, t):
             raise RuntimeError(f"logger {name!r} is not sampled with the state logger")
         series[name] = values
@@ -100,7 +126,7 @@ def assemble_log(sim: Simulation, root_context) -> pd.DataFrame:
     ):
         frame.update(zip(col.joint_columns(prefix, n), values.T))
     internal_physical = series["ideal"] - series["external"]
-    internal = sim.noisy_sensor.deterministic_reading(internal_physical)
+    internal = station.noisy_sensor.deterministic_reading(internal_physical)
     for prefix, values in (
         (col.IDEAL, series["ideal"]), (col.MEASURED, series["measured"]),
         (col.INTERNAL, internal), (col.EXTERNAL, series["external"]),
@@ -108,13 +134,22 @@ def assemble_log(sim: Simulation, root_context) -> pd.DataFrame:
         frame.update(zip(col.wrench_columns(prefix), values[keep].T))
     frame[col.CONTACT] = series["contact"][keep, 0].astype(np.int8)
     frame[col.SATURATED] = series["saturated"][keep, 0].astype(np.int8)
+    if station.compensation is not None:
+        _add_compensation_columns(frame, station.compensation.loggers, root_context, t, keep)
     return pd.DataFrame(frame)
 
 
-def differentiate(t: np.ndarray, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Velocity and acceleration from sampled positions by central differences (as the study
-    did: "the joints velocities and accelerations have been numerically differentiated")."""
-    if len(t) < 3:
-        return np.zeros_like(q), np.zeros_like(q)
-    qd = np.gradient(q, t, axis=0)
-    return qd, np.gradient(qd, t, axis=0)
+def _add_compensation_columns(frame: dict, loggers, root_context, t, keep) -> None:
+    def values(name):
+        log = getattr(loggers, name).FindLog(root_context)
+        if len(log.sample_times()) != len(t) or not np.allclose(log.sample_times(), t):
+            raise RuntimeError(f"compensation logger {name!r} is not sampled with the state")
+        return log.data().T[keep]
+
+    for prefix, name in ((PREDICTED, "internal"), (ESTIMATED, "external"),
+                         (PREDICTED_STD, "std")):
+        frame.update(zip(col.wrench_columns(prefix), values(name).T))
+    frame["out_of_domain"] = values("out_of_domain")[:, 0].astype(np.int8)
+    frame["fault"] = values("fault")[:, 0].astype(np.int8)
+    frame["detected"] = values("detected")[:, 0].astype(np.int8)
+    frame["detected_force"] = values("detected_force")[:, 0]

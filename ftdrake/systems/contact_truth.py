@@ -46,6 +46,18 @@ class ContactTruth(LeafSystem):
         self.DeclareStateOutputPort("wrench_external", self._wrench)
         self.DeclareStateOutputPort("contact", self._contact)
 
+    def get_input_port_contact_results(self):
+        return self.GetInputPort("contact_results")
+
+    def get_input_port_body_poses(self):
+        return self.GetInputPort("body_poses")
+
+    def get_output_port_wrench_external(self):
+        return self.GetOutputPort("wrench_external")
+
+    def get_output_port_contact(self):
+        return self.GetOutputPort("contact")
+
     def _sample(self, context, discrete_state):
         results = self._results.Eval(context)
         if not results.num_point_pair_contacts() and not (

@@ -28,7 +28,8 @@ from pydrake.multibody.inverse_kinematics import InverseKinematics
 from pydrake.solvers import Solve
 from pydrake.trajectories import PiecewisePolynomial
 
-from .config import TrajectoryConfig
+from ..config import TrajectoryConfig
+from ..errors import TrajectoryError
 
 SAMPLE_RATE_HZ = 200.0
 FADE_S = 2.0  # fade-in/out of periodic excitations
@@ -36,10 +37,6 @@ TABLE_TOP_Z = 0.75  # m, environment.sdf
 WALL_FACE_X = 0.95  # m, environment.sdf
 # Tool tip (end of the workpiece's rounded end) in the sensor frame S, ft_sensor_tool.sdf.
 P_STIP = np.array([0.03, 0.0, 0.215])
-
-
-class TrajectoryError(ValueError):
-    """A trajectory violates a limit or cannot be built; the message says where and when."""
 
 
 @dc.dataclass
@@ -205,6 +202,16 @@ class RobotGeometry:
         self._plant_context = plant.GetMyMutableContextFromRoot(self._context)
         self._sg_context = scene_graph.GetMyContextFromRoot(self._context)
         self._query_port = scene_graph.get_query_output_port()
+
+    @property
+    def plant(self):
+        """The plant the queries run on."""
+        return self._plant
+
+    @property
+    def arm(self):
+        """The arm's model instance in `plant`."""
+        return self._scene.arm
 
     def tip_and_axis(self, q) -> tuple[np.ndarray, np.ndarray]:
         """Tool tip position (m) and tool axis z_S, both in W, at arm configuration q."""

@@ -1,16 +1,15 @@
-"""The LeafSystems users put in their own diagrams: CompensatorSystem and ContactDetector."""
+"""CompensatorSystem: a trained compensator in the loop, predicting and subtracting the internal wrench."""
 
 from __future__ import annotations
 
-import dataclasses as dc
 import math
 
 import numba
 import numpy as np
 from pydrake.systems.framework import LeafSystem
 
-from .compensation.fast import CompiledForest, _forest_accumulate, fast_predictor
-from .compensation.features import check_feature_set
+from ..compensation.fast import CompiledForest, _forest_accumulate, fast_predictor
+from ..compensation.features import check_feature_set
 
 
 class CompensatorSystem(LeafSystem):
@@ -68,6 +67,30 @@ class CompensatorSystem(LeafSystem):
                             ("wrench_std", self._std), ("out_of_domain", self._ood),
                             ("fault", self._fault)):
             self.DeclareStateOutputPort(name, index)
+
+    def get_input_port_wrench_measured(self):
+        return self.GetInputPort("wrench_measured")
+
+    def get_input_port_joint_state(self):
+        return self.GetInputPort("joint_state")
+
+    def get_input_port_joint_acceleration(self):
+        return self.GetInputPort("joint_acceleration")
+
+    def get_output_port_wrench_internal(self):
+        return self.GetOutputPort("wrench_internal")
+
+    def get_output_port_wrench_external(self):
+        return self.GetOutputPort("wrench_external")
+
+    def get_output_port_wrench_std(self):
+        return self.GetOutputPort("wrench_std")
+
+    def get_output_port_out_of_domain(self):
+        return self.GetOutputPort("out_of_domain")
+
+    def get_output_port_fault(self):
+        return self.GetOutputPort("fault")
 
     def _update(self, context, state):
         # Runs at the sensor rate, so it makes as few Python calls as it can: Drake starts
@@ -244,132 +267,3 @@ def _training_box(model):
         return np.empty(0), np.empty(0)
     used = check_feature_set(model.features) * int(model.n_joints_)
     return np.asarray(lo[:used], dtype=float), np.asarray(hi[:used], dtype=float)
-
-
-# ----------------------------------------------------------------------------------------------
-@dc.dataclass
-class DetectorConfig:
-    """Thresholds of the contact detector.
-
-    Contact switches on when ‖F‖ > force_on (N) or ‖T‖ > torque_on (N·m) for `debounce_on`
-    consecutive samples, and off when both are below ``release_ratio`` × those thresholds for
-    `debounce_off` samples (hysteresis). With `std_gain` > 0 the thresholds grow by
-    ``std_gain · ‖std‖`` of the model's predictive standard deviation.
-    """
-
-    force_on: float = 2.5
-    torque_on: float = 0.25
-    release_ratio: float = 0.6
-    debounce_on: int = 3
-    debounce_off: int = 25
-    std_gain: float = 0.0
-    # Detection is off for this long after start: the sensor chain and the compensator's
-    # acceleration filter settle first (a real detector arms after the sensor is tared).
-    arm_after_s: float = 0.05
-
-    def validate(self) -> DetectorConfig:
-        for name in ("force_on", "torque_on"):
-            value = getattr(self, name)
-            if not (value > 0 and math.isfinite(value)):
-                raise ValueError(f"detector.{name}: must be positive, got {value!r}")
-        if not 0 < self.release_ratio <= 1:
-            raise ValueError(f"detector.release_ratio: {self.release_ratio} not in (0, 1]")
-        for name in ("debounce_on", "debounce_off"):
-            if int(getattr(self, name)) < 1:
-                raise ValueError(f"detector.{name}: must be >= 1")
-        if self.std_gain < 0:
-            raise ValueError(f"detector.std_gain: must be >= 0, got {self.std_gain}")
-        if not self.arm_after_s >= 0:
-            raise ValueError(f"detector.arm_after_s: must be >= 0, got {self.arm_after_s}")
-        return self
-
-    @classmethod
-    def from_residuals(cls, residual, margin: float = 1.5, quantile: float = 0.999,
-                       **overrides) -> DetectorConfig:
-        """Thresholds from free-motion residuals (N × 6: measured − predicted wrench on
-        held-out contact-free data): `margin` × the `quantile` of ‖F‖ and ‖T‖, floored at
-        0.5 N and 0.02 N·m. A quantile, not k·RMS: a learned model's residuals are
-        heavy-tailed (largest where the motion leaves the training data)."""
-        r = np.asarray(residual, dtype=float)
-        if r.ndim != 2 or r.shape[1] != 6 or len(r) < 100:
-            raise ValueError(f"residual must be N × 6 with N >= 100; got shape {r.shape}")
-        force = np.quantile(np.linalg.norm(r[:, :3], axis=1), quantile)
-        torque = np.quantile(np.linalg.norm(r[:, 3:], axis=1), quantile)
-        return cls(force_on=max(0.5, margin * force), torque_on=max(0.02, margin * torque),
-                   **overrides).validate()
-
-
-class ContactDetector(LeafSystem):
-    """Detects contact from the external wrench, with hysteresis and debouncing.
-
-    Input ports:
-      wrench_external (6): ``[Fx Fy Fz Tx Ty Tz]`` N, N·m (e.g. CompensatorSystem's output).
-      wrench_std (6, optional): the compensator's predictive std; raises the thresholds by
-        ``std_gain · ‖std‖`` when connected.
-    Output ports (updated every `period` s):
-      contact (1): 1.0 while in contact.
-      contact_force (1): ‖F‖ of the external wrench in N while in contact, else 0.
-    State: contact flag, contact force, consecutive-sample counter. Disarmed (no contact)
-    for the first ``arm_after_s`` seconds.
-    """
-
-    def __init__(self, config: DetectorConfig, period: float):
-        super().__init__()
-        self.config = config.validate()
-        self.period = float(period)
-        self._wrench_port = self.DeclareVectorInputPort("wrench_external", 6)
-        self._std_port = self.DeclareVectorInputPort("wrench_std", 6)
-        self._flag = self.DeclareDiscreteState(1)
-        self._force = self.DeclareDiscreteState(1)
-        self._counter = self.DeclareDiscreteState(1)
-        self.DeclarePeriodicDiscreteUpdateEvent(self.period, 0.0, self._update)
-        self.DeclareStateOutputPort("contact", self._flag)
-        self.DeclareStateOutputPort("contact_force", self._force)
-        # The thresholds are read once, here: changing `config` later has no effect.
-        c = self.config
-        self._constants = np.array([c.force_on, c.torque_on, c.release_ratio, c.debounce_on,
-                                    c.debounce_off, c.std_gain])
-        self._arm_after_s, self._uses_std = c.arm_after_s, c.std_gain > 0
-        self._no_std = np.zeros(6)
-
-    def _update(self, context, state):
-        # Runs at the sensor rate: few Python calls, the logic compiled (_detect).
-        if context.get_time() < self._arm_after_s:
-            return  # not armed yet
-        w = self._wrench_port.Eval(context)
-        std = (self._std_port.Eval(context)
-               if self._uses_std and self._std_port.HasValue(context) else self._no_std)
-        _detect(w, std, self._constants, state.get_mutable_value(self._flag),
-                state.get_mutable_value(self._counter), state.get_mutable_value(self._force))
-
-
-@numba.njit(cache=True)
-def _detect(w, std, constants, flag, counter, force_out):
-    """One detector sample: hysteresis + debounce on ‖F‖ and ‖T‖; updates the state in place.
-
-    `constants` = [force_on, torque_on, release_ratio, debounce_on, debounce_off, std_gain].
-    A NaN/inf wrench changes nothing (it is not evidence either way).
-    """
-    for value in w:
-        if not np.isfinite(value):
-            return
-    force_on, torque_on, release, n_on, n_off, gain = constants
-    force = math.sqrt(w[0] * w[0] + w[1] * w[1] + w[2] * w[2])
-    torque = math.sqrt(w[3] * w[3] + w[4] * w[4] + w[5] * w[5])
-    if gain > 0:
-        force_on += gain * math.sqrt(std[0] * std[0] + std[1] * std[1] + std[2] * std[2])
-        torque_on += gain * math.sqrt(std[3] * std[3] + std[4] * std[4] + std[5] * std[5])
-    in_contact, count = flag[0] > 0.5, counter[0]
-    if in_contact:
-        quiet = force < release * force_on and torque < release * torque_on
-        count = count + 1 if quiet else 0.0
-        if count >= n_off:
-            in_contact, count = False, 0.0
-    else:
-        loud = force > force_on or torque > torque_on
-        count = count + 1 if loud else 0.0
-        if count >= n_on:
-            in_contact, count = True, 0.0
-    flag[0] = 1.0 if in_contact else 0.0
-    counter[0] = count
-    force_out[0] = force if in_contact else 0.0

@@ -1,0 +1,23 @@
+"""Where ftdrake's shipped files are: the models (SDF, model directives, package.xml).
+
+In a source checkout the models live in the top-level ``models/`` folder; an installed wheel
+carries the same files inside the package as ``ftdrake/models`` (see pyproject.toml). Both
+resolve ``package://ftdrake/...`` offline through ``models/package.xml``: nothing is fetched at
+run time.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+
+def models_dir() -> Path:
+    """The folder holding ftdrake's model files and their package.xml."""
+    here = Path(__file__).resolve().parent
+    for candidate in (here / "models", here.parent / "models"):
+        if (candidate / "package.xml").is_file():
+            return candidate
+    raise FileNotFoundError(
+        "ftdrake's models (with package.xml) were not found in the installed package nor in "
+        "a source checkout; reinstall ftdrake (pip install .)"
+    )

@@ -1,0 +1,100 @@
+"""Dataset files: one Parquet file of logs plus the scenario that made them.
+
+A dataset holds the log columns of :mod:`ftdrake.sim.simulate` for several runs stacked, plus
+``trajectory`` (int id). The scenario config that made it is stored as YAML in the file's
+metadata (key ``ftdrake.scenario``), with the column units (``ftdrake.units``) and the ftdrake
+version. ``joint_state_layout`` and ``wrench_targets`` turn a dataset into ``X = [q, q̇, q̈]``
+and wrench targets.
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+import pyarrow as pa
+import pyarrow.parquet as pq
+
+from .. import conventions as col
+from ..config import ScenarioConfig, parse_config
+from ..io import atomic_path
+from ..version import ftdrake_version
+
+META_SCENARIO = b"ftdrake.scenario"
+META_UNITS = b"ftdrake.units"
+META_VERSION = b"ftdrake.version"
+
+
+def save_dataset(frame: pd.DataFrame, path: str | Path, scenario_yaml: str | None = None) -> None:
+    """Writes `frame` as Parquet with scenario and units metadata, atomically."""
+    table = pa.Table.from_pandas(frame, preserve_index=False)
+    metadata = dict(table.schema.metadata or {})
+    metadata[META_SCENARIO] = (scenario_yaml or frame.attrs.get("scenario", "")).encode()
+    metadata[META_UNITS] = json.dumps(column_units(frame.columns)).encode()
+    metadata[META_VERSION] = ftdrake_version().encode()
+    table = table.replace_schema_metadata(metadata)
+    with atomic_path(path) as tmp:
+        pq.write_table(table, tmp)
+
+
+def load_dataset(path: str | Path) -> tuple[pd.DataFrame, ScenarioConfig | None]:
+    """Reads a dataset written by :func:`save_dataset`; returns (frame, scenario or None)."""
+    path = Path(path)
+    if not path.is_file():
+        raise FileNotFoundError(f"no dataset at {path}")
+    try:
+        table = pq.read_table(path)
+    except (pa.ArrowInvalid, OSError) as e:
+        raise ValueError(f"{path} is not a readable Parquet dataset: {e}") from None
+    frame = table.to_pandas()
+    meta = table.schema.metadata or {}
+    scenario = None
+    if meta.get(META_SCENARIO):
+        scenario = parse_config(meta[META_SCENARIO].decode(), source=f"{path} metadata")
+        frame.attrs["scenario"] = meta[META_SCENARIO].decode()
+    return frame, scenario
+
+
+def column_units(columns) -> dict[str, str]:
+    """Unit of each known column (used for the dataset's metadata and the README)."""
+    units = {}
+    for name in columns:
+        prefix, _, suffix = name.rpartition("_")
+        if name == col.TIME:
+            units[name] = "s"
+        elif prefix in (col.Q,):
+            units[name] = "rad"
+        elif prefix in (col.QD, col.QD_EST):
+            units[name] = "rad/s"
+        elif prefix in (col.QDD, col.QDD_EST):
+            units[name] = "rad/s^2"
+        elif suffix in col.WRENCH_AXES:
+            units[name] = "N" if suffix.startswith("F") else "N*m"
+        else:
+            units[name] = "1"
+    return units
+
+
+def joint_state_layout(frame: pd.DataFrame, source: str = "est", n: int | None = None):
+    """``X = [q, q̇, q̈]`` from a dataset: `source` "est" (numerically differentiated, as a
+    real robot has) or "plant" (the simulator's exact values)."""
+    if source not in ("est", "plant"):
+        raise ValueError(f"source must be 'est' or 'plant', got {source!r}")
+    n = n or sum(1 for c in frame.columns if c.startswith("q_") and c[2:].isdigit())
+    qd, qdd = (col.QD_EST, col.QDD_EST) if source == "est" else (col.QD, col.QDD)
+    blocks = [col.joint_columns(p, n) for p in (col.Q, qd, qdd)]
+    missing = [c for block in blocks for c in block if c not in frame.columns]
+    if missing:
+        raise ValueError(f"dataset lacks columns {missing[:6]}{'...' if len(missing) > 6 else ''}")
+    return np.hstack([frame[block].to_numpy(dtype=float) for block in blocks])
+
+
+def wrench_targets(frame: pd.DataFrame, prefix: str = col.MEASURED) -> np.ndarray:
+    """The (N, 6) wrench columns with `prefix` (default: the measured reading)."""
+    names = col.wrench_columns(prefix)
+    missing = [c for c in names if c not in frame.columns]
+    if missing:
+        raise ValueError(f"dataset lacks columns {missing}")
+    return frame[names].to_numpy(dtype=float)

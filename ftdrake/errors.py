@@ -1,0 +1,34 @@
+"""The errors ftdrake raises for problems a user can fix, and only those.
+
+Every one derives from :class:`FtdrakeError`; the command line catches that class alone, so a
+bug in ftdrake (any other exception) shows its traceback instead of passing for a user error.
+Each also derives from ``ValueError`` where it did before, so existing ``except ValueError``
+code keeps working.
+"""
+
+from __future__ import annotations
+
+
+class FtdrakeError(Exception):
+    """Base class: something the user gave (a file, a setting, data) is wrong; the message
+    names it and, where there is one, the option that fixes it."""
+
+
+class ConfigError(FtdrakeError, ValueError):
+    """A configuration field is missing or invalid; the message names the field."""
+
+
+class LogError(FtdrakeError, ValueError):
+    """A robot log cannot be read or fails a check (units, time, columns)."""
+
+
+class ModelFileError(FtdrakeError, ValueError):
+    """A model file is unreadable, corrupted, untrusted or of another format version."""
+
+
+class TrajectoryError(FtdrakeError, ValueError):
+    """A trajectory violates a limit or cannot be built; the message says where and when."""
+
+
+class RobotModelError(FtdrakeError, ValueError):
+    """A robot description (URDF/SDF, frames, packages) cannot be used."""

@@ -1,0 +1,1 @@
+"""Experiments built from the library: the demo and the RF-vs-SVR study."""

@@ -1,0 +1,2 @@
+"""Rigid-body physics independent of the simulation: sensor-frame kinematics, Newton–Euler
+wrenches, robot descriptions."""

@@ -1,0 +1,234 @@
+"""The whole block diagram on one screen: start here.
+
+    trajectory ──► inverse-dynamics controller ──► plant ──► reaction forces ──► F/T sensor
+     (q_d, v_d, v̇_d)      (nominal tool model)       │                          │ wrench_ideal
+                                                     │◄── cable (spring + weight)          ▼
+                                                     ├──► contact truth           noisy sensor
+                                                     │                                   │
+                                                     └── joint_state ──► compensator ◄───┘ wrench_measured
+                                                                          │ wrench_external, wrench_std
+                                                                          ▼
+                                                                   contact detector
+
+:func:`build_station` builds it from one :class:`~ftdrake.config.ScenarioConfig`; the
+compensator and detector are added when a fitted compensator is given. Every part has a
+typed handle and a logger on :class:`Station`; :func:`ftdrake.sim.simulate.simulate` runs it.
+"""
+
+from __future__ import annotations
+
+import dataclasses as dc
+
+import numpy as np
+from pydrake.multibody.plant import MultibodyPlant
+from pydrake.systems.framework import Diagram, DiagramBuilder
+from pydrake.systems.primitives import LogVectorOutput, TrajectorySource, VectorLogSink
+from pydrake.trajectories import PiecewisePolynomial
+
+from ..config import ScenarioConfig
+from ..systems.compensator import CompensatorSystem
+from ..systems.contact_truth import ContactTruth
+from ..systems.controller import DiscreteInverseDynamicsController
+from ..systems.detector import ContactDetector
+from ..systems.ft_sensor import ForceTorqueSensor, NoisyForceTorqueSensor
+from ..systems.wrench_arrows import WrenchArrows
+from .scene import Scene, add_scene, make_control_plant
+from .trajectories import JointLimits, RobotGeometry, make_trajectory
+
+
+@dc.dataclass
+class Loggers:
+    """Loggers sampled at the sensor rate. Each holds one signal's time series."""
+
+    state: VectorLogSink  # arm q (rad), v (rad/s)
+    acceleration: VectorLogSink  # arm v̇ (rad/s²), from the plant's step
+    ideal: VectorLogSink  # ideal sensor wrench (N, N·m; S)
+    measured: VectorLogSink  # noisy sensor wrench
+    saturated: VectorLogSink
+    external: VectorLogSink  # true contact wrench at the sensor
+    contact: VectorLogSink  # true contact flag
+
+
+@dc.dataclass
+class CompensationLoggers:
+    """Loggers of the compensator's and detector's outputs, at the sensor rate."""
+
+    internal: VectorLogSink  # predicted internal wrench (N, N·m; S)
+    external: VectorLogSink  # measured − predicted
+    std: VectorLogSink  # the model's predictive std
+    out_of_domain: VectorLogSink
+    fault: VectorLogSink
+    detected: VectorLogSink  # detector's contact flag
+    detected_force: VectorLogSink  # detector's ‖F‖ while in contact (N)
+
+
+@dc.dataclass
+class Compensation:
+    """The compensator and detector in the loop, with their loggers."""
+
+    compensator: CompensatorSystem
+    detector: ContactDetector
+    loggers: CompensationLoggers
+
+
+@dc.dataclass
+class Station:
+    """A built diagram with typed handles to every part users and tests need."""
+
+    config: ScenarioConfig
+    diagram: Diagram
+    scene: Scene
+    trajectory: PiecewisePolynomial  # q(t), rad
+    controller: DiscreteInverseDynamicsController
+    sensor: ForceTorqueSensor
+    noisy_sensor: NoisyForceTorqueSensor
+    truth: ContactTruth
+    loggers: Loggers
+    compensation: Compensation | None = None  # None when built without a compensator
+    arrows: WrenchArrows | None = None  # with a compensator and Meshcat
+
+    @property
+    def plant(self) -> MultibodyPlant:
+        return self.scene.plant
+
+    @property
+    def period(self) -> float:
+        """The sensor's sample period (s): every logger and the compensator run at it."""
+        return self.noisy_sensor.period
+
+
+def build_station(config: ScenarioConfig, compensator=None, *, meshcat=None,
+                  trajectory: PiecewisePolynomial | None = None) -> Station:
+    """Builds the simulated arm, sensor and environment for `config`.
+
+    `compensator` (a fitted ftdrake compensator, e.g. from ``load_model``) adds the
+    CompensatorSystem and ContactDetector (configured by ``config.compensator`` and
+    ``config.detector``) in the loop. `trajectory` overrides the one ``config.trajectory``
+    describes. `meshcat` (a pydrake Meshcat) adds a visualizer (and, with a compensator, the
+    wrench arrows). The models are parsed once for the simulation and once for the
+    controller's own (imperfect) model.
+    """
+    config.validate()
+    builder = DiagramBuilder()
+    scene = add_scene(builder, config)
+    plant = scene.plant
+    home = np.asarray(config.home_q, dtype=float).reshape(-1, 1)
+    # Planning needs the built diagram (IK and clearance queries on its scene graph), so the
+    # trajectory sources start with a placeholder and get the planned trajectory after Build.
+    placeholder = PiecewisePolynomial(home)
+    q_source = builder.AddNamedSystem(
+        "trajectory", TrajectorySource(placeholder, output_derivative_order=1))
+    vd_source = builder.AddNamedSystem(
+        "trajectory_acceleration", TrajectorySource(placeholder.derivative(2)))
+
+    c = config.controller
+    controller = builder.AddNamedSystem(
+        "controller",
+        DiscreteInverseDynamicsController(
+            make_control_plant(config, scene), kp=c.kp, ki=c.ki, kd=c.kd, period=config.time_step
+        ),
+    )
+    builder.Connect(plant.get_state_output_port(scene.arm),
+                    controller.get_input_port_estimated_state())
+    builder.Connect(q_source.get_output_port(), controller.get_input_port_desired_state())
+    builder.Connect(vd_source.get_output_port(), controller.get_input_port_desired_acceleration())
+    builder.Connect(controller.get_output_port_control(), plant.get_actuation_input_port(scene.arm))
+
+    sensor = builder.AddNamedSystem("ft_sensor", ForceTorqueSensor(plant, scene.sensor_joint))
+    builder.Connect(plant.get_reaction_forces_output_port(),
+                    sensor.get_input_port_reaction_forces())
+    noisy = builder.AddNamedSystem("noisy_ft_sensor", NoisyForceTorqueSensor(config.sensor))
+    builder.Connect(sensor.get_output_port_wrench(), noisy.get_input_port_wrench_ideal())
+
+    period = noisy.period
+    truth = builder.AddNamedSystem(
+        "contact_truth",
+        ContactTruth(plant, scene.sensor_frame, scene.tool_bodies, scene.environment_bodies,
+                     period),
+    )
+    builder.Connect(plant.get_contact_results_output_port(),
+                    truth.get_input_port_contact_results())
+    builder.Connect(plant.get_body_poses_output_port(), truth.get_input_port_body_poses())
+
+    def log(port):
+        return LogVectorOutput(port, builder, period)
+
+    loggers = Loggers(
+        state=log(plant.get_state_output_port(scene.arm)),
+        acceleration=log(plant.get_generalized_acceleration_output_port(scene.arm)),
+        ideal=log(sensor.get_output_port_wrench()),
+        measured=log(noisy.get_output_port_wrench_measured()),
+        saturated=log(noisy.get_output_port_saturated()),
+        external=log(truth.get_output_port_wrench_external()),
+        contact=log(truth.get_output_port_contact()),
+    )
+    compensation = arrows = None
+    if compensator is not None:
+        compensation = _add_compensation(builder, config, compensator, scene, noisy, period, log)
+        if meshcat is not None:
+            arrows = builder.AddNamedSystem("wrench_arrows", WrenchArrows(meshcat, plant, scene))
+            builder.Connect(noisy.get_output_port_wrench_measured(),
+                            arrows.get_input_port_measured())
+            builder.Connect(compensation.compensator.get_output_port_wrench_external(),
+                            arrows.get_input_port_external())
+            builder.Connect(plant.get_body_poses_output_port(), arrows.get_input_port_body_poses())
+    if meshcat is not None:
+        from pydrake.visualization import AddDefaultVisualization
+
+        AddDefaultVisualization(builder, meshcat=meshcat)
+    diagram = builder.Build()
+    diagram.set_name("ftdrake")
+
+    if trajectory is None:
+        trajectory = plan_trajectory(config, RobotGeometry(diagram, plant, scene.scene_graph, scene))
+    q_source.UpdateTrajectory(trajectory)
+    vd_source.UpdateTrajectory(trajectory.derivative(2))
+    return Station(config, diagram, scene, trajectory, controller, sensor, noisy, truth,
+                   loggers, compensation, arrows)
+
+
+def _add_compensation(builder, config, model, scene, noisy, period, log) -> Compensation:
+    plant = scene.plant
+    compensator = builder.AddNamedSystem(
+        "compensator",
+        CompensatorSystem(model, period, n_joints=plant.num_positions(scene.arm),
+                          acceleration_cutoff_hz=config.compensator.acceleration_cutoff_hz),
+    )
+    builder.Connect(noisy.get_output_port_wrench_measured(),
+                    compensator.get_input_port_wrench_measured())
+    builder.Connect(plant.get_state_output_port(scene.arm),
+                    compensator.get_input_port_joint_state())
+    detector = builder.AddNamedSystem("contact_detector", ContactDetector(config.detector, period))
+    builder.Connect(compensator.get_output_port_wrench_external(),
+                    detector.get_input_port_wrench_external())
+    builder.Connect(compensator.get_output_port_wrench_std(), detector.get_input_port_wrench_std())
+    loggers = CompensationLoggers(
+        internal=log(compensator.get_output_port_wrench_internal()),
+        external=log(compensator.get_output_port_wrench_external()),
+        std=log(compensator.get_output_port_wrench_std()),
+        out_of_domain=log(compensator.get_output_port_out_of_domain()),
+        fault=log(compensator.get_output_port_fault()),
+        detected=log(detector.get_output_port_contact()),
+        detected_force=log(detector.get_output_port_contact_force()),
+    )
+    return Compensation(compensator, detector, loggers)
+
+
+def plan_trajectory(config: ScenarioConfig, geometry: RobotGeometry | None = None):
+    """The trajectory `config.trajectory` describes, checked against limits and collisions.
+
+    `geometry` answers the IK and clearance queries; without one, a kinematics-only copy of
+    the scene is built (for planning outside a simulation).
+    """
+    geometry = geometry or robot_geometry(config)
+    limits = JointLimits.from_plant(geometry.plant, geometry.arm,
+                                    config.trajectory.acceleration_limit)
+    return make_trajectory(config.trajectory, config.home_q, limits, geometry)
+
+
+def robot_geometry(config: ScenarioConfig) -> RobotGeometry:
+    """Kinematics-only copy of the scene, for planning (IK, clearance) outside a simulation."""
+    builder = DiagramBuilder()
+    scene = add_scene(builder, config)
+    diagram = builder.Build()
+    return RobotGeometry(diagram, scene.plant, scene.scene_graph, scene)
