@@ -35,7 +35,7 @@ import onnxruntime
 import sklearn
 from sklearn.ensemble import RandomForestRegressor
 
-from ftdrake.compensation.fast import CompiledForest, CompiledGaussianProcess
+from ftdrake.compensation.compiled import CompiledForest, CompiledGaussianProcess
 from ftdrake.compensation.gpr import GPRCompensator
 from ftdrake.compensation.onnx_export import export_onnx
 

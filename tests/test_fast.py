@@ -1,4 +1,4 @@
-"""Fast predictors (ftdrake.compensation.fast) against scikit-learn's own predict.
+"""Compiled predictors (ftdrake.compensation.compiled) against scikit-learn's own predict.
 
 Tolerance: |ours − sklearn| ≤ 1e-9 · (1 + |sklearn|) element-wise. The forests agree to
 rounding (~1e-16): same float32 input cast, same `<=` rule, same summation order; the kernel
@@ -18,16 +18,17 @@ from sklearn.exceptions import ConvergenceWarning
 from sklearn.preprocessing import MinMaxScaler
 from sklearn.svm import SVR
 
-from ftdrake.compensation import fast
-from ftdrake.compensation.fast import (
+from ftdrake.compensation.compiled import (
     CompiledForest,
     CompiledGaussianProcess,
     FastKernelModel,
-    fast_predictor,
 )
+from ftdrake.compensation.compiled import forest as compiled_forest
+from ftdrake.compensation.compiled import kernel as compiled_kernel
 from ftdrake.compensation.features import FEATURE_SETS, select_features
 from ftdrake.compensation.forest import RandomForestCompensator
 from ftdrake.compensation.gpr import GPRCompensator
+from ftdrake.compensation.physics import PhysicsPayloadCompensator
 from ftdrake.compensation.svr import SVRCompensator
 
 RTOL = ATOL = 1e-9
@@ -128,13 +129,13 @@ def test_compiled_forest_takes_a_bare_forest_and_unlimited_depth():
 def test_construction_compiles_so_the_first_call_does_not():
     forests, X = fit_forests(1, 2, "q,qd", 3, True, n_estimators=3)
     dut = CompiledForest(forests, "q,qd")
-    compiled = (len(fast._forest_predict_one.signatures), len(fast._forest_predict.signatures))
+    compiled = (len(compiled_forest._forest_predict_one.signatures), len(compiled_forest._forest_predict.signatures))
 
     dut.predict_one(X[0])
     dut.predict(X)
 
-    assert (len(fast._forest_predict_one.signatures),
-            len(fast._forest_predict.signatures)) == compiled
+    assert (len(compiled_forest._forest_predict_one.signatures),
+            len(compiled_forest._forest_predict.signatures)) == compiled
 
 
 def test_forest_rejects_non_forests_and_a_wrong_feature_set():
@@ -203,7 +204,7 @@ def test_fast_svr_predicts_in_chunks(monkeypatch):
     parts = fit_svrs(3, "rbf", 2, "q,qd,qdd", 2, "scale", 1.0, 3, 0.0, False)
     X = np.random.default_rng(0).uniform(-2, 2, (30, 6))
     dut = FastKernelModel.from_svrs(*parts[:2], "q,qd,qdd", *parts[2:])
-    monkeypatch.setattr(fast, "CHUNK_ENTRIES", 1)  # one row at a time
+    monkeypatch.setattr(compiled_kernel, "CHUNK_ENTRIES", 1)  # one row at a time
 
     assert_equal_to_sklearn(dut.predict(X), sklearn_svr_predict(*parts, X, "q,qd,qdd"))
 
@@ -224,19 +225,19 @@ def compensator_data(n_joints=3, n_outputs=6, n_rows=150):
 
 
 @pytest.mark.parametrize("per_output", [True, False])
-def test_fast_predictor_of_a_forest_compensator(per_output):
+def test_compiled_predictor_of_a_forest_compensator(per_output):
     X, Y = compensator_data()
     model = RandomForestCompensator("q,qd", n_estimators=5, per_output=per_output,
                                            random_state=0).fit(X, Y)
-    dut = fast_predictor(model)
+    dut = model.compiled_predictor()
     assert isinstance(dut, CompiledForest)
     assert_equal_to_sklearn(dut.predict(X), model.predict(X))
 
 
-def test_fast_predictor_of_an_svr_compensator():
+def test_compiled_predictor_of_an_svr_compensator():
     X, Y = compensator_data()
     model = SVRCompensator("q,qd,qdd").fit(X, Y)
-    dut = fast_predictor(model)
+    dut = model.compiled_predictor()
     assert isinstance(dut, FastKernelModel)
     assert_equal_to_sklearn(dut.predict(X), model.predict(X))
 
@@ -271,7 +272,7 @@ def test_compiled_gp_equals_predict_and_predict_std(seed, n_joints, features, n_
     mean_ref = np.asarray(model.predict(probe)).reshape(len(probe), -1)
     std_ref = np.asarray(model.predict_std(probe)).reshape(len(probe), -1)
 
-    dut = fast_predictor(model)
+    dut = model.compiled_predictor()
     assert isinstance(dut, CompiledGaussianProcess)
     mean, std = dut.predict_with_std(probe)
     assert_equal_to_sklearn(mean, mean_ref)
@@ -301,9 +302,18 @@ def test_compiled_gp_rejects_bad_rows_and_non_gps():
         CompiledGaussianProcess(GPRCompensator())
 
 
-def test_fast_predictor_rejects_other_models():
-    with pytest.raises(TypeError, match="no fast predictor"):
-        fast_predictor(RandomForestRegressor())  # unfitted, and not a compensator
+def test_models_without_a_compiled_form_say_so_and_still_run_row_by_row():
+    model = PhysicsPayloadCompensator("q", mode="static")
+    assert model.compiled_predictor() is None
+    with pytest.raises(TypeError, match="has no ONNX export"):
+        model.onnx_parts()
+
+
+def test_row_predictor_of_an_unfitted_compensator_is_refused():
+    from sklearn.exceptions import NotFittedError
+
+    with pytest.raises(NotFittedError):
+        RandomForestCompensator().row_predictor()
 
 
 # -- bad input --------------------------------------------------------------------------------

@@ -21,7 +21,7 @@ from sklearn.exceptions import ConvergenceWarning
 from sklearn.preprocessing import MinMaxScaler
 from sklearn.svm import SVR
 
-from ftdrake.compensation.fast import CompiledForest
+from ftdrake.compensation.compiled import CompiledForest
 from ftdrake.compensation.features import FEATURE_SETS, select_features
 from ftdrake.compensation.forest import RandomForestCompensator
 from ftdrake.compensation.onnx_export import export_onnx

@@ -54,7 +54,7 @@ def forest_file(data, tmp_path_factory):
         lambda: RandomForestCompensator(n_estimators=3, per_output=False, random_state=0),
         lambda: SVRCompensator(features="q"),
         lambda: PerOutputCompensator([SVRCompensator(C=c) for c in (1, 2, 3, 4, 5, 6)]),
-        # Other engineers' compensators, registered in TRUSTED_TYPES by one line each.
+        # Other engineers' compensators, registered in the registry by one line each.
         lambda: GPRCompensator(max_points=100, optimize_points=50, random_state=0),
         lambda: PhysicsPayloadCompensator(),
         lambda: HybridCompensator(residual=RandomForestCompensator(n_estimators=3, random_state=0)),
@@ -169,7 +169,7 @@ def test_untrusted_type_is_refused_without_running_it(forest_file, tmp_path):
     finally:
         del model.evil_
     (tmp_path / "m.ftdm").write_bytes(repack(read_manifest(path), payload))
-    with pytest.raises(ModelFileError, match=r"not on TRUSTED_TYPES: \['test_persistence.Evil'"):
+    with pytest.raises(ModelFileError, match=r"no registered compensator uses: \['test_persistence.Evil'"):
         load_model(tmp_path / "m.ftdm")
     assert not Evil.ran
 
@@ -203,6 +203,19 @@ def test_other_sklearn_version_warns(forest_file, tmp_path):
         repack(manifest, sio.dumps(model, compression=zipfile.ZIP_DEFLATED))
     )
     with pytest.warns(UserWarning, match="scikit-learn 0.1"):
+        load_model(tmp_path / "m.ftdm")
+
+
+@pytest.mark.parametrize("version, says", [(1, "older ftdrake: train the model again"),
+                                           (99, "newer ftdrake: upgrade")])
+def test_other_format_versions_are_refused_naming_the_version(forest_file, tmp_path, version,
+                                                              says):
+    model, path = forest_file
+    manifest = {**read_manifest(path), "format_version": version}
+    (tmp_path / "m.ftdm").write_bytes(
+        repack(manifest, sio.dumps(model, compression=zipfile.ZIP_DEFLATED))
+    )
+    with pytest.raises(ModelFileError, match=rf"format version {version} .*{says}"):
         load_model(tmp_path / "m.ftdm")
 
 

@@ -429,9 +429,9 @@ def _is_wrench(names) -> bool:
 
 
 def _has_grid(estimator) -> bool:
-    from ..compensation.tuning import PRESETS
+    from ..compensation.tuning import presets_of
 
-    return type(estimator).__name__ in PRESETS["quick"]
+    return "quick" in presets_of(estimator)
 
 
 def _target_units(text: str | None, names: list[str]) -> list[str]:

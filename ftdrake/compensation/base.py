@@ -5,6 +5,19 @@ without contact (N × k targets; k = 6 for a wrench, or n for joint torques on o
 Subclasses implement ``_fit(Z, Y)`` and ``_predict(Z)`` on the already selected feature
 columns ``Z`` and 2-D targets ``Y``; everything shared (validation, the feature set, the
 training ranges used for out-of-domain checks) lives here.
+
+The protocol a compensator follows to run in a control loop and leave Python:
+
+* ``provides_std`` – whether ``predict_std`` gives a real predictive standard deviation.
+* ``compiled_predictor()`` – ftdrake's compiled predictor (``predict(X)``, ``predict_one(x)``,
+  equal to ``predict``), or None.
+* ``row_predictor()`` – a function ``row (3n,) → (mean (k,), std (k,))`` without
+  scikit-learn's input validation, for ``CompensatorSystem`` at the sensor rate.
+* ``onnx_parts()`` – what :mod:`ftdrake.compensation.onnx_export` writes as a graph, or
+  TypeError for models that have no ONNX form.
+
+A new compensator is one module with a subclass and one line in
+:mod:`ftdrake.compensation.registry`.
 """
 
 from __future__ import annotations
@@ -96,6 +109,32 @@ class Compensator(RegressorMixin, BaseEstimator):
         Z = X[:, :used]
         return ((Z < lo) | (Z > hi)).any(axis=1)
 
+    # -- the loop protocol ----------------------------------------------------------------
+    def compiled_predictor(self):
+        """ftdrake's compiled predictor of this fitted model, or None when it has none."""
+
+    def row_predictor(self):
+        """A function ``row (3n,) [q, q̇, q̈] → (mean (k,), std (k,))`` for control loops.
+
+        It skips scikit-learn's input validation (which costs more than a compiled forest);
+        the caller passes finite rows of the full layout. The std is zeros for models without
+        ``provides_std``. Uses the compiled predictor when there is one.
+        """
+        check_is_fitted(self)
+        compiled = self.compiled_predictor()
+        if compiled is None:
+            return generic_row_predictor(self)
+        if hasattr(compiled, "predict_one_with_std"):
+            return compiled.predict_one_with_std
+        zeros = np.zeros(self.n_outputs_)
+        return lambda row: (compiled.predict_one(row), zeros)
+
+    def onnx_parts(self):
+        """The compiled form :func:`~ftdrake.compensation.onnx_export.build_onnx` writes."""
+        raise TypeError(
+            f"{type(self).__name__} has no ONNX export; forests and SVRs have one"
+        )
+
     # -- subclass hooks -------------------------------------------------------------------
     def _fit(self, Z: np.ndarray, Y: np.ndarray) -> None:
         raise NotImplementedError
@@ -120,3 +159,17 @@ class Compensator(RegressorMixin, BaseEstimator):
         tags.target_tags.multi_output = True
         tags.target_tags.single_output = True
         return tags
+
+
+def generic_row_predictor(model):
+    """``row → (mean, std)`` through ``predict`` (and ``predict_std``): any fitted model."""
+    zeros = np.zeros(int(model.n_outputs_))
+    has_std = bool(getattr(model, "provides_std", False))
+
+    def predict(row):
+        X = row[None, :]
+        mean = np.asarray(model.predict(X), dtype=float).reshape(-1)
+        std = np.asarray(model.predict_std(X), dtype=float).reshape(-1) if has_std else zeros
+        return mean, std
+
+    return predict

@@ -13,6 +13,7 @@ from sklearn.ensemble import RandomForestRegressor
 from sklearn.utils.validation import check_is_fitted
 
 from .base import Compensator
+from .compiled.forest import CompiledForest, flatten_forests
 
 
 class RandomForestCompensator(Compensator):
@@ -61,6 +62,15 @@ class RandomForestCompensator(Compensator):
         self.per_output = per_output
         self.random_state = random_state
         self.n_jobs = n_jobs
+
+    def compiled_predictor(self):
+        """A :class:`~ftdrake.compensation.compiled.CompiledForest` of the fitted forests."""
+        check_is_fitted(self)
+        return CompiledForest(self.forests_, self.features, self.n_joints_)
+
+    def onnx_parts(self):
+        check_is_fitted(self)
+        return flatten_forests(self.forests_)
 
     def _new_forest(self) -> RandomForestRegressor:
         return RandomForestRegressor(

@@ -70,6 +70,7 @@ from sklearn.gaussian_process.kernels import RBF, ConstantKernel, WhiteKernel
 from sklearn.utils import check_random_state
 
 from .base import Compensator
+from .compiled.gp import CompiledGaussianProcess
 
 SUBSETS = ("greedy", "random", "all")
 # Bounds in standardised units: inputs and targets have unit variance.
@@ -228,7 +229,7 @@ class GPRCompensator(Compensator):
         sample = rng.choice(len(Zs), min(self.optimize_points, len(Zs)), replace=False)
 
         self.kernels_ = []
-        for cols in self._output_groups():
+        for cols in self.output_groups():
             kernel = self._initial_kernel(Z.shape[1])
             if len(sample) > 0:
                 kernel = self._optimized_kernel(kernel, Zs[sample], Ys[sample][:, cols], rng)
@@ -242,7 +243,7 @@ class GPRCompensator(Compensator):
         self.noise_variance_ = np.array([k.k2.noise_level for k in self.kernels_])
         self.L_ = np.empty((len(self.kernels_), m, m))
         self.alpha_ = np.empty((m, Y.shape[1]))
-        for g, (kernel, cols) in enumerate(zip(self.kernels_, self._output_groups())):
+        for g, (kernel, cols) in enumerate(zip(self.kernels_, self.output_groups())):
             K = kernel(self.X_train_)  # includes the noise variance on the diagonal
             K[np.diag_indices_from(K)] += JITTER
             self.L_[g] = cholesky(K, lower=True, check_finite=False)
@@ -281,6 +282,10 @@ class GPRCompensator(Compensator):
         return gp.kernel_
 
     # -- prediction -----------------------------------------------------------------------
+    def compiled_predictor(self):
+        """A :class:`~ftdrake.compensation.compiled.CompiledGaussianProcess` (mean and std)."""
+        return CompiledGaussianProcess(self)
+
     def _predict(self, Z: np.ndarray) -> np.ndarray:
         return self._standardised(Z, "mean") * self.target_scale_ + self.target_mean_
 
@@ -294,7 +299,7 @@ class GPRCompensator(Compensator):
         rows = max(1, CHUNK_ENTRIES // len(self.X_train_))  # bounds the (rows, m) kernel block
         for start in range(0, len(Zs), rows):
             chunk = slice(start, start + rows)
-            for g, cols in enumerate(self._output_groups()):
+            for g, cols in enumerate(self.output_groups()):
                 Ks = self._cross_kernel(g, Zs[chunk])
                 if what == "mean":
                     out[chunk, cols] = Ks @ self.alpha_[:, cols]
@@ -315,7 +320,7 @@ class GPRCompensator(Compensator):
         return self.signal_variance_[g] * np.exp(-0.5 * sq_dist)
 
     # -- helpers --------------------------------------------------------------------------
-    def _output_groups(self) -> list[list[int]]:
+    def output_groups(self) -> list[list[int]]:
         """Output columns each kernel serves: all of them, or one each."""
         k = self.n_outputs_
         return [list(range(k))] if self.shared_kernel else [[j] for j in range(k)]

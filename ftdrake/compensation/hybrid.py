@@ -47,6 +47,17 @@ class HybridCompensator(Compensator):
         self.physics_ = clone(physics).fit(Z, Y)
         self.residual_ = clone(residual).fit(Z, Y - self._physics(Z))
 
+    def row_predictor(self):
+        """Physics row plus residual row; the std is the residual's (physics gives none)."""
+        physics = self.physics_.row_predictor()
+        residual = self.residual_.row_predictor()
+
+        def predict(row):
+            internal, std = residual(row)
+            return physics(row)[0] + internal, std
+
+        return predict
+
     def _physics(self, Z):
         return np.asarray(self.physics_.predict(Z)).reshape(len(Z), -1)
 

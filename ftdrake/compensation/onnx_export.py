@@ -31,7 +31,10 @@ import onnx
 from onnx import TensorProto, helper, numpy_helper
 
 from ..io import atomic_write_bytes
-from .fast import CompiledForest, FastKernelModel, FlatForest, _joints_for, flatten_forests
+from .base import Compensator
+from .compiled.forest import CompiledForest, FlatForest, flatten_forests
+from .compiled.kernel import FastKernelModel
+from .compiled.rows import joints_for
 
 OPSET = 21  # default domain
 ML_OPSET = 5  # ai.onnx.ml: TreeEnsemble with double thresholds and outputs
@@ -155,18 +158,19 @@ def _as_parts(m, n_joints, features):
         _given("features", features, m.features)
         _given("n_joints", n_joints, m.n_joints)
         return (m.flat if isinstance(m, CompiledForest) else m), m.n_joints, m.features
-    features = _given("features", features, getattr(m, "features", None))
-    n_joints = _given("n_joints", n_joints, getattr(m, "n_joints_", None))
+    if isinstance(m, FlatForest):
+        return m, joints_for(m.n_inputs, features, n_joints), features
+    if isinstance(m, Compensator):  # the compensator protocol: it says what it exports
+        _given("features", features, m.features)
+        _given("n_joints", n_joints, m.n_joints_)
+        return _as_parts(m.onnx_parts(), m.n_joints_, m.features)
     if features is None:
         raise ValueError("pass features= for a model without a `features` attribute")
-    if getattr(m, "svrs_", None) is not None:
-        m = (m.scaler_, m.svrs_, getattr(m, "target_mean_", None),
-             getattr(m, "target_scale_", None))
     if isinstance(m, tuple) and len(m) in (2, 4):  # (scaler, svrs[, target_mean, scale])
         kernel_model = FastKernelModel.from_svrs(m[0], m[1], features, *m[2:], n_joints=n_joints)
         return kernel_model, kernel_model.n_joints, features
     flat = flatten_forests(getattr(m, "forests_", m))  # ValueError if not forests
-    return flat, _joints_for(flat.n_inputs, features, n_joints), features
+    return flat, joints_for(flat.n_inputs, features, n_joints), features
 
 
 def build_onnx(model_or_parts, n_joints: int | None = None, features: str | None = None):

@@ -5,7 +5,7 @@ holds a skops payload (a zip of JSON and numpy arrays) that is rebuilt only from
 on an explicit list, inside an envelope that records what the model is::
 
     FTDRAKE-MODEL\\n                  magic line
-    {"format_version": 1, ...}\\n    manifest: one line of JSON (read it with `head -2`)
+    {"format_version": 2, ...}\\n    manifest: one line of JSON (read it with `head -2`)
     <payload_bytes bytes>            skops payload
     <32 bytes>                       SHA-256 of everything above
 
@@ -37,31 +37,14 @@ from ..io import atomic_write_bytes
 from ..version import ftdrake_version
 from .base import Compensator
 from .features import feature_names
+from .registry import trusted_types
 
 MAGIC = b"FTDRAKE-MODEL\n"
-FORMAT_VERSION = 1
+# 2: the physics model takes a robot description instead of embedding a scenario; the
+# trusted types come from the compensator registry.
+FORMAT_VERSION = 2
 _DIGEST = 32  # bytes of SHA-256
 
-#: Types a model file may contain beyond skops's defaults (builtins, numpy arrays and most
-#: scikit-learn estimators and transformers). A new compensator, or an sklearn type skops
-#: does not trust by default (e.g. a GPR kernel), is registered by adding one line here.
-TRUSTED_TYPES: tuple[str, ...] = (
-    "ftdrake.compensation.forest.RandomForestCompensator",
-    "ftdrake.compensation.svr.SVRCompensator",
-    "ftdrake.compensation.tuning.PerOutputCompensator",
-    "ftdrake.compensation.gpr.GPRCompensator",
-    "ftdrake.compensation.physics.PhysicsPayloadCompensator",
-    "ftdrake.compensation.hybrid.HybridCompensator",
-    # GPRCompensator keeps its fitted kernels (hyper-parameters only).
-    "sklearn.gaussian_process.kernels.ConstantKernel",
-    "sklearn.gaussian_process.kernels.Product",
-    "sklearn.gaussian_process.kernels.RBF",
-    "sklearn.gaussian_process.kernels.Sum",
-    "sklearn.gaussian_process.kernels.WhiteKernel",
-    # scikit-learn's tree node storage. sklearn follows its node indices without bounds
-    # checks, so every loaded tree is checked by _check_trees before the model is returned.
-    "sklearn.tree._tree.Tree",
-)
 
 
 # -- saving -------------------------------------------------------------------------------
@@ -86,8 +69,8 @@ def save_model(
     untrusted = _untrusted(payload)
     if untrusted:
         raise ValueError(
-            f"model contains types not on TRUSTED_TYPES: {untrusted}; register them in "
-            "ftdrake/compensation/persistence.py"
+            f"model contains types the model-file loader does not trust: {untrusted}; "
+            "register them in ftdrake/compensation/registry.py"
         )
     manifest["payload_bytes"] = len(payload)
     manifest["payload_sha256"] = hashlib.sha256(payload).hexdigest()
@@ -100,8 +83,9 @@ def _manifest(model, target_names, target_units, sensor_frame, extra) -> dict:
     if not isinstance(model, Compensator):
         raise TypeError(f"expected a Compensator; got {type(model).__name__}")
     check_is_fitted(model)
-    if _qualified_name(type(model)) not in TRUSTED_TYPES:
-        raise ValueError(f"{_qualified_name(type(model))} is not on TRUSTED_TYPES; add it there")
+    if _qualified_name(type(model)) not in trusted_types():
+        raise ValueError(f"{_qualified_name(type(model))} is not a registered compensator; "
+                         "add it to ftdrake/compensation/registry.py")
     target_names = [str(t) for t in target_names]
     target_units = [str(u) for u in target_units]
     if not len(target_names) == len(target_units) == model.n_outputs_:
@@ -157,7 +141,8 @@ def load_model(path, *, expect_n_joints: int | None = None, expect_features: str
     _check_expectations(manifest, path, expect_n_joints, expect_features)
     untrusted = _untrusted(payload)
     if untrusted:
-        raise ModelFileError(f"{path}: refusing to load types not on TRUSTED_TYPES: {untrusted}")
+        raise ModelFileError(f"{path}: refusing to load types no registered compensator "
+                             f"uses: {untrusted}")
     if manifest.get("sklearn_version") != sklearn.__version__:
         warnings.warn(
             f"{path} was saved with scikit-learn {manifest.get('sklearn_version')}, loading "
@@ -165,7 +150,7 @@ def load_model(path, *, expect_n_joints: int | None = None, expect_features: str
             stacklevel=2,
         )
     try:
-        model = sio.loads(payload, trusted=list(TRUSTED_TYPES))
+        model = sio.loads(payload, trusted=list(trusted_types()))
     except Exception as e:  # whatever skops raises, the file is at fault
         raise ModelFileError(f"{path}: payload could not be rebuilt: {e}") from e
     _check_model(model, manifest, path)
@@ -187,9 +172,13 @@ def _unpack(data: bytes, path) -> tuple[dict, bytes]:
     if manifest is None:
         raise ModelFileError(f"{path}: manifest line is not valid JSON")
     if manifest.get("format_version") != FORMAT_VERSION:
+        version = manifest.get("format_version")
+        older = isinstance(version, int) and version < FORMAT_VERSION
         raise ModelFileError(
-            f"{path}: format version {manifest.get('format_version')!r} is not supported "
-            f"(this ftdrake reads {FORMAT_VERSION})"
+            f"{path}: model file format version {version!r} is not supported (this ftdrake "
+            f"{ftdrake_version()} reads version {FORMAT_VERSION}); "
+            + ("it was written by an older ftdrake: train the model again (ftdrake train)"
+               if older else "it was written by a newer ftdrake: upgrade ftdrake")
         )
     payload = data[header_end:-_DIGEST]
     if len(payload) != manifest.get("payload_bytes"):
@@ -316,7 +305,7 @@ def _untrusted(payload: bytes) -> list[str]:
         found = sio.get_untrusted_types(data=payload)
     except Exception as e:  # an unreadable payload is a bad file, whatever the reason
         raise ModelFileError(f"payload is not a readable skops archive: {e}") from e
-    return sorted(t for t in found if t not in TRUSTED_TYPES)
+    return sorted(t for t in found if t not in trusted_types())
 
 
 # -- helpers ------------------------------------------------------------------------------

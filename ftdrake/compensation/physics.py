@@ -108,6 +108,11 @@ class PhysicsPayloadCompensator(Compensator):
         """One full-layout row (3n,) → wrench (6,), without input validation (control loops)."""
         return self.regressor(np.asarray(x, dtype=float)[None, :])[0] @ self.parameters_
 
+    def row_predictor(self):
+        """``row → (wrench, zeros)`` through :meth:`predict_row` (the loop's path)."""
+        zeros = np.zeros(6)
+        return lambda row: (self.predict_row(row), zeros)
+
     # -- reporting --------------------------------------------------------------------------
     def identified(self) -> dict:
         """Identified parameters with standard errors and units, plus derived CoM (m)."""

@@ -18,8 +18,10 @@ from __future__ import annotations
 import numpy as np
 from sklearn.preprocessing import MinMaxScaler
 from sklearn.svm import SVR
+from sklearn.utils.validation import check_is_fitted
 
 from .base import Compensator
+from .compiled.kernel import FastKernelModel
 
 
 class SVRCompensator(Compensator):
@@ -82,6 +84,17 @@ class SVRCompensator(Compensator):
             self.target_scale_ = np.ones(Y.shape[1])
         Ys = (Y - self.target_mean_) / self.target_scale_
         self.svrs_ = [self._new_svr().fit(Zs, Ys[:, j]) for j in range(Y.shape[1])]
+
+    def compiled_predictor(self):
+        """A :class:`~ftdrake.compensation.compiled.FastKernelModel` of the fitted SVRs."""
+        check_is_fitted(self)
+        return FastKernelModel.from_svrs(
+            self.scaler_, self.svrs_, self.features, getattr(self, "target_mean_", None),
+            getattr(self, "target_scale_", None), self.n_joints_,
+        )
+
+    def onnx_parts(self):
+        return self.compiled_predictor()
 
     def _new_svr(self) -> SVR:
         return SVR(

@@ -30,39 +30,11 @@ from tqdm.auto import tqdm
 
 from .base import Compensator, describe_nonfinite
 from .features import check_feature_set, joints_in_layout
+from .registry import REGISTRY, entry_for
 
-_C_DECADES = [1.0, 10.0, 100.0, 1e3, 1e4, 1e5]
-_GAMMA_DECADES = [0.001, 0.01, 0.1, 1.0, 10.0, 100.0]
-
-#: Parameter grids by preset name, then by estimator class name (``type(est).__name__``).
-#: Each grid is a list of dicts, as ``sklearn.model_selection.ParameterGrid`` takes.
-#: A new compensator gets presets by adding an entry under each preset.
-PRESETS: dict[str, dict[str, list[dict]]] = {
-    # The study's grids. RF: integer max_features 2..21 (clipped to the number of used
-    # features). SVR: the linear kernel has no gamma, so it is not crossed with gamma
-    # (6 + 3·36 = 114 distinct candidates instead of 144).
-    "paper": {
-        "RandomForestCompensator": [
-            {
-                "n_estimators": list(range(100, 2001, 100)),
-                "max_features": list(range(2, 22)),
-                "min_samples_leaf": list(range(2, 53, 10)),
-            }
-        ],
-        "SVRCompensator": [
-            {"kernel": ["linear"], "C": _C_DECADES},
-            {"kernel": ["rbf", "poly", "sigmoid"], "C": _C_DECADES, "gamma": _GAMMA_DECADES},
-        ],
-    },
-    # Everyday: a few candidates around what works on arm data, seconds per axis for a few
-    # thousand rows. Fractional max_features suits every feature set.
-    "quick": {
-        "RandomForestCompensator": [
-            {"n_estimators": [40], "max_features": [0.33, 1.0], "min_samples_leaf": [2, 12]}
-        ],
-        "SVRCompensator": [{"kernel": ["rbf"], "C": [1.0, 10.0, 100.0], "gamma": [0.03, 0.1]}],
-    },
-}
+#: Names of the tuning presets; each registered compensator may have a grid for each
+#: (:attr:`~ftdrake.compensation.registry.CompensatorEntry.presets`).
+PRESET_NAMES = ("paper", "quick")
 
 #: With ``groups=None`` the rows are cut into this many contiguous segments per fold.
 SEGMENTS_PER_FOLD = 4
@@ -70,23 +42,32 @@ SEGMENTS_PER_FOLD = 4
 
 # -- grids --------------------------------------------------------------------------------
 def param_grid(preset, estimator, n_features: int | None = None) -> list[dict]:
-    """The grid of `preset` (a name in :data:`PRESETS`, or a grid itself) for `estimator`.
+    """The grid of `preset` (a name in :data:`PRESET_NAMES`, or a grid itself) for `estimator`
+    (an instance, class, class name or registry name).
 
     `n_features` is the number of input columns the estimator will use; integer
     ``max_features`` values above it are dropped (sklearn refuses them).
     """
     if isinstance(preset, str):
-        if preset not in PRESETS:
-            raise ValueError(f"unknown preset {preset!r}; expected one of {sorted(PRESETS)}")
-        name = type(estimator).__name__ if not isinstance(estimator, str) else estimator
-        if name not in PRESETS[preset]:
+        if preset not in PRESET_NAMES:
+            raise ValueError(f"unknown preset {preset!r}; expected one of {list(PRESET_NAMES)}")
+        grid = presets_of(estimator).get(preset)
+        if grid is None:
+            with_grid = [e.name for e in REGISTRY.values() if preset in e.presets]
             raise ValueError(
-                f"preset {preset!r} has no grid for {name}; it has {sorted(PRESETS[preset])}"
+                f"preset {preset!r} has no grid for {entry_for(estimator).name}; "
+                f"compensators with one: {with_grid}"
             )
-        grid = PRESETS[preset][name]
     else:
         grid = [preset] if isinstance(preset, dict) else list(preset)
     return [_clip_max_features(g, n_features) for g in grid]
+
+
+def presets_of(estimator) -> dict[str, list[dict]]:
+    """The tuning grids of a compensator (instance, class, class name or registry name)."""
+    if isinstance(estimator, str) and estimator in REGISTRY:
+        return dict(REGISTRY[estimator].presets)
+    return dict(entry_for(estimator).presets)
 
 
 def _clip_max_features(grid: dict, n_features: int | None) -> dict:
@@ -222,7 +203,7 @@ def tune(
 
     The best model is refitted on all rows. With ``per_output=True`` and several target
     columns, each column gets its own search and the model is a :class:`PerOutputCompensator`
-    of one tuned estimator per column. `preset` is a name in :data:`PRESETS` or a grid.
+    of one tuned estimator per column. `preset` is a name in :data:`PRESET_NAMES` or a grid.
     See :func:`cv_splits` for `cv`, `groups`, `n_splits`, `n_repeats`.
     """
     X, Y = _checked_data(X, y)
@@ -374,6 +355,17 @@ class PerOutputCompensator(Compensator):
     def _predict(self, Z: np.ndarray) -> np.ndarray:
         X = self._full_layout(Z)
         return np.column_stack([e.predict(X) for e in self.estimators_])
+
+    def row_predictor(self):
+        """The members' row predictors, one output column each."""
+        members = [e.row_predictor() for e in self.estimators_]
+
+        def predict(row):
+            parts = [member(row) for member in members]
+            return (np.array([float(np.ravel(mean)[0]) for mean, _ in parts]),
+                    np.array([float(np.ravel(std)[0]) for _, std in parts]))
+
+        return predict
 
     def _full_layout(self, Z: np.ndarray) -> np.ndarray:
         # Members select their own blocks from [q, qd, qdd]; blocks this compensator does not

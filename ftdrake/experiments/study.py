@@ -58,7 +58,7 @@ from ..compensation.hybrid import HybridCompensator
 from ..compensation.metrics import report
 from ..compensation.physics import ExcitationWarning, PhysicsPayloadCompensator
 from ..compensation.svr import SVRCompensator
-from ..compensation.tuning import PRESETS, grid_size, segment_groups, tune
+from ..compensation.tuning import grid_size, param_grid, segment_groups, tune
 from ..config import ScenarioConfig
 from ..data.dataset import joint_state_layout, wrench_targets
 from ..io import atomic_path, staged_outputs
@@ -112,7 +112,7 @@ def run_study(out_dir, *, preset="quick", trajectories: int = TRAJECTORIES,
               data: dict[str, pd.DataFrame] | None = None) -> dict:
     """Collects both datasets, trains and tests every method × feature set, writes the outputs.
 
-    `preset` is a name in :data:`~ftdrake.compensation.tuning.PRESETS` or a dict
+    `preset` is a name in :data:`~ftdrake.compensation.tuning.PRESET_NAMES` or a dict
     ``{"RandomForestCompensator": grid, "SVRCompensator": grid}``. Each dataset has
     `trajectories` free-motion runs of `duration` s, the last `test_trajectories` held out.
     `data` maps each dataset name to an already collected frame (as
@@ -343,7 +343,7 @@ def _timed_fit(model, X, Y) -> float:
 
 
 def _grid(preset, estimator_name: str):
-    return PRESETS[preset][estimator_name] if isinstance(preset, str) else preset[
+    return param_grid(preset, estimator_name) if isinstance(preset, str) else preset[
         estimator_name]
 
 

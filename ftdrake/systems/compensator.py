@@ -8,7 +8,8 @@ import numba
 import numpy as np
 from pydrake.systems.framework import LeafSystem
 
-from ..compensation.fast import CompiledForest, _forest_accumulate, fast_predictor
+from ..compensation.base import generic_row_predictor
+from ..compensation.compiled.forest import CompiledForest, forest_accumulate
 from ..compensation.features import check_feature_set
 
 
@@ -43,8 +44,13 @@ class CompensatorSystem(LeafSystem):
         self.model = model
         self.period = float(period)
         n = self.n = int(model.n_joints_)
-        self._forest = _compiled_forest(model, fast)
-        self._predict = None if self._forest is not None else _predictor(model, fast)
+        self._forest = _compiled_forest(model) if fast else None
+        if self._forest is not None:
+            self._predict = None
+        elif fast and hasattr(model, "row_predictor"):
+            self._predict = model.row_predictor()
+        else:
+            self._predict = generic_row_predictor(model)
         self._has_std = bool(getattr(model, "provides_std", False))
         self._lo, self._hi = _training_box(model)
         alpha = 1.0 - math.exp(-2 * math.pi * acceleration_cutoff_hz * self.period)
@@ -184,7 +190,7 @@ def _compensate_with_forest(wrench, x, accel, measured, estimator, lo, hi, const
     row = np.empty(3 * len(accel))
     status = _prepare_row(wrench, x, accel, measured, estimator, row, lo, hi, constants)
     if not status & _FAULT:
-        _forest_accumulate(row, nodes, leaf_values, trees, n_trees, internal)
+        forest_accumulate(row, nodes, leaf_values, trees, n_trees, internal)
         for j in range(6):
             external[j] = wrench[j] - internal[j]
     return status
@@ -204,60 +210,11 @@ def check_model_fits(model, n_joints: int | None) -> None:
         )
 
 
-def _predictor(model, fast: bool):
-    """A function row (3n,) → (internal (6,), std (6,)); compiled or lean where possible.
-
-    Forests, SVRs and GPs (mean and std in one call) go through ftdrake's compiled
-    predictors, the physics model through its per-row path, a hybrid through both; anything
-    else through ``predict`` (and ``predict_std``). The per-row
-    paths skip scikit-learn's input validation, which costs more than a compiled forest.
-    """
-    if not getattr(model, "provides_std", False):
-        mean = _mean_predictor(model, fast)
-        zeros = np.zeros(6)
-        return lambda row: (mean(row), zeros)
-    if fast and hasattr(model, "physics_") and hasattr(model, "residual_"):
-        physics = _mean_predictor(model.physics_, fast)
-        residual = _predictor(model.residual_, fast)  # a hybrid's std is its residual's
-
-        def hybrid(row):
-            internal, std = residual(row)
-            return physics(row) + internal, std
-        return hybrid
-    compiled = _compiled(model) if fast else None
-    if hasattr(compiled, "predict_one_with_std"):
-        return compiled.predict_one_with_std
-    mean = _mean_predictor(model, fast)
-    return lambda row: (mean(row), np.asarray(model.predict_std(row[None, :])[0], dtype=float))
-
-
-def _compiled(model):
-    """ftdrake's fast predictor for `model`, or None if there is none."""
-    try:
-        return fast_predictor(model)
-    except TypeError:
-        return None
-
-
-def _compiled_forest(model, fast: bool):
-    """The flat arrays of a forest compensator's compiled predictor, or None if not a forest."""
-    if not fast or getattr(model, "forests_", None) is None:
-        return None
-    forest = fast_predictor(model)
-    return forest._arrays if isinstance(forest, CompiledForest) else None
-
-
-def _mean_predictor(model, fast: bool):
-    if fast and hasattr(model, "physics_") and hasattr(model, "residual_"):
-        physics = _mean_predictor(model.physics_, fast)
-        residual = _mean_predictor(model.residual_, fast)
-        return lambda row: physics(row) + residual(row)
-    if fast and hasattr(model, "predict_row"):
-        return model.predict_row
-    compiled = _compiled(model) if fast else None
-    if compiled is not None:
-        return lambda row: np.asarray(compiled.predict_one(row), dtype=float)
-    return lambda row: np.asarray(model.predict(row[None, :])[0], dtype=float)
+def _compiled_forest(model):
+    """The flat arrays of a forest compensator's compiled predictor, or None if not a forest:
+    a forest runs fused with the rest of the update in one compiled call."""
+    compiled = model.compiled_predictor() if hasattr(model, "compiled_predictor") else None
+    return compiled.arrays if isinstance(compiled, CompiledForest) else None
 
 
 def _training_box(model):

@@ -1,0 +1,117 @@
+"""Every compensator ftdrake ships, by the name commands and configs use.
+
+One entry per compensator: its class, the defaults ``train`` builds it with, its tuning grids
+by preset, whether it needs a robot description, and the extra types its model files may
+hold. ``train``, ``study``, the demo, tuning presets and the model-file loader all read this
+table, so adding a compensator means one new module (a :class:`~.base.Compensator` subclass)
+and one line in :data:`REGISTRY`.
+"""
+
+from __future__ import annotations
+
+import dataclasses as dc
+from collections.abc import Mapping
+from typing import Any
+
+from .base import Compensator
+from .forest import RandomForestCompensator
+from .gpr import GPRCompensator
+from .hybrid import HybridCompensator
+from .physics import PhysicsPayloadCompensator
+from .svr import SVRCompensator
+
+# The study's grids. RF: integer max_features 2..21 (clipped to the number of used features).
+# SVR: the linear kernel has no gamma, so it is not crossed with gamma (6 + 3·36 = 114
+# distinct candidates instead of 144).
+_C_DECADES = [1.0, 10.0, 100.0, 1e3, 1e4, 1e5]
+_GAMMA_DECADES = [0.001, 0.01, 0.1, 1.0, 10.0, 100.0]
+_RF_PRESETS = {
+    "paper": [{"n_estimators": list(range(100, 2001, 100)),
+               "max_features": list(range(2, 22)),
+               "min_samples_leaf": list(range(2, 53, 10))}],
+    # Everyday: a few candidates around what works on arm data, seconds per axis for a few
+    # thousand rows. Fractional max_features suits every feature set.
+    "quick": [{"n_estimators": [40], "max_features": [0.33, 1.0], "min_samples_leaf": [2, 12]}],
+}
+_SVR_PRESETS = {
+    "paper": [{"kernel": ["linear"], "C": _C_DECADES},
+              {"kernel": ["rbf", "poly", "sigmoid"], "C": _C_DECADES, "gamma": _GAMMA_DECADES}],
+    "quick": [{"kernel": ["rbf"], "C": [1.0, 10.0, 100.0], "gamma": [0.03, 0.1]}],
+}
+# A GP keeps its fitted kernels (hyper-parameters only); skops does not trust them by default.
+_GP_KERNELS = tuple(f"sklearn.gaussian_process.kernels.{k}"
+                    for k in ("ConstantKernel", "Product", "RBF", "Sum", "WhiteKernel"))
+
+
+@dc.dataclass(frozen=True)
+class CompensatorEntry:
+    """How ftdrake builds, tunes and loads one kind of compensator."""
+
+    name: str  # as on the command line (``--model NAME``) and in configs
+    cls: type[Compensator]
+    summary: str
+    defaults: Mapping[str, Any] = dc.field(default_factory=dict)  # ``train``'s arguments
+    presets: Mapping[str, list[dict]] = dc.field(default_factory=dict)  # tuning grids
+    needs_robot: bool = False  # identifies physics from a robot description
+    wrench_only: bool = False  # predicts a 6-axis wrench only (not joint torques)
+    trusted_types: tuple[str, ...] = ()  # types its files hold beyond skops's defaults
+
+    def build(self, **overrides) -> Compensator:
+        """An unfitted compensator with the defaults, overridden by `overrides`."""
+        return self.cls(**{**self.defaults, **overrides})
+
+
+REGISTRY: dict[str, CompensatorEntry] = {e.name: e for e in (
+    # One thread per forest: a grid search runs fits in parallel, and a forest's own threads
+    # would add its trees' predictions in a varying order (round-off differences).
+    CompensatorEntry("rf", RandomForestCompensator, "random forest (the study's RF)",
+                     {"features": "q,qd,qdd", "n_jobs": 1}, _RF_PRESETS),
+    CompensatorEntry("svr", SVRCompensator, "support vector regression (the study's SVR)",
+                     {"features": "q,qd,qdd"}, _SVR_PRESETS),
+    CompensatorEntry("gpr", GPRCompensator, "Gaussian process with predictive std",
+                     {"features": "q,qd,qdd"}, trusted_types=_GP_KERNELS),
+    CompensatorEntry("physics", PhysicsPayloadCompensator,
+                     "rigid payload + sensor biases, identified by least squares",
+                     {"features": "q,qd,qdd"}, needs_robot=True, wrench_only=True),
+    CompensatorEntry("hybrid", HybridCompensator,
+                     "physics + a forest on its residual (cable, cross-talk, the rest)",
+                     needs_robot=True, wrench_only=True),
+)}
+
+#: Types a model file may hold beyond the registry's classes and skops's defaults.
+COMMON_TRUSTED_TYPES: tuple[str, ...] = (
+    "ftdrake.compensation.tuning.PerOutputCompensator",  # what per-axis tuning returns
+    # scikit-learn's tree node storage. sklearn follows its node indices without bounds
+    # checks, so every loaded tree is checked before the model is returned.
+    "sklearn.tree._tree.Tree",
+)
+
+
+def names() -> list[str]:
+    """The registered compensator names, in registration order."""
+    return list(REGISTRY)
+
+
+def entry(name: str) -> CompensatorEntry:
+    """The entry named `name`; a ValueError listing the names otherwise."""
+    try:
+        return REGISTRY[name]
+    except KeyError:
+        raise ValueError(f"unknown compensator {name!r}; expected one of {names()}") from None
+
+
+def entry_for(estimator) -> CompensatorEntry:
+    """The entry of an estimator instance, class, or class name."""
+    cls = estimator if isinstance(estimator, type) else type(estimator)
+    for e in REGISTRY.values():
+        if cls is e.cls or (isinstance(estimator, str) and estimator == e.cls.__name__):
+            return e
+    label = estimator if isinstance(estimator, str) else cls.__name__
+    raise ValueError(f"{label} is not a registered compensator; registered: {names()}")
+
+
+def trusted_types() -> tuple[str, ...]:
+    """Every type a model file may hold beyond skops's defaults."""
+    own = [f"{e.cls.__module__}.{e.cls.__qualname__}" for e in REGISTRY.values()]
+    extra = [t for e in REGISTRY.values() for t in e.trusted_types]
+    return tuple(dict.fromkeys([*own, *COMMON_TRUSTED_TYPES, *extra]))
