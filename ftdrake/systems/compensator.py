@@ -11,6 +11,7 @@ from pydrake.systems.framework import LeafSystem
 from ..compensation.base import generic_row_predictor
 from ..compensation.compiled.forest import CompiledForest, forest_accumulate
 from ..compensation.features import check_feature_set
+from ..signals import acceleration_filter_gain
 
 
 class CompensatorSystem(LeafSystem):
@@ -32,7 +33,12 @@ class CompensatorSystem(LeafSystem):
 
     `model` is any fitted ftdrake compensator (or one loaded with ``load_model``): it must have
     ``predict``, ``features``, ``n_joints_`` and ``n_outputs_ == 6``. `n_joints`, if given,
-    must match the model (e.g. ``plant.num_positions(arm)``).
+    must match the model (e.g. ``plant.num_positions(arm)``). Each sample runs the model's
+    ``row_predictor()`` (the compensator protocol, :mod:`ftdrake.compensation.base`); a
+    forest's compiled walk is fused with the input checks and the acceleration estimate into
+    one compiled call. ``fast=False`` goes through ``predict``/``predict_std`` instead (for
+    checking the compiled paths). The q̈ estimate is :func:`ftdrake.signals.causal_acceleration`,
+    row by row.
     """
 
     def __init__(self, model, period: float, *, n_joints: int | None = None,
@@ -53,7 +59,7 @@ class CompensatorSystem(LeafSystem):
             self._predict = generic_row_predictor(model)
         self._has_std = bool(getattr(model, "provides_std", False))
         self._lo, self._hi = _training_box(model)
-        alpha = 1.0 - math.exp(-2 * math.pi * acceleration_cutoff_hz * self.period)
+        alpha = acceleration_filter_gain(acceleration_cutoff_hz, self.period)
         self._constants = np.array([alpha, self.period])
         self._no_acceleration = np.zeros(n)
 
