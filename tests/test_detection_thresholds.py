@@ -1,0 +1,54 @@
+"""Detector thresholds from a false-positive budget (systems.detector)."""
+
+import numpy as np
+import pytest
+from scipy.stats import chi2
+
+from ftdrake.systems.detector import thresholds_for_false_positive_rate
+
+SIGMA = np.array([0.03, 0.03, 0.03, 0.002, 0.002, 0.002])  # N, N·m
+
+
+def test_gaussian_residuals_exceed_the_thresholds_at_the_budgeted_rate():
+    rng = np.random.default_rng(0)
+    rate_hz, budget = 1000.0, 720.0  # false positives per hour: 1e-4 per sample each F, T
+    held_out = rng.normal(0, SIGMA, (1000, 6))
+    dut = thresholds_for_false_positive_rate(held_out, sample_rate_hz=rate_hz,
+                                             false_positives_per_hour=budget)
+    fresh = rng.normal(0, SIGMA, (2_000_000, 6))
+    over = ((np.linalg.norm(fresh[:, :3], axis=1) > dut.force_on)
+            | (np.linalg.norm(fresh[:, 3:], axis=1) > dut.torque_on))
+    expected = budget / 3600 / rate_hz * len(fresh)  # 400 samples
+    # The scale comes from 1000 held-out samples (RMS to ~2 %), which moves a 4.8 σ tail by
+    # ~20 % (this seed: 325 of 400). Not splitting the budget between force and torque
+    # gives 635, a χ with 1 or 6 degrees of freedom 5707 or 12: all fail.
+    assert 0.6 * expected < over.sum() < 1.5 * expected
+
+
+def test_the_gaussian_term_is_the_chi_quantile_of_the_largest_axis_rms():
+    residual = np.random.default_rng(1).normal(0, SIGMA, (1000, 6))
+    dut = thresholds_for_false_positive_rate(residual, sample_rate_hz=1000.0)
+    p = 1.0 / 3600 / 1000 / 2  # one per hour, split between force and torque
+    rms = np.sqrt(np.mean(residual**2, axis=0))
+    assert dut.force_on == pytest.approx(np.sqrt(chi2.isf(p, 3)) * rms[:3].max(), rel=1e-12)
+    assert dut.torque_on == pytest.approx(np.sqrt(chi2.isf(p, 3)) * rms[3:].max(), rel=1e-12)
+
+
+def test_heavy_tails_never_fire_on_the_data_that_set_the_thresholds():
+    rng = np.random.default_rng(2)
+    residual = rng.normal(0, SIGMA, (5000, 6))
+    residual[2500:2510, 0] += 2.0  # a burst where the motion left the training data
+    dut = thresholds_for_false_positive_rate(residual, sample_rate_hz=1000.0)
+    assert np.linalg.norm(residual[:, :3], axis=1).max() < dut.force_on
+    assert dut.force_on == pytest.approx(1.05 * np.linalg.norm(residual[:, :3], axis=1).max())
+
+
+@pytest.mark.parametrize("residual, kwargs, match", [
+    (np.zeros((50, 6)), {}, "N >= 100"),
+    (np.zeros((200, 5)), {}, "N × 6"),
+    (np.full((200, 6), np.nan), {}, "NaN"),
+    (np.ones((200, 6)), {"false_positives_per_hour": 0.0}, "must be positive"),
+])
+def test_bad_input_is_refused(residual, kwargs, match):
+    with pytest.raises(ValueError, match=match):
+        thresholds_for_false_positive_rate(residual, sample_rate_hz=1000.0, **kwargs)
