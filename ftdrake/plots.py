@@ -72,3 +72,39 @@ def plot_contact(log, path: Path, title: str = "contact scenario, compensator in
     fig.tight_layout()
     fig.savefig(path, dpi=110)
     plt.close(fig)
+
+
+def plot_contact_comparison(logs: dict, path: Path,
+                            title: str = "contact scenario, each model in the loop"):
+    """One column per model (``logs``: name → closed-loop log): raw vs compensated Fx, Fy, Fz,
+    the true external force, and true vs detected contact; the same axes limits throughout."""
+    names = list(logs)
+    fig, axes = plt.subplots(4, len(names), figsize=(6 * len(names), 9), sharex=True,
+                             sharey="row", squeeze=False,
+                             gridspec_kw={"height_ratios": [3, 3, 3, 1]})
+    for c, name in enumerate(names):
+        log = logs[name]
+        t = log[col.TIME].to_numpy()
+        for r, axis in enumerate(("Fx", "Fy", "Fz")):
+            ax = axes[r, c]
+            ax.plot(t, log[f"{col.MEASURED}_{axis}"], lw=0.7, color="0.55", label="measured (raw)")
+            ax.plot(t, log[f"est_external_{axis}"], lw=0.8, color="tab:blue",
+                    label="compensated (estimated external)")
+            ax.plot(t, log[f"{col.EXTERNAL}_{axis}"], lw=1.0, color="tab:red", ls="--",
+                    label="true external")
+            shade_contact(ax, t, log[col.CONTACT])
+            ax.grid(alpha=0.3)
+            if c == 0:
+                ax.set_ylabel(f"{axis} [N]")
+        axes[0, c].set_title(name)
+        shade_contact(axes[3, c], t, log[col.CONTACT])
+        axes[3, c].step(t, log["detected"], where="post", color="k", lw=1.0, label="detected")
+        axes[3, c].set_yticks([0, 1])
+        axes[3, c].set_xlabel("time [s]")
+    axes[0, 0].legend(loc="lower left", fontsize=8)
+    axes[3, 0].set_ylabel("contact")
+    axes[3, 0].legend(loc="upper left", fontsize=8)
+    fig.suptitle(title)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)

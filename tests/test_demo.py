@@ -1,0 +1,42 @@
+"""The demo (the main job) end to end on a short run: both models trained on the same data,
+the same held-out contact scenario with each in the loop, outputs written."""
+
+import json
+
+import pytest
+
+from ftdrake.experiments.demo import better_model, print_table, run_demo
+
+
+@pytest.mark.slow
+def test_demo_compares_forest_and_hybrid_on_the_same_held_out_contact(tmp_path, capsys):
+    out = tmp_path / "demo"
+    summary = run_demo(out, fourier=1, rehearsals=2, duration=8.0, meshcat_html=False,
+                       progress=False)
+    assert set(summary["models"]) == {"forest", "hybrid"}
+    for name, result in summary["models"].items():
+        assert result["true_contacts"] == 1, name
+        assert result["missed_contacts"] == 0, name
+        assert (out / f"model_{name}.ftd").is_file()
+    assert summary["better"] == better_model(summary["models"])
+    # The hybrid's physics extrapolates where a forest on little data cannot: its worst
+    # free-motion axis is closer to the sensor noise.
+    hybrid, forest = summary["models"]["hybrid"], summary["models"]["forest"]
+    assert max(hybrid["compensation_error_over_noise"]) < max(
+        forest["compensation_error_over_noise"])
+    assert json.loads((out / "summary.json").read_text())["better"] == summary["better"]
+    assert (out / "contact.png").stat().st_size > 10_000
+    print_table(summary)
+    table = capsys.readouterr().out
+    assert "forest" in table and "hybrid" in table and "(better)" in table
+
+
+def test_better_model_prefers_fewer_errors_then_lower_free_motion_error():
+    results = {
+        "a": {"false_positives": 0, "missed_contacts": 0, "compensation_error_over_noise": [9]},
+        "b": {"false_positives": 0, "missed_contacts": 0, "compensation_error_over_noise": [2]},
+        "c": {"false_positives": 1, "missed_contacts": 0, "compensation_error_over_noise": [1]},
+    }
+    assert better_model(results) == "b"
+    results["b"]["missed_contacts"] = 2
+    assert better_model(results) == "a"
