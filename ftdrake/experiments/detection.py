@@ -12,7 +12,7 @@ For each compensator:
    forces from a fraction of a newton to about 100 N. Each press counts as detected when the
    detector fires while the tool touches; its force is the median true contact force ‖F‖
    after the touchdown transient. A run whose tool never touches counts only for false
-   positives.
+   positives; a press the arm cannot make within its joint limits is reported, not run.
 
 Every run is independent and runs in parallel (joblib); each worker builds its station from
 the config's YAML. Outputs: ``detection.json``, ``detection.md`` (tables) and
@@ -33,6 +33,7 @@ from tqdm.auto import tqdm
 from .. import conventions as col
 from ..config import DetectorConfig, ScenarioConfig, dump_config, parse_config
 from ..data.dataset import joint_state_layout, wrench_targets
+from ..errors import TrajectoryError
 from ..io import atomic_path, staged_outputs
 from ..sim.collection import collect
 from ..sim.evaluation import TOUCHDOWN_S, evaluate_detection
@@ -86,10 +87,12 @@ def run_plan(models: dict, config: ScenarioConfig, plan: DetectionPlan, *, n_job
             delayed(_closed_loop_run)(yaml_text, model, meta) for yaml_text, meta in jobs)
         rows = list(tqdm(runs, total=len(jobs), desc=f"detection ({name})", unit="run",
                          disable=not progress))
+        skipped = [r for r in rows if "skipped" in r]
+        rows = [r for r in rows if "skipped" not in r]
         free = [r for r in rows if r["kind"] != "contact" or not r["true_contacts"]]
         presses = [r for r in rows if r["kind"] == "contact" and r["true_contacts"]]
         results[name] = {"detector": dc.asdict(detector), **summarise(free, presses),
-                         "free_runs": free, "presses": presses}
+                         "free_runs": free, "presses": presses, "skipped": skipped}
     return results
 
 
@@ -148,7 +151,11 @@ def _with(base: ScenarioConfig, *, seed: int, **trajectory) -> ScenarioConfig:
 
 def _closed_loop_run(config_yaml: str, model, meta: dict) -> dict:
     config = parse_config(config_yaml)
-    log = simulate(build_station(config, model), progress=False).log
+    try:
+        station = build_station(config, model)
+    except TrajectoryError as e:  # e.g. a press the arm cannot reach within its limits
+        return {**meta, "skipped": str(e)}
+    log = simulate(station, progress=False).log
     metrics = evaluate_detection(log, config.sensor.spec().noise_std)
     row = {**meta, "duration_s": float(log[col.TIME].iloc[-1]),
            "false_positives": metrics["false_positives"]}
@@ -186,6 +193,10 @@ def markdown(results: dict, plan: DetectionPlan) -> str:
             f"| {r['missed']} of {r['press_count']} "
             f"| {'–' if smallest is None else f'{smallest:.2f} N'} "
             f"| {'–' if delay is None else f'{delay * 1000:.0f} ms'} |")
+    for name, r in results.items():
+        for run in r.get("skipped", []):
+            lines.append(f"\n{name}: run not made ({run['kind']}, {run.get('surface', '')} "
+                         f"{run.get('depth_mm', '')} mm, seed {run['seed']}): {run['skipped']}")
     lines += ["", ("| model | surface | commanded depth | contact force | detected | delay |"),
               "| --- | --- | --- | --- | --- | --- |"]
     for name, r in results.items():
