@@ -14,10 +14,12 @@ from pathlib import Path
 def models_dir() -> Path:
     """The folder holding ftdrake's model files and their package.xml."""
     here = Path(__file__).resolve().parent
-    for candidate in (here / "models", here.parent / "models"):
+    candidates = (here / "models", here.parent / "models")  # wheel, then source checkout
+    for candidate in candidates:
         if (candidate / "package.xml").is_file():
             return candidate
     raise FileNotFoundError(
-        "ftdrake's models (with package.xml) were not found in the installed package nor in "
-        "a source checkout; reinstall ftdrake (pip install .)"
+        "ftdrake's models (with package.xml) are in neither "
+        f"{' nor '.join(str(c) for c in candidates)}: the installation is incomplete; "
+        "reinstall ftdrake (pip install ftdrake, or pip install . in a checkout)"
     )

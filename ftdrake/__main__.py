@@ -1,0 +1,8 @@
+"""``python -m ftdrake ...``: the same command as ``ftdrake ...``."""
+
+import sys
+
+from .cli import main
+
+if __name__ == "__main__":
+    sys.exit(main())
