@@ -181,12 +181,16 @@ class ControllerConfig:
         _vec(self.tool_com_error, 3, f"{where}.tool_com_error")
 
 
-TRAJECTORY_KINDS = ("random", "fourier", "reference", "z_rich", "contact")
+TRAJECTORY_KINDS = ("random", "fourier", "reference", "z_rich", "contact", "rehearsal")
 
 
 @dc.dataclass
 class TrajectoryConfig:
-    """What the arm does. See :mod:`ftdrake.trajectories` for each kind."""
+    """What the arm does. See :mod:`ftdrake.sim.trajectories` for each kind.
+
+    ``contact`` presses the tool tip into the surface `contact_target` (one of
+    ``task.surfaces``); ``rehearsal`` is the same motion stopping `rehearsal_height_m` above
+    that surface (contact-free training data that looks like the task)."""
 
     kind: str = "contact"
     duration_s: float = 14.0
@@ -197,12 +201,13 @@ class TrajectoryConfig:
     # Fourier excitation: harmonics of the base frequency.
     base_frequency_hz: float = 0.1
     harmonics: int = 4
-    # Contact scenario.
-    contact_target: str = "table"  # "table" or "wall"
-    # Commanded penetration of the target surface; negative: stop that far above it (a
-    # rehearsal of the task in the air, for collecting contact-free training data).
+    # Contact scenario and its rehearsal. The target is a surface named in task.surfaces.
+    contact_target: str = "table"
+    # Commanded penetration of the target surface (m); negative: stop that far above it.
     press_depth_m: float = 0.012
     press_duration_s: float = 3.0
+    # A rehearsal stops this far above the target surface (m), wherever press_depth_m says.
+    rehearsal_height_m: float = 0.03
 
     def validate(self, where: str = "trajectory") -> None:
         if self.kind not in TRAJECTORY_KINDS:
@@ -216,13 +221,50 @@ class TrajectoryConfig:
         _positive(self.base_frequency_hz, f"{where}.base_frequency_hz")
         if self.harmonics < 1:
             raise ConfigError(f"{where}.harmonics: must be >= 1, got {self.harmonics}")
-        if self.contact_target not in ("table", "wall"):
+        # Which names are surfaces is the task's business (ScenarioConfig.validate checks it).
+        if not (isinstance(self.contact_target, str) and self.contact_target):
             raise ConfigError(
-                f"{where}.contact_target: {self.contact_target!r} is not 'table' or 'wall'"
+                f"{where}.contact_target: must name a surface of task.surfaces, "
+                f"got {self.contact_target!r}"
             )
         if not -0.2 <= self.press_depth_m <= 0.05:
             raise ConfigError(f"{where}.press_depth_m: {self.press_depth_m} not in [-0.2, 0.05] m")
         _positive(self.press_duration_s, f"{where}.press_duration_s")
+        _positive(self.rehearsal_height_m, f"{where}.rehearsal_height_m")
+        if self.rehearsal_height_m > 0.2:
+            raise ConfigError(
+                f"{where}.rehearsal_height_m: {self.rehearsal_height_m} not in (0, 0.2] m"
+            )
+
+
+@dc.dataclass
+class TaskConfig:
+    """Where the contact task happens, by frame name: the geometry is read from the models.
+
+    A surface frame lies on the surface, at the point the contact scenario presses, with its
+    z axis along the outward normal; it is looked up in ``models.environment``. The tool-tip
+    frame sits at the point of the tool that touches, with z along the tool axis pointing out
+    of the tip; it is looked up in ``models.tool`` and must be on the sensor's tool side.
+    Swapping a model for one with the same frame names moves the task with it.
+    """
+
+    # Surface name (what trajectory.contact_target selects) → frame in models.environment.
+    # A YAML mapping here adds to (or renames the frames of) these defaults.
+    surfaces: dict[str, str] = dc.field(
+        default_factory=lambda: {"table": "table_top", "wall": "wall_face"}
+    )
+    tool_tip_frame: str = "tool_tip"
+
+    def validate(self, where: str = "task") -> None:
+        if not self.surfaces:
+            raise ConfigError(f"{where}.surfaces: name at least one surface frame")
+        for name, frame in self.surfaces.items():
+            if not (isinstance(frame, str) and frame):
+                raise ConfigError(f"{where}.surfaces.{name}: must be a frame name, got {frame!r}")
+        if not (isinstance(self.tool_tip_frame, str) and self.tool_tip_frame):
+            raise ConfigError(
+                f"{where}.tool_tip_frame: must be a frame name, got {self.tool_tip_frame!r}"
+            )
 
 
 @dc.dataclass
@@ -320,6 +362,7 @@ class ScenarioConfig:
     sensor: SensorConfig = dc.field(default_factory=SensorConfig)
     cable: CableConfig = dc.field(default_factory=CableConfig)
     trajectory: TrajectoryConfig = dc.field(default_factory=TrajectoryConfig)
+    task: TaskConfig = dc.field(default_factory=TaskConfig)
     compensator: CompensatorConfig = dc.field(default_factory=CompensatorConfig)
     detector: DetectorConfig = dc.field(default_factory=DetectorConfig)
 
@@ -332,11 +375,21 @@ class ScenarioConfig:
                 f"scenario.contact_approximation: unknown {self.contact_approximation!r}"
             )
         _vec(self.models.p_WArmBase, 3, "scenario.models.p_WArmBase")
-        _vec(self.home_q, len(self.home_q) or 1, "scenario.home_q")
+        # One angle per arm joint: the count is known only once the arm's model is parsed,
+        # where add_scene checks it; here, what the config alone can say.
+        if not self.home_q:
+            raise ConfigError("scenario.home_q: must list one angle (rad) per arm joint, got none")
+        _finite(self.home_q, "scenario.home_q")
         self.controller.validate("scenario.controller")
         self.sensor.validate("scenario.sensor")
         self.cable.validate("scenario.cable")
         self.trajectory.validate("scenario.trajectory")
+        self.task.validate("scenario.task")
+        if self.trajectory.contact_target not in self.task.surfaces:
+            raise ConfigError(
+                f"scenario.trajectory.contact_target: {self.trajectory.contact_target!r} is not "
+                f"a surface of scenario.task.surfaces {sorted(self.task.surfaces)}"
+            )
         self.compensator.validate("scenario.compensator")
         self.detector.validate("scenario.detector")
         rate = self.sensor.spec().rate_hz
@@ -420,6 +473,10 @@ def _non_negative(v, name):
 def _vec(values, n, name):
     if values is None or len(values) != n:
         raise ConfigError(f"{name}: must have {n} entries, got {0 if values is None else len(values)}")
+    _finite(values, name)
+
+
+def _finite(values, name):
     for v in values:
         if not (isinstance(v, (int, float)) and math.isfinite(v)):
             raise ConfigError(f"{name}: entries must be finite numbers, got {v!r}")

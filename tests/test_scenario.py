@@ -1,6 +1,8 @@
 """Configuration, trajectories and the `ftdrake simulate` command, including bad input."""
 
+import dataclasses as dc
 import json
+from pathlib import Path
 
 import numpy as np
 import pandas as pd
@@ -10,8 +12,14 @@ from pydrake.trajectories import PiecewisePolynomial
 from ftdrake import ConfigError, ScenarioConfig, TrajectoryError, build_station, load_config
 from ftdrake import conventions as col
 from ftdrake.cli.main import main
-from ftdrake.config import default_scenario_path, dump_config, parse_config
-from ftdrake.sim.station import robot_geometry
+from ftdrake.config import (
+    TRAJECTORY_KINDS,
+    TaskConfig,
+    default_scenario_path,
+    dump_config,
+    parse_config,
+)
+from ftdrake.sim.station import plan_trajectory, robot_geometry
 from ftdrake.sim.trajectories import JointLimits, check_limits, make_trajectory, trajectory_extent
 
 
@@ -29,7 +37,19 @@ def test_shipped_default_yaml_equals_defaults_and_round_trips(tmp_path):
         ("trajectory: {kind: spiral}", r"scenario\.trajectory\.kind: unknown kind"),
         ("time_step: -0.001", r"scenario\.time_step"),
         ("controller: {kp: 0}", r"scenario\.controller\.kp"),
-        ("home_q: [0, 0, 0]", r"home_q: has 3 entries"),
+        ("home_q: [0, 0, 0]", r"scenario\.home_q: has 3 entries but the arm has 7 joints"),
+        ("home_q: [0, 0, 0, 0, 0, 0, 0, 0]", r"scenario\.home_q: has 8 entries .* 7 joints"),
+        ("home_q: []", r"scenario\.home_q: must list one angle \(rad\) per arm joint, got none"),
+        ("home_q: [0, 0.5, .nan, 1, 0, 1, 0]", r"scenario\.home_q: entries must be finite"),
+        ("trajectory: {contact_target: shelf}",
+         (r"scenario\.trajectory\.contact_target: 'shelf' is not a surface of "
+          r"scenario\.task\.surfaces \['table', 'wall'\]")),
+        ("trajectory: {kind: rehearsal, rehearsal_height_m: 0}",
+         r"scenario\.trajectory\.rehearsal_height_m: must be a positive number"),
+        ("trajectory: {kind: rehearsal, rehearsal_height_m: 0.5}",
+         r"scenario\.trajectory\.rehearsal_height_m: 0\.5 not in \(0, 0\.2\]"),
+        ("task: {tool_tip_frame: ''}", r"scenario\.task\.tool_tip_frame: must be a frame name"),
+        ("task: {bogus: 1}", r"scenario\.task\.bogus: unknown field"),
         ("- a\n- b", "expected a mapping"),
     ],
 )
@@ -80,7 +100,12 @@ def test_trajectory_outside_limits_names_joint_and_time(geometry):
         check_limits(traj, limits)
 
 
-@pytest.mark.parametrize("kind", ["random", "fourier", "reference", "z_rich", "contact"])
+def test_every_kind_is_tested():
+    assert set(TRAJECTORY_KINDS) == {"random", "fourier", "reference", "z_rich", "contact",
+                                     "rehearsal"}
+
+
+@pytest.mark.parametrize("kind", TRAJECTORY_KINDS)
 def test_every_kind_respects_limits(geometry, kind):
     config, g, limits = geometry
     tc = config.trajectory
@@ -88,7 +113,7 @@ def test_every_kind_respects_limits(geometry, kind):
     traj = make_trajectory(tc, config.home_q, limits, g)
     check_limits(traj, limits, dt=0.002)
     np.testing.assert_allclose(traj.value(0.0).ravel(), config.home_q, atol=1e-9)
-    if kind != "contact":
+    if kind not in ("contact", "rehearsal"):
         assert g.clear_of_environment(traj)
 
 
@@ -168,3 +193,149 @@ def test_atomic_outputs_get_the_usual_permissions(tmp_path):
     mask = os.umask(0)
     os.umask(mask)
     assert mode == 0o666 & ~mask
+
+
+# ----------------------------------------------------------------------------------------------
+# The task's geometry comes from the models' frames (scenario.task), not from constants.
+# ----------------------------------------------------------------------------------------------
+DATA = Path(__file__).parent / "data"
+# What trajectories.py used to copy from the SDF files (TABLE_TOP_Z, WALL_FACE_X, P_STIP).
+OLD_TABLE = ([0.5, 0.0, 0.75], [0.0, 0.0, 1.0])
+OLD_WALL = ([0.95, 0.0, 1.2], [-1.0, 0.0, 0.0])
+OLD_P_STIP = [0.03, 0.0, 0.215]
+
+
+def _fields(schema, prefix=""):
+    """Every field path of a config dataclass, e.g. 'trajectory.rehearsal_height_m'."""
+    for f in dc.fields(schema):
+        sub = f.default_factory if f.default_factory is not dc.MISSING else None
+        if sub is not None and dc.is_dataclass(sub):
+            yield from _fields(sub, f"{prefix}{f.name}.")
+        else:
+            yield prefix + f.name
+
+
+def test_shipped_default_yaml_lists_every_field():
+    import yaml
+
+    data = yaml.safe_load(default_scenario_path().read_text())
+    missing = []
+    for path in _fields(ScenarioConfig):
+        node = data
+        for key in path.split("."):
+            if not isinstance(node, dict) or key not in node:
+                missing.append(path)
+                break
+            node = node[key]
+    assert missing == []
+    assert data["task"] == {"surfaces": {"table": "table_top", "wall": "wall_face"},
+                            "tool_tip_frame": "tool_tip"}
+    assert data["trajectory"]["rehearsal_height_m"] == 0.03
+    assert load_config().task == TaskConfig()
+
+
+def test_task_geometry_read_from_the_models_equals_the_old_constants(geometry):
+    _, g, _ = geometry
+    tol = {"rtol": 0, "atol": 1e-12}
+    for surface, (p_W, n_W) in (("table", OLD_TABLE), ("wall", OLD_WALL)):
+        p, n = g.surface(surface)
+        np.testing.assert_allclose(p, p_W, **tol)
+        np.testing.assert_allclose(n, n_W, **tol)
+    p_STip, z_S = g.tool_tip()
+    np.testing.assert_allclose(p_STip, OLD_P_STIP, **tol)
+    np.testing.assert_allclose(z_S, [0.0, 0.0, 1.0], **tol)
+
+
+@pytest.mark.parametrize("name, changes", [
+    ("contact_table", {"kind": "contact"}),
+    ("contact_wall", {"kind": "contact", "contact_target": "wall"}),
+    ("rehearsal_table", {"kind": "rehearsal"}),  # was: contact with press_depth_m = -0.03
+])
+def test_contact_trajectories_equal_those_planned_from_the_old_constants(geometry, name, changes):
+    """Against values recorded before the geometry came from the models. On Drake 1.51.1 they
+    agree exactly; the tolerance leaves room for another build of the IK solver."""
+    config, g, limits = geometry
+    recorded = json.loads((DATA / "contact_trajectory_before_task_frames.json").read_text())
+    tc = dc.replace(ScenarioConfig().trajectory, **changes)
+    traj = make_trajectory(tc, config.home_q, limits, g)
+    depth = tc.press_depth_m if tc.kind == "contact" else -tc.rehearsal_height_m
+    poses = np.array(g.press_poses(tc.contact_target, depth, np.asarray(config.home_q)))
+    q_at = np.array([traj.value(t).ravel() for t in recorded["times"]])
+    np.testing.assert_allclose(poses, recorded[name]["press_poses"], rtol=0, atol=1e-10)
+    np.testing.assert_allclose(q_at, recorded[name]["q_at"], rtol=0, atol=1e-10)
+
+
+def _press_tip(config):
+    """Tool-tip position (W) of the planned press pose, and the press depth asked for."""
+    g = robot_geometry(config)
+    tc = config.trajectory
+    depth = tc.press_depth_m if tc.kind == "contact" else -tc.rehearsal_height_m
+    press = g.press_poses(tc.contact_target, depth, np.asarray(config.home_q))[2]
+    tip, axis = g.tip_and_axis(press)
+    return tip, axis
+
+
+def test_moving_the_table_in_the_environment_model_moves_the_press():
+    default = ScenarioConfig()
+    moved = ScenarioConfig()
+    moved.models.environment = str(DATA / "environment_table_moved.sdf")  # (-5, 0, +5) cm
+    depth = default.trajectory.press_depth_m
+    tip, axis = _press_tip(default)
+    tip_moved, axis_moved = _press_tip(moved)
+    ik_tol = {"rtol": 0, "atol": 6e-4}  # the IK's position box is ±0.5 mm
+    np.testing.assert_allclose(tip, [0.5, 0.0, 0.75 - depth], **ik_tol)
+    np.testing.assert_allclose(tip_moved, [0.45, 0.0, 0.80 - depth], **ik_tol)
+    for a in (axis, axis_moved):  # pointing down into the table, within the IK's 0.02 rad
+        assert np.arccos(-a[2]) <= 0.02 + 1e-6
+    # The planned trajectories differ only from the approach on.
+    q0 = plan_trajectory(default)
+    q1 = plan_trajectory(moved)
+    assert np.abs(q0.value(1.0) - q1.value(1.0)).max() < 1e-12  # free motion before it
+    assert np.abs(q0.value(7.0) - q1.value(7.0)).max() > 0.01  # the press
+
+
+def test_rehearsal_stays_above_the_surface(geometry):
+    config, g, limits = geometry
+    tc = dc.replace(ScenarioConfig().trajectory, kind="rehearsal", rehearsal_height_m=0.04)
+    traj = make_trajectory(tc, config.home_q, limits, g)
+    tip, _ = g.tip_and_axis(traj.value(9.5).ravel())  # mid-"press": held above the table
+    np.testing.assert_allclose(tip, [0.5, 0.0, 0.75 + 0.04], rtol=0, atol=6e-4)
+    lowest = trajectory_extent(traj, g, dt=0.01)["z"]["min"]
+    assert lowest > 0.75 + 0.004  # its approach comes within 5 mm, never onto the table
+
+
+@pytest.mark.parametrize("field, value, message", [
+    ("tool_tip_frame", "no_tip",
+     r"scenario\.task\.tool_tip_frame: no frame 'no_tip' in the tool model 'ft_sensor_tool'"),
+    ("tool_tip_frame", "ft_sensor",  # the sensor's mounting side: the sensor does not see it
+     (r"scenario\.task\.tool_tip_frame: frame 'ft_sensor' is on body 'ft_sensor', which is "
+      r"not on the sensor's tool side")),
+    ("surfaces", {"table": "no_top", "wall": "wall_face"},
+     r"scenario\.task\.surfaces\.table: no frame 'no_top' in the environment model"),
+])
+def test_missing_task_frame_is_named_when_the_station_is_built(field, value, message):
+    config = ScenarioConfig()
+    setattr(config.task, field, value)
+    with pytest.raises(ConfigError, match=message):
+        build_station(config)
+
+
+def test_environment_without_surface_frames_is_named():
+    config = ScenarioConfig()
+    config.models.environment = str(DATA / "environment_without_frames.sdf")
+    with pytest.raises(ConfigError, match=r"scenario\.task\.surfaces\.table: no frame "
+                                          r"'table_top' in the environment model"):
+        plan_trajectory(config)
+    config.trajectory.kind = "fourier"  # free motion needs no surface
+    config.trajectory.duration_s = 4.0
+    plan_trajectory(config)
+
+
+def test_contact_target_is_checked_against_the_task_on_load():
+    with pytest.raises(ConfigError, match=r"scenario\.trajectory\.contact_target: 'shelf'"):
+        parse_config("trajectory: {contact_target: shelf}")
+    # A surface of the user's own adds to the defaults (Drake's loader keeps map defaults).
+    config = parse_config("task: {surfaces: {shelf: shelf_top}}\n"
+                          "trajectory: {contact_target: shelf}")
+    assert config.task.surfaces == {"table": "table_top", "wall": "wall_face",
+                                    "shelf": "shelf_top"}

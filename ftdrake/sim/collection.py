@@ -21,8 +21,9 @@ from tqdm.auto import tqdm
 from .. import conventions as col
 from ..config import ConfigError, ScenarioConfig, dump_config, parse_config
 
+# Contact-free kinds; `rehearsal` is the contact motion stopping trajectory.rehearsal_height_m
+# above the surface.
 FREE_KINDS = ("random", "fourier", "reference", "z_rich", "rehearsal")
-REHEARSAL_HEIGHT_M = 0.03  # a rehearsal stops the contact scenario this far above the surface
 
 
 def trajectory_config(base: ScenarioConfig, index: int, seed: int) -> ScenarioConfig:
@@ -57,10 +58,7 @@ def collect(base: ScenarioConfig, trajectories: int, *, seed: int = 0, kind: str
         base.trajectory.kind = kind
     if duration is not None:
         base.trajectory.duration_s = duration
-    if base.trajectory.kind == "rehearsal":
-        base.trajectory.kind = "contact"
-        base.trajectory.press_depth_m = -REHEARSAL_HEIGHT_M
-    elif base.trajectory.kind not in FREE_KINDS:
+    if base.trajectory.kind not in FREE_KINDS:
         raise ConfigError(
             f"scenario.trajectory.kind: collect needs free motion {FREE_KINDS}, "
             f"got {base.trajectory.kind!r}"

@@ -30,7 +30,7 @@ from pydrake.systems.framework import DiagramBuilder
 from pydrake.systems.primitives import ConstantValueSource
 
 from ..assets import models_dir
-from ..config import ConfigError, ModelsConfig, ScenarioConfig
+from ..config import ConfigError, ModelsConfig, ScenarioConfig, TaskConfig
 from .cable import add_cable_spring, cable_weight_forces
 
 
@@ -76,11 +76,49 @@ class Scene:
     tool_bodies: list[BodyIndex]  # every body rigidly attached on the sensor's tool side
     environment_bodies: list[BodyIndex]
     cable: LinearSpringDamper | None  # the cable's spring, None when the cable is disabled
+    task: TaskConfig = dc.field(default_factory=TaskConfig)  # names of the task's frames
 
     @property
     def sensor_frame(self):
         """Frame S: the sensor weld's child frame."""
         return self.sensor_joint.frame_on_child()
+
+    def tool_tip_frame(self):
+        """The frame ``task.tool_tip_frame`` of the tool model, on the sensor's tool side."""
+        name = self.task.tool_tip_frame
+        frame = self._task_frame(name, self.tool, "tool_tip_frame", "tool")
+        if frame.body().index() not in self.tool_bodies:
+            raise ConfigError(
+                f"scenario.task.tool_tip_frame: frame {name!r} is on body "
+                f"{frame.body().name()!r}, which is not on the sensor's tool side"
+            )
+        return frame
+
+    def surface_frame(self, surface: str):
+        """The frame of contact surface `surface` (a key of ``task.surfaces``) in the
+        environment model; it must be fixed in the world."""
+        if surface not in self.task.surfaces:
+            raise ConfigError(
+                f"scenario.trajectory.contact_target: {surface!r} is not a surface of "
+                f"scenario.task.surfaces {sorted(self.task.surfaces)}"
+            )
+        name = self.task.surfaces[surface]
+        frame = self._task_frame(name, self.environment, f"surfaces.{surface}", "environment")
+        fixed = {body.index() for body in self.plant.GetBodiesWeldedTo(self.plant.world_body())}
+        if frame.body().index() not in fixed:
+            raise ConfigError(
+                f"scenario.task.surfaces.{surface}: frame {name!r} is on body "
+                f"{frame.body().name()!r}, which is not welded to the world"
+            )
+        return frame
+
+    def _task_frame(self, name: str, instance, field: str, model: str):
+        if not self.plant.HasFrameNamed(name, instance):
+            raise ConfigError(
+                f"scenario.task.{field}: no frame {name!r} in the {model} model "
+                f"{self.plant.GetModelInstanceName(instance)!r} (scenario.models.{model})"
+            )
+        return self.plant.GetFrameByName(name, instance)
 
 
 def add_scene(builder: DiagramBuilder, config: ScenarioConfig) -> Scene:
@@ -134,6 +172,7 @@ def add_scene(builder: DiagramBuilder, config: ScenarioConfig) -> Scene:
         tool_bodies=bodies_outboard_of(plant, joint),
         environment_bodies=list(plant.GetBodyIndices(env)),
         cable=cable,
+        task=config.task,
     )
 
 

@@ -15,8 +15,15 @@ Kinds (``TrajectoryConfig.kind``):
                 little Z motion (mostly the S, R and T joints turn).
 * ``z_rich``    the same kind of motion with the pitch joints (L, U, B) moving a lot: the
                 tool's orientation and height change, exciting Fz and Tz.
-* ``contact``   free motion, then the tool tip pressing into the table (or wall) by
-                ``press_depth_m`` for ``press_duration_s``, then leaving and moving freely.
+* ``contact``   free motion, then the tool tip pressing into the surface ``contact_target``
+                by ``press_depth_m`` for ``press_duration_s``, then leaving and moving freely.
+* ``rehearsal`` the contact motion holding ``rehearsal_height_m`` above the surface instead
+                of pressing: free motion that looks like the task (training data for its
+                compensator). Its approach, the contact kind's, still passes 5 mm above.
+
+The contact kinds read the task's geometry from the plant (:class:`RobotGeometry`): the
+surface's frame (origin: where to press, z: outward normal) and the tool-tip frame, both named
+in ``ScenarioConfig.task``. Nothing of the models' geometry is copied here.
 """
 
 from __future__ import annotations
@@ -33,10 +40,7 @@ from ..errors import TrajectoryError
 
 SAMPLE_RATE_HZ = 200.0
 FADE_S = 2.0  # fade-in/out of periodic excitations
-TABLE_TOP_Z = 0.75  # m, environment.sdf
-WALL_FACE_X = 0.95  # m, environment.sdf
-# Tool tip (end of the workpiece's rounded end) in the sensor frame S, ft_sensor_tool.sdf.
-P_STIP = np.array([0.03, 0.0, 0.215])
+CONTACT_KINDS = ("contact", "rehearsal")  # the kinds that approach a surface
 
 
 @dc.dataclass
@@ -84,17 +88,18 @@ def check_limits(traj: PiecewisePolynomial, limits: JointLimits, dt: float = 0.0
 def make_trajectory(config: TrajectoryConfig, home_q, limits: JointLimits, robot=None):
     """Builds and checks the trajectory `config.kind` starting and ending at `home_q`.
 
-    `robot` (a :class:`RobotGeometry`) is needed for the contact scenario (inverse kinematics)
+    `robot` (a :class:`RobotGeometry`) is needed for the contact kinds (inverse kinematics)
     and used to keep free motion clear of the environment.
     """
     config.validate()
     home_q = np.asarray(home_q, dtype=float)
     if np.any(home_q < limits.lower) or np.any(home_q > limits.upper):
         raise TrajectoryError(f"home_q {home_q.round(3).tolist()} is outside the joint limits")
-    if config.kind == "contact":
+    if config.kind in CONTACT_KINDS:
         if robot is None:
-            raise TrajectoryError("the contact scenario needs the robot's geometry for IK")
-        traj = _contact(config, home_q, limits, robot)
+            raise TrajectoryError(f"the {config.kind} kind needs the robot's geometry for IK")
+        depth = config.press_depth_m if config.kind == "contact" else -config.rehearsal_height_m
+        traj = _contact(config, depth, home_q, limits, robot)
     else:
         traj = _free_motion(config, home_q, limits, robot)
     check_limits(traj, limits)
@@ -166,8 +171,9 @@ def _random_waypoints(config, home_q, rng):
 # ----------------------------------------------------------------------------------------------
 # The contact scenario.
 # ----------------------------------------------------------------------------------------------
-def _contact(config, home_q, limits, robot):
-    hover, near, press = robot.press_poses(config.contact_target, config.press_depth_m, home_q)
+def _contact(config, depth, home_q, limits, robot):
+    """The contact motion, reaching `depth` m into the target surface (< 0: above it)."""
+    hover, near, press = robot.press_poses(config.contact_target, depth, home_q)
     # Fast to 5 cm off the surface, slowly to 5 mm off it, then press: a careful approach.
     approach, descend, touch, ascend, back = 2.0, 1.0, 1.0, 1.5, 1.5
     fixed = approach + descend + touch + config.press_duration_s + ascend + back
@@ -192,7 +198,13 @@ def _contact(config, home_q, limits, robot):
 
 
 class RobotGeometry:
-    """Kinematic queries on the scene's plant: IK for the press and clearance checks."""
+    """Kinematic queries on the scene's plant: IK for the press and clearance checks.
+
+    The task's geometry comes from the plant's frames that ``scene.task`` names, looked up when
+    first needed (a free-motion scenario needs neither a tool tip nor a surface): the tool tip
+    as ``X_STip`` (fixed: the tip is on the sensor's tool side) and each surface as its point
+    and outward normal in W (fixed: the surface is welded to the world).
+    """
 
     def __init__(self, diagram, plant, scene_graph, scene):
         self._diagram = diagram
@@ -202,6 +214,26 @@ class RobotGeometry:
         self._plant_context = plant.GetMyMutableContextFromRoot(self._context)
         self._sg_context = scene_graph.GetMyContextFromRoot(self._context)
         self._query_port = scene_graph.get_query_output_port()
+        self._X_STip = None
+
+    def tool_tip(self) -> tuple[np.ndarray, np.ndarray]:
+        """``(p_STip, z_Tip_S)``: the tool tip's position (m) and the tool axis (unit, out of
+        the tip), in the sensor frame S, from the frame ``task.tool_tip_frame``."""
+        if self._X_STip is None:
+            tip, S = self._scene.tool_tip_frame(), self._scene.sensor_frame
+            if tip.body().index() == S.body().index():  # composed exactly from fixed offsets
+                X_BS, X_BTip = S.GetFixedPoseInBodyFrame(), tip.GetFixedPoseInBodyFrame()
+                self._X_STip = X_BS.InvertAndCompose(X_BTip)
+            else:  # on a body welded to S's: the same pose at every configuration
+                self._X_STip = tip.CalcPose(self._plant_context, S)
+        return self._X_STip.translation().copy(), self._X_STip.rotation().matrix()[:, 2].copy()
+
+    def surface(self, name: str) -> tuple[np.ndarray, np.ndarray]:
+        """``(p_WSurface, n_W)``: the point to press on surface `name` (a key of
+        ``task.surfaces``) and its outward unit normal, in W, from that surface's frame."""
+        frame = self._scene.surface_frame(name)
+        X_WF = frame.CalcPoseInWorld(self._plant_context)  # welded to W: any q will do
+        return X_WF.translation().copy(), X_WF.rotation().matrix()[:, 2].copy()
 
     @property
     def plant(self):
@@ -214,10 +246,12 @@ class RobotGeometry:
         return self._scene.arm
 
     def tip_and_axis(self, q) -> tuple[np.ndarray, np.ndarray]:
-        """Tool tip position (m) and tool axis z_S, both in W, at arm configuration q."""
+        """Tool tip position (m) and tool axis (the tip frame's z), both in W, at arm
+        configuration q."""
+        p_STip, z_Tip_S = self.tool_tip()
         self._plant.SetPositions(self._plant_context, self._scene.arm, q)
         X_WS = self._scene.sensor_frame.CalcPoseInWorld(self._plant_context)
-        return X_WS @ P_STIP, X_WS.rotation().matrix()[:, 2].copy()
+        return X_WS @ p_STip, X_WS.rotation() @ z_Tip_S
 
     def clear_of_environment(self, traj, dt: float = 0.05, margin: float = 0.02) -> bool:
         """True if the robot stays `margin` m away from the environment along `traj`."""
@@ -230,12 +264,9 @@ class RobotGeometry:
         return True
 
     def press_poses(self, target: str, depth: float, home_q):
-        """Configurations with the tool tip 5 cm and 5 mm off the target surface, and `depth`
+        """Configurations with the tool tip 5 cm and 5 mm off surface `target`, and `depth`
         into it (the controller's stiffness turns that depth into the pressing force)."""
-        if target == "table":
-            surface, normal = np.array([0.5, 0.0, TABLE_TOP_Z]), np.array([0.0, 0.0, 1.0])
-        else:
-            surface, normal = np.array([WALL_FACE_X, 0.0, 1.2]), np.array([-1.0, 0.0, 0.0])
+        surface, normal = self.surface(target)
         axis_W = -normal  # the tool points into the surface
         hover = self._solve_ik(surface + 0.05 * normal, axis_W, home_q)
         near = self._solve_ik(surface + 0.005 * normal, axis_W, hover)
@@ -246,8 +277,9 @@ class RobotGeometry:
         plant = self._plant
         ik = InverseKinematics(plant, with_joint_limits=True)
         S = self._scene.sensor_frame
-        ik.AddPositionConstraint(S, P_STIP, plant.world_frame(), p_WTip - 5e-4, p_WTip + 5e-4)
-        ik.AddAngleBetweenVectorsConstraint(S, [0, 0, 1], plant.world_frame(), axis_W, 0, 0.02)
+        p_STip, z_Tip_S = self.tool_tip()
+        ik.AddPositionConstraint(S, p_STip, plant.world_frame(), p_WTip - 5e-4, p_WTip + 5e-4)
+        ik.AddAngleBetweenVectorsConstraint(S, z_Tip_S, plant.world_frame(), axis_W, 0, 0.02)
         arm_q = ik.q()  # the plant's only free joints are the arm's
         prog = ik.get_mutable_prog()
         prog.AddQuadraticErrorCost(np.eye(len(q_guess)), np.asarray(q_guess), arm_q)
@@ -320,6 +352,7 @@ def trajectory_extent(traj, robot: RobotGeometry, dt: float = 0.05) -> dict:
 
 
 __all__ = [
+    "CONTACT_KINDS",
     "JointLimits",
     "RobotGeometry",
     "TrajectoryError",
