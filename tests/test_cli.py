@@ -110,3 +110,14 @@ def test_python_m_ftdrake_reports_a_user_error(tmp_path):
                           check=False, capture_output=True, text=True, cwd=tmp_path, timeout=300)
     assert done.returncode == 2
     assert done.stderr == f"ftdrake simulate: error: --config {missing}: no such file\n"
+
+
+def test_evaluate_detection_names_a_bad_model_flag_and_writes_nothing(tmp_path, capsys):
+    out = tmp_path / "det"
+    assert main(["evaluate-detection", "--model", str(tmp_path / "none.ftd"),
+                 "--out", str(out)]) == 2
+    assert "--model" in capsys.readouterr().err and not out.exists()
+    bad = tmp_path / "bad.ftd"
+    bad.write_bytes(b"not a model")
+    assert main(["evaluate-detection", "--model", str(bad), "--out", str(out)]) == 2
+    assert f"--model {bad}" in capsys.readouterr().err and not out.exists()

@@ -20,6 +20,7 @@ def main(argv=None) -> int:
     _add_collect(sub)
     _add_demo(sub)
     _add_export(sub)
+    _add_evaluate_detection(sub)
     from ..experiments import study
     from . import train
 
@@ -274,6 +275,43 @@ def _export(args):
     path = export_onnx(model, args.out)
     print(json.dumps({"out": str(path), "input": f"X float64 (N x {3 * model.n_joints_}) "
                       "= [q, qd, qdd]", "output": f"float64 (N x {model.n_outputs_})"}))
+    return 0
+
+
+def _add_evaluate_detection(sub):
+    p = sub.add_parser(
+        "evaluate-detection",
+        help="contact detection on unseen seeds: false positives in long free motion, misses "
+             "and delays of presses on table and wall, a detection-rate plot")
+    p.add_argument("--model", type=Path, action="append", required=True, metavar="MODEL",
+                   help="a model file (repeat to compare models; named by file stem)")
+    p.add_argument("--config", type=Path, help="scenario YAML (default: the shipped one)")
+    p.add_argument("--minutes", type=positive_float, default=10.0,
+                   help="simulated minutes of free motion, split over the trajectory kinds")
+    p.add_argument("--budget", type=positive_float, default=1.0,
+                   help="false positives per hour the thresholds are set for")
+    p.add_argument("--jobs", type=jobs, default=-1, help="local worker processes (-1: all)")
+    p.add_argument("--out", type=Path, default=Path("out/detection"))
+    p.add_argument("--quiet", action="store_true")
+    p.set_defaults(run=_evaluate_detection)
+
+
+def _evaluate_detection(args):
+    from ..compensation.persistence import load_model
+    from ..experiments.detection import DetectionPlan, markdown, run_detection_evaluation
+
+    config = load_scenario(args)
+    models = {}
+    for path in args.model:
+        existing_file("--model", path, ModelFileError)
+        with naming("--model", path):
+            models[path.stem] = load_model(path, expect_n_joints=len(config.home_q))
+    output_path("--out", args.out, folder=True)
+    plan = DetectionPlan(free_minutes=args.minutes, false_positives_per_hour=args.budget)
+    results = run_detection_evaluation(args.out, models, config, plan, n_jobs=args.jobs,
+                                       progress=not args.quiet)
+    print(markdown(results, plan))
+    print(f"wrote {args.out}/detection.json, detection.md, detection_rate.png")
     return 0
 
 
