@@ -13,14 +13,9 @@ from hypothesis import given
 from hypothesis import strategies as st
 
 from ftdrake.conventions import wrench_columns
-from ftdrake.data.logs import (
-    LogError,
-    LogWarning,
-    expand_columns,
-    read_bag,
-    read_table,
-    savgol_derivative,
-)
+from ftdrake.data.bag import read_bag
+from ftdrake.data.logs import LogError, LogWarning, expand_columns, read_table
+from ftdrake.signals import savgol_derivative
 
 UR3 = Path(__file__).parent / "data" / "ur3"
 UR3_BAG = UR3 / "ur3_2019-11-27-11-55-35.bag"

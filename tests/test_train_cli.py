@@ -291,3 +291,74 @@ def test_dropped_rows_are_warned_counted_and_recorded(ftdrake, id1, tmp_path):
     assert extra["rows"]["in_file"] == 752 and extra["rows"]["dropped_by_reader"] == 5
     assert len(extra["reader_warnings"]) == 3  # and the gap the three NaN rows leave
     assert "1 gap(s) longer than 3 × the median period" in extra["reader_warnings"][2]
+
+
+# -- messages for command-line users ------------------------------------------------------------
+def test_messages_name_the_flag_that_fixes_them(ftdrake, id1, tmp_path):
+    """Every reader error a flag fixes names that flag, never a Python keyword."""
+    id2 = pd.read_csv(UR3 / "id2.csv")
+    cases = {
+        "degrees": (id1.assign(**{f"q_{i}": np.degrees(id1[f"q_{i}"]) for i in range(6)}),
+                    TORQUES, ["--position-unit deg", "--no-check-units"]),
+        "deg_per_s": (id1.assign(**{f"qd_{i}": np.degrees(id1[f"qd_{i}"]) for i in range(6)}),
+                      TORQUES, ["57.3 ×", "omit --velocities", "--no-check-units"]),
+        "joined": (pd.concat([id1, id2]), TORQUES,
+                   ["time goes backwards", "pass --group COLUMN to read each apart"]),
+        "no_torques": (id1, ["--targets", "torque_*"], ["not found", "--targets PATTERN"]),
+    }
+    for name, (frame, columns, expected) in cases.items():
+        frame.to_csv(tmp_path / f"{name}.csv", index=False)
+        line = failure(ftdrake, "train", "--data", tmp_path / f"{name}.csv", *columns,
+                       "--model", "rf", "--preset", "none", "--out", tmp_path / "m.ftd")
+        for text in expected:
+            assert text in line, (name, line)
+        assert "check_units" not in line and "=" not in line, (name, line)
+    line = failure(ftdrake, "train", "--data", BAG, "--model", "rf", "--out", tmp_path / "m.ftd")
+    assert "no topic '/joint_states'" in line and "choose one with --joint-topic TOPIC" in line
+    line = failure(ftdrake, "train", "--data", UR3 / "id1.csv", *TORQUES, "--t-start", "100",
+                   "--model", "rf", "--out", tmp_path / "m.ftd")
+    assert "choose --t-start S and --t-end S in it" in line
+    line = failure(ftdrake, "train", "--data", tmp_path / "missing.csv", "--model", "rf",
+                   "--out", tmp_path / "m.ftd")
+    assert line.endswith("--data " + str(tmp_path / "missing.csv") + ": no such file or folder")
+    assert not (tmp_path / "m.ftd").exists()
+
+    # The named flags do fix them.
+    pd.concat([id1.assign(recording=0), id2.assign(recording=1)]).to_csv(
+        tmp_path / "joined.csv", index=False)
+    manifest = train(ftdrake, tmp_path / "joined.csv", tmp_path / "m.ftd", *TORQUES, "--model",
+                     "rf", "--preset", "none", "--group", "recording")
+    assert "2 trajectories" in manifest["extra"]["data"]["source"]
+    assert manifest["extra"]["data"]["options"]["group"] == "recording"
+    train(ftdrake, tmp_path / "degrees.csv", tmp_path / "m.ftd", *TORQUES, "--model", "rf",
+          "--preset", "none", "--no-check-units")
+
+
+def test_train_prints_the_model_file_size(ftdrake, tmp_path):
+    from ftdrake.cli.train import file_size
+
+    path = tmp_path / "m.ftd"
+    code, out, err = ftdrake("train", "--data", UR3 / "id1.csv", *TORQUES, "--model", "rf",
+                             "--preset", "none", "--out", path, "--quiet")
+    assert code == 0 and err == ""
+    size = path.stat().st_size
+    assert size > 100_000  # a 100-tree forest on 750 rows
+    assert out == f"saved {path} ({file_size(size)})\n"
+    assert [file_size(n) for n in (999, 1000, 123_456, 1_234_567, 2.5e9)] == [
+        "999 B", "1 kB", "123 kB", "1.23 MB", "2.5 GB"]
+
+
+def test_train_with_the_loops_causal_acceleration(ftdrake, tmp_path):
+    """--qdd-estimate causal is kept in the manifest, and evaluate reads with it."""
+    path = tmp_path / "m.ftd"
+    manifest = train(ftdrake, UR3 / "id1.csv", path, *TORQUES, "--model", "rf",
+                     "--preset", "none", "--qdd-estimate", "causal",
+                     "--acceleration-cutoff-hz", "10")
+    extra = manifest["extra"]
+    assert extra["columns"]["derived"] == {"qdd": {"method": "causal", "cutoff_hz": 10.0,
+                                                   "signal": "causal_acceleration of qd"}}
+    assert extra["data"]["options"]["qdd_estimate"] == "causal"
+    assert extra["data"]["options"]["acceleration_cutoff_hz"] == 10.0
+    code, _, err = ftdrake("evaluate", "--model", path, "--data", UR3 / "id2.csv")
+    assert code == 0, err
+    assert "qdd from the loop's causal estimate" in err

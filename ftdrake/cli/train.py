@@ -1,85 +1,100 @@
 """`ftdrake train` and `ftdrake evaluate`: fit a compensator on a robot log, score it on another.
 
-Both commands read a log with :mod:`ftdrake.logs` — a CSV/Parquet table (``read_table``) or a
-ROS bag (``read_bag``: a ROS 1 ``.bag`` file or a ROS 2 bag folder) — into the model layout
+Both commands read a log with :func:`ftdrake.data.training.load_training_data` — a CSV/Parquet
+table or a ROS bag (a ROS 1 ``.bag`` file or a ROS 2 bag folder) — into the model layout
 ``X = [q, q̇, q̈]`` (rad, rad/s, rad/s²) and targets ``Y`` (a wrench in N, N·m, or joint
 torques in N·m; any number of columns)::
 
     ftdrake train --data id1.csv --targets 'tau_*' --velocities 'qd_*' --model rf --out m.ftd
     ftdrake evaluate --model m.ftd --data id2.csv --json eval.json
 
-Column options are a glob (``'q_*'``), a comma-separated list of names, or a regular
-expression after ``re:`` (``'re:qd_\\d+'``). For bags, ``--positions`` selects JointState
-joint names (default: all), ``--targets`` is ``effort`` (default) or ``wrench`` (default with
-``--wrench-topic``) or selects among the names read (``tau_0..``, ``meas_Fx..``); velocities
-are the messages' own. ``--t-start``/``--t-end`` keep the rows in a time window (s, on the
-log's own time axis: a table's time column, a bag's time since its first joint state);
-derivatives are computed on the whole log first. A table with a ``trajectory`` column
-(``ftdrake collect``'s datasets; ``--group`` names another) is read per trajectory, and
-cross-validation folds never split a trajectory segment.
+The read flags are the fields of :class:`~ftdrake.data.training.ReadOptions` (``--positions``
+↔ ``positions``; see it for their meaning); the model's manifest keeps them, and `evaluate`
+reads with the same ones unless told otherwise (column and topic flags only when the data is
+of the same kind, table or bag). ``--t-start``/``--t-end`` keep the rows in a time window
+(s, on the log's own time axis); derivatives are computed on the whole log first.
+``--qdd-estimate causal`` trains on the q̈ estimate the loop makes (see ReadOptions).
 
 `train` tunes the model with the ``quick`` grid and grouped CV (``--preset none`` fits the
-defaults), locally or on a Dask cluster (``--dask ADDRESS``), and saves it with
-:func:`~ftdrake.compensation.persistence.save_model`. The manifest's ``extra`` records the data
-file and options, the columns used and which were Savitzky–Golay derivatives, the training
-ranges of time and targets (those of the inputs are the manifest's ``input_range``), the
-row counts (in the file, dropped by the reader, outside the time window, used) with the
-reader's warnings, and the search result. `evaluate` reads the same columns as training
-unless told otherwise (when the data is of the same kind, table or bag) and reports
+defaults), locally or on a Dask cluster (``--dask ADDRESS``), saves it with
+:func:`~ftdrake.compensation.persistence.save_model` and prints the file's size. The
+manifest's ``extra`` records the data file and its ReadOptions, the columns used and how the
+computed ones were derived, the training ranges of time and targets (those of the inputs are
+the manifest's ``input_range``), the row counts (in the file, dropped by the reader, outside
+the time window, used) with the reader's warnings, and the search result. `evaluate` reports
 per-target MSE, NMSE and variance score on all rows, on the rows inside the training range
 of every input, and on the rows outside it.
 
-Every problem with the input is a one-line error (exit code 2); rows the reader dropped or
-reordered are printed as warnings with counts.
+Every problem a user can fix is one line naming the flag that fixes it (exit code 2); rows the
+reader dropped or reordered are printed as warnings with counts.
 """
 
 from __future__ import annotations
 
 import argparse
+import dataclasses as dc
 import json
 import re
 import sys
-import warnings
-from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
 from ..conventions import WRENCH_AXES, WRENCH_UNITS
-from ..data.logs import LogError, LogWarning
+from ..data.bag import is_bag
+from ..data.logs import QDD_ESTIMATES, option_spelling
+from ..data.training import ReadOptions, TrainingData, load_training_data
+from ..errors import ConfigError, FtdrakeError, LogError, ModelFileError, RobotModelError
 
-MODELS = ("rf", "svr", "gpr", "physics", "hybrid")
 FEATURE_SETS = ("q", "q,qd", "q,qd,qdd")
-TABLE_DEFAULTS = {"positions": "q_*", "targets": "meas_*", "time": "t"}
-GROUP_DEFAULT = "trajectory"
 BUILTIN_ROBOT = "ftdrake"  # --robot value naming ftdrake's simulated arm
 
 _COLUMNS_HELP = ("PAT is a glob ('q_*'), a comma-separated list of names, or a regular "
                  "expression after 're:'. Times are in s on the log's own axis (a bag's: since "
                  "its first joint state).")
-_DATA_HELP = {
-    "positions": ("PAT", "joint position columns (rad), default 'q_*'; bags: joint names"),
-    "targets": ("PAT", "target columns, default 'meas_*'; bags: effort, wrench or a pattern"),
-    "velocities": ("PAT", "velocity columns (rad/s); default: Savitzky–Golay of q"),
-    "accelerations": ("PAT", "acceleration columns (rad/s²); default: Savitzky–Golay of q"),
-    "time": ("COL", "time column (s), default 't'"),
-    "group": ("COL", f"trajectory id column, default '{GROUP_DEFAULT}' if there is one"),
-    "joint_topic": ("T", "bags: JointState topic, default /joint_states"),
-    "wrench_topic": ("T", "bags: WrenchStamped topic"),
+# ReadOptions field → (metavar, type, help). Every field is a flag of both commands.
+_READ_FLAGS = {
+    "positions": ("PAT", str, "joint position columns (rad), default 'q_*'; bags: joint names"),
+    "targets": ("PAT", str, ("target columns, default 'meas_*'; bags: effort, wrench or a "
+                            "pattern")),
+    "velocities": ("PAT", str, "velocity columns (rad/s); default: Savitzky–Golay of q"),
+    "accelerations": ("PAT", str, "acceleration columns (rad/s²); default: see --qdd-estimate"),
+    "time": ("COL", str, "time column (s), default 't'"),
+    "group": ("COL", str, ("trajectory id column: reads a file joining several recordings "
+                          "as separate trajectories; default 'trajectory' if there is one")),
+    "joint_topic": ("T", str, "bags: JointState topic, default /joint_states"),
+    "wrench_topic": ("T", str, "bags: WrenchStamped topic"),
+    "position_unit": ("rad|deg", str, "angle unit of the joint columns, default rad"),
+    "qdd_estimate": ("savgol|causal", str, ("missing accelerations: savgol (Savitzky–Golay "
+                     "of q, default) or causal (the estimate the compensator makes in the "
+                     "loop, from q̇; use it for q,qd,qdd models that run in the loop)")),
+    "acceleration_cutoff_hz": ("HZ", float, ("cut-off of --qdd-estimate causal; default the "
+                               "dataset scenario's compensator.acceleration_cutoff_hz, or 25")),
+    "sg_window": ("S", float, "Savitzky–Golay window (s), default 0.1"),
+    "sg_polyorder": ("N", int, "Savitzky–Golay polynomial order, default 4"),
+    "gap_factor": ("X", float, ("a time step longer than X × the median period is a gap, "
+                               "default 3")),
 }
-DATA_OPTIONS = tuple(_DATA_HELP)  # how a log is read; kept in the model's manifest
+_CHOICES = {"position_unit": ("rad", "deg"), "qdd_estimate": QDD_ESTIMATES}
+# Options that describe the file (columns, topics): carried to `evaluate` only from the same
+# kind of file. The others (units, derivatives) always are.
+_FILE_OPTIONS = ("positions", "targets", "velocities", "accelerations", "time", "group",
+                 "joint_topic", "wrench_topic")
 
 
 def register(subparsers) -> None:
     """Adds ``train`` and ``evaluate`` to an ``argparse`` subparsers object."""
+    from ..compensation import registry
+
+    models = registry.names()
     p = subparsers.add_parser("train", help="fit a compensator on a robot log; save it",
                               description=_COLUMNS_HELP)
     p.add_argument("--data", type=Path, required=True, metavar="FILE",
                    help="CSV/Parquet table, ROS 1 .bag file or ROS 2 bag folder")
-    _add_data_options(p)
-    p.add_argument("--model", choices=MODELS, required=True,
-                   help="rf, svr, gpr; physics (rigid payload) or hybrid (physics + forest on "
-                        "the residual) need 6 wrench targets and --robot")
+    _add_read_flags(p)
+    p.add_argument("--model", choices=models, required=True,
+                   help=", ".join(f"{n}: {registry.entry(n).summary}" for n in models)
+                   + "; physics and hybrid need 6 wrench targets and --robot")
     p.add_argument("--features", choices=FEATURE_SETS, metavar="q|q,qd|q,qd,qdd",
                    help="inputs the model uses (default q,qd,qdd; physics: q = static, "
                         "q,qd,qdd = dynamic; hybrid: the residual forest's, default q)")
@@ -102,244 +117,180 @@ def register(subparsers) -> None:
 
     p = subparsers.add_parser(
         "evaluate", help="score a saved compensator on a robot log",
-        description=_COLUMNS_HELP + " Column and topic options not given are those the model "
-        "was trained with (when the file is of the same kind, table or bag), else the defaults.")
+        description=_COLUMNS_HELP + " Read flags not given are those the model was trained "
+        "with (column and topic flags: when the file is of the same kind, table or bag), else "
+        "the defaults.")
     p.add_argument("--model", type=Path, required=True, metavar="MODEL")
     p.add_argument("--data", type=Path, required=True, metavar="FILE")
-    _add_data_options(p)
+    _add_read_flags(p)
     p.add_argument("--json", type=Path, metavar="OUT", help="also write the results as JSON")
     p.add_argument("--quiet", action="store_true")
     p.set_defaults(run=run_evaluate)
 
 
-def _add_data_options(p) -> None:
-    for name, (metavar, text) in _DATA_HELP.items():
-        p.add_argument("--" + name.replace("_", "-"), metavar=metavar, help=text)
+def _add_read_flags(p) -> None:
+    for name, (metavar, kind, text) in _READ_FLAGS.items():
+        p.add_argument(_flag_name(name), metavar=metavar, type=kind, help=text,
+                       choices=_CHOICES.get(name))
+    p.add_argument("--no-check-units", dest="check_units", action="store_const", const=False,
+                   help="accept positions beyond ±2π rad and velocities that disagree with q")
     p.add_argument("--t-start", type=float, metavar="S", help="drop rows before this time (s)")
     p.add_argument("--t-end", type=float, metavar="S", help="drop rows after this time (s)")
 
 
-# -- reading ------------------------------------------------------------------------------------
-@dataclass
-class LogData:
-    """The rows of a log (or of several trajectories in one table) in the model layout.
-
-    X: (N, 3n) ``[q, q̇, q̈]`` in rad, rad/s, rad/s². Y: (N, m) targets as logged.
-    t: (N,) time in s. groups: (N,) trajectory id per row (0 for a single log).
-    rows: counts in the file, after the reader, outside the time window, used.
-    """
-
-    X: np.ndarray
-    Y: np.ndarray
-    t: np.ndarray
-    groups: np.ndarray
-    joint_names: list[str]
-    target_names: list[str]
-    derived: list[str]
-    source: str
-    rows: dict
-    warnings: list[str] = field(default_factory=list)
-    scenario_yaml: str | None = None  # a `collect` dataset's scenario, for --robot ftdrake
-
-    @property
-    def n_joints(self) -> int:
-        return len(self.joint_names)
+def _flag_name(option: str) -> str:
+    return "--" + option.replace("_", "-")
 
 
-def data_options(args, stored: dict | None = None) -> dict:
-    """The column/topic options given on the command line, else those `stored` in a model."""
-    stored = stored or {}
-    return {k: getattr(args, k) if getattr(args, k) is not None else stored.get(k)
-            for k in DATA_OPTIONS}
+def flag_hint(option: str, value) -> str:
+    """How an error tells a command-line user to set reader option `option` to `value`."""
+    if option == "check_units":
+        return "--no-check-units" if value is False else "omit --no-check-units"
+    if value is None:
+        return f"omit {_flag_name(option)}"
+    return f"{_flag_name(option)} {value}"
 
 
-def read_data(path: Path, options: dict, *, t_start=None, t_end=None, report=print) -> LogData:
-    """Reads `path` (table or bag) with `options` (see :data:`DATA_OPTIONS`).
-
-    LogWarnings are passed to `report` (one line each) and kept in ``LogData.warnings``.
-    """
-    path = Path(path)
-    if not path.exists():
-        raise FileNotFoundError(f"{path}: no such file or folder")
-    with warnings.catch_warnings(record=True) as caught:
-        warnings.simplefilter("always", LogWarning)
-        data = _read_bag(path, options) if _is_bag(path) else _read_table(path, options)
-    for w in caught:
-        if issubclass(w.category, LogWarning):
-            data.warnings.append(str(w.message))
-            report(f"warning: {w.message}")
-        else:
-            warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
-    return _time_window(data, t_start, t_end)
+def given_read_options(args) -> dict:
+    """The ReadOptions fields set on the command line (the others are None)."""
+    return {f.name: getattr(args, f.name, None) for f in dc.fields(ReadOptions)}
 
 
-def _is_bag(path: Path) -> bool:
-    return path.is_dir() or path.suffix == ".bag"
-
-
-def _column_spec(text: str | None):
-    """CLI column option → what :func:`ftdrake.logs.expand_columns` takes."""
-    if text is None:
-        return None
-    if text.startswith("re:"):
-        return re.compile(text[3:])
-    if "," in text:
-        return [s.strip() for s in text.split(",") if s.strip()]
-    return text
-
-
-def _read_table(path: Path, options: dict) -> LogData:
-    import pandas as pd
-
-    kwargs = {
-        "positions": _column_spec(options["positions"] or TABLE_DEFAULTS["positions"]),
-        "targets": _column_spec(options["targets"] or TABLE_DEFAULTS["targets"]),
-        "velocities": _column_spec(options["velocities"]),
-        "accelerations": _column_spec(options["accelerations"]),
-        "time": options["time"] or TABLE_DEFAULTS["time"],
-    }
-    frame = _read_frame(path)
-    group = options["group"]
-    if group is None and GROUP_DEFAULT in frame.columns:
-        group = GROUP_DEFAULT
-    if group is None:
-        logs, ids = [_read_group(frame, path.name, kwargs)], [0]
-    else:
-        if group not in frame.columns:
-            raise LogError(f"{path.name}: no group column {group!r}; available columns: "
-                           f"{list(frame.columns)}")
-        ids = list(pd.unique(frame[group]))
-        logs = [_read_group(frame[frame[group] == i], f"{path.name} [{group}={i}]", kwargs)
-                for i in ids]
-    data = _stack(logs, ids, path.name)
-    data.rows["in_file"] = len(frame)
-    data.scenario_yaml = frame.attrs.get("scenario") or None
-    return data
-
-
-def _read_frame(path: Path):
-    """The table at `path`, with a ``collect`` dataset's scenario in ``attrs["scenario"]``."""
-    import pandas as pd
-
-    if path.name.endswith((".csv", ".csv.gz", ".txt")):
-        return pd.read_csv(path)
-    if path.suffix in (".parquet", ".pq"):
-        import pyarrow.parquet as pq
-
-        try:
-            table = pq.read_table(path)
-        except Exception as e:  # noqa: BLE001 - any pyarrow failure: unreadable
-            raise LogError(f"{path.name}: not a readable Parquet file: {e}") from None
-        from ..data.dataset import META_SCENARIO
-
-        frame = table.to_pandas()
-        scenario = (table.schema.metadata or {}).get(META_SCENARIO)
-        frame.attrs["scenario"] = scenario.decode() if scenario else None
-        return frame
-    raise LogError(f"{path}: unknown format; expected .csv, .parquet, a .bag file or a ROS 2 "
-                   f"bag folder")
-
-
-def _read_group(frame, label: str, kwargs):
-    """read_table on a DataFrame, naming it `label` in errors and warnings."""
-    from ..data.logs import read_table
-
-    with warnings.catch_warnings(record=True) as caught:
-        warnings.simplefilter("always", LogWarning)
-        try:
-            log = read_table(frame.reset_index(drop=True), **kwargs)
-        except LogError as e:
-            raise LogError(str(e).replace("DataFrame", label, 1)) from None
-    for w in caught:
-        warnings.warn(str(w.message).replace("DataFrame", label, 1), w.category, stacklevel=2)
-    log.source = label
-    return log
-
-
-def _read_bag(path: Path, options: dict) -> LogData:
-    """A bag's JointState rows; --positions/--targets select joints and targets by name."""
-    from ..data.logs import expand_columns, read_bag
-
-    positions, targets = _column_spec(options["positions"]), options["targets"]
-    kind = targets if targets in ("effort", "wrench") else None
-    topic = options["joint_topic"] or "/joint_states"
-    listed = positions if isinstance(positions, list) else None  # names: skip other messages
+def _with_flags(base: ReadOptions, args) -> ReadOptions:
+    """`base` updated with the flags given; an invalid value's error names its flag."""
     try:
-        log = read_bag(path, topic, wrench_topic=options["wrench_topic"], targets=kind,
-                       joints=listed)
-    except LogError:
-        raise
-    except Exception as e:  # noqa: BLE001 - rosbags' errors have various types
-        raise LogError(f"{path.name}: not a readable ROS 1 or ROS 2 bag: {e}") from None
-    if positions is not None and listed is None:
-        keep = expand_columns(positions, log.joint_names, f"{path.name} joints on {topic}")
-        i = [log.joint_names.index(n) for n in keep]
-        log.q, log.qd, log.qdd, log.joint_names = log.q[:, i], log.qd[:, i], log.qdd[:, i], keep
-    if kind is None and targets is not None:
-        keep = expand_columns(_column_spec(targets), log.target_names, f"{path.name} targets")
-        i = [log.target_names.index(n) for n in keep]
-        log.targets, log.target_names = log.targets[:, i], keep
-    data = _stack([log], [0], path.name)
-    data.rows["in_file"] = _bag_message_count(path, topic)
+        return base.updated(**given_read_options(args))
+    except ConfigError as e:
+        message = str(e)
+        for f in dc.fields(ReadOptions):
+            if message.startswith(f.name + " "):
+                message = _flag_name(f.name) + message[len(f.name):]
+        raise ConfigError(message) from None
+
+
+def _read(args, options: ReadOptions, say) -> TrainingData:
+    say(f"reading {args.data} …")
+    if not args.data.exists():
+        raise LogError(f"--data {args.data}: no such file or folder")
+    with option_spelling(flag_hint):
+        data = load_training_data(args.data, options, t_start=args.t_start, t_end=args.t_end,
+                                  report=_warn)
+    say(_describe(data))
     return data
 
 
-def _bag_message_count(path: Path, topic: str) -> int:
-    from rosbags.highlevel import AnyReader
-    from rosbags.typesys import Stores, get_typestore
+# -- the model factory --------------------------------------------------------------------------
+@dc.dataclass(frozen=True)
+class RobotOptions:
+    """The robot description a physics-based compensator identifies its payload on.
 
-    with AnyReader([path], default_typestore=get_typestore(Stores.LATEST)) as reader:
-        return sum(c.msgcount for c in reader.connections if c.topic == topic)
+    robot: URDF/SDF file, or ``"ftdrake"`` for the simulated arm (described by a ``collect``
+    dataset's scenario, `scenario_yaml`). sensor_frame: frame S of the targets in `robot`.
+    base_frame: frame of `robot` welded to the world (default: its root).
+    """
 
-
-def _stack(logs, ids, source: str) -> LogData:
-    first = logs[0]
-    for log in logs[1:]:
-        if log.joint_names != first.joint_names or log.target_names != first.target_names:
-            raise LogError(f"{source}: trajectories differ in their columns")
-    data = LogData(
-        X=np.vstack([log.X() for log in logs]),
-        Y=np.vstack([log.targets for log in logs]),
-        t=np.concatenate([log.t for log in logs]),
-        groups=np.concatenate([np.full(len(log), i) for log, i in zip(logs, ids)]),
-        joint_names=list(first.joint_names),
-        target_names=list(first.target_names),
-        derived=sorted({d for log in logs for d in log.derived}),
-        source=first.source if len(logs) == 1 else f"{source} ({len(logs)} trajectories)",
-        rows={"read": int(sum(len(log) for log in logs))},
-    )
-    if len(logs) == 1:
-        data.groups = np.zeros(len(first), dtype=np.int64)
-    return data
+    robot: str | None = None
+    sensor_frame: str | None = None
+    base_frame: str | None = None
+    scenario_yaml: str | None = None
 
 
-def _time_window(data: LogData, t_start, t_end) -> LogData:
-    keep = np.ones(len(data.t), bool)
-    if t_start is not None:
-        keep &= data.t >= t_start
-    if t_end is not None:
-        keep &= data.t <= t_end
-    if not keep.any():
-        raise LogError(f"{data.source}: no rows in the time window {t_start}..{t_end} s; the "
-                       f"log spans t = {data.t.min():.6g}..{data.t.max():.6g} s")
-    data.rows["outside_time_window"] = int((~keep).sum())
-    data.rows["used"] = int(keep.sum())
-    data.rows["dropped_by_reader"] = data.rows["in_file"] - data.rows["read"]
-    data.X, data.Y, data.t, data.groups = (a[keep] for a in (data.X, data.Y, data.t, data.groups))
-    return data
+def make_estimator(model: str, *, features: str | None = None, seed: int = 0,
+                   target_names=(), robot: RobotOptions | None = None):
+    """The unfitted compensator registered as `model`, with `train`'s defaults.
+
+    Args:
+      model: a registry name (``rf``, ``svr``, ``gpr``, ``physics``, ``hybrid``).
+      features: ``q``, ``q,qd`` or ``q,qd,qdd``; None: the model's default (physics: q is
+        static, q,qd,qdd dynamic; hybrid: the residual forest's, default q).
+      seed: random state of the models that have one.
+      target_names: the data's targets; a wrench-only model refuses others.
+      robot: the robot description of physics and hybrid.
+
+    Errors name the ``train`` flag that fixes them.
+    """
+    from ..compensation import registry
+    from ..compensation.forest import RandomForestCompensator
+
+    entry = registry.entry(model)
+    if entry.wrench_only and not is_wrench(target_names):
+        raise ConfigError(
+            f"--model {model} predicts a wrench: 6 targets named *Fx, *Fy, *Fz, *Tx, *Ty, "
+            f"*Tz (N, N·m) in the sensor frame; got {list(target_names)}. Joint torques need "
+            f"rf, svr or gpr (or choose the wrench columns with --targets)"
+        )
+    if model == "hybrid":
+        residual = RandomForestCompensator(features=features or "q", min_samples_leaf=5,
+                                           random_state=seed)
+        return entry.build(physics=_physics(model, robot, "q,qd,qdd"), residual=residual)
+    if model == "physics":
+        return _physics(model, robot, features or "q,qd,qdd")
+    overrides = {"features": features} if features else {}
+    if "random_state" in entry.cls().get_params():
+        overrides["random_state"] = seed
+    return entry.build(**overrides)
+
+
+def _physics(model: str, robot: RobotOptions | None, features: str):
+    from ..compensation.physics import PhysicsPayloadCompensator
+
+    robot = robot or RobotOptions()
+    if robot.robot is None:
+        raise ConfigError(f"--model {model} needs --robot FILE (URDF/SDF) with "
+                          f"--sensor-frame NAME, or --robot {BUILTIN_ROBOT} for the simulated "
+                          f"arm")
+    if features == "q,qd":
+        raise ConfigError("physics takes --features q (static: gravity only) or q,qd,qdd")
+    mode = "static" if features == "q" else "dynamic"
+    if robot.robot == BUILTIN_ROBOT:
+        return PhysicsPayloadCompensator(features=features, mode=mode,
+                                         scenario_yaml=robot.scenario_yaml)
+    path = Path(robot.robot)
+    if not path.is_file():
+        raise RobotModelError(f"--robot {path}: no such file")
+    if not robot.sensor_frame:
+        raise ConfigError(f"--robot {path} needs --sensor-frame (the frame of the targets)")
+    return PhysicsPayloadCompensator(features=features, mode=mode, robot=str(path.resolve()),
+                                     sensor_frame=robot.sensor_frame,
+                                     base_frame=robot.base_frame)
+
+
+def is_wrench(names) -> bool:
+    """True for 6 names ending in Fx, Fy, Fz, Tx, Ty, Tz (or force_x … torque_z), in order."""
+    if len(names) != 6:
+        return False
+    aliases = [(a.lower(), ("force" if a[0] == "F" else "torque") + a[1]) for a in WRENCH_AXES]
+    squashed = [re.sub(r"[^a-z]", "", n.lower()) for n in names]
+    return all(s.endswith(alias) for s, alias in zip(squashed, aliases, strict=True))
+
+
+def target_units(text: str | None, names: list[str]) -> list[str]:
+    """The unit of each target: from ``--target-units``, else N/N·m for a wrench, else N·m."""
+    if text:
+        units = [u.strip() for u in text.split(",")]
+        if len(units) != len(names):
+            raise ConfigError(f"--target-units gives {len(units)} units for {len(names)} "
+                              f"targets {names}")
+        return units
+    if is_wrench(names):
+        return list(WRENCH_UNITS)
+    return ["N*m"] * len(names)
 
 
 # -- train --------------------------------------------------------------------------------------
 def run_train(args) -> int:
+    from ..compensation import registry
+    from ..compensation.persistence import save_model
+
     say = _reporter(args.quiet)
-    options = data_options(args)
-    say(f"reading {args.data} …")
-    data = read_data(args.data, options, t_start=args.t_start, t_end=args.t_end, report=_warn)
-    say(_describe(data))
-    estimator = make_estimator(args, data)
-    units = _target_units(args.target_units, data.target_names)
+    options = _with_flags(ReadOptions(), args)
+    data = _read(args, options, say)
+    robot = RobotOptions(args.robot, args.sensor_frame, args.base_frame, data.scenario_yaml)
+    estimator = make_estimator(args.model, features=args.features, seed=args.seed,
+                               target_names=data.target_names, robot=robot)
+    units = target_units(args.target_units, data.target_names)
     search = None
-    if args.preset == "quick" and _has_grid(estimator):
+    if args.preset == "quick" and "quick" in registry.entry(args.model).presets:
         from ..compensation.tuning import segment_groups, tune
         from ..sim.collection import dask_backend
 
@@ -353,129 +304,67 @@ def run_train(args) -> int:
     else:
         why = "" if args.preset == "none" else " (no grid: its parameters are fitted from data)"
         say(f"fitting {args.model}{why} …")
-        model = estimator.fit(data.X, data.Y)
-    extra = _provenance(args, options, data, model, search)
-    from ..compensation.persistence import save_model
-
+        model = _fit(estimator, data, needs_robot=registry.entry(args.model).needs_robot)
+    extra = provenance(args.data, data, model, search, kind=args.model,
+                       time_window=(args.t_start, args.t_end), dask=args.dask)
     args.out.parent.mkdir(parents=True, exist_ok=True)
-    sensor_frame = args.sensor_frame or ("S" if _is_wrench(data.target_names) else "joints")
+    sensor_frame = args.sensor_frame or ("S" if is_wrench(data.target_names) else "joints")
     save_model(model, args.out, target_names=data.target_names, target_units=units,
                sensor_frame=sensor_frame, extra=extra)
-    say(f"saved {args.out}")
+    print(f"saved {args.out} ({file_size(args.out.stat().st_size)})")
     return 0
 
 
-def make_estimator(args, data: LogData):
-    """The unfitted compensator `args` ask for, checked against the data's targets."""
-    from ..compensation.forest import RandomForestCompensator
-
-    features = args.features
-    if args.model == "rf":
-        # One thread per forest: the search runs fits in parallel, and a forest's own threads
-        # would add its trees' predictions in a varying order (round-off differences).
-        return RandomForestCompensator(features=features or "q,qd,qdd", random_state=args.seed,
-                                       n_jobs=1)
-    if args.model == "svr":
-        from ..compensation.svr import SVRCompensator
-
-        return SVRCompensator(features=features or "q,qd,qdd")
-    if args.model == "gpr":
-        from ..compensation.gpr import GPRCompensator
-
-        return GPRCompensator(features=features or "q,qd,qdd", random_state=args.seed)
-    if args.model == "physics":
-        return _physics(args, data, features or "q,qd,qdd")
-    from ..compensation.hybrid import HybridCompensator
-
-    residual = RandomForestCompensator(features=features or "q", min_samples_leaf=5,
-                                       random_state=args.seed)
-    return HybridCompensator(physics=_physics(args, data, "q,qd,qdd"), residual=residual)
+def _fit(estimator, data: TrainingData, *, needs_robot: bool):
+    """Fits `estimator`. A robot-based model's ValueErrors are about the robot description
+    (joint count, frames); they name the flags that choose it."""
+    if not needs_robot:
+        return estimator.fit(data.X, data.Y)
+    try:
+        return estimator.fit(data.X, data.Y)
+    except FtdrakeError:
+        raise
+    except ValueError as e:
+        raise RobotModelError(f"{e} (check --robot, --sensor-frame, --base-frame and "
+                              f"--positions)") from e
 
 
-def _physics(args, data: LogData, features: str):
-    from ..compensation.physics import PhysicsPayloadCompensator
-
-    if not _is_wrench(data.target_names):
-        raise ValueError(
-            f"--model {args.model} predicts a wrench: 6 targets named *Fx, *Fy, *Fz, *Tx, *Ty, "
-            f"*Tz (N, N·m) in the sensor frame; got {data.target_names}. Joint torques need "
-            f"rf, svr or gpr"
-        )
-    if args.robot is None:
-        raise ValueError(f"--model {args.model} needs --robot FILE (URDF/SDF) with "
-                         f"--sensor-frame NAME, or --robot {BUILTIN_ROBOT} for the simulated arm")
-    if features == "q,qd":
-        raise ValueError("physics takes --features q (static: gravity only) or q,qd,qdd")
-    mode = "static" if features == "q" else "dynamic"
-    if args.robot == BUILTIN_ROBOT:
-        return PhysicsPayloadCompensator(features=features, mode=mode,
-                                         scenario_yaml=data.scenario_yaml)
-    robot = Path(args.robot)
-    if not robot.is_file():
-        raise FileNotFoundError(f"--robot {robot}: no such file")
-    if not args.sensor_frame:
-        raise ValueError(f"--robot {robot} needs --sensor-frame (the frame of the targets)")
-    return PhysicsPayloadCompensator(features=features, mode=mode, robot=str(robot.resolve()),
-                                     sensor_frame=args.sensor_frame, base_frame=args.base_frame)
+def file_size(n_bytes: int) -> str:
+    """``1234567`` → ``"1.23 MB"`` (decimal units, as file managers show them)."""
+    for unit, scale in (("GB", 1e9), ("MB", 1e6), ("kB", 1e3)):
+        if n_bytes >= scale:
+            return f"{n_bytes / scale:.3g} {unit}"
+    return f"{n_bytes} B"
 
 
-def _is_wrench(names) -> bool:
-    """True for 6 names ending in Fx, Fy, Fz, Tx, Ty, Tz (or force_x … torque_z), in order."""
-    if len(names) != 6:
-        return False
-    aliases = [(a.lower(), ("force" if a[0] == "F" else "torque") + a[1]) for a in WRENCH_AXES]
-    squashed = [re.sub(r"[^a-z]", "", n.lower()) for n in names]
-    return all(s.endswith(alias) for s, alias in zip(squashed, aliases))
-
-
-def _has_grid(estimator) -> bool:
-    from ..compensation.tuning import presets_of
-
-    return "quick" in presets_of(estimator)
-
-
-def _target_units(text: str | None, names: list[str]) -> list[str]:
-    if text:
-        units = [u.strip() for u in text.split(",")]
-        if len(units) != len(names):
-            raise ValueError(f"--target-units gives {len(units)} units for {len(names)} "
-                             f"targets {names}")
-        return units
-    if _is_wrench(names):
-        return list(WRENCH_UNITS)
-    return ["N*m"] * len(names)
-
-
-def _provenance(args, options, data: LogData, model, search) -> dict:
-    """What the manifest's ``extra`` keeps about the training run."""
-    from ..data.logs import read_table
-
-    sg = read_table.__kwdefaults__  # the readers' Savitzky–Golay window (s) and order
+def provenance(path: Path, data: TrainingData, model, search, *, kind: str,
+               time_window=(None, None), dask: str | None = None) -> dict:
+    """What the manifest's ``extra`` keeps about a training run on `data` read from `path`."""
     return {
         "data": {
-            "file": str(args.data),
-            "kind": "bag" if _is_bag(args.data) else "table",
+            "file": str(path),
+            "kind": data.kind,
             "source": data.source,
-            "options": options,
-            "time_window_s": [args.t_start, args.t_end],
+            "options": data.options.to_dict(),
+            "time_window_s": list(time_window),
         },
         "columns": {
             "joints": data.joint_names,
             "targets": data.target_names,
-            "derived": {k: {"method": "savitzky_golay", "window_s": sg["sg_window"],
-                            "polyorder": sg["sg_polyorder"]} for k in data.derived},
+            "derived": data.derivation,
         },
         "training_range": {
             "t_s": [float(data.t.min()), float(data.t.max())],
             "targets": {n: [float(lo), float(hi)] for n, lo, hi
-                        in zip(data.target_names, data.Y.min(axis=0), data.Y.max(axis=0))},
+                        in zip(data.target_names, data.Y.min(axis=0), data.Y.max(axis=0),
+                               strict=True)},
             "inputs": "see the manifest's input_range",
         },
         "rows": data.rows,
         "reader_warnings": data.warnings,
-        "model": {"kind": args.model, "params": _plain(model.get_params(deep=False))},
+        "model": {"kind": kind, "params": _plain(model.get_params(deep=False))},
         "tuning": search.to_dict() if search is not None else None,
-        "dask": args.dask,
+        "dask": dask,
     }
 
 
@@ -495,18 +384,30 @@ def _plain(params: dict) -> dict:
 
 
 # -- evaluate -----------------------------------------------------------------------------------
+def stored_read_options(manifest: dict, path: Path) -> ReadOptions:
+    """The ReadOptions a model was trained with, for reading `path`: all of them when `path`
+    is of the same kind (table or bag) as the training data, else only those that are not
+    about columns and topics."""
+    trained_on = manifest.get("extra", {}).get("data", {})
+    stored = dict(trained_on.get("options") or {})
+    if trained_on.get("kind") != ("bag" if is_bag(path) else "table"):
+        stored = {k: v for k, v in stored.items() if k not in _FILE_OPTIONS}
+    try:
+        return ReadOptions.from_dict(stored)
+    except ConfigError as e:
+        raise ModelFileError(f"--model: the manifest's read options: {e}") from None
+
+
 def run_evaluate(args) -> int:
     from ..compensation.metrics import report
     from ..compensation.persistence import load_model, read_manifest
 
     say = _reporter(args.quiet)
+    if not args.model.is_file():
+        raise ModelFileError(f"--model {args.model}: no such file")
     manifest = read_manifest(args.model)
-    trained_on = manifest.get("extra", {}).get("data", {})
-    same_kind = trained_on.get("kind") == ("bag" if _is_bag(args.data) else "table")
-    options = data_options(args, trained_on.get("options") if same_kind else None)
-    say(f"reading {args.data} …")
-    data = read_data(args.data, options, t_start=args.t_start, t_end=args.t_end, report=_warn)
-    say(_describe(data))
+    options = _with_flags(stored_read_options(manifest, args.data), args)
+    data = _read(args, options, say)
     _check_compatible(manifest, data, args)
     model = load_model(args.model, expect_n_joints=data.n_joints)
 
@@ -528,7 +429,7 @@ def run_evaluate(args) -> int:
         "out_of_domain_rows": int(outside.sum()),
         "out_of_domain_fraction": float(outside.mean()),
         "out_of_domain_by_input": _outside_by_input(model, data.X),
-        "target_units": dict(zip(names, manifest["target_units"])),
+        "target_units": dict(zip(names, manifest["target_units"], strict=True)),
         "metrics": metrics,
     }
     print_evaluation(result)
@@ -540,16 +441,16 @@ def run_evaluate(args) -> int:
     return 0
 
 
-def _check_compatible(manifest: dict, data: LogData, args) -> None:
+def _check_compatible(manifest: dict, data: TrainingData, args) -> None:
     trained = manifest.get("extra", {}).get("columns", {})
     if manifest["n_joints"] != data.n_joints:
-        raise ValueError(
+        raise LogError(
             f"{args.model} was trained on {manifest['n_joints']} joints "
             f"{trained.get('joints', '')}; {args.data.name} gives {data.n_joints} "
             f"{data.joint_names}: another robot, or pass --positions"
         )
     if manifest["n_outputs"] != len(data.target_names):
-        raise ValueError(
+        raise LogError(
             f"{args.model} predicts {manifest['n_outputs']} targets {manifest['target_names']}; "
             f"{args.data.name} gives {len(data.target_names)} {data.target_names}: pass --targets"
         )
@@ -609,23 +510,25 @@ def _warn(message: str) -> None:
     print(message, file=sys.stderr, flush=True)
 
 
-def _describe(data: LogData) -> str:
+def _describe(data: TrainingData) -> str:
     r = data.rows
-    derived = f"; {', '.join(data.derived)} from Savitzky–Golay" if data.derived else ""
+    methods = {"savitzky_golay": "Savitzky–Golay", "causal": "the loop's causal estimate"}
+    derived = "".join(f"; {k} from {methods[v['method']]}" for k, v in data.derivation.items())
     return (f"{r['used']} rows used of {r['in_file']} in the file ({r['dropped_by_reader']} "
             f"dropped by the reader, {r['outside_time_window']} outside the time window), "
             f"{data.n_joints} joints, {len(data.target_names)} targets{derived}")
 
 
 def main(argv=None) -> int:
-    """Runs train/evaluate alone (``python -m ftdrake.train``), with errors reported as the
-    ``ftdrake`` command does; ``ftdrake train|evaluate`` is the usual way."""
+    """Runs train/evaluate alone (``python -m ftdrake.cli.train``), with errors reported as
+    the ``ftdrake`` command does: a :class:`~ftdrake.errors.FtdrakeError` is one line and exit
+    code 2; any other exception is a bug and keeps its traceback."""
     parser = argparse.ArgumentParser(prog="ftdrake")
     register(parser.add_subparsers(dest="command", required=True))
     args = parser.parse_args(argv)
     try:
         return args.run(args)
-    except (ValueError, FileNotFoundError) as e:  # ConfigError, LogError, ModelFileError too
+    except FtdrakeError as e:
         print(f"ftdrake {args.command}: error: {e}", file=sys.stderr)
         return 2
 

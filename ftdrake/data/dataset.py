@@ -19,10 +19,11 @@ import pyarrow.parquet as pq
 
 from .. import conventions as col
 from ..config import ScenarioConfig, parse_config
+from ..errors import LogError
 from ..io import atomic_path
 from ..version import ftdrake_version
+from .logs import META_SCENARIO, read_frame
 
-META_SCENARIO = b"ftdrake.scenario"
 META_UNITS = b"ftdrake.units"
 META_VERSION = b"ftdrake.version"
 
@@ -31,7 +32,7 @@ def save_dataset(frame: pd.DataFrame, path: str | Path, scenario_yaml: str | Non
     """Writes `frame` as Parquet with scenario and units metadata, atomically."""
     table = pa.Table.from_pandas(frame, preserve_index=False)
     metadata = dict(table.schema.metadata or {})
-    metadata[META_SCENARIO] = (scenario_yaml or frame.attrs.get("scenario", "")).encode()
+    metadata[META_SCENARIO] = (scenario_yaml or frame.attrs.get("scenario") or "").encode()
     metadata[META_UNITS] = json.dumps(column_units(frame.columns)).encode()
     metadata[META_VERSION] = ftdrake_version().encode()
     table = table.replace_schema_metadata(metadata)
@@ -45,15 +46,11 @@ def load_dataset(path: str | Path) -> tuple[pd.DataFrame, ScenarioConfig | None]
     if not path.is_file():
         raise FileNotFoundError(f"no dataset at {path}")
     try:
-        table = pq.read_table(path)
-    except (pa.ArrowInvalid, OSError) as e:
-        raise ValueError(f"{path} is not a readable Parquet dataset: {e}") from None
-    frame = table.to_pandas()
-    meta = table.schema.metadata or {}
-    scenario = None
-    if meta.get(META_SCENARIO):
-        scenario = parse_config(meta[META_SCENARIO].decode(), source=f"{path} metadata")
-        frame.attrs["scenario"] = meta[META_SCENARIO].decode()
+        frame = read_frame(path, kind="parquet")
+    except LogError as e:
+        raise LogError(f"{path} is not a readable Parquet dataset: {e}") from None
+    text = frame.attrs.get("scenario")
+    scenario = parse_config(text, source=f"{path} metadata") if text else None
     return frame, scenario
 
 

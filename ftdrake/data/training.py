@@ -1,0 +1,350 @@
+"""Training data from any log: the loader ``train``, ``evaluate``, the study and the demo share.
+
+:func:`load_training_data` reads a table (CSV/Parquet, :mod:`.logs`) or a ROS bag
+(:mod:`.bag`) into the model layout ``X = [q, q̇, q̈]`` (rad, rad/s, rad/s²) and targets ``Y``
+(a wrench in N, N·m, or joint torques in N·m; any number of columns), as a
+:class:`TrainingData`. How the log is read is one :class:`ReadOptions` value: its fields are
+the keywords of the readers and the ``ftdrake train`` flags (``positions`` ↔ ``--positions``),
+and a model file's manifest keeps it (``extra.data.options``), so ``evaluate`` reads new data
+the way the model was trained.
+
+A table with a ``trajectory`` column (``ftdrake collect``'s datasets; ``ReadOptions.group``
+names another) is read per trajectory: time restarts in each, derivatives never cross from
+one into the next, and ``TrainingData.groups`` keeps them apart for grouped cross-validation.
+``ReadOptions.dataset("est")`` reads a ``collect`` dataset exactly as
+:func:`~.dataset.joint_state_layout` and :func:`~.dataset.wrench_targets` do.
+"""
+
+from __future__ import annotations
+
+import dataclasses as dc
+import re
+import warnings
+from collections.abc import Callable, Mapping
+from pathlib import Path
+
+import numpy as np
+
+from ..conventions import MEASURED, QD, QD_EST, QDD, QDD_EST, TIME, TRAJECTORY, Q
+from ..errors import ConfigError, LogError
+from .bag import is_bag, message_count, read_bag
+from .logs import (
+    QDD_ESTIMATES,
+    LogWarning,
+    RobotLog,
+    expand_columns,
+    is_table,
+    option_hint,
+    read_frame,
+    read_table,
+)
+
+TABLE_DEFAULTS = {"positions": f"{Q}_*", "targets": f"{MEASURED}_*", "time": TIME}
+BAG_JOINT_TOPIC = "/joint_states"
+
+
+@dc.dataclass(frozen=True)
+class ReadOptions:
+    """Everything about how a log is read, with its defaults; kept in a model's manifest.
+
+    Column options (`positions`, `targets`, `velocities`, `accelerations`) are a glob
+    (``"q_*"``), a comma-separated list of names, or a regular expression after ``re:``
+    (``"re:qd_\\d+"``); None is the default. For bags, `positions` selects JointState joint
+    names (default: all); `targets` is ``effort`` (default) or ``wrench`` (default with
+    `wrench_topic`) or selects among the names read (``tau_0..``, ``meas_Fx..``); velocities
+    are the messages' own.
+
+    Attributes:
+      positions: joint position columns (rad); default ``q_*``.
+      targets: target columns; default ``meas_*``.
+      velocities: velocity columns (rad/s); None: Savitzky–Golay derivative of q.
+      accelerations: acceleration columns (rad/s²); None: computed, see `qdd_estimate`.
+      time: time column (s); default ``t``.
+      group: trajectory id column; default ``trajectory`` when the table has one.
+      joint_topic: a bag's JointState topic; default ``/joint_states``.
+      wrench_topic: a bag's WrenchStamped topic; default none.
+      position_unit: ``"rad"`` or ``"deg"`` (positions, velocities, accelerations).
+      check_units: refuse degree-like positions and velocities that disagree with q.
+      qdd_estimate: how missing accelerations are computed. ``"savgol"`` (default): the
+        Savitzky–Golay second derivative of q, non-causal, best for offline fits.
+        ``"causal"``: :func:`ftdrake.signals.causal_acceleration` of q̇, the estimate
+        ``CompensatorSystem`` makes in the loop (which has no q̈ sensor and cannot look
+        ahead). Use it for a ``q,qd,qdd`` model that will run in the loop: trained on a
+        Savitzky–Golay q̈, it sees at run time a q̈ that lags by about 1/(2π·cut-off) s and is
+        noisier, i.e. inputs unlike those it was fitted on.
+      acceleration_cutoff_hz: the causal estimate's low-pass cut-off (Hz); None: the
+        scenario's ``compensator.acceleration_cutoff_hz`` when the file carries one (a
+        ``collect`` dataset), else that field's default (25 Hz). Set it to the cut-off of the
+        loop the model will run in.
+      sg_window, sg_polyorder: Savitzky–Golay window (s) and order, see
+        :func:`ftdrake.signals.savgol_derivative`.
+      gap_factor: a time step longer than this × the median period is a gap.
+    """
+
+    positions: str | None = None
+    targets: str | None = None
+    velocities: str | None = None
+    accelerations: str | None = None
+    time: str | None = None
+    group: str | None = None
+    joint_topic: str | None = None
+    wrench_topic: str | None = None
+    position_unit: str = "rad"
+    check_units: bool = True
+    qdd_estimate: str = "savgol"
+    acceleration_cutoff_hz: float | None = None
+    sg_window: float = 0.1
+    sg_polyorder: int = 4
+    gap_factor: float = 3.0
+
+    def __post_init__(self):
+        if self.qdd_estimate not in QDD_ESTIMATES:
+            raise ConfigError(f"qdd_estimate must be one of {list(QDD_ESTIMATES)}, "
+                              f"got {self.qdd_estimate!r}")
+        if self.position_unit not in ("rad", "deg"):
+            raise ConfigError(f"position_unit must be 'rad' or 'deg', got {self.position_unit!r}")
+        for name in ("sg_window", "gap_factor"):
+            if not getattr(self, name) > 0:
+                raise ConfigError(f"{name} must be positive, got {getattr(self, name)!r}")
+        cutoff = self.acceleration_cutoff_hz
+        if cutoff is not None and not cutoff > 0:
+            raise ConfigError(f"acceleration_cutoff_hz must be positive, got {cutoff!r}")
+
+    @classmethod
+    def dataset(cls, source: str = "est", **overrides) -> ReadOptions:
+        """Options that read a ``collect`` dataset as :func:`~.dataset.joint_state_layout`
+        (`source` ``"est"``: central differences; ``"plant"``: the simulator's values) and
+        :func:`~.dataset.wrench_targets` do."""
+        if source not in ("est", "plant"):
+            raise ConfigError(f"source must be 'est' or 'plant', got {source!r}")
+        qd, qdd = (QD_EST, QDD_EST) if source == "est" else (QD, QDD)
+        return cls(positions=rf"re:{Q}_\d+", velocities=rf"re:{qd}_\d+",
+                   accelerations=rf"re:{qdd}_\d+", targets=f"{MEASURED}_*", **overrides)
+
+    def to_dict(self) -> dict:
+        """The options as plain JSON values (as stored in a manifest)."""
+        return dc.asdict(self)
+
+    @classmethod
+    def from_dict(cls, values: Mapping | None) -> ReadOptions:
+        """Options from :meth:`to_dict` output (or an older manifest's subset of it)."""
+        values = dict(values or {})
+        known = {f.name for f in dc.fields(cls)}
+        unknown = sorted(set(values) - known)
+        if unknown:
+            raise ConfigError(f"unknown read options {unknown}; known: {sorted(known)}")
+        return cls(**{k: v for k, v in values.items() if v is not None})
+
+    def updated(self, **given) -> ReadOptions:
+        """These options with every value in `given` that is not None replacing its own."""
+        return dc.replace(self, **{k: v for k, v in given.items() if v is not None})
+
+
+@dc.dataclass
+class TrainingData:
+    """The rows of a log (or of several trajectories in one table) in the model layout.
+
+    X: (N, 3n) ``[q, q̇, q̈]`` in rad, rad/s, rad/s². Y: (N, m) targets as logged.
+    t: (N,) time in s. groups: (N,) trajectory id per row (0 for a single log).
+    rows: counts in the file, after the reader, outside the time window, used.
+    options: the options read with (`acceleration_cutoff_hz` resolved).
+    derivation: how each computed column (``"qd"``, ``"qdd"``) was computed.
+    """
+
+    X: np.ndarray
+    Y: np.ndarray
+    t: np.ndarray
+    groups: np.ndarray
+    joint_names: list[str]
+    target_names: list[str]
+    derived: list[str]
+    source: str
+    rows: dict
+    kind: str = "table"  # or "bag"
+    options: ReadOptions = dc.field(default_factory=ReadOptions)
+    warnings: list[str] = dc.field(default_factory=list)
+    scenario_yaml: str | None = None  # a `collect` dataset's scenario
+
+    @property
+    def n_joints(self) -> int:
+        return len(self.joint_names)
+
+    @property
+    def derivation(self) -> dict:
+        o = self.options
+        savgol = {"method": "savitzky_golay", "window_s": o.sg_window,
+                  "polyorder": o.sg_polyorder}
+        causal = {"method": "causal", "cutoff_hz": o.acceleration_cutoff_hz,
+                  "signal": "causal_acceleration of qd"}
+        return {k: causal if k == "qdd" and o.qdd_estimate == "causal" else savgol
+                for k in self.derived}
+
+
+def load_training_data(
+    path: str | Path,
+    options: ReadOptions | None = None,
+    *,
+    t_start: float | None = None,
+    t_end: float | None = None,
+    report: Callable[[str], None] | None = None,
+) -> TrainingData:
+    """Reads `path` (CSV/Parquet table, ROS 1 ``.bag`` file or ROS 2 bag folder).
+
+    Derivatives are computed on the whole log (per trajectory) first; then only the rows with
+    `t_start` ≤ t ≤ `t_end` (s, on the log's own time axis: a table's time column, a bag's
+    time since its first joint state) are kept. Each :class:`~.logs.LogWarning` is passed to
+    `report` (one line, if given) and kept in ``TrainingData.warnings``.
+
+    Raises LogError (an :class:`~ftdrake.errors.FtdrakeError`) for a missing or unreadable
+    file and for every check the log fails; the message names the option that fixes it.
+    """
+    options = options or ReadOptions()
+    path = Path(path)
+    if not path.exists():
+        raise LogError(f"{path}: no such file or folder")
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always", LogWarning)
+        data = _read_bag(path, options) if is_bag(path) else _read_table(path, options)
+    for w in caught:
+        if issubclass(w.category, LogWarning):
+            data.warnings.append(str(w.message))
+            if report is not None:
+                report(f"warning: {w.message}")
+        else:
+            warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
+    return _time_window(data, t_start, t_end)
+
+
+def column_spec(text: str | None):
+    """A column option (``"q_*"``, ``"a,b"``, ``"re:q_\\d+"``) → what
+    :func:`~.logs.expand_columns` takes."""
+    if text is None:
+        return None
+    if text.startswith("re:"):
+        return re.compile(text[3:])
+    if "," in text:
+        return [s.strip() for s in text.split(",") if s.strip()]
+    return text
+
+
+def _cutoff(options: ReadOptions, scenario_yaml: str | None, label: str) -> float:
+    """The causal estimate's cut-off: given, else the scenario's, else the config default."""
+    from ..config import CompensatorConfig, parse_config
+
+    if options.acceleration_cutoff_hz is not None:
+        return float(options.acceleration_cutoff_hz)
+    if scenario_yaml:
+        return float(parse_config(scenario_yaml, source=f"{label} metadata")
+                     .compensator.acceleration_cutoff_hz)
+    return float(CompensatorConfig().acceleration_cutoff_hz)
+
+
+def _reader_keywords(options: ReadOptions, cutoff: float) -> dict:
+    return {"position_unit": options.position_unit, "check_units": options.check_units,
+            "sg_window": options.sg_window, "sg_polyorder": options.sg_polyorder,
+            "gap_factor": options.gap_factor, "qdd_estimate": options.qdd_estimate,
+            "acceleration_cutoff_hz": cutoff}
+
+
+def _read_table(path: Path, options: ReadOptions) -> TrainingData:
+    import pandas as pd
+
+    if not is_table(path):
+        raise LogError(f"{path}: unknown format; expected .csv, .parquet, a .bag file or a "
+                       f"ROS 2 bag folder")
+    frame = read_frame(path)
+    scenario = frame.attrs.get("scenario") or None
+    cutoff = _cutoff(options, scenario, path.name)
+    kwargs = {
+        "positions": column_spec(options.positions or TABLE_DEFAULTS["positions"]),
+        "targets": column_spec(options.targets or TABLE_DEFAULTS["targets"]),
+        "velocities": column_spec(options.velocities),
+        "accelerations": column_spec(options.accelerations),
+        "time": options.time or TABLE_DEFAULTS["time"],
+        **_reader_keywords(options, cutoff),
+    }
+    group = options.group
+    if group is None and TRAJECTORY in frame.columns:
+        group = TRAJECTORY
+    if group is None:
+        logs, ids = [read_table(frame, label=path.name, **kwargs)], [0]
+    else:
+        if group not in frame.columns:
+            raise LogError(f"{path.name}: no group column {group!r}; available columns: "
+                           f"{list(frame.columns)}; choose it with "
+                           f"{option_hint('group', 'COLUMN')}")
+        ids = list(pd.unique(frame[group]))
+        logs = [read_table(frame[frame[group] == i].reset_index(drop=True),
+                           label=f"{path.name} [{group}={i}]", **kwargs) for i in ids]
+    data = _stack(logs, ids, path.name)
+    data.rows["in_file"] = len(frame)
+    data.scenario_yaml = scenario
+    data.options = dc.replace(options, acceleration_cutoff_hz=cutoff)
+    return data
+
+
+def _read_bag(path: Path, options: ReadOptions) -> TrainingData:
+    """A bag's JointState rows; `positions`/`targets` select joints and targets by name."""
+    positions, targets = column_spec(options.positions), options.targets
+    kind = targets if targets in ("effort", "wrench") else None
+    topic = options.joint_topic or BAG_JOINT_TOPIC
+    listed = positions if isinstance(positions, list) else None  # names: skip other messages
+    cutoff = _cutoff(options, None, path.name)
+    try:
+        log = read_bag(path, topic, wrench_topic=options.wrench_topic, targets=kind,
+                       joints=listed, **_reader_keywords(options, cutoff))
+    except LogError:
+        raise
+    except Exception as e:  # noqa: BLE001 - rosbags' errors have various types
+        raise LogError(f"{path.name}: not a readable ROS 1 or ROS 2 bag: {e}") from None
+    if positions is not None and listed is None:
+        keep = expand_columns(positions, log.joint_names, f"{path.name} joints on {topic}")
+        i = [log.joint_names.index(n) for n in keep]
+        log.q, log.qd, log.qdd, log.joint_names = log.q[:, i], log.qd[:, i], log.qdd[:, i], keep
+    if kind is None and targets is not None:
+        keep = expand_columns(column_spec(targets), log.target_names, f"{path.name} targets")
+        i = [log.target_names.index(n) for n in keep]
+        log.targets, log.target_names = log.targets[:, i], keep
+    data = _stack([log], [0], path.name)
+    data.rows["in_file"] = message_count(path, topic)
+    data.kind = "bag"
+    data.options = dc.replace(options, acceleration_cutoff_hz=cutoff)
+    return data
+
+
+def _stack(logs: list[RobotLog], ids, source: str) -> TrainingData:
+    first = logs[0]
+    for log in logs[1:]:
+        if log.joint_names != first.joint_names or log.target_names != first.target_names:
+            raise LogError(f"{source}: trajectories differ in their columns")
+    data = TrainingData(
+        X=np.vstack([log.X() for log in logs]),
+        Y=np.vstack([log.targets for log in logs]),
+        t=np.concatenate([log.t for log in logs]),
+        groups=np.concatenate([np.full(len(log), i) for log, i in zip(logs, ids, strict=True)]),
+        joint_names=list(first.joint_names),
+        target_names=list(first.target_names),
+        derived=sorted({d for log in logs for d in log.derived}),
+        source=first.source if len(logs) == 1 else f"{source} ({len(logs)} trajectories)",
+        rows={"read": int(sum(len(log) for log in logs))},
+    )
+    if len(logs) == 1:
+        data.groups = np.zeros(len(first), dtype=np.int64)
+    return data
+
+
+def _time_window(data: TrainingData, t_start, t_end) -> TrainingData:
+    keep = np.ones(len(data.t), bool)
+    if t_start is not None:
+        keep &= data.t >= t_start
+    if t_end is not None:
+        keep &= data.t <= t_end
+    if not keep.any():
+        raise LogError(f"{data.source}: no rows in the time window {t_start}..{t_end} s; the "
+                       f"log spans t = {data.t.min():.6g}..{data.t.max():.6g} s; choose "
+                       f"{option_hint('t_start', 'S')} and {option_hint('t_end', 'S')} in it")
+    data.rows["outside_time_window"] = int((~keep).sum())
+    data.rows["used"] = int(keep.sum())
+    data.rows["dropped_by_reader"] = data.rows["in_file"] - data.rows["read"]
+    data.X, data.Y, data.t, data.groups = (a[keep] for a in (data.X, data.Y, data.t, data.groups))
+    return data
