@@ -1,0 +1,74 @@
+"""HardwareConfig: the LCM channels, message types and timeouts of a live robot.
+
+Loadable with ``pydrake.common.yaml.yaml_load_typed(schema=HardwareConfig, ...)``; call
+``validate()`` after loading (errors name the field, as ``hardware.<field>: ...``).
+"""
+
+# No `from __future__ import annotations`: yaml_load_typed reads the field types.
+import dataclasses as dc
+import math
+
+from ftdrake import ConfigError
+
+#: Joint-state message types understood by :func:`ftdrake.hardware.messages.decode_joint_state`.
+JOINT_STATE_TYPES = ("iiwa_status", "panda_status", "robot_state")
+
+
+@dc.dataclass
+class HardwareConfig:
+    """Where a live robot's streams are and how stale they may get.
+
+    Joint state (`joint_state_type`):
+      ``iiwa_status``: ``drake.lcmt_iiwa_status`` (q = joint_position_measured, v =
+        joint_velocity_estimated, τ = joint_torque_measured).
+      ``panda_status``: ``drake.lcmt_panda_status`` (q = joint_position, v = joint_velocity,
+        τ = joint_torque).
+      ``robot_state``: ``drake.lcmt_robot_state`` carries positions only; velocities arrive
+        on a second ``lcmt_robot_state`` channel, `velocity_channel`, whose
+        ``joint_position`` field holds v in rad/s with the same ``utime`` as the position
+        message it belongs to.
+    F/T sensor: ``drake.lcmt_force_torque`` on `ft_channel` (timestamp in µs; see messages).
+    Outputs: the external wrench (``lcmt_force_torque``) on `external_wrench_channel`; the
+    contact state (``lcmt_drake_signal``, see :func:`encode_contact_state`) on
+    `contact_channel`.
+    """
+
+    lcm_url: str = "udpm://239.255.76.67:7667?ttl=0"
+    joint_state_channel: str = "IIWA_STATUS"
+    joint_state_type: str = "iiwa_status"
+    velocity_channel: str = ""  # only for joint_state_type == "robot_state"
+    ft_channel: str = "FT_SENSOR"
+    external_wrench_channel: str = "FT_EXTERNAL_WRENCH"
+    contact_channel: str = "FT_CONTACT_STATE"
+    sensor_timeout_s: float = 0.005
+    joint_state_timeout_s: float = 0.02
+    n_joints: int = 7
+
+    def validate(self, where: str = "hardware") -> "HardwareConfig":
+        if not (isinstance(self.lcm_url, str) and self.lcm_url):
+            raise ConfigError(f"{where}.lcm_url: must be a non-empty LCM URL")
+        if self.joint_state_type not in JOINT_STATE_TYPES:
+            raise ConfigError(f"{where}.joint_state_type: {self.joint_state_type!r} is not one "
+                              f"of {', '.join(JOINT_STATE_TYPES)}")
+        if self.joint_state_type == "robot_state" and not self.velocity_channel:
+            raise ConfigError(f"{where}.velocity_channel: required when joint_state_type is "
+                              "'robot_state' (that message carries positions only)")
+        names = {}
+        for field in ("joint_state_channel", "ft_channel", "external_wrench_channel",
+                      "contact_channel") + (("velocity_channel",) if self.velocity_channel else ()):
+            value = getattr(self, field)
+            if not (isinstance(value, str) and value):
+                raise ConfigError(f"{where}.{field}: must be a non-empty channel name")
+            if value in names:
+                raise ConfigError(f"{where}.{field}: channel {value!r} is also "
+                                  f"{where}.{names[value]}")
+            names[value] = field
+        for field in ("sensor_timeout_s", "joint_state_timeout_s"):
+            value = getattr(self, field)
+            if not (isinstance(value, (int, float)) and value > 0 and math.isfinite(value)):
+                raise ConfigError(f"{where}.{field}: must be a positive number of seconds, "
+                                  f"got {value!r}")
+        if not (isinstance(self.n_joints, int) and self.n_joints >= 1):
+            raise ConfigError(f"{where}.n_joints: must be a positive integer, got "
+                              f"{self.n_joints!r}")
+        return self

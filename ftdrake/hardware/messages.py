@@ -1,0 +1,165 @@
+"""Decoding robot LCM messages into arrays, and encoding what the station publishes.
+
+Units and conventions (one place):
+
+* Time: LCM ``utime`` / ``timestamp`` fields are int64 microseconds; decoded ``t`` is in s
+  (``utime · 1e-6``). Encoding rounds to the nearest µs.
+* Joint state: q in rad, v in rad/s, measured joint torque in N·m, in the robot's joint
+  order. iiwa/panda status carry float64; ``lcmt_robot_state`` carries float32 positions
+  (≈ 1e-7 relative resolution).
+* Wrench: ``[Fx, Fy, Fz, Tx, Ty, Tz]`` in N and N·m — ``lcmt_force_torque``'s
+  ``fx fy fz tx ty tz`` in that order. As in ftdrake's conventions (README "Conventions"),
+  the reading is the load the tool side applies to the sensor, about the sensor origin So,
+  expressed in the sensor frame S; the published external wrench is the estimated contact
+  wrench in the same frame, about the same point (measured − predicted internal wrench).
+  No frame change or sign flip happens here.
+* Contact state: ``drake.lcmt_drake_signal`` (an existing, documented Drake type: ``dim``,
+  ``val[dim]``, ``coord[dim]`` names, ``timestamp`` µs) with ``coord = CONTACT_COORDS``.
+
+The ``drake`` message classes are plain lcm-gen Python (struct packing): decoding and
+encoding need no ``lcm`` package; only the transport and log files do.
+"""
+
+from __future__ import annotations
+
+from typing import NamedTuple
+
+import numpy as np
+from drake import (
+    lcmt_drake_signal,
+    lcmt_force_torque,
+    lcmt_iiwa_status,
+    lcmt_panda_status,
+    lcmt_robot_state,
+)
+
+#: Names of the values in the contact-state message, in order.
+CONTACT_COORDS = ("contact", "contact_force", "fault", "out_of_domain")
+
+_JOINT_CLASSES = {
+    "iiwa_status": lcmt_iiwa_status,
+    "panda_status": lcmt_panda_status,
+    "robot_state": lcmt_robot_state,
+}
+
+
+class JointSample(NamedTuple):
+    """t (s), q (rad, n), v (rad/s, n, or None for robot_state), tau (N·m, n, or None)."""
+
+    t: float
+    q: np.ndarray
+    v: np.ndarray | None
+    tau: np.ndarray | None
+
+
+class WrenchSample(NamedTuple):
+    """t (s), wrench ``[Fx Fy Fz Tx Ty Tz]`` (N, N·m) in the sensor frame S about So."""
+
+    t: float
+    wrench: np.ndarray
+
+
+class ContactState(NamedTuple):
+    t: float
+    contact: bool
+    contact_force: float
+    fault: bool
+    out_of_domain: bool = False
+
+
+def message_class(joint_state_type: str):
+    """The ``drake.lcmt_*`` class for a HardwareConfig.joint_state_type."""
+    try:
+        return _JOINT_CLASSES[joint_state_type]
+    except KeyError:
+        raise ValueError(f"unknown joint-state type {joint_state_type!r}; one of "
+                         f"{', '.join(_JOINT_CLASSES)}") from None
+
+
+def decode_joint_state(joint_state_type: str, data: bytes) -> JointSample:
+    """Decodes one joint-state message. Raises ValueError on a malformed message
+    (bad fingerprint or a num_joints that disagrees with the array lengths)."""
+    cls = message_class(joint_state_type)
+    msg = cls.decode(data)
+    t = msg.utime * 1e-6
+    if joint_state_type == "iiwa_status":
+        q, v, tau = (msg.joint_position_measured, msg.joint_velocity_estimated,
+                     msg.joint_torque_measured)
+    elif joint_state_type == "panda_status":
+        q, v, tau = msg.joint_position, msg.joint_velocity, msg.joint_torque
+    else:
+        q, v, tau = msg.joint_position, None, None
+    q = np.asarray(q, dtype=float)
+    if len(q) != msg.num_joints:
+        raise ValueError(f"{cls.__name__}: num_joints {msg.num_joints} but {len(q)} positions")
+    v = None if v is None else np.asarray(v, dtype=float)
+    tau = None if tau is None or len(tau) == 0 else np.asarray(tau, dtype=float)
+    return JointSample(t, q, v, tau)
+
+
+def decode_wrench(data: bytes) -> WrenchSample:
+    """Decodes ``lcmt_force_torque`` → (t s, [Fx Fy Fz Tx Ty Tz] N, N·m)."""
+    msg = lcmt_force_torque.decode(data)
+    return WrenchSample(msg.timestamp * 1e-6,
+                        np.array([msg.fx, msg.fy, msg.fz, msg.tx, msg.ty, msg.tz], dtype=float))
+
+
+def _utime(t: float) -> int:
+    return round(float(t) * 1e6)
+
+
+def encode_wrench(t: float, wrench) -> bytes:
+    """``lcmt_force_torque`` bytes for a wrench ``[Fx Fy Fz Tx Ty Tz]`` (N, N·m) at t (s)."""
+    w = np.asarray(wrench, dtype=float).reshape(6)
+    msg = lcmt_force_torque()
+    msg.timestamp = _utime(t)
+    msg.fx, msg.fy, msg.fz, msg.tx, msg.ty, msg.tz = (float(x) for x in w)
+    return msg.encode()
+
+
+def encode_contact_state(state: ContactState) -> bytes:
+    """``lcmt_drake_signal`` bytes: val = [contact 0/1, ‖F‖ N, fault 0/1, out_of_domain 0/1]."""
+    msg = lcmt_drake_signal()
+    msg.timestamp = _utime(state.t)
+    msg.dim = len(CONTACT_COORDS)
+    msg.coord = list(CONTACT_COORDS)
+    msg.val = [float(bool(state.contact)), float(state.contact_force),
+               float(bool(state.fault)), float(bool(state.out_of_domain))]
+    return msg.encode()
+
+
+def decode_contact_state(data: bytes) -> ContactState:
+    msg = lcmt_drake_signal.decode(data)
+    if tuple(msg.coord) != CONTACT_COORDS:
+        raise ValueError(f"not a contact-state signal: coord {list(msg.coord)}")
+    c, f, fault, ood = msg.val
+    return ContactState(msg.timestamp * 1e-6, c > 0.5, f, fault > 0.5, ood > 0.5)
+
+
+def encode_joint_state(joint_state_type: str, t: float, q, v=None, tau=None) -> bytes:
+    """The message a robot driver would send (for simulated robots and tests). For
+    robot_state only q is encoded (send v the same way on the velocity channel)."""
+    q = np.asarray(q, dtype=float)
+    n = len(q)
+    v = np.zeros(n) if v is None else np.asarray(v, dtype=float)
+    tau = np.zeros(n) if tau is None else np.asarray(tau, dtype=float)
+    zeros = [0.0] * n
+    msg = message_class(joint_state_type)()
+    msg.utime, msg.num_joints = _utime(t), n
+    if joint_state_type == "iiwa_status":
+        msg.joint_position_measured, msg.joint_velocity_estimated = list(q), list(v)
+        msg.joint_torque_measured = list(tau)
+        for name in ("joint_position_commanded", "joint_position_ipo",
+                     "joint_torque_commanded", "joint_torque_external"):
+            setattr(msg, name, zeros)
+    elif joint_state_type == "panda_status":
+        msg.joint_position, msg.joint_velocity, msg.joint_torque = list(q), list(v), list(tau)
+        for name in ("joint_position_desired", "joint_velocity_desired",
+                     "joint_acceleration_desired", "joint_torque_desired",
+                     "joint_torque_external"):
+            setattr(msg, name, zeros)
+        msg.robot_utime = msg.utime
+    else:
+        msg.joint_name = [f"joint_{i}" for i in range(n)]
+        msg.joint_position = list(q)
+    return msg.encode()
