@@ -9,14 +9,16 @@ import math
 import pytest
 
 from ftdrake import ScenarioConfig
+from ftdrake.cli import study as cli
 from ftdrake.experiments import study as dut
+from ftdrake.experiments.study import Finding, describe
 from ftdrake.sim.collection import collect
 
-# A grid of one candidate each: the test checks the plumbing, not the tuning.
+# A grid of one candidate each (by registry name): the test checks the plumbing, not the tuning.
 TINY_GRID = {
-    "RandomForestCompensator": [
+    "rf": [
         {"n_estimators": [8], "max_features": [1.0], "min_samples_leaf": [5]}],
-    "SVRCompensator": [{"kernel": ["rbf"], "C": [10.0], "gamma": [0.1]}],
+    "svr": [{"kernel": ["rbf"], "C": [10.0], "gamma": [0.1]}],
 }
 TINY = {"preset": TINY_GRID, "trajectories": 3, "test_trajectories": 1, "duration": 4.0,
         "train_hz": 25.0, "test_hz": 50.0, "n_splits": 3, "n_jobs": 2, "progress": False}
@@ -90,7 +92,7 @@ def test_results_hold_the_study_tables(tiny_run):
 def test_figures_and_markdown_are_written(tiny_run):
     out, _ = tiny_run
     for dataset in dut.DATASETS:
-        for name in dut._FIGURES:
+        for name in dut.FIGURES:
             png = out / f"{name}_{dataset}.png"
             assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     text = (out / "results.md").read_text()
@@ -98,14 +100,92 @@ def test_figures_and_markdown_are_written(tiny_run):
     assert not list(out.glob(".*")), "staging or temporary files left behind"
 
 
+def _no_prose(value):
+    """Numbers, booleans, and short labels (axis, feature set, input names) only."""
+    if isinstance(value, dict):
+        return all(_no_prose(k) and _no_prose(v) for k, v in value.items())
+    if isinstance(value, list):
+        return all(_no_prose(v) for v in value)
+    return isinstance(value, (bool, int, float)) or (isinstance(value, str) and " " not in value)
+
+
 @pytest.mark.slow
-def test_findings_are_computed(tiny_run):
+def test_findings_are_numbers_and_the_report_words_them(tiny_run):
     _, results = tiny_run
-    found = dut.findings(results)
-    assert [f["id"] for f in found] == ["a", "b", "c", "d", "e", "f"]
+    found = dut.check_findings(results)
+    assert [f.id for f in found] == ["a", "b", "c", "d", "e", "f"]
     for f in found:
-        assert isinstance(f["reproduced"], bool) and f["evidence"]
-        assert (f["why"] is None) == f["reproduced"]
+        assert isinstance(f.reproduced, bool) and _no_prose(f.numbers), f
+        json.dumps(f.as_dict())
+    records = dut.finding_records(found)
+    assert records == results["findings"]
+    for record in records:
+        assert record["claim"] and record["evidence"]
+        if record["reproduced"]:
+            assert record["why"] is None
+        assert Finding.from_dict(record) in found
+
+
+# -- prose chosen from the numbers -----------------------------------------------------------
+AXES = ("Fx", "Fy", "Fz", "Tx", "Ty", "Tz")
+
+
+def _c(worst_first, physics=0.01, tz_floor=0.003):
+    nmse = dict(zip(worst_first, [0.9, 0.8, 0.5, 0.1, 0.05, 0.02], strict=True))
+    return Finding("c", "study", "reference", False, {
+        "mean_nmse": nmse, "worst_first": list(worst_first),
+        "noise_floor_nmse": {a: (tz_floor if a == "Tz" else 0.3) for a in AXES},
+        "physics_nmse": dict.fromkeys(AXES, physics)})
+
+
+def test_claim_c_why_speaks_only_of_the_worst_axes():
+    # As in the quick study: Fx and Fz worst; the physics model gets Fx right.
+    _, why = describe(_c(("Fx", "Fz", "Ty", "Tz", "Tx", "Fy")))
+    assert why.startswith("the worst axes here are Fx and Fz. Fz is hard for the study's")
+    assert "but our Tz varies well above the noise" in why
+    assert "while the black boxes interpolate Fx poorly" in why
+    # Tz worst, Fz not: no "Fz is hard", no "Tz varies well above the noise".
+    _, why = describe(_c(("Tz", "Fx", "Fz", "Ty", "Tx", "Fy")))
+    assert "Fz is hard" not in why and "Tz varies" not in why
+    assert "The black boxes interpolate Fx poorly" in why
+    # The physics model no better than the black boxes: no claim that they interpolate poorly.
+    _, why = describe(_c(("Fx", "Fz", "Ty", "Tz", "Tx", "Fy"), physics=5.0))
+    assert "interpolate" not in why
+    # Reproduced: no reason at all.
+    found = _c(("Fz", "Tz", "Fx", "Ty", "Tx", "Fy"))
+    assert describe(Finding("c", "study", "reference", True, found.numbers))[1] is None
+
+
+def _d(nmse_q, nmse_full, rf_change):
+    b = Finding("b", "study", "reference", False, {
+        "largest_change": {"reference": {"rf": rf_change, "svr": -1.0}},
+        "rf_unchanged": abs(rf_change) < 0.05, "svr_changed": True})
+    d = Finding("d", "study", "reference", False, {
+        "q_share": {"reference": 0.5, "z_rich": 0.6}, "threshold": 0.8,
+        "top3": ["q_1", "qd_0", "q_0"], "top3_q_only": ["q_1", "q_0", "q_2"],
+        "rf_fx_nmse": {"q": nmse_q, "q,qd,qdd": nmse_full}})
+    return describe(d, {"b": b, "d": d})[1]
+
+
+def test_claim_d_why_follows_whether_the_derivatives_help():
+    assert "(see b), so the forest spends splits on them; they do not help" in _d(0.8, 0.9, -0.2)
+    assert "(see b)" not in _d(0.8, 0.9, -0.01)  # b's explanation is not printed then
+    helped = _d(0.9, 0.5, -0.2)
+    assert "do not help" not in helped and "carry information about Fx" in helped
+
+
+def test_claim_a_and_f_reasons_need_their_numbers():
+    numbers = {"cells": 18, "rf_wins": {"reference": 0, "z_rich": 3},
+               "rf_wins_vs_scaled_svr": {"reference": 0, "z_rich": 2},
+               "svr_wins_reference": [], "shuffled_test_over_cv": 0.8, "svr_epsilon": 0.05,
+               "narrow_axes_std": {"Tz": 0.02}}
+    _, why = describe(Finding("a", "study", "reference", False, numbers))
+    assert "shuffled CV" not in why and "Where RF does win" not in why
+    f = {"reference": {"axes": 4, "median_ratio": 2.0}, "z_rich": {"axes": 6, "median_ratio": 3.0}}
+    quiet = {**f, "excitation_warnings": {"reference": 0, "z_rich": 0}}
+    warned = {**f, "excitation_warnings": {"reference": 1, "z_rich": 0}}
+    assert describe(Finding("f", "ftdrake", "reference", False, quiet))[1] is None
+    assert "see the warnings" in describe(Finding("f", "ftdrake", "reference", False, warned))[1]
 
 
 @pytest.mark.slow
@@ -117,7 +197,7 @@ def test_a_failing_run_leaves_no_partial_output(tiny_data, tmp_path, monkeypatch
     def broken(*args, **kwargs):
         raise RuntimeError("figure failed")
 
-    monkeypatch.setitem(dut._FIGURE_MAKERS, "importances", broken)
+    monkeypatch.setitem(dut.FIGURE_MAKERS, "importances", broken)
     with pytest.raises(RuntimeError, match="figure failed"):
         dut.run_study(out, data=tiny_data, **TINY)
     assert sorted(p.name for p in out.iterdir()) == ["earlier.txt"]
@@ -141,7 +221,7 @@ def test_only_keeps_the_feature_blocks():
 # -- command line ----------------------------------------------------------------------------
 def _parser():
     parser = argparse.ArgumentParser(prog="ftdrake")
-    dut.register(parser.add_subparsers(dest="command", required=True))
+    cli.register(parser.add_subparsers(dest="command", required=True))
     return parser
 
 
@@ -150,7 +230,7 @@ def test_cli_defaults_are_the_quick_study():
     assert args.preset == "quick" and args.cv == "grouped" and not args.quiet
     assert str(args.out) == "out/study"
     assert (args.trajectories, args.duration) == (dut.TRAJECTORIES, dut.DURATION_S)
-    assert args.run is dut.run_command
+    assert args.run is cli.run_command
 
 
 def test_cli_parses_every_option():

@@ -21,7 +21,7 @@ def main(argv=None) -> int:
     _add_demo(sub)
     _add_export(sub)
     _add_evaluate_detection(sub)
-    from ..experiments import study
+    from . import study
     from . import train
 
     study.register(sub)

@@ -1,0 +1,406 @@
+"""The study's outputs: the findings in words, results.md and the figures.
+
+The prose lives here, chosen from the numbers of :mod:`.findings`: each sentence of evidence
+and each likely reason is written only when the numbers it cites support it.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from ...io import atomic_path
+from .findings import BLACK_BOXES, Finding
+from .layout import AXES, DATASETS, FEATURES, METHODS
+
+METHOD_LABELS = {"rf": "RF", "svr": "SVR", "svr_scaled": "SVR, scaled targets",
+                 "hybrid": "hybrid (physics + RF)", "physics": "physics"}
+CLAIMS = {
+    "a": "RF has a lower test MSE than SVR on every axis",
+    "b": "RF is ~unchanged when q̇, q̈ are added, SVR changes",
+    "c": "Fz and Tz are the worst axes on the reference trajectory",
+    "d": "The RF Fx model relies on the joint positions q",
+    "e": "More Z motion makes Fz and Tz easier to learn (the study's explanation of c)",
+    "f": "Physics + RF residual beats the best tuned RF or SVR on every axis",
+}
+#: Below this σ²/var an axis "varies well above the noise" (its std is over ~3 σ).
+WELL_ABOVE_NOISE = 0.1
+
+
+# ----------------------------------------------------------------------------------------------
+# Findings in words.
+# ----------------------------------------------------------------------------------------------
+def finding_records(found: list[Finding]) -> list[dict]:
+    """results.json's findings: each :class:`Finding` with its claim, evidence and likely
+    reason (``why``: None when reproduced, or when the numbers support no reason)."""
+    by_id = {f.id: f for f in found}
+    records = []
+    for f in found:
+        evidence, why = describe(f, by_id)
+        records.append({"id": f.id, "claim": CLAIMS[f.id], "source": f.source,
+                        "dataset": f.dataset, "reproduced": f.reproduced,
+                        "evidence": evidence, "numbers": f.numbers, "why": why})
+    return records
+
+
+def describe(f: Finding, by_id: dict[str, Finding] | None = None) -> tuple[str, str | None]:
+    """(evidence, why) of a finding; `by_id` holds the other findings, for cross-references."""
+    evidence, why = _WORDS[f.id](f.numbers, by_id or {f.id: f})
+    return evidence, None if f.reproduced else why
+
+
+def _words_a(n, by_id):
+    total, wins, scaled = n["cells"], n["rf_wins"], n["rf_wins_vs_scaled_svr"]
+    losses = [f"{x['axis']} ({x['features']}) {x['rf_mse']:.3g} vs {x['svr_mse']:.3g}"
+              for x in n["svr_wins_reference"]]
+    evidence = (
+        f"RF wins {wins['reference']}/{total} (axis × feature set) cells on reference, "
+        f"{wins['z_rich']}/{total} on z_rich; against SVR with scaled targets "
+        f"{scaled['reference']}/{total} and {scaled['z_rich']}/{total}"
+        + (f"; SVR wins on reference (RF vs SVR MSE) {', '.join(losses)}" if losses else ""))
+    shuffled, narrow, eps = n["shuffled_test_over_cv"], n["narrow_axes_std"], n["svr_epsilon"]
+    why = ("we test on held-out trajectories, the study on rows of its one trajectory. A new "
+           "trajectory asks for interpolation between the training trajectories, where a "
+           "forest is piecewise constant and an RBF kernel is smooth")
+    if shuffled > 1:
+        why += (f"; on rows of the training trajectories (shuffled CV) RF's MSE is "
+                f"{shuffled:.0f}× lower than on new ones")
+    if narrow and wins["reference"] > 0:
+        why += (f". Where RF does win, it is partly the study's unscaled SVR targets: SVR's "
+                f"ε = {eps:g} is wider than the whole signal of {', '.join(narrow)} (std "
+                + ", ".join(f"{std:.2g}" for std in narrow.values())
+                + "), so SVR predicts little more than their mean there")
+    return evidence, why
+
+
+def _words_b(n, by_id):
+    change, axis, limit = n["largest_change"], n["largest_change_axis"], n["threshold"]
+    rf, svr = change["reference"]["rf"], change["reference"]["svr"]
+    evidence = (
+        f"largest change of the variance score from q to q,qd,qdd on reference: RF "
+        f"{rf:+.3f} ({axis['reference']['rf']}), SVR {svr:+.3f} ({axis['reference']['svr']}); "
+        f"on z_rich RF {change['z_rich']['rf']:+.3f}, SVR {change['z_rich']['svr']:+.3f} "
+        f"(unchanged: |change| < {limit})")
+    why = []
+    if not n["rf_unchanged"] and rf < 0:
+        why.append("RF changes (its variance score drops): along a few training trajectories "
+                   "q̇ and q̈ are nearly functions of q, so trees split on them as a proxy "
+                   "for where on the trajectory they are — splits that do not carry over to "
+                   "a new trajectory")
+    elif not n["rf_unchanged"]:
+        why.append("RF changes (its variance score rises): q̇ and q̈ carry information about "
+                   "the wrench that q alone does not")
+    if not n["svr_changed"]:
+        why.append("SVR barely changes: inputs are scaled to [-1, 1] and the kernel width is "
+                   "tuned, so extra weakly relevant columns cost it little")
+    return evidence, "; ".join(why) or None
+
+
+def _words_c(n, by_id):
+    nmse, floor, order = n["mean_nmse"], n["noise_floor_nmse"], n["worst_first"]
+    physics = n["physics_nmse"]
+    evidence = ("mean NMSE of RF and SVR over the feature sets, worst first: "
+                + ", ".join(f"{a} {nmse[a]:.3g}" for a in order))
+    worst = order[:2]
+    parts = []
+    if "Fz" in worst:
+        parts.append(f"Fz is hard for the study's reason (σ²/var, the NMSE of a perfect "
+                     f"model: Fz {floor['Fz']:.2g})")
+    if "Tz" not in worst and floor["Tz"] < WELL_ABOVE_NOISE:
+        parts.append(f"{'but ' if parts else ''}our Tz varies well above the noise (σ²/var "
+                     f"{floor['Tz']:.2g}; the tool's centre of mass is off the sensor axis)")
+    # Worst axes the physics model predicts far better: the data determines them, the black
+    # boxes interpolate them poorly between trajectories.
+    for a in [a for a in worst if a not in ("Fz", "Tz") and physics[a] < nmse[a]]:
+        parts.append(f"{'while ' if parts else ''}the black boxes interpolate {a} poorly "
+                     f"between trajectories (the physics model's {a} NMSE is "
+                     f"{physics[a]:.2g})")
+    why = f"the worst axes here are {worst[0]} and {worst[1]}"
+    if parts:
+        why += ". " + _capitalised(", ".join(parts))
+    return evidence, why
+
+
+def _words_d(n, by_id):
+    share, fx, limit = n["q_share"], n["rf_fx_nmse"], n["threshold"]
+    evidence = (
+        f"q holds {share['reference']:.0%} of the Fx forest's importance with q,qd,qdd on "
+        f"reference ({share['z_rich']:.0%} on z_rich; concentrated: ≥ {limit:.0%}); top 3: "
+        f"{', '.join(n['top3'])}; top 3 of the q-only forest: {', '.join(n['top3_q_only'])}")
+    nmse = f"RF's Fx NMSE is {fx['q']:.3g} with q and {fx['q,qd,qdd']:.3g} with q,qd,qdd"
+    if fx["q,qd,qdd"] >= fx["q"]:
+        b = by_id.get("b")
+        see_b = (" (see b)" if b is not None and not b.numbers["rf_unchanged"]
+                 and b.numbers["largest_change"]["reference"]["rf"] < 0 else "")
+        why = ("with few training trajectories q̇ and q̈ stand in for position along a "
+               f"trajectory{see_b}, so the forest spends splits on them; they do not help on "
+               f"new trajectories: {nmse}")
+    else:
+        why = f"q̇ and q̈ carry information about Fx that q does not: {nmse}"
+    return evidence, why
+
+
+def _words_e(n, by_id):
+    ref, rich, tip = n["reference"], n["z_rich"], n["tool_tip_z_std_mm"]
+    evidence = (
+        f"mean NMSE of RF and SVR, reference → z_rich: Fz {ref['Fz']:.3g} → "
+        f"{rich['Fz']:.3g}, Tz {ref['Tz']:.3g} → {rich['Tz']:.3g}; tool-tip z std "
+        f"{tip['reference']:.0f} → {tip['z_rich']:.0f} mm")
+    why = ("z_rich also covers a larger joint space than reference, so its test trajectories "
+           "ask for more interpolation")
+    return evidence, why
+
+
+def _words_f(n, by_id):
+    r, z = n["reference"], n["z_rich"]
+    evidence = (
+        f"hybrid (q,qd,qdd) has the lower test MSE on {r['axes']}/6 axes on reference, median "
+        f"{r['median_ratio']:.0f}× lower; on z_rich {z['axes']}/6, "
+        f"{z['median_ratio']:.0f}× lower")
+    why = None
+    if n["excitation_warnings"]["reference"]:
+        why = ("the physics part fits poorly where the data excites the payload parameters "
+               "poorly (see the warnings)")
+    return evidence, why
+
+
+_WORDS = {"a": _words_a, "b": _words_b, "c": _words_c, "d": _words_d, "e": _words_e,
+          "f": _words_f}
+
+
+def _capitalised(text: str) -> str:
+    return text[:1].upper() + text[1:]
+
+
+# ----------------------------------------------------------------------------------------------
+# Outputs.
+# ----------------------------------------------------------------------------------------------
+def markdown(results: dict) -> str:
+    """results.md: settings, findings, CV disagreement, then per-dataset tables."""
+    lines = ["# RF vs SVR for F/T compensation — the study repeated in simulation", "",
+             _settings_text(results), "", "## Findings", ""]
+    found = [Finding.from_dict(r) for r in results["findings"]]
+    by_id = {f.id: f for f in found}
+    for f in found:
+        evidence, why = describe(f, by_id)
+        words = ("reproduced", "not reproduced") if f.source == "study" else (
+            "holds", "does not hold")
+        mark = words[0] if f.reproduced else f"**{words[1]}**"
+        source = "" if f.source == "study" else f" ({f.source}'s claim, not the study's)"
+        lines.append(f"* ({f.id}) {CLAIMS[f.id]}{source} — {mark}. {_sentence(evidence)}")
+        if why:
+            lines.append(f"  *Why:* {_sentence(why)}")
+    lines += ["", "## Grouped vs shuffled CV (RF on q)", "",
+              "CV MSE of each fold scheme against the held-out test MSE of the model it "
+              + "chose; test/CV ≫ 1 means the CV was optimistic.", "",
+              "| dataset | scheme | " + " | ".join(f"{a} CV" for a in AXES)
+              + " | median test/CV |", "|---" * (len(AXES) + 3) + "|"]
+    for d in DATASETS:
+        dis = results["cv_disagreement"][d]
+        for scheme in ("grouped", "shuffled"):
+            row = dis[scheme]
+            lines.append(f"| {d} | {scheme} | " + " | ".join(
+                f"{row['cv_mse'][a]:.3g} → {row['test_mse'][a]:.3g}" for a in AXES)
+                + f" | {row['median_test_over_cv']:.2f} |")
+    lines += ["", "Cells: CV MSE → test MSE (N², (N·m)²).", ""]
+    for d in DATASETS:
+        lines += _dataset_markdown(results, d)
+    lines += ["## Grid sizes", "", "| estimator | " + " | ".join(FEATURES) + " |",
+              "|---" * (len(FEATURES) + 1) + "|"]
+    for name, sizes in results["grid_sizes"].items():
+        lines.append(f"| {name} | " + " | ".join(str(sizes[f]) for f in FEATURES) + " |")
+    lines.append("")
+    return "\n".join(lines)
+
+
+def _dataset_markdown(results, d) -> list[str]:
+    size, tip = results["sizes"][d], results["tool_tip"][d]
+    lines = [f"## Dataset `{d}`", "",
+             f"{size['train_rows']} training rows ({size['svr_train_rows']} for SVR) from "
+             + f"trajectories {size['train_trajectories']}, {size['cv_groups']} CV groups; "
+             + f"{size['test_rows']} test rows from trajectories {size['test_trajectories']}.",
+             "", "Tool tip in the world frame (mm; tilt of the tool axis from vertical in °), "
+             + "like the study's Table 3:", "", "| | x | y | z | tilt |", "|---|---|---|---|---|"]
+    for stat in ("max", "min", "mean", "std"):
+        mm = " | ".join(f"{tip[a][stat] * 1000:.0f}" for a in "xyz")
+        lines.append(f"| {stat} | {mm} | {np.degrees(tip['tilt'][stat]):.1f} |")
+    ws = results["wrench_stats"][d]
+    lines += ["", "Measured wrench on the test rows (N, N·m), like the study's Table 2:", "",
+              "| | " + " | ".join(AXES) + " |", "|---" * (len(AXES) + 1) + "|"]
+    for stat in ("max", "min", "mean", "std"):
+        lines.append(f"| {stat} | " + " | ".join(f"{ws[a][stat]:.3g}" for a in AXES) + " |")
+    for metric, title in (("nmse", "NMSE (MSE / var of the measured wrench)"),
+                          ("variance_score", "Variance score"),
+                          ("mse", "MSE (N², (N·m)²)"),
+                          ("rms_over_noise", "RMS against the true internal wrench / noise σ")):
+        lines += ["", f"**{title}**", "", "| method | features | " + " | ".join(AXES) + " |",
+                  "|---" * (len(AXES) + 2) + "|"]
+        for method in METHODS:
+            for f in FEATURES:
+                cell = results["metrics"][d][method][f]
+                lines.append(f"| {METHOD_LABELS[method]} | {f} | "
+                             + " | ".join(f"{cell[a][metric]:.3g}" for a in AXES) + " |")
+    lines += ["", "**Timings** (s; tune = grid search with refit, fit = one refit)", "",
+              "| method | features | tune | fit | predict | µs/row |", "|---|---|---|---|---|---|"]
+    for method in METHODS:
+        for f in FEATURES:
+            t = results["timings"][d][method][f]
+            lines.append(f"| {METHOD_LABELS[method]} | {f} | {t.get('tune_s', '–')} | "
+                         f"{t['fit_s']:.2f} | {t['predict_s']:.3f} | "
+                         f"{t['predict_us_per_row']:.1f} |")
+    lines += ["", "**Best parameters** (per axis, Fx first)", ""]
+    for method in BLACK_BOXES:
+        for f in FEATURES:
+            params = results["best_params"][d][method][f]
+            lines.append(f"* {METHOD_LABELS[method]} {f}: " + "; ".join(
+                f"{a} " + ", ".join(f"{k}={v}" for k, v in sorted(params[a].items()))
+                for a in AXES))
+    figs = ", ".join(f"[{n}]({n}_{d}.png)" for n in FIGURES)
+    lines += ["", f"Figures: {figs}.", ""]
+    if results["warnings"][d]:
+        lines += ["Warnings: " + " / ".join(results["warnings"][d]), ""]
+    return lines
+
+
+def _settings_text(results) -> str:
+    s = results["settings"]
+    return (
+        f"Preset `{s['preset']}`, cv `{s['cv']}` ({s['n_splits']} folds × {s['n_repeats']}), "
+        f"{s['trajectories']} trajectories × {s['duration_s']:g} s per dataset, the last "
+        f"{s['test_trajectories']} held out whole. Training rows at {s['train_hz']:g} Hz, "
+        f"test rows at {s['test_hz']:g} Hz; SVR trained on at most {s['svr_max_rows']} rows "
+        f"(evenly spaced). SVR is the study's (targets in N, N·m, so its ε = "
+        f"{s['svr_epsilon']:g} is in N or N·m); 'SVR, scaled targets' standardises each axis "
+        f"first (ε = {s['svr_epsilon']:g} σ of the axis). Inputs: {s['inputs']}. "
+        f"Targets: {s['targets']}; "
+        f"truth: {s['truth']}. Sensor `{s['sensor_preset']}`, noise σ = "
+        f"{_fmt_list(s['noise_std'])} (N, N·m). Wall time "
+        f"{results.get('wall_time_s', float('nan')):.0f} s."
+    )
+
+
+def _sentence(text: str) -> str:
+    return text[:1].upper() + text[1:] + "."
+
+
+def _fmt_list(values) -> str:
+    return "[" + ", ".join(f"{v:.3g}" for v in values) + "]"
+
+
+# -- figures ----------------------------------------------------------------------------------
+FIGURES = ("nmse", "mse", "variance_forces", "variance_torques", "importances")
+_COLORS = {"rf": ("#9ecae1", "#4292c6", "#08519c"), "svr": ("#fdae6b", "#f16913", "#a63603")}
+
+
+def write_figures(results: dict, out_dir: Path) -> list[Path]:
+    """The study's figures for every dataset: ``<figure>_<dataset>.png`` in `out_dir`."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    paths = []
+    for d in DATASETS:
+        for name in FIGURES:
+            fig = FIGURE_MAKERS[name](plt, results, d)
+            path = Path(out_dir) / f"{name}_{d}.png"
+            with atomic_path(path) as tmp:
+                fig.savefig(tmp, dpi=100, format="png")
+            plt.close(fig)
+            paths.append(path)
+    return paths
+
+
+def _bars(ax, results, d, metric, axes, log=False):
+    """Grouped bars: per wrench axis, RF and SVR × the three feature sets."""
+    width = 0.8 / (2 * len(FEATURES))
+    x = np.arange(len(axes))
+    for i, method in enumerate(("rf", "svr")):
+        for k, f in enumerate(FEATURES):
+            cell = results["metrics"][d][method][f]
+            values = [cell[a][metric] for a in axes]
+            offset = (i * len(FEATURES) + k - (2 * len(FEATURES) - 1) / 2) * width
+            ax.bar(x + offset, values, width, color=_COLORS[method][k],
+                   label=f"{METHOD_LABELS[method]} {f}")
+    ax.set_xticks(x, axes)
+    if log:
+        ax.set_yscale("log")
+    ax.grid(axis="y", alpha=0.3, which="both")
+
+
+def _legend_right(fig, ax):
+    ax.legend(fontsize=8, loc="upper left", bbox_to_anchor=(1.01, 1.0), frameon=False)
+
+
+def _fig_nmse(plt, results, d):
+    fig, ax = plt.subplots(figsize=(9, 4.2))
+    _bars(ax, results, d, "nmse", AXES, log=True)
+    ax.axhline(1.0, color="k", lw=0.8, ls="--")  # NMSE 1: no better than the mean
+    ax.set_ylabel("NMSE (MSE / var)  [1 = predicting the mean]")
+    ax.set_title(f"NMSE per axis, held-out trajectories — {d}")
+    _legend_right(fig, ax)
+    fig.tight_layout()
+    return fig
+
+
+def _fig_mse(plt, results, d):
+    fig, (left, right) = plt.subplots(1, 2, figsize=(11, 4.2))
+    _bars(left, results, d, "mse", AXES[:3], log=True)
+    _bars(right, results, d, "mse", AXES[3:], log=True)
+    left.set_ylabel("MSE [N²]")
+    right.set_ylabel("MSE [(N·m)²]")
+    _legend_right(fig, right)
+    fig.suptitle(f"MSE per axis, held-out trajectories — {d}")
+    fig.tight_layout()
+    return fig
+
+
+def _fig_variance(axes, kind):
+    def make(plt, results, d):
+        fig, ax = plt.subplots(figsize=(8, 4.2))
+        _bars(ax, results, d, "variance_score", axes)
+        bottom = -1.0  # a worse-than-mean model is clipped here, its value written on it
+        values = [results["metrics"][d][m][f][a]["variance_score"] for m in ("rf", "svr")
+                  for f in FEATURES for a in axes]
+        ax.set_ylim(max(min(0.0, min(values)) - 0.05, bottom), 1.02)
+        for bar in ax.patches:
+            if bar.get_height() < bottom:
+                ax.text(bar.get_x() + bar.get_width() / 2, bottom + 0.02,
+                        f"{bar.get_height():.1f}", rotation=90, ha="center", va="bottom",
+                        fontsize=7, bbox={"facecolor": "w", "alpha": 0.8, "lw": 0, "pad": 1})
+        ax.axhline(0, color="k", lw=0.8)
+        ax.set_ylabel("variance score  [1 = perfect]")
+        ax.set_title(f"Variance score of the {kind} models — {d}")
+        _legend_right(fig, ax)
+        fig.tight_layout()
+        return fig
+
+    return make
+
+
+def _fig_importances(plt, results, d):
+    fig, (top, bottom) = plt.subplots(2, 1, figsize=(9, 6))
+    block_color = {"q": "#08519c", "qd": "#6baed6", "qdd": "#c6dbef"}
+    for ax, f in ((top, "q,qd,qdd"), (bottom, "q")):
+        imp = results["feature_importances"][d][f]
+        names = list(imp)
+        ax.bar(range(len(names)), list(imp.values()),
+               color=[block_color[n.rsplit("_", 1)[0]] for n in names])
+        ax.set_xticks(range(len(names)), names, rotation=90 if len(names) > 7 else 0,
+                      fontsize=8)
+        ax.set_ylabel("importance")
+        ax.set_title(f"Fx random forest on {f}", fontsize=10)
+        ax.grid(axis="y", alpha=0.3)
+    handles = [plt.Rectangle((0, 0), 1, 1, color=c) for c in block_color.values()]
+    top.legend(handles, ["q (rad)", "q̇ (rad/s)", "q̈ (rad/s²)"], fontsize=8, loc="upper right")
+    fig.suptitle(f"Feature importances of the Fx RF model — {d}")
+    fig.tight_layout()
+    return fig
+
+
+FIGURE_MAKERS = {"nmse": _fig_nmse, "mse": _fig_mse,
+                  "variance_forces": _fig_variance(AXES[:3], "force"),
+                  "variance_torques": _fig_variance(AXES[3:], "torque"),
+                  "importances": _fig_importances}
+

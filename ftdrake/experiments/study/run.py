@@ -1,0 +1,443 @@
+"""The study's run: collection, the train/test split, tuning and scoring of every method, and
+the cost model behind the time estimate.
+
+:func:`run_study` ties the package together: it runs every method × feature set on each
+dataset (:func:`study_dataset`), checks the claims (:mod:`.findings`) and writes the outputs
+(:mod:`.report`). The protocol is described in the package docstring.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import os
+import time
+import warnings
+from dataclasses import dataclass
+
+import numpy as np
+import pandas as pd
+from sklearn.base import clone
+from threadpoolctl import threadpool_limits
+
+from ... import conventions as col
+from ...compensation.features import FEATURE_SETS, check_feature_set, feature_names
+from ...compensation.metrics import report
+from ...compensation.physics import ExcitationWarning
+from ...compensation.registry import entry
+from ...compensation.tuning import grid_size, param_grid, segment_groups, tune
+from ...config import ScenarioConfig
+from ...data.dataset import joint_state_layout, wrench_targets
+from ...io import atomic_path, staged_outputs
+from ...sim.collection import collect, trajectory_config
+from . import report as outputs
+from .findings import check_findings
+from .layout import AXES, DATASETS, FEATURES, METHODS
+
+#: The methods tuned by grid search, by their compensator's registry name (its grids).
+TUNED = {"rf": "rf", "svr": "svr", "svr_scaled": "svr"}
+#: The physics rows: the payload model that reads only the feature set's joint-state blocks.
+PHYSICS_MODE = {"q": "static", "q,qd": "dynamic", "q,qd,qdd": "dynamic"}
+
+SEGMENT_S = 4.0  # length of a grouped-CV segment (s): longer than a row's near copies
+#: The hybrid's residual forest is not tuned (its grid would double the run time); these
+#: settings smooth over the sensor noise that the residual mostly is.
+HYBRID_RESIDUAL = {"n_estimators": 40, "max_features": 1.0, "min_samples_leaf": 5}
+
+# Defaults: `ftdrake study --quick` in under 5 minutes on 2 cores (see the module docstring).
+TRAJECTORIES = 6  # per dataset
+TEST_TRAJECTORIES = 2  # of those, held out whole
+DURATION_S = 20.0  # per trajectory: one period of the reference motion's base frequency
+TRAIN_HZ = 12.5  # training rows per second of log (the motion is below 1 Hz)
+TEST_HZ = 100.0
+SVR_MAX_ROWS = 2000
+N_SPLITS = 5  # the study's 5-fold CV
+
+#: Cost model of the time estimate, fitted on the 2-core development machine.
+_SIM_S_PER_S = 0.2  # wall s per simulated s, per worker
+_RF_S = 2.4e-8  # s per tree · row · log2(row) · (features tried + 2)
+_SVR_S = 5e-8  # s per row² per fit (rbf, C ≤ 100; large C and poly take far longer)
+_FIXED_S = 25.0  # imports, physics fits, predictions, trajectory planning, figures
+
+
+# ----------------------------------------------------------------------------------------------
+# The run.
+# ----------------------------------------------------------------------------------------------
+def run_study(out_dir, *, preset="quick", trajectories: int = TRAJECTORIES,
+              duration: float = DURATION_S, cv: str = "grouped", n_repeats: int = 1,
+              n_jobs: int = -1, progress: bool = True, seed: int = 0,
+              test_trajectories: int = TEST_TRAJECTORIES, train_hz: float = TRAIN_HZ,
+              test_hz: float = TEST_HZ, svr_max_rows: int = SVR_MAX_ROWS,
+              n_splits: int = N_SPLITS, config: ScenarioConfig | None = None,
+              data: dict[str, pd.DataFrame] | None = None) -> dict:
+    """Collects both datasets, trains and tests every method × feature set, writes the outputs.
+
+    `preset` is a name in :data:`~ftdrake.compensation.tuning.PRESET_NAMES` or a dict
+    ``{"rf": grid, "svr": grid}`` (registry names; the class names
+    ``"RandomForestCompensator"``, ``"SVRCompensator"`` work too). Each dataset has
+    `trajectories` free-motion runs of `duration` s, the last `test_trajectories` held out.
+    `data` maps each dataset name to an already collected frame (as
+    :func:`ftdrake.data.collect` returns) and skips collection. Writes ``results.json``,
+    ``results.md`` and PNG figures into `out_dir`, all or nothing; returns the results.
+    """
+    started = time.perf_counter()
+    config = config or ScenarioConfig()
+    say = print if progress else _quiet
+    if not 1 <= test_trajectories < trajectories:
+        raise ValueError(f"test_trajectories must be in [1, trajectories - 1]; got "
+                         f"{test_trajectories} of {trajectories}")
+    settings = {
+        "preset": preset if isinstance(preset, str) else "custom", "cv": cv,
+        "n_splits": n_splits, "n_repeats": n_repeats, "trajectories": trajectories,
+        "test_trajectories": test_trajectories, "duration_s": duration, "train_hz": train_hz,
+        "test_hz": test_hz, "svr_max_rows": svr_max_rows,
+        "svr_epsilon": entry("svr").cls().epsilon, "segment_s": SEGMENT_S, "seed": seed,
+        "inputs": "joint_state_layout(frame, 'est'): q̇, q̈ numerically differentiated",
+        "targets": "meas_* (noisy sensor reading)", "truth": "internal_*",
+        "sensor_preset": config.sensor.preset,
+        "noise_std": list(config.sensor.spec().noise_std),
+        "hybrid_residual": {"features": "same as the row", **HYBRID_RESIDUAL},
+        "physics_mode": PHYSICS_MODE,
+    }
+    results = {"settings": settings, "grid_sizes": grid_sizes(preset)}
+    results["estimated_s"] = estimate_seconds(
+        preset, trajectories=trajectories, duration=duration,
+        test_trajectories=test_trajectories, train_hz=train_hz, svr_max_rows=svr_max_rows,
+        n_splits=n_splits, n_repeats=n_repeats, n_jobs=n_jobs, collect=data is None)
+    per_dataset = {}
+    stage_s = {}
+    for name in DATASETS:
+        t0 = time.perf_counter()
+        if data is not None:
+            frame = data[name]
+        else:
+            say(f"[study] collecting {trajectories} × {duration:g} s of '{name}' motion …")
+            frame = collect(config, trajectories, seed=seed, kind=name, duration=duration,
+                            n_jobs=n_jobs, progress=progress)
+        stage_s[f"collect_{name}"] = time.perf_counter() - t0
+        t0 = time.perf_counter()
+        say(f"[study] training and testing on '{name}' …")
+        per_dataset[name] = study_dataset(
+            frame, preset=preset, cv=cv, n_splits=n_splits, n_repeats=n_repeats,
+            test_trajectories=test_trajectories, train_hz=train_hz, test_hz=test_hz,
+            svr_max_rows=svr_max_rows, noise_std=config.sensor.spec().noise_std, seed=seed,
+            n_jobs=n_jobs, progress=progress)
+        per_dataset[name]["tool_tip"] = tool_tip_extent(config, name, trajectories, duration,
+                                                        seed)
+        stage_s[f"study_{name}"] = time.perf_counter() - t0
+    # Regroup as table → dataset → …, so each table of results.json reads on its own.
+    for key in next(iter(per_dataset.values())):
+        results[key] = {name: per_dataset[name][key] for name in DATASETS}
+    results["findings"] = outputs.finding_records(check_findings(results))
+    say("[study] writing results and figures …")
+    with staged_outputs(out_dir) as stage:
+        t0 = time.perf_counter()
+        outputs.write_figures(results, stage)
+        stage_s["figures"] = time.perf_counter() - t0
+        results["stage_s"] = {k: round(v, 2) for k, v in stage_s.items()}
+        results["wall_time_s"] = round(time.perf_counter() - started, 2)
+        with atomic_path(stage / "results.json") as tmp:
+            tmp.write_text(json.dumps(results, indent=1))
+        with atomic_path(stage / "results.md") as tmp:
+            tmp.write_text(outputs.markdown(results))
+    return results
+
+
+@dataclass
+class Split:
+    """One dataset cut for the study: training rows (inputs X, measured Y, CV groups) from
+    some trajectories, test rows (Xt, Yt and the true internal wrench) from the others."""
+
+    X: np.ndarray
+    Y: np.ndarray
+    groups: np.ndarray
+    Xt: np.ndarray
+    Yt: np.ndarray
+    truth: np.ndarray
+    sizes: dict
+
+
+def prepare_split(frame: pd.DataFrame, *, test_trajectories: int, train_hz: float,
+                  test_hz: float, n_splits: int) -> Split:
+    """Holds out the last `test_trajectories` runs whole and thins both sides' rows."""
+    if frame[col.CONTACT].any():
+        raise ValueError("the study needs free motion; the dataset has contact rows")
+    train, test = split_trajectories(frame, test_trajectories)
+    train, test = decimate(train, train_hz), decimate(test, test_hz)
+    ids = train[col.TRAJECTORY].to_numpy()
+    groups = segment_groups(ids, _segments_per_trajectory(train, n_splits))
+    sizes = {"train_rows": len(train), "test_rows": len(test),
+             "train_trajectories": sorted(int(i) for i in np.unique(ids)),
+             "test_trajectories": sorted(int(i) for i in test[col.TRAJECTORY].unique()),
+             "cv_groups": len(np.unique(groups))}
+    return Split(X=joint_state_layout(train, "est"), Y=wrench_targets(train, col.MEASURED),
+                 groups=groups, Xt=joint_state_layout(test, "est"),
+                 Yt=wrench_targets(test, col.MEASURED),
+                 truth=wrench_targets(test, col.INTERNAL), sizes=sizes)
+
+
+def study_dataset(frame: pd.DataFrame, *, preset, cv, n_splits, n_repeats, test_trajectories,
+                  train_hz, test_hz, svr_max_rows, noise_std, seed, n_jobs, progress) -> dict:
+    """Every method × feature set on one dataset; a dict of tables keyed as in results.json."""
+    split = prepare_split(frame, test_trajectories=test_trajectories, train_hz=train_hz,
+                          test_hz=test_hz, n_splits=n_splits)
+    svr_rows = _even_rows(len(split.X), svr_max_rows)
+    tuning = {"preset": preset, "cv": cv, "n_splits": n_splits, "n_repeats": n_repeats,
+              "n_jobs": n_jobs, "progress": progress, "seed": seed}
+    out = {table: {m: {} for m in METHODS}
+           for table in ("metrics", "best_params", "cv_mse", "timings")}
+    rf = {}
+    # One BLAS thread: the parallelism is in the CV folds (joblib workers).
+    with threadpool_limits(limits=1), warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always", ExcitationWarning)
+        for features in FEATURES:
+            for method in TUNED:
+                rows = slice(None) if method == "rf" else svr_rows
+                model = _tuned_row(out, method, features, split, rows, noise_std, tuning)
+                if method == "rf":
+                    rf[features] = model
+            for method in ("physics", "hybrid"):
+                _physical_row(out, method, features, split, noise_std, seed)
+        out["cv_disagreement"] = _both_schemes(out, split, tuning)
+    out["warnings"] = _excitation_messages(caught)
+    out["feature_importances"] = {f: fx_importances(rf[f], f) for f in FEATURES}
+    out["sizes"] = {**split.sizes, "svr_train_rows": len(svr_rows)}
+    out["wrench_stats"] = {axis: _stats(split.Yt[:, j]) for j, axis in enumerate(AXES)}
+    return out
+
+
+def _tuned_row(out, method, features, split, rows, noise_std, tuning):
+    """Tunes, times a refit, and scores RF or SVR on `features`; returns the tuned model."""
+    X, Y = split.X[rows], split.Y[rows]
+    model, search, tune_s = _tune(method, features, X, Y, split.groups[rows], **tuning)
+    fit_s = _timed_fit(clone(model), X, Y)
+    _score(out, method, features, model, fit_s, split.Xt, split, noise_std)
+    out["timings"][method][features]["tune_s"] = round(tune_s, 2)
+    out["best_params"][method][features] = dict(zip(AXES, search.best_params, strict=True))
+    out["cv_mse"][method][features] = _cv_mse(search)
+    return model
+
+
+def _physical_row(out, method, features, split, noise_std, seed):
+    model = physical_model(method, features, seed)
+    fit_s = _timed_fit(model, only(split.X, features), split.Y)
+    _score(out, method, features, model, fit_s, only(split.Xt, features), split, noise_std)
+    if method == "physics":
+        out["best_params"][method][features] = {"mode": PHYSICS_MODE[features],
+                                                "condition_number": model.condition_number_}
+
+
+def _score(out, method, features, model, fit_s, X_test, split, noise_std):
+    """Test metrics (against the measured wrench, and the truth) and timings of one row."""
+    t0 = time.perf_counter()
+    prediction = model.predict(X_test)
+    predict_s = time.perf_counter() - t0
+    out["metrics"][method][features] = report(split.Yt, prediction, target_names=AXES,
+                                              truth=split.truth, noise_std=noise_std)
+    out["timings"][method][features] = {"fit_s": round(fit_s, 4),
+                                        "predict_s": round(predict_s, 4),
+                                        "predict_us_per_row": 1e6 * predict_s / len(X_test)}
+
+
+def _both_schemes(out, split, tuning) -> dict:
+    """RF on q tuned with the other fold scheme too; CV against test for both."""
+    cv = tuning["cv"]
+    other = "shuffled" if cv == "grouped" else "grouped"
+    model, search, _ = _tune("rf", "q", split.X, split.Y, split.groups,
+                             **{**tuning, "cv": other})
+    other_test = report(split.Yt, model.predict(split.Xt), target_names=AXES)
+    return cv_disagreement({cv: out["cv_mse"]["rf"]["q"], other: _cv_mse(search)},
+                           {cv: out["metrics"]["rf"]["q"], other: other_test})
+
+
+def _cv_mse(search) -> dict:
+    return {a: -score for a, score in zip(AXES, search.mean_score, strict=True)}
+
+
+def _excitation_messages(caught) -> list[str]:
+    """The payload fits' excitation warnings (kept for results.json); others are re-issued."""
+    for w in caught:
+        if not issubclass(w.category, ExcitationWarning):
+            warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
+    return sorted({str(w.message) for w in caught if issubclass(w.category, ExcitationWarning)})
+
+
+def _tune(method, features, X, Y, groups, *, preset, cv, n_splits, n_repeats, n_jobs, progress,
+          seed):
+    """Per-axis grid search of RF or SVR; returns (model, TuneResult, seconds)."""
+    cls = entry(TUNED[method]).cls
+    estimator = (cls(features=features, random_state=seed) if method == "rf" else
+                 cls(features=features, scale_targets=method == "svr_scaled"))
+    t0 = time.perf_counter()
+    model, search = tune(estimator, X, Y, groups=groups, preset=_grid(preset, TUNED[method]),
+                         cv=cv, n_splits=n_splits, n_repeats=n_repeats, per_output=True,
+                         target_names=AXES, n_jobs=n_jobs, progress=progress,
+                         random_state=seed)
+    return model, search, time.perf_counter() - t0
+
+
+def physical_model(method: str, features: str, seed: int = 0):
+    """The physics payload model (or physics + RF residual) that reads only `features`.
+
+    Feed it :func:`only`\\ (X, features): the blocks it may not read are zeroed, so the
+    dynamic model with ``"q,qd"`` sees q̈ = 0.
+    """
+    physics = entry("physics").cls(mode=PHYSICS_MODE[features])
+    if method == "physics":
+        return physics
+    residual = entry("rf").cls(features=features, random_state=seed, **HYBRID_RESIDUAL)
+    return entry("hybrid").cls(physics=physics, residual=residual)
+
+
+def only(X: np.ndarray, features: str) -> np.ndarray:
+    """``X = [q, q̇, q̈]`` with the blocks outside `features` set to zero."""
+    keep = check_feature_set(features) * (X.shape[1] // 3)
+    Z = np.zeros_like(X)
+    Z[:, :keep] = X[:, :keep]
+    return Z
+
+
+def _timed_fit(model, X, Y) -> float:
+    t0 = time.perf_counter()
+    model.fit(X, Y)
+    return time.perf_counter() - t0
+
+
+def _grid(preset, name: str):
+    """The grid of registry name `name`: from a preset name, or a custom preset dict keyed by
+    registry name or class name."""
+    if isinstance(preset, str):
+        return param_grid(preset, name)
+    cls_name = entry(name).cls.__name__
+    return preset[name] if name in preset else preset[cls_name]
+
+
+def grid_sizes(preset) -> dict:
+    """Candidates per tuned estimator (keyed by class name) and feature set (max_features is
+    clipped to the set)."""
+    n = col.N_JOINTS
+    by_class = {entry(name).cls.__name__: name for name in set(TUNED.values())}
+    return {cls_name: {f: grid_size(_grid(preset, name), name, FEATURE_SETS[f] * n)
+                       for f in FEATURES} for cls_name, name in sorted(by_class.items())}
+
+
+# -- data -------------------------------------------------------------------------------------
+def split_trajectories(frame: pd.DataFrame, n_test: int):
+    """(train, test): the last `n_test` trajectory ids are the test set, whole."""
+    ids = np.sort(frame[col.TRAJECTORY].unique())
+    if not 1 <= n_test < len(ids):
+        raise ValueError(f"cannot hold out {n_test} of {len(ids)} trajectories")
+    is_test = frame[col.TRAJECTORY].isin(ids[-n_test:]).to_numpy()
+    return frame[~is_test], frame[is_test]
+
+
+def decimate(frame: pd.DataFrame, hz: float) -> pd.DataFrame:
+    """Every k-th row of each trajectory so that rows are ~`hz` apart (logs are 1 kHz)."""
+    dt = float(np.median(np.diff(frame[col.TIME].to_numpy()[:100])))
+    step = max(1, round(1.0 / (hz * dt)))
+    keep = frame.groupby(col.TRAJECTORY).cumcount().to_numpy() % step == 0
+    return frame[keep]
+
+
+def _segments_per_trajectory(train: pd.DataFrame, n_splits: int) -> int:
+    """SEGMENT_S-long segments, but at least enough groups for `n_splits` folds."""
+    n_traj = train[col.TRAJECTORY].nunique()
+    times = train.groupby(col.TRAJECTORY)[col.TIME]
+    duration = float((times.max() - times.min()).mean())
+    return max(round(duration / SEGMENT_S), -(-n_splits // n_traj), 1)
+
+
+def _even_rows(n: int, at_most: int) -> np.ndarray:
+    return np.arange(n) if n <= at_most else np.linspace(0, n - 1, at_most).round().astype(int)
+
+
+def _stats(v) -> dict:
+    v = np.asarray(v, dtype=float)
+    return {"max": float(v.max()), "min": float(v.min()), "mean": float(v.mean()),
+            "std": float(v.std())}
+
+
+def tool_tip_extent(config: ScenarioConfig, kind: str, trajectories: int, duration: float,
+                    seed: int) -> dict:
+    """The study's Table 3 for a dataset: tool-tip x, y, z (m) and tilt (rad) over all of its
+    trajectories (max, min, mean, std), from the planned motions."""
+    from ...sim.station import plan_trajectory, robot_geometry
+    from ...sim.trajectories import trajectory_extent
+
+    base = dataclasses.replace(config, trajectory=dataclasses.replace(config.trajectory, kind=kind,
+                                                    duration_s=duration))
+    robot = robot_geometry(base)
+    parts = [trajectory_extent(plan_trajectory(trajectory_config(base, i, seed)), robot)
+             for i in range(trajectories)]
+    table = {}
+    for axis in parts[0]:
+        mean = float(np.mean([p[axis]["mean"] for p in parts]))  # equal durations
+        second = np.mean([p[axis]["std"] ** 2 + p[axis]["mean"] ** 2 for p in parts])
+        table[axis] = {"max": max(p[axis]["max"] for p in parts),
+                       "min": min(p[axis]["min"] for p in parts), "mean": mean,
+                       "std": float(np.sqrt(max(second - mean**2, 0.0)))}
+    return table
+
+
+# -- derived tables ---------------------------------------------------------------------------
+def cv_disagreement(cv_mse: dict, test_report: dict) -> dict:
+    """RF on q: CV MSE of each fold scheme against the held-out test MSE of its model.
+
+    ``test_over_cv`` > 1 means the CV was optimistic; the study's shuffled folds put near
+    copies of a validation row in training, so they should be far more optimistic.
+    """
+    out = {"method": "rf", "features": "q"}
+    for scheme, cv in cv_mse.items():
+        test = {a: test_report[scheme][a]["mse"] for a in AXES}
+        ratio = {a: test[a] / cv[a] for a in AXES}
+        out[scheme] = {"cv_mse": cv, "test_mse": test, "test_over_cv": ratio,
+                       "median_test_over_cv": float(np.median(list(ratio.values())))}
+    return out
+
+
+def fx_importances(model, features: str) -> dict:
+    """Impurity importances of the tuned Fx forest, by input name (they sum to 1)."""
+    values = model.estimators_[0].feature_importances_[0]
+    return dict(zip(feature_names(features, col.N_JOINTS), map(float, values)))
+
+
+def estimate_seconds(preset, *, trajectories=TRAJECTORIES, duration=DURATION_S,
+                     test_trajectories=TEST_TRAJECTORIES, train_hz=TRAIN_HZ,
+                     svr_max_rows=SVR_MAX_ROWS, n_splits=N_SPLITS, n_repeats=1, n_jobs=-1,
+                     collect=True) -> float:
+    """Rough wall time (s) of :func:`run_study` on an idle machine, from a cost model fitted
+    on the 2-core development machine. SVR with large C or a poly kernel (the paper grid)
+    can take far longer: read it as a lower bound there."""
+    workers = (os.cpu_count() or 1) if n_jobs == -1 else max(1, n_jobs)
+    sim = 2 * trajectories * duration * _SIM_S_PER_S / workers if collect else 0.0
+    rows = (trajectories - test_trajectories) * duration * train_hz * (n_splits - 1) / n_splits
+    svr_rows = min(rows, svr_max_rows)
+    # Every tuned problem: axes × folds × repeats fits, plus the refit and the timed fit.
+    fits = len(AXES) * (n_splits * n_repeats + 2)
+    per_set = {}
+    for features, blocks in FEATURE_SETS.items():
+        n = blocks * col.N_JOINTS
+        rf = sum(_rf_fit_s(p["n_estimators"], p["max_features"], n, rows)
+                 for p in _candidates(preset, "rf", n))
+        svr = _SVR_S * svr_rows**2 * len(_candidates(preset, "svr", n))
+        hybrid = len(AXES) * _rf_fit_s(HYBRID_RESIDUAL["n_estimators"], 1.0, n, rows)
+        per_set[features] = fits * (rf + svr) + hybrid
+    other_cv = per_set["q"]  # RF on q tuned with the other fold scheme (an over-estimate)
+    learn = 2 * (sum(per_set.values()) + other_cv) / workers  # both datasets
+    return round(sim + learn + _FIXED_S, 0)
+
+
+def _rf_fit_s(trees, max_features, n_features, rows) -> float:
+    tried = max_features * n_features if isinstance(max_features, float) else max_features
+    return _RF_S * trees * rows * np.log2(max(rows, 2)) * (tried + 2)
+
+
+def _candidates(preset, name, n_features):
+    from sklearn.model_selection import ParameterGrid
+
+    return list(ParameterGrid(param_grid(_grid(preset, name), name, n_features)))
+
+
+
+def _quiet(*args, **kwargs):
+    pass
