@@ -8,7 +8,9 @@ from conftest import split_by_trajectory
 from hypothesis import given, settings
 from hypothesis import strategies as st
 from hypothesis.extra.numpy import arrays
+from pydrake.systems.framework import DiagramBuilder
 
+from ftdrake import ScenarioConfig
 from ftdrake import conventions as col
 from ftdrake.compensation.forest import RandomForestCompensator
 from ftdrake.compensation.hybrid import HybridCompensator
@@ -18,7 +20,10 @@ from ftdrake.compensation.physics import (
     payload_regressor,
 )
 from ftdrake.data.dataset import joint_state_layout, wrench_targets
-from ftdrake.physics.rigid_body import SensorKinematics, newton_euler_wrench
+from ftdrake.errors import RobotModelError
+from ftdrake.physics.rigid_body import SensorKinematics, newton_euler_wrench, sensor_kinematics
+from ftdrake.physics.robot import ftdrake_arm
+from ftdrake.sim.scene import add_scene, robot_description
 
 TRUE_MASS = 1.5
 TRUE_COM = np.array([0.02, 0.2 / 30, 0.26 / 3])  # m, from ft_sensor_tool.sdf
@@ -111,16 +116,19 @@ URDF = """<?xml version="1.0"?>
 <robot name="two_link">
   <link name="base"/>
   <link name="upper">
-    <inertial><mass value="1"/><inertia ixx="0.01" iyy="0.01" izz="0.01" ixy="0" ixz="0" iyz="0"/></inertial>
+    <inertial><mass value="1"/>
+      <inertia ixx="0.01" iyy="0.01" izz="0.01" ixy="0" ixz="0" iyz="0"/></inertial>
   </link>
   <link name="forearm">
-    <inertial><mass value="1"/><inertia ixx="0.01" iyy="0.01" izz="0.01" ixy="0" ixz="0" iyz="0"/></inertial>
+    <inertial><mass value="1"/>
+      <inertia ixx="0.01" iyy="0.01" izz="0.01" ixy="0" ixz="0" iyz="0"/></inertial>
   </link>
   <link name="ft_frame"/>
   <joint name="j1" type="revolute"><parent link="base"/><child link="upper"/>
     <axis xyz="0 0 1"/><limit lower="-3" upper="3" effort="10" velocity="3"/></joint>
   <joint name="j2" type="revolute"><parent link="upper"/><child link="forearm"/>
-    <origin xyz="0 0 0.3"/><axis xyz="0 1 0"/><limit lower="-3" upper="3" effort="10" velocity="3"/></joint>
+    <origin xyz="0 0 0.3"/><axis xyz="0 1 0"/>
+    <limit lower="-3" upper="3" effort="10" velocity="3"/></joint>
   <joint name="sensor_mount" type="fixed"><parent link="forearm"/><child link="ft_frame"/>
     <origin xyz="0 0 0.4" rpy="0.3 0 0"/></joint>
 </robot>
@@ -153,5 +161,32 @@ def test_users_robot_without_the_sensor_frame_is_refused(tmp_path):
     path = tmp_path / "two_link.urdf"
     path.write_text(URDF)
     dut = PhysicsPayloadCompensator(robot=str(path), sensor_frame="nope", base_frame="base")
-    with pytest.raises(ValueError, match="no frame named 'nope'"):
+    with pytest.raises(RobotModelError, match="has no sensor frame named 'nope'"):
         dut.fit(np.zeros((50, 6)), np.zeros((50, 6)))
+    with pytest.raises(RobotModelError, match="needs sensor_frame"):
+        PhysicsPayloadCompensator(robot=str(path)).fit(np.zeros((50, 6)), np.zeros((50, 6)))
+    with pytest.raises(RobotModelError, match="no such file"):
+        PhysicsPayloadCompensator(robot=str(tmp_path / "none.urdf"), sensor_frame="tip").fit(
+            np.zeros((50, 6)), np.zeros((50, 6)))
+
+
+def test_the_simulations_robot_description_has_the_scenes_kinematics():
+    """The physics model needs no scenario: the scene describes its arm as model directives,
+    and that description's sensor-frame motion equals the simulated plant's to round-off."""
+    config = ScenarioConfig()
+    description = robot_description(config)
+    assert description == ftdrake_arm()  # robot=None means exactly this arm
+    scene = add_scene(DiagramBuilder(), config)
+    plant, frame_S = description.build_plant()
+    rng = np.random.default_rng(3)
+    q, v, vd = rng.uniform(-1.5, 1.5, (3, 25, 7))
+    expected = sensor_kinematics(scene.plant, scene.plant.CreateDefaultContext(),
+                                 scene.sensor_frame, q, v, vd, scene.arm)
+    got = sensor_kinematics(plant, plant.CreateDefaultContext(), frame_S, q, v, vd)
+    for name in ("R_WS", "w_WS_S", "alpha_WS_S", "a_WSo_S", "g_S"):
+        np.testing.assert_allclose(getattr(got, name), getattr(expected, name), atol=1e-12)
+    # A scenario with the arm based elsewhere gets its own description, same sensor frame.
+    config.models.p_WArmBase = [0.1, 0.0, 0.8]
+    moved = robot_description(config)
+    assert moved != ftdrake_arm() and "[0.1, 0.0, 0.8]" in moved.model
+    assert moved.sensor_frame == description.sensor_frame

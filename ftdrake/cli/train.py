@@ -92,9 +92,10 @@ def register(subparsers) -> None:
     p.add_argument("--data", type=Path, required=True, metavar="FILE",
                    help="CSV/Parquet table, ROS 1 .bag file or ROS 2 bag folder")
     _add_read_flags(p)
-    p.add_argument("--model", choices=models, required=True,
+    p.add_argument("--model", choices=models,
                    help=", ".join(f"{n}: {registry.entry(n).summary}" for n in models)
-                   + "; physics and hybrid need 6 wrench targets and --robot")
+                   + "; physics and hybrid need 6 wrench targets and --robot. Default: hybrid "
+                   "when --robot is given and the targets are a wrench, else rf")
     p.add_argument("--features", choices=FEATURE_SETS, metavar="q|q,qd|q,qd,qdd",
                    help="inputs the model uses (default q,qd,qdd; physics: q = static, "
                         "q,qd,qdd = dynamic; hybrid: the residual forest's, default q)")
@@ -184,8 +185,9 @@ def _read(args, options: ReadOptions, say) -> TrainingData:
 class RobotOptions:
     """The robot description a physics-based compensator identifies its payload on.
 
-    robot: URDF/SDF file, or ``"ftdrake"`` for the simulated arm (described by a ``collect``
-    dataset's scenario, `scenario_yaml`). sensor_frame: frame S of the targets in `robot`.
+    robot: URDF/SDF file, or ``"ftdrake"`` for the simulated arm (the arm of a ``collect``
+    dataset's scenario, `scenario_yaml`, else the default arm). sensor_frame: frame S of the
+    targets in `robot`.
     base_frame: frame of `robot` welded to the world (default: its root).
     """
 
@@ -231,8 +233,17 @@ def make_estimator(model: str, *, features: str | None = None, seed: int = 0,
     return entry.build(**overrides)
 
 
+def default_model(robot: RobotOptions, target_names) -> str:
+    """The hybrid (physics + residual) when a robot description and a wrench are available:
+    it extrapolates where a black box cannot; otherwise the random forest."""
+    return "hybrid" if robot.robot is not None and is_wrench(target_names) else "rf"
+
+
 def _physics(model: str, robot: RobotOptions | None, features: str):
     from ..compensation.physics import PhysicsPayloadCompensator
+    from ..config import parse_config
+    from ..physics.robot import ftdrake_arm
+    from ..sim.scene import robot_description
 
     robot = robot or RobotOptions()
     if robot.robot is None:
@@ -243,8 +254,16 @@ def _physics(model: str, robot: RobotOptions | None, features: str):
         raise ConfigError("physics takes --features q (static: gravity only) or q,qd,qdd")
     mode = "static" if features == "q" else "dynamic"
     if robot.robot == BUILTIN_ROBOT:
-        return PhysicsPayloadCompensator(features=features, mode=mode,
-                                         scenario_yaml=robot.scenario_yaml)
+        # The arm of the scenario that made the data (a collect dataset stores it), as a
+        # robot description; the shipped default arm is robot=None.
+        description = ftdrake_arm()
+        if robot.scenario_yaml:
+            description = robot_description(parse_config(robot.scenario_yaml))
+        if description == ftdrake_arm():
+            return PhysicsPayloadCompensator(features=features, mode=mode)
+        return PhysicsPayloadCompensator(
+            features=features, mode=mode, robot=description.model,
+            sensor_frame=description.sensor_frame, package_xmls=description.package_xmls)
     path = Path(robot.robot)
     if not path.is_file():
         raise RobotModelError(f"--robot {path}: no such file")
@@ -286,6 +305,11 @@ def run_train(args) -> int:
     options = _with_flags(ReadOptions(), args)
     data = _read(args, options, say)
     robot = RobotOptions(args.robot, args.sensor_frame, args.base_frame, data.scenario_yaml)
+    if args.model is None:
+        args.model = default_model(robot, data.target_names)
+        say(f"--model not given: {args.model} "
+            + ("(a robot description and wrench targets: physics + learned residual)"
+               if args.model == "hybrid" else "(no --robot: a black box)"))
     estimator = make_estimator(args.model, features=args.features, seed=args.seed,
                                target_names=data.target_names, robot=robot)
     units = target_units(args.target_units, data.target_names)
@@ -372,8 +396,8 @@ def _plain(params: dict) -> dict:
     """The JSON-friendly parameters (numbers, strings, lists of them); others by type name."""
     out = {}
     for k, v in params.items():
-        if k == "scenario_yaml":
-            out[k] = None if v is None else "<scenario of the training data>"
+        if k == "robot" and isinstance(v, str) and v.lstrip().startswith("directives:"):
+            out[k] = "<model directives of the training data's robot>"
         elif v is None or isinstance(v, (bool, int, float, str)):
             out[k] = v
         elif isinstance(v, (list, tuple)) and all(isinstance(x, (int, float)) for x in v):
@@ -466,7 +490,7 @@ def _outside_by_input(model, X) -> dict:
     used = feature_names(model.features, model.n_joints_)
     Z = X[:, : len(used)]
     counts = ((Z < model.input_min_[: len(used)]) | (Z > model.input_max_[: len(used)])).sum(0)
-    return {n: int(c) for n, c in zip(used, counts) if c}
+    return {n: int(c) for n, c in zip(used, counts, strict=True) if c}
 
 
 def print_evaluation(result: dict, file=None) -> None:

@@ -28,6 +28,9 @@ import warnings
 
 import numpy as np
 
+from ..errors import RobotModelError
+from ..physics.rigid_body import sensor_kinematics
+from ..physics.robot import RobotDescription, ftdrake_arm
 from .base import Compensator
 
 PARAMETER_NAMES = ["m", "mcx", "mcy", "mcz", "Ixx", "Ixy", "Ixz", "Iyy", "Iyz", "Izz",
@@ -47,18 +50,20 @@ class PhysicsPayloadCompensator(Compensator):
     ----------
     features : the [q, q̇, q̈] blocks it may use; "q,qd,qdd" for ``mode="dynamic"``.
     mode : "dynamic" (10 inertial parameters + 6 biases) or "static" (mass, CoM, biases).
-    robot : None for ftdrake's simulated arm (scenario `scenario_yaml`, default shipped), or a
-        URDF/SDF file (or package:// URL) of the user's robot holding the sensor frame.
-    sensor_frame : name of frame S in `robot` (ignored for ftdrake's arm: the sensor weld's
-        child frame).
-    base_frame : frame of `robot` welded to the world (ignored for ftdrake's arm).
+    robot : the robot the sensor is on (:class:`~ftdrake.physics.robot.RobotDescription`'s
+        ``model``): a URDF/SDF/model-directives file or package:// URL, or model-directives
+        text; None for ftdrake's simulated arm with its default models
+        (:func:`~ftdrake.physics.robot.ftdrake_arm`; ``ftdrake.sim.scene.robot_description``
+        describes any scenario's arm).
+    sensor_frame : frame S in `robot` (``"model::frame"`` or a unique name); None with
+        ``robot=None`` (the sensor weld's child frame).
+    base_frame : frame of `robot` welded to the world, if the model does not weld it.
     gravity : gravity in the world (base) frame, m/s².
     package_xmls : extra package.xml files for `robot`'s package:// URLs.
     """
 
     def __init__(self, features="q,qd,qdd", mode="dynamic", robot=None, sensor_frame=None,
-                 base_frame=None, gravity=(0.0, 0.0, -9.81), package_xmls=(),
-                 scenario_yaml=None):
+                 base_frame=None, gravity=(0.0, 0.0, -9.81), package_xmls=()):
         super().__init__(features=features)
         self.mode = mode
         self.robot = robot
@@ -66,7 +71,6 @@ class PhysicsPayloadCompensator(Compensator):
         self.base_frame = base_frame
         self.gravity = gravity
         self.package_xmls = package_xmls
-        self.scenario_yaml = scenario_yaml
 
     # -- the regressor ----------------------------------------------------------------------
     def regressor(self, X) -> np.ndarray:
@@ -135,7 +139,7 @@ class PhysicsPayloadCompensator(Compensator):
         for group in (slice(0, 1), slice(1, 4), slice(4, 10), slice(10, 16)):
             scale[group] = max(p[group].max(), 1e-9)
         rel = np.abs(self.standard_errors_[cols]) / scale[cols]
-        poor = [PARAMETER_NAMES[c] for c, r in zip(cols, rel) if r > 0.25 and c < 10]
+        poor = [PARAMETER_NAMES[c] for c, r in zip(cols, rel, strict=True) if r > 0.25 and c < 10]
         if self.condition_number_ > 1e4 or poor:
             warnings.warn(
                 f"the data does not excite the payload parameters well (condition number "
@@ -147,8 +151,19 @@ class PhysicsPayloadCompensator(Compensator):
 
     # -- kinematics -------------------------------------------------------------------------
     def _kinematics(self):
-        return _kinematics_for(self.robot, self.sensor_frame, self.base_frame,
-                               tuple(self.gravity), tuple(self.package_xmls), self.scenario_yaml)
+        return _kinematics_for(self.robot_description(), tuple(self.gravity))
+
+    def robot_description(self) -> RobotDescription:
+        """The robot this model identifies its payload on."""
+        if self.robot is None:
+            if self.sensor_frame is not None or self.base_frame is not None:
+                raise RobotModelError("sensor_frame and base_frame need a robot model (robot=...)")
+            return ftdrake_arm()
+        if not self.sensor_frame:
+            raise RobotModelError(f"robot {self.robot!r} needs sensor_frame (the frame of the "
+                                  "measured wrench)")
+        return RobotDescription(str(self.robot), self.sensor_frame, self.base_frame,
+                                tuple(self.package_xmls))
 
     def _check_robot_joints(self):
         n = self._kinematics().num_joints
@@ -196,7 +211,7 @@ def weighted_least_squares(A, Y):
 
 def _skew(v):
     v = np.asarray(v)
-    S = np.zeros(v.shape[:-1] + (3, 3))
+    S = np.zeros((*v.shape[:-1], 3, 3))
     S[..., 0, 1], S[..., 0, 2] = -v[..., 2], v[..., 1]
     S[..., 1, 0], S[..., 1, 2] = v[..., 2], -v[..., 0]
     S[..., 2, 0], S[..., 2, 1] = -v[..., 1], v[..., 0]
@@ -206,7 +221,7 @@ def _skew(v):
 def _inertia_map(x):
     """L(x) with I·x = L(x)·[Ixx, Ixy, Ixz, Iyy, Iyz, Izz]."""
     x = np.asarray(x)
-    L = np.zeros(x.shape[:-1] + (3, 6))
+    L = np.zeros((*x.shape[:-1], 3, 6))
     L[..., 0, 0], L[..., 0, 1], L[..., 0, 2] = x[..., 0], x[..., 1], x[..., 2]
     L[..., 1, 1], L[..., 1, 3], L[..., 1, 4] = x[..., 0], x[..., 1], x[..., 2]
     L[..., 2, 2], L[..., 2, 4], L[..., 2, 5] = x[..., 0], x[..., 1], x[..., 2]
@@ -231,46 +246,12 @@ class _Kinematics:
         self.gravity = np.asarray(gravity, dtype=float)
 
     def evaluate(self, q, v, vdot):
-        from ..physics.rigid_body import sensor_kinematics
-
         kin = sensor_kinematics(self.plant, self.context, self.frame_S, q, v, vdot, self.instance)
         kin.g_S[:] = np.einsum("nji,j->ni", kin.R_WS, self.gravity)
         return kin
 
 
 @functools.lru_cache(maxsize=8)
-def _kinematics_for(robot, sensor_frame, base_frame, gravity, package_xmls, scenario_yaml):
-    from pydrake.math import RigidTransform
-    from pydrake.multibody.parsing import Parser
-    from pydrake.multibody.plant import MultibodyPlant
-    from pydrake.systems.framework import DiagramBuilder
-
-    if robot is None:
-        from ..config import ScenarioConfig, parse_config
-        from ..sim.scene import add_scene
-
-        config = parse_config(scenario_yaml) if scenario_yaml else ScenarioConfig()
-        builder = DiagramBuilder()
-        scene = add_scene(builder, config)
-        plant = scene.plant
-        return _Kinematics(plant, plant.CreateDefaultContext(), scene.sensor_frame, scene.arm,
-                           gravity)
-    plant = MultibodyPlant(0.0)
-    parser = Parser(plant)
-    for xml in package_xmls:
-        parser.package_map().AddPackageXml(xml)
-    try:
-        instances = parser.AddModels(url=robot) if "://" in robot else parser.AddModels(
-            file_name=robot)
-    except RuntimeError as e:  # Drake's parser reports every problem as RuntimeError
-        raise ValueError(f"cannot load robot model {robot!r}: {e}") from None
-    if not sensor_frame or not plant.HasFrameNamed(sensor_frame):
-        raise ValueError(f"robot model {robot!r} has no frame named {sensor_frame!r}")
-    if base_frame:
-        if not plant.HasFrameNamed(base_frame):
-            raise ValueError(f"robot model {robot!r} has no frame named {base_frame!r}")
-        plant.WeldFrames(plant.world_frame(), plant.GetFrameByName(base_frame), RigidTransform())
-    plant.Finalize()
-    del instances
-    return _Kinematics(plant, plant.CreateDefaultContext(), plant.GetFrameByName(sensor_frame),
-                       None, gravity)
+def _kinematics_for(description: RobotDescription, gravity: tuple) -> _Kinematics:
+    plant, frame_S = description.build_plant()
+    return _Kinematics(plant, plant.CreateDefaultContext(), frame_S, None, gravity)

@@ -12,6 +12,7 @@ from __future__ import annotations
 import dataclasses as dc
 
 import numpy as np
+from pydrake.multibody.tree import JacobianWrtVariable
 
 GRAVITY_W = np.array([0.0, 0.0, -9.81])  # m/s², Drake's default
 
@@ -33,8 +34,6 @@ def sensor_kinematics(plant, context, frame_S, q, v, vdot, instance=None) -> Sen
     Uses S's Jacobian and bias acceleration (``A = J·v̇ + J̇·v``) with the given v̇, so it needs
     no forces and no dynamics.
     """
-    from pydrake.multibody.tree import JacobianWrtVariable
-
     q, v, vdot = (np.atleast_2d(np.asarray(a, dtype=float)) for a in (q, v, vdot))
     n = len(q)
     out = {k: np.empty((n, 3)) for k in ("w", "alpha", "a", "g")}

@@ -31,6 +31,7 @@ from pydrake.systems.primitives import ConstantValueSource
 
 from ..assets import models_dir
 from ..config import ConfigError, ModelsConfig, ScenarioConfig, TaskConfig
+from ..physics.robot import RobotDescription, arm_directives
 from .cable import add_cable_spring, cable_weight_forces
 
 
@@ -183,6 +184,20 @@ def _add_cable_weight(builder, plant, sensor_frame, config):
     weight.set_value(cable_weight_forces(sensor_frame, config.cable))
     source = builder.AddNamedSystem("cable_weight", ConstantValueSource(weight))
     builder.Connect(source.get_output_port(), plant.get_applied_spatial_force_input_port())
+
+
+def robot_description(config: ScenarioConfig) -> RobotDescription:
+    """The kinematics of the scenario's robot — arm, base pose, flange weld, sensor and tool —
+    as a robot description a physics compensator can identify its payload on. Frame S is the
+    sensor weld's child frame, as in the simulation."""
+    models = config.models
+    plant = MultibodyPlant(0.0)
+    tool = add_model(make_parser(plant, models), models.tool, "tool")
+    joint = sensor_weld(plant, models.sensor_joint, tool)
+    text = arm_directives(models.arm, models.tool, models.arm_base_frame, models.flange_frame,
+                          models.tool_mount_frame, models.p_WArmBase)
+    return RobotDescription(text, sensor_frame=f"tool::{joint.frame_on_child().name()}",
+                            package_xmls=tuple(models.package_xmls))
 
 
 def sensor_weld(plant: MultibodyPlant, name: str, instance=None) -> WeldJoint:
