@@ -51,6 +51,7 @@ class EmptyUpdate(LeafSystem):
         self.DeclarePeriodicDiscreteUpdateEvent(period, 0.0, self._update)
 
     def _update(self, context, discrete_state):
+        del discrete_state  # Drake's update callback signature; this system writes no state
         self._input.Eval(context)
 
 
@@ -63,7 +64,8 @@ def time_plant_and_controller(config, trajectory, duration, python_floor=False):
     c = config.controller
     controller = builder.AddSystem(DiscreteInverseDynamicsController(
         make_control_plant(config, scene), c.kp, c.ki, c.kd, config.time_step))
-    builder.Connect(plant.get_state_output_port(scene.arm), controller.get_input_port_estimated_state())
+    builder.Connect(plant.get_state_output_port(scene.arm),
+                    controller.get_input_port_estimated_state())
     builder.Connect(q.get_output_port(), controller.get_input_port_desired_state())
     builder.Connect(vd.get_output_port(), controller.get_input_port_desired_acceleration())
     builder.Connect(controller.get_output_port_control(), plant.get_actuation_input_port(scene.arm))

@@ -24,7 +24,8 @@ import ftdrake
 
 
 def train_small_model(path: Path) -> Path:
-    data = ftdrake.collect(ftdrake.ScenarioConfig(), 2, kind="fourier", duration=5.0, progress=False)
+    data = ftdrake.collect(ftdrake.ScenarioConfig(), 2, kind="fourier", duration=5.0,
+                           progress=False)
     model = ftdrake.RandomForestCompensator(features="q", n_estimators=20, per_output=False)
     model.fit(ftdrake.joint_state_layout(data), ftdrake.wrench_targets(data))
     return ftdrake.save_model(model, path, target_names=ftdrake.WRENCH_AXES,

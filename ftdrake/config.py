@@ -472,7 +472,8 @@ def _non_negative(v, name):
 
 def _vec(values, n, name):
     if values is None or len(values) != n:
-        raise ConfigError(f"{name}: must have {n} entries, got {0 if values is None else len(values)}")
+        got = 0 if values is None else len(values)
+        raise ConfigError(f"{name}: must have {n} entries, got {got}")
     _finite(values, name)
 
 

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import contextlib
 import os
+import shutil
 import tempfile
 from pathlib import Path
 
@@ -56,8 +57,6 @@ def staged_outputs(out_dir: str | Path):
     A command that writes several files (log, figure, summary) either leaves all of them or
     none: on an exception the staging folder is deleted and `out_dir` is untouched.
     """
-    import shutil
-
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
     stage = Path(tempfile.mkdtemp(prefix=".staging-", dir=out_dir))

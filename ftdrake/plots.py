@@ -17,7 +17,7 @@ def shade_contact(ax, t, contact, label="true contact"):
     """Shades the intervals where `contact` is 1."""
     contact = np.asarray(contact).astype(bool)
     edges = np.flatnonzero(np.diff(np.concatenate([[0], contact.astype(int), [0]])))
-    for k, (a, b) in enumerate(zip(edges[::2], edges[1::2])):
+    for k, (a, b) in enumerate(zip(edges[::2], edges[1::2], strict=True)):
         ax.axvspan(t[a], t[b - 1], color="tab:red", alpha=0.12, lw=0,
                    label=label if k == 0 else None)
 
@@ -26,7 +26,7 @@ def plot_wrench_log(log, path: Path, title: str = "F/T sensor") -> None:
     """Measured vs true internal wrench per axis, true contact shaded."""
     fig, axes = plt.subplots(6, 1, figsize=(10, 11), sharex=True)
     t = log[col.TIME].to_numpy()
-    for ax, axis, unit in zip(axes, col.WRENCH_AXES, col.WRENCH_UNITS):
+    for ax, axis, unit in zip(axes, col.WRENCH_AXES, col.WRENCH_UNITS, strict=True):
         ax.plot(t, log[f"{col.MEASURED}_{axis}"], lw=0.6, color="0.4", label="measured")
         ax.plot(t, log[f"{col.INTERNAL}_{axis}"], lw=1.0, color="tab:blue",
                 label="true internal (no contact)")
@@ -48,7 +48,7 @@ def plot_contact(log, path: Path, title: str = "contact scenario, compensator in
     fig, axes = plt.subplots(4, 1, figsize=(10, 9), sharex=True,
                              gridspec_kw={"height_ratios": [3, 3, 3, 1]})
     t = log[col.TIME].to_numpy()
-    for ax, axis in zip(axes[:3], ("Fx", "Fy", "Fz")):
+    for ax, axis in zip(axes[:3], ("Fx", "Fy", "Fz"), strict=True):
         ax.plot(t, log[f"{col.MEASURED}_{axis}"], lw=0.7, color="0.55", label="measured (raw)")
         ax.plot(t, log[f"est_external_{axis}"], lw=0.8, color="tab:blue",
                 label="compensated (estimated external)")

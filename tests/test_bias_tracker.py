@@ -52,7 +52,7 @@ def gravity_rotating(t):
     tilt, heading = 1.0 * np.sin(2 * np.pi * 0.4 * t), 2 * np.pi * 0.25 * t
     g_W = np.array([0.0, 0.0, -G])
     out = np.empty((len(t), 3))
-    for k, (a, h) in enumerate(zip(tilt, heading)):
+    for k, (a, h) in enumerate(zip(tilt, heading, strict=True)):
         Rz = np.array([[np.cos(h), -np.sin(h), 0], [np.sin(h), np.cos(h), 0], [0, 0, 1]])
         Ry = np.array([[np.cos(a), 0, np.sin(a)], [0, 1, 0], [-np.sin(a), 0, np.cos(a)]])
         out[k] = (Rz @ Ry).T @ g_W  # R_SW·g_W

@@ -52,7 +52,8 @@ def test_missing_or_unexportable_model_names_the_flag(tmp_path, capsys):
 
     rng = np.random.default_rng(0)
     X = rng.uniform(-1, 1, (40, 21))
-    gp = save_model(GPRCompensator(features="q", shared_kernel=True).fit(X, np.sin(X[:, :6])), tmp_path / "gp.ftd",
+    gp_model = GPRCompensator(features="q", shared_kernel=True).fit(X, np.sin(X[:, :6]))
+    gp = save_model(gp_model, tmp_path / "gp.ftd",
                     target_names=col.WRENCH_AXES, target_units=col.WRENCH_UNITS)
     message = user_error(capsys, ["export", "--model", gp, "--out", tmp_path / "m.onnx"])
     assert message.startswith(f"--model {gp}: a GPRCompensator has no ONNX export")

@@ -96,11 +96,11 @@ def test_parameter_layout_matches_the_physics_model():
        masses=arrays(np.float64, (5,), elements=st.floats(0.01, 2.0)))
 def test_pseudo_inertia_of_point_masses_is_its_definition(points, masses):
     # φ from the definitions (m = Σmᵢ, h = Σmᵢpᵢ, I = Σmᵢ(|pᵢ|²1 − pᵢpᵢᵀ)); J = Σmᵢ[pᵢ;1][pᵢ;1]ᵀ.
-    I = sum(m * (p @ p * np.eye(3) - np.outer(p, p)) for m, p in zip(masses, points))
+    I = sum(m * (p @ p * np.eye(3) - np.outer(p, p)) for m, p in zip(masses, points, strict=True))
     phi = np.array([masses.sum(), *(masses @ points), I[0, 0], I[0, 1], I[0, 2], I[1, 1],
                     I[1, 2], I[2, 2]])
     ph = np.c_[points, np.ones(5)]
-    expected = sum(m * np.outer(p, p) for m, p in zip(masses, ph))
+    expected = sum(m * np.outer(p, p) for m, p in zip(masses, ph, strict=True))
     np.testing.assert_allclose(pseudo_inertia(phi), expected, atol=1e-12)
     np.testing.assert_allclose(consistent._from_pseudo_inertia(expected), phi, atol=1e-12)
     assert is_physically_consistent(phi)
@@ -190,7 +190,7 @@ def test_prior_decides_what_the_data_do_not_excite_and_nothing_else():
     dut = identify_consistent(A, Y, prior=prior)
     alone = identify_consistent(A, Y)
 
-    share = dict(zip(PARAMETER_NAMES, dut.prior_share))
+    share = dict(zip(PARAMETER_NAMES, dut.prior_share, strict=True))
     for name in ("Ixx", "Ixy", "Iyy"):  # rotation about z only: not excited
         assert share[name] > 0.95, share
     for name in ("m", "mcx", "mcy", "mcz"):  # gravity in many directions: determined
@@ -275,7 +275,7 @@ def test_scs_agrees_with_clarabel():
 
 def test_solver_failure_raises_a_clear_error():
     A = rich_regressor(np.random.default_rng(0), 50)
-    with pytest.raises(IdentificationError, match="did not solve.*kIterationLimit"):
+    with pytest.raises(IdentificationError, match=r"did not solve.*kIterationLimit"):
         identify_consistent(A, A @ THETA, solver_options={"max_iter": 1})
 
 

@@ -129,7 +129,8 @@ def test_compiled_forest_takes_a_bare_forest_and_unlimited_depth():
 def test_construction_compiles_so_the_first_call_does_not():
     forests, X = fit_forests(1, 2, "q,qd", 3, True, n_estimators=3)
     dut = CompiledForest(forests, "q,qd")
-    compiled = (len(compiled_forest._forest_predict_one.signatures), len(compiled_forest._forest_predict.signatures))
+    compiled = (len(compiled_forest._forest_predict_one.signatures),
+                len(compiled_forest._forest_predict.signatures))
 
     dut.predict_one(X[0])
     dut.predict(X)

@@ -54,9 +54,9 @@ def free_motion(seeds, seconds=10.0):
     truth = [gravity_wrench(x[:, :N_JOINTS], x[:, 2 * N_JOINTS :]) for x in X]
     noisy = [
         y + np.random.default_rng(1000 + s).normal(0, NOISE_STD, y.shape)
-        for s, y in zip(seeds, truth)
+        for s, y in zip(seeds, truth, strict=True)
     ]
-    ids = np.concatenate([np.full(len(x), s) for s, x in zip(seeds, X)])
+    ids = np.concatenate([np.full(len(x), s) for s, x in zip(seeds, X, strict=True)])
     return np.vstack(X), np.vstack(noisy), np.vstack(truth), ids
 
 
@@ -262,7 +262,7 @@ def test_nonfinite_rows_are_refused_with_counts(make, small):
     with pytest.raises(ValueError, match=r"3 of \d+ rows \(first at row 3\)"):
         make().fit(X, Y)
     dut = make().fit(small[0], Y)
-    with pytest.raises(ValueError, match="NaN or infinity.*before predicting"):
+    with pytest.raises(ValueError, match=r"NaN or infinity.*before predicting"):
         dut.predict(X)
 
 

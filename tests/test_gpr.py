@@ -35,7 +35,7 @@ def rotation(axis: str, angle: np.ndarray) -> np.ndarray:
     c, s = np.cos(angle), np.sin(angle)
     i = "xyz".index(axis)
     j, k = (a for a in range(3) if a != i)
-    R = np.zeros(angle.shape + (3, 3))
+    R = np.zeros((*angle.shape, 3, 3))
     R[:, i, i] = 1.0
     R[:, j, j] = R[:, k, k] = c
     R[:, j, k], R[:, k, j] = -s, s

@@ -26,13 +26,13 @@ joint_state_channel: PANDA_STATUS
 n_joints: 7
 """).validate()
     assert dut.joint_state_type == "panda_status" and dut.lcm_url == "memq://"
-    with pytest.raises(ConfigError, match="hardware.joint_state_type"):
+    with pytest.raises(ConfigError, match=r"hardware.joint_state_type"):
         HardwareConfig(joint_state_type="ur_state").validate()
-    with pytest.raises(ConfigError, match="hardware.velocity_channel"):
+    with pytest.raises(ConfigError, match=r"hardware.velocity_channel"):
         HardwareConfig(joint_state_type="robot_state").validate()
-    with pytest.raises(ConfigError, match="hardware.sensor_timeout_s"):
+    with pytest.raises(ConfigError, match=r"hardware.sensor_timeout_s"):
         HardwareConfig(sensor_timeout_s=0.0).validate()
-    with pytest.raises(ConfigError, match="hardware.ft_channel"):
+    with pytest.raises(ConfigError, match=r"hardware.ft_channel"):
         HardwareConfig(ft_channel="IIWA_STATUS").validate()
 
 

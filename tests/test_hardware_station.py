@@ -25,7 +25,8 @@ def test_station_compensates_each_message_once():
     for k in range(20):
         t = 0.001 * (k + 1)
         q, w = rng.uniform(-1, 1, n), rng.normal(size=6)
-        lcm.Publish(config.joint_state_channel, encode_joint_state("iiwa_status", t, q, np.zeros(n)))
+        lcm.Publish(config.joint_state_channel,
+                    encode_joint_state("iiwa_status", t, q, np.zeros(n)))
         lcm.Publish(config.ft_channel, encode_wrench(t, w))
         dut.spin_once(0)
         rows.append(np.r_[q, np.zeros(2 * n)])

@@ -169,7 +169,8 @@ def test_untrusted_type_is_refused_without_running_it(forest_file, tmp_path):
     finally:
         del model.evil_
     (tmp_path / "m.ftdm").write_bytes(repack(read_manifest(path), payload))
-    with pytest.raises(ModelFileError, match=r"no registered compensator uses: \['test_persistence.Evil'"):
+    with pytest.raises(ModelFileError,
+                       match=r"no registered compensator uses: \['test_persistence.Evil'"):
         load_model(tmp_path / "m.ftdm")
     assert not Evil.ran
 
@@ -192,7 +193,7 @@ def test_payload_of_another_class_is_refused(forest_file, data, tmp_path):
     X, Y = data
     payload = sio.dumps(SVRCompensator().fit(X, Y))
     (tmp_path / "m.ftdm").write_bytes(repack(read_manifest(forest_file[1]), payload))
-    with pytest.raises(ModelFileError, match="payload holds .*SVRCompensator"):
+    with pytest.raises(ModelFileError, match=r"payload holds .*SVRCompensator"):
         load_model(tmp_path / "m.ftdm")
 
 

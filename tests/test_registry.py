@@ -27,6 +27,7 @@ class MeanCompensator(Compensator):
         self.gain = gain
 
     def _fit(self, Z, Y):
+        del Z  # Compensator._fit's signature; the mean ignores the inputs
         self.mean_ = Y.mean(axis=0)
 
     def _predict(self, Z):

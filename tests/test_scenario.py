@@ -77,7 +77,7 @@ def test_unknown_model_path_names_the_field(field):
 def test_unknown_package_model_names_the_field():
     config = ScenarioConfig()
     config.models.tool = "package://ftdrake/no_such_tool.sdf"
-    with pytest.raises(ConfigError, match="scenario.models.tool: cannot load"):
+    with pytest.raises(ConfigError, match=r"scenario.models.tool: cannot load"):
         build_station(config)
 
 
@@ -148,15 +148,16 @@ def test_simulate_cli_writes_documented_outputs(tmp_path):
         assert key in summary
     assert summary["first_contact_time_s"] is None and summary["samples"] == 3000
     log = pd.read_parquet(out / "log.parquet")
-    expected = ([col.TIME] + col.joint_columns(col.Q) + col.joint_columns(col.QD)
-                + col.joint_columns(col.QDD) + col.joint_columns(col.QD_EST)
-                + col.joint_columns(col.QDD_EST) + col.wrench_columns(col.IDEAL)
-                + col.wrench_columns(col.MEASURED) + col.wrench_columns(col.INTERNAL)
-                + col.wrench_columns(col.EXTERNAL) + [col.CONTACT, col.SATURATED])
+    expected = [col.TIME, *col.joint_columns(col.Q), *col.joint_columns(col.QD),
+                *col.joint_columns(col.QDD), *col.joint_columns(col.QD_EST),
+                *col.joint_columns(col.QDD_EST), *col.wrench_columns(col.IDEAL),
+                *col.wrench_columns(col.MEASURED), *col.wrench_columns(col.INTERNAL),
+                *col.wrench_columns(col.EXTERNAL), col.CONTACT, col.SATURATED]
     assert list(log.columns) == expected
     assert (out / "wrench.png").stat().st_size > 10_000
     # Numerically differentiated velocities agree with the plant's (smooth motion, 1 kHz).
-    qd, qd_est = log[col.joint_columns(col.QD)].to_numpy(), log[col.joint_columns(col.QD_EST)].to_numpy()
+    qd = log[col.joint_columns(col.QD)].to_numpy()
+    qd_est = log[col.joint_columns(col.QD_EST)].to_numpy()
     assert np.abs(qd - qd_est)[5:-5].max() < 0.01 * np.abs(qd).max() + 1e-3
 
 

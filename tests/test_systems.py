@@ -129,7 +129,7 @@ def test_wrong_port_size_fails_when_connecting(forest):
     builder = DiagramBuilder()
     dut = builder.AddSystem(CompensatorSystem(forest, PERIOD))
     five = builder.AddSystem(ConstantVectorSource(np.zeros(5)))
-    with pytest.raises(RuntimeError, match="[Mm]ismatched|size"):
+    with pytest.raises(RuntimeError, match=r"[Mm]ismatched|size"):
         builder.Connect(five.get_output_port(), dut.GetInputPort("wrench_measured"))
 
 

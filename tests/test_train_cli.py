@@ -104,7 +104,7 @@ def test_ur3_train_on_id1_evaluate_on_id2(ftdrake, id1_model, tmp_path):
     assert result["in_domain_rows"] + result["out_of_domain_rows"] == 750
     assert result["out_of_domain_by_input"]["q_4"] == 710
     assert set(result["metrics"]["in_domain"]) == set(TARGETS)
-    scores = dict(zip(TARGETS, variance_scores(result)))
+    scores = dict(zip(TARGETS, variance_scores(result), strict=True))
     assert scores["tau_0"] > 0.85 and scores["tau_4"] > 0.8 and scores["tau_5"] > 0.8
     assert scores["tau_2"] < 0.5  # the elbow does not transfer: extrapolation, not a bug
     assert "713 (95.1 %) outside the training range" in table

@@ -21,8 +21,7 @@ def main(argv=None) -> int:
     _add_demo(sub)
     _add_export(sub)
     _add_evaluate_detection(sub)
-    from . import study
-    from . import train
+    from . import study, train
 
     study.register(sub)
     train.register(sub)

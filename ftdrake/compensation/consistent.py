@@ -41,6 +41,7 @@ import dataclasses as dc
 import time
 
 import numpy as np
+from pydrake.solvers import ClarabelSolver, MathematicalProgram, ScsSolver, SolverOptions
 
 from ..errors import ConfigError, FtdrakeError
 
@@ -409,8 +410,6 @@ def _solve(R, z, scale, static, prior_precision, x0, min_mass, m_ref, length, so
     physical bodies that fit as well (to 1e-6 relative) — least squares' minimum-norm rule,
     kept inside the constraints (for unexcited inertia: the smallest physical inertia).
     """
-    from pydrake.solvers import MathematicalProgram, SolverOptions
-
     p = len(z)
     n_phi = 4 if static else 10
     rows, rhs = [R], [z]
@@ -441,7 +440,7 @@ def _solve(R, z, scale, static, prior_precision, x0, min_mass, m_ref, length, so
     for key, value in (solver_options or {}).items():
         options.SetOption(dut.solver_id(), key, value)
 
-    def run(prog, x, stage):
+    def run(prog, stage):
         start = time.perf_counter()
         result = dut.Solve(prog, None, options)
         elapsed = time.perf_counter() - start
@@ -455,7 +454,7 @@ def _solve(R, z, scale, static, prior_precision, x0, min_mass, m_ref, length, so
 
     prog, x = program()
     prog.AddL2NormCostUsingConicConstraint(B, -d, x)
-    result, status, elapsed = run(prog, x, "fit")
+    result, status, elapsed = run(prog, "fit")
     x_hat = result.GetSolution(x)
 
     _, s, Vt = np.linalg.svd(R)
@@ -467,7 +466,7 @@ def _solve(R, z, scale, static, prior_precision, x0, min_mass, m_ref, length, so
             np.vstack([np.zeros((1, p)), B]), np.concatenate([[misfit * (1 + 1e-6) + 1e-6], -d]),
             x)
         prog.AddL2NormCostUsingConicConstraint(null, np.zeros(len(null)), x)
-        result, status, more = run(prog, x, "minimum-norm stage")
+        result, status, more = run(prog, "minimum-norm stage")
         x_hat, elapsed = result.GetSolution(x), elapsed + more
     return x_hat, name, status, elapsed
 
@@ -497,8 +496,6 @@ def _from_pseudo_inertia(J) -> np.ndarray:
 
 
 def _pick_solver(solver):
-    from pydrake.solvers import ClarabelSolver, ScsSolver
-
     choices = {"clarabel": ClarabelSolver, "scs": ScsSolver}
     if solver is None:
         for key in ("clarabel", "scs"):
@@ -651,6 +648,6 @@ def _check_weights(weights) -> np.ndarray:
 
 
 def _embed(A, cols):
-    out = np.zeros(A.shape[:2] + (16,))
+    out = np.zeros((*A.shape[:2], 16))
     out[:, :, cols] = A
     return out

@@ -121,7 +121,8 @@ def _lbfgs(obj_func, initial_theta, bounds):
         options={"ftol": LIKELIHOOD_FTOL},
     )
     if not result.success:
-        warnings.warn(f"hyperparameter optimisation: {result.message}", ConvergenceWarning)
+        warnings.warn(f"hyperparameter optimisation: {result.message}", ConvergenceWarning,
+                      stacklevel=2)
     return result.x, result.fun
 
 
@@ -243,7 +244,7 @@ class GPRCompensator(Compensator):
         self.noise_variance_ = np.array([k.k2.noise_level for k in self.kernels_])
         self.L_ = np.empty((len(self.kernels_), m, m))
         self.alpha_ = np.empty((m, Y.shape[1]))
-        for g, (kernel, cols) in enumerate(zip(self.kernels_, self.output_groups())):
+        for g, (kernel, cols) in enumerate(zip(self.kernels_, self.output_groups(), strict=True)):
             K = kernel(self.X_train_)  # includes the noise variance on the diagonal
             K[np.diag_indices_from(K)] += JITTER
             self.L_[g] = cholesky(K, lower=True, check_finite=False)

@@ -107,7 +107,7 @@ def _manifest(model, target_names, target_units, sensor_frame, extra) -> dict:
         "sensor_frame": str(sensor_frame),
         "input_range": {
             name: [float(lo), float(hi)]
-            for name, lo, hi in zip(inputs, model.input_min_, model.input_max_)
+            for name, lo, hi in zip(inputs, model.input_min_, model.input_max_, strict=True)
         },
         "extra": extra or {},
     }

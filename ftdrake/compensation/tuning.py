@@ -243,8 +243,8 @@ def tune(
         n_candidates=len(candidates),
         targets=names,
         best_params=[_jsonable(candidates[b]) for b in best],
-        mean_score=[float(s[b].mean()) for s, b in zip(scores, best)],
-        std_score=[float(s[b].std()) for s, b in zip(scores, best)],
+        mean_score=[float(s[b].mean()) for s, b in zip(scores, best, strict=True)],
+        std_score=[float(s[b].std()) for s, b in zip(scores, best, strict=True)],
         candidates=[
             {
                 "params": [_jsonable(p) for p in candidates],

@@ -81,8 +81,8 @@ def read_bag(
         they are computed from positions.
       Other arguments as in :func:`~.logs.read_table`.
     """
-    from rosbags.highlevel import AnyReader
-    from rosbags.typesys import Stores, get_typestore
+    from rosbags.highlevel import AnyReader  # noqa: PLC0415 (rosbags only for ROS bags)
+    from rosbags.typesys import Stores, get_typestore  # noqa: PLC0415 (as above)
 
     if stamps not in ("header", "receive"):
         raise LogError(f"stamps must be 'header' or 'receive', got {stamps!r}")
@@ -185,8 +185,8 @@ def is_bag(path: str | Path) -> bool:
 
 def message_count(path: str | Path, topic: str) -> int:
     """How many messages the bag at `path` holds on `topic`."""
-    from rosbags.highlevel import AnyReader
-    from rosbags.typesys import Stores, get_typestore
+    from rosbags.highlevel import AnyReader  # noqa: PLC0415 (rosbags only for ROS bags)
+    from rosbags.typesys import Stores, get_typestore  # noqa: PLC0415 (as above)
 
     with AnyReader([Path(path)], default_typestore=get_typestore(Stores.LATEST)) as reader:
         return sum(c.msgcount for c in reader.connections if c.topic == topic)

@@ -1,4 +1,4 @@
-"""Robot logs as tables (CSV, Parquet) into one validated record, and the checks every reader shares.
+"""Robot log tables (CSV, Parquet) into one validated record, and the checks every reader shares.
 
 Tables are read here (:func:`read_frame`, :func:`read_table`); ROS bags in :mod:`.bag`. Every
 reader returns a :class:`RobotLog`: time, joint positions, velocities, accelerations and
@@ -43,6 +43,7 @@ from pathlib import Path
 
 import numpy as np
 import pandas as pd
+import pyarrow.parquet as pq
 
 from ..conventions import MEASURED, QD, QDD, TIME, Q, joint_columns
 from ..errors import LogError
@@ -375,8 +376,6 @@ def read_frame(path: str | Path, kind: str | None = None) -> pd.DataFrame:
         frame.attrs["scenario"] = None
         return frame
     if kind == "parquet":
-        import pyarrow.parquet as pq
-
         try:
             table = pq.read_table(path)
         except Exception as e:  # noqa: BLE001 - any pyarrow failure: unreadable

@@ -24,7 +24,9 @@ from collections.abc import Callable, Mapping
 from pathlib import Path
 
 import numpy as np
+import pandas as pd
 
+from ..config import CompensatorConfig, parse_config
 from ..conventions import MEASURED, QD, QD_EST, QDD, QDD_EST, TIME, TRAJECTORY, Q
 from ..errors import ConfigError, LogError
 from .bag import is_bag, message_count, read_bag
@@ -229,8 +231,6 @@ def column_spec(text: str | None):
 
 def _cutoff(options: ReadOptions, scenario_yaml: str | None, label: str) -> float:
     """The causal estimate's cut-off: given, else the scenario's, else the config default."""
-    from ..config import CompensatorConfig, parse_config
-
     if options.acceleration_cutoff_hz is not None:
         return float(options.acceleration_cutoff_hz)
     if scenario_yaml:
@@ -247,8 +247,6 @@ def _reader_keywords(options: ReadOptions, cutoff: float) -> dict:
 
 
 def _read_table(path: Path, options: ReadOptions) -> TrainingData:
-    import pandas as pd
-
     if not is_table(path):
         raise LogError(f"{path}: unknown format; expected .csv, .parquet, a .bag file or a "
                        f"ROS 2 bag folder")

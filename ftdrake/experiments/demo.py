@@ -23,6 +23,7 @@ from pathlib import Path
 
 import numpy as np
 import pandas as pd
+from pydrake.geometry import Meshcat
 
 from .. import conventions as col
 from ..compensation.forest import RandomForestCompensator
@@ -99,8 +100,6 @@ def run_demo(out: Path, config: ScenarioConfig | None = None, *, fourier: int = 
     results, logs = {}, {}
     for name, model in models.items():
         if meshcat_html and name == "hybrid":
-            from pydrake.geometry import Meshcat
-
             meshcat = Meshcat()
             meshcat.StartRecording(set_visualizations_while_recording=False)
         run = simulate(build_station(dc.replace(scenario, detector=detectors[name]), model,
@@ -141,7 +140,7 @@ def run_demo(out: Path, config: ScenarioConfig | None = None, *, fourier: int = 
         "sensor_preset": scenario.sensor.preset,
         "held_out_seed": HELD_OUT_SEED,
     }
-    from ..plots import plot_contact_comparison
+    from ..plots import plot_contact_comparison  # noqa: PLC0415 (matplotlib only when plotting)
 
     with staged_outputs(out) as staging:
         plot_contact_comparison(logs, staging / "contact.png")
@@ -199,7 +198,7 @@ def print_table(summary: dict) -> None:
     print("\n  free-motion compensation error RMS / sensor noise σ, and contact error RMS after "
           "touchdown:")
     print(f"  {'axis':<6}" + "".join(f"{n + ' err/σ':>16}{n + ' contact':>20}" for n in names))
-    for i, (axis, unit) in enumerate(zip(col.WRENCH_AXES, col.WRENCH_UNITS)):
+    for i, (axis, unit) in enumerate(zip(col.WRENCH_AXES, col.WRENCH_UNITS, strict=True)):
         cells = "".join(
             f"{r['compensation_error_over_noise'][i]:>16.2f}"
             f"{r['external_wrench_error_rms_after_touchdown'][i]:>15.4f} {unit:<4}"

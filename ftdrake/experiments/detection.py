@@ -210,10 +210,10 @@ def markdown(results: dict, plan: DetectionPlan) -> str:
 
 def plot_detection_rate(results: dict, path: Path) -> None:
     """Detection rate against contact force (log scale), one line per model."""
-    import matplotlib
+    import matplotlib  # noqa: PLC0415 (matplotlib only when plotting)
 
     matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    import matplotlib.pyplot as plt  # noqa: PLC0415 (after matplotlib.use)
 
     fig, ax = plt.subplots(figsize=(7, 4))
     edges = np.logspace(np.log10(0.1), np.log10(100), 13)

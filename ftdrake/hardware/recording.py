@@ -26,7 +26,7 @@ from .messages import decode_joint_state, decode_wrench
 
 def read_lcm_log(path, config: HardwareConfig, tolerance_s: float = 0.002):
     """Returns (table, report)."""
-    import lcm
+    import lcm  # noqa: PLC0415 (lcm only to read lcm-logger files)
 
     n = config.n_joints
     joints, wrenches, malformed = [], [], 0
@@ -44,14 +44,15 @@ def read_lcm_log(path, config: HardwareConfig, tolerance_s: float = 0.002):
             malformed += 1
     if not wrenches or not joints:
         raise LogError(f"{path}: no {config.ft_channel} or {config.joint_state_channel} messages")
-    jcols = [TIME] + joint_columns(Q, n) + joint_columns(QD, n)
+    jcols = [TIME, *joint_columns(Q, n), *joint_columns(QD, n)]
     jt = pd.DataFrame(np.array(joints), columns=jcols).sort_values(TIME)
     jt["_joint_index"] = np.arange(len(jt))
-    ft = pd.DataFrame(np.array(wrenches), columns=[TIME] + wrench_columns(MEASURED)).sort_values(TIME)
+    ft = pd.DataFrame(np.array(wrenches), columns=[TIME, *wrench_columns(MEASURED)])
+    ft = ft.sort_values(TIME)
     merged = pd.merge_asof(ft, jt, on=TIME, direction="backward", tolerance=tolerance_s)
     matched = merged["_joint_index"].notna()
     table = merged[matched].drop(columns="_joint_index")
-    table = table[[TIME] + joint_columns(Q, n) + joint_columns(QD, n) + wrench_columns(MEASURED)]
+    table = table[[TIME, *joint_columns(Q, n), *joint_columns(QD, n), *wrench_columns(MEASURED)]]
     used = set(merged.loc[matched, "_joint_index"].astype(int))
     report = {"ft": len(ft), "joint": len(jt), "rows": int(matched.sum()),
               "unmatched_ft": int((~matched).sum()), "unused_joint": len(jt) - len(used),

@@ -27,7 +27,7 @@ from pydrake.lcm import DrakeLcm
 from pydrake.systems.analysis import Simulator
 from pydrake.systems.framework import DiagramBuilder
 
-from ftdrake import CompensatorSystem, ContactDetector
+from ftdrake import CompensatorSystem, ContactDetector, DetectorConfig
 
 from .config import HardwareConfig
 from .live_inputs import StreamMonitor
@@ -121,7 +121,9 @@ class HardwareStation:
     def latency_percentiles(self):
         """(p50, p99) in s of arrival → publication, over the messages published so far."""
         lat = np.asarray(self.latencies)
-        return (float(np.percentile(lat, 50)), float(np.percentile(lat, 99))) if len(lat) else (np.nan, np.nan)
+        if not len(lat):
+            return (np.nan, np.nan)
+        return (float(np.percentile(lat, 50)), float(np.percentile(lat, 99)))
 
 
 def build_hardware_station(config: HardwareConfig, model, detector_config, lcm=None,
@@ -139,8 +141,6 @@ def measure_latency(model, detector_config=None, n_messages: int = 2000, seed: i
     each; returns {"p50_s", "p99_s", "processed", "published"}. In-process, so it measures the
     station's own work (decode, checks, compensator, detector, encode, publish), not UDP.
     """
-    from ftdrake import DetectorConfig
-
     rng = np.random.default_rng(seed)
     lcm = DrakeLcm("memq://")
     n = int(model.n_joints_)

@@ -20,6 +20,8 @@ from tqdm.auto import tqdm
 
 from .. import conventions as col
 from ..config import ConfigError, ScenarioConfig, dump_config, parse_config
+from .simulate import simulate
+from .station import build_station
 
 # Contact-free kinds; `rehearsal` is the contact motion stopping trajectory.rehearsal_height_m
 # above the surface.
@@ -38,9 +40,6 @@ def trajectory_config(base: ScenarioConfig, index: int, seed: int) -> ScenarioCo
 
 def simulate_one(config_yaml: str, index: int) -> pd.DataFrame:
     """Builds the diagram from YAML (in this process), runs it, returns its log."""
-    from .simulate import simulate
-    from .station import build_station
-
     config = parse_config(config_yaml)
     log = simulate(build_station(config), progress=False).log
     log.insert(0, col.TRAJECTORY, np.int32(index))
@@ -82,7 +81,7 @@ def dask_backend(dask_address: str | None):
     if dask_address is None:
         yield
         return
-    from dask.distributed import Client
+    from dask.distributed import Client  # noqa: PLC0415 (dask only with a cluster address)
 
     with Client(dask_address) as client, parallel_config(backend="dask"):
         del client

@@ -82,4 +82,4 @@ def evaluate_detection(log: pd.DataFrame, noise_std) -> dict:
 def _episodes(flags: np.ndarray) -> list[tuple[int, int]]:
     """[start, end) index pairs of runs of True."""
     edges = np.flatnonzero(np.diff(np.concatenate([[0], flags.astype(int), [0]])))
-    return list(zip(edges[::2], edges[1::2]))
+    return list(zip(edges[::2], edges[1::2], strict=True))

@@ -124,14 +124,14 @@ def assemble_log(station: Station, root_context) -> pd.DataFrame:
         (col.Q, q), (col.QD, qd), (col.QDD, series["acceleration"][keep]),
         (col.QD_EST, qd_est), (col.QDD_EST, qdd_est),
     ):
-        frame.update(zip(col.joint_columns(prefix, n), values.T))
+        frame.update(zip(col.joint_columns(prefix, n), values.T, strict=True))
     internal_physical = series["ideal"] - series["external"]
     internal = station.noisy_sensor.deterministic_reading(internal_physical)
     for prefix, values in (
         (col.IDEAL, series["ideal"]), (col.MEASURED, series["measured"]),
         (col.INTERNAL, internal), (col.EXTERNAL, series["external"]),
     ):
-        frame.update(zip(col.wrench_columns(prefix), values[keep].T))
+        frame.update(zip(col.wrench_columns(prefix), values[keep].T, strict=True))
     frame[col.CONTACT] = series["contact"][keep, 0].astype(np.int8)
     frame[col.SATURATED] = series["saturated"][keep, 0].astype(np.int8)
     if station.compensation is not None:
@@ -148,7 +148,7 @@ def _add_compensation_columns(frame: dict, loggers, root_context, t, keep) -> No
 
     for prefix, name in ((PREDICTED, "internal"), (ESTIMATED, "external"),
                          (PREDICTED_STD, "std")):
-        frame.update(zip(col.wrench_columns(prefix), values(name).T))
+        frame.update(zip(col.wrench_columns(prefix), values(name).T, strict=True))
     frame["out_of_domain"] = values("out_of_domain")[:, 0].astype(np.int8)
     frame["fault"] = values("fault")[:, 0].astype(np.int8)
     frame["detected"] = values("detected")[:, 0].astype(np.int8)

@@ -4,9 +4,9 @@
      (q_d, v_d, v̇_d)      (nominal tool model)       │                          │ wrench_ideal
                                                      │◄── cable (spring + weight)          ▼
                                                      ├──► contact truth           noisy sensor
-                                                     │                                   │
-                                                     └── joint_state ──► compensator ◄───┘ wrench_measured
-                                                                          │ wrench_external, wrench_std
+                                                     │                   wrench_measured │
+                                                     └── joint_state ──► compensator ◄───┘
+                                              wrench_external, wrench_std │
                                                                           ▼
                                                                    contact detector
 
@@ -173,14 +173,17 @@ def build_station(config: ScenarioConfig, compensator=None, *, meshcat=None,
                             arrows.get_input_port_external())
             builder.Connect(plant.get_body_poses_output_port(), arrows.get_input_port_body_poses())
     if meshcat is not None:
-        from pydrake.visualization import AddDefaultVisualization
+        from pydrake.visualization import (  # noqa: PLC0415 (only with Meshcat)
+            AddDefaultVisualization,
+        )
 
         AddDefaultVisualization(builder, meshcat=meshcat)
     diagram = builder.Build()
     diagram.set_name("ftdrake")
 
     if trajectory is None:
-        trajectory = plan_trajectory(config, RobotGeometry(diagram, plant, scene.scene_graph, scene))
+        robot = RobotGeometry(diagram, plant, scene.scene_graph, scene)
+        trajectory = plan_trajectory(config, robot)
     q_source.UpdateTrajectory(trajectory)
     vd_source.UpdateTrajectory(trajectory.derivative(2))
     return Station(config, diagram, scene, trajectory, controller, sensor, noisy, truth,

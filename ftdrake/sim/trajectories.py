@@ -99,7 +99,7 @@ def make_trajectory(config: TrajectoryConfig, home_q, limits: JointLimits, robot
         if robot is None:
             raise TrajectoryError(f"the {config.kind} kind needs the robot's geometry for IK")
         depth = config.press_depth_m if config.kind == "contact" else -config.rehearsal_height_m
-        traj = _contact(config, depth, home_q, limits, robot)
+        traj = _contact(config, depth, home_q, robot)
     else:
         traj = _free_motion(config, home_q, limits, robot)
     check_limits(traj, limits)
@@ -162,7 +162,8 @@ def _random_waypoints(config, home_q, rng):
     """Min-jerk moves between random waypoints, about 2.5 s apart, ending at home."""
     count = max(2, int(config.duration_s / 2.5))
     spread = _FOURIER_AMPLITUDE[: len(home_q)]
-    points = [home_q] + [home_q + rng.uniform(-1, 1, len(home_q)) * spread for _ in range(count - 1)]
+    points = [home_q] + [home_q + rng.uniform(-1, 1, len(home_q)) * spread
+                         for _ in range(count - 1)]
     points.append(home_q)
     times = np.linspace(0.0, config.duration_s, len(points))
     return _min_jerk_path(times, np.array(points))
@@ -171,7 +172,7 @@ def _random_waypoints(config, home_q, rng):
 # ----------------------------------------------------------------------------------------------
 # The contact scenario.
 # ----------------------------------------------------------------------------------------------
-def _contact(config, depth, home_q, limits, robot):
+def _contact(config, depth, home_q, robot):
     """The contact motion, reaching `depth` m into the target surface (< 0: above it)."""
     hover, near, press = robot.press_poses(config.contact_target, depth, home_q)
     # Fast to 5 cm off the surface, slowly to 5 mm off it, then press: a careful approach.

@@ -8,7 +8,8 @@ ContactDetector::
 Wiring (names of the ports)::
 
     tracker = builder.AddSystem(OnlineBiasTracker(BiasTrackerConfig(), scenario.sensor))
-    builder.Connect(comp.get_output_port_wrench_external(), tracker.get_input_port_wrench_external())
+    builder.Connect(comp.get_output_port_wrench_external(),
+                    tracker.get_input_port_wrench_external())
     builder.Connect(comp.get_output_port_out_of_domain(), tracker.get_input_port_out_of_domain())
     builder.Connect(comp.get_output_port_fault(), tracker.get_input_port_fault())
     builder.Connect(tracker.get_output_port_wrench_external(), det.get_input_port_wrench_external())
@@ -69,9 +70,10 @@ The slow-push problem: a push that grows slowly must not be taken for bias. Thre
    (Fz), 34 µN·m/s (T). In the example the published bias moves at most 1.34 mN/s · 0.5 s =
    0.67 mN (1 mN along z) before detection: 0.13–0.2 % of the threshold, so detection is
    delayed by < 1 ms. (Measured with the ContactDetector in the loop and the sensor's noise:
-   detected 0.52 s after the push began, published bias moved 0.68 mN, estimate 6.8 mN.) Any push growing faster than ḃ_max is detected; only a load that stays
-   below the threshold for a long time (0.4 N for 300 s) or grows no faster than a real drift
-   can be absorbed — from the wrench alone it cannot be told from drift. The published payload
+   detected 0.52 s after the push began, published bias moved 0.68 mN, estimate 6.8 mN.)
+   Any push growing faster than ḃ_max is detected; only a load that stays below the
+   threshold for a long time (0.4 N for 300 s) or grows no faster than a real drift can be
+   absorbed — from the wrench alone it cannot be told from drift. The published payload
    is bounded likewise (|Δṁ|·9.81 ≤ min ḃ_F, |Δ(m·c)˙|·9.81 ≤ min ḃ_T) so a payload change never
    moves the corrected wrench faster than the bias bound either.
 

@@ -1,4 +1,4 @@
-"""CompensatorSystem: a trained compensator in the loop, predicting and subtracting the internal wrench."""
+"""CompensatorSystem: a trained compensator in the loop that subtracts the internal wrench."""
 
 from __future__ import annotations
 
@@ -75,9 +75,9 @@ class CompensatorSystem(LeafSystem):
         self._ood = self.DeclareDiscreteState(1)
         self._fault = self.DeclareDiscreteState(1)
         self.DeclarePeriodicDiscreteUpdateEvent(self.period, 0.0, self._update)
-        for name, index in (("wrench_internal", self._internal), ("wrench_external", self._external),
-                            ("wrench_std", self._std), ("out_of_domain", self._ood),
-                            ("fault", self._fault)):
+        for name, index in (("wrench_internal", self._internal),
+                            ("wrench_external", self._external), ("wrench_std", self._std),
+                            ("out_of_domain", self._ood), ("fault", self._fault)):
             self.DeclareStateOutputPort(name, index)
 
     def get_input_port_wrench_measured(self):

@@ -21,8 +21,8 @@ class ContactTruth(LeafSystem):
         what the sensor reads on top of the internal wrench.
       contact (1): 1.0 while any tool body touches any environment body, else 0.0.
 
-    Point contact only (the plant ftdrake builds uses ContactModel.kPoint). Like the plant's sampled ports, this reads
-    no contact before the first step.
+    Point contact only (the plant ftdrake builds uses ContactModel.kPoint). Like the plant's
+    sampled ports, this reads no contact before the first step.
     """
 
     def __init__(self, plant, sensor_frame, tool_bodies, environment_bodies, period: float):

@@ -64,7 +64,8 @@ class DiscreteInverseDynamicsController(Diagram):
         builder.ConnectInput(estimated, inputs.get_input_port(1))
         builder.ExportInput(inputs.get_input_port(2), "desired_acceleration")
         builder.Connect(inputs.get_output_port(0), pid.get_input_port())
-        builder.Connect(pid.get_output_port(), inverse_dynamics.get_input_port_desired_acceleration())
+        builder.Connect(pid.get_output_port(),
+                        inverse_dynamics.get_input_port_desired_acceleration())
         builder.ExportOutput(inverse_dynamics.get_output_port_generalized_force(), "control")
         builder.BuildInto(self)
         self.set_name("controller")

@@ -7,6 +7,7 @@ import math
 import numba
 import numpy as np
 from pydrake.systems.framework import LeafSystem
+from scipy.stats import chi2
 
 from ..config import DetectorConfig
 
@@ -122,8 +123,6 @@ def thresholds_for_false_positive_rate(residual, *, sample_rate_hz: float,
     The smallest contact force it then detects is about force_on plus the residual at that
     moment; ``ftdrake.sim.evaluation`` measures it. `overrides` set the other fields.
     """
-    from scipy.stats import chi2
-
     r = np.asarray(residual, dtype=float)
     if r.ndim != 2 or r.shape[1] != 6 or len(r) < 100:
         raise ValueError(f"residual must be N × 6 with N >= 100; got shape {r.shape}")

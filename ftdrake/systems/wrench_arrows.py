@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import numpy as np
+from pydrake.common.value import AbstractValue
 from pydrake.geometry import Cylinder, Rgba
 from pydrake.math import RigidTransform, RotationMatrix
 from pydrake.systems.framework import LeafSystem
@@ -19,8 +20,6 @@ class WrenchArrows(LeafSystem):
 
     def __init__(self, meshcat, plant, scene):
         super().__init__()
-        from pydrake.common.value import AbstractValue
-
         self._meshcat = meshcat
         self._body = int(scene.sensor_frame.body().index())
         self._X_BS = scene.sensor_frame.GetFixedPoseInBodyFrame()
@@ -28,7 +27,8 @@ class WrenchArrows(LeafSystem):
         self.DeclareVectorInputPort("external", 6)
         self.DeclareAbstractInputPort("body_poses",
                                       AbstractValue.Make([RigidTransform()] * plant.num_bodies()))
-        for name, rgba in (("measured", Rgba(0.4, 0.4, 0.4, 0.9)), ("external", Rgba(0.9, 0.1, 0.1, 1))):
+        for name, rgba in (("measured", Rgba(0.4, 0.4, 0.4, 0.9)),
+                           ("external", Rgba(0.9, 0.1, 0.1, 1))):
             meshcat.SetObject(f"wrench/{name}", Cylinder(0.006, 1.0), rgba)
         self.DeclarePeriodicPublishEvent(1 / 30, 0.0, self._draw)
 
