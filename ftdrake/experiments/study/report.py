@@ -50,7 +50,7 @@ def describe(f: Finding, by_id: dict[str, Finding] | None = None) -> tuple[str, 
     return evidence, None if f.reproduced else why
 
 
-def _words_a(n, by_id):
+def _words_a(n, _by_id):
     total, wins, scaled = n["cells"], n["rf_wins"], n["rf_wins_vs_scaled_svr"]
     losses = [f"{x['axis']} ({x['features']}) {x['rf_mse']:.3g} vs {x['svr_mse']:.3g}"
               for x in n["svr_wins_reference"]]
@@ -74,7 +74,7 @@ def _words_a(n, by_id):
     return evidence, why
 
 
-def _words_b(n, by_id):
+def _words_b(n, _by_id):
     change, axis, limit = n["largest_change"], n["largest_change_axis"], n["threshold"]
     rf, svr = change["reference"]["rf"], change["reference"]["svr"]
     evidence = (
@@ -97,7 +97,7 @@ def _words_b(n, by_id):
     return evidence, "; ".join(why) or None
 
 
-def _words_c(n, by_id):
+def _words_c(n, _by_id):
     nmse, floor, order = n["mean_nmse"], n["noise_floor_nmse"], n["worst_first"]
     physics = n["physics_nmse"]
     evidence = ("mean NMSE of RF and SVR over the feature sets, worst first: "
@@ -141,7 +141,7 @@ def _words_d(n, by_id):
     return evidence, why
 
 
-def _words_e(n, by_id):
+def _words_e(n, _by_id):
     ref, rich, tip = n["reference"], n["z_rich"], n["tool_tip_z_std_mm"]
     evidence = (
         f"mean NMSE of RF and SVR, reference → z_rich: Fz {ref['Fz']:.3g} → "
@@ -152,7 +152,7 @@ def _words_e(n, by_id):
     return evidence, why
 
 
-def _words_f(n, by_id):
+def _words_f(n, _by_id):
     r, z = n["reference"], n["z_rich"]
     evidence = (
         f"hybrid (q,qd,qdd) has the lower test MSE on {r['axes']}/6 axes on reference, median "
@@ -295,10 +295,10 @@ _COLORS = {"rf": ("#9ecae1", "#4292c6", "#08519c"), "svr": ("#fdae6b", "#f16913"
 
 def write_figures(results: dict, out_dir: Path) -> list[Path]:
     """The study's figures for every dataset: ``<figure>_<dataset>.png`` in `out_dir`."""
-    import matplotlib
+    import matplotlib  # noqa: PLC0415 (matplotlib only when plotting)
 
     matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    import matplotlib.pyplot as plt  # noqa: PLC0415 (after matplotlib.use)
 
     paths = []
     for d in DATASETS:
@@ -329,7 +329,7 @@ def _bars(ax, results, d, metric, axes, log=False):
     ax.grid(axis="y", alpha=0.3, which="both")
 
 
-def _legend_right(fig, ax):
+def _legend_right(ax):
     ax.legend(fontsize=8, loc="upper left", bbox_to_anchor=(1.01, 1.0), frameon=False)
 
 
@@ -339,7 +339,7 @@ def _fig_nmse(plt, results, d):
     ax.axhline(1.0, color="k", lw=0.8, ls="--")  # NMSE 1: no better than the mean
     ax.set_ylabel("NMSE (MSE / var)  [1 = predicting the mean]")
     ax.set_title(f"NMSE per axis, held-out trajectories — {d}")
-    _legend_right(fig, ax)
+    _legend_right(ax)
     fig.tight_layout()
     return fig
 
@@ -350,7 +350,7 @@ def _fig_mse(plt, results, d):
     _bars(right, results, d, "mse", AXES[3:], log=True)
     left.set_ylabel("MSE [N²]")
     right.set_ylabel("MSE [(N·m)²]")
-    _legend_right(fig, right)
+    _legend_right(right)
     fig.suptitle(f"MSE per axis, held-out trajectories — {d}")
     fig.tight_layout()
     return fig
@@ -372,7 +372,7 @@ def _fig_variance(axes, kind):
         ax.axhline(0, color="k", lw=0.8)
         ax.set_ylabel("variance score  [1 = perfect]")
         ax.set_title(f"Variance score of the {kind} models — {d}")
-        _legend_right(fig, ax)
+        _legend_right(ax)
         fig.tight_layout()
         return fig
 

@@ -18,6 +18,7 @@ from dataclasses import dataclass
 import numpy as np
 import pandas as pd
 from sklearn.base import clone
+from sklearn.model_selection import ParameterGrid
 from threadpoolctl import threadpool_limits
 
 from ... import conventions as col
@@ -30,6 +31,8 @@ from ...config import ScenarioConfig
 from ...data.dataset import joint_state_layout, wrench_targets
 from ...io import atomic_path, staged_outputs
 from ...sim.collection import collect, trajectory_config
+from ...sim.station import plan_trajectory, robot_geometry
+from ...sim.trajectories import trajectory_extent
 from . import report as outputs
 from .findings import check_findings
 from .layout import AXES, DATASETS, FEATURES, METHODS
@@ -361,9 +364,6 @@ def tool_tip_extent(config: ScenarioConfig, kind: str, trajectories: int, durati
                     seed: int) -> dict:
     """The study's Table 3 for a dataset: tool-tip x, y, z (m) and tilt (rad) over all of its
     trajectories (max, min, mean, std), from the planned motions."""
-    from ...sim.station import plan_trajectory, robot_geometry
-    from ...sim.trajectories import trajectory_extent
-
     base = dataclasses.replace(config, trajectory=dataclasses.replace(config.trajectory, kind=kind,
                                                     duration_s=duration))
     robot = robot_geometry(base)
@@ -398,7 +398,7 @@ def cv_disagreement(cv_mse: dict, test_report: dict) -> dict:
 def fx_importances(model, features: str) -> dict:
     """Impurity importances of the tuned Fx forest, by input name (they sum to 1)."""
     values = model.estimators_[0].feature_importances_[0]
-    return dict(zip(feature_names(features, col.N_JOINTS), map(float, values)))
+    return dict(zip(feature_names(features, col.N_JOINTS), map(float, values), strict=True))
 
 
 def estimate_seconds(preset, *, trajectories=TRAJECTORIES, duration=DURATION_S,
@@ -433,8 +433,6 @@ def _rf_fit_s(trees, max_features, n_features, rows) -> float:
 
 
 def _candidates(preset, name, n_features):
-    from sklearn.model_selection import ParameterGrid
-
     return list(ParameterGrid(param_grid(_grid(preset, name), name, n_features)))
 
 
