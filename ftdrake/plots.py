@@ -43,37 +43,6 @@ def plot_wrench_log(log, path: Path, title: str = "F/T sensor") -> None:
     plt.close(fig)
 
 
-def plot_contact(log, path: Path, title: str = "contact scenario, compensator in the loop"):
-    """Raw vs compensated wrench per axis; true contact shaded, detections marked."""
-    fig, axes = plt.subplots(4, 1, figsize=(10, 9), sharex=True,
-                             gridspec_kw={"height_ratios": [3, 3, 3, 1]})
-    t = log[col.TIME].to_numpy()
-    for ax, axis in zip(axes[:3], ("Fx", "Fy", "Fz"), strict=True):
-        ax.plot(t, log[f"{col.MEASURED}_{axis}"], lw=0.7, color="0.55", label="measured (raw)")
-        ax.plot(t, log[f"est_external_{axis}"], lw=0.8, color="tab:blue",
-                label="compensated (estimated external)")
-        ax.plot(t, log[f"{col.EXTERNAL}_{axis}"], lw=1.0, color="tab:red", ls="--",
-                label="true external")
-        shade_contact(ax, t, log[col.CONTACT])
-        ax.set_ylabel(f"{axis} [N]")
-        ax.grid(alpha=0.3)
-    axes[0].legend(loc="lower left", fontsize=8, ncol=4)
-    axes[0].set_title(title)
-    shade_contact(axes[3], t, log[col.CONTACT])
-    axes[3].step(t, log["detected"], where="post", color="k", lw=1.0, label="detected")
-    onsets = t[np.flatnonzero(np.diff(log["detected"].to_numpy(), prepend=0) == 1)]
-    for ax in axes:
-        for onset in onsets:
-            ax.axvline(onset, color="k", lw=0.8, ls=":")
-    axes[3].set_yticks([0, 1])
-    axes[3].set_ylabel("contact")
-    axes[3].legend(loc="upper left", fontsize=8)
-    axes[3].set_xlabel("time [s]")
-    fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
-
-
 def plot_contact_comparison(logs: dict, path: Path,
                             title: str = "contact scenario, each model in the loop"):
     """One column per model (``logs``: name → closed-loop log): raw vs compensated Fx, Fy, Fz,
