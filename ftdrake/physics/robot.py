@@ -18,10 +18,9 @@ from pathlib import Path
 
 import numpy as np
 from pydrake.math import RigidTransform
-from pydrake.multibody.parsing import Parser
 from pydrake.multibody.plant import MultibodyPlant
 
-from ..assets import models_dir
+from ..assets import offline_parser
 from ..errors import RobotModelError
 
 DIRECTIVES_PREFIX = "directives:"
@@ -50,12 +49,10 @@ class RobotDescription:
         Raises RobotModelError naming the model and what is wrong with it.
         """
         plant = MultibodyPlant(0.0)
-        parser = Parser(plant)
-        parser.package_map().AddPackageXml(str(models_dir() / "package.xml"))
-        for xml in self.package_xmls:
-            if not Path(xml).is_file():
-                raise RobotModelError(f"package.xml {xml!r} of robot {self.label}: no such file")
-            parser.package_map().AddPackageXml(xml)
+        try:
+            parser = offline_parser(plant, self.package_xmls)
+        except FileNotFoundError as e:
+            raise RobotModelError(f"robot {self.label}: {e}") from None
         try:
             if self.model.lstrip().startswith(DIRECTIVES_PREFIX):
                 parser.AddModelsFromString(self.model, "dmd.yaml")

@@ -29,7 +29,7 @@ from pydrake.multibody.tree import (
 from pydrake.systems.framework import DiagramBuilder
 from pydrake.systems.primitives import ConstantValueSource
 
-from ..assets import models_dir
+from ..assets import offline_parser
 from ..config import ConfigError, ModelsConfig, ScenarioConfig, TaskConfig
 from ..physics.robot import RobotDescription, arm_directives
 from .cable import add_cable_spring, cable_weight_forces
@@ -37,13 +37,10 @@ from .cable import add_cable_spring, cable_weight_forces
 
 def make_parser(plant: MultibodyPlant, models: ModelsConfig) -> Parser:
     """A parser that resolves package://ftdrake/ offline, plus the user's package.xml files."""
-    parser = Parser(plant)
-    parser.package_map().AddPackageXml(str(models_dir() / "package.xml"))
-    for xml in models.package_xmls:
-        if not Path(xml).is_file():
-            raise ConfigError(f"scenario.models.package_xmls: no such file {xml!r}")
-        parser.package_map().AddPackageXml(xml)
-    return parser
+    try:
+        return offline_parser(plant, models.package_xmls)
+    except FileNotFoundError as e:
+        raise ConfigError(f"scenario.models.package_xmls: {e}") from None
 
 
 def add_model(parser: Parser, url: str, field: str) -> ModelInstanceIndex:
