@@ -14,6 +14,20 @@ axis) on the same data: its mean and standard deviation for one row, ours
 (``CompiledGaussianProcess.predict_one_with_std``) vs the model's ``predict`` +
 ``predict_std``; the std costs O(axes · m²) per row whatever the code.
 
+Then the physics payload model and the hybrid (physics + forest residual) on ftdrake's own arm
+(7 joints, the same synthetic joint states, readings made from a known payload): one row
+through
+
+* Drake's per-row path: ``sensor_kinematics`` (Drake's Jacobian and bias acceleration of S),
+  the numpy regressor, the product with the parameters — the physics model before the
+  compiled chain,
+* the compiled physics: ``PhysicsPayloadCompensator.predict_row`` and its ``row_predictor``
+  (one numba kernel: serial-chain kinematics, regressor row, product),
+* the hybrid's ``row_predictor`` (compiled physics + compiled forest residual),
+
+beside the compiled multi-output forest of the first part (the demo's other model). The
+compiled and Drake rows are checked equal to 1e-12 before timing.
+
 Rows are consecutive samples of an unseen stretch of trajectory at 1 kHz (successive rows take
 nearly the same paths through the trees, as in a control loop), and for ours also random
 rows (cold paths, the worst case). Medians in µs; on a shared machine only the ratios travel.
@@ -36,8 +50,12 @@ import sklearn
 from sklearn.ensemble import RandomForestRegressor
 
 from ftdrake.compensation.compiled import CompiledForest, CompiledGaussianProcess
+from ftdrake.compensation.forest import RandomForestCompensator
 from ftdrake.compensation.gpr import GPRCompensator
+from ftdrake.compensation.hybrid import HybridCompensator
 from ftdrake.compensation.onnx_export import export_onnx
+from ftdrake.compensation.physics import PhysicsPayloadCompensator, payload_regressor
+from ftdrake.physics.rigid_body import sensor_kinematics
 
 N_JOINTS, N_OUTPUTS, N_TREES, TRAIN_ROWS = 7, 6, 100, 3000
 GP_POINTS = 500
@@ -170,6 +188,19 @@ def main() -> None:
         print(f"{name:<14} ours {b['ours']:.1f}  sklearn {b['sklearn']:.1f}  "
               f"onnxruntime {b['onnxruntime']:.1f}")
     gp = gp_latency(X_train, Y_train, smooth)
+    physics = physics_latency(X_train, smooth)
+    forest_us = results["multi-output"]["ours_us"]
+    print("\nphysics payload model on ftdrake's arm, one row, median µs (ratios: this run)")
+    print(f"{'path':<36}{'µs':>9}{'vs Drake row':>14}{'vs forest':>11}")
+    rows_table = [
+        ("forest, compiled (multi-output)", forest_us),
+        ("physics, Drake per-row kinematics", physics["drake_row_us"]),
+        ("physics, predict_row (compiled)", physics["predict_row_us"]),
+        ("physics, row_predictor (compiled)", physics["row_predictor_us"]),
+        ("hybrid, row_predictor", physics["hybrid_row_us"]),
+    ]
+    for name, us in rows_table:
+        print(f"{name:<36}{us:>9.2f}{physics['drake_row_us'] / us:>13.0f}×{us / forest_us:>10.2f}×")
     print(f"\nGaussian process (m = {GP_POINTS}, 6 kernels), mean + std of one row, median µs: "
           f"ours {gp['ours_us']:.0f}, predict + predict_std {gp['predict_and_std_us']:.0f}")
     multi = results["multi-output"]
@@ -183,9 +214,56 @@ def main() -> None:
         "batch_1000_ms": {name: {k: round(v, 2) for k, v in r["batch_1000_ms"].items()}
                           for name, r in results.items()},
         "gp": gp,
+        "physics": {
+            **{k: round(v, 2) for k, v in physics.items()},
+            "forest_us": round(forest_us, 2),
+            "drake_over_compiled": round(physics["drake_row_us"] / physics["predict_row_us"], 1),
+            "compiled_over_forest": round(physics["predict_row_us"] / forest_us, 2),
+            "hybrid_over_forest": round(physics["hybrid_row_us"] / forest_us, 2),
+        },
         "n_trees": N_TREES, "n_features": 3 * N_JOINTS, "n_outputs": N_OUTPUTS,
         "train_rows": TRAIN_ROWS, "machine": machine(),
     }))
+
+
+def physics_latency(X_train, rows) -> dict:
+    """Single-row µs of the physics model (Drake's row path and the compiled one) and the
+    hybrid, on ftdrake's arm, with readings made from a known payload."""
+    physics = PhysicsPayloadCompensator()  # ftdrake's arm
+    phi = np.array([1.5, 0.03, 0.01, 0.13, 0.012, 0.0, 0.001, 0.012, 0.0, 0.004,
+                    0.6, -0.4, 1.2, 0.01, -0.02, 0.005])
+    rng = np.random.default_rng(3)
+    Y = physics.regressor(X_train) @ phi + rng.normal(0, 0.02, (len(X_train), 6))
+    physics.fit(X_train, Y)
+    hybrid = HybridCompensator(residual=RandomForestCompensator(
+        features="q", n_estimators=N_TREES, min_samples_leaf=5, random_state=0, n_jobs=2))
+    hybrid.fit(X_train, Y)
+
+    plant, frame_S = physics.robot_description().build_plant()
+    context = plant.CreateDefaultContext()
+    gravity = np.asarray(physics.gravity)
+    theta = physics.parameters_
+
+    def drake_row(x):
+        kin = sensor_kinematics(plant, context, frame_S, x[None, :N_JOINTS],
+                                x[None, N_JOINTS:2 * N_JOINTS], x[None, 2 * N_JOINTS:])
+        g_S = kin.R_WS[0].T @ gravity
+        return payload_regressor(kin.w_WS_S, kin.alpha_WS_S, kin.a_WSo_S - g_S)[0] @ theta
+
+    row_predictor, hybrid_row = physics.row_predictor(), hybrid.row_predictor()
+    expected = np.array([drake_row(x) for x in rows[:200]])
+    got = np.array([physics.predict_row(x) for x in rows[:200]])
+    assert np.allclose(got, expected, rtol=0, atol=1e-12 * max(1, np.abs(expected).max()))
+    assert np.allclose(physics.predict(rows[:200]), expected, rtol=0, atol=1e-11)
+    assert np.allclose([hybrid_row(x)[0] for x in rows[:200]], hybrid.predict(rows[:200]),
+                       rtol=0, atol=1e-9)
+    return {
+        "drake_row_us": median_us(drake_row, rows, 1000),
+        "predict_row_us": median_us(physics.predict_row, rows, 20000),
+        "row_predictor_us": median_us(row_predictor, rows, 20000),
+        "hybrid_row_us": median_us(hybrid_row, rows, 20000),
+        "batch_1000_ms": batch_ms(physics.predict, rows[:1000]),
+    }
 
 
 def gp_latency(X_train, Y_train, rows) -> dict:

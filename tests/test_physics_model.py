@@ -190,3 +190,90 @@ def test_the_simulations_robot_description_has_the_scenes_kinematics():
     moved = robot_description(config)
     assert moved != ftdrake_arm() and "[0.1, 0.0, 0.8]" in moved.model
     assert moved.sensor_frame == description.sensor_frame
+
+
+# -- the compiled row path ------------------------------------------------------------------
+USER_ARM = str(__import__("pathlib").Path(__file__).parent / "data" / "prismatic_arm.urdf")
+
+
+def drake_prediction(model, X, plant, frame_S, instance=None):
+    """Independent of the compiled chain: Drake's Jacobians, numpy's regressor, the product."""
+    n = X.shape[1] // 3
+    kin = sensor_kinematics(plant, plant.CreateDefaultContext(), frame_S, X[:, :n],
+                            X[:, n:2 * n], X[:, 2 * n:], instance)
+    g_S = np.einsum("nji,j->ni", kin.R_WS, np.asarray(model.gravity, dtype=float))
+    moving = model.mode == "dynamic"
+    A = payload_regressor(kin.w_WS_S * moving, kin.alpha_WS_S * moving,
+                          kin.a_WSo_S * moving - g_S)
+    return A @ model.parameters_
+
+
+def fitted_by_hand(model, n_joints, seed=0):
+    """The estimator with random parameters set as `fit` would (no data needed)."""
+    model.parameters_ = np.random.default_rng(seed).normal(size=16)
+    model.n_joints_ = n_joints
+    return model
+
+
+@settings(max_examples=40, deadline=None)
+@given(X=arrays(np.float64, (3, 21), elements=st.floats(-3, 3)),
+       static=st.booleans(), scale=st.floats(1, 8))
+def test_row_kernel_equals_drake_on_ftdrake_arm(X, static, scale):
+    X[:, 14:] *= scale  # q̈ up to 24 rad/s²
+    scene = _arm_scene()
+    dut = fitted_by_hand(PhysicsPayloadCompensator(
+        mode="static" if static else "dynamic", features="q" if static else "q,qd,qdd"), 7)
+    expected = drake_prediction(dut, X, scene.plant, scene.sensor_frame, scene.arm)
+    tol = 1e-12 * max(1.0, np.abs(expected).max())
+    rows = np.array([dut.predict_row(x) for x in X])
+    np.testing.assert_allclose(rows, expected, rtol=0, atol=tol)
+    loop = dut.row_predictor()
+    np.testing.assert_allclose([loop(x)[0] for x in X], expected, rtol=0, atol=tol)
+    np.testing.assert_allclose(dut.regressor(X) @ dut.parameters_, expected, rtol=0, atol=tol)
+
+
+@settings(max_examples=40, deadline=None)
+@given(X=arrays(np.float64, (3, 18), elements=st.floats(-3, 3)),
+       gravity=arrays(np.float64, 3, elements=st.floats(-10, 10)))
+def test_row_kernel_equals_drake_on_a_users_urdf(X, gravity):
+    X[:, 1] /= 6  # the prismatic joint within its travel (m)
+    dut = fitted_by_hand(PhysicsPayloadCompensator(robot=USER_ARM, sensor_frame="ft_sensor",
+                                                   gravity=tuple(gravity)), 6)
+    plant, frame_S = dut.robot_description().build_plant()
+    expected = drake_prediction(dut, X, plant, frame_S)
+    tol = 1e-12 * max(1.0, np.abs(expected).max())
+    np.testing.assert_allclose([dut.predict_row(x) for x in X], expected, rtol=0, atol=tol)
+    np.testing.assert_allclose(dut.regressor(X) @ dut.parameters_, expected, rtol=0, atol=tol)
+
+
+def test_row_path_follows_parameter_changes():
+    X = np.random.default_rng(4).uniform(-1, 1, (2, 18))
+    dut = fitted_by_hand(PhysicsPayloadCompensator(robot=USER_ARM, sensor_frame="ft_sensor"), 6)
+    before = dut.predict_row(X[0])
+    dut.set_params(gravity=(0.0, 0.0, -1.62))  # the same arm on the Moon
+    np.testing.assert_allclose(dut.predict_row(X[0]), dut.regressor(X)[0] @ dut.parameters_,
+                               atol=1e-12)
+    assert not np.allclose(dut.predict_row(X[0]), before)
+    dut.parameters_ = dut.parameters_ * 2
+    np.testing.assert_allclose(dut.predict_row(X[0]), dut.regressor(X)[0] @ dut.parameters_,
+                               atol=1e-12)
+
+
+def test_hybrid_row_predictor_equals_predict(rigid_dataset):
+    X = joint_state_layout(rigid_dataset, source="plant")[::10]
+    Y = wrench_targets(rigid_dataset)[::10]
+    residual = RandomForestCompensator(features="q", n_estimators=5, random_state=0)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", ExcitationWarning)
+        dut = HybridCompensator(residual=residual).fit(X, Y)
+    row = dut.row_predictor()
+    np.testing.assert_allclose([row(x)[0] for x in X[:50]], dut.predict(X[:50]), atol=1e-9)
+
+
+_SCENE = []
+
+
+def _arm_scene():
+    if not _SCENE:
+        _SCENE.append(add_scene(DiagramBuilder(), ScenarioConfig()))
+    return _SCENE[0]

@@ -9,7 +9,11 @@ The reading of a sensor carrying a rigid tool is linear in the tool's 10 inertia
     reading = [F; T] + b
 
 with ω, α the angular velocity/acceleration of S, a the acceleration of So and g gravity, all
-expressed in S and computed with Drake from (q, q̇, q̈). ``L(x)`` maps the 6 inertia entries
+expressed in S and computed from (q, q̇, q̈) by the compiled serial chain
+(:class:`~ftdrake.physics.chain.SerialChain`, extracted once from the robot's Drake plant and
+equal to Drake's own kinematics to round-off). One row — kinematics, the 6 × 16 regressor row
+and its product with the parameters — is one fused numba kernel (:meth:`predict_row`, about a
+microsecond). ``L(x)`` maps the 6 inertia entries
 ``[Ixx, Ixy, Ixz, Iyy, Iyz, Izz]`` to ``I·x``. ``mode="static"`` sets ω = α = a = 0 (gravity
 only: mass, centre of mass and biases, 10 parameters), as the usual ROS gravity-compensation
 tools do; ``mode="dynamic"`` (default) keeps the motion terms (16 parameters).
@@ -25,11 +29,13 @@ from __future__ import annotations
 
 import functools
 import warnings
+import weakref
 
+import numba
 import numpy as np
 
 from ..errors import RobotModelError
-from ..physics.rigid_body import sensor_kinematics
+from ..physics.chain import SerialChain, sensor_kinematics_row
 from ..physics.robot import RobotDescription, ftdrake_arm
 from .base import Compensator
 
@@ -109,13 +115,38 @@ class PhysicsPayloadCompensator(Compensator):
         return self.regressor(X) @ self.parameters_
 
     def predict_row(self, x) -> np.ndarray:
-        """One full-layout row (3n,) → wrench (6,), without input validation (control loops)."""
-        return self.regressor(np.asarray(x, dtype=float)[None, :])[0] @ self.parameters_
+        """One full-layout row (3n,) → wrench (6,), without input validation (control loops):
+        one compiled kernel (kinematics, regressor row, product with the parameters)."""
+        args = self._row_kernel_args()
+        out = np.empty(6)
+        _predict_row(np.asarray(x, dtype=float), *args, self.parameters_, out)
+        return out
 
     def row_predictor(self):
-        """``row → (wrench, zeros)`` through :meth:`predict_row` (the loop's path)."""
+        """``row → (wrench, zeros)``: the compiled row kernel with this model's chain and
+        current parameters bound (refitting the model afterwards does not change it)."""
+        args = (*self._row_kernel_args(), self.parameters_.copy())
         zeros = np.zeros(6)
-        return lambda row: (self.predict_row(row), zeros)
+
+        def predict(row):
+            out = np.empty(6)
+            _predict_row(row, *args, out)
+            return out, zeros
+
+        return predict
+
+    def _row_kernel_args(self) -> tuple:
+        # Looking the chain up through the robot description costs microseconds (building and
+        # hashing the description); the row path remembers it per model and per parameters.
+        key = (self.robot, self.sensor_frame, self.base_frame, tuple(self.gravity),
+               tuple(self.package_xmls), self.mode)
+        cached = _ROW_ARGS.get(self)
+        if cached is None or cached[0] != key:
+            kin = self._kinematics()
+            cached = (key, (kin.n_joints, kin.gravity, *kin.chain.kernel_args(),
+                            self.mode == "static"))
+            _ROW_ARGS[self] = cached
+        return cached[1]
 
     # -- reporting --------------------------------------------------------------------------
     def identified(self) -> dict:
@@ -237,21 +268,80 @@ def _full_layout(Z, n):
 
 # ----------------------------------------------------------------------------------------------
 class _Kinematics:
-    """A kinematics-only plant holding frame S; never stored on the estimator (not picklable)."""
+    """The robot's serial chain to S and gravity; never stored on the estimator (the model
+    file holds only the description)."""
 
-    def __init__(self, plant, context, frame_S, instance, gravity):
-        self.plant, self.context, self.frame_S, self.instance = plant, context, frame_S, instance
-        self.num_joints = plant.num_positions(instance) if instance is not None else \
-            plant.num_positions()
+    def __init__(self, chain: SerialChain, gravity):
+        self.chain = chain
+        self.num_joints = self.n_joints = chain.num_positions
         self.gravity = np.asarray(gravity, dtype=float)
 
     def evaluate(self, q, v, vdot):
-        kin = sensor_kinematics(self.plant, self.context, self.frame_S, q, v, vdot, self.instance)
-        kin.g_S[:] = np.einsum("nji,j->ni", kin.R_WS, self.gravity)
-        return kin
+        return self.chain.evaluate(q, v, vdot, self.gravity)
 
 
 @functools.lru_cache(maxsize=8)
 def _kinematics_for(description: RobotDescription, gravity: tuple) -> _Kinematics:
     plant, frame_S = description.build_plant()
-    return _Kinematics(plant, plant.CreateDefaultContext(), frame_S, None, gravity)
+    if plant.num_positions() != plant.num_velocities():
+        raise RobotModelError(
+            f"robot model {description.label} has {plant.num_positions()} positions but "
+            f"{plant.num_velocities()} velocities (a floating body?): the [q, q̇, q̈] rows "
+            "need one coordinate per joint")
+    return _Kinematics(SerialChain.from_plant(plant, frame_S), gravity)
+
+
+#: Row-kernel arguments per model (weak: a model's cache goes with it, never into its file).
+_ROW_ARGS: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
+
+
+@numba.njit(cache=True)
+def _predict_row(x, n, gravity_W, X_pre, kinds, axes, q_index, v_index, static, parameters,
+                 out):
+    """One full-layout row [q, q̇, q̈] (3n) → wrench (6) = A(row) · parameters."""
+    R = np.empty((3, 3))
+    kin = np.empty((4, 3))  # ω, α, a of S and g, in S
+    sensor_kinematics_row(x[:n], x[n:2 * n], x[2 * n:3 * n], gravity_W, X_pre, kinds, axes,
+                          q_index, v_index, R, kin)
+    if static:
+        kin[:3, :] = 0.0
+    A = np.zeros((6, 16))
+    _regressor_row(kin[0], kin[1], kin[2] - kin[3], A)
+    for i in range(6):
+        s = 0.0
+        for j in range(16):
+            s += A[i, j] * parameters[j]
+        out[i] = s
+
+
+@numba.njit(cache=True)
+def _regressor_row(w, al, d, A):
+    """The 6 × 16 regressor row of :func:`payload_regressor` (A zeroed on entry); d = a − g."""
+    wx, wy, wz = w[0], w[1], w[2]
+    ax, ay, az = al[0], al[1], al[2]
+    # [ω]×[ω]× = ω ωᵀ − |ω|² I
+    ww = wx * wx + wy * wy + wz * wz
+    W2 = np.empty((3, 3))
+    for i in range(3):
+        for j in range(3):
+            W2[i, j] = w[i] * w[j]
+        W2[i, i] -= ww
+    Sa = np.array([[0.0, -az, ay], [az, 0.0, -ax], [-ay, ax, 0.0]])
+    Sd = np.array([[0.0, -d[2], d[1]], [d[2], 0.0, -d[0]], [-d[1], d[0], 0.0]])
+    for i in range(3):
+        A[i, 0] = -d[i]
+        for j in range(3):
+            A[i, 1 + j] = -(Sa[i, j] + W2[i, j])
+            A[3 + i, 1 + j] = Sd[i, j]
+    # −(L(α) + [ω]× L(ω)) over [Ixx, Ixy, Ixz, Iyy, Iyz, Izz]
+    La = np.array([[ax, ay, az, 0.0, 0.0, 0.0], [0.0, ax, 0.0, ay, az, 0.0],
+                   [0.0, 0.0, ax, 0.0, ay, az]])
+    Lw = np.array([[wx, wy, wz, 0.0, 0.0, 0.0], [0.0, wx, 0.0, wy, wz, 0.0],
+                   [0.0, 0.0, wx, 0.0, wy, wz]])
+    Sw = np.array([[0.0, -wz, wy], [wz, 0.0, -wx], [-wy, wx, 0.0]])
+    for i in range(3):
+        for j in range(6):
+            A[3 + i, 4 + j] = -(La[i, j] + Sw[i, 0] * Lw[0, j] + Sw[i, 1] * Lw[1, j]
+                                + Sw[i, 2] * Lw[2, j])
+    for i in range(6):
+        A[i, 10 + i] = 1.0
