@@ -13,12 +13,11 @@ from ftdrake.config import ScenarioConfig
 from ftdrake.errors import RobotModelError
 from ftdrake.physics.chain import SerialChain, sensor_kinematics_row
 from ftdrake.physics.rigid_body import sensor_kinematics
-from ftdrake.physics.robot import RobotDescription
+from ftdrake.physics.robot import RobotDescription, ftdrake_arm
 from ftdrake.sim.scene import add_scene
 
 DATA = Path(__file__).parent / "data"
 USER_URDF = DATA / "prismatic_arm.urdf"  # 5 joints on the path (one prismatic), 1 off it
-SHIPPED = "package://ftdrake/sda10d_with_ft_sensor.dmd.yaml"
 FIELDS = ("R_WS", "w_WS_S", "alpha_WS_S", "a_WSo_S", "g_S")
 TOL = 1e-12
 GRAVITY = np.array([0.0, 0.0, -9.81])  # sensor_kinematics' gravity
@@ -139,8 +138,8 @@ def test_path_outside_the_rows_instance_gives_a_clear_error(scene):
 
 
 def test_shipped_description_has_the_scenes_kinematics(scene):
-    """models/sda10d_with_ft_sensor.dmd.yaml describes the simulated arm exactly."""
-    plant, frame_S = RobotDescription(SHIPPED, "tool::ft_sensor_weld_child").build_plant()
+    """ftdrake_arm() (what robot=None means) describes the simulated arm exactly."""
+    plant, frame_S = ftdrake_arm().build_plant()
     assert frame_S.name() == scene.sensor_frame.name()
     q, v, vdot = np.random.default_rng(2).uniform(-3, 3, (3, 20, 7))
     got = SerialChain.from_plant(plant, frame_S).evaluate(q, v, vdot, GRAVITY)
