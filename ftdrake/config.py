@@ -92,6 +92,22 @@ class SensorConfig:
     # uniformly in ±crosstalk (relative, torque rows scaled by crosstalk_length_m).
     crosstalk: float = 0.01
     crosstalk_length_m: float = 0.05
+    # Mounting error: the frame Sm the sensor measures in is S rotated by these roll, pitch,
+    # yaw angles (deg, R_SSm = RollPitchYaw), about So; as a sensor mounted a bolt off or a
+    # model's frame a little wrong. The controller's and compensators' models do not know it.
+    mounting_rpy_deg: list[float] = dc.field(default_factory=lambda: [1.5, -2.0, 1.0])
+    # Temperature (°C): ambient, plus the wrist's warm-up from t = 0, a first-order rise of
+    # temperature_rise_c with time constant temperature_time_constant_s.
+    temperature_ambient_c: float = 22.0
+    temperature_rise_c: float = 10.0
+    temperature_time_constant_s: float = 600.0
+    # Zero drift per kelvin above temperature_ambient_c (N/K, N·m/K). Order of magnitude from
+    # strain-gauge load-cell datasheets, which quote a zero temperature effect of about
+    # 0.01–0.05 % of full scale per K; here ≈ 0.03 % of the ati_gamma ranges (130 N, 400 N,
+    # 10 N·m), signs mixed. Not a value from an F/T sensor's datasheet.
+    temperature_coefficients: list[float] = dc.field(
+        default_factory=lambda: [0.039, -0.026, 0.12, 0.003, -0.0025, 0.002]
+    )
     # Set False to get an ideal sensor (no noise, bias, drift, cross-talk, quantization, filter,
     # saturation); the sample rate still applies.
     imperfections: bool = True
@@ -134,6 +150,14 @@ class SensorConfig:
         _non_negative(self.crosstalk, f"{where}.crosstalk")
         if self.crosstalk >= 0.2:
             raise ConfigError(f"{where}.crosstalk: {self.crosstalk} is implausibly large (< 0.2)")
+        _vec(self.mounting_rpy_deg, 3, f"{where}.mounting_rpy_deg")
+        if max(abs(v) for v in self.mounting_rpy_deg) > 30:
+            raise ConfigError(f"{where}.mounting_rpy_deg: {self.mounting_rpy_deg} is not a "
+                              "mounting error (each angle within ±30°)")
+        _finite([self.temperature_ambient_c, self.temperature_rise_c],
+                f"{where}.temperature_ambient_c/temperature_rise_c")
+        _positive(self.temperature_time_constant_s, f"{where}.temperature_time_constant_s")
+        _six(self.temperature_coefficients, f"{where}.temperature_coefficients")
 
 
 @dc.dataclass
@@ -181,7 +205,53 @@ class ControllerConfig:
         _vec(self.tool_com_error, 3, f"{where}.tool_com_error")
 
 
-TRAJECTORY_KINDS = ("random", "fourier", "reference", "z_rich", "contact", "rehearsal")
+@dc.dataclass
+class FrictionConfig:
+    """Joint friction in the simulated arm that the controller's model does not know.
+
+    Per joint i: ``τ_f = viscous_i · v + coulomb_i · tanh(v / velocity_scale)`` (N·m), taken
+    off the actuation torque by :class:`ftdrake.systems.friction.JointFriction`. The tanh is
+    a smooth sign: the friction is evaluated from the state at the start of each plant step
+    (explicitly), so its slope at v = 0, ``viscous + coulomb / velocity_scale``, must stay
+    below ~joint inertia / time step (``build_station`` checks it and names the joint).
+
+    Sizes (one entry per arm joint S, L, E, U, R, B, T; this arm's effort limits are
+    300, 300, 150, 150, 60, 60, 30 N·m): the Coulomb level is 1 % of each joint's effort
+    limit. For scale: the Franka Emika Panda's identified friction (Gaz et al., "Dynamic
+    identification of the Franka Emika Panda robot with retrieval of feasible parameters
+    using penalty-based optimization", IEEE RA-L 4(4), 2019) is a sigmoid of amplitude
+    0.30-1.28 N·m per joint, i.e. 0.6-7 % of its 87 / 12 N·m joint torque limits, with slopes
+    5-10 s/rad, i.e. a tanh velocity scale of 0.2-0.4 rad/s. The viscous coefficients (0.5 %
+    of the effort limit per rad/s, so viscous ≈ Coulomb at 2 rad/s) are an assumption of the
+    same order, not a measured value. This controller's feedback is stiff in acceleration,
+    not torque (kp · M̂): the wrist roll resists 0.3 N·m with ~0.3 rad of error, so larger
+    values make tracking errors no industrial servo would show. These add to the SDF's joint
+    damping (0.5 N·m·s/rad).
+
+    Off by default in the main scenario (the demo's numbers were measured without it); the
+    ``learn-feedforward`` experiment turns it on.
+    """
+
+    enabled: bool = False
+    coulomb: list[float] = dc.field(
+        default_factory=lambda: [3.0, 3.0, 1.5, 1.5, 0.6, 0.6, 0.3])  # N·m
+    viscous: list[float] = dc.field(
+        default_factory=lambda: [1.5, 1.5, 0.75, 0.75, 0.3, 0.3, 0.15])  # N·m·s/rad
+    velocity_scale: float = 0.3  # rad/s: tanh(v / velocity_scale) stands in for sign(v)
+
+    def validate(self, where: str = "friction") -> "FrictionConfig":
+        if len(self.coulomb) != len(self.viscous):
+            raise ConfigError(f"{where}.viscous: must have one entry per joint like "
+                              f"{where}.coulomb ({len(self.coulomb)}), got {len(self.viscous)}")
+        for name in ("coulomb", "viscous"):
+            _finite(getattr(self, name), f"{where}.{name}")
+            for v in getattr(self, name):
+                _non_negative(v, f"{where}.{name}")
+        _positive(self.velocity_scale, f"{where}.velocity_scale")
+        return self
+
+
+TRAJECTORY_KINDS = ("random", "fourier", "reference", "z_rich", "contact", "rehearsal", "study")
 
 
 @dc.dataclass
@@ -332,6 +402,118 @@ class CompensatorConfig:
 
 
 @dc.dataclass
+class BiasTrackerConfig:
+    """Online bias and payload tracking (``OnlineBiasTracker``, between the compensator and
+    the detector). See ``ftdrake/systems/bias_tracker.py`` for the estimator and its guards."""
+
+    # In the station's loop when a compensator is there. Off: the detector reads the
+    # compensator's wrench directly (as before the tracker existed).
+    enabled: bool = True
+    # How a run starts. True: from `initial_bias`, as after τ seconds of tracking (the trained
+    # compensator is trusted; only drift is followed). False: as after a tare (the first
+    # samples set the bias, so the model's error in the start pose is taken as bias).
+    start_settled: bool = True
+    # τ (s): memory of the estimator, λ = exp(−period/τ). Long compared with the time a push
+    # needs to cross the detector's threshold (≤ 1 s): a ramp is absorbed ~ t²/(2τ).
+    time_constant_s: float = 20.0
+    # The published bias moves at most k·drift_std/√τ (per axis, from the sensor's drift_std)
+    # outside the settle windows; .inf disables the bound. With drift_std 0 the bias then
+    # changes only in settle windows (after a tare or a grasp).
+    rate_bound_sigmas: float = 3.0
+    # Also estimate a payload (Δm, Δ(m·c)): adds the gravity_S and payload_changed inputs and
+    # the payload output.
+    track_payload: bool = False
+    # Samples (from the signal on) whose update re-initialises the bias (tared) or payload
+    # (payload_changed) block; covers the pipeline's one-sample lag.
+    hold_samples: int = 3
+    # After a tare, the published bias follows the estimate unbounded for this long (s): the
+    # estimate averages the free motion since the tare (gain 1/n), so the model's error in
+    # the tare pose is averaged out over the poses of this window.
+    tare_settle_s: float = 2.0
+    # After a grasp (and at start with payload tracking), bias and payload follow the estimate
+    # unbounded for this long (s): rotate the tool within it to identify the CoM.
+    payload_settle_s: float = 5.0
+    # Prior std (the regulariser): bias N, N·m; payload [kg, kg·m, kg·m, kg·m].
+    bias_prior_std: list[float] = dc.field(
+        default_factory=lambda: [20.0, 20.0, 20.0, 2.0, 2.0, 2.0])
+    payload_prior_std: list[float] = dc.field(default_factory=lambda: [5.0, 0.5, 0.5, 0.5])
+    # The bias estimate at start (N, N·m), e.g. the compensator's training bias.
+    initial_bias: list[float] = dc.field(default_factory=lambda: [0.0] * 6)
+
+    def validate(self, where: str = "bias_tracker") -> "BiasTrackerConfig":
+        for name in ("time_constant_s", "tare_settle_s", "payload_settle_s"):
+            _positive(getattr(self, name), f"{where}.{name}")
+        if not (self.rate_bound_sigmas > 0):
+            raise ConfigError(f"{where}.rate_bound_sigmas: must be > 0 (inf disables), "
+                              f"got {self.rate_bound_sigmas!r}")
+        if int(self.hold_samples) < 1:
+            raise ConfigError(f"{where}.hold_samples: must be >= 1, got {self.hold_samples!r}")
+        _vec(self.bias_prior_std, 6, f"{where}.bias_prior_std")
+        _vec(self.payload_prior_std, 4, f"{where}.payload_prior_std")
+        _vec(self.initial_bias, 6, f"{where}.initial_bias")
+        for name in ("bias_prior_std", "payload_prior_std"):
+            if min(getattr(self, name)) <= 0:
+                raise ConfigError(f"{where}.{name}: entries must be positive")
+        return self
+
+
+@dc.dataclass
+class EventsConfig:
+    """Things that happen during a run, to test the tracker and the detector. All are off
+    (None) by default; times are simulation times (s).
+
+    - **Re-tare**: at `retare_at_s` the sensor driver's zero offset changes, so every later
+      reading is shifted by `retare_offset` (N, N·m, in S) — a tare taken in another pose.
+      With `retare_signalled` the tracker's ``tared`` input pulses then (the driver knows
+      when it tared).
+    - **Grasp**: at `grasp_at_s` a point mass `grasp_mass_kg` is added to the tool at
+      `grasp_p_SP` (m, from the sensor origin So, in S) — the plant's inertia changes; the
+      controller's model and the compensator do not know. With `grasp_signalled` the
+      tracker's ``payload_changed`` input pulses (the gripper's command is known).
+    - **Push**: from `push_at_s` a force at the tool tip grows linearly over `push_ramp_s` to
+      `push_force_W` (N, world frame), stays for `push_hold_s`, then stops. It is applied as
+      an external force (not contact), and it is added to the log's ``external_*`` columns
+      (at the sensor, in S) like a contact would be.
+    """
+
+    retare_at_s: Optional[float] = None
+    # ‖F‖ 5.0 N, ‖T‖ 0.20 N·m (the issue's "5 N / 0.2 N·m")
+    retare_offset: list[float] = dc.field(
+        default_factory=lambda: [2.9, -2.9, 2.9, 0.116, -0.116, 0.116])
+    retare_signalled: bool = True
+    grasp_at_s: Optional[float] = None
+    grasp_mass_kg: float = 0.5
+    grasp_p_SP: list[float] = dc.field(default_factory=lambda: [0.0, 0.02, 0.12])
+    grasp_signalled: bool = True
+    push_at_s: Optional[float] = None
+    push_ramp_s: float = 5.0
+    push_hold_s: float = 1.0
+    push_force_W: list[float] = dc.field(default_factory=lambda: [0.0, 0.0, -5.0])
+    # How long the tared / payload_changed signals stay high (s): a driver's tare or a
+    # gripper's close takes a while, and the tracker re-initialises while the signal is high
+    # (so the grasp's transient, while the controller catches the new weight, is not contact).
+    signal_s: float = 0.25
+
+    def validate(self, where: str = "events") -> "EventsConfig":
+        for name in ("retare_at_s", "grasp_at_s", "push_at_s"):
+            value = getattr(self, name)
+            if value is not None:
+                _non_negative(value, f"{where}.{name}")
+        _six(self.retare_offset, f"{where}.retare_offset")
+        _positive(self.grasp_mass_kg, f"{where}.grasp_mass_kg")
+        _vec(self.grasp_p_SP, 3, f"{where}.grasp_p_SP")
+        _positive(self.push_ramp_s, f"{where}.push_ramp_s")
+        _non_negative(self.push_hold_s, f"{where}.push_hold_s")
+        _vec(self.push_force_W, 3, f"{where}.push_force_W")
+        _positive(self.signal_s, f"{where}.signal_s")
+        return self
+
+    @property
+    def any(self) -> bool:
+        return any(t is not None for t in (self.retare_at_s, self.grasp_at_s, self.push_at_s))
+
+
+@dc.dataclass
 class ModelsConfig:
     """Where the models come from. package://ftdrake/ resolves to the shipped models/."""
 
@@ -365,6 +547,9 @@ class ScenarioConfig:
     task: TaskConfig = dc.field(default_factory=TaskConfig)
     compensator: CompensatorConfig = dc.field(default_factory=CompensatorConfig)
     detector: DetectorConfig = dc.field(default_factory=DetectorConfig)
+    bias_tracker: BiasTrackerConfig = dc.field(default_factory=BiasTrackerConfig)
+    events: EventsConfig = dc.field(default_factory=EventsConfig)
+    friction: FrictionConfig = dc.field(default_factory=FrictionConfig)
 
     def validate(self) -> "ScenarioConfig":
         _positive(self.time_step, "scenario.time_step")
@@ -392,6 +577,9 @@ class ScenarioConfig:
             )
         self.compensator.validate("scenario.compensator")
         self.detector.validate("scenario.detector")
+        self.bias_tracker.validate("scenario.bias_tracker")
+        self.events.validate("scenario.events")
+        self.friction.validate("scenario.friction")
         rate = self.sensor.spec().rate_hz
         ratio = 1.0 / (rate * self.time_step)
         if abs(ratio - round(ratio)) > 1e-6 or round(ratio) < 1:

@@ -17,6 +17,7 @@ TIME = "t"
 TRAJECTORY = "trajectory"
 CONTACT = "contact"
 SATURATED = "saturated"
+TEMPERATURE = "temperature"  # the sensor's temperature, °C (many sensors report it)
 
 # Wrench column prefixes.
 MEASURED = "meas"  # what the noisy sensor outputs

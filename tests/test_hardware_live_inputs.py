@@ -37,9 +37,12 @@ def test_faults_and_recovers(dut):
     assert not dut.on_wrench(wrench(0.011, np.nan), arrival=0.011)
     assert dut.reason == "not_finite" and np.isfinite(dut.wrench).all()
     assert not dut.on_joint(joint(0.011, n=6), arrival=0.011) and dut.reason == "joint_count"
-    assert dut.on_wrench(wrench(0.012, 3.0), arrival=0.012) and not dut.fault
-    assert dut.received == {"ft": 6, "joint": 2}
-    assert dut.accepted == {"ft": 3, "joint": 1}
+    # The joint state held from before the bad message is stale: no fresh wrench from it.
+    assert not dut.on_wrench(wrench(0.012, 3.0), arrival=0.012) and dut.reason == "joint_count"
+    assert dut.on_joint(joint(0.012), arrival=0.012)
+    assert dut.on_wrench(wrench(0.013, 3.0), arrival=0.013) and not dut.fault
+    assert dut.received == {"ft": 7, "joint": 3}
+    assert dut.accepted == {"ft": 4, "joint": 2}
     assert dut.rejected == {"out_of_order": 1, "duplicate": 1, "not_finite": 1,
                             "joint_count": 1}
 

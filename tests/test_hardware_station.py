@@ -1,12 +1,45 @@
-"""Station over memq://: published external wrench == measured − model.predict, exactly once."""
+"""Station over memq://: published external wrench == measured − model.predict, exactly once;
+the same updates as the simulation's in-loop compensator for the simulated robot's stream."""
 
 import numpy as np
-from pydrake.lcm import DrakeLcm
+import pytest
 
-from ftdrake import DetectorConfig, RandomForestCompensator
+from ftdrake import RandomForestCompensator, ScenarioConfig
+from ftdrake.conventions import MEASURED, QD, QDD, Q, joint_columns, wrench_columns
 from ftdrake.hardware import HardwareConfig
-from ftdrake.hardware.messages import decode_wrench, encode_joint_state, encode_wrench
+from ftdrake.hardware.messages import (
+    decode_contact_state,
+    decode_wrench,
+    encode_joint_state,
+    encode_wrench,
+)
+from ftdrake.hardware.sim_publisher import simulate_on_lcm
 from ftdrake.hardware.station import build_hardware_station
+from ftdrake.sim.simulate import simulate
+from ftdrake.sim.station import build_station
+
+JOINT_COLUMNS = [*joint_columns(Q, 7), *joint_columns(QD, 7), *joint_columns(QDD, 7)]
+
+
+def push_scenario(duration: float = 3.0, push_at: float = 1.0) -> ScenarioConfig:
+    """Free (Fourier) motion with a push at the tool tip that the detector sees (shared with
+    test_live_end_to_end.py)."""
+    scenario = ScenarioConfig()
+    scenario.trajectory.kind = "fourier"
+    scenario.trajectory.duration_s = duration
+    scenario.events.push_at_s = push_at
+    scenario.events.push_ramp_s = 0.3
+    scenario.events.push_hold_s = 0.4
+    return scenario.validate()
+
+
+def fit_forest(scenario: ScenarioConfig, duration: float = 1.0, seed: int = 0):
+    """A 5-tree forest on the first `duration` s of the scenario's motion (before the push)."""
+    log = simulate(build_station(scenario), progress=False, duration=duration).log
+    X = log[JOINT_COLUMNS].to_numpy()
+    Y = log[wrench_columns(MEASURED)].to_numpy()
+    return RandomForestCompensator(features="q,qd,qdd", n_estimators=5, n_jobs=1,
+                                   random_state=seed).fit(X, Y)
 
 
 def test_station_compensates_each_message_once():
@@ -15,25 +48,66 @@ def test_station_compensates_each_message_once():
     X = rng.uniform(-1, 1, size=(200, 3 * n))
     Y = np.c_[np.sin(X[:, :6]) * 3.0]
     model = RandomForestCompensator(features="q", n_estimators=5).fit(X, Y)
-    lcm = DrakeLcm("memq://")
     config = HardwareConfig(lcm_url="memq://", sensor_timeout_s=10.0, joint_state_timeout_s=10.0)
-    _, handles = build_hardware_station(config, model, DetectorConfig(), lcm=lcm)
+    _, handles = build_hardware_station(config, model, lcm="memq://")
     dut = handles["station"]
     out = []
-    lcm.Subscribe(config.external_wrench_channel, lambda d: out.append(decode_wrench(d)))
+    dut.lcm.subscribe(config.external_wrench_channel, lambda d: out.append(decode_wrench(d)))
     rows, meas = [], []
     for k in range(20):
         t = 0.001 * (k + 1)
         q, w = rng.uniform(-1, 1, n), rng.normal(size=6)
-        lcm.Publish(config.joint_state_channel,
-                    encode_joint_state("iiwa_status", t, q, np.zeros(n)))
-        lcm.Publish(config.ft_channel, encode_wrench(t, w))
+        dut.lcm.publish(config.joint_state_channel,
+                        encode_joint_state("iiwa_status", t, q, np.zeros(n)))
+        dut.lcm.publish(config.ft_channel, encode_wrench(t, w))
         dut.spin_once(0)
         rows.append(np.r_[q, np.zeros(2 * n)])
         meas.append(w)
-    lcm.HandleSubscriptions(0)
+    dut.lcm.handle(0)
     expected = np.asarray(meas) - model.predict(np.asarray(rows))
     got = np.asarray([o.wrench for o in out])
     assert len(out) == 20 and dut.processed == 20
     np.testing.assert_allclose(got, expected, atol=1e-9)
+    np.testing.assert_allclose([o.t for o in out], 0.001 * np.arange(1, 21), atol=1e-12)
     assert dut.monitor.received == {"ft": 20, "joint": 20} and not dut.monitor.rejected
+
+
+@pytest.mark.parametrize("kind", ["iiwa_status", "robot_state"])
+def test_simulated_robot_stream_gives_the_in_simulation_numbers(kind):
+    """The simulated robot publishes on memq://, the station processes it as it comes: each
+    published wrench equals the in-loop compensator's ``comp_external`` and the contact flag
+    the in-loop detector's ``detected``, sample for sample (robot_state: float32 positions on
+    the wire, so to the float32 resolution instead, and the detector may differ there)."""
+    scenario = push_scenario(duration=2.0, push_at=0.6)
+    model = fit_forest(scenario, duration=0.5)
+    hardware = HardwareConfig(lcm_url="memq://", sensor_timeout_s=100.0,
+                              joint_state_timeout_s=100.0, joint_state_type=kind,
+                              joint_state_channel="ROBOT_STATE" if kind == "robot_state"
+                              else "IIWA_STATUS",
+                              velocity_channel="ROBOT_VELOCITY" if kind == "robot_state" else "")
+    _, handles = build_hardware_station(hardware, model, scenario, lcm="memq://")
+    dut = handles["station"]
+    wrenches, contacts = [], []
+    dut.lcm.subscribe(hardware.external_wrench_channel, lambda d: wrenches.append(decode_wrench(d)))
+    dut.lcm.subscribe(hardware.contact_channel, lambda d: contacts.append(decode_contact_state(d)))
+    station = build_station(scenario, model)
+    result = simulate_on_lcm(station, hardware, dut.lcm, progress=False)
+    while dut.spin_once(0):  # the station takes what the simulation queued, then its outputs
+        pass
+    dut.lcm.handle(0)
+    log = result.log
+    K = len(log)
+    assert result.timing["published"] == {"joint": K + 1, "ft": K}
+    assert dut.processed == dut.published == K == len(wrenches) == len(contacts)
+    assert not dut.monitor.rejected.get("unpaired")
+    np.testing.assert_allclose([w.t for w in wrenches], np.arange(K) * dut.period, atol=1e-9)
+    got = np.array([w.wrench for w in wrenches])
+    expected = log[[c for c in log if c.startswith("comp_external_")]].to_numpy()
+    detected = np.array([c.contact for c in contacts])
+    assert log["detected"].sum() > 50  # the push is detected in simulation
+    if kind == "iiwa_status":
+        np.testing.assert_allclose(got, expected, rtol=0, atol=1e-9)
+        np.testing.assert_array_equal(detected, log["detected"].to_numpy().astype(bool))
+    else:
+        np.testing.assert_allclose(got, expected, rtol=0, atol=0.5)  # float32 q, v
+        assert (detected == log["detected"].to_numpy().astype(bool)).mean() > 0.99

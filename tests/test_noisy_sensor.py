@@ -6,11 +6,14 @@ from pydrake.systems.analysis import Simulator
 from pydrake.systems.framework import DiagramBuilder
 from pydrake.systems.primitives import ConstantVectorSource, LogVectorOutput, TrajectorySource
 from pydrake.trajectories import PiecewisePolynomial
+from scipy.spatial.transform import Rotation
 
 from ftdrake import ConfigError, NoisyForceTorqueSensor, SensorConfig
 
 W = np.array([3.0, -2.0, 15.0, 0.2, -0.1, 0.05])
 ZERO6 = [0.0] * 6
+# A sensor mounted exactly as modelled and at constant temperature (tests of other effects).
+ALIGNED = {"mounting_rpy_deg": [0.0] * 3, "temperature_rise_c": 0.0}
 
 
 def run_sensor(config, source_system, duration, log_period=None):
@@ -32,14 +35,16 @@ def run_sensor(config, source_system, duration, log_period=None):
 
 def test_mean_and_std_match_config():
     config = SensorConfig(drift_std=ZERO6, seed=3)
-    _, y, _, dut = run_sensor(config, ConstantVectorSource(W), 5.0)
+    t, y, _, dut = run_sensor(config, ConstantVectorSource(W), 5.0)
     spec = config.spec()
     sigma = np.asarray(spec.noise_std)
     res = np.asarray(spec.resolution)
     expected_std = np.sqrt(sigma**2 + res**2 / 12)  # white noise + quantization
     n = len(y)
     assert n == pytest.approx(5000, abs=2)
-    mean_error = np.abs(y.mean(axis=0) - dut.deterministic_reading(W))
+    # The reading logged at t was sampled at t − period; the thermal drift moves its mean.
+    expected = dut.deterministic_reading(W, t - dut.period).mean(axis=0)
+    mean_error = np.abs(y.mean(axis=0) - expected)
     assert np.all(mean_error <= 5 * expected_std / np.sqrt(n)), mean_error
     np.testing.assert_allclose(y.std(axis=0), expected_std, rtol=0.08)
 
@@ -94,7 +99,7 @@ def test_drift_is_a_random_walk_of_configured_rate():
 def test_bandwidth_first_order_step_response():
     fc = 10.0
     config = SensorConfig(noise_std=ZERO6, resolution=ZERO6, drift_std=ZERO6, crosstalk=0.0,
-                          bias=ZERO6, bandwidth_hz=fc)
+                          bias=ZERO6, bandwidth_hz=fc, **ALIGNED)
     step = PiecewisePolynomial.ZeroOrderHold([0.0, 0.5, 2.0],
                                              np.column_stack([np.zeros(6), W, W]))
     t, y, _, _ = run_sensor(config, TrajectorySource(step), 1.5)
@@ -106,13 +111,24 @@ def test_bandwidth_first_order_step_response():
 
 def test_crosstalk_couples_axes():
     config = SensorConfig(noise_std=ZERO6, resolution=ZERO6, drift_std=ZERO6, bias=ZERO6,
-                          crosstalk=0.02)
+                          crosstalk=0.02, **ALIGNED)
     force_only = np.array([0.0, 0.0, 20.0, 0.0, 0.0, 0.0])
     _, y, _, dut = run_sensor(config, ConstantVectorSource(force_only), 0.05)
     C = dut.crosstalk_matrix
     assert np.all(np.abs(np.diag(C) - 1) == 0) and np.abs(C - np.eye(6)).max() > 0
     np.testing.assert_allclose(y[-1], C @ force_only, rtol=1e-9)
     assert np.abs(y[-1, [0, 1, 3, 4, 5]]).max() > 0.01  # leaks into other axes
+
+
+def test_a_mounting_error_rotates_the_reading_about_the_sensor_origin():
+    rpy = [3.0, -2.0, 5.0]
+    config = SensorConfig(noise_std=ZERO6, resolution=ZERO6, drift_std=ZERO6, bias=ZERO6,
+                          crosstalk=0.0, mounting_rpy_deg=rpy, temperature_rise_c=0.0)
+    _, y, _, _ = run_sensor(config, ConstantVectorSource(W), 0.05)
+    # Independent rotation: scipy's extrinsic xyz = Drake's RollPitchYaw (Rz·Ry·Rx).
+    R_SSm = Rotation.from_euler("xyz", rpy, degrees=True).as_matrix()
+    np.testing.assert_allclose(y[-1], np.r_[R_SSm.T @ W[:3], R_SSm.T @ W[3:]], rtol=1e-9)
+    np.testing.assert_allclose(np.linalg.norm(y[-1, :3]), np.linalg.norm(W[:3]), rtol=1e-12)
 
 
 @pytest.mark.parametrize(
@@ -135,7 +151,8 @@ def test_runs_sharing_one_sensor_each_get_the_draws_of_their_own_samples():
     # Noise is a pure function of (seed, sample number). The sensor keeps one block of 4096
     # samples' draws; a run past a block boundary, and a second run starting over with the same
     # system, must each read the draws of their own sample numbers.
-    config = SensorConfig(seed=9, resolution=ZERO6, drift_std=ZERO6, crosstalk=0.0, bias=ZERO6)
+    config = SensorConfig(seed=9, resolution=ZERO6, drift_std=ZERO6, crosstalk=0.0, bias=ZERO6,
+                          **ALIGNED)
     builder = DiagramBuilder()
     source = builder.AddSystem(ConstantVectorSource(W))
     dut = builder.AddSystem(NoisyForceTorqueSensor(config))

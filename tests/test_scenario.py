@@ -102,7 +102,7 @@ def test_trajectory_outside_limits_names_joint_and_time(geometry):
 
 def test_every_kind_is_tested():
     assert set(TRAJECTORY_KINDS) == {"random", "fourier", "reference", "z_rich", "contact",
-                                     "rehearsal"}
+                                     "rehearsal", "study"}
 
 
 @pytest.mark.parametrize("kind", TRAJECTORY_KINDS)
@@ -112,7 +112,8 @@ def test_every_kind_respects_limits(geometry, kind):
     tc.kind, tc.duration_s = kind, 14.0
     traj = make_trajectory(tc, config.home_q, limits, g)
     check_limits(traj, limits, dt=0.002)
-    np.testing.assert_allclose(traj.value(0.0).ravel(), config.home_q, atol=1e-9)
+    if kind != "study":  # the study's motion starts where its Table 1 puts it
+        np.testing.assert_allclose(traj.value(0.0).ravel(), config.home_q, atol=1e-9)
     if kind not in ("contact", "rehearsal"):
         assert g.clear_of_environment(traj)
 

@@ -9,7 +9,13 @@ from pydrake.multibody.parsing import Parser
 import ftdrake
 from ftdrake import ScenarioConfig, SimResult, build_station, simulate
 from ftdrake import conventions as col
-from ftdrake.sim.simulate import ESTIMATED, PREDICTED, PREDICTED_STD
+from ftdrake.sim.simulate import (
+    BIAS_ESTIMATE,
+    COMPENSATED,
+    ESTIMATED,
+    PREDICTED,
+    PREDICTED_STD,
+)
 
 SYSTEMS = [ftdrake.ForceTorqueSensor, ftdrake.NoisyForceTorqueSensor, ftdrake.ContactTruth,
            ftdrake.CompensatorSystem, ftdrake.ContactDetector,
@@ -73,8 +79,12 @@ def test_simulate_returns_the_log_with_compensation_columns(forest):
     # predicted. Checked here against the model's own predict, independently of the loop.
     measured = log[col.wrench_columns(col.MEASURED)].to_numpy()
     predicted = log[col.wrench_columns(PREDICTED)].to_numpy()
-    np.testing.assert_allclose(log[col.wrench_columns(ESTIMATED)].to_numpy()[5:],
-                               measured[4:-1] - predicted[5:], atol=1e-12)
+    compensated = log[col.wrench_columns(COMPENSATED)].to_numpy()
+    np.testing.assert_allclose(compensated[5:], measured[4:-1] - predicted[5:], atol=1e-12)
+    # The bias tracker (on by default) reads that one sample later and subtracts its bias.
+    bias = log[col.wrench_columns(BIAS_ESTIMATE)].to_numpy()
+    np.testing.assert_allclose(log[col.wrench_columns(ESTIMATED)].to_numpy()[6:],
+                               compensated[5:-1] - bias[6:], atol=1e-12)
     q = log[col.joint_columns(col.Q)].to_numpy()
     X = np.hstack([q, np.zeros_like(q), np.zeros_like(q)])
     np.testing.assert_allclose(predicted[5:], forest.predict(X[5:]), atol=1e-9)

@@ -252,13 +252,33 @@ def test_cli_prints_estimate_then_findings(monkeypatch, capsys):
         return {"wall_time_s": 1.0, "findings": [finding]}
 
     monkeypatch.setattr(dut, "run_study", fake_run_study)
-    args = _parser().parse_args(["study", "--paper", "--quiet", "--out", "o"])
+    args = _parser().parse_args(["study", "--quick", "--quiet", "--out", "o"])
     assert args.run(args) == 0
     printed = capsys.readouterr().out
     first = printed.splitlines()[0]
-    assert "preset paper" in first and "2400" in first and "estimated time" in first
+    assert "preset quick" in first and "estimated time" in first
     assert "wrote o/results.json" in printed and "RF beats SVR" in printed
-    assert calls["preset"] == "paper" and calls["progress"] is False
+    assert calls["preset"] == "quick" and calls["progress"] is False
+
+
+def test_cli_paper_runs_the_study_protocol_on_a_cluster(monkeypatch, capsys):
+    from ftdrake.experiments.study import protocols
+
+    calls = {}
+
+    def fake_run_paper(out_dir, **kwargs):
+        calls.update(kwargs, out_dir=out_dir)
+        return {"wall_time_s": 2.0, "findings": {"study": {"a": {"reproduced": False}}}}
+
+    monkeypatch.setattr(protocols, "run_paper", fake_run_paper)
+    args = _parser().parse_args(["study", "--paper", "--quiet", "--out", "o",
+                                 "--scheduler", "tcp://h:8786"])
+    assert args.run(args) == 0
+    first = capsys.readouterr().out.splitlines()[0]
+    # The exhaustive count: 720 RF candidates on q × 5 folds × 6 axes.
+    assert "rf q 21600" in first and "halving" in first and "tcp://h:8786" in first
+    assert calls["scheduler"] == "tcp://h:8786" and calls["features"] == ("q",)
+    assert calls["search"] == "halving"
 
 
 def test_paper_estimate_dwarfs_quick():

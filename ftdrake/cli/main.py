@@ -1,4 +1,4 @@
-"""The `ftdrake` command: simulate | collect | study | train | evaluate | demo."""
+"""The `ftdrake` command: simulate | collect | study | train | evaluate | demo | serve | record."""
 
 from __future__ import annotations
 
@@ -21,10 +21,14 @@ def main(argv=None) -> int:
     _add_demo(sub)
     _add_export(sub)
     _add_evaluate_detection(sub)
-    from . import study, train
+    from . import hardware, study, train
 
     study.register(sub)
     train.register(sub)
+    hardware.register(sub)
+    from . import feedforward
+
+    feedforward.register(sub)
     return run(parser.parse_args(argv))
 
 
@@ -147,6 +151,12 @@ def _add_simulate(sub):
     p.add_argument("--out", type=Path, default=Path("out/simulate"))
     p.add_argument("--meshcat-html", action="store_true", help="also write replay.html")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
+    p.add_argument("--lcm", metavar="URL", help="also publish the arm's joint state and the "
+                   "sensor on LCM, on the channels of --hardware (see `ftdrake serve`)")
+    p.add_argument("--hardware", type=Path, metavar="FILE", help="HardwareConfig YAML "
+                   "(channels, message types) for --lcm")
+    p.add_argument("--realtime", action="store_true", help="pace the simulation to the wall "
+                   "clock")
     p.set_defaults(run=_simulate)
 
 
@@ -162,7 +172,19 @@ def _simulate(args):
     station = build_station(config, meshcat=meshcat)
     if meshcat is not None:
         meshcat.StartRecording(set_visualizations_while_recording=False)
-    result = simulate(station, progress=not args.quiet)
+    if args.lcm is not None or args.hardware is not None:
+        from ..hardware.sim_publisher import simulate_on_lcm
+        from .hardware import describe_channels, hardware_from_args, open_transport
+
+        hardware = hardware_from_args(args)
+        print(f"ftdrake simulate: publishing {describe_channels(hardware).splitlines()[1]}"
+              f" on {hardware.lcm_url}".replace("  in:  ", ""), file=sys.stderr, flush=True)
+        result = simulate_on_lcm(station, hardware, open_transport(args, hardware),
+                                 realtime_rate=1.0 if args.realtime else 0.0,
+                                 progress=not args.quiet)
+    else:
+        result = simulate(station, progress=not args.quiet,
+                          realtime_rate=1.0 if args.realtime else 0.0)
     log, summary = result.log, dict(result.timing)
     contact_times = log.loc[log["contact"] == 1, "t"]
     summary.update(

@@ -30,11 +30,25 @@ def register(subparsers) -> None:
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--jobs", type=int, default=-1, help="worker processes (-1: all cores)")
     p.add_argument("--quiet", action="store_true", help="no progress output")
+    p.add_argument("--scheduler", metavar="ADDRESS",
+                   help="--paper: a Dask scheduler (default: a LocalCluster of --jobs workers)")
+    p.add_argument("--search", choices=["halving", "grid"], default="halving",
+                   help="--paper: successive halving (default) or the exhaustive grid")
+    p.add_argument("--features", default="q",
+                   help="--paper: feature sets, ';'-separated (default: q)")
+    p.add_argument("--max-train-rows", type=int, default=None,
+                   help="--paper: training rows drawn from the split (default: all)")
+    p.add_argument("--tool-table", action="store_true",
+                   help="only simulate the study's trajectory and write study_tool.md")
     p.set_defaults(preset="quick", run=run_command)
 
 
 def run_command(args) -> int:
     """Prints the grid and time estimate, runs the study, prints the findings."""
+    if args.tool_table:
+        return _tool_table(args)
+    if args.preset == "paper":
+        return _paper(args)
     sizes = study.grid_sizes(args.preset)
     estimate = study.estimate_seconds(
         args.preset, trajectories=args.trajectories, duration=args.duration,
@@ -54,6 +68,9 @@ def run_command(args) -> int:
     for f in results["findings"]:
         print(f"  ({f['id']}) {'yes' if f['reproduced'] else 'NO '} {f['claim']}: "
               f"{f['evidence']}")
+    for p, found in results.get("study_protocols", {}).get("findings", {}).items():
+        print(f"  study trajectory, {p}: "
+              + ", ".join(f"({k}) {v['reproduced']}" for k, v in found.items()))
     return 0
 
 
@@ -66,3 +83,46 @@ def _fmt_duration(seconds: float) -> str:
         if seconds >= 2 * size:
             return f"~{seconds / size:.0f} {unit}"
     return f"~{seconds:.0f} s"
+
+
+def _paper(args) -> int:
+    """The paper grid on the study's protocol, on a Dask cluster."""
+    from ..experiments.study import protocols
+
+    features = tuple(f.strip() for f in args.features.split(";"))
+    fits = protocols.exhaustive_fits("paper", features)
+    print("study --paper: exhaustive grid search would fit "
+          + "; ".join(f"{m} {f} {n}" for m, v in fits.items() for f, n in v.items())
+          + f" models; running {args.search} on "
+          + (args.scheduler or f"a LocalCluster of {max(args.jobs, 1) if args.jobs > 0 else 2}"
+             " workers"), flush=True)
+    out = protocols.run_paper(
+        args.out, scheduler=args.scheduler, features=features, search=args.search,
+        max_train_rows=args.max_train_rows, seed=args.seed, progress=not args.quiet,
+        config=load_config(args.config), n_workers=args.jobs if args.jobs > 0 else 2)
+    print(f"wrote {args.out}/paper.json and paper.md in {out['wall_time_s']:.0f} s")
+    for p, found in out["findings"].items():
+        print(f"  {p}: " + ", ".join(f"({k}) {v['reproduced']}" for k, v in found.items()))
+    return 0
+
+
+def _tool_table(args) -> int:
+    """Simulates the study's trajectory with its tool; writes the Tables 1–3 comparison."""
+    import dataclasses as dc
+
+    from ..experiments.study import protocols
+    from ..experiments.study.report import tool_markdown
+    from ..sim.station import plan_trajectory, robot_geometry
+    from ..sim.trajectories import trajectory_extent
+
+    config = protocols.study_scenario(load_config(args.config))
+    frame = protocols.collect_study(config, heldout=0, seed=args.seed, n_jobs=1)
+    sensor = protocols.sensor_table(frame)
+    config = dc.replace(config, trajectory=dc.replace(config.trajectory, seed=args.seed))
+    tip = trajectory_extent(plan_trajectory(config), robot_geometry(config), dt=0.5)
+    text = tool_markdown(protocols.joint_table(frame), sensor,
+                         protocols.table2_comparison(sensor), tip)
+    args.out.mkdir(parents=True, exist_ok=True)
+    (args.out / "study_tool.md").write_text(text)
+    print(text)
+    return 0

@@ -240,7 +240,9 @@ def default_model(robot: RobotOptions, target_names) -> str:
 
 
 def _physics(model: str, robot: RobotOptions | None, features: str):
-    from ..compensation.physics import PhysicsPayloadCompensator
+    from ..compensation.registry import entry
+
+    PhysicsPayloadCompensator = entry("physics").build  # with the registry's defaults
     from ..config import parse_config
     from ..physics.robot import ftdrake_arm
     from ..sim.scene import robot_description
@@ -329,6 +331,8 @@ def run_train(args) -> int:
         why = "" if args.preset == "none" else " (no grid: its parameters are fitted from data)"
         say(f"fitting {args.model}{why} …")
         model = _fit(estimator, data, needs_robot=registry.entry(args.model).needs_robot)
+    if hasattr(model, "summary"):  # physics and hybrid: the identified payload
+        print(model.summary())
     extra = provenance(args.data, data, model, search, kind=args.model,
                        time_window=(args.t_start, args.t_end), dask=args.dask)
     args.out.parent.mkdir(parents=True, exist_ok=True)

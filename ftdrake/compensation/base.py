@@ -2,9 +2,13 @@
 
 A compensator maps joint states ``X = [q, q̇, q̈]`` (N × 3n) to the wrench the sensor reads
 without contact (N × k targets; k = 6 for a wrench, or n for joint torques on other data).
-Subclasses implement ``_fit(Z, Y)`` and ``_predict(Z)`` on the already selected feature
-columns ``Z`` and 2-D targets ``Y``; everything shared (validation, the feature set, the
-training ranges used for out-of-domain checks) lives here.
+``X`` may carry the sensor's temperature (°C) as one more, last column, ``[q, q̇, q̈, T]``
+(N × (3n + 1); a width of 3n + 1 is never a joint layout, so it is unambiguous): every
+compensator then uses it as a feature (the physics model as linear per-axis zero-drift
+coefficients). Subclasses implement ``_fit(Z, Y)`` and ``_predict(Z)`` on the already
+selected feature columns ``Z`` (with T appended last when present) and 2-D targets ``Y``;
+everything shared (validation, the feature set, the training ranges used for out-of-domain
+checks) lives here.
 
 The protocol a compensator follows to run in a control loop and leave Python:
 
@@ -53,8 +57,9 @@ class Compensator(RegressorMixin, BaseEstimator):
 
     Fitted attributes
     -----------------
-    n_features_in_ : int       always 3n
+    n_features_in_ : int       3n, or 3n + 1 with the temperature column
     n_joints_ : int
+    temperature_in_ : bool     whether X's last column is the sensor temperature (°C)
     n_outputs_ : int
     input_min_, input_max_ : (3n,) arrays, the training range of every input column
     """
@@ -76,13 +81,14 @@ class Compensator(RegressorMixin, BaseEstimator):
             message = describe_nonfinite(arr, name)
             if message:
                 raise ValueError(message)
-        self.n_joints_ = joints_in_layout(X.shape[1])
+        self.temperature_in_ = bool(X.shape[1] % 3 == 1 and X.shape[1] > 1)
+        self.n_joints_ = joints_in_layout(X.shape[1] - self.temperature_in_)
         self._y_was_1d = y.ndim == 1
         Y = y.reshape(len(y), -1)
         self.n_outputs_ = Y.shape[1]
         self.input_min_ = X.min(axis=0)
         self.input_max_ = X.max(axis=0)
-        self._fit(select_features(X, self.features), Y)
+        self._fit(self._select(X), Y)
         return self
 
     def predict(self, X):
@@ -121,7 +127,7 @@ class Compensator(RegressorMixin, BaseEstimator):
         ``provides_std``. Uses the compiled predictor when there is one.
         """
         check_is_fitted(self)
-        compiled = self.compiled_predictor()
+        compiled = None if getattr(self, "temperature_in_", False) else self.compiled_predictor()
         if compiled is None:
             return generic_row_predictor(self)
         if hasattr(compiled, "predict_one_with_std"):
@@ -148,11 +154,25 @@ class Compensator(RegressorMixin, BaseEstimator):
     # -- helpers ----------------------------------------------------------------------------
     def _validated_features(self, X) -> np.ndarray:
         check_is_fitted(self)
+        width = np.shape(X)[-1] if np.ndim(X) == 2 else None
+        if getattr(self, "temperature_in_", False) and width == 3 * self.n_joints_:
+            raise ValueError(
+                f"{type(self).__name__} was trained with the sensor temperature (°C) as the last "
+                f"column of X ([q, q̇, q̈, T], {3 * self.n_joints_ + 1} columns); this X has no "
+                "temperature column")
         X = validate_data(self, X, reset=False, ensure_all_finite=False, dtype=np.float64)
         message = describe_nonfinite(X, "X")
         if message:
             raise ValueError(message.replace("before fitting", "before predicting"))
-        return select_features(X, self.features)
+        return self._select(X)
+
+    def _select(self, X) -> np.ndarray:
+        """The used feature columns of X, with the temperature column last if X has one."""
+        n = 3 * self.n_joints_
+        Z = select_features(X[:, :n], self.features)
+        if getattr(self, "temperature_in_", False):
+            Z = np.hstack([Z, X[:, n:n + 1]])
+        return Z
 
     def __sklearn_tags__(self):
         tags = super().__sklearn_tags__()

@@ -60,6 +60,8 @@ DEFAULT_MIN_MASS = 1e-3
 # a direction the data does not determine at all (least squares' pseudo-inverse drops them,
 # so their parameters would otherwise show small standard errors).
 _NULL_DIRECTION_TOL = 1e-7
+# A regressor column below this fraction of the largest column's norm is round-off, not data.
+_ZERO_COLUMN_TOL = 1e-9
 # A prior's second moments about its centre of mass are floored at m0·(1 mm)² so that the
 # metric the prior uses exists for a point mass, a rod or a plate.
 _PRIOR_MIN_SPREAD = 1e-3
@@ -140,6 +142,67 @@ def is_physically_consistent(theta10, tol: float = 1e-9) -> bool:
     separately on the inertia about So, not sufficient.
     """
     return not physical_violations(theta10, tol)
+
+
+# -- a prior -------------------------------------------------------------------------------
+@dc.dataclass(frozen=True)
+class PayloadPrior:
+    """What one believes about the tool before the data (e.g. its CAD model), in S.
+
+    Attributes
+    ----------
+    mass : kg, > 0.
+    com : ``p_SoScm_S``, the centre of mass from the sensor origin So, expressed in S, m.
+    inertia : the inertia about the centre of mass, expressed in S, kg·m², as
+        ``[Ixx, Ixy, Ixz, Iyy, Iyz, Izz]`` (the order of :data:`PARAMETER_NAMES`); the default
+        0 is a point mass (its spread is floored at 1 mm in the prior's metric).
+
+    Raises :class:`~ftdrake.errors.ConfigError` naming the field for a mass that is not
+    positive, a wrong length or a body no mass distribution has (triangle inequality).
+    """
+
+    mass: float
+    com: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    inertia: tuple[float, ...] = (0.0,) * 6
+
+    def __post_init__(self):
+        mass = float(np.asarray(self.mass, dtype=float))
+        if not (np.isfinite(mass) and mass > 0):
+            raise ConfigError(f"prior.mass: {self.mass!r} kg is not a positive mass")
+        for name, n in (("com", 3), ("inertia", 6)):
+            value = np.asarray(getattr(self, name), dtype=float).reshape(-1)
+            if value.shape != (n,) or not np.all(np.isfinite(value)):
+                raise ConfigError(f"prior.{name}: expected {n} finite numbers, got "
+                                  f"{getattr(self, name)!r}")
+            object.__setattr__(self, name, tuple(float(v) for v in value))
+        object.__setattr__(self, "mass", mass)
+        problems = physical_violations(self.phi())
+        if problems:
+            raise ConfigError("prior: not a physically possible body: " + "; ".join(problems))
+
+    def phi(self) -> np.ndarray:
+        """The 10 inertial parameters ``[m, m·c, I_So]`` (inertia moved to So by the
+        parallel-axis theorem)."""
+        c = np.asarray(self.com)
+        I_c = inertia_matrix(np.r_[0, 0, 0, 0, self.inertia])
+        I_So = I_c + self.mass * (c @ c * np.eye(3) - np.outer(c, c))
+        return np.array([self.mass, *(self.mass * c), I_So[0, 0], I_So[0, 1], I_So[0, 2],
+                         I_So[1, 1], I_So[1, 2], I_So[2, 2]])
+
+    @classmethod
+    def coerce(cls, prior) -> PayloadPrior | None:
+        """A PayloadPrior from itself, a mapping of its fields (YAML), or None."""
+        if prior is None or isinstance(prior, cls):
+            return prior
+        if isinstance(prior, dict):
+            unknown = sorted(set(prior) - {"mass", "com", "inertia"})
+            if unknown:
+                raise ConfigError(f"prior: unknown fields {unknown}; expected mass, com, inertia")
+            if "mass" not in prior:
+                raise ConfigError("prior.mass: missing")
+            return cls(**prior)
+        raise ConfigError(f"prior: expected a PayloadPrior or a mapping with mass, com, "
+                          f"inertia; got {type(prior).__name__}")
 
 
 # -- the result ----------------------------------------------------------------------------
@@ -295,8 +358,7 @@ def identify_consistent(A, Y, *, weights=None, static=False, prior=None,
     # ‖R x − z‖² + const with x = scale·θ.
     Aw = (A * weights[None, :, None]).reshape(-1, p)
     yw = (Y * weights[None, :]).reshape(-1)
-    scale = np.linalg.norm(Aw, axis=0)
-    zero_columns = scale == 0
+    scale, zero_columns = _column_scale(Aw)
     R, z = _reduce(Aw / np.where(zero_columns, 1.0, scale), yw)
     x_ls = np.linalg.lstsq(R, z, rcond=None)[0]  # minimum norm, as lstsq on the full data
     theta_ls = x_ls / np.where(zero_columns, 1.0, scale)
@@ -380,6 +442,56 @@ def identify_consistent(A, Y, *, weights=None, static=False, prior=None,
     )
 
 
+def identify_least_squares(A, Y, *, weights=None, static=False,
+                           relative_se_limit=0.25) -> ConsistentIdentification:
+    """Plain weighted least squares for ``Y ≈ A·θ``, reported like :func:`identify_consistent`.
+
+    The same weights, column normalisation and diagnostics (standard errors — ∞ along null
+    directions of the data, where the minimum-norm solution says nothing —, condition
+    number, the parameters the data cannot determine), without constraints or prior: the
+    estimate may be a body that cannot exist (``least_squares_consistent`` says so).
+    """
+    A, Y = _check_data(A, Y, static)
+    cols = np.array(STATIC_PARAMETERS if static else range(16))
+    if A.shape[-1] == 16 and static:
+        A = A[:, :, cols]
+    p = len(cols)
+    weights = axis_weights(A, Y) if weights is None else _check_weights(weights)
+    Aw = (A * weights[None, :, None]).reshape(-1, p)
+    yw = (Y * weights[None, :]).reshape(-1)
+    scale, zero_columns = _column_scale(Aw)
+    scale = np.where(zero_columns, 1.0, scale)
+    R, z = _reduce(Aw / scale, yw)
+    theta = np.linalg.lstsq(R, z, rcond=None)[0] / scale
+    singular = np.linalg.svd(R, compute_uv=False)
+    condition = float(singular[0] / singular[-1]) if singular[-1] > 0 else float("inf")
+    residual = yw - Aw @ theta
+    sigma2 = float(residual @ residual / max(1, len(yw) - p))
+    cov = sigma2 * _pinv_normal(R) / np.outer(scale, scale)
+    rel, poor, unseen = _poorly_determined(R, cov, theta, cols, relative_se_limit)
+    se = np.sqrt(np.maximum(np.diag(cov), 0.0))
+    se[unseen] = np.inf
+
+    def full(v, fill):
+        out = np.full(16, fill, dtype=float)
+        out[cols] = v
+        return out
+
+    cov16 = np.full((16, 16), np.nan)
+    cov16[np.ix_(cols, cols)] = cov
+    theta16 = full(theta, 0.0)
+    A16 = A if A.shape[-1] == 16 else _embed(A, cols)
+    consistent = (is_physically_consistent(theta16[:10]) if not static
+                  else bool(theta16[0] > 0))
+    return ConsistentIdentification(
+        theta=theta16, standard_errors=full(se, np.nan), covariance=cov16,
+        condition_number=condition, active_constraints=(), prior_share=full(np.zeros(p), np.nan),
+        poorly_determined=poor, relative_errors=full(rel, np.nan), theta_least_squares=theta16,
+        least_squares_consistent=consistent, weights=weights,
+        residual_rms=np.sqrt(np.mean((Y - A16 @ theta16) ** 2, axis=0)), solver="lstsq",
+        status="kSolutionFound", solve_time=0.0, static=bool(static))
+
+
 def axis_weights(A, Y) -> np.ndarray:
     """Per-axis weights 1 / RMS of the residual of an unweighted least-squares pass (as
     ``weighted_least_squares``), floored so that an exact fit does not divide by zero."""
@@ -388,6 +500,17 @@ def axis_weights(A, Y) -> np.ndarray:
     theta = np.linalg.lstsq(R, z, rcond=None)[0]
     rms = np.sqrt(np.mean((Y - A @ theta) ** 2, axis=0))
     return 1.0 / np.maximum(rms, 1e-9 * (1 + np.abs(Y).max()))
+
+
+def _column_scale(Aw):
+    """(column norms, which columns the data do not touch). A column at round-off level
+    (below 1e-9 of the largest, e.g. an inertia entry no rotation reaches: its entries are
+    1e-16-level leftovers of the kinematics) counts as zero, and is zeroed in `Aw` in
+    place: normalised to unit norm it would pass for an excited parameter."""
+    scale = np.linalg.norm(Aw, axis=0)
+    zero = scale <= _ZERO_COLUMN_TOL * max(scale.max(), 1e-300)
+    Aw[:, zero] = 0.0
+    return np.where(zero, 0.0, scale), zero
 
 
 def _reduce(M, y):

@@ -18,11 +18,18 @@ microsecond). ``L(x)`` maps the 6 inertia entries
 only: mass, centre of mass and biases, 10 parameters), as the usual ROS gravity-compensation
 tools do; ``mode="dynamic"`` (default) keeps the motion terms (16 parameters).
 
-Identification is weighted least squares: each wrench axis is weighted by the inverse RMS of
-its residual from an ordinary first pass (forces in N and torques in N·m differ by orders of
-magnitude). Standard errors come from the weighted residual variance and (AᵀWA)⁻¹. The
-condition number of the column-normalised regressor says whether the data excites the
-parameters; a warning names the poorly determined ones.
+Identification is weighted least squares (``identification="least_squares"``) or the same fit
+constrained to a physically possible body with an optional prior
+(``identification="consistent"``, :mod:`ftdrake.compensation.consistent`): each wrench
+axis is weighted by the inverse RMS of its residual from an ordinary first pass (forces in N
+and torques in N·m differ by orders of magnitude). Standard errors come from the weighted
+residual variance and (AᵀWA)⁻¹. The condition number of the column-normalised regressor says
+whether the data excites the parameters; a warning names the parameters the data cannot
+determine (from the regressor's null directions and the standard errors).
+
+Two more effects of a real sensor, optional: the rotation of the frame the sensor measures in
+(``identify_mounting``) and a linear zero drift with the sensor's temperature (a temperature
+column in X).
 """
 
 from __future__ import annotations
@@ -33,16 +40,29 @@ import weakref
 
 import numba
 import numpy as np
+from pydrake.math import RollPitchYaw, RotationMatrix
+from scipy.optimize import least_squares
+from scipy.spatial.transform import Rotation
 
-from ..errors import RobotModelError
+from ..errors import ConfigError, RobotModelError
 from ..physics.chain import SerialChain, sensor_kinematics_row
 from ..physics.robot import RobotDescription, ftdrake_arm
 from .base import Compensator
+from .consistent import (
+    DEFAULT_PRIOR_WEIGHT,
+    PayloadPrior,
+    identify_consistent,
+    identify_least_squares,
+    is_physically_consistent,
+)
 
 PARAMETER_NAMES = ["m", "mcx", "mcy", "mcz", "Ixx", "Ixy", "Ixz", "Iyy", "Iyz", "Izz",
                    "bFx", "bFy", "bFz", "bTx", "bTy", "bTz"]
 PARAMETER_UNITS = ["kg", "kg*m", "kg*m", "kg*m"] + ["kg*m^2"] * 6 + ["N"] * 3 + ["N*m"] * 3
 STATIC_PARAMETERS = [0, 1, 2, 3, 10, 11, 12, 13, 14, 15]
+#: How the parameters are identified: plain weighted least squares, or constrained to a
+#: physically possible body (pseudo-inertia ⪰ 0, m > 0; :mod:`.consistent`) with a prior.
+IDENTIFICATIONS = ("least_squares", "consistent")
 
 
 class ExcitationWarning(UserWarning):
@@ -66,10 +86,34 @@ class PhysicsPayloadCompensator(Compensator):
     base_frame : frame of `robot` welded to the world, if the model does not weld it.
     gravity : gravity in the world (base) frame, m/s².
     package_xmls : extra package.xml files for `robot`'s package:// URLs.
+    identification : "least_squares" (weighted least squares, any 10 numbers) or "consistent"
+        (the same fit constrained to a physically possible body — m > 0, pseudo-inertia ⪰ 0 —
+        solved as a small SDP, :func:`~.consistent.identify_consistent`; the unconstrained
+        estimate is kept in ``identified()["least_squares"]``).
+    prior : a :class:`~.consistent.PayloadPrior` (mass, CoM, inertia about the CoM, in S;
+        e.g. CAD values) or a mapping of its fields, for ``identification="consistent"``: it
+        decides the directions the data do not excite; ``identified()`` says by how much.
+    prior_weight : the prior's precision (default 100: it counts as ±10 %, 1σ).
+    identify_mounting : also identify the rotation R_SSm of the frame Sm the sensor really
+        measures in (a mounting error; the biases are then in Sm): nonlinear least squares
+        (``scipy.optimize.least_squares``, soft-L1 robust loss) over the rotation, payload and
+        biases, then the linear (or consistent) fit with that rotation fixed.
+
+    The sensor temperature (°C), given as X's last column (``[q, q̇, q̈, T]``), adds a linear
+    zero drift per axis, ``k·(T − T_ref)`` (``temperature_coefficients_``, N/K and N·m/K in
+    Sm; ``temperature_reference_`` the training mean, at which the biases hold).
+
+    Fitted attributes: ``parameters_`` (16), ``standard_errors_`` (16; ∞ where nothing
+    determines a parameter), ``covariance_`` (16 × 16), ``condition_number_``,
+    ``residual_rms_`` (6), ``physically_consistent_``, ``identification_`` (the full
+    :class:`~.consistent.ConsistentIdentification`). An :class:`ExcitationWarning` names the
+    parameters the data cannot determine.
     """
 
     def __init__(self, features="q,qd,qdd", mode="dynamic", robot=None, sensor_frame=None,
-                 base_frame=None, gravity=(0.0, 0.0, -9.81), package_xmls=()):
+                 base_frame=None, gravity=(0.0, 0.0, -9.81), package_xmls=(),
+                 identification="least_squares", prior=None,
+                 prior_weight=DEFAULT_PRIOR_WEIGHT, identify_mounting=False):
         super().__init__(features=features)
         self.mode = mode
         self.robot = robot
@@ -77,6 +121,10 @@ class PhysicsPayloadCompensator(Compensator):
         self.base_frame = base_frame
         self.gravity = gravity
         self.package_xmls = package_xmls
+        self.identification = identification
+        self.prior = prior
+        self.prior_weight = prior_weight
+        self.identify_mounting = identify_mounting
 
     # -- the regressor ----------------------------------------------------------------------
     def regressor(self, X) -> np.ndarray:
@@ -92,48 +140,139 @@ class PhysicsPayloadCompensator(Compensator):
     def _fit(self, Z, Y):
         if self.mode not in ("dynamic", "static"):
             raise ValueError(f"mode must be 'dynamic' or 'static', got {self.mode!r}")
+        if self.identification not in IDENTIFICATIONS:
+            raise ConfigError(f"identification must be one of {list(IDENTIFICATIONS)}, got "
+                              f"{self.identification!r}")
+        prior = PayloadPrior.coerce(self.prior)
+        if prior is not None and self.identification != "consistent":
+            raise ConfigError("prior needs identification='consistent' (least squares has no "
+                              "prior)")
         if Y.shape[1] != 6:
             raise ValueError(f"the payload model predicts a wrench: 6 targets, got {Y.shape[1]}")
         if self.mode == "dynamic" and self.features != "q,qd,qdd":
             raise ValueError("mode='dynamic' needs features='q,qd,qdd' (it uses q̇ and q̈)")
+        Z, temperature = self._split_temperature(Z)
         X = _full_layout(Z, self.n_joints_)
         self._check_robot_joints()
         A = self.regressor(X)
-        cols = STATIC_PARAMETERS if self.mode == "static" else list(range(16))
-        A = A[:, :, cols]
-        theta, cov, axis_rms, cond = weighted_least_squares(A, Y)
-        self.parameters_ = np.zeros(16)
-        self.parameters_[cols] = theta
-        self.standard_errors_ = np.full(16, np.nan)
-        self.standard_errors_[cols] = np.sqrt(np.diag(cov))
-        self.condition_number_ = float(cond)
-        self.residual_rms_ = axis_rms
-        self._warn_if_poorly_excited(cols)
+        self._identify(A, Y, prior, temperature)
+
+    def _split_temperature(self, Z):
+        if getattr(self, "temperature_in_", False):
+            return Z[:, :-1], Z[:, -1]
+        return Z, None
+
+    def _identify(self, A, Y, prior, temperature=None):
+        """Sets the fitted attributes from the (N, 6, 16) regressor and the readings.
+
+        With a temperature, its per-axis coefficient is eliminated first (Frisch–Waugh–Lovell:
+        each axis's data projected orthogonal to T − T_ref), so that the linear and the
+        consistent fit see the payload and biases only; the coefficients follow from the
+        residual. With ``identify_mounting`` the rotation comes first (nonlinear), the
+        readings are rotated back into S, and the linear fit runs there.
+        """
+        static = self.mode == "static"
+        cols = STATIC_PARAMETERS if static else list(range(16))
+        d = None
+        self.temperature_reference_ = None
+        if temperature is not None:
+            self.temperature_reference_ = float(np.mean(temperature))
+            d = np.asarray(temperature, float) - self.temperature_reference_
+            if not np.any(np.abs(d) > 1e-9):
+                d = None  # a constant temperature: its coefficients are not observable
+        self.mounting_rotation_ = np.eye(3)
+        self.mounting_std_deg_ = np.zeros(3)
+        if self.identify_mounting:
+            self.mounting_rotation_, self.mounting_std_deg_ = _fit_mounting(
+                A, Y, d, cols)
+        block = np.kron(np.eye(2), self.mounting_rotation_)  # y_S = block · y_Sm
+        Y_S = Y @ block.T
+        A_fit, Y_fit = (A, Y_S) if d is None else (_project_out(A, d), _project_out(Y_S, d))
+        if self.identification == "consistent":
+            result = identify_consistent(
+                A_fit[:, :, cols], Y_fit, static=static,
+                prior=None if prior is None else prior.phi(), prior_weight=self.prior_weight)
+        else:
+            result = identify_least_squares(A_fit[:, :, cols], Y_fit, static=static)
+        self.identification_ = result
+        theta = result.theta.copy()
+        cov = result.covariance.copy()
+        # Biases were identified in S; the sensor adds them in Sm.
+        theta[10:] = block.T @ theta[10:]
+        bias_cov = cov[10:, 10:]
+        cov[10:, 10:] = block.T @ bias_cov @ block
+        self.parameters_ = theta
+        self.covariance_ = cov
+        self.standard_errors_ = result.standard_errors.copy()
+        self.standard_errors_[10:] = np.sqrt(np.maximum(np.diag(cov[10:, 10:]), 0.0))
+        self.temperature_coefficients_ = np.zeros(6)
+        self.temperature_std_errors_ = np.full(6, np.nan)
+        if d is not None:
+            residual_S = Y_S - A @ result.theta
+            k_S = residual_S.T @ d / (d @ d)
+            self.temperature_coefficients_ = block.T @ k_S
+            rms = np.sqrt(np.mean((residual_S - np.outer(d, k_S)) ** 2, axis=0))
+            self.temperature_std_errors_ = block.T @ (rms / np.sqrt(d @ d))
+            self.temperature_std_errors_ = np.abs(self.temperature_std_errors_)
+        self.condition_number_ = float(result.condition_number)
+        self.residual_rms_ = np.sqrt(np.mean((Y - self._predict_from(A, temperature)) ** 2,
+                                             axis=0))
+        self.physically_consistent_ = (is_physically_consistent(self.parameters_[:10])
+                                       if not static else bool(self.parameters_[0] > 0))
+        self._warn_if_poorly_excited()
+
+    def _predict_from(self, A, temperature=None):
+        """Readings in Sm: ``R_SmS ⊗ (A_φ φ) + b + k·(T − T_ref)``."""
+        wrench_S = A[:, :, :10] @ self.parameters_[:10]
+        out = wrench_S @ np.kron(np.eye(2), getattr(self, "mounting_rotation_", np.eye(3)))
+        out = out + self.parameters_[10:]
+        reference = getattr(self, "temperature_reference_", None)
+        if temperature is not None and reference is not None:
+            out = out + np.outer(temperature - reference, self.temperature_coefficients_)
+        return out
 
     def _predict(self, Z):
+        Z, temperature = self._split_temperature(Z)
         X = _full_layout(Z, self.n_joints_)
-        return self.regressor(X) @ self.parameters_
+        return self._predict_from(self.regressor(X), temperature)
 
     def predict_row(self, x) -> np.ndarray:
         """One full-layout row (3n,) → wrench (6,), without input validation (control loops):
         one compiled kernel (kinematics, regressor row, product with the parameters)."""
-        args = self._row_kernel_args()
-        out = np.empty(6)
-        _predict_row(np.asarray(x, dtype=float), *args, self.parameters_, out)
-        return out
+        return self.row_predictor()(np.asarray(x, dtype=float))[0]
 
     def row_predictor(self):
-        """``row → (wrench, zeros)``: the compiled row kernel with this model's chain and
-        current parameters bound (refitting the model afterwards does not change it)."""
-        args = (*self._row_kernel_args(), self.parameters_.copy())
+        """``row → (wrench, std)``: the compiled row kernel with this model's chain and
+        current parameters bound (refitting the model afterwards does not change it); the
+        mounting rotation and the temperature term (row's last entry) applied after it."""
+        args = self._row_kernel_args()
+        parameters = self.parameters_.copy()
+        rotation = getattr(self, "mounting_rotation_", np.eye(3))
+        reference = getattr(self, "temperature_reference_", None)
+        with_temperature = getattr(self, "temperature_in_", False)
         zeros = np.zeros(6)
+        if np.array_equal(rotation, np.eye(3)) and not with_temperature:
+            def predict(row):
+                out = np.empty(6)
+                _predict_row(row, *args, parameters, out)
+                return out, zeros
 
-        def predict(row):
+            return predict
+        physical = parameters.copy()
+        physical[10:] = 0.0
+        block_T = np.kron(np.eye(2), rotation).T  # y_Sm = block_T · w_S
+        bias = parameters[10:]
+        k = getattr(self, "temperature_coefficients_", zeros)
+
+        def predict_mounted(row):
             out = np.empty(6)
-            _predict_row(row, *args, out)
+            _predict_row(row, *args, physical, out)
+            out = block_T @ out + bias
+            if with_temperature and reference is not None:
+                out += k * (row[-1] - reference)
             return out, zeros
 
-        return predict
+        return predict_mounted
 
     def _row_kernel_args(self) -> tuple:
         # Looking the chain up through the robot description costs microseconds (building and
@@ -150,35 +289,117 @@ class PhysicsPayloadCompensator(Compensator):
 
     # -- reporting --------------------------------------------------------------------------
     def identified(self) -> dict:
-        """Identified parameters with standard errors and units, plus derived CoM (m)."""
+        """Identified parameters with standard errors and units, plus derived CoM (m).
+
+        Each parameter: ``value``, ``std_error`` (∞ where the data leave it free and no prior
+        decides it), ``unit`` and ``prior_share`` (how much the prior decided it, 0–1; 0
+        without a prior). Also ``com`` (``p_SoScm_S``, m, with standard errors by the delta
+        method), ``condition_number``, ``identification``, ``physically_consistent``,
+        ``not_determined`` (parameters the data cannot determine) and, for the consistent
+        fit, ``least_squares`` (the unconstrained estimate and whether it is a body).
+        """
         p, se = self.parameters_, self.standard_errors_
+        result = getattr(self, "identification_", None)
+        share = result.prior_share if result is not None else np.zeros(16)
         table = {
-            name: {"value": float(p[i]), "std_error": float(se[i]), "unit": PARAMETER_UNITS[i]}
+            name: {"value": float(p[i]), "std_error": float(se[i]), "unit": PARAMETER_UNITS[i],
+                   "prior_share": float(np.nan_to_num(share[i]))}
             for i, name in enumerate(PARAMETER_NAMES)
             if self.mode == "dynamic" or i in STATIC_PARAMETERS
         }
         mass = p[0]
-        table["com"] = {"value": (p[1:4] / mass).tolist() if mass else None, "unit": "m"}
+        com_se = None
+        cov = getattr(self, "covariance_", None)
+        if mass and cov is not None and np.all(np.isfinite(cov[:4, :4])):
+            # c = h / m: Jacobian [−h/m², I/m] on (m, h).
+            J = np.hstack([-p[1:4, None] / mass ** 2, np.eye(3) / mass])
+            com_se = np.sqrt(np.maximum(np.diag(J @ cov[:4, :4] @ J.T), 0.0)).tolist()
+        table["com"] = {"value": (p[1:4] / mass).tolist() if mass else None,
+                        "std_error": com_se, "unit": "m"}
+        rotation = getattr(self, "mounting_rotation_", None)
+        if rotation is not None and self.identify_mounting:
+            table["mounting_rpy_deg"] = {
+                "value": np.degrees(RollPitchYaw(RotationMatrix(rotation)).vector()).tolist(),
+                "std_error": self.mounting_std_deg_.tolist(), "unit": "deg",
+                "frame": "R_SSm: the frame the sensor measures in, in S (roll, pitch, yaw)"}
+        if getattr(self, "temperature_reference_", None) is not None:
+            table["temperature"] = {
+                "coefficients": self.temperature_coefficients_.tolist(),
+                "std_error": self.temperature_std_errors_.tolist(),
+                "unit": "N/K (forces), N*m/K (torques)",
+                "reference_c": self.temperature_reference_}
         table["condition_number"] = self.condition_number_
+        table["identification"] = getattr(self, "identification", "least_squares")
+        table["physically_consistent"] = bool(getattr(self, "physically_consistent_", True))
+        table["not_determined"] = list(result.poorly_determined) if result is not None else []
+        if result is not None and self.identification == "consistent":
+            cols = STATIC_PARAMETERS if self.mode == "static" else list(range(16))
+            table["least_squares"] = {
+                "values": {PARAMETER_NAMES[i]: float(result.theta_least_squares[i])
+                           for i in cols},
+                "physically_consistent": bool(result.least_squares_consistent)}
+            table["active_constraints"] = list(result.active_constraints)
         return table
 
-    def _warn_if_poorly_excited(self, cols):
-        # A standard error is compared with its parameter group's scale (mass, first moment,
-        # inertia), not the value itself: a true product of inertia of 0 is no failure.
-        p = np.abs(self.parameters_)
-        scale = np.empty(16)
-        for group in (slice(0, 1), slice(1, 4), slice(4, 10), slice(10, 16)):
-            scale[group] = max(p[group].max(), 1e-9)
-        rel = np.abs(self.standard_errors_[cols]) / scale[cols]
-        poor = [PARAMETER_NAMES[c] for c, r in zip(cols, rel, strict=True) if r > 0.25 and c < 10]
-        if self.condition_number_ > 1e4 or poor:
-            warnings.warn(
-                f"the data does not excite the payload parameters well (condition number "
-                f"{self.condition_number_:.3g}; standard error > 25% of its group's scale: "
-                f"{poor or 'none'}); "
-                "use a richer trajectory (e.g. kind 'fourier' or 'z_rich')",
-                ExcitationWarning, stacklevel=3,
-            )
+    def summary(self) -> str:
+        """The identified parameters with standard errors, as lines a user reads."""
+        t = self.identified()
+        how = {"least_squares": "weighted least squares",
+               "consistent": "least squares over physically possible bodies (SDP)"}
+        lines = [(f"payload identified by {how.get(t['identification'], t['identification'])} "
+                  f"({self.mode} model; condition number {t['condition_number']:.3g})"),
+                 f"  {'':5s} {'value':>12s} {'std error':>10s} {'unit':<7s} prior share"]
+        for name in PARAMETER_NAMES:
+            if name in t:
+                row = t[name]
+                lines.append(f"  {name:5s} {row['value']:12.5g} {row['std_error']:10.3g} "
+                             f"{row['unit']:<7s} {row['prior_share']:.2f}")
+        com = t["com"]
+        if com["value"] is not None:
+            se = com["std_error"] or [np.nan] * 3
+            lines.append("  centre of mass p_SoScm_S: "
+                         + ", ".join(f"{1e3 * v:.2f} ± {1e3 * e:.2f}"
+                                     for v, e in zip(com["value"], se, strict=True)) + " mm")
+        if "mounting_rpy_deg" in t:
+            m = t["mounting_rpy_deg"]
+            lines.append("  sensor mounting R_SSm roll, pitch, yaw: " + ", ".join(
+                f"{v:.3f} ± {e:.3f}" for v, e in zip(m["value"], m["std_error"], strict=True))
+                + " deg")
+        if "temperature" in t:
+            k = t["temperature"]
+            lines.append(f"  zero drift per K (Fx..Tz, about {k['reference_c']:.2f} °C): "
+                         + ", ".join(
+                f"{v:.4g} ± {e:.2g}" for v, e in zip(k["coefficients"], k["std_error"],
+                                                      strict=True)))
+        lines.append(f"  physically possible body: {'yes' if t['physically_consistent'] else 'NO'}"
+                     + ("" if "least_squares" not in t else
+                        f" (plain least squares: "
+                        f"{'yes' if t['least_squares']['physically_consistent'] else 'no'})"))
+        lines.append(f"  not determined by the data: {', '.join(t['not_determined']) or 'none'}")
+        return "\n".join(lines)
+
+    def _warn_if_poorly_excited(self):
+        result = self.identification_
+        # Only the inertial parameters can be "poorly excited"; a bias named here is one the
+        # data determine only in a combination with the mass (a constant gravity direction).
+        poor = list(result.poorly_determined)
+        if self.condition_number_ <= 1e4 and not poor:
+            return
+        share = result.prior_share
+        if self.prior is not None and self.identification == "consistent":
+            decided = ", ".join(f"{n} {share[PARAMETER_NAMES.index(n)]:.0%}" for n in poor
+                                if n in PARAMETER_NAMES[:10])
+            how = f"the prior decided (share of each estimate): {decided or 'none'}"
+        else:
+            how = ("give a prior (identification='consistent', prior=PayloadPrior(...)) or "
+                   "use a richer trajectory (e.g. kind 'fourier' or 'z_rich')")
+        warnings.warn(
+            f"the data does not excite the payload parameters well (condition number "
+            f"{self.condition_number_:.3g}); not determined by the data (a null direction of "
+            f"the regressor, or standard error > 25% of its group's scale): "
+            f"{', '.join(poor) or 'none'}; {how}",
+            ExcitationWarning, stacklevel=4,
+        )
 
     # -- kinematics -------------------------------------------------------------------------
     def _kinematics(self):
@@ -200,6 +421,47 @@ class PhysicsPayloadCompensator(Compensator):
         n = self._kinematics().num_joints
         if n != self.n_joints_:
             raise ValueError(f"the data has {self.n_joints_} joints; the robot model has {n}")
+
+
+def _project_out(M, d):
+    """Each axis's data orthogonal to the temperature deviation d (N,): M (N, 6[, p])."""
+    coef = np.tensordot(d, M, axes=(0, 0)) / (d @ d)
+    return M - np.multiply.outer(d, coef)
+
+
+def _fit_mounting(A, Y, d, cols):
+    """(R_SSm, its 1σ angles about S's axes in degrees) by robust nonlinear least squares.
+
+    Unknowns: the rotation vector of R_SSm, the inertial parameters in `cols` (all 10, or
+    mass and first moment), the biases in Sm and, with a temperature deviation `d`, its
+    coefficients. Residuals are weighted per axis by 1 / RMS of a linear first fit; the loss
+    is soft-L1 with a 3σ knee, so a few outliers (a bump, a glitch) do not rotate the frame.
+    """
+    phys = [c for c in cols if c < 10]
+    A_phys = A[:, :, phys]
+    first = np.linalg.lstsq(A[:, :, cols].reshape(-1, len(cols)), Y.reshape(-1), rcond=None)[0]
+    theta0 = np.zeros(16)
+    theta0[cols] = first
+    weights = 1.0 / np.maximum(np.sqrt(np.mean((Y - A @ theta0) ** 2, axis=0)),
+                               1e-9 * (1 + np.abs(Y).max()))
+    n_phys = len(phys)
+    x0 = np.concatenate([np.zeros(3), theta0[phys], theta0[10:],
+                         np.zeros(6) if d is not None else []])
+
+    def residuals(x):
+        R = Rotation.from_rotvec(x[:3]).as_matrix()
+        wrench = A_phys @ x[3:3 + n_phys]
+        pred = wrench @ np.kron(np.eye(2), R) + x[3 + n_phys:9 + n_phys]
+        if d is not None:
+            pred = pred + np.outer(d, x[9 + n_phys:])
+        return ((Y - pred) * weights).ravel()
+
+    fit = least_squares(residuals, x0, loss="soft_l1", f_scale=3.0, x_scale="jac")
+    dof = max(1, fit.fun.size - fit.x.size)
+    sigma2 = float(fit.fun @ fit.fun / dof)
+    cov = sigma2 * np.linalg.pinv(fit.jac.T @ fit.jac)
+    return (Rotation.from_rotvec(fit.x[:3]).as_matrix(),
+            np.degrees(np.sqrt(np.maximum(np.diag(cov)[:3], 0.0))))
 
 
 def payload_regressor(w, alpha, a_minus_g) -> np.ndarray:

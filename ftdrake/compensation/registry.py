@@ -41,6 +41,9 @@ _SVR_PRESETS = {
 # A GP keeps its fitted kernels (hyper-parameters only); skops does not trust them by default.
 _GP_KERNELS = tuple(f"sklearn.gaussian_process.kernels.{k}"
                     for k in ("ConstantKernel", "Product", "RBF", "Sum", "WhiteKernel"))
+# What a physics model keeps from its identification (the result and a prior).
+_PHYSICS_TYPES = ("ftdrake.compensation.consistent.ConsistentIdentification",
+                  "ftdrake.compensation.consistent.PayloadPrior")
 
 
 @dc.dataclass(frozen=True)
@@ -71,11 +74,13 @@ REGISTRY: dict[str, CompensatorEntry] = {e.name: e for e in (
     CompensatorEntry("gpr", GPRCompensator, "Gaussian process with predictive std",
                      {"features": "q,qd,qdd"}, trusted_types=_GP_KERNELS),
     CompensatorEntry("physics", PhysicsPayloadCompensator,
-                     "rigid payload + sensor biases, identified by least squares",
-                     {"features": "q,qd,qdd"}, needs_robot=True, wrench_only=True),
+                     "rigid payload + sensor biases, a physically possible body (SDP)",
+                     {"features": "q,qd,qdd", "identification": "consistent"},
+                     needs_robot=True, wrench_only=True, trusted_types=_PHYSICS_TYPES),
     CompensatorEntry("hybrid", HybridCompensator,
                      "physics + a forest on its residual (cable, cross-talk, the rest)",
-                     needs_robot=True, wrench_only=True),
+                     {"identification": "consistent"}, needs_robot=True, wrench_only=True,
+                     trusted_types=_PHYSICS_TYPES),
 )}
 
 #: Types a model file may hold beyond the registry's classes and skops's defaults.

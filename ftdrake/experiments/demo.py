@@ -78,8 +78,7 @@ def run_demo(out: Path, config: ScenarioConfig | None = None, *, fourier: int = 
     with warnings.catch_warnings():
         # Excitation is reported in the summary (condition number), not as a warning here.
         warnings.simplefilter("ignore", ExcitationWarning)
-        hybrid = HybridCompensator(residual=RandomForestCompensator(
-            features="q", per_output=False, min_samples_leaf=5, random_state=0)).fit(X, Y)
+        hybrid = HybridCompensator().fit(X, Y)  # its default residual (default_residual)
     models = {"forest": forest, "hybrid": hybrid}
     X_val, Y_val = joint_state_layout(validation), wrench_targets(validation)
     rate_hz = config.sensor.spec().rate_hz

@@ -13,6 +13,10 @@ For each compensator:
    detector fires while the tool touches; its force is the median true contact force ‖F‖
    after the touchdown transient. A run whose tool never touches counts only for false
    positives; a press the arm cannot make within its joint limits is reported, not run.
+4. **Re-tare, grasp, slow push** (:mod:`ftdrake.experiments.tracking`): with the bias tracker
+   and without it, against the same run without the event.
+
+The loop runs as ``config`` says: with the bias tracker when ``bias_tracker.enabled``.
 
 Every run is independent and runs in parallel (joblib); each worker builds its station from
 the config's YAML. Outputs: ``detection.json``, ``detection.md`` (tables) and
@@ -40,6 +44,7 @@ from ..sim.evaluation import TOUCHDOWN_S, evaluate_detection
 from ..sim.simulate import simulate
 from ..sim.station import build_station
 from ..systems.detector import thresholds_for_false_positive_rate
+from . import tracking
 
 FREE_KINDS = ("fourier", "random", "z_rich", "reference")
 # Commanded depth into the surface (mm). The controller's model of the tool is 15 % too light,
@@ -62,6 +67,8 @@ class DetectionPlan:
     false_positives_per_hour: float = 1.0
     rehearsals: int = 2  # held-out rehearsals that set the thresholds
     seed: int = SEED
+    # The tracker's events (re-tare, grasp, slow push); None skips them.
+    events: tracking.EventPlan | None = dc.field(default_factory=tracking.EventPlan)
 
 
 def thresholds_from_rehearsals(model, config: ScenarioConfig, plan: DetectionPlan,
@@ -244,9 +251,19 @@ def run_detection_evaluation(out: Path, models: dict, config: ScenarioConfig | N
     config = config or ScenarioConfig()
     plan = plan or DetectionPlan()
     results = run_plan(models, config, plan, n_jobs=n_jobs, progress=progress)
+    events = None
+    if plan.events is not None:
+        tuned = {name: (model, DetectorConfig(**results[name]["detector"]))
+                 for name, model in models.items()}
+        events = tracking.run_events(tuned, config, plan.events, seed=plan.seed + 2000,
+                                     n_jobs=n_jobs, progress=progress)
     with staged_outputs(out) as staging:
         with atomic_path(staging / "detection.json") as tmp:
-            tmp.write_text(json.dumps({"plan": dc.asdict(plan), "models": results}, indent=2))
-        (staging / "detection.md").write_text(markdown(results, plan))
+            tmp.write_text(json.dumps({"plan": dc.asdict(plan), "models": results,
+                                       "tracker_events": events}, indent=2))
+        text = markdown(results, plan)
+        if events is not None:
+            text += "\n" + tracking.markdown(events, plan.events)
+        (staging / "detection.md").write_text(text)
         plot_detection_rate(results, staging / "detection_rate.png")
     return results

@@ -2,13 +2,17 @@
 
 Modules: ``config`` (HardwareConfig: channels, message types, timeouts), ``messages``
 (decode joint state and F/T, encode the external wrench and the contact state),
-``live_inputs`` (StreamMonitor: per-message checks, fault, counters), ``station``
-(build_hardware_station: a message-driven loop around the unchanged CompensatorSystem and
-ContactDetector; measure_latency), ``recording`` (LCM log → the ``collect`` Parquet layout).
+``live_inputs`` (StreamMonitor: per-message checks, fault, counters; RobotStatePairer),
+``transport`` (open_lcm: an LCM connection that does not drop queued messages), ``station``
+(HardwareStation: a message-driven loop around the simulation's unchanged compensator,
+bias tracker and detector; measure_latency), ``sim_publisher`` (a simulated robot publishing
+what a real one does), ``recording`` (LCM messages or log → the ``collect`` Parquet layout).
+The commands: ``ftdrake serve``, ``ftdrake record``, ``ftdrake simulate --lcm``
+(:mod:`ftdrake.cli.hardware`).
 """
 
 from .config import JOINT_STATE_TYPES, HardwareConfig
-from .live_inputs import REASONS, StreamMonitor
+from .live_inputs import REASONS, RobotStatePairer, StreamMonitor
 from .messages import (
     ContactState,
     JointSample,
@@ -21,15 +25,18 @@ from .messages import (
     encode_wrench,
 )
 from .recording import read_lcm_log, record_to_parquet
-from .station import HardwareStation, build_hardware_station, measure_latency
+from .station import FaultEvent, HardwareStation, build_hardware_station, measure_latency
+from .transport import open_lcm
 
 __all__ = [
     "JOINT_STATE_TYPES",
     "REASONS",
     "ContactState",
+    "FaultEvent",
     "HardwareConfig",
     "HardwareStation",
     "JointSample",
+    "RobotStatePairer",
     "StreamMonitor",
     "WrenchSample",
     "build_hardware_station",
@@ -40,6 +47,7 @@ __all__ = [
     "encode_joint_state",
     "encode_wrench",
     "measure_latency",
+    "open_lcm",
     "read_lcm_log",
     "record_to_parquet",
 ]

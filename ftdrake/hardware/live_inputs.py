@@ -1,14 +1,26 @@
 """StreamMonitor: the checks between LCM messages and the compensator's inputs.
 
-Not yet a LeafSystem (the station that wraps it is still to be written): it is the logic
-that such a system's update will call once per received message, so that it can be tested
-message by message.
+A plain class (the station's message callbacks call it once per received message), so that
+it can be tested message by message; :class:`~ftdrake.hardware.station.HardwareStation` wraps
+it.
 
 What downstream sees: ``wrench`` (6) and ``joint_state`` (2n) are the last *accepted*
 values; a rejected message never replaces them. ``fault`` is True from the first rejected
-message or timeout until the next accepted F/T message that arrives while the joint stream
-is also fresh; ``reason`` names the latest cause. While ``fault`` is True the held values are
+message or timeout until the inputs are good again:
+
+* a rejected F/T message (NaN, time going back, duplicate, malformed) faults until the next
+  accepted F/T message;
+* a rejected joint-state message (wrong joint count, NaN, time going back, ...) faults until
+  the next accepted joint-state message *and* then an accepted F/T message: the joint state
+  held from before the bad message is stale, so no wrench is computed from it;
+* a silent stream (``check_timeouts``) faults until its next accepted message.
+
+``reason`` names the cause (one of :data:`REASONS`) and ``detail`` says it in words for a
+person ("joint state has 6 joints, expected 7"). While ``fault`` is True the held values are
 stale and a consumer must not publish a result computed from them as fresh.
+
+:class:`RobotStatePairer` joins the two ``lcmt_robot_state`` streams (positions, and
+velocities on the second channel; see HardwareConfig) into joint samples.
 """
 
 from __future__ import annotations
@@ -19,16 +31,19 @@ import numpy as np
 
 from .messages import JointSample, WrenchSample
 
-#: Reasons a message is rejected or the inputs are faulted.
+#: Reasons a message is rejected or the inputs are faulted. ``unpaired`` (robot_state only)
+#: counts a position or velocity message that never met its partner; it is not a fault by
+#: itself (nothing stale is used; a silent pair stream faults by timeout).
 REASONS = ("sensor_timeout", "joint_timeout", "out_of_order", "duplicate", "not_finite",
-           "joint_count", "malformed")
+           "joint_count", "malformed", "unpaired")
 
 
 class StreamMonitor:
     """Checks F/T and joint-state samples; holds the last good values and counts.
 
     Counters: ``received[stream]``, ``accepted[stream]``, ``rejected[reason]`` with stream in
-    {"ft", "joint"}; received == accepted + the rejections of that stream, always.
+    {"ft", "joint"}; received == accepted + the rejections of that stream, always
+    (``rejected_by[stream][reason]`` splits them).
     """
 
     def __init__(self, n_joints: int, sensor_timeout_s: float, joint_state_timeout_s: float):
@@ -39,43 +54,70 @@ class StreamMonitor:
         self.joint_state = np.zeros(2 * self.n)
         self.fault = True  # nothing received yet
         self.reason = "no_data"
+        self.detail = "no message received yet"
         self.received = collections.Counter()
         self.accepted = collections.Counter()
         self.rejected = collections.Counter()
+        self.rejected_by = {"ft": collections.Counter(), "joint": collections.Counter()}
         self._last_t = {"ft": None, "joint": None}
         self._last_arrival = {"ft": None, "joint": None}
+        self._joint_bad = None  # (reason, detail) of a rejected joint message not yet made good
 
-    def _reject(self, reason: str) -> bool:
+    # -- bookkeeping --------------------------------------------------------------------------
+    def _reject(self, stream: str, reason: str, detail: str) -> bool:
         self.rejected[reason] += 1
-        self.fault, self.reason = True, reason
+        self.rejected_by[stream][reason] += 1
+        self.fault, self.reason, self.detail = True, reason, detail
+        if stream == "joint":
+            self._joint_bad = (reason, detail)
         return False
 
-    def _check_time(self, stream: str, t: float) -> str | None:
-        last = self._last_t[stream]
-        if last is None:
-            return None
-        if t == last:
-            return "duplicate"
-        if t < last:
-            return "out_of_order"
-        return None
+    def count_unpaired(self, detail: str = "") -> None:
+        """A joint message that was received but never formed a sample (robot_state)."""
+        del detail  # counted, not a fault: see REASONS
+        self.received["joint"] += 1
+        self.rejected["unpaired"] += 1
+        self.rejected_by["joint"]["unpaired"] += 1
 
+    def last_time(self, stream: str) -> float | None:
+        """Timestamp (s) of the last accepted message of `stream`."""
+        return self._last_t[stream]
+
+    def last_arrival(self, stream: str) -> float | None:
+        """Arrival (the caller's clock, s) of the last accepted message of `stream`."""
+        return self._last_arrival[stream]
+
+    def _check_time(self, stream: str, t: float) -> tuple[str, str] | None:
+        last = self._last_t[stream]
+        if last is None or t > last:
+            return None
+        name = "F/T" if stream == "ft" else "joint state"
+        if t == last:
+            return "duplicate", f"{name} message with the same timestamp {t:.6f} s again"
+        return "out_of_order", (f"{name} time went back from {last:.6f} s to {t:.6f} s "
+                                f"({(t - last) * 1e3:.3f} ms)")
+
+    # -- messages -----------------------------------------------------------------------------
     def on_joint(self, sample: JointSample | None, arrival: float) -> bool:
         """One joint-state message (None if it failed to decode). Returns True if accepted."""
         self.received["joint"] += 1
         if sample is None:
-            return self._reject("malformed")
-        if len(sample.q) != self.n or sample.v is None or len(sample.v) != self.n:
-            return self._reject("joint_count")
+            return self._reject("joint", "malformed", "joint-state message failed to decode")
+        nv = None if sample.v is None else len(sample.v)
+        if len(sample.q) != self.n or nv != self.n:
+            return self._reject("joint", "joint_count", (
+                f"joint state has {len(sample.q)} positions and "
+                f"{'no' if nv is None else nv} velocities, expected {self.n}"))
         if not (np.isfinite(sample.q).all() and np.isfinite(sample.v).all()
                 and np.isfinite(sample.t)):
-            return self._reject("not_finite")
+            return self._reject("joint", "not_finite", "joint state holds NaN or inf")
         bad = self._check_time("joint", sample.t)
         if bad:
-            return self._reject(bad)
+            return self._reject("joint", *bad)
         self.joint_state[:self.n], self.joint_state[self.n:] = sample.q, sample.v
         self._last_t["joint"], self._last_arrival["joint"] = sample.t, arrival
         self.accepted["joint"] += 1
+        self._joint_bad = None
         return True
 
     def on_wrench(self, sample: WrenchSample | None, arrival: float) -> bool:
@@ -83,29 +125,83 @@ class StreamMonitor:
         i.e. the compensator may run on it and its result is fresh."""
         self.received["ft"] += 1
         if sample is None:
-            return self._reject("malformed")
+            return self._reject("ft", "malformed", "F/T message failed to decode")
         if not (np.isfinite(sample.wrench).all() and np.isfinite(sample.t)):
-            return self._reject("not_finite")
+            return self._reject("ft", "not_finite", f"F/T message at {sample.t:.6f} s holds "
+                                "NaN or inf")
         bad = self._check_time("ft", sample.t)
         if bad:
-            return self._reject(bad)
+            return self._reject("ft", *bad)
         self.wrench[:] = sample.wrench
         self._last_t["ft"], self._last_arrival["ft"] = sample.t, arrival
         self.accepted["ft"] += 1
         joint = self._last_arrival["joint"]
-        if joint is None or arrival - joint > self.joint_state_timeout_s:
-            self.fault, self.reason = True, "joint_timeout" if joint is not None else "no_data"
+        if self._joint_bad is not None:
+            self.fault = True
+            self.reason, self.detail = self._joint_bad
             return False
-        self.fault, self.reason = False, ""
+        if joint is None:
+            self.fault, self.reason, self.detail = True, "no_data", "no joint state received yet"
+            return False
+        if arrival - joint > self.joint_state_timeout_s:
+            self.fault, self.reason = True, "joint_timeout"
+            self.detail = (f"last joint state arrived {(arrival - joint) * 1e3:.1f} ms before "
+                           f"this F/T message (timeout {self.joint_state_timeout_s * 1e3:g} ms)")
+            return False
+        self.fault, self.reason, self.detail = False, "", ""
         return True
 
     def check_timeouts(self, now: float) -> bool:
-        """Call periodically (wall clock, s). Raises the fault when a stream went silent;
-        returns the fault flag."""
-        ft = self._last_arrival["ft"]
-        if ft is not None and now - ft > self.sensor_timeout_s and not self.fault:
-            self.fault, self.reason = True, "sensor_timeout"
-        joint = self._last_arrival["joint"]
-        if joint is not None and now - joint > self.joint_state_timeout_s and not self.fault:
-            self.fault, self.reason = True, "joint_timeout"
+        """Call periodically (same clock as the arrivals, s). Raises the fault when a stream
+        went silent; returns the fault flag."""
+        for stream, timeout, reason, name in (
+                ("ft", self.sensor_timeout_s, "sensor_timeout", "F/T"),
+                ("joint", self.joint_state_timeout_s, "joint_timeout", "joint-state")):
+            last = self._last_arrival[stream]
+            if last is not None and now - last > timeout and not self.fault:
+                self.fault, self.reason = True, reason
+                self.detail = (f"no {name} message for {(now - last) * 1e3:.1f} ms "
+                               f"(timeout {timeout * 1e3:g} ms)")
         return self.fault
+
+
+class RobotStatePairer:
+    """Joins ``lcmt_robot_state`` positions and velocities with the same ``utime``.
+
+    ``add("q" | "v", sample)`` returns the joined JointSample once both halves of a utime
+    are in, else None. When a pair completes, the halves still waiting with an older utime
+    can never complete (the streams are in time order): they are returned by ``add`` through
+    ``self.dropped`` (a list of descriptions, cleared by the caller) so that they are counted.
+    At most `max_pending` halves wait per stream; older ones are dropped likewise.
+    """
+
+    def __init__(self, max_pending: int = 100):
+        self.max_pending = int(max_pending)
+        self._pending = {"q": {}, "v": {}}
+        self.dropped: list[str] = []
+
+    def waiting(self) -> int:
+        """Halves still waiting for their partner."""
+        return sum(len(p) for p in self._pending.values())
+
+    def add(self, half: str, sample: JointSample) -> JointSample | None:
+        key = round(sample.t * 1e6)
+        mine, other = self._pending[half], self._pending["v" if half == "q" else "q"]
+        partner = other.pop(key, None)
+        if partner is None:
+            if key in mine:
+                self.dropped.append(f"robot_state {half} at {sample.t:.6f} s arrived twice")
+            mine[key] = sample
+            while len(mine) > self.max_pending:
+                old = min(mine)
+                self.dropped.append(f"robot_state {half} at {old * 1e-6:.6f} s: partner "
+                                    "never arrived")
+                del mine[old]
+            return None
+        for stream, pending in (("q", self._pending["q"]), ("v", self._pending["v"])):
+            for old in [k for k in pending if k < key]:
+                self.dropped.append(f"robot_state {stream} at {old * 1e-6:.6f} s: partner "
+                                    "never arrived")
+                del pending[old]
+        q, v = (sample, partner) if half == "q" else (partner, sample)
+        return JointSample(q.t, q.q, v.q, None)

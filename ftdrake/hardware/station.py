@@ -1,36 +1,55 @@
-"""A lean, message-driven hardware station: one compensator update per accepted F/T message.
+"""The hardware station: the simulation's compensation chain, driven by live LCM messages.
+
+    joint state ──► StreamMonitor ──► joint_state ──┐
+    (iiwa/panda/robot_state)  (checks, counts)      ▼
+    F/T ──────────► StreamMonitor ──► wrench_measured ─► compensator ─► bias tracker ─► detector
+                                                               │              │           │
+                         lcmt_force_torque  ◄── wrench_external ◄─────────────┘           │
+                         lcmt_drake_signal  ◄── contact, contact_force, fault, ood ◄──────┘
+
+The diagram is the one :func:`ftdrake.sim.station.build_station` puts in the loop —
+``CompensatorSystem`` (``scenario.compensator``), ``OnlineBiasTracker``
+(``scenario.bias_tracker``, when enabled; no payload tracking: there is no ``gravity_S``
+here) and ``ContactDetector`` (``scenario.detector``, with the model's std) — unchanged, so
+the same messages give the same numbers as in simulation (``tests/test_live_end_to_end.py``
+checks it to 1e-9).
 
 Why a loop and not a Simulator with LcmSubscriberSystems: a realtime Simulator samples the
 subscribers' latest message at its own periodic times, so a message can be processed twice
 (none arrived since the last tick) or skipped (two arrived); it also adds the Simulator's
-sleep granularity to the latency. Here `DrakeLcm.HandleSubscriptions` delivers each message
-to a callback; every accepted F/T message triggers exactly one periodic update of the
-unchanged ``CompensatorSystem`` + ``ContactDetector`` diagram: the k-th accepted message
-advances a (non-realtime) Simulator to (k + ½)·period, so exactly the update at k·period
-fires (diagram time is message index × period, not the message's timestamp; at 1 kHz they
-agree when no message is rejected), and the result is published at once.
+sleep granularity to the latency. Here each message reaches a callback; every accepted,
+fault-free F/T message triggers exactly one periodic update of the diagram: the k-th such
+message advances a (non-realtime) Simulator to (k + ½)·period, so exactly the update at
+k·period fires (diagram time is processed-message index × period, not the message's
+timestamp; they agree while no message is rejected).
 
-Published per F/T message: the external wrench (``lcmt_force_torque``, only when the inputs
-are fault-free: a stale wrench is never published as fresh) and the contact state
-(``lcmt_drake_signal``, always, with its fault flag).
+Published per F/T message: the external wrench (``lcmt_force_torque`` on
+``external_wrench_channel``) only when the inputs are fault-free — a stale wrench is never
+published as fresh — and the contact state (``lcmt_drake_signal`` on ``contact_channel``)
+always, with its fault flag. Both carry the F/T message's timestamp. When a stream goes
+silent (``spin_once`` checks the timeouts), one contact state with ``fault = 1`` is published
+at once, stamped with the detection time on the stream's clock: the last F/T timestamp plus
+the wall time elapsed since it arrived.
 
-Status: first cut; untested against latency goals (see ``measure_latency``).
+Fault episodes (the fault rising, its reason changing, the fault clearing) are kept in
+``events`` and passed to `on_event` (``serve`` prints them); ``summary()`` counts everything.
 """
 
 from __future__ import annotations
 
+import collections
+import dataclasses as dc
 import struct
 import time
 
 import numpy as np
-from pydrake.lcm import DrakeLcm
 from pydrake.systems.analysis import Simulator
 from pydrake.systems.framework import DiagramBuilder
 
-from ftdrake import CompensatorSystem, ContactDetector, DetectorConfig
+from ftdrake import CompensatorSystem, ConfigError, ContactDetector, ScenarioConfig
 
 from .config import HardwareConfig
-from .live_inputs import StreamMonitor
+from .live_inputs import RobotStatePairer, StreamMonitor
 from .messages import (
     ContactState,
     decode_joint_state,
@@ -39,119 +58,273 @@ from .messages import (
     encode_joint_state,
     encode_wrench,
 )
+from .transport import open_lcm
+
+
+@dc.dataclass(frozen=True)
+class FaultEvent:
+    """A change of the station's fault: ``kind`` "fault" (raised or its reason changed) or
+    "recovered"; ``t`` on the streams' clock (s; for a timeout, the detection time),
+    ``wall`` s since the station started; ``reason`` (see live_inputs.REASONS) and
+    ``detail`` in words."""
+
+    kind: str
+    reason: str
+    t: float
+    wall: float
+    detail: str
+
+    def __str__(self) -> str:
+        if self.kind == "recovered":
+            return f"recovered at t={self.t:.4f} s (wall {self.wall:.3f} s)"
+        return (f"fault {self.reason} at t={self.t:.4f} s (wall {self.wall:.3f} s): "
+                f"{self.detail}")
 
 
 class HardwareStation:
-    """Holds the diagram, its context, the monitor and the LCM subscriptions."""
+    """Holds the diagram, its context, the monitor and the LCM subscriptions.
 
-    def __init__(self, config: HardwareConfig, model, detector_config, lcm=None,
-                 period: float = 0.001):
+    `scenario` gives the compensator, bias-tracker, detector and sensor settings (the
+    sensor's rate sets the update period; the tracker reads its drift). `lcm`: an LCM URL, an
+    ``lcm.LCM``, a ``DrakeLcm`` or a transport (default: ``config.lcm_url``). `clock` gives
+    arrival times in s (monotonic). `on_event(FaultEvent)` is called on every fault change.
+    """
+
+    def __init__(self, config: HardwareConfig, model, scenario: ScenarioConfig | None = None,
+                 lcm=None, *, clock=time.monotonic, on_event=None, max_events: int = 10_000):
         self.config = config.validate()
-        self.lcm = lcm if lcm is not None else DrakeLcm(config.lcm_url)
-        builder = DiagramBuilder()
-        self.compensator = builder.AddNamedSystem(
-            "compensator", CompensatorSystem(model, period, n_joints=config.n_joints))
-        self.detector = builder.AddNamedSystem("detector", ContactDetector(detector_config, period))
-        builder.Connect(self.compensator.GetOutputPort("wrench_external"),
-                        self.detector.GetInputPort("wrench_external"))
-        builder.ExportInput(self.compensator.GetInputPort("wrench_measured"), "wrench_measured")
-        builder.ExportInput(self.compensator.GetInputPort("joint_state"), "joint_state")
-        for system, port in ((self.compensator, "wrench_external"), (self.compensator, "fault"),
-                             (self.compensator, "out_of_domain"), (self.detector, "contact"),
-                             (self.detector, "contact_force")):
-            builder.ExportOutput(system.GetOutputPort(port), port)
-        self.diagram = builder.Build()
+        self.scenario = (scenario or ScenarioConfig()).validate()
+        if self.scenario.bias_tracker.enabled and self.scenario.bias_tracker.track_payload:
+            raise ConfigError("scenario.bias_tracker.track_payload: the hardware station has "
+                              "no gravity_S input (no robot model); set it to false")
+        self.lcm = open_lcm(lcm if lcm is not None else config.lcm_url)
+        self.period = 1.0 / self.scenario.sensor.spec().rate_hz
+        self._build(model)
         self.simulator = Simulator(self.diagram)
         self.context = self.simulator.get_mutable_context()
-        self.period = float(period)
-        self._wrench_in = self.diagram.GetInputPort("wrench_measured")
-        self._state_in = self.diagram.GetInputPort("joint_state")
+        if self.tracker is not None:
+            settings = self.scenario.bias_tracker
+            self.tracker.set_estimate(self.tracker.GetMyMutableContextFromRoot(self.context),
+                                      settings.initial_bias, np.zeros(4),
+                                      settled=settings.start_settled)
+        self.simulator.Initialize()
+        self._wrench_in = self.diagram.GetInputPort("wrench_measured").FixValue(
+            self.context, np.zeros(6))
+        self._state_in = self.diagram.GetInputPort("joint_state").FixValue(
+            self.context, np.zeros(2 * config.n_joints))
+        self._out = {name: self.diagram.GetOutputPort(name) for name in (
+            "wrench_external", "fault", "out_of_domain", "contact", "contact_force")}
         self.monitor = StreamMonitor(config.n_joints, config.sensor_timeout_s,
                                      config.joint_state_timeout_s)
-        self.processed = 0
-        self.published = 0
-        self.latencies = []  # s, arrival → wrench publication
-        self.lcm.Subscribe(config.joint_state_channel, self._on_joint)
-        self.lcm.Subscribe(config.ft_channel, self._on_wrench)
+        self.clock = clock
+        self.on_event = on_event
+        self.started = clock()
+        self.processed = 0  # F/T messages the diagram was updated with
+        self.published = 0  # external wrenches published
+        self.contact_published = 0
+        self.latencies = collections.deque(maxlen=100_000)  # s, arrival → wrench publication
+        self.events = collections.deque(maxlen=max_events)
+        self.fault_episodes = collections.Counter()  # reason → times the fault rose with it
+        self._state = (True, "no_data")
+        self._pairer = None
+        kind = config.joint_state_type
+        if kind == "robot_state":
+            self._pairer = RobotStatePairer()
+            self.lcm.subscribe(config.joint_state_channel, lambda d: self._on_half("q", d))
+            self.lcm.subscribe(config.velocity_channel, lambda d: self._on_half("v", d))
+        else:
+            self.lcm.subscribe(config.joint_state_channel, self._on_joint)
+        self.lcm.subscribe(config.ft_channel, self._on_wrench)
 
+    def _build(self, model) -> None:
+        s = self.scenario
+        builder = DiagramBuilder()
+        self.compensator = builder.AddNamedSystem("compensator", CompensatorSystem(
+            model, self.period, n_joints=self.config.n_joints,
+            acceleration_cutoff_hz=s.compensator.acceleration_cutoff_hz))
+        self.detector = builder.AddNamedSystem("detector", ContactDetector(s.detector,
+                                                                           self.period))
+        external = self.compensator.get_output_port_wrench_external()
+        self.tracker = None
+        if s.bias_tracker.enabled:
+            from ftdrake.systems.bias_tracker import (  # noqa: PLC0415 (only with the tracker)
+                OnlineBiasTracker,
+            )
+
+            self.tracker = builder.AddNamedSystem(
+                "bias_tracker", OnlineBiasTracker(s.bias_tracker, s.sensor, self.period))
+            builder.Connect(external, self.tracker.get_input_port_wrench_external())
+            builder.Connect(self.compensator.get_output_port_out_of_domain(),
+                            self.tracker.get_input_port_out_of_domain())
+            builder.Connect(self.compensator.get_output_port_fault(),
+                            self.tracker.get_input_port_fault())
+            builder.Connect(self.detector.get_output_port_contact(),
+                            self.tracker.get_input_port_contact())
+            external = self.tracker.get_output_port_wrench_external()
+        builder.Connect(external, self.detector.get_input_port_wrench_external())
+        builder.Connect(self.compensator.get_output_port_wrench_std(),
+                        self.detector.get_input_port_wrench_std())
+        builder.ExportInput(self.compensator.get_input_port_wrench_measured(), "wrench_measured")
+        builder.ExportInput(self.compensator.get_input_port_joint_state(), "joint_state")
+        builder.ExportOutput(self.compensator.get_output_port_wrench_external(),
+                             "wrench_external")
+        builder.ExportOutput(external, "wrench_detected")
+        for system, port in ((self.compensator, "fault"), (self.compensator, "out_of_domain"),
+                             (self.detector, "contact"), (self.detector, "contact_force")):
+            builder.ExportOutput(system.GetOutputPort(port), port)
+        self.diagram = builder.Build()
+        self.diagram.set_name("ftdrake_hardware")
+
+    # -- message callbacks ------------------------------------------------------------------
     def _on_joint(self, data: bytes):
+        arrival = self.clock()
         try:
             sample = decode_joint_state(self.config.joint_state_type, data)
         except (ValueError, struct.error):  # bad fingerprint or truncated message
             sample = None
-        self.monitor.on_joint(sample, time.monotonic())
+        self.monitor.on_joint(sample, arrival)
+        self._note(None)
+
+    def _on_half(self, half: str, data: bytes):
+        arrival = self.clock()
+        try:
+            sample = decode_joint_state("robot_state", data)
+        except (ValueError, struct.error):
+            self.monitor.on_joint(None, arrival)
+            self._note(None)
+            return
+        joined = self._pairer.add(half, sample)
+        for detail in self._pairer.dropped:
+            self.monitor.count_unpaired(detail)
+        self._pairer.dropped.clear()
+        if joined is not None:
+            self.monitor.on_joint(joined, arrival)
+            self._note(None)
 
     def _on_wrench(self, data: bytes):
-        arrival = time.monotonic()
+        arrival = self.clock()
         try:
             sample = decode_wrench(data)
-        except (ValueError, struct.error):  # bad fingerprint or truncated message
+        except (ValueError, struct.error):
             sample = None
         fresh = self.monitor.on_wrench(sample, arrival)
-        t = sample.t if sample is not None else 0.0
+        t = sample.t if sample is not None and np.isfinite(sample.t) else self._stream_time()
         if fresh:
-            self._wrench_in.FixValue(self.context, self.monitor.wrench)
-            self._state_in.FixValue(self.context, self.monitor.joint_state)
+            self._wrench_in.GetMutableData().get_mutable_value().SetFromVector(self.monitor.wrench)
+            self._state_in.GetMutableData().get_mutable_value().SetFromVector(self.monitor.joint_state)
             self.simulator.AdvanceTo((self.processed + 0.5) * self.period)
             self.processed += 1
-            fault = self.diagram.GetOutputPort("fault").Eval(self.context)[0] > 0.5
-            if not fault:
-                external = self.diagram.GetOutputPort("wrench_external").Eval(self.context)
-                self.lcm.Publish(self.config.external_wrench_channel, encode_wrench(t, external))
-                self.latencies.append(time.monotonic() - arrival)
+            if self._out["fault"].Eval(self.context)[0] <= 0.5:
+                external = self._out["wrench_external"].Eval(self.context)
+                self.lcm.publish(self.config.external_wrench_channel,
+                                 encode_wrench(t, external))
+                self.latencies.append(self.clock() - arrival)
                 self.published += 1
         self._publish_contact(t, self.monitor.fault)
+        self._note(t)
 
-    def _publish_contact(self, t, fault):
-        contact = self.diagram.GetOutputPort("contact").Eval(self.context)[0] > 0.5
-        force = self.diagram.GetOutputPort("contact_force").Eval(self.context)[0]
-        ood = self.diagram.GetOutputPort("out_of_domain").Eval(self.context)[0] > 0.5
-        self.lcm.Publish(self.config.contact_channel, encode_contact_state(
-            ContactState(t, contact, float(force), bool(fault), ood)))
+    def _publish_contact(self, t: float, fault: bool) -> None:
+        out = self._out
+        state = ContactState(t, out["contact"].Eval(self.context)[0] > 0.5,
+                             float(out["contact_force"].Eval(self.context)[0]), bool(fault),
+                             out["out_of_domain"].Eval(self.context)[0] > 0.5)
+        self.lcm.publish(self.config.contact_channel, encode_contact_state(state))
+        self.contact_published += 1
 
+    def _stream_time(self, now: float | None = None) -> float:
+        """Now on the streams' clock: the last F/T timestamp + wall time since it arrived."""
+        t, arrival = self.monitor.last_time("ft"), self.monitor.last_arrival("ft")
+        if t is None:
+            return 0.0
+        return t + ((self.clock() if now is None else now) - arrival)
+
+    def _note(self, t: float | None, now: float | None = None) -> None:
+        """Records a fault change (rise, reason change, recovery) as a FaultEvent."""
+        m = self.monitor
+        state = (m.fault, m.reason)
+        if state == self._state:
+            return
+        was_fault = self._state[0]
+        self._state = state
+        if not m.fault and not was_fault:
+            return
+        now = self.clock() if now is None else now
+        t = self._stream_time(now) if t is None else t
+        if m.fault:
+            self.fault_episodes[m.reason] += 1
+            event = FaultEvent("fault", m.reason, t, now - self.started, m.detail)
+        else:
+            event = FaultEvent("recovered", "", t, now - self.started, "")
+        self.events.append(event)
+        if self.on_event is not None:
+            self.on_event(event)
+
+    # -- running ------------------------------------------------------------------------------
     def spin_once(self, timeout_ms: int = 1) -> int:
-        """Handles pending messages, then checks the timeouts (publishing the fault when a
-        stream went silent). Returns the number of messages handled."""
-        handled = self.lcm.HandleSubscriptions(timeout_ms)
+        """Handles pending messages (waiting up to `timeout_ms` for one), then checks the
+        timeouts, publishing the fault at once when a stream went silent. Returns the number
+        of messages handled."""
+        handled = self.lcm.handle(timeout_ms)
         was = self.monitor.fault
-        if self.monitor.check_timeouts(time.monotonic()) and not was:
-            self._publish_contact(0.0, True)
+        now = self.clock()
+        if self.monitor.check_timeouts(now) and not was:
+            t = self._stream_time(now)
+            self._publish_contact(t, True)
+            self._note(t, now)
         return handled
 
     def latency_percentiles(self):
-        """(p50, p99) in s of arrival → publication, over the messages published so far."""
+        """(p50, p99) in s of arrival → publication, over the last 100 000 publications."""
         lat = np.asarray(self.latencies)
         if not len(lat):
             return (np.nan, np.nan)
         return (float(np.percentile(lat, 50)), float(np.percentile(lat, 99)))
 
+    def summary(self) -> dict:
+        """Counts so far: messages received/accepted per stream, rejected per reason, F/T
+        messages processed, wrenches and contact states published, fault episodes per reason,
+        latency p50/p99 (ms), and the current fault."""
+        m = self.monitor
+        p50, p99 = self.latency_percentiles()
+        return {
+            "received": dict(m.received), "accepted": dict(m.accepted),
+            "rejected": dict(m.rejected), "processed": self.processed,
+            "published_wrench": self.published, "published_contact": self.contact_published,
+            "fault_episodes": dict(self.fault_episodes),
+            "latency_ms": {"p50": p50 * 1e3, "p99": p99 * 1e3},
+            "fault": bool(m.fault), "reason": m.reason,
+        }
 
-def build_hardware_station(config: HardwareConfig, model, detector_config, lcm=None,
-                           period: float = 0.001):
+
+def build_hardware_station(config: HardwareConfig, model, scenario: ScenarioConfig | None = None,
+                           lcm=None, **kwargs):
     """Returns (diagram, handles): handles["station"] is the HardwareStation to spin."""
-    station = HardwareStation(config, model, detector_config, lcm, period)
+    station = HardwareStation(config, model, scenario, lcm, **kwargs)
     return station.diagram, {"station": station, "monitor": station.monitor,
                              "context": station.context}
 
 
-def measure_latency(model, detector_config=None, n_messages: int = 2000, seed: int = 0):
+def measure_latency(model, scenario: ScenarioConfig | None = None, n_messages: int = 2000,
+                    seed: int = 0, q_range=None):
     """In-process (memq://) latency of arrival → publication of the compensated wrench.
 
     Publishes `n_messages` joint + F/T pairs one at a time and spins the station after
     each; returns {"p50_s", "p99_s", "processed", "published"}. In-process, so it measures the
-    station's own work (decode, checks, compensator, detector, encode, publish), not UDP.
+    station's own work (decode, checks, compensator, tracker, detector, encode, publish), not
+    the network. Joint positions are drawn uniformly in `q_range` ((lo, hi) arrays; default
+    ±1 rad), velocities small.
     """
     rng = np.random.default_rng(seed)
-    lcm = DrakeLcm("memq://")
     n = int(model.n_joints_)
+    lo, hi = q_range if q_range is not None else (-np.ones(n), np.ones(n))
     config = HardwareConfig(lcm_url="memq://", n_joints=n, sensor_timeout_s=1.0,
                             joint_state_timeout_s=1.0)
-    station = HardwareStation(config, model, detector_config or DetectorConfig(), lcm)
+    station = HardwareStation(config, model, scenario, "memq://")
     for k in range(n_messages):
-        t = 0.001 * (k + 1)
-        lcm.Publish(config.joint_state_channel,
-                    encode_joint_state("iiwa_status", t, rng.uniform(-1, 1, n), np.zeros(n)))
-        lcm.Publish(config.ft_channel, encode_wrench(t, rng.normal(size=6)))
+        t = station.period * (k + 1)
+        station.lcm.publish(config.joint_state_channel, encode_joint_state(
+            "iiwa_status", t, rng.uniform(lo, hi), rng.normal(scale=0.1, size=n)))
+        station.lcm.publish(config.ft_channel, encode_wrench(t, rng.normal(size=6)))
         station.spin_once(0)
     p50, p99 = station.latency_percentiles()
     return {"p50_s": p50, "p99_s": p99, "processed": station.processed,

@@ -12,18 +12,31 @@ Log columns (one row per sensor sample; units SI; wrenches in S about So):
 ``ideal_*``         ideal sensor wrench (rigid-body reaction at the weld)
 ``meas_*``          noisy sensor reading
 ``internal_*``      true internal wrench: what the sensor would read without contact, with
-                    its cross-talk and bias but without white noise, drift, filter and
-                    quantization (``C·(ideal − external) + bias``)
+                    its mounting rotation, cross-talk, bias and thermal zero drift but
+                    without white noise, random-walk drift, filter and quantization
+                    (``C·R·(ideal − external) + bias + k·(T − T_ambient)``), in the
+                    frame the sensor measures in
 ``external_*``      true contact wrench on the tool from ContactResults
 ``contact``         1 while the tool touches the environment
 ``saturated``       1 while any sensor axis is at its range limit
+``temperature``     the sensor's temperature, °C
+``offset_*``        the sensor driver's zero offset (with a ``events.retare_at_s``)
+``push_force``      ‖F‖ of the ``events`` push at the tool tip, N (with a push)
 ==================  ============================================================
+
+``meas_*`` is the reading the compensator gets (after a re-tare's offset); ``external_*``
+includes an ``events`` push (as the sensor sees it) and ``internal_*`` includes the offset.
 
 With a compensator in the station, also (same rows):
 
 ==================  ============================================================
 ``pred_*``          the compensator's predicted internal wrench
-``est_external_*``  measured − predicted: the estimated contact wrench
+``est_external_*``  the estimated contact wrench the detector reads: measured − predicted
+                    − the bias tracker's bias (and payload); = ``comp_external_*`` without it
+``comp_external_*`` measured − predicted (the compensator's own output)
+``bias_est_*``      the bias tracker's published bias (with the tracker)
+``payload_est_*``   its payload estimate ``[dm, mc_x, mc_y, mc_z]`` (kg, kg·m; with
+                    ``bias_tracker.track_payload``)
 ``pred_std_*``      the model's predictive std (0 where it gives none)
 ``out_of_domain``   1 while a used joint input is outside the training range
 ``fault``           1 while the compensator's inputs held NaN/inf
@@ -47,9 +60,12 @@ from tqdm.auto import tqdm
 
 from .. import conventions as col
 from ..signals import differentiate
+from .events import apply_grasp
 from .station import Station
 
 PREDICTED, ESTIMATED, PREDICTED_STD = "pred", "est_external", "pred_std"
+COMPENSATED, BIAS_ESTIMATE, OFFSET = "comp_external", "bias_est", "offset"
+PAYLOAD_ESTIMATE = ("payload_est_dm", "payload_est_mcx", "payload_est_mcy", "payload_est_mcz")
 
 
 @dc.dataclass
@@ -70,12 +86,16 @@ def simulate(station: Station, *, progress: bool = True, duration: float | None 
     set_initial_state(station, simulator.get_mutable_context())
     simulator.Initialize()
     chunk = 0.25  # s between progress updates
+    grasp_at = station.config.events.grasp_at_s
     start = time.perf_counter()
     with tqdm(total=round(duration, 3), unit="sim s", disable=not progress,
               desc="simulating", leave=False) as bar:
         t = 0.0
         while t < duration - 1e-9:
             t = min(duration, t + chunk)
+            if grasp_at is not None and simulator.get_context().get_time() < grasp_at <= t:
+                simulator.AdvanceTo(grasp_at)
+                _grasp(station, simulator.get_mutable_context())
             simulator.AdvanceTo(t)
             bar.update(round(t - bar.n, 3))
     wall = time.perf_counter() - start
@@ -90,8 +110,15 @@ def simulate(station: Station, *, progress: bool = True, duration: float | None 
     return SimResult(log, timing, context)
 
 
+def _grasp(station: Station, root_context) -> None:
+    plant = station.scene.plant
+    apply_grasp(station.config.events, station.scene,
+                plant.GetMyMutableContextFromRoot(root_context))
+
+
 def set_initial_state(station: Station, root_context) -> None:
-    """Puts the arm at the trajectory's start, moving with its start velocity."""
+    """Puts the arm at the trajectory's start, moving with its start velocity, and starts the
+    bias tracker as ``bias_tracker.start_settled`` says."""
     plant = station.scene.plant
     plant_context = plant.GetMyMutableContextFromRoot(root_context)
     t0 = station.trajectory.start_time()
@@ -99,6 +126,12 @@ def set_initial_state(station: Station, root_context) -> None:
     plant.SetVelocities(
         plant_context, station.scene.arm, station.trajectory.derivative(1).value(t0).ravel()
     )
+    tracker = station.compensation.tracker if station.compensation is not None else None
+    if tracker is not None:
+        settings = station.config.bias_tracker
+        tracker.set_estimate(tracker.GetMyMutableContextFromRoot(root_context),
+                             settings.initial_bias, np.zeros(4),
+                             settled=settings.start_settled)
 
 
 def assemble_log(station: Station, root_context) -> pd.DataFrame:
@@ -125,8 +158,15 @@ def assemble_log(station: Station, root_context) -> pd.DataFrame:
         (col.QD_EST, qd_est), (col.QDD_EST, qdd_est),
     ):
         frame.update(zip(col.joint_columns(prefix, n), values.T, strict=True))
+    if station.loggers.push is not None:
+        push = data(station.loggers.push)[1]
+        series["external"] = series["external"] + push
+        frame_push = np.linalg.norm(push[keep, :3], axis=1)
     internal_physical = series["ideal"] - series["external"]
-    internal = station.noisy_sensor.deterministic_reading(internal_physical)
+    internal = station.noisy_sensor.deterministic_reading(internal_physical, t)
+    if station.loggers.offset is not None:
+        offset = data(station.loggers.offset)[1]
+        internal = internal + offset
     for prefix, values in (
         (col.IDEAL, series["ideal"]), (col.MEASURED, series["measured"]),
         (col.INTERNAL, internal), (col.EXTERNAL, series["external"]),
@@ -134,6 +174,12 @@ def assemble_log(station: Station, root_context) -> pd.DataFrame:
         frame.update(zip(col.wrench_columns(prefix), values[keep].T, strict=True))
     frame[col.CONTACT] = series["contact"][keep, 0].astype(np.int8)
     frame[col.SATURATED] = series["saturated"][keep, 0].astype(np.int8)
+    if station.loggers.temperature is not None:
+        frame[col.TEMPERATURE] = data(station.loggers.temperature)[1][keep, 0]
+    if station.loggers.offset is not None:
+        frame.update(zip(col.wrench_columns(OFFSET), offset[keep].T, strict=True))
+    if station.loggers.push is not None:
+        frame["push_force"] = frame_push
     if station.compensation is not None:
         _add_compensation_columns(frame, station.compensation.loggers, root_context, t, keep)
     return pd.DataFrame(frame)
@@ -147,8 +193,12 @@ def _add_compensation_columns(frame: dict, loggers, root_context, t, keep) -> No
         return log.data().T[keep]
 
     for prefix, name in ((PREDICTED, "internal"), (ESTIMATED, "external"),
-                         (PREDICTED_STD, "std")):
+                         (COMPENSATED, "compensated"), (PREDICTED_STD, "std")):
         frame.update(zip(col.wrench_columns(prefix), values(name).T, strict=True))
+    if loggers.bias is not None:
+        frame.update(zip(col.wrench_columns(BIAS_ESTIMATE), values("bias").T, strict=True))
+    if loggers.payload is not None:
+        frame.update(zip(PAYLOAD_ESTIMATE, values("payload").T, strict=True))
     frame["out_of_domain"] = values("out_of_domain")[:, 0].astype(np.int8)
     frame["fault"] = values("fault")[:, 0].astype(np.int8)
     frame["detected"] = values("detected")[:, 0].astype(np.int8)

@@ -8,6 +8,8 @@
                                                      └── joint_state ──► compensator ◄───┘
                                               wrench_external, wrench_std │
                                                                           ▼
+                                                 bias tracker (drift, re-tare, grasp)
+                                                                          ▼
                                                                    contact detector
 
 :func:`build_station` builds it from one :class:`~ftdrake.config.ScenarioConfig`; the
@@ -26,12 +28,16 @@ from pydrake.systems.primitives import LogVectorOutput, TrajectorySource, Vector
 from pydrake.trajectories import PiecewisePolynomial
 
 from ..config import ScenarioConfig
+from ..systems.bias_tracker import OnlineBiasTracker
 from ..systems.compensator import CompensatorSystem
 from ..systems.contact_truth import ContactTruth
 from ..systems.controller import DiscreteInverseDynamicsController
 from ..systems.detector import ContactDetector
+from ..systems.events import SensorGravity
+from ..systems.friction import JointFriction, check_explicit_stability
 from ..systems.ft_sensor import ForceTorqueSensor, NoisyForceTorqueSensor
 from ..systems.wrench_arrows import WrenchArrows
+from .events import EventSignals, add_sensor_events
 from .scene import Scene, add_scene, make_control_plant
 from .trajectories import JointLimits, RobotGeometry, make_trajectory
 
@@ -43,10 +49,13 @@ class Loggers:
     state: VectorLogSink  # arm q (rad), v (rad/s)
     acceleration: VectorLogSink  # arm v̇ (rad/s²), from the plant's step
     ideal: VectorLogSink  # ideal sensor wrench (N, N·m; S)
-    measured: VectorLogSink  # noisy sensor wrench
+    measured: VectorLogSink  # the sensor reading the compensator gets (after a re-tare offset)
     saturated: VectorLogSink
     external: VectorLogSink  # true contact wrench at the sensor
     contact: VectorLogSink  # true contact flag
+    offset: VectorLogSink | None = None  # the driver's zero offset (with a re-tare event)
+    push: VectorLogSink | None = None  # the push's wrench at the sensor (with a push event)
+    temperature: VectorLogSink | None = None  # the sensor's temperature, °C
 
 
 @dc.dataclass
@@ -54,12 +63,15 @@ class CompensationLoggers:
     """Loggers of the compensator's and detector's outputs, at the sensor rate."""
 
     internal: VectorLogSink  # predicted internal wrench (N, N·m; S)
-    external: VectorLogSink  # measured − predicted
+    external: VectorLogSink  # what the detector reads: measured − predicted − tracked bias
+    compensated: VectorLogSink  # measured − predicted (the compensator's own output)
     std: VectorLogSink  # the model's predictive std
     out_of_domain: VectorLogSink
     fault: VectorLogSink
     detected: VectorLogSink  # detector's contact flag
     detected_force: VectorLogSink  # detector's ‖F‖ while in contact (N)
+    bias: VectorLogSink | None = None  # the tracker's published bias (N, N·m; S)
+    payload: VectorLogSink | None = None  # the tracker's [Δm, Δ(m·c)] (kg, kg·m; S)
 
 
 @dc.dataclass
@@ -69,6 +81,8 @@ class Compensation:
     compensator: CompensatorSystem
     detector: ContactDetector
     loggers: CompensationLoggers
+    tracker: OnlineBiasTracker | None = None  # None with scenario.bias_tracker.enabled off
+    tracked_external: object = None  # OutputPort: the wrench the detector reads
 
 
 @dc.dataclass
@@ -86,6 +100,12 @@ class Station:
     loggers: Loggers
     compensation: Compensation | None = None  # None when built without a compensator
     arrows: WrenchArrows | None = None  # with a compensator and Meshcat
+    events: EventSignals | None = None  # the scenario's events' signals (see sim/events.py)
+    friction: JointFriction | None = None  # with scenario.friction.enabled
+    # The learned (or ILC) feedforward after the controller, and its logger of
+    # [correction (n), correction_std (n), confidence (n)]; see systems/learned_feedforward.py.
+    feedforward: object = None
+    feedforward_log: VectorLogSink | None = None
 
     @property
     def plant(self) -> MultibodyPlant:
@@ -98,15 +118,16 @@ class Station:
 
 
 def build_station(config: ScenarioConfig, compensator=None, *, meshcat=None,
-                  trajectory: PiecewisePolynomial | None = None) -> Station:
+                  trajectory: PiecewisePolynomial | None = None, feedforward=None) -> Station:
     """Builds the simulated arm, sensor and environment for `config`.
 
     `compensator` (a fitted ftdrake compensator, e.g. from ``load_model``) adds the
     CompensatorSystem and ContactDetector (configured by ``config.compensator`` and
     ``config.detector``) in the loop. `trajectory` overrides the one ``config.trajectory``
-    describes. `meshcat` (a pydrake Meshcat) adds a visualizer (and, with a compensator, the
-    wrench arrows). The models are parsed once for the simulation and once for the
-    controller's own (imperfect) model.
+    describes. `feedforward` (a ``LearnedFeedforward`` or ``TimeIndexedFeedforward``) adds
+    its torque correction to the controller's output. `meshcat` (a pydrake Meshcat) adds a
+    visualizer (and, with a compensator, the wrench arrows). The models are parsed once for
+    the simulation and once for the controller's own (imperfect) model.
     """
     config.validate()
     builder = DiagramBuilder()
@@ -132,7 +153,24 @@ def build_station(config: ScenarioConfig, compensator=None, *, meshcat=None,
                     controller.get_input_port_estimated_state())
     builder.Connect(q_source.get_output_port(), controller.get_input_port_desired_state())
     builder.Connect(vd_source.get_output_port(), controller.get_input_port_desired_acceleration())
-    builder.Connect(controller.get_output_port_control(), plant.get_actuation_input_port(scene.arm))
+    actuation = controller.get_output_port_control()
+    if feedforward is not None:  # controller → + learned correction → (friction) → plant
+        builder.AddNamedSystem("feedforward", feedforward)
+        builder.Connect(actuation, feedforward.get_input_port_control())
+        builder.Connect(q_source.get_output_port(), feedforward.get_input_port_desired_state())
+        builder.Connect(vd_source.get_output_port(),
+                        feedforward.get_input_port_desired_acceleration())
+        actuation = feedforward.get_output_port_control()
+    friction = None
+    if config.friction.enabled:  # joint friction the controller's model does not know
+        friction = builder.AddNamedSystem(
+            "joint_friction", JointFriction(config.friction, plant.num_velocities(scene.arm)))
+        check_explicit_stability(friction, plant, scene.arm, config.home_q, config.time_step)
+        builder.Connect(actuation, friction.get_input_port_actuation())
+        builder.Connect(plant.get_state_output_port(scene.arm),
+                        friction.get_input_port_joint_state())
+        actuation = friction.get_output_port_actuation()
+    builder.Connect(actuation, plant.get_actuation_input_port(scene.arm))
 
     sensor = builder.AddNamedSystem("ft_sensor", ForceTorqueSensor(plant, scene.sensor_joint))
     builder.Connect(plant.get_reaction_forces_output_port(),
@@ -141,6 +179,8 @@ def build_station(config: ScenarioConfig, compensator=None, *, meshcat=None,
     builder.Connect(sensor.get_output_port_wrench(), noisy.get_input_port_wrench_ideal())
 
     period = noisy.period
+    events = add_sensor_events(builder, config.events, scene,
+                               noisy.get_output_port_wrench_measured())
     truth = builder.AddNamedSystem(
         "contact_truth",
         ContactTruth(plant, scene.sensor_frame, scene.tool_bodies, scene.environment_bodies,
@@ -157,20 +197,24 @@ def build_station(config: ScenarioConfig, compensator=None, *, meshcat=None,
         state=log(plant.get_state_output_port(scene.arm)),
         acceleration=log(plant.get_generalized_acceleration_output_port(scene.arm)),
         ideal=log(sensor.get_output_port_wrench()),
-        measured=log(noisy.get_output_port_wrench_measured()),
+        measured=log(events.reading),
         saturated=log(noisy.get_output_port_saturated()),
         external=log(truth.get_output_port_wrench_external()),
         contact=log(truth.get_output_port_contact()),
+        offset=log(events.offset) if events.offset is not None else None,
+        push=log(events.push.get_output_port_wrench_S()) if events.push is not None else None,
+        temperature=log(noisy.get_output_port_temperature()),
     )
+    feedforward_log = (log(feedforward.get_output_port_status()) if feedforward is not None
+                       else None)
     compensation = arrows = None
     if compensator is not None:
-        compensation = _add_compensation(builder, config, compensator, scene, noisy, period, log)
+        compensation = _add_compensation(builder, config, compensator, scene, events, period,
+                                         log)
         if meshcat is not None:
             arrows = builder.AddNamedSystem("wrench_arrows", WrenchArrows(meshcat, plant, scene))
-            builder.Connect(noisy.get_output_port_wrench_measured(),
-                            arrows.get_input_port_measured())
-            builder.Connect(compensation.compensator.get_output_port_wrench_external(),
-                            arrows.get_input_port_external())
+            builder.Connect(events.reading, arrows.get_input_port_measured())
+            builder.Connect(compensation.tracked_external, arrows.get_input_port_external())
             builder.Connect(plant.get_body_poses_output_port(), arrows.get_input_port_body_poses())
     if meshcat is not None:
         from pydrake.visualization import (  # noqa: PLC0415 (only with Meshcat)
@@ -187,34 +231,68 @@ def build_station(config: ScenarioConfig, compensator=None, *, meshcat=None,
     q_source.UpdateTrajectory(trajectory)
     vd_source.UpdateTrajectory(trajectory.derivative(2))
     return Station(config, diagram, scene, trajectory, controller, sensor, noisy, truth,
-                   loggers, compensation, arrows)
+                   loggers, compensation, arrows, events, friction, feedforward, feedforward_log)
 
 
-def _add_compensation(builder, config, model, scene, noisy, period, log) -> Compensation:
+def _add_compensation(builder, config, model, scene, events: EventSignals, period, log
+                      ) -> Compensation:
     plant = scene.plant
     compensator = builder.AddNamedSystem(
         "compensator",
         CompensatorSystem(model, period, n_joints=plant.num_positions(scene.arm),
                           acceleration_cutoff_hz=config.compensator.acceleration_cutoff_hz),
     )
-    builder.Connect(noisy.get_output_port_wrench_measured(),
-                    compensator.get_input_port_wrench_measured())
+    builder.Connect(events.reading, compensator.get_input_port_wrench_measured())
     builder.Connect(plant.get_state_output_port(scene.arm),
                     compensator.get_input_port_joint_state())
     detector = builder.AddNamedSystem("contact_detector", ContactDetector(config.detector, period))
-    builder.Connect(compensator.get_output_port_wrench_external(),
-                    detector.get_input_port_wrench_external())
+    tracker = None
+    external = compensator.get_output_port_wrench_external()
+    if config.bias_tracker.enabled:
+        tracker = _add_tracker(builder, config, scene, compensator, detector, events, period)
+        external = tracker.get_output_port_wrench_external()
+    builder.Connect(external, detector.get_input_port_wrench_external())
     builder.Connect(compensator.get_output_port_wrench_std(), detector.get_input_port_wrench_std())
     loggers = CompensationLoggers(
         internal=log(compensator.get_output_port_wrench_internal()),
-        external=log(compensator.get_output_port_wrench_external()),
+        external=log(external),
+        compensated=log(compensator.get_output_port_wrench_external()),
         std=log(compensator.get_output_port_wrench_std()),
         out_of_domain=log(compensator.get_output_port_out_of_domain()),
         fault=log(compensator.get_output_port_fault()),
         detected=log(detector.get_output_port_contact()),
         detected_force=log(detector.get_output_port_contact_force()),
+        bias=log(tracker.get_output_port_bias()) if tracker else None,
+        payload=(log(tracker.get_output_port_payload())
+                 if tracker and tracker.track_payload else None),
     )
-    return Compensation(compensator, detector, loggers)
+    return Compensation(compensator, detector, loggers, tracker, external)
+
+
+def _add_tracker(builder, config, scene, compensator, detector, events: EventSignals,
+                 period) -> OnlineBiasTracker:
+    """The bias tracker between the compensator and the detector (bias_tracker.py's wiring)."""
+    tracker = builder.AddNamedSystem(
+        "bias_tracker", OnlineBiasTracker(config.bias_tracker, config.sensor, period))
+    builder.Connect(compensator.get_output_port_wrench_external(),
+                    tracker.get_input_port_wrench_external())
+    builder.Connect(compensator.get_output_port_out_of_domain(),
+                    tracker.get_input_port_out_of_domain())
+    builder.Connect(compensator.get_output_port_fault(), tracker.get_input_port_fault())
+    builder.Connect(detector.get_output_port_contact(), tracker.get_input_port_contact())
+    if events.tared is not None:
+        builder.Connect(events.tared, tracker.get_input_port_tared())
+    if tracker.track_payload:
+        gravity = builder.AddNamedSystem(
+            "sensor_gravity", SensorGravity(scene.plant, scene.sensor_frame))
+        builder.Connect(scene.plant.get_body_poses_output_port(),
+                        gravity.get_input_port_body_poses())
+        builder.Connect(scene.plant.get_body_spatial_accelerations_output_port(),
+                        gravity.get_input_port_body_spatial_accelerations())
+        builder.Connect(gravity.get_output_port_gravity_S(), tracker.get_input_port_gravity_S())
+        if events.payload_changed is not None:
+            builder.Connect(events.payload_changed, tracker.get_input_port_payload_changed())
+    return tracker
 
 
 def plan_trajectory(config: ScenarioConfig, geometry: RobotGeometry | None = None):

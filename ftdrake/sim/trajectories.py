@@ -20,6 +20,8 @@ Kinds (``TrajectoryConfig.kind``):
 * ``rehearsal`` the contact motion holding ``rehearsal_height_m`` above the surface instead
                 of pressing: free motion that looks like the task (training data for its
                 compensator). Its approach, the contact kind's, still passes 5 mm above.
+* ``study``     the study's own motion, from its Table 1: every joint sweeps the study's range
+                with the study's mean, slowly (see :func:`study_motion`).
 
 The contact kinds read the task's geometry from the plant (:class:`RobotGeometry`): the
 surface's frame (origin: where to press, z: outward normal) and the tool-tip frame, both named
@@ -95,7 +97,12 @@ def make_trajectory(config: TrajectoryConfig, home_q, limits: JointLimits, robot
     home_q = np.asarray(home_q, dtype=float)
     if np.any(home_q < limits.lower) or np.any(home_q > limits.upper):
         raise TrajectoryError(f"home_q {home_q.round(3).tolist()} is outside the joint limits")
-    if config.kind in CONTACT_KINDS:
+    if config.kind == "study":
+        traj = study_motion(config.duration_s, config.seed)
+        if robot is not None and not robot.clear_of_environment(traj, dt=1.0):
+            raise TrajectoryError("the study's motion hits the environment; use a scene "
+                                  "without obstacles in its reach (see study_motion)")
+    elif config.kind in CONTACT_KINDS:
         if robot is None:
             raise TrajectoryError(f"the {config.kind} kind needs the robot's geometry for IK")
         depth = config.press_depth_m if config.kind == "contact" else -config.rehearsal_height_m
@@ -167,6 +174,87 @@ def _random_waypoints(config, home_q, rng):
     points.append(home_q)
     times = np.linspace(0.0, config.duration_s, len(points))
     return _min_jerk_path(times, np.array(points))
+
+
+# ----------------------------------------------------------------------------------------------
+# The study's motion (Table 1 of the RF-vs-SVR study, Motoman SDA10D).
+# ----------------------------------------------------------------------------------------------
+#: The study's Table 1 (degrees), joints q1..q7 = S, L, E, U, R, B, T of one SDA10D arm:
+#: rows max, min, mean.
+STUDY_JOINTS_DEG = np.array([
+    [-18.48, -1.80, 179.00, -15.6, -95.30, 100.65, 65.3],
+    [-132.70, -103.30, 50.50, -78.00, -116.37, 71.10, 28.10],
+    [-88.98, -52.75, 131.41, -52.24, -109.63, 87.40, 48.98],
+])
+#: The model's configuration (rad) at the study's mean configuration: the default home_q with
+#: the shoulder (L) 0.5 rad and the wrist (B) 0.8 rad less bent, the tool axis tilted ~50° from
+#: vertical. Chosen (from a small grid of L, U, B offsets) with the study's tool
+#: (models/study_tool.sdf) so that the sensor readings come out the size of the study's
+#: Table 2, whose Fz (−4.0 … 17.6 N around 6.9 N) says the tool axis swept through horizontal.
+STUDY_MODEL_AT_MEAN = np.array([0.0, 0.05, 0.0, 1.45, 0.0, 0.34, 0.0])
+#: The study's rows: 13,745 (its Section 5). Its rate is not stated; we assume the ROS
+#: joint_states rate of the Motoman driver, ~40 Hz (37 Hz measured in ros-industrial/motoman
+#: issue 516), so the study's trajectory lasted 13,745 / 40 = 344 s.
+STUDY_SAMPLES = 13745
+STUDY_SAMPLE_HZ = 40.0
+STUDY_DURATION_S = STUDY_SAMPLES / STUDY_SAMPLE_HZ
+#: Full cycles of each joint over STUDY_DURATION_S: slow (peak speed 0.09 rad/s, the study's
+#: "relatively low velocities and accelerations"), no two neighbours in step.
+_STUDY_CYCLES = np.array([2, 3, 2, 3, 4, 3, 5])
+
+
+def study_to_model(q_study_deg) -> np.ndarray:
+    """Study joint angles (deg, SDA10D order S, L, E, U, R, B, T) → the model's (rad).
+
+    The model's zero is the arm straight up; the SDA10D's controller zero and sign conventions
+    are not in the study, so the two are aligned at one pose: the study's mean configuration
+    (Table 1's µ) is :data:`STUDY_MODEL_AT_MEAN`, and each joint keeps the study's excursion
+    about its mean, same sign (the model is built after the SDA10D, joint for joint):
+    ``q_model = STUDY_MODEL_AT_MEAN + radians(q_study − µ)``.
+    """
+    q = np.asarray(q_study_deg, dtype=float)
+    return STUDY_MODEL_AT_MEAN + np.radians(q - STUDY_JOINTS_DEG[2])
+
+
+def model_to_study(q_model) -> np.ndarray:
+    """The inverse of :func:`study_to_model`: model angles (rad) → study angles (deg)."""
+    q = np.asarray(q_model, dtype=float)
+    return STUDY_JOINTS_DEG[2] + np.degrees(q - STUDY_MODEL_AT_MEAN)
+
+
+def study_motion(duration: float, seed: int) -> PiecewisePolynomial:
+    """The study's motion in the model's joints: each joint j sweeps Table 1's [min, max]
+    ``_STUDY_CYCLES[j]`` times per :data:`STUDY_DURATION_S` with Table 1's mean.
+
+    Per joint, ``q = min + (max − min)·s(t)`` with ``u = (1 − cos(ωt + φ))/2`` and ``s = u^p``
+    (or ``1 − u^p`` when the mean lies above mid-range); the exponent p makes s's mean over a
+    cycle ``Γ(p + ½)/(√π Γ(p + 1))`` equal ``(µ − min)/(max − min)``. Whole cycles: over
+    STUDY_DURATION_S each joint's range and mean are Table 1's exactly; a shorter `duration`
+    is the start of the same motion. `seed` draws the phases φ, so seeds give different
+    trajectories with the same joint statistics (held-out test trajectories).
+    """
+    from scipy.optimize import brentq  # noqa: PLC0415
+    from scipy.special import gammaln  # noqa: PLC0415 (scipy only for this kind)
+
+    hi, lo, mean = np.radians(STUDY_JOINTS_DEG)
+    fraction = (mean - lo) / (hi - lo)
+    above = fraction > 0.5
+    target = np.where(above, 1.0 - fraction, fraction)
+
+    def cycle_mean(p):
+        return np.exp(gammaln(p + 0.5) - gammaln(p + 1.0)) / np.sqrt(np.pi)
+
+    power = np.array([brentq(lambda p, m=m: cycle_mean(p) - m, 1e-3, 1e3) for m in target])
+    phase = np.random.default_rng(seed).uniform(0.0, 2 * np.pi, len(hi))
+    omega = 2 * np.pi * _STUDY_CYCLES / STUDY_DURATION_S
+    offset = STUDY_MODEL_AT_MEAN - mean  # study_to_model, in radians
+
+    t = np.linspace(0.0, duration, max(4, round(duration * 10.0) + 1))  # 10 Hz knots: smooth
+    u = (1.0 - np.cos(np.outer(omega, t) + phase[:, None])) / 2.0
+    s = u ** power[:, None]
+    s = np.where(above[:, None], 1.0 - s, s)
+    Q = (lo + offset)[:, None] + (hi - lo)[:, None] * s
+    return PiecewisePolynomial.CubicWithContinuousSecondDerivatives(t, Q, False)
 
 
 # ----------------------------------------------------------------------------------------------
@@ -354,10 +442,16 @@ def trajectory_extent(traj, robot: RobotGeometry, dt: float = 0.05) -> dict:
 
 __all__ = [
     "CONTACT_KINDS",
+    "STUDY_DURATION_S",
+    "STUDY_JOINTS_DEG",
+    "STUDY_SAMPLE_HZ",
     "JointLimits",
     "RobotGeometry",
     "TrajectoryError",
     "check_limits",
     "make_trajectory",
+    "model_to_study",
+    "study_motion",
+    "study_to_model",
     "trajectory_extent",
 ]

@@ -98,69 +98,17 @@ State: the estimate θ, the published θ, R (information, scaled), 4 counters (h
 windows); the four outputs are state outputs.
 """
 
-# No `from __future__ import annotations`: BiasTrackerConfig is read by yaml_load_typed.
-import dataclasses as dc
 import math
 
 import numba
 import numpy as np
 from pydrake.systems.framework import LeafSystem
 
-from ..config import SensorConfig
-from ..errors import ConfigError
+from ..config import BiasTrackerConfig, SensorConfig
+
+__all__ = ["BiasTrackerConfig", "OnlineBiasTracker"]
 
 STANDARD_GRAVITY = 9.80665
-
-
-@dc.dataclass
-class BiasTrackerConfig:
-    """Online bias and payload tracking (``OnlineBiasTracker``)."""
-
-    # τ (s): memory of the estimator, λ = exp(−period/τ). Long compared with the time a push
-    # needs to cross the detector's threshold (≤ 1 s): a ramp is absorbed ~ t²/(2τ).
-    time_constant_s: float = 20.0
-    # The published bias moves at most k·drift_std/√τ (per axis, from the sensor's drift_std)
-    # outside the settle windows; .inf disables the bound. With drift_std 0 the bias then
-    # changes only in settle windows (after a tare or a grasp).
-    rate_bound_sigmas: float = 3.0
-    # Also estimate a payload (Δm, Δ(m·c)): adds the gravity_S and payload_changed inputs and
-    # the payload output.
-    track_payload: bool = False
-    # Samples (from the signal on) whose update re-initialises the bias (tared) or payload
-    # (payload_changed) block; covers the pipeline's one-sample lag.
-    hold_samples: int = 3
-    # After a tare, the published bias follows the estimate unbounded for this long (s).
-    tare_settle_s: float = 0.2
-    # After a grasp (and at start with payload tracking), bias and payload follow the estimate
-    # unbounded for this long (s): rotate the tool within it to identify the CoM.
-    payload_settle_s: float = 5.0
-    # Prior std (the regulariser): bias N, N·m; payload [kg, kg·m, kg·m, kg·m].
-    bias_prior_std: list[float] = dc.field(
-        default_factory=lambda: [20.0, 20.0, 20.0, 2.0, 2.0, 2.0])
-    payload_prior_std: list[float] = dc.field(default_factory=lambda: [5.0, 0.5, 0.5, 0.5])
-    # The bias estimate at start (N, N·m), e.g. the compensator's training bias.
-    initial_bias: list[float] = dc.field(default_factory=lambda: [0.0] * 6)
-
-    def validate(self, where: str = "bias_tracker") -> "BiasTrackerConfig":
-        for name in ("time_constant_s", "tare_settle_s", "payload_settle_s"):
-            value = getattr(self, name)
-            if not (isinstance(value, (int, float)) and math.isfinite(value) and value > 0):
-                raise ConfigError(f"{where}.{name}: must be a positive number, got {value!r}")
-        if not (self.rate_bound_sigmas > 0):
-            raise ConfigError(f"{where}.rate_bound_sigmas: must be > 0 (inf disables), "
-                              f"got {self.rate_bound_sigmas!r}")
-        if int(self.hold_samples) < 1:
-            raise ConfigError(f"{where}.hold_samples: must be >= 1, got {self.hold_samples!r}")
-        for name, n in (("bias_prior_std", 6), ("payload_prior_std", 4), ("initial_bias", 6)):
-            values = getattr(self, name)
-            if values is None or len(values) != n:
-                raise ConfigError(f"{where}.{name}: must have {n} entries")
-            if not all(math.isfinite(v) for v in values):
-                raise ConfigError(f"{where}.{name}: entries must be finite")
-        for name in ("bias_prior_std", "payload_prior_std"):
-            if min(getattr(self, name)) <= 0:
-                raise ConfigError(f"{where}.{name}: entries must be positive")
-        return self
 
 
 class OnlineBiasTracker(LeafSystem):

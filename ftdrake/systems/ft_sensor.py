@@ -23,6 +23,7 @@ import functools
 import numba
 import numpy as np
 from pydrake.common.value import AbstractValue
+from pydrake.math import RollPitchYaw
 from pydrake.multibody.math import SpatialForce
 from pydrake.multibody.tree import WeldJoint
 from pydrake.systems.framework import BasicVector, LeafSystem
@@ -103,17 +104,22 @@ class NoisyForceTorqueSensor(LeafSystem):
     """Adds a real sensor's imperfections to an ideal wrench, sampled at ``rate_hz``.
 
     Input ports:
-      wrench_ideal (6): ``[Fx Fy Fz Tx Ty Tz]`` in N, N·m, sensor frame S.
+      wrench_ideal (6): ``[Fx Fy Fz Tx Ty Tz]`` in N, N·m, sensor frame S (the model's).
     Output ports:
-      wrench_measured (6): same frame and units, held between samples.
+      wrench_measured (6): in the frame Sm the sensor really measures in (S rotated by the
+        mounting error, ``config.mounting_rpy_deg``), N, N·m; held between samples.
       saturated (1): 1.0 while any axis is at its range limit.
+      temperature (1): the sensor's temperature, °C, held between samples.
     State (discrete, updated every 1/rate_hz s): low-pass filter and drift (12) with the
-      sample count (1); the held reading (6); the saturation flag (1).
+      sample count (1); the held reading (6); the saturation flag (1); the temperature (1).
 
-    Per sample, in this order: calibration cross-talk ``C·w``; first-order low-pass at
-    ``bandwidth_hz``; + constant bias + random-walk drift + white noise; saturation at
-    ``±range``; quantization to ``resolution``. Noise is a pure function of (seed, sample
-    index), so a run is reproducible from its seed and contexts can be cloned freely.
+    Per sample, in this order: the mounting rotation ``w_Sm = [R_SmS f; R_SmS τ]`` (about So)
+    and calibration cross-talk ``C·w_Sm``; first-order low-pass at ``bandwidth_hz``; +
+    constant bias + thermal zero drift ``k·(T − T_ambient)`` + random-walk drift + white noise;
+    saturation at ``±range``; quantization to ``resolution``. The temperature is
+    ``T(t) = T_ambient + ΔT·(1 − exp(−t/τ))`` (the wrist warming up from t = 0). Noise is a
+    pure function of (seed, sample index), so a run is reproducible from its seed and
+    contexts can be cloned freely.
     """
 
     _BLOCK = 4096  # samples of noise drawn at once
@@ -134,20 +140,33 @@ class NoisyForceTorqueSensor(LeafSystem):
         self.crosstalk_matrix = crosstalk_matrix(
             config.crosstalk, config.crosstalk_length_m, config.calibration_seed
         )
+        #: R_SSm: the frame Sm the sensor measures in, in the model's S.
+        self.mounting_rotation = mounting_rotation(config.mounting_rpy_deg)
+        rotate = np.kron(np.eye(2), self.mounting_rotation.T)  # w_Sm = rotate · w_S
+        #: What the sensor does to a wrench in S, linearly: cross-talk after the mounting.
+        self.calibration_matrix = self.crosstalk_matrix @ rotate
+        self._temperature_coefficients = np.asarray(config.temperature_coefficients, float)
+        self._temperature = (float(config.temperature_ambient_c),
+                             float(config.temperature_rise_c),
+                             float(config.temperature_time_constant_s))
         self._input = self.DeclareVectorInputPort("wrench_ideal", 6)
         # Three state groups so the outputs are plain state ports (no Python call per read).
         self._internal = self.DeclareDiscreteState(13)  # filter (6), drift (6), sample count
         self._reading = self.DeclareDiscreteState(6)
         self._saturated = self.DeclareDiscreteState(1)
+        self._temperature_state = self.DeclareDiscreteState([self._temperature[0]])
         self.DeclarePeriodicDiscreteUpdateEvent(self.period, 0.0, self._sample)
         self.DeclareStateOutputPort("wrench_measured", self._reading)
         self.DeclareStateOutputPort("saturated", self._saturated)
+        self.DeclareStateOutputPort("temperature", self._temperature_state)
         # All constants in one array, so the compiled update takes few arguments (each costs
         # time at every call): rows 0–5 the cross-talk matrix, then per axis bias, noise σ,
-        # drift step, range, resolution and the filter's α.
+        # drift step, range, resolution and the filter's α; the temperature coefficients;
+        # [ambient, rise, time constant, period, 0, 0].
         self._constants = np.vstack([
-            self.crosstalk_matrix, self._bias, self._noise_std, self._drift_step, self._range,
-            self._resolution, np.full(6, self._alpha),
+            self.calibration_matrix, self._bias, self._noise_std, self._drift_step, self._range,
+            self._resolution, np.full(6, self._alpha), self._temperature_coefficients,
+            [*self._temperature, self.period, 0.0, 0.0],
         ])
         # (block index, its draws): the last noise block this sensor used.
         self._noise = (-1, np.zeros((self._BLOCK, 12)))
@@ -162,12 +181,26 @@ class NoisyForceTorqueSensor(LeafSystem):
     def get_output_port_saturated(self):
         return self.GetOutputPort("saturated")
 
-    def deterministic_reading(self, wrench) -> np.ndarray:
-        """``C·w + bias`` for (N, 6) or (6,) wrenches: the static reading without noise/drift."""
+    def get_output_port_temperature(self):
+        return self.GetOutputPort("temperature")
+
+    def temperature(self, t) -> np.ndarray:
+        """The sensor's temperature (°C) at times `t` (s): ``T_a + ΔT·(1 − exp(−t/τ))``."""
+        ambient, rise, tau = self._temperature
+        return ambient + rise * (1.0 - np.exp(-np.asarray(t, dtype=float) / tau))
+
+    def deterministic_reading(self, wrench, t=None) -> np.ndarray:
+        """``C·R·w + bias`` (+ the thermal zero drift at times `t`, s, if given) for (N, 6) or
+        (6,) wrenches in S: the reading without noise, random-walk drift, filter and
+        quantization, in the frame Sm the sensor measures in."""
         w = np.asarray(wrench, dtype=float)
         if not self._on:
             return w.copy()
-        return w @ self.crosstalk_matrix.T + self._bias
+        reading = w @ self.calibration_matrix.T + self._bias
+        if t is not None:
+            rise = self.temperature(t) - self._temperature[0]
+            reading = reading + np.multiply.outer(rise, self._temperature_coefficients)
+        return reading
 
     # -- the discrete update -----------------------------------------------------------------
     def _sample(self, context, discrete_state):
@@ -176,7 +209,9 @@ class NoisyForceTorqueSensor(LeafSystem):
         internal = discrete_state.get_mutable_value(self._internal)
         reading = discrete_state.get_mutable_value(self._reading)
         saturated = discrete_state.get_mutable_value(self._saturated)
+        temperature = discrete_state.get_mutable_value(self._temperature_state)
         w = self._input.Eval(context)
+        temperature[0] = _temperature_at(internal[12], self._constants[13])
         if not self._on:
             _ideal_sample(internal, w, reading, saturated)
             return
@@ -206,13 +241,15 @@ def _imperfect_sample(internal, w, constants, block, noise_block, reading, satur
     noise = noise_block[count % size]
     first = internal[12] == 0
     saturated[0] = 0.0
+    warm = _temperature_at(internal[12], constants[13]) - constants[13, 0]
     for i in range(6):
         wi = 0.0
         for j in range(6):
             wi += C[i, j] * w[j]
         filtered = wi if first else internal[i] + alpha * (wi - internal[i])
         drift = internal[6 + i] + axis[2, i] * noise[6 + i]
-        value = filtered + axis[0, i] + drift + axis[1, i] * noise[i]
+        value = (filtered + axis[0, i] + axis[6, i] * warm + drift
+                 + axis[1, i] * noise[i])
         limit = axis[3, i]
         if abs(value) >= limit:
             saturated[0] = 1.0
@@ -223,6 +260,12 @@ def _imperfect_sample(internal, w, constants, block, noise_block, reading, satur
         internal[i], internal[6 + i], reading[i] = filtered, drift, value
     internal[12] += 1
     return True
+
+
+@numba.njit(cache=True)
+def _temperature_at(count, row):
+    """Temperature (°C) at sample `count`; row = [ambient, rise, time constant, period, ...]."""
+    return row[0] + row[1] * (1.0 - np.exp(-count * row[3] / row[2]))
 
 
 @numba.njit(cache=True)
@@ -239,6 +282,12 @@ def _ideal_sample(internal, w, reading, saturated):
 def _noise_block(seed: int, block: int, size: int) -> np.ndarray:
     """Standard normal draws (size × 12) for samples [block·size, (block+1)·size)."""
     return np.random.default_rng([seed, block]).standard_normal((size, 12))
+
+
+def mounting_rotation(rpy_deg) -> np.ndarray:
+    """R_SSm of a mounting error given as roll, pitch, yaw in degrees (Drake's RollPitchYaw:
+    R = Rz(yaw)·Ry(pitch)·Rx(roll))."""
+    return RollPitchYaw(np.radians(np.asarray(rpy_deg, dtype=float))).ToRotationMatrix().matrix()
 
 
 def crosstalk_matrix(magnitude: float, length_m: float, seed: int) -> np.ndarray:

@@ -191,6 +191,10 @@ def markdown(results: dict) -> str:
         lines.append(f"* ({f.id}) {CLAIMS[f.id]}{source} — {mark}. {_sentence(evidence)}")
         if why:
             lines.append(f"  *Why:* {_sentence(why)}")
+    if "study_protocols" in results:
+        lines += ["", protocols_markdown(results["study_protocols"]),
+                  ("The study's trajectory and tool against its Tables 1–3: "
+                   "[study_tool.md](study_tool.md).")]
     lines += ["", "## Grouped vs shuffled CV (RF on q)", "",
               "CV MSE of each fold scheme against the held-out test MSE of the model it "
               + "chose; test/CV ≫ 1 means the CV was optimistic.", "",
@@ -404,3 +408,90 @@ FIGURE_MAKERS = {"nmse": _fig_nmse, "mse": _fig_mse,
                   "variance_torques": _fig_variance(AXES[3:], "torque"),
                   "importances": _fig_importances}
 
+
+
+# ----------------------------------------------------------------------------------------------
+# The study repeated faithfully (issue 12): its tables, its protocol and ours.
+# ----------------------------------------------------------------------------------------------
+PROTOCOL_LABELS = {
+    "study": "study's protocol (random rows of one trajectory, shuffled CV)",
+    "study_on_new": "the same models on new trajectories",
+    "heldout": "ftdrake's protocol (grouped CV, held-out trajectories)",
+}
+STUDY_CLAIMS = {k: CLAIMS[k] for k in "abcd"}
+STUDY_CLAIMS["c"] = "Fz and Tz are the worst axes"
+
+
+def tool_markdown(joints: dict, sensor: dict, comparison: dict, tip: dict | None = None) -> str:
+    """The study's Tables 1 and 2 beside the simulated ``study`` trajectory's."""
+    from ...sim.trajectories import STUDY_JOINTS_DEG  # noqa: PLC0415
+    from .protocols import TABLE2_TOLERANCE  # noqa: PLC0415
+
+    lines = ["# The study's trajectory and tool, simulated", "",
+             f"Table 1 (joints, deg, study convention; {joints['rows']} rows at 40 Hz):", "",
+             "| | " + " | ".join(f"q{j + 1}" for j in range(7)) + " |", "|---" * 8 + "|"]
+    for i, stat in enumerate(("max", "min", "mean")):
+        lines.append(f"| study {stat} | " + " | ".join(
+            f"{STUDY_JOINTS_DEG[i, j]:.2f}" for j in range(7)) + " |")
+        lines.append(f"| sim {stat} | " + " | ".join(
+            f"{joints[f'q{j + 1}'][stat]:.2f}" for j in range(7)) + " |")
+    lines += ["", ("Table 2 (measured wrench, N and N·m; the study's rows read sorted as min, "
+                   "mean, max — its Tx and Ty rows are garbled in print). Tolerance: "
+                   f"{TABLE2_TOLERANCE['force']:g} N, {TABLE2_TOLERANCE['torque']:g} N·m."), "",
+              ("| axis | study max | sim max | study min | sim min | study mean | sim mean "
+               "| sim std | within tolerance |"), "|---" * 9 + "|"]
+    for a, row in comparison.items():
+        ok = all(row[s]["ok"] for s in row)
+        lines.append(f"| {a} | " + " | ".join(
+            f"{row[s]['study']:.3g} | {row[s]['sim']:.3g}" for s in ("max", "min", "mean"))
+            + f" | {sensor[a]['std']:.3g} | {'yes' if ok else '**no**'} |")
+    if tip:
+        lines += ["", "Table 3 (tool tip, mm; the study's frame is unknown, so compare ranges):",
+                  "", "| | X | Y | Z |", "|---|---|---|---|",
+                  "| study range | 524 | 391 | 78 |",
+                  "| sim range | " + " | ".join(
+                      f"{(tip[a]['max'] - tip[a]['min']) * 1000:.0f}" for a in "xyz") + " |"]
+    return "\n".join(lines) + "\n"
+
+
+def protocols_markdown(sp: dict) -> str:
+    """The protocols section: findings per protocol, then NMSE tables per protocol."""
+    found, res = sp["findings"], sp["results"]
+    protocols = [p for p in PROTOCOL_LABELS if p in found]
+    lines = ["## The study's protocol and ftdrake's, on the study's trajectory", "",
+             (f"Rows: {res['sizes']['study_rows']} of the study trajectory at 40 Hz; "
+              f"{res['sizes']['train_rows']} training rows, {res['sizes']['test_rows']} random "
+              f"test rows; held-out: {res['sizes']['heldout_rows']} rows of "
+              f"{res['sizes']['heldout_trajectories']} other study trajectories. Search "
+              f"`{res['settings']['search']}` over preset `{res['settings']['preset']}`."), "",
+             "| finding | " + " | ".join(PROTOCOL_LABELS[p] for p in protocols) + " |",
+             "|---" * (len(protocols) + 1) + "|"]
+    for k, claim in STUDY_CLAIMS.items():
+        cells = [_verdict(k, found[p][k]) for p in protocols]
+        lines.append(f"| ({k}) {claim} | " + " | ".join(cells) + " |")
+    for metric in ("nmse", "mse"):
+        lines += ["", f"**{metric.upper()}**", "",
+                  "| protocol | method | features | " + " | ".join(AXES) + " |",
+                  "|---" * (len(AXES) + 3) + "|"]
+        for p in protocols:
+            for m, by_f in res["metrics"][p].items():
+                for f, cell in by_f.items():
+                    lines.append(f"| {p} | {METHOD_LABELS[m]} | {f} | " + " | ".join(
+                        f"{cell[a][metric]:.3g}" for a in AXES) + " |")
+    return "\n".join(lines) + "\n"
+
+
+def _verdict(k: str, f: dict) -> str:
+    if f["reproduced"] is None:
+        return "n/a (" + f["why"] + ")"
+    word = "yes" if f["reproduced"] else "**no**"
+    if k == "a":
+        return f"{word}: RF wins {f['rf_wins']}/{f['cells']} cells"
+    if k == "b":
+        rf, svr = f["largest_change"]["rf"], f["largest_change"]["svr"]
+        return (f"{word}: largest Δ variance score RF {rf['change']:+.3f} ({rf['axis']}), "
+                f"SVR {svr['change']:+.3f} ({svr['axis']})")
+    if k == "c":
+        nmse = f["mean_nmse"]
+        return f"{word}: worst " + ", ".join(f"{a} {nmse[a]:.3g}" for a in f["worst_first"][:3])
+    return f"{word}: q holds {f['q_share']:.0%}; top {', '.join(f['top3'])}"

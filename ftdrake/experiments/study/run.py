@@ -72,7 +72,8 @@ def run_study(out_dir, *, preset="quick", trajectories: int = TRAJECTORIES,
               test_trajectories: int = TEST_TRAJECTORIES, train_hz: float = TRAIN_HZ,
               test_hz: float = TEST_HZ, svr_max_rows: int = SVR_MAX_ROWS,
               n_splits: int = N_SPLITS, config: ScenarioConfig | None = None,
-              data: dict[str, pd.DataFrame] | None = None) -> dict:
+              data: dict[str, pd.DataFrame] | None = None,
+              faithful: bool | None = None) -> dict:
     """Collects both datasets, trains and tests every method × feature set, writes the outputs.
 
     `preset` is a name in :data:`~ftdrake.compensation.tuning.PRESET_NAMES` or a dict
@@ -82,6 +83,10 @@ def run_study(out_dir, *, preset="quick", trajectories: int = TRAJECTORIES,
     `data` maps each dataset name to an already collected frame (as
     :func:`ftdrake.data.collect` returns) and skips collection. Writes ``results.json``,
     ``results.md`` and PNG figures into `out_dir`, all or nothing; returns the results.
+
+    `faithful` (default: unless `data` is given without a ``"study"`` frame) first runs the
+    study's own trajectory, tool and protocol beside ftdrake's (:mod:`.protocols`), into
+    ``results["study_protocols"]`` and ``study_tool.md``.
     """
     started = time.perf_counter()
     config = config or ScenarioConfig()
@@ -109,6 +114,9 @@ def run_study(out_dir, *, preset="quick", trajectories: int = TRAJECTORIES,
         n_splits=n_splits, n_repeats=n_repeats, n_jobs=n_jobs, collect=data is None)
     per_dataset = {}
     stage_s = {}
+    if faithful if faithful is not None else (data is None or "study" in data):
+        results["study_protocols"] = _faithful(config, data, stage_s, preset=preset, seed=seed,
+                                               n_jobs=n_jobs, progress=progress, say=say)
     for name in DATASETS:
         t0 = time.perf_counter()
         if data is not None:
@@ -143,7 +151,36 @@ def run_study(out_dir, *, preset="quick", trajectories: int = TRAJECTORIES,
             tmp.write_text(json.dumps(results, indent=1))
         with atomic_path(stage / "results.md") as tmp:
             tmp.write_text(outputs.markdown(results))
+        if "study_protocols" in results:
+            sp = results["study_protocols"]
+            with atomic_path(stage / "study_tool.md") as tmp:
+                tmp.write_text(outputs.tool_markdown(sp["joints"], sp["sensor"], sp["table2"],
+                                                     sp.get("tool_tip")))
     return results
+
+
+def _faithful(config, data, stage_s, *, preset, seed, n_jobs, progress, say) -> dict:
+    """The study's trajectory, tool and protocol beside ftdrake's (issue 12)."""
+    from . import protocols  # noqa: PLC0415 (imports run → protocols → layout only)
+
+    t0 = time.perf_counter()
+    if data is not None and "study" in data:
+        frame = data["study"]
+    else:
+        say("[study] collecting the study's trajectory and tool …")
+        frame = protocols.collect_study(protocols.study_scenario(config), seed=seed,
+                                        n_jobs=n_jobs)
+    stage_s["collect_study"] = time.perf_counter() - t0
+    t0 = time.perf_counter()
+    say("[study] the study's protocol and ftdrake's …")
+    with threadpool_limits(limits=1):
+        res = protocols.run_protocols(frame, preset=preset, seed=seed, n_jobs=n_jobs,
+                                      progress=progress)
+    stage_s["study_protocols"] = time.perf_counter() - t0
+    sensor = protocols.sensor_table(frame)
+    return {"results": res, "findings": protocols.protocol_findings(res),
+            "joints": protocols.joint_table(frame), "sensor": sensor,
+            "table2": protocols.table2_comparison(sensor)}
 
 
 @dataclass

@@ -1,0 +1,146 @@
+"""Small systems for the scenario events (``scenario.events``) and the payload tracker.
+
+``SensorGravity`` gives gravity in the sensor frame, the payload tracker's regressor.
+``ToolPush`` pushes the tool tip with a slowly growing force: the load a tracker must not take
+for bias. Both read the plant's body poses, so they work for any arm the plant holds.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from pydrake.common.value import AbstractValue
+from pydrake.math import RigidTransform
+from pydrake.multibody.math import SpatialAcceleration, SpatialForce
+from pydrake.multibody.plant import ExternallyAppliedSpatialForce
+from pydrake.systems.framework import BasicVector, LeafSystem
+
+
+class SensorGravity(LeafSystem):
+    """Gravity as the sensor's payload feels it, in the sensor frame S.
+
+    Without accelerations: g_S = R_SW·g_W. With ``include_acceleration`` (the default): the
+    apparent gravity at the sensor origin, g_S − a_So_S (the specific force, m/s²), so that a
+    payload's force m·(g − a) is linear in its mass in motion too. Neglected: the terms of the
+    payload's offset from So, α×c + ω×(ω×c) (for c = 0.12 m and α = 5 rad/s², 0.6 m/s²).
+
+    Input ports:
+      body_poses (abstract, list of RigidTransform): the plant's body poses (X_WB).
+      body_spatial_accelerations (abstract, list of SpatialAcceleration; with
+        ``include_acceleration``): the plant's port (A_WB, in W).
+    Output ports:
+      gravity_S (3): m/s², in S (≈ R_SW·[0, 0, −9.81] at rest). Pointing down in the world.
+    """
+
+    def __init__(self, plant, sensor_frame, include_acceleration: bool = True):
+        super().__init__()
+        self._body = int(sensor_frame.body().index())
+        self._X_BS = sensor_frame.GetFixedPoseInBodyFrame()
+        self._R_BS = self._X_BS.rotation().matrix()
+        self._p_BS = self._X_BS.translation()
+        self._g_W = np.asarray(plant.gravity_field().gravity_vector(), dtype=float)
+        self._acceleration = bool(include_acceleration)
+        self.DeclareAbstractInputPort(
+            "body_poses", AbstractValue.Make([RigidTransform()] * plant.num_bodies()))
+        if self._acceleration:
+            self.DeclareAbstractInputPort(
+                "body_spatial_accelerations",
+                AbstractValue.Make([SpatialAcceleration()] * plant.num_bodies()))
+        self.DeclareVectorOutputPort("gravity_S", 3, self._calc)
+
+    def get_input_port_body_poses(self):
+        return self.GetInputPort("body_poses")
+
+    def get_input_port_body_spatial_accelerations(self):
+        return self.GetInputPort("body_spatial_accelerations")
+
+    def get_output_port_gravity_S(self):
+        return self.GetOutputPort("gravity_S")
+
+    def _calc(self, context, output: BasicVector):
+        R_WB = self.get_input_port_body_poses().Eval(context)[self._body].rotation()
+        g_W = self._g_W
+        if self._acceleration:
+            A_WB_W = self.get_input_port_body_spatial_accelerations().Eval(context)[self._body]
+            # a_So = a_Bo + α×p + ω×(ω×p); ω is not on this port, and its term is second
+            # order in |p_BS| (a few cm): the shift uses α only.
+            p_W = R_WB.multiply(self._p_BS)
+            a_So_W = A_WB_W.translational() + np.cross(A_WB_W.rotational(), p_W)
+            g_W = g_W - a_So_W
+        # g_S = R_SB·R_BW·g_W
+        output.SetFromVector(self._R_BS.T @ (R_WB.matrix().T @ g_W))
+
+
+class ToolPush(LeafSystem):
+    """A force on the tool tip that grows linearly, holds, then stops; plus what the scene
+    already applies (the cable's weight), passed through.
+
+    The force is ``f_W·clip((t − t0)/ramp, 0, 1)`` for t0 ≤ t < t0 + ramp + hold, else 0
+    (N, world frame), applied at the tool-tip frame's origin Tp.
+
+    Input ports:
+      body_poses (abstract, list of RigidTransform): the plant's body poses (X_WB).
+      applied_in (abstract, list of ExternallyAppliedSpatialForce): forces to pass through.
+    Output ports:
+      applied (abstract, list of ExternallyAppliedSpatialForce): applied_in + the push; to the
+        plant's applied_spatial_force input.
+      wrench_S (6): the push as the sensor sees it: ``[F_S; p_SoTp_S × F_S]`` (N, N·m, in S,
+        about So) — what a contact of that force at the tip would add to the reading.
+    """
+
+    def __init__(self, plant, sensor_frame, tip_frame, t0: float, ramp_s: float,
+                 hold_s: float, force_W):
+        super().__init__()
+        self._t0, self._ramp, self._end = float(t0), float(ramp_s), float(t0 + ramp_s + hold_s)
+        self._f_W = np.asarray(force_W, dtype=float)
+        self._tip_body = tip_frame.body().index()
+        self._X_BT = tip_frame.GetFixedPoseInBodyFrame()
+        self._s_body = int(sensor_frame.body().index())
+        self._X_BS = sensor_frame.GetFixedPoseInBodyFrame()
+        poses = AbstractValue.Make([RigidTransform()] * plant.num_bodies())
+        self.DeclareAbstractInputPort("body_poses", poses)
+        forces = AbstractValue.Make([ExternallyAppliedSpatialForce()])
+        self.DeclareAbstractInputPort("applied_in", forces)
+        self.DeclareAbstractOutputPort("applied", lambda: forces.Clone(), self._calc_applied)
+        self.DeclareVectorOutputPort("wrench_S", 6, self._calc_wrench)
+
+    def get_input_port_body_poses(self):
+        return self.GetInputPort("body_poses")
+
+    def get_input_port_applied_in(self):
+        return self.GetInputPort("applied_in")
+
+    def get_output_port_applied(self):
+        return self.GetOutputPort("applied")
+
+    def get_output_port_wrench_S(self):
+        return self.GetOutputPort("wrench_S")
+
+    def force_W(self, t: float) -> np.ndarray:
+        """The push at time `t` (N, world frame)."""
+        if t < self._t0 or t >= self._end:
+            return np.zeros(3)
+        return self._f_W * min(1.0, (t - self._t0) / self._ramp)
+
+    def _calc_applied(self, context, output):
+        forces = list(self.get_input_port_applied_in().Eval(context))
+        f = self.force_W(context.get_time())
+        if np.any(f):
+            push = ExternallyAppliedSpatialForce()
+            push.body_index = self._tip_body
+            push.p_BoBq_B = self._X_BT.translation()
+            push.F_Bq_W = SpatialForce(np.zeros(3), f)
+            forces.append(push)
+        output.set_value(forces)
+
+    def _calc_wrench(self, context, output: BasicVector):
+        f = self.force_W(context.get_time())
+        if not np.any(f):
+            output.SetFromVector(np.zeros(6))
+            return
+        poses = self.get_input_port_body_poses().Eval(context)
+        X_WS = poses[self._s_body] @ self._X_BS
+        X_WT = poses[int(self._tip_body)] @ self._X_BT
+        R_SW = X_WS.rotation().inverse()
+        F_S = R_SW @ f
+        p_SoTp_S = R_SW @ (X_WT.translation() - X_WS.translation())
+        output.SetFromVector(np.concatenate([F_S, np.cross(p_SoTp_S, F_S)]))

@@ -1,0 +1,161 @@
+"""Fault injection through the station (memq://, a test clock): the sensor stream stops,
+resumes, jumps back in time, carries NaN; the joint stream has the wrong joint count. Each
+raises and publishes the fault with a message naming it, publishes no stale wrench, and the
+station recovers on the next good messages."""
+
+import numpy as np
+import pytest
+
+from ftdrake import ConfigError, RandomForestCompensator, ScenarioConfig
+from ftdrake.hardware import HardwareConfig, HardwareStation
+from ftdrake.hardware.messages import (
+    decode_contact_state,
+    decode_wrench,
+    encode_joint_state,
+    encode_wrench,
+)
+
+N = 7
+
+
+class Rig:
+    """A station on memq:// with a clock the test moves; records what it publishes."""
+
+    def __init__(self, joint_state_type="iiwa_status"):
+        rng = np.random.default_rng(0)
+        X = rng.uniform(-1, 1, size=(200, 3 * N))
+        self.model = RandomForestCompensator(features="q", n_estimators=3).fit(
+            X, np.sin(X[:, :6]))
+        scenario = ScenarioConfig()
+        scenario.bias_tracker.enabled = False  # the published wrench is measured − predicted
+        self.config = HardwareConfig(
+            lcm_url="memq://", sensor_timeout_s=0.005, joint_state_timeout_s=0.02,
+            joint_state_type=joint_state_type,
+            velocity_channel="ROBOT_VELOCITY" if joint_state_type == "robot_state" else "")
+        self.now = 0.0
+        self.events = []
+        self.dut = HardwareStation(self.config, self.model, scenario, "memq://",
+                                   clock=lambda: self.now, on_event=self.events.append)
+        self.wrenches, self.contacts = [], []
+        lcm = self.dut.lcm
+        lcm.subscribe(self.config.external_wrench_channel,
+                      lambda d: self.wrenches.append(decode_wrench(d)))
+        lcm.subscribe(self.config.contact_channel,
+                      lambda d: self.contacts.append(decode_contact_state(d)))
+        self.q = np.linspace(-0.5, 0.5, N)
+
+    def joint(self, t, n=N):
+        c = self.config
+        if c.joint_state_type == "robot_state":
+            self.dut.lcm.publish(c.joint_state_channel,
+                                 encode_joint_state("robot_state", t, self.q[:n]))
+            self.dut.lcm.publish(c.velocity_channel,
+                                 encode_joint_state("robot_state", t, np.zeros(n)))
+        else:
+            self.dut.lcm.publish(c.joint_state_channel, encode_joint_state(
+                "iiwa_status", t, self.q[:n] if n <= N else np.r_[self.q, 0.0], np.zeros(n)))
+
+    def wrench(self, t, w):
+        self.dut.lcm.publish(self.config.ft_channel, encode_wrench(t, w))
+
+    def step(self, t, w=1.0, n=N, joint=True):
+        """At wall time = t: a joint message (if `joint`), an F/T message, a spin."""
+        self.now = t
+        if joint:
+            self.joint(t, n)
+        self.wrench(t, np.full(6, w))
+        self.spin()
+
+    def spin(self):
+        self.dut.spin_once(0)
+        self.dut.lcm.handle(0)
+
+    def expected(self, w):
+        return np.full(6, w) - self.model.predict(np.r_[self.q, np.zeros(2 * N)][None])[0]
+
+
+@pytest.fixture
+def rig():
+    rig = Rig()
+    for k in range(5):
+        rig.step(0.001 * k)
+    assert len(rig.wrenches) == 5 and not rig.dut.monitor.fault
+    assert [e.kind for e in rig.events] == ["recovered"]  # from "no data yet"
+    rig.events.clear()
+    return rig
+
+
+def published_times(rig):
+    return [round(w.t * 1e3) for w in rig.wrenches]
+
+
+def test_sensor_stream_stops_and_resumes(rig):
+    rig.now = 0.004 + 0.0061  # 6.1 ms of silence; the joint stream is silent as well
+    rig.spin()
+    assert rig.dut.monitor.fault and rig.dut.monitor.reason == "sensor_timeout"
+    (event,) = rig.events
+    assert event.kind == "fault" and event.reason == "sensor_timeout"
+    assert event.t == pytest.approx(0.0101, abs=1e-9)  # stream time at detection
+    assert "no F/T message for 6.1 ms (timeout 5 ms)" in str(event)
+    fault_msg = rig.contacts[-1]
+    assert fault_msg.fault and fault_msg.t == pytest.approx(0.0101, abs=1e-6)
+    rig.spin()  # still silent: the fault is published once, not on every spin
+    assert len(rig.contacts) == 6 and len(rig.wrenches) == 5
+    rig.step(0.011, w=2.0)  # resumes
+    assert not rig.dut.monitor.fault and rig.events[-1].kind == "recovered"
+    assert published_times(rig) == [0, 1, 2, 3, 4, 11]
+    np.testing.assert_allclose(rig.wrenches[-1].wrench, rig.expected(2.0), atol=1e-12)
+    assert not rig.contacts[-1].fault
+
+
+def test_sensor_time_goes_back_and_nan(rig):
+    rig.step(0.002, w=9.0, joint=False)  # F/T back in time: 2 ms < 4 ms
+    assert rig.dut.monitor.reason == "out_of_order" and rig.contacts[-1].fault
+    assert "went back from 0.004000 s to 0.002000 s" in str(rig.events[-1])
+    rig.step(0.005, w=np.nan)
+    assert rig.dut.monitor.reason == "not_finite" and rig.contacts[-1].fault
+    assert "NaN" in rig.events[-1].detail
+    assert published_times(rig) == [0, 1, 2, 3, 4]  # neither is published
+    rig.step(0.006, w=3.0)
+    assert not rig.dut.monitor.fault and rig.events[-1].kind == "recovered"
+    np.testing.assert_allclose(rig.wrenches[-1].wrench, rig.expected(3.0), atol=1e-12)
+    assert rig.dut.monitor.rejected == {"out_of_order": 1, "not_finite": 1}
+    assert rig.dut.fault_episodes == {"out_of_order": 1, "not_finite": 1}
+    assert rig.dut.summary()["processed"] == 6
+
+
+def test_wrong_joint_count_faults_until_a_good_joint_state(rig):
+    rig.step(0.005, n=6)  # the F/T message is good, the joint state it would use is stale
+    assert rig.dut.monitor.fault and rig.dut.monitor.reason == "joint_count"
+    assert "joint state has 6 positions and 6 velocities, expected 7" in str(rig.events[0])
+    rig.step(0.006, joint=False)  # still no good joint state: still faulted, nothing published
+    assert published_times(rig) == [0, 1, 2, 3, 4]
+    assert [c.fault for c in rig.contacts[-2:]] == [True, True]
+    rig.step(0.007, w=4.0)
+    assert not rig.dut.monitor.fault and published_times(rig)[-1] == 7
+    np.testing.assert_allclose(rig.wrenches[-1].wrench, rig.expected(4.0), atol=1e-12)
+    assert rig.dut.monitor.received == {"joint": 7, "ft": 8}
+    assert rig.dut.monitor.rejected == {"joint_count": 1}
+
+
+def test_robot_state_pairs_positions_with_velocities():
+    rig = Rig("robot_state")
+    for k in range(3):
+        rig.step(0.001 * k)
+    assert len(rig.wrenches) == 3 and rig.dut.monitor.accepted["joint"] == 3
+    # A position without its velocity, then a complete pair: the lone one is counted.
+    rig.dut.lcm.publish(rig.config.joint_state_channel,
+                        encode_joint_state("robot_state", 0.003, rig.q))
+    rig.step(0.004)
+    assert rig.dut.monitor.rejected == {"unpaired": 1} and len(rig.wrenches) == 4
+    q32 = rig.q.astype(np.float32).astype(float)
+    np.testing.assert_allclose(rig.dut.monitor.joint_state[:N], q32, rtol=0, atol=0)
+
+
+def test_payload_tracking_is_refused():
+    scenario = ScenarioConfig()
+    scenario.bias_tracker.track_payload = True
+    model = RandomForestCompensator(features="q", n_estimators=2).fit(
+        np.zeros((10, 3 * N)), np.zeros((10, 6)))
+    with pytest.raises(ConfigError, match=r"bias_tracker\.track_payload"):
+        HardwareStation(HardwareConfig(lcm_url="memq://"), model, scenario)
