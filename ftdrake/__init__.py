@@ -19,10 +19,12 @@ from .compensation.persistence import load_model, save_model
 from .compensation.physics import PhysicsPayloadCompensator
 from .compensation.svr import SVRCompensator
 from .config import (
+    BiasTrackerConfig,
     CableConfig,
     CompensatorConfig,
     ControllerConfig,
     DetectorConfig,
+    EventsConfig,
     ScenarioConfig,
     SensorConfig,
     TaskConfig,
@@ -45,6 +47,7 @@ from .sim.evaluation import evaluate_detection
 from .sim.scene import Scene, add_scene, make_control_plant
 from .sim.simulate import SimResult, simulate
 from .sim.station import Station, build_station
+from .systems.bias_tracker import OnlineBiasTracker
 from .systems.compensator import CompensatorSystem
 from .systems.contact_truth import ContactTruth
 from .systems.controller import DiscreteInverseDynamicsController
@@ -54,6 +57,7 @@ from .systems.ft_sensor import ForceTorqueSensor, NoisyForceTorqueSensor
 __all__ = [
     "WRENCH_AXES",
     "WRENCH_UNITS",
+    "BiasTrackerConfig",
     "CableConfig",
     "CompensatorConfig",
     "CompensatorSystem",
@@ -63,6 +67,7 @@ __all__ = [
     "ControllerConfig",
     "DetectorConfig",
     "DiscreteInverseDynamicsController",
+    "EventsConfig",
     "ForceTorqueSensor",
     "FtdrakeError",
     "GPRCompensator",
@@ -70,6 +75,7 @@ __all__ = [
     "LogError",
     "ModelFileError",
     "NoisyForceTorqueSensor",
+    "OnlineBiasTracker",
     "PhysicsPayloadCompensator",
     "RandomForestCompensator",
     "RobotModelError",

@@ -40,11 +40,11 @@ def test_friction_law_and_sign():
 
 
 def test_wrong_joint_count_and_bad_values_name_the_field():
-    with pytest.raises(ConfigError, match="friction.coulomb"):
+    with pytest.raises(ConfigError, match=r"friction\.coulomb"):
         JointFriction(FrictionConfig(coulomb=[1.0] * 3, viscous=[1.0] * 3), 7)
-    with pytest.raises(ConfigError, match="friction.viscous"):
+    with pytest.raises(ConfigError, match=r"friction\.viscous"):
         FrictionConfig(coulomb=[1.0] * 7, viscous=[1.0] * 6).validate()
-    with pytest.raises(ConfigError, match="friction.velocity_scale"):
+    with pytest.raises(ConfigError, match=r"friction\.velocity_scale"):
         FrictionConfig(velocity_scale=0.0).validate()
 
 

@@ -15,7 +15,9 @@ def test_study_motion_keeps_table_1_ranges_and_means():
     assert len(t) == traj.STUDY_SAMPLES  # 13,745 rows at the study's rate
     q = np.array([traj.model_to_study(motion.value(ti).ravel()) for ti in t[::5]])
     top, bottom, mean = traj.STUDY_JOINTS_DEG
-    assert np.all(q <= top + 0.05) and np.all(q >= bottom - 0.05)
+    # Planned STUDY_MARGIN_DEG inside Table 1's ranges, so that tracking stays within them.
+    margin = traj.STUDY_MARGIN_DEG
+    assert np.all(q <= top - margin + 0.05) and np.all(q >= bottom + margin - 0.05)
     # Whole cycles: the study's ranges are swept and its means met.
     np.testing.assert_allclose(q.max(axis=0), top, atol=0.5)
     np.testing.assert_allclose(q.min(axis=0), bottom, atol=0.5)
@@ -129,3 +131,102 @@ def test_study_tool_gives_table_2_sized_readings():
     assert not bad
     # Fz swings across zero as in the study (the tool axis passes through horizontal).
     assert sensor["Fz"]["max"] - sensor["Fz"]["min"] > 12.0
+
+
+def test_halving_search_runs_the_grid_with_a_growing_budget(monkeypatch):
+    """The --paper path: successive halving per axis, RF budgeted in trees, SVR in rows."""
+    rng = np.random.default_rng(1)
+    (X0, Y0), (X1, Y1) = _rows(400, 0, rng), _rows(100, 1, rng)
+    X, Y = np.vstack([X0, X1]), np.vstack([Y0, Y1])
+    frame = pd.DataFrame({col.TRAJECTORY: np.repeat([0, 1], [400, 100]),
+                          "row": np.arange(500)})
+    monkeypatch.setattr(dut, "joint_state_layout", lambda f, _kind: X[f["row"].to_numpy()])
+    monkeypatch.setattr(dut, "wrench_targets", lambda f, _which: Y[f["row"].to_numpy()])
+    grids = {"rf": {"n_estimators": [5, 15], "max_features": [2, 7],
+                    "min_samples_leaf": [2, 30]},
+             "svr": [{"kernel": ["linear"], "C": [1.0]},
+                     {"kernel": ["rbf"], "C": [10.0, 1e5], "gamma": [0.1, 100.0]}]}
+    res = dut.run_protocols(frame, preset=grids, search="halving", features=("q",),
+                            protocols=("study", "study_on_new"), max_train_rows=None,
+                            n_jobs=1, halving={"svr_max_iter": 2000})
+    assert res["settings"]["halving"]["svr_max_iter"] == 2000
+    rf, svr = res["best_params"]["study"]["rf"]["q"], res["best_params"]["study"]["svr"]["q"]
+    for a in col.WRENCH_AXES:
+        # RF: all 4 candidates on 5 trees, the best 2 on 15 (the grid's own tree counts).
+        assert rf[a]["resource"] == "n_estimators" and rf[a]["n_resources"] == [5, 15]
+        assert rf[a]["n_candidates_fitted"] == 4 + 2 and rf[a]["n_estimators"] == 15
+        # SVR: 5 candidates on 60 rows, then the best 2 on 180 (280 training rows).
+        assert svr[a]["resource"] == "n_samples" and svr[a]["n_resources"] == [60, 180]
+        assert svr[a]["n_candidates_fitted"] == 5 + 2
+        assert len(svr[a]["round_fit_s"]) == 2 and svr[a]["last_round_mean_fit_s"] > 0
+    m = res["metrics"]
+    # The refitted per-axis models learn the wrench (a function of q) on the held-out rows.
+    assert m["study"]["rf"]["q"]["Fx"]["nmse"] < 0.2
+    assert m["study_on_new"]["svr"]["q"]["Fx"]["mse"] > 0
+    assert res["cv_mse"]["study"]["rf"]["q"]["Fy"] > 0
+    # The exhaustive estimate scales the last round: RF per tree × every candidate's trees.
+    est = dut.exhaustive_seconds(res["best_params"]["study"], train_rows=280, preset=grids)
+    per_tree = sum(p["last_round_mean_fit_s"] / 15 for p in rf.values())
+    assert est["rf q"] == pytest.approx(round(per_tree * (5 + 15) * 4 * 5), abs=1)
+    assert est["svr q"] > 0
+    out = {"results": res, "findings": dut.protocol_findings(res), "cluster": "local",
+           "workers": 1, "collect_s": 0.0, "wall_time_s": 1.0,
+           "exhaustive_fits": {"rf": {"q": 120}, "svr": {"q": 150}},
+           "fitted_candidates": {"rf q": {a: 6 for a in col.WRENCH_AXES}},
+           "exhaustive_s_estimate": est}
+    text = dut.paper_markdown(out, "")
+    assert "factor 3" in text and "2,000 iterations" in text and "rf q Fx:" in text
+
+
+def test_quick_heldout_reuses_the_study_parameters(monkeypatch):
+    rng = np.random.default_rng(2)
+    (X0, Y0), (X1, Y1) = _rows(300, 0, rng), _rows(100, 1, rng)
+    X, Y = np.vstack([X0, X1]), np.vstack([Y0, Y1])
+    frame = pd.DataFrame({col.TRAJECTORY: np.repeat([0, 1], [300, 100]),
+                          "row": np.arange(400)})
+    monkeypatch.setattr(dut, "joint_state_layout", lambda f, _kind: X[f["row"].to_numpy()])
+    monkeypatch.setattr(dut, "wrench_targets", lambda f, _which: Y[f["row"].to_numpy()])
+    grids = {"rf": {"n_estimators": [10], "min_samples_leaf": [2, 40]},
+             "svr": {"kernel": ["rbf"], "C": [1.0, 100.0], "gamma": [0.1]}}
+    res = dut.run_protocols(frame, preset=grids, features=("q",), n_jobs=1,
+                            retune_heldout=False)
+    assert res["settings"]["retune_heldout"] is False
+    assert res["best_params"]["heldout"] == {"rf": {}, "svr": {}}  # no second search
+    assert set(res["metrics"]["heldout"]["rf"]) == {"q"}
+    assert res["metrics"]["heldout"]["svr"]["q"]["Fx"]["mse"] > 0
+    assert set(res["importances"]["heldout"]) == {"q"}
+
+
+def test_collection_pools_every_run_longest_first(monkeypatch):
+    """run_study collects the study trajectories and both datasets in one pool."""
+    from ftdrake.config import parse_config
+    from ftdrake.experiments.study import run as study_run
+    from ftdrake.sim.trajectories import STUDY_DURATION_S
+
+    order = []
+
+    def fake(kind):
+        def simulate(config_yaml, index):
+            seconds = parse_config(config_yaml).trajectory.duration_s
+            order.append(seconds)
+            return pd.DataFrame({col.TRAJECTORY: [index], "kind": [kind]})
+        return simulate
+
+    monkeypatch.setattr(study_run, "simulate_one", fake("dataset"))
+    monkeypatch.setattr(dut, "one_at_rate", fake("study"))
+    data = study_run.collect_all(dut.ScenarioConfig(), trajectories=3, duration=5.0, seed=0,
+                                 n_jobs=1)
+    assert set(data) == {"study", "reference", "z_rich"}
+    assert data["reference"][col.TRAJECTORY].tolist() == [0, 1, 2]
+    assert data["study"][col.TRAJECTORY].tolist() == [0, 1, 2]
+    assert (data["study"]["kind"] == "study").all()
+    assert order[0] == pytest.approx(STUDY_DURATION_S) and order == sorted(order, reverse=True)
+    assert len(order) == 3 + 2 * 3
+
+
+def test_quick_estimate_counts_the_study_trajectory_part():
+    from ftdrake.experiments.study import estimate_seconds
+
+    with_it, without = estimate_seconds("quick"), estimate_seconds("quick", faithful=False)
+    # The long study trajectory alone is STUDY_DURATION_S × 0.2 s of collection.
+    assert with_it - without > 0.2 * traj.STUDY_DURATION_S

@@ -21,10 +21,11 @@ def main(argv=None) -> int:
     _add_demo(sub)
     _add_export(sub)
     _add_evaluate_detection(sub)
-    from . import hardware, study, train
+    from . import calibrate, hardware, study, train
 
     study.register(sub)
     train.register(sub)
+    calibrate.register(sub)
     hardware.register(sub)
     from . import feedforward
 

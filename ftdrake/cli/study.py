@@ -14,7 +14,8 @@ def register(subparsers) -> None:
     p = subparsers.add_parser("study", help="RF vs SVR (+ physics, hybrid): the study repeated")
     grid = p.add_mutually_exclusive_group()
     grid.add_argument("--quick", dest="preset", action="store_const", const="quick",
-                      help="small grids, ~3 min on 2 cores (default)")
+                      help="small grids, one search per protocol pair (see "
+                           "docs/study/quick_vs_full.md); under 5 min on 2 idle cores (default)")
     grid.add_argument("--paper", dest="preset", action="store_const", const="paper",
                       help="the study's full grids (days; not for CI)")
     p.add_argument("--out", type=Path, default=Path("out/study"))
@@ -38,6 +39,12 @@ def register(subparsers) -> None:
                    help="--paper: feature sets, ';'-separated (default: q)")
     p.add_argument("--max-train-rows", type=int, default=None,
                    help="--paper: training rows drawn from the split (default: all)")
+    p.add_argument("--halving-factor", type=int, default=None,
+                   help="--paper --search halving: keep 1/FACTOR per round (default 3)")
+    p.add_argument("--rf-resource", choices=["n_estimators", "n_samples"], default=None,
+                   help="--paper --search halving: RF's budget, trees (default) or rows")
+    p.add_argument("--svr-max-iter", type=int, default=None,
+                   help="--paper: libsvm iteration cap per SVR fit (default 100000; -1 none)")
     p.add_argument("--tool-table", action="store_true",
                    help="only simulate the study's trajectory and write study_tool.md")
     p.set_defaults(preset="quick", run=run_command)
@@ -87,9 +94,14 @@ def _fmt_duration(seconds: float) -> str:
 
 def _paper(args) -> int:
     """The paper grid on the study's protocol, on a Dask cluster."""
+    import sys
+
     from ..experiments.study import protocols
 
     features = tuple(f.strip() for f in args.features.split(";"))
+    halving = {k: v for k, v in (("factor", args.halving_factor),
+                                 ("rf_resource", args.rf_resource),
+                                 ("svr_max_iter", args.svr_max_iter)) if v is not None}
     fits = protocols.exhaustive_fits("paper", features)
     print("study --paper: exhaustive grid search would fit "
           + "; ".join(f"{m} {f} {n}" for m, v in fits.items() for f, n in v.items())
@@ -99,8 +111,12 @@ def _paper(args) -> int:
     out = protocols.run_paper(
         args.out, scheduler=args.scheduler, features=features, search=args.search,
         max_train_rows=args.max_train_rows, seed=args.seed, progress=not args.quiet,
-        config=load_config(args.config), n_workers=args.jobs if args.jobs > 0 else 2)
+        config=load_config(args.config), n_workers=args.jobs if args.jobs > 0 else 2,
+        halving=halving, command="ftdrake " + " ".join(sys.argv[1:]))
     print(f"wrote {args.out}/paper.json and paper.md in {out['wall_time_s']:.0f} s")
+    for k, v in out.get("exhaustive_s_estimate", {}).items():
+        print(f"  exhaustive {k}: {out['exhaustive_fits'][k.split()[0]][k.split()[1]]} fits, "
+              f"~{v / 3600:.1f} h on {out['workers']} workers (estimate)")
     for p, found in out["findings"].items():
         print(f"  {p}: " + ", ".join(f"({k}) {v['reproduced']}" for k, v in found.items()))
     return 0

@@ -174,8 +174,16 @@ def _read(args, options: ReadOptions, say) -> TrainingData:
     if not args.data.exists():
         raise LogError(f"--data {args.data}: no such file or folder")
     with option_spelling(flag_hint):
-        data = load_training_data(args.data, options, t_start=args.t_start, t_end=args.t_end,
-                                  report=_warn)
+        try:
+            data = load_training_data(args.data, options, t_start=args.t_start,
+                                      t_end=args.t_end, report=_warn)
+        except LogError as e:
+            from ..compensation.calibration import static_table_hint
+
+            hint = static_table_hint(args.data)
+            if hint is None:
+                raise
+            raise LogError(f"{e}; {hint}") from None
     say(_describe(data))
     return data
 
@@ -440,11 +448,14 @@ def run_evaluate(args) -> int:
     model = load_model(args.model, expect_n_joints=data.n_joints)
 
     prediction = np.asarray(model.predict(data.X)).reshape(data.Y.shape)
+    std = (np.asarray(model.predict_std(data.X)).reshape(data.Y.shape)
+           if getattr(model, "provides_std", False) else None)
     outside = model.out_of_domain(data.X)
     names = data.target_names
-    metrics = {"all": report(data.Y, prediction, target_names=names)}
+    metrics = {"all": report(data.Y, prediction, target_names=names, std=std)}
     for key, rows in (("in_domain", ~outside), ("out_of_domain", outside)):
-        metrics[key] = (report(data.Y[rows], prediction[rows], target_names=names)
+        metrics[key] = (report(data.Y[rows], prediction[rows], target_names=names,
+                               std=None if std is None else std[rows])
                         if rows.sum() >= 2 else None)
     result = {
         "model": str(args.model),
@@ -458,6 +469,8 @@ def run_evaluate(args) -> int:
         "out_of_domain_fraction": float(outside.mean()),
         "out_of_domain_by_input": _outside_by_input(model, data.X),
         "target_units": dict(zip(names, manifest["target_units"], strict=True)),
+        "std": (None if std is None else "calibrated" if getattr(model, "std_includes_noise",
+                                                                   False) else "not calibrated"),
         "metrics": metrics,
     }
     print_evaluation(result)
@@ -519,6 +532,15 @@ def print_evaluation(result: dict, file=None) -> None:
               f"{_num(row['nmse'], 8, '.3f')}{_num(row['variance_score'], 11, '.3f')}"
               f"{_num(parts[0], 11, '.3f')}{_num(parts[1], 12, '.3f')}", file=file)
     print("  (in-domain / out-of-domain columns: variance score on those rows)\n", file=file)
+    if result.get("std"):
+        rows = m["in_domain"] or m["all"]
+        which = "in-domain" if m["in_domain"] else "all"
+        print(f"  coverage of the predictive std ({result['std']}), {which} rows: fraction "
+              "within the central 68 % / 95 % interval", file=file)
+        for name, row in rows.items():
+            print(f"  {name:<10}{_num(row.get('coverage_68'), 8, '.3f')}"
+                  f"{_num(row.get('coverage_95'), 8, '.3f')}", file=file)
+        print(file=file)
 
 
 def _num(x, width: int, fmt: str) -> str:

@@ -12,7 +12,11 @@ checks) lives here.
 
 The protocol a compensator follows to run in a control loop and leave Python:
 
-* ``provides_std`` – whether ``predict_std`` gives a real predictive standard deviation.
+* ``provides_std`` – whether ``predict_std`` gives a predictive standard deviation.
+* ``std_includes_noise`` – whether that std is of a new *reading* around the prediction
+  (sensor noise included, so ``measured − predicted`` should fall within ±1.96 std 95 % of
+  the time: physics, hybrid, GP with ``include_noise``), rather than a spread of the model
+  alone (the forest's spread across trees, which is not calibrated).
 * ``compiled_predictor()`` – ftdrake's compiled predictor (``predict(X)``, ``predict_one(x)``,
   equal to ``predict``), or None.
 * ``row_predictor()`` – a function ``row (3n,) → (mean (k,), std (k,))`` without
@@ -66,6 +70,8 @@ class Compensator(RegressorMixin, BaseEstimator):
 
     #: True for models whose ``predict_std`` returns a real standard deviation.
     provides_std = False
+    #: True when ``predict_std`` is the std of a new reading (noise included; see above).
+    std_includes_noise = False
 
     def __init__(self, features: str = "q,qd,qdd"):
         self.features = features

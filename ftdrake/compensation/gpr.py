@@ -184,6 +184,11 @@ class GPRCompensator(Compensator):
 
     provides_std = True
 
+    @property
+    def std_includes_noise(self) -> bool:
+        """Whether ``predict_std`` is the std of a new reading (``include_noise``)."""
+        return bool(self.include_noise)
+
     def __init__(
         self,
         features: str = "q,qd,qdd",

@@ -4,6 +4,19 @@
 Physics extrapolates (it is right wherever the tool is a rigid body) and needs little data;
 the residual learner only has to capture small, smooth effects, so it needs less data than a
 black box learning the whole wrench.
+
+Predictive std: the physics part's parameter uncertainty and the residual's uncertainty,
+added as independent variances,
+
+    std² = ‖B(x) F‖²  (physics parameters, see PhysicsPayloadCompensator)
+         + the residual's predictive variance of a reading (a GP with ``include_noise``), or,
+           for a residual whose std is not that (a forest: spread across trees, not
+           calibrated), its cross-validated error variance per axis (``residual_noise_var_``:
+           the residual model refitted on alternate blocks of rows and scored on the others)
+
+The second term includes the sensor noise; the physics part's own noise term is left out (the
+residual model explains part of what it holds). Independence is an approximation: the
+residual was fitted to the physics part's errors.
 """
 
 from __future__ import annotations
@@ -28,8 +41,15 @@ class HybridCompensator(Compensator):
         :class:`~.physics.PhysicsPayloadCompensator`), so that a registry default or a config
         reaches it.
 
-    Fitted attributes: ``physics_``, ``residual_`` (fitted clones).
+    Fitted attributes: ``physics_``, ``residual_`` (fitted clones), ``residual_noise_var_``
+    (6,) the residual's cross-validated error variance per axis (NaN when the residual's own
+    std is used).
     """
+
+    provides_std = True
+    std_includes_noise = True
+    #: Alternating blocks of rows in the cross-fit that estimates ``residual_noise_var_``.
+    CROSS_FIT_BLOCKS = 10
 
     def __init__(self, physics=None, residual=None, features="q,qd,qdd", identification=None,
                  prior=None):
@@ -38,11 +58,6 @@ class HybridCompensator(Compensator):
         self.residual = residual
         self.identification = identification
         self.prior = prior
-
-    @property
-    def provides_std(self) -> bool:
-        part = getattr(self, "residual_", None) or self.residual
-        return bool(getattr(part, "provides_std", False))
 
     def _fit(self, Z, Y):
         if self.features != "q,qd,qdd":
@@ -53,7 +68,31 @@ class HybridCompensator(Compensator):
             if v is not None})
         residual = self.residual if self.residual is not None else default_residual()
         self.physics_ = clone(physics).fit(Z, Y)
-        self.residual_ = clone(residual).fit(Z, Y - self._physics(Z))
+        target = Y - self._physics(Z)
+        self.residual_ = clone(residual).fit(Z, target)
+        self.residual_noise_var_ = np.full(Y.shape[1], np.nan)
+        if not self._residual_std_is_calibrated():
+            self.residual_noise_var_ = self._cross_validated_variance(residual, Z, target)
+
+    def _residual_std_is_calibrated(self) -> bool:
+        part = self.residual_
+        return bool(getattr(part, "provides_std", False)
+                    and getattr(part, "std_includes_noise", False))
+
+    def _cross_validated_variance(self, residual, Z, target):
+        """Per-axis mean squared error of the residual model on rows it was not fitted on:
+        rows in `CROSS_FIT_BLOCKS` contiguous blocks, fitted on the even ones and scored on
+        the odd ones and the other way round (contiguous: neighbouring samples of a time
+        series are nearly copies of each other)."""
+        block = (np.arange(len(Z)) * self.CROSS_FIT_BLOCKS) // max(len(Z), 1) % 2 == 0
+        errors = np.empty_like(target)
+        for train in (block, ~block):
+            if train.sum() < 2 or (~train).sum() < 1:
+                return np.mean(target ** 2, axis=0)
+            part = clone(residual).fit(Z[train], target[train])
+            errors[~train] = target[~train] - np.asarray(part.predict(Z[~train])).reshape(
+                (~train).sum(), -1)
+        return np.mean(errors ** 2, axis=0)
 
     def identified(self) -> dict:
         """The physics part's identified parameters (``physics_.identified()``)."""
@@ -64,15 +103,26 @@ class HybridCompensator(Compensator):
         return self.physics_.summary()
 
     def row_predictor(self):
-        """Physics row plus residual row; the std is the residual's (physics gives none)."""
-        physics = self.physics_.row_predictor()
+        """Physics row plus residual row; the std combines both (module docstring)."""
+        physics = self.physics_.row_predictor(include_noise=False)
         residual = self.residual_.row_predictor()
+        calibrated = self._residual_std_is_calibrated()
+        noise_var = np.nan_to_num(self._noise_var())
 
         def predict(row):
-            internal, std = residual(row)
-            return physics(row)[0] + internal, std
+            mean, physics_std = physics(row)
+            internal, residual_std = residual(row)
+            var = physics_std * physics_std + (residual_std * residual_std if calibrated
+                                               else noise_var)
+            return mean + internal, np.sqrt(var)
 
         return predict
+
+    def _noise_var(self):
+        var = getattr(self, "residual_noise_var_", None)
+        if var is None:  # a model file from before the hybrid had a std: the physics part's
+            var = np.asarray(self.physics_.residual_rms_) ** 2
+        return np.asarray(var, dtype=float)
 
     def _physics(self, Z):
         return np.asarray(self.physics_.predict(Z)).reshape(len(Z), -1)
@@ -82,7 +132,12 @@ class HybridCompensator(Compensator):
         return self._physics(Z) + residual
 
     def _predict_std(self, Z):
-        return np.asarray(self.residual_.predict_std(Z)).reshape(len(Z), -1)
+        var = self.physics_._variance(self.physics_._select(Z), include_noise=False)
+        if self._residual_std_is_calibrated():
+            var = var + np.asarray(self.residual_.predict_std(Z)).reshape(len(Z), -1) ** 2
+        else:
+            var = var + self._noise_var()
+        return np.sqrt(var)
 
 
 def default_residual() -> RandomForestCompensator:

@@ -8,6 +8,7 @@ a metric silently computed over misaligned or corrupt rows is worse than none.
 from __future__ import annotations
 
 import numpy as np
+from scipy.stats import norm
 
 from ..conventions import WRENCH_AXES
 from .base import describe_nonfinite
@@ -86,17 +87,44 @@ def rms_over_noise(truth, estimate, noise_std) -> np.ndarray:
     return rms / sigma
 
 
-def report(y_true, y_pred, *, target_names=None, truth=None, noise_std=None) -> dict:
+#: The central intervals ``evaluate`` reports the coverage of (fraction of probability).
+COVERAGE_LEVELS = (0.68, 0.95)
+
+
+def coverage(y_true, y_pred, std, level: float = 0.95) -> np.ndarray:
+    """Fraction per axis of rows with ``|y_true − y_pred| ≤ z·std``, ``z`` the normal
+    quantile of the central `level` interval (1.96 for 0.95, 0.994 for 0.68).
+
+    A calibrated predictive std (of a reading, noise included) gives about `level`; less
+    means the std is too small (over-confident). Rows with ``std = 0`` count as covered only
+    when the error is exactly 0.
+    """
+    a, b = _pair(y_true, y_pred)
+    s = _as_columns(std, "std")
+    if s.shape != a.shape:
+        raise ValueError(f"std has shape {s.shape} but y_true has shape {a.shape}")
+    if not 0 < level < 1:
+        raise ValueError(f"level must be in (0, 1); got {level!r}")
+    z = norm.ppf(0.5 + level / 2)
+    return np.mean(np.abs(a - b) <= z * s, axis=0)
+
+
+def report(y_true, y_pred, *, target_names=None, truth=None, noise_std=None,
+           std=None) -> dict:
     """JSON-ready metrics keyed by target name.
 
     ``{"Fx": {"mse": ..., "nmse": ..., "variance_score": ...}, ...}``; with `truth` (e.g. the
     noise-free internal wrench) also ``"rms_vs_truth"`` of `y_pred`, and with `noise_std` as
-    well ``"rms_over_noise"``. Default names are ``Fx..Tz`` for 6 columns, else ``y0, y1, …``.
-    NaN (constant axis) becomes None so the dict dumps as strict JSON.
+    well ``"rms_over_noise"``; with a predictive `std` (N × k) ``"coverage_68"`` and
+    ``"coverage_95"`` (:func:`coverage`). Default names are ``Fx..Tz`` for 6 columns, else
+    ``y0, y1, …``. NaN (constant axis) becomes None so the dict dumps as strict JSON.
     """
     a, b = _pair(y_true, y_pred)
     names = _names(target_names, a.shape[1])
     table = {"mse": mse(a, b), "nmse": nmse(a, b), "variance_score": variance_score(a, b)}
+    if std is not None:
+        for level in COVERAGE_LEVELS:
+            table[f"coverage_{round(100 * level)}"] = coverage(a, b, std, level)
     if truth is not None:
         table["rms_vs_truth"] = residual_rms(_pair(a, truth, ("y_true", "truth"))[1], b)
         if noise_std is not None:

@@ -108,7 +108,28 @@ class PhysicsPayloadCompensator(Compensator):
     ``residual_rms_`` (6), ``physically_consistent_``, ``identification_`` (the full
     :class:`~.consistent.ConsistentIdentification`). An :class:`ExcitationWarning` names the
     parameters the data cannot determine.
+
+    Predictive standard deviation (``predict_std``, the loop's ``wrench_std``): the std of a
+    new reading around the prediction, per axis,
+
+        std_i² = ‖B_i(x) F‖² + σ_i² + (s_k,i · (T − T_ref))²
+
+    with ``B(x)`` the 6 × 16 map from ``θ = [φ; b]`` to the reading (the regressor row, rotated
+    into Sm), ``F Fᵀ = covariance_`` (a square-root factor precomputed once: eigenvectors
+    scaled by the square roots of the non-negative eigenvalues, so a singular covariance is
+    fine), ``σ_i`` the per-axis residual RMS of the fit (sensor noise plus what the rigid
+    model misses: cable, cross-talk, drift) and ``s_k`` the temperature coefficients' standard
+    errors. The first term is the parameter uncertainty: small where the data excite the
+    parameters, growing with accelerations and poses the data did not cover. It treats the
+    estimate as unconstrained (the linearised covariance; an active constraint of the
+    consistent fit is ignored) and adds nothing for directions neither the data nor a prior
+    determine (their covariance is the pseudo-inverse's 0). The loop computes it in the same
+    compiled kernel as the mean (one 6 × 16 by 16 × 16 product more: a few µs per row).
     """
+
+    #: The std of a new reading (noise included), not just of the prediction.
+    provides_std = True
+    std_includes_noise = True
 
     def __init__(self, features="q,qd,qdd", mode="dynamic", robot=None, sensor_frame=None,
                  base_frame=None, gravity=(0.0, 0.0, -9.81), package_xmls=(),
@@ -199,8 +220,11 @@ class PhysicsPayloadCompensator(Compensator):
         cov = result.covariance.copy()
         # Biases were identified in S; the sensor adds them in Sm.
         theta[10:] = block.T @ theta[10:]
-        bias_cov = cov[10:, 10:]
-        cov[10:, 10:] = block.T @ bias_cov @ block
+        to_Sm = np.eye(16)
+        to_Sm[10:, 10:] = block.T  # θ with the biases in Sm = to_Sm · θ in S
+        finite = np.isfinite(cov)
+        cov = to_Sm @ np.where(finite, cov, 0.0) @ to_Sm.T
+        cov[~finite] = np.nan  # parameters not identified (a static fit's inertia) stay NaN
         self.parameters_ = theta
         self.covariance_ = cov
         self.standard_errors_ = result.standard_errors.copy()
@@ -236,43 +260,82 @@ class PhysicsPayloadCompensator(Compensator):
         X = _full_layout(Z, self.n_joints_)
         return self._predict_from(self.regressor(X), temperature)
 
+    def _predict_std(self, Z):
+        return np.sqrt(self._variance(Z, include_noise=True))
+
+    def parameter_std(self, X) -> np.ndarray:
+        """(N, 6) std of the predicted reading from the parameters' uncertainty alone (no
+        noise term): what :class:`~.hybrid.HybridCompensator` adds to its residual's."""
+        return np.sqrt(self._variance(self._validated_features(X), include_noise=False))
+
+    def _variance(self, Z, include_noise):
+        Z, temperature = self._split_temperature(Z)
+        X = _full_layout(Z, self.n_joints_)
+        factor, noise_var, block_T = self._std_terms()
+        A = self.regressor(X)
+        B = A.copy()
+        B[:, :, :10] = np.einsum("ij,njk->nik", block_T, A[:, :, :10])
+        var = np.einsum("nij,jr->nir", B, factor)
+        var = np.einsum("nir,nir->ni", var, var)
+        if include_noise:
+            var = var + noise_var
+        reference = getattr(self, "temperature_reference_", None)
+        if temperature is not None and reference is not None:
+            se = np.nan_to_num(self.temperature_std_errors_)
+            var = var + np.outer(temperature - reference, se) ** 2
+        return var
+
+    def _std_terms(self):
+        """(F (16 × 16) with F Fᵀ = covariance_ (NaN entries: 0), σ² per axis (6,),
+        block_T (6 × 6) rotating a wrench from S into Sm)."""
+        # A model whose parameters were set by hand (no fit) has no uncertainty: std 0.
+        cov = np.asarray(getattr(self, "covariance_", np.zeros((16, 16))), dtype=float)
+        cov = np.where(np.isfinite(cov), cov, 0.0)
+        lam, V = np.linalg.eigh(0.5 * (cov + cov.T))
+        factor = np.ascontiguousarray(V * np.sqrt(np.maximum(lam, 0.0)))
+        noise_var = np.asarray(getattr(self, "residual_rms_", np.zeros(6)), dtype=float) ** 2
+        rotation = getattr(self, "mounting_rotation_", np.eye(3))
+        return factor, noise_var, np.ascontiguousarray(np.kron(np.eye(2), rotation).T)
+
     def predict_row(self, x) -> np.ndarray:
         """One full-layout row (3n,) → wrench (6,), without input validation (control loops):
         one compiled kernel (kinematics, regressor row, product with the parameters)."""
-        return self.row_predictor()(np.asarray(x, dtype=float))[0]
+        x = np.asarray(x, dtype=float)
+        if getattr(self, "temperature_in_", False) or not np.array_equal(
+                getattr(self, "mounting_rotation_", np.eye(3)), np.eye(3)):
+            return self.row_predictor()(x)[0]
+        out = np.empty(6)
+        _predict_row(x, *self._row_kernel_args(), self.parameters_, out)
+        return out
 
-    def row_predictor(self):
-        """``row → (wrench, std)``: the compiled row kernel with this model's chain and
-        current parameters bound (refitting the model afterwards does not change it); the
-        mounting rotation and the temperature term (row's last entry) applied after it."""
+    def row_predictor(self, include_noise: bool = True):
+        """``row → (wrench, std)``: one compiled kernel with this model's chain, current
+        parameters and covariance factor bound (refitting the model afterwards does not
+        change it): kinematics, regressor row, mean ``B·θ`` and std (see the class
+        docstring), mounting rotation included; the temperature term (row's last entry) is
+        added after it. ``include_noise=False``: the parameters' uncertainty only."""
         args = self._row_kernel_args()
         parameters = self.parameters_.copy()
-        rotation = getattr(self, "mounting_rotation_", np.eye(3))
+        factor, noise_var, block_T = self._std_terms()
+        if not include_noise:
+            noise_var = np.zeros(6)
         reference = getattr(self, "temperature_reference_", None)
-        with_temperature = getattr(self, "temperature_in_", False)
-        zeros = np.zeros(6)
-        if np.array_equal(rotation, np.eye(3)) and not with_temperature:
-            def predict(row):
-                out = np.empty(6)
-                _predict_row(row, *args, parameters, out)
-                return out, zeros
+        with_temperature = getattr(self, "temperature_in_", False) and reference is not None
+        k = np.asarray(getattr(self, "temperature_coefficients_", np.zeros(6)), dtype=float)
+        k_se = np.nan_to_num(np.asarray(getattr(self, "temperature_std_errors_", np.zeros(6)),
+                                        dtype=float))
 
-            return predict
-        physical = parameters.copy()
-        physical[10:] = 0.0
-        block_T = np.kron(np.eye(2), rotation).T  # y_Sm = block_T · w_S
-        bias = parameters[10:]
-        k = getattr(self, "temperature_coefficients_", zeros)
+        def predict(row):
+            mean, std = np.empty(6), np.empty(6)
+            _predict_row_with_std(row, *args, block_T, parameters, factor, noise_var, mean,
+                                  std)
+            if with_temperature:
+                dt = row[-1] - reference
+                mean += k * dt
+                std[:] = np.sqrt(std * std + (k_se * dt) ** 2)
+            return mean, std
 
-        def predict_mounted(row):
-            out = np.empty(6)
-            _predict_row(row, *args, physical, out)
-            out = block_T @ out + bias
-            if with_temperature and reference is not None:
-                out += k * (row[-1] - reference)
-            return out, zeros
-
-        return predict_mounted
+        return predict
 
     def _row_kernel_args(self) -> tuple:
         # Looking the chain up through the robot description costs microseconds (building and
@@ -574,6 +637,42 @@ def _predict_row(x, n, gravity_W, X_pre, kinds, axes, q_index, v_index, static, 
         for j in range(16):
             s += A[i, j] * parameters[j]
         out[i] = s
+
+
+@numba.njit(cache=True)
+def _predict_row_with_std(x, n, gravity_W, X_pre, kinds, axes, q_index, v_index, static,
+                          block_T, parameters, factor, noise_var, mean, std):
+    """One full-layout row → reading mean (6) = B·θ and std (6) = √(‖B_i F‖² + σ_i²), with
+    B = [block_T · A_φ | I] the regressor row rotated into the measuring frame Sm."""
+    R = np.empty((3, 3))
+    kin = np.empty((4, 3))
+    sensor_kinematics_row(x[:n], x[n:2 * n], x[2 * n:3 * n], gravity_W, X_pre, kinds, axes,
+                          q_index, v_index, R, kin)
+    if static:
+        kin[:3, :] = 0.0
+    A = np.zeros((6, 16))
+    _regressor_row(kin[0], kin[1], kin[2] - kin[3], A)
+    B = np.zeros((6, 16))
+    for i in range(6):
+        for j in range(10):
+            s = 0.0
+            for m in range(6):
+                s += block_T[i, m] * A[m, j]
+            B[i, j] = s
+        B[i, 10 + i] = 1.0
+    r = factor.shape[1]
+    for i in range(6):
+        s = 0.0
+        for j in range(16):
+            s += B[i, j] * parameters[j]
+        mean[i] = s
+        v = noise_var[i]
+        for c in range(r):
+            t = 0.0
+            for j in range(16):
+                t += B[i, j] * factor[j, c]
+            v += t * t
+        std[i] = np.sqrt(v)
 
 
 @numba.njit(cache=True)

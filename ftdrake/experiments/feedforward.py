@@ -56,6 +56,7 @@ class FeedforwardPlan:
     # only (plain feedback-error learning). ILC uses the same signal indexed by time.
     target: str = "model_error"
     max_points: int = 200  # GP subset size (m) per joint
+    optimize_points: int = 300  # rows the GP's hyperparameters are fitted on
     trust_ratio: float = 0.5
     reject_ratio: float = 0.9
     ilc_gain: float = 1.0  # γ
@@ -205,7 +206,9 @@ def run_feedforward_experiment(config: ScenarioConfig | None = None,
         data = [*data, (X, y)] if plan.target == "model_error" else [(X, y)]
         model = fit_feedforward_gp(np.vstack([d[0] for d in data]),
                                    np.vstack([d[1] for d in data]),
-                                   max_points=plan.max_points, random_state=plan.seed + k)
+                                   max_points=plan.max_points,
+                                   optimize_points=plan.optimize_points,
+                                   random_state=plan.seed + k)
         fit_s = time.perf_counter() - t0
         ff = LearnedFeedforward(model, n_joints=tracker.n, trust_ratio=plan.trust_ratio,
                                 reject_ratio=plan.reject_ratio)

@@ -197,6 +197,10 @@ STUDY_MODEL_AT_MEAN = np.array([0.0, 0.05, 0.0, 1.45, 0.0, 0.34, 0.0])
 #: issue 516), so the study's trajectory lasted 13,745 / 40 = 344 s.
 STUDY_SAMPLES = 13745
 STUDY_SAMPLE_HZ = 40.0
+#: Planned ranges stop this far (deg) inside Table 1's on each side: the controller tracks
+#: the study scenario to ~0.15° (experiments.study.protocols.STUDY_KI), and the simulated
+#: joints must stay within Table 1. The means are Table 1's.
+STUDY_MARGIN_DEG = 0.3
 STUDY_DURATION_S = STUDY_SAMPLES / STUDY_SAMPLE_HZ
 #: Full cycles of each joint over STUDY_DURATION_S: slow (peak speed 0.09 rad/s, the study's
 #: "relatively low velocities and accelerations"), no two neighbours in step.
@@ -224,7 +228,8 @@ def model_to_study(q_model) -> np.ndarray:
 
 def study_motion(duration: float, seed: int) -> PiecewisePolynomial:
     """The study's motion in the model's joints: each joint j sweeps Table 1's [min, max]
-    ``_STUDY_CYCLES[j]`` times per :data:`STUDY_DURATION_S` with Table 1's mean.
+    (:data:`STUDY_MARGIN_DEG` inside) ``_STUDY_CYCLES[j]`` times per :data:`STUDY_DURATION_S`
+    with Table 1's mean.
 
     Per joint, ``q = min + (max − min)·s(t)`` with ``u = (1 − cos(ωt + φ))/2`` and ``s = u^p``
     (or ``1 − u^p`` when the mean lies above mid-range); the exponent p makes s's mean over a
@@ -237,6 +242,7 @@ def study_motion(duration: float, seed: int) -> PiecewisePolynomial:
     from scipy.special import gammaln  # noqa: PLC0415 (scipy only for this kind)
 
     hi, lo, mean = np.radians(STUDY_JOINTS_DEG)
+    hi, lo = hi - np.radians(STUDY_MARGIN_DEG), lo + np.radians(STUDY_MARGIN_DEG)
     fraction = (mean - lo) / (hi - lo)
     above = fraction > 0.5
     target = np.where(above, 1.0 - fraction, fraction)

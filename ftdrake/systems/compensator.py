@@ -9,7 +9,7 @@ import numpy as np
 from pydrake.systems.framework import LeafSystem
 
 from ..compensation.base import generic_row_predictor
-from ..compensation.compiled.forest import CompiledForest, forest_accumulate
+from ..compensation.compiled.forest import CompiledForest, forest_accumulate_with_std
 from ..compensation.features import check_feature_set
 from ..signals import acceleration_filter_gain
 
@@ -117,7 +117,7 @@ class CompensatorSystem(LeafSystem):
         if self._forest is not None:
             status = _compensate_with_forest(
                 wrench, x, accel, measured, estimator, self._lo, self._hi, self._constants,
-                *self._forest, internal, external,
+                *self._forest, internal, external, state.get_mutable_value(self._std),
             )
         else:
             row = np.empty(3 * self.n)
@@ -191,12 +191,13 @@ def _prepare_row(wrench, x, accel, measured, estimator, row, lo, hi, constants):
 
 @numba.njit(cache=True)
 def _compensate_with_forest(wrench, x, accel, measured, estimator, lo, hi, constants,
-                            nodes, leaf_values, trees, n_trees, internal, external):
-    """_prepare_row, then the compiled forest into `internal` and measured − internal."""
+                            nodes, leaf_values, trees, n_trees, internal, external, std):
+    """_prepare_row, then the compiled forest into `internal` (and its spread across trees
+    into `std`) and measured − internal."""
     row = np.empty(3 * len(accel))
     status = _prepare_row(wrench, x, accel, measured, estimator, row, lo, hi, constants)
     if not status & _FAULT:
-        forest_accumulate(row, nodes, leaf_values, trees, n_trees, internal)
+        forest_accumulate_with_std(row, nodes, leaf_values, trees, n_trees, internal, std)
         for j in range(6):
             external[j] = wrench[j] - internal[j]
     return status

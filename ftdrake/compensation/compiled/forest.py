@@ -155,6 +155,40 @@ def forest_accumulate(x, nodes, leaf_values, trees, n_trees, out):
 
 
 @njit(cache=True, nogil=True)
+def forest_accumulate_with_std(x, nodes, leaf_values, trees, n_trees, out, std):
+    """:func:`forest_accumulate` into `out` (the same sums, bit-equal), and into `std` (k,)
+    each output's spread across its trees, √(mean of squares − mean²), in the same walk (not
+    a calibrated uncertainty; see :mod:`ftdrake.compensation.forest`)."""
+    out[:] = 0.0
+    std[:] = 0.0
+    at = np.empty(_GROUP, np.int32)
+    for first in range(0, len(trees), _GROUP):
+        group = min(_GROUP, len(trees) - first)
+        for i in range(group):
+            at[i] = trees[first + i].root
+        walking = True
+        while walking:
+            walking = False
+            for i in range(group):
+                if at[i] >= 0:
+                    node = nodes[at[i]]
+                    if np.float32(x[node.feature]) <= node.threshold:
+                        at[i] = node.left
+                    else:
+                        at[i] = node.right
+                    walking = True
+        for i in range(group):
+            tree = trees[first + i]
+            for j in range(tree.width):
+                value = leaf_values[-1 - at[i], j]
+                out[tree.column + j] += value
+                std[tree.column + j] += value * value
+    for j in range(len(out)):
+        out[j] /= n_trees[j]
+        std[j] = np.sqrt(max(std[j] / n_trees[j] - out[j] * out[j], 0.0))
+
+
+@njit(cache=True, nogil=True)
 def _forest_predict_one(x, nodes, leaf_values, trees, n_trees, out):
     """Fills out (k,) from one row x (3n,); returns False (out untouched) if x has NaN/inf."""
     for value in x:
@@ -199,6 +233,7 @@ class CompiledForest:
         self.arrays = (self.flat.nodes, self.flat.leaf_values, self.flat.trees, self.flat.n_trees)
         self.predict(np.zeros((2, 3 * self.n_joints)))
         self.predict_one(np.zeros(3 * self.n_joints))
+        self.predict_one_with_std(np.zeros(3 * self.n_joints))
 
     def predict(self, X) -> np.ndarray:
         """X: (N, 3n) rows of [q, q̇, q̈]. Returns (N, k)."""
@@ -218,3 +253,12 @@ class CompiledForest:
         if not _forest_predict_one(x, *self.arrays, out):
             raise nonfinite_error(x)
         return out
+
+    def predict_one_with_std(self, x) -> tuple[np.ndarray, np.ndarray]:
+        """x: (3n,) → (mean (k,), spread across trees (k,)); the std is not calibrated."""
+        x = checked_row(x, self.n_joints)
+        if not np.isfinite(x).all():
+            raise nonfinite_error(x)
+        out, std = np.empty(self.n_outputs), np.empty(self.n_outputs)
+        forest_accumulate_with_std(x, *self.arrays, out, std)
+        return out, std

@@ -463,7 +463,11 @@ def protocols_markdown(sp: dict) -> str:
               f"{res['sizes']['train_rows']} training rows, {res['sizes']['test_rows']} random "
               f"test rows; held-out: {res['sizes']['heldout_rows']} rows of "
               f"{res['sizes']['heldout_trajectories']} other study trajectories. Search "
-              f"`{res['settings']['search']}` over preset `{res['settings']['preset']}`."), "",
+              f"`{res['settings']['search']}` over preset `{res['settings']['preset']}`."
+              + ("" if res["settings"].get("retune_heldout", True) else
+                 " ftdrake's protocol (held-out column) reuses the study protocol's per-axis "
+                 "parameters and refits them on rows evenly spaced in time (`--quick`: no "
+                 "second, grouped search).")), "",
              "| finding | " + " | ".join(PROTOCOL_LABELS[p] for p in protocols) + " |",
              "|---" * (len(protocols) + 1) + "|"]
     for k, claim in STUDY_CLAIMS.items():

@@ -17,6 +17,7 @@ from dataclasses import dataclass
 
 import numpy as np
 import pandas as pd
+from joblib import Parallel, delayed
 from sklearn.base import clone
 from sklearn.model_selection import ParameterGrid
 from threadpoolctl import threadpool_limits
@@ -27,10 +28,10 @@ from ...compensation.metrics import report
 from ...compensation.physics import ExcitationWarning
 from ...compensation.registry import entry
 from ...compensation.tuning import grid_size, param_grid, segment_groups, tune
-from ...config import ScenarioConfig
+from ...config import ScenarioConfig, dump_config
 from ...data.dataset import joint_state_layout, wrench_targets
 from ...io import atomic_path, staged_outputs
-from ...sim.collection import collect, trajectory_config
+from ...sim.collection import simulate_one, trajectory_config
 from ...sim.station import plan_trajectory, robot_geometry
 from ...sim.trajectories import trajectory_extent
 from . import report as outputs
@@ -114,18 +115,19 @@ def run_study(out_dir, *, preset="quick", trajectories: int = TRAJECTORIES,
         n_splits=n_splits, n_repeats=n_repeats, n_jobs=n_jobs, collect=data is None)
     per_dataset = {}
     stage_s = {}
-    if faithful if faithful is not None else (data is None or "study" in data):
+    faithful = faithful if faithful is not None else (data is None or "study" in data)
+    if data is None:
+        t0 = time.perf_counter()
+        say(f"[study] collecting {trajectories} × {duration:g} s of each dataset's motion"
+            + (" and the study's trajectory" if faithful else "") + " …")
+        data = collect_all(config, trajectories=trajectories, duration=duration, seed=seed,
+                           n_jobs=n_jobs, faithful=faithful)
+        stage_s["collect"] = time.perf_counter() - t0
+    if faithful:
         results["study_protocols"] = _faithful(config, data, stage_s, preset=preset, seed=seed,
                                                n_jobs=n_jobs, progress=progress, say=say)
     for name in DATASETS:
-        t0 = time.perf_counter()
-        if data is not None:
-            frame = data[name]
-        else:
-            say(f"[study] collecting {trajectories} × {duration:g} s of '{name}' motion …")
-            frame = collect(config, trajectories, seed=seed, kind=name, duration=duration,
-                            n_jobs=n_jobs, progress=progress)
-        stage_s[f"collect_{name}"] = time.perf_counter() - t0
+        frame = data[name]
         t0 = time.perf_counter()
         say(f"[study] training and testing on '{name}' …")
         per_dataset[name] = study_dataset(
@@ -159,28 +161,56 @@ def run_study(out_dir, *, preset="quick", trajectories: int = TRAJECTORIES,
     return results
 
 
+def collect_all(config: ScenarioConfig, *, trajectories: int, duration: float, seed: int,
+                n_jobs: int, faithful: bool = True) -> dict[str, pd.DataFrame]:
+    """Every simulation of the study in one pool, longest first: each dataset's
+    `trajectories` runs and (`faithful`) the study trajectories, whose long first run
+    would otherwise leave the other workers idle. Returns {dataset: stacked logs}."""
+    from . import protocols  # noqa: PLC0415
+
+    jobs = []  # (dataset, trajectory id, seconds, scenario YAML, runner)
+    if faithful:
+        study = protocols.study_scenario(config)
+        for i, text in enumerate(protocols.study_jobs(study, seed=seed)):
+            seconds = study.trajectory.duration_s if i == 0 else protocols.HELDOUT_S
+            jobs.append(("study", i, seconds, text, protocols.one_at_rate))
+    for name in DATASETS:
+        base = dataclasses.replace(config, trajectory=dataclasses.replace(
+            config.trajectory, kind=name, duration_s=duration))
+        base.validate()
+        jobs += [(name, i, duration, dump_config(trajectory_config(base, i, seed)),
+                  simulate_one) for i in range(trajectories)]
+    jobs.sort(key=lambda job: -job[2])
+    logs = Parallel(n_jobs=n_jobs)(delayed(run)(text, i) for _, i, _, text, run in jobs)
+    out = {}
+    for name in dict.fromkeys(job[0] for job in jobs):
+        parts = sorted((i, log) for (n, i, *_), log in zip(jobs, logs, strict=True)
+                       if n == name)
+        out[name] = pd.concat([log for _, log in parts], ignore_index=True)
+    return out
+
+
 def _faithful(config, data, stage_s, *, preset, seed, n_jobs, progress, say) -> dict:
     """The study's trajectory, tool and protocol beside ftdrake's (issue 12)."""
     from . import protocols  # noqa: PLC0415 (imports run → protocols → layout only)
 
-    t0 = time.perf_counter()
-    if data is not None and "study" in data:
-        frame = data["study"]
-    else:
-        say("[study] collecting the study's trajectory and tool …")
-        frame = protocols.collect_study(protocols.study_scenario(config), seed=seed,
-                                        n_jobs=n_jobs)
-    stage_s["collect_study"] = time.perf_counter() - t0
+    frame = data["study"]
     t0 = time.perf_counter()
     say("[study] the study's protocol and ftdrake's …")
     with threadpool_limits(limits=1):
+        # --quick: ftdrake's protocol reuses the study protocol's parameters (no second
+        # search); the full run tunes it with its own grouped folds.
         res = protocols.run_protocols(frame, preset=preset, seed=seed, n_jobs=n_jobs,
-                                      progress=progress)
+                                      progress=progress, retune_heldout=preset != "quick")
     stage_s["study_protocols"] = time.perf_counter() - t0
     sensor = protocols.sensor_table(frame)
+    study = protocols.study_scenario(config)
+    study = dataclasses.replace(study, trajectory=dataclasses.replace(study.trajectory,
+                                                                      seed=seed))
+    tip = trajectory_extent(plan_trajectory(study), robot_geometry(study), dt=0.5)
     return {"results": res, "findings": protocols.protocol_findings(res),
             "joints": protocols.joint_table(frame), "sensor": sensor,
-            "table2": protocols.table2_comparison(sensor)}
+            "table2": protocols.table2_comparison(sensor), "tool_tip": tip}
 
 
 @dataclass
@@ -441,11 +471,14 @@ def fx_importances(model, features: str) -> dict:
 def estimate_seconds(preset, *, trajectories=TRAJECTORIES, duration=DURATION_S,
                      test_trajectories=TEST_TRAJECTORIES, train_hz=TRAIN_HZ,
                      svr_max_rows=SVR_MAX_ROWS, n_splits=N_SPLITS, n_repeats=1, n_jobs=-1,
-                     collect=True) -> float:
+                     collect=True, faithful=True) -> float:
     """Rough wall time (s) of :func:`run_study` on an idle machine, from a cost model fitted
-    on the 2-core development machine. SVR with large C or a poly kernel (the paper grid)
-    can take far longer: read it as a lower bound there."""
+    on the 2-core development machine; `faithful`: with the study trajectory's part (its
+    collection and both protocols). SVR with large C or a poly kernel (the paper grid) can
+    take far longer: read it as a lower bound there."""
     workers = (os.cpu_count() or 1) if n_jobs == -1 else max(1, n_jobs)
+    extra = (_faithful_seconds(preset, workers, n_splits=n_splits, collect=collect)
+             if faithful else 0.0)
     sim = 2 * trajectories * duration * _SIM_S_PER_S / workers if collect else 0.0
     rows = (trajectories - test_trajectories) * duration * train_hz * (n_splits - 1) / n_splits
     svr_rows = min(rows, svr_max_rows)
@@ -461,7 +494,28 @@ def estimate_seconds(preset, *, trajectories=TRAJECTORIES, duration=DURATION_S,
         per_set[features] = fits * (rf + svr) + hybrid
     other_cv = per_set["q"]  # RF on q tuned with the other fold scheme (an over-estimate)
     learn = 2 * (sum(per_set.values()) + other_cv) / workers  # both datasets
-    return round(sim + learn + _FIXED_S, 0)
+    return round(sim + learn + extra + _FIXED_S, 0)
+
+
+def _faithful_seconds(preset, workers: int, *, n_splits: int, collect: bool) -> float:
+    """The study trajectory's part: its collection (the long trajectory is the critical
+    path) and the searches of both protocols (one when --quick reuses the parameters)."""
+    from ...sim.trajectories import STUDY_DURATION_S  # noqa: PLC0415
+    from .protocols import HELDOUT, HELDOUT_S, QUICK_TRAIN_ROWS  # noqa: PLC0415
+
+    sim = (max(STUDY_DURATION_S, (STUDY_DURATION_S + HELDOUT * HELDOUT_S) / workers)
+           * _SIM_S_PER_S if collect else 0.0)
+    rows = QUICK_TRAIN_ROWS * (n_splits - 1) / n_splits
+    fits = len(AXES) * (n_splits + 1)
+    searches = 1 if preset == "quick" else 2
+    learn = 0.0
+    for blocks in FEATURE_SETS.values():
+        n = blocks * col.N_JOINTS
+        rf = sum(_rf_fit_s(p["n_estimators"], p["max_features"], n, rows)
+                 for p in _candidates(preset, "rf", n))
+        svr = _SVR_S * rows**2 * len(_candidates(preset, "svr", n))
+        learn += searches * fits * (rf + svr)
+    return sim + learn / workers
 
 
 def _rf_fit_s(trees, max_features, n_features, rows) -> float:

@@ -1,0 +1,172 @@
+"""`ftdrake calibrate`: payload, biases, mounting and temperature coefficients of a wrist F/T
+sensor from a short calibration log, with standard errors, as a YAML a user reads and (when
+the sensor's orientation comes from joint angles) a model file ``evaluate`` and the station use::
+
+    ftdrake calibrate --data poses.csv --robot arm.urdf --sensor-frame ft_link --out cal/
+    ftdrake calibrate --data poses.csv --out cal/          # qw,qx,qy,qz / r00..r22 /
+                                                           # roll,pitch,yaw / gx,gy,gz columns
+    ftdrake calibrate --data log.parquet --time-series --robot ftdrake --out cal/
+
+A table of static poses (one pose and one wrench a row; no time column needed) is calibrated
+by :func:`ftdrake.compensation.calibration.calibrate_table`. A time series (``--time-series``,
+or a table with a time column and no orientation columns and not all velocities zero) is read
+like ``train`` does and fitted by the physics model (dynamic, physically consistent).
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+
+from ..conventions import MEASURED, WRENCH_UNITS
+from ..errors import ConfigError, LogError
+
+
+def register(subparsers) -> None:
+    """Adds ``calibrate`` to an ``argparse`` subparsers object."""
+    p = subparsers.add_parser(
+        "calibrate", help="identify payload, biases, mounting, temperature drift of the sensor "
+        "from static poses (or a slow motion); write calibration.yaml and a model file")
+    p.add_argument("--data", type=Path, required=True, metavar="FILE",
+                   help="CSV/Parquet: one row per static pose, 6 wrench columns and joint "
+                        "angles or an orientation (qw,qx,qy,qz | r00..r22 | roll,pitch,yaw | "
+                        "gx,gy,gz gravity in S); optional 'temperature' (°C)")
+    p.add_argument("--robot", metavar="FILE", help="URDF/SDF holding the sensor frame, or "
+                   "'ftdrake' for the simulated arm (with joint-angle columns)")
+    p.add_argument("--sensor-frame", metavar="NAME", help="frame S of the wrench in --robot")
+    p.add_argument("--base-frame", metavar="NAME", help="frame of --robot welded to the world")
+    p.add_argument("--positions", default="q_*", metavar="PAT",
+                   help="joint angle columns (default 'q_*')")
+    p.add_argument("--targets", default=f"{MEASURED}_*", metavar="PAT",
+                   help=f"wrench columns Fx..Tz (default '{MEASURED}_*')")
+    p.add_argument("--position-unit", choices=("rad", "deg"), default="rad")
+    p.add_argument("--prior-mass", type=float, metavar="KG", help="prior mass of the tool")
+    p.add_argument("--prior-com", metavar="X,Y,Z", help="prior centre of mass in S (m)")
+    p.add_argument("--least-squares", action="store_true",
+                   help="plain least squares instead of the physically consistent fit")
+    p.add_argument("--no-mounting", action="store_true",
+                   help="do not identify the sensor's mounting rotation (joint-angle input)")
+    p.add_argument("--time-series", action="store_true",
+                   help="the log is a motion (time column): fit the dynamic physics model")
+    p.add_argument("--out", type=Path, required=True, metavar="DIR",
+                   help="folder for calibration.yaml (and model.ftd)")
+    p.set_defaults(run=run_calibrate)
+
+
+def _prior(args):
+    if args.prior_mass is None:
+        if args.prior_com is not None:
+            raise ConfigError("--prior-com needs --prior-mass")
+        return None
+    com = (0.0, 0.0, 0.0)
+    if args.prior_com is not None:
+        try:
+            com = tuple(float(v) for v in args.prior_com.split(","))
+        except ValueError:
+            raise ConfigError(f"--prior-com {args.prior_com}: expected X,Y,Z in m") from None
+    try:
+        from ..compensation.consistent import PayloadPrior
+
+        return PayloadPrior(args.prior_mass, com)
+    except ConfigError as e:
+        raise ConfigError(f"--prior-mass/--prior-com: {e}") from None
+
+
+def run_calibrate(args) -> int:
+    from ..compensation.calibration import calibrate_table, orientation_kind
+    from ..data.logs import read_frame
+    from .main import output_path
+
+    if not args.data.is_file():
+        raise LogError(f"--data {args.data}: no such file")
+    output_path("--out", args.out, folder=True)
+    prior = _prior(args)
+    if args.robot not in (None, "ftdrake") and not Path(args.robot).is_file():
+        raise LogError(f"--robot {args.robot}: no such file")
+    frame = read_frame(args.data)
+    if args.time_series or (orientation_kind(frame.columns) is None and "t" in frame
+                            and _moving(frame, args.positions)):
+        return _time_series(args, prior)
+    cal = calibrate_table(frame, robot=args.robot, sensor_frame=args.sensor_frame,
+                          base_frame=args.base_frame, positions=args.positions,
+                          targets=args.targets, position_unit=args.position_unit, prior=prior,
+                          identification="least_squares" if args.least_squares else "consistent",
+                          identify_mounting=not args.no_mounting)
+    print(cal.summary())
+    written = _write_yaml(args.out / "calibration.yaml", {"calibration": cal.to_dict(),
+                                                         "data": str(args.data)})
+    if cal.model is not None:
+        written.append(_save(cal.model, args, cal.model.n_joints_))
+    else:
+        print("no model file: the orientation was given directly, so a model that maps joint "
+              "states to it needs a robot (give joint-angle columns with --robot)")
+    print("wrote " + ", ".join(str(p) for p in written))
+    return 0
+
+
+def _moving(frame, positions) -> bool:
+    from ..data.logs import expand_columns
+
+    try:
+        cols = expand_columns(positions, list(frame.columns))
+    except LogError:
+        return False
+    q = frame[cols].to_numpy(dtype=float)
+    return bool(len(q) > 1 and np.abs(np.diff(q, axis=0)).max() > 0)
+
+
+def _time_series(args, prior) -> int:
+    """A motion log: read as `train` reads it, fitted by the dynamic physics model."""
+    from ..data.training import ReadOptions, load_training_data
+    from .train import RobotOptions, _physics
+
+    options = ReadOptions().updated(positions=args.positions, targets=args.targets,
+                                    position_unit=args.position_unit)
+    data = load_training_data(args.data, options)
+    model = _physics("physics", RobotOptions(args.robot, args.sensor_frame, args.base_frame,
+                                             data.scenario_yaml), "q,qd,qdd")
+    model.set_params(prior=prior, identify_mounting=not args.no_mounting,
+                     identification="least_squares" if args.least_squares else "consistent")
+    model.fit(data.X, data.Y)
+    print(model.summary())
+    table = json.loads(json.dumps(model.identified(), default=float))
+    written = _write_yaml(args.out / "calibration.yaml", {"calibration": table,
+                                                         "data": str(args.data)})
+    written.append(_save(model, args, data.n_joints))
+    print("wrote " + ", ".join(str(p) for p in written))
+    return 0
+
+
+def _write_yaml(path: Path, table: dict) -> list[Path]:
+    import yaml
+
+    from ..io import atomic_write_text
+
+    path.parent.mkdir(parents=True, exist_ok=True)
+    atomic_write_text(path, yaml.safe_dump(_plain(table), sort_keys=False))
+    return [path]
+
+
+def _plain(x):
+    if isinstance(x, dict):
+        return {str(k): _plain(v) for k, v in x.items()}
+    if isinstance(x, (list, tuple, np.ndarray)):
+        return [_plain(v) for v in x]
+    if isinstance(x, (np.floating, float)):
+        return float(x) if np.isfinite(x) else str(float(x))
+    if isinstance(x, np.integer):
+        return int(x)
+    return x
+
+
+def _save(model, args, n_joints) -> Path:
+    from ..compensation.persistence import save_model
+    from ..conventions import WRENCH_AXES
+
+    path = args.out / "model.ftd"
+    save_model(model, path, target_names=list(WRENCH_AXES), target_units=list(WRENCH_UNITS),
+               sensor_frame=args.sensor_frame or "S",
+               extra={"calibration": {"data": str(args.data), "n_joints": int(n_joints)}})
+    return path

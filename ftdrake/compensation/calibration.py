@@ -1,0 +1,378 @@
+"""Calibration of a wrist F/T sensor from a table of static poses (``ftdrake calibrate``).
+
+A calibration log is often not a time series but a table: each row one pose held still and
+the wrench read there (velocities zero, nothing to differentiate, often no time column). The
+sensor's orientation comes either
+
+* as **joint angles** (``q_*`` columns, rad or deg) with a robot description (URDF/SDF and the
+  sensor frame): the identified model is a static
+  :class:`~ftdrake.compensation.physics.PhysicsPayloadCompensator` (gravity only), which
+  also identifies the sensor's mounting rotation ``R_SSm`` (the frame the sensor measures in)
+  and is saved as a model file ``evaluate`` and the station use; or
+* **directly as a rotation**, one of (checked in this order)
+
+  - ``qw, qx, qy, qz``: the quaternion of ``R_WS`` (S in the world; gravity along −z of W),
+  - ``r00 … r22``: ``R_WS`` row by row,
+  - ``roll, pitch, yaw`` (rad): ``R_WS = RollPitchYaw(roll, pitch, yaw)`` (Drake's, extrinsic
+    x-y-z),
+  - ``gx, gy, gz``: gravity in S (m/s²; a unit vector is scaled to 9.81 m/s²).
+
+  The mounting rotation is then absorbed in the orientation (the rotation given *is* the one
+  of the measuring frame, as far as the data can tell) and is not identified.
+
+Static poses determine the mass, the first moment ``m·c`` (so the centre of mass) and the six
+biases — not the inertia, which only acceleration excites: a static calibration says so and
+leaves it out. With a ``temperature`` column (°C) the per-axis zero drift per kelvin is
+identified as well. Every parameter comes with its standard error; the fit is the physically
+consistent one (mass > 0; optional prior) of :mod:`ftdrake.compensation.consistent`.
+
+:func:`calibrate_table` returns a :class:`StaticCalibration` with :meth:`~StaticCalibration.
+to_dict` (what the YAML holds), :meth:`~StaticCalibration.summary` and
+:meth:`~StaticCalibration.predict` (the reading at held-out poses of a table).
+"""
+
+from __future__ import annotations
+
+import dataclasses as dc
+import warnings
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+from pydrake.math import RollPitchYaw
+
+from ..conventions import MEASURED, TEMPERATURE, WRENCH_AXES
+from ..data.logs import expand_columns, is_table, read_frame
+from ..errors import ConfigError, LogError
+from .consistent import PayloadPrior, identify_consistent, identify_least_squares
+from .physics import ExcitationWarning, PhysicsPayloadCompensator, payload_regressor
+
+#: Orientation column sets, in the order they are looked for.
+ORIENTATIONS = {
+    "quaternion": ("qw", "qx", "qy", "qz"),
+    "rotation_matrix": tuple(f"r{i}{j}" for i in range(3) for j in range(3)),
+    "roll_pitch_yaw": ("roll", "pitch", "yaw"),
+    "gravity": ("gx", "gy", "gz"),
+}
+STATIC_NAMES = ("m", "mcx", "mcy", "mcz", "bFx", "bFy", "bFz", "bTx", "bTy", "bTz")
+STATIC_UNITS = ("kg", "kg*m", "kg*m", "kg*m", "N", "N", "N", "N*m", "N*m", "N*m")
+NOT_IDENTIFIABLE = ("static poses determine the mass, the first moment m·c (so the centre of "
+                    "mass) and the biases; the inertia needs motion (a dynamic log with "
+                    "`ftdrake train --model physics`)")
+
+
+def orientation_kind(columns) -> str | None:
+    """Which orientation columns a table has (a key of :data:`ORIENTATIONS`), or None."""
+    present = set(columns)
+    for kind, names in ORIENTATIONS.items():
+        if set(names) <= present:
+            return kind
+    return None
+
+
+def gravity_in_sensor(frame: pd.DataFrame, kind: str, gravity=(0.0, 0.0, -9.81)) -> np.ndarray:
+    """(N, 3) gravity expressed in S from the orientation columns of `kind`."""
+    g_W = np.asarray(gravity, dtype=float)
+    values = _numeric(frame, ORIENTATIONS[kind])
+    if kind == "gravity":
+        norm = np.linalg.norm(values, axis=1)
+        if np.any(norm == 0):
+            raise LogError("gx, gy, gz: a row has zero gravity")
+        unit = np.all(np.abs(norm - 1.0) < 0.05)
+        return values * (np.linalg.norm(g_W) if unit else 1.0)
+    if kind == "quaternion":
+        q = values / np.linalg.norm(values, axis=1, keepdims=True)
+        w, x, y, z = q.T
+        R = np.stack([
+            np.stack([1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)], -1),
+            np.stack([2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)], -1),
+            np.stack([2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)], -1),
+        ], axis=1)
+    elif kind == "rotation_matrix":
+        R = values.reshape(-1, 3, 3)
+        err = np.abs(R @ np.transpose(R, (0, 2, 1)) - np.eye(3)).max()
+        if err > 1e-3:
+            raise LogError(f"r00..r22: not a rotation matrix (|R Rᵀ − I| = {err:.2g})")
+    else:
+        R = np.array([RollPitchYaw(r).ToRotationMatrix().matrix() for r in values])
+    return np.einsum("nji,j->ni", R, g_W)  # g_S = R_WSᵀ g_W
+
+
+@dc.dataclass
+class StaticCalibration:
+    """What a static calibration identified (SI units, in the sensor frame S).
+
+    ``parameters``/``standard_errors`` follow :data:`STATIC_NAMES`; ``com`` and its standard
+    errors by the delta method; ``temperature_*`` per axis (N/K, N·m/K) about
+    ``temperature_reference`` (°C) when the table had a temperature; ``mounting_rpy_deg``
+    when joint angles and a robot were given (None when absorbed in the orientation);
+    ``model`` the fitted static physics model (joint-angle input) or None.
+    """
+
+    source: str  # "joint_angles" or an ORIENTATIONS key
+    parameters: np.ndarray
+    standard_errors: np.ndarray
+    com: np.ndarray
+    com_std_error: np.ndarray
+    residual_rms: np.ndarray
+    condition_number: float
+    rows: int
+    temperature_reference: float | None = None
+    temperature_coefficients: np.ndarray | None = None
+    temperature_std_errors: np.ndarray | None = None
+    mounting_rpy_deg: np.ndarray | None = None
+    mounting_std_deg: np.ndarray | None = None
+    model: PhysicsPayloadCompensator | None = None
+    gravity: tuple = (0.0, 0.0, -9.81)
+    positions: tuple = ()
+
+    def predict(self, frame: pd.DataFrame) -> np.ndarray:
+        """(N, 6) the readings at the poses of `frame` (same kind of orientation columns)."""
+        temperature = None
+        if self.temperature_reference is not None:
+            if TEMPERATURE not in frame:
+                raise LogError(f"the calibration has temperature coefficients; the table has "
+                               f"no '{TEMPERATURE}' column (°C)")
+            temperature = _numeric(frame, [TEMPERATURE])[:, 0]
+        if self.model is not None:
+            X = _joint_layout(frame, list(self.positions))
+            if temperature is not None:
+                X = np.column_stack([X, temperature])
+            return self.model.predict(X)
+        A = _static_regressor(gravity_in_sensor(frame, self.source, self.gravity))
+        out = A[:, :, [0, 1, 2, 3, 10, 11, 12, 13, 14, 15]] @ self.parameters
+        if temperature is not None:
+            out = out + np.outer(temperature - self.temperature_reference,
+                                 self.temperature_coefficients)
+        return out
+
+    def to_dict(self) -> dict:
+        """A plain mapping (what ``calibrate`` writes as YAML)."""
+        table = {
+            "source": self.source,
+            "rows": self.rows,
+            "parameters": {name: {"value": float(v), "std_error": float(e), "unit": u}
+                           for name, v, e, u in zip(STATIC_NAMES, self.parameters,
+                                                    self.standard_errors, STATIC_UNITS,
+                                                    strict=True)},
+            "com_m": {"value": self.com.tolist(), "std_error": self.com_std_error.tolist(),
+                      "frame": "p_SoScm_S: from the sensor origin, in S"},
+            "residual_rms": dict(zip(WRENCH_AXES, self.residual_rms.tolist(), strict=True)),
+            "condition_number": float(self.condition_number),
+            "not_identifiable": NOT_IDENTIFIABLE,
+        }
+        if self.temperature_reference is not None:
+            table["temperature"] = {
+                "reference_c": float(self.temperature_reference),
+                "coefficients_per_k": dict(zip(WRENCH_AXES,
+                                               self.temperature_coefficients.tolist(),
+                                               strict=True)),
+                "std_errors_per_k": dict(zip(WRENCH_AXES, self.temperature_std_errors.tolist(),
+                                             strict=True))}
+        if self.mounting_rpy_deg is not None:
+            table["mounting_rpy_deg"] = {
+                "value": self.mounting_rpy_deg.tolist(),
+                "std_error": self.mounting_std_deg.tolist(),
+                "frame": "R_SSm: the frame the sensor measures in, in S (roll, pitch, yaw)"}
+        else:
+            table["mounting_rpy_deg"] = ("not identified: with the orientation given directly, "
+                                         "a mounting rotation is absorbed in it")
+        return table
+
+    def summary(self) -> str:
+        """The identified parameters with standard errors, as lines a user reads."""
+        lines = [(f"static calibration from {self.rows} poses ({self.source}); condition "
+                  f"number {self.condition_number:.3g}"),
+                 f"  {'':5s} {'value':>12s} {'std error':>10s} unit"]
+        for name, v, e, u in zip(STATIC_NAMES, self.parameters, self.standard_errors,
+                                 STATIC_UNITS, strict=True):
+            lines.append(f"  {name:5s} {v:12.6g} {e:10.3g} {u}")
+        lines.append("  centre of mass p_SoScm_S: " + ", ".join(
+            f"{1e3 * c:.2f} ± {1e3 * e:.2f}"
+            for c, e in zip(self.com, self.com_std_error, strict=True)) + " mm")
+        if self.mounting_rpy_deg is not None:
+            lines.append("  sensor mounting R_SSm roll, pitch, yaw: " + ", ".join(
+                f"{v:.3f} ± {e:.3f}" for v, e in zip(self.mounting_rpy_deg,
+                                                     self.mounting_std_deg, strict=True))
+                + " deg")
+        else:
+            lines.append("  sensor mounting: absorbed in the given orientation (not identified)")
+        if self.temperature_reference is not None:
+            lines.append(f"  zero drift per K (Fx..Tz, about {self.temperature_reference:.2f} "
+                         "°C): " + ", ".join(
+                f"{v:.4g} ± {e:.2g}" for v, e in zip(self.temperature_coefficients,
+                                                      self.temperature_std_errors,
+                                                      strict=True)))
+        lines.append("  residual RMS (Fx..Tz): "
+                     + ", ".join(f"{r:.3g}" for r in self.residual_rms))
+        lines.append(f"  note: {NOT_IDENTIFIABLE}")
+        return "\n".join(lines)
+
+
+def calibrate_table(frame: pd.DataFrame, *, robot=None, sensor_frame=None, base_frame=None,
+                    positions="q_*", targets=f"{MEASURED}_*", position_unit="rad",
+                    prior=None, identification="consistent", identify_mounting=True,
+                    gravity=(0.0, 0.0, -9.81)) -> StaticCalibration:
+    """Identifies payload, biases (and mounting, temperature coefficients) from static poses.
+
+    `frame`: one row per pose; 6 wrench columns (`targets`) and either joint angles
+    (`positions`, with `robot`/`sensor_frame`; ``robot="ftdrake"`` or None with joint columns
+    present: ftdrake's simulated arm) or orientation columns (:data:`ORIENTATIONS`); a
+    ``temperature`` column (°C) adds temperature coefficients. `prior`: a
+    :class:`~.consistent.PayloadPrior` or mapping (its mass must be positive).
+    Raises LogError/ConfigError/RobotModelError naming the column, field or frame at fault.
+    """
+    prior = PayloadPrior.coerce(prior)
+    target_cols = expand_columns(targets, list(frame.columns), "wrench columns")
+    if len(target_cols) != 6:
+        raise LogError(f"need 6 wrench columns (Fx..Tz); {targets!r} matches {target_cols}")
+    Y = _numeric(frame, target_cols)
+    temperature = _numeric(frame, [TEMPERATURE])[:, 0] if TEMPERATURE in frame else None
+    kind = orientation_kind(frame.columns)
+    joint_cols = _joint_columns(frame, positions)
+    if joint_cols and (robot is not None or kind is None):
+        return _calibrate_joint_angles(frame, joint_cols, Y, temperature, robot, sensor_frame,
+                                       base_frame, position_unit, prior, identification,
+                                       identify_mounting, gravity)
+    if kind is None:
+        raise LogError("no orientation in the table: give joint angles (columns "
+                       f"{positions!r}) with --robot and --sensor-frame, or one of the column "
+                       "sets " + "; ".join(", ".join(c if len(c) < 5 else (c[0], "…", c[-1]))
+                                             for c in ORIENTATIONS.values()))
+    g_S = gravity_in_sensor(frame, kind, gravity)
+    A = _static_regressor(g_S)
+    cols = [0, 1, 2, 3, 10, 11, 12, 13, 14, 15]
+    reference, d = _temperature_deviation(temperature)
+    A_fit, Y_fit = (A, Y) if d is None else (_project_out(A, d), _project_out(Y, d))
+    if identification == "consistent":
+        result = identify_consistent(A_fit[:, :, cols], Y_fit, static=True,
+                                     prior=None if prior is None else prior.phi())
+    else:
+        result = identify_least_squares(A_fit[:, :, cols], Y_fit, static=True)
+    theta = result.theta[cols]
+    cov = result.covariance[np.ix_(cols, cols)]
+    residual = Y - A[:, :, cols] @ theta
+    k = se_k = None
+    if d is not None:
+        k = residual.T @ d / (d @ d)
+        residual = residual - np.outer(d, k)
+        se_k = np.sqrt(np.mean(residual ** 2, axis=0)) / np.sqrt(d @ d)
+    com, com_se = _com(theta, cov)
+    return StaticCalibration(
+        source=kind, parameters=theta, standard_errors=result.standard_errors[cols], com=com,
+        com_std_error=com_se, residual_rms=np.sqrt(np.mean(residual ** 2, axis=0)),
+        condition_number=float(result.condition_number), rows=len(frame),
+        temperature_reference=reference, temperature_coefficients=k,
+        temperature_std_errors=se_k, gravity=tuple(gravity))
+
+
+def _calibrate_joint_angles(frame, joint_cols, Y, temperature, robot, sensor_frame,
+                            base_frame, position_unit, prior, identification,
+                            identify_mounting, gravity):
+    if robot in (None, "ftdrake"):
+        robot = sensor_frame = None
+    elif not sensor_frame:
+        raise ConfigError(f"--robot {robot} needs --sensor-frame (the frame of the wrench)")
+    X = _joint_layout(frame, joint_cols, position_unit)
+    if temperature is not None:
+        X = np.column_stack([X, temperature])
+    model = PhysicsPayloadCompensator(
+        features="q", mode="static", robot=robot, sensor_frame=sensor_frame,
+        base_frame=base_frame, gravity=tuple(gravity), identification=identification,
+        prior=prior, identify_mounting=identify_mounting)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", ExcitationWarning)  # the inertia: said in the note
+        try:
+            model.fit(X, Y)
+        except ValueError as e:
+            if "joints" in str(e):
+                raise LogError(f"{e} (joint columns {joint_cols})") from None
+            raise
+    t = model.identified()
+    cols = [0, 1, 2, 3, 10, 11, 12, 13, 14, 15]
+    theta, cov = model.parameters_[cols], model.covariance_[np.ix_(cols, cols)]
+    com, com_se = _com(theta, np.nan_to_num(cov))
+    has_t = model.temperature_reference_ is not None
+    return StaticCalibration(
+        source="joint_angles", parameters=theta, standard_errors=model.standard_errors_[cols],
+        com=com, com_std_error=com_se, residual_rms=model.residual_rms_,
+        condition_number=model.condition_number_, rows=len(frame),
+        temperature_reference=model.temperature_reference_ if has_t else None,
+        temperature_coefficients=model.temperature_coefficients_ if has_t else None,
+        temperature_std_errors=model.temperature_std_errors_ if has_t else None,
+        mounting_rpy_deg=(np.array(t["mounting_rpy_deg"]["value"]) if identify_mounting
+                          else None),
+        mounting_std_deg=(np.array(t["mounting_rpy_deg"]["std_error"]) if identify_mounting
+                          else None),
+        model=model, gravity=tuple(gravity), positions=tuple(joint_cols))
+
+
+def static_table_hint(path) -> str | None:
+    """For ``train``: a sentence pointing to ``ftdrake calibrate`` when `path` is a table of
+    static poses (orientation columns, or no time column), else None."""
+    if not is_table(path):
+        return None
+    try:
+        columns = list(read_frame(path).columns)
+    except (LogError, OSError):
+        return None
+    if orientation_kind(columns) is None and "t" in columns:
+        return None
+    return (f"{Path(path).name} looks like a table of static poses (orientation columns or "
+            f"no time column): identify payload and biases with `ftdrake calibrate --data "
+            f"{path}` (add --robot/--sensor-frame for joint angles)")
+
+
+# -- helpers -------------------------------------------------------------------------------
+def _static_regressor(g_S):
+    zeros = np.zeros_like(g_S)
+    return payload_regressor(zeros, zeros, -g_S)
+
+
+def _com(theta, cov):
+    m, h = theta[0], theta[1:4]
+    J = np.hstack([-h[:, None] / m ** 2, np.eye(3) / m])
+    return h / m, np.sqrt(np.maximum(np.diag(J @ cov[:4, :4] @ J.T), 0.0))
+
+
+def _temperature_deviation(temperature):
+    if temperature is None:
+        return None, None
+    reference = float(np.mean(temperature))
+    d = temperature - reference
+    return reference, (d if np.any(np.abs(d) > 1e-9) else None)
+
+
+def _project_out(M, d):
+    coef = np.tensordot(d, M, axes=(0, 0)) / (d @ d)
+    return M - np.multiply.outer(d, coef)
+
+
+def _joint_columns(frame, positions) -> list[str]:
+    try:
+        return expand_columns(positions, list(frame.columns), "joint position columns")
+    except (LogError, ConfigError):
+        return []
+
+
+def _joint_layout(frame, joint_cols, position_unit="rad") -> np.ndarray:
+    missing = [c for c in joint_cols if c not in frame]
+    if missing:
+        raise LogError(f"the table has no joint columns {missing}")
+    q = _numeric(frame, joint_cols)
+    if position_unit == "deg":
+        q = np.radians(q)
+    return np.hstack([q, np.zeros((len(q), 2 * q.shape[1]))])
+
+
+def _numeric(frame, names) -> np.ndarray:
+    missing = [n for n in names if n not in frame]
+    if missing:
+        raise LogError(f"the table has no column(s) {missing}")
+    values = frame[list(names)].to_numpy(dtype=float)
+    bad = ~np.isfinite(values).all(axis=1)
+    if bad.any():
+        raise LogError(f"columns {list(names)}: NaN or empty in {bad.sum()} rows (first at row "
+                       f"{int(np.flatnonzero(bad)[0])})")
+    return values
+
