@@ -11,7 +11,7 @@ from test_physics_identification import COM, MASS, SIGMA, THETA, sinusoids
 from ftdrake.compensation.physics import ExcitationWarning, PhysicsPayloadCompensator
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
-from identification_repeatability import COM_GOAL_MM, MASS_GOAL, spread  # noqa: E402
+from identification_repeatability import COM_GOAL_MM, MASS_GOAL, spread
 
 
 def test_three_noise_seeds_give_the_same_mass_and_centre_of_mass():

@@ -230,3 +230,11 @@ def test_quick_estimate_counts_the_study_trajectory_part():
     with_it, without = estimate_seconds("quick"), estimate_seconds("quick", faithful=False)
     # The long study trajectory alone is STUDY_DURATION_S × 0.2 s of collection.
     assert with_it - without > 0.2 * traj.STUDY_DURATION_S
+
+
+def test_study_scenario_tracks_with_a_stable_integral_term():
+    """The study scenario's controller has integral action (the wrist roll would otherwise
+    sag outside Table 1's range), within the stability bound ki < kp·kd."""
+    c = dut.study_scenario().controller
+    assert c.ki == dut.STUDY_KI > 0 and c.ki < c.kp * c.kd
+    assert dut.study_scenario().trajectory.kind == "study"

@@ -98,8 +98,10 @@ def test_ur3_train_on_id1_evaluate_on_id2(ftdrake, id1_model, tmp_path):
     # (wrist 2 alone: 710). Measured variance scores 0.90 0.29 -0.59 0.64 0.85 0.86.
     result, table = evaluate(ftdrake, id1_model, UR3 / "id2.csv", tmp_path)
     assert set(result["metrics"]["all"]) == set(TARGETS)
+    assert result["std"] == "not calibrated"  # a forest's spread across trees
+    assert "coverage of the predictive std (not calibrated)" in table
     for row in result["metrics"]["all"].values():
-        assert set(row) == {"mse", "nmse", "variance_score"}
+        assert set(row) == {"mse", "nmse", "variance_score", "coverage_68", "coverage_95"}
     assert result["out_of_domain_rows"] == 713
     assert result["in_domain_rows"] + result["out_of_domain_rows"] == 750
     assert result["out_of_domain_by_input"]["q_4"] == 710

@@ -160,7 +160,8 @@ class Compensator(RegressorMixin, BaseEstimator):
     # -- helpers ----------------------------------------------------------------------------
     def _validated_features(self, X) -> np.ndarray:
         check_is_fitted(self)
-        width = np.shape(X)[-1] if np.ndim(X) == 2 else None
+        shape = getattr(X, "shape", None)  # not np.shape: array-likes may refuse it
+        width = shape[-1] if shape is not None and len(shape) == 2 else None
         if getattr(self, "temperature_in_", False) and width == 3 * self.n_joints_:
             raise ValueError(
                 f"{type(self).__name__} was trained with the sensor temperature (°C) as the last "

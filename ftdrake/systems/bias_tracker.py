@@ -85,14 +85,19 @@ come one sample before the new reading), the block's information is reset to the
 the update (contact is ignored on those samples; out_of_domain and fault still stop it). The
 first sample then re-initialises the block (gain ≈ 1), the following ones average (gain 1/n
 until the memory reaches τ), and the published values follow the estimate without the rate
-bound for `tare_settle_s` (bias) or `payload_settle_s` (bias and payload, which are coupled)
-of used samples. What the detector sees: with the pulse aligned with the new reading, the
-corrected wrench is back at the noise level on the first tared sample (the re-initialisation
-takes that sample as the bias: the output reads ≈ 0 on it); a step that comes d samples before
-the pulse shows in full for those d samples (no contact with d < ``debounce_on``; otherwise a
-short contact that releases after ``debounce_off`` quiet samples). During a settle window a
-push starting right then is absorbed faster (the estimator's memory is the time since the
-signal); the start of a run is treated as both signals.
+bound for `tare_settle_s` (bias) or `payload_settle_s` (bias and payload, which are coupled) of
+used samples. Within those windows the estimator keeps updating even while the detector reports
+contact (only out_of_domain and fault stop it): right after a tare or a grasp the corrected
+wrench is not yet trustworthy, and an estimate frozen by the first contact it causes would
+never recover (measured: a grasp in motion otherwise stayed in false contact to the end of the
+run). The price is that a real contact within the window is absorbed like the tare: tare and
+grasp are moments to keep the tool free. What the detector sees: with the pulse aligned with
+the new reading, the corrected wrench is back at the noise level on the first tared sample (the
+re-initialisation takes that sample as the bias: the output reads ≈ 0 on it); a step that comes
+d samples before the pulse shows in full for those d samples (no contact with d <
+``debounce_on``; otherwise a short contact that releases after ``debounce_off`` quiet samples).
+During a settle window a push starting right then is absorbed faster (the estimator's memory is
+the time since the signal); the start of a run is treated as both signals.
 
 State: the estimate θ, the published θ, R (information, scaled), 4 counters (holds, settle
 windows); the four outputs are state outputs.
@@ -337,7 +342,9 @@ def _track(y, g, flags, n, x, constants, steps, sigma, prior, corrected, bias, p
             return
     phi = np.empty((6, n))
     _regressor(g, n, phi)
-    holding = x[k] > 0 or x[k + 2] > 0
+    # Hold and settle windows (after tared / payload_changed) update through contact: a
+    # re-initialised estimate that froze at the first false contact would never recover.
+    holding = x[k] > 0 or x[k + 2] > 0 or x[k + 1] > 0 or x[k + 3] > 0
     free = flags[0] < 0.5
     update = flags[1] < 0.5 and flags[2] < 0.5 and (holding or free)
     if update:

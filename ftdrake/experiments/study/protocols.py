@@ -498,13 +498,20 @@ def run_paper(out_dir, *, scheduler: str | None = None, features=("q",), search=
     return out
 
 
+#: The paper grid without any reduction (weeks on 2 cores; see paper.md's estimate).
+FULL_PAPER_COMMAND = ("ftdrake study --paper --search grid --svr-max-iter -1 "
+                      "--features 'q;q,qd;q,qd,qdd' --scheduler ADDRESS")
+
+
 def paper_markdown(out: dict, protocols_section: str) -> str:
     """paper.md: the run's settings and reductions, the exhaustive estimate, the results."""
     res = out["results"]
     s, sizes = res["settings"], res["sizes"]
     h = s.get("halving", {})
     lines = [f"# The study's paper grid, `{s['search']}` search on a Dask cluster", "",
-             f"Command: `{out.get('command') or 'ftdrake study --paper'}`", "",
+             (f"Command: `{out.get('command') or 'ftdrake study --paper'}`. The unreduced "
+             "search (every feature set, all training rows, exhaustive, uncapped SVR): "
+             f"`{FULL_PAPER_COMMAND}`."), "",
              f"Cluster: {out['workers']} workers at `{out['cluster']}`. Wall time "
              f"{out['wall_time_s']:.0f} s (collection {out['collect_s']:.0f} s); tuning: "
              + ", ".join(f"{k} {v:.0f} s" for k, v in res["tune_s"].items()) + ".", "",
