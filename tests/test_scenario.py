@@ -153,7 +153,8 @@ def test_simulate_cli_writes_documented_outputs(tmp_path):
                 *col.joint_columns(col.QDD), *col.joint_columns(col.QD_EST),
                 *col.joint_columns(col.QDD_EST), *col.wrench_columns(col.IDEAL),
                 *col.wrench_columns(col.MEASURED), *col.wrench_columns(col.INTERNAL),
-                *col.wrench_columns(col.EXTERNAL), col.CONTACT, col.SATURATED]
+                *col.wrench_columns(col.EXTERNAL), col.CONTACT, col.SATURATED,
+                col.TEMPERATURE]
     assert list(log.columns) == expected
     assert (out / "wrench.png").stat().st_size > 10_000
     # Numerically differentiated velocities agree with the plant's (smooth motion, 1 kHz).
