@@ -158,7 +158,11 @@ def forest_accumulate(x, nodes, leaf_values, trees, n_trees, out):
 def forest_accumulate_with_std(x, nodes, leaf_values, trees, n_trees, out, std):
     """:func:`forest_accumulate` into `out` (the same sums, bit-equal), and into `std` (k,)
     each output's spread across its trees, √(mean of squares − mean²), in the same walk (not
-    a calibrated uncertainty; see :mod:`ftdrake.compensation.forest`)."""
+    a calibrated uncertainty; see :mod:`ftdrake.compensation.forest`).
+
+    The lockstep walk is written out again here rather than shared with forest_accumulate:
+    a shared inlined helper measured 8.2 → 10.9 µs per row (one pair of runs, random rows).
+    """
     out[:] = 0.0
     std[:] = 0.0
     at = np.empty(_GROUP, np.int32)
