@@ -167,7 +167,7 @@ def test_halving_search_runs_the_grid_with_a_growing_budget(monkeypatch):
     # The exhaustive estimate scales the last round: RF per tree × every candidate's trees.
     est = dut.exhaustive_seconds(res["best_params"]["study"], train_rows=280, preset=grids)
     per_tree = sum(p["last_round_mean_fit_s"] / 15 for p in rf.values())
-    assert est["rf q"] == pytest.approx(round(per_tree * (5 + 15) * 4 * 5), abs=1)
+    assert est["rf q"] == pytest.approx(per_tree * (5 + 15) * 4 * 5, rel=1e-9)
     assert est["svr q"] > 0
     out = {"results": res, "findings": dut.protocol_findings(res), "cluster": "local",
            "workers": 1, "collect_s": 0.0, "wall_time_s": 1.0,

@@ -431,7 +431,9 @@ def exhaustive_seconds(best: dict, *, train_rows: int, preset="paper", n_splits:
                                                 else len(grid)) * n_splits
                 else:
                     total += last * len(grid) * n_splits
-            out[f"{m} {f}"] = round(total / max(n_jobs, 1), 0)
+            # Not rounded here: a small grid's estimate is well under a second, and rounding
+            # belongs to whoever prints it.
+            out[f"{m} {f}"] = total / max(n_jobs, 1)
     return out
 
 
@@ -570,7 +572,9 @@ def paper_markdown(out: dict, protocols_section: str) -> str:
 
 
 def _hours(seconds: float) -> str:
-    return f"~{seconds / 3600:.1f} h" if seconds >= 3600 else f"~{seconds / 60:.0f} min"
+    if seconds >= 3600:
+        return f"~{seconds / 3600:.1f} h"
+    return f"~{seconds / 60:.0f} min" if seconds >= 60 else f"~{seconds:.2g} s"
 
 
 def _flat_params(best: dict) -> dict:
