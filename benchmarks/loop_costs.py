@@ -1,17 +1,23 @@
-"""Where a 1 kHz step of the free-motion diagram goes: each Python system's update, timed
-inside the simulation, and the same update timed hot (tight loop) and cold (caches flushed).
+"""Where a 1 kHz step goes: each Python system's update, timed inside the simulation, and the
+same update timed hot (tight loop) and cold (caches flushed).
 
 Prints a table and one JSON line. The per-call times inside the simulation come from timers
 wrapped around each system's update method for one run; "hot" repeats a call on a frozen
 context; "cold" sums a 16 MB array before each call, as a plant step evicts the caches.
 
-    python benchmarks/loop_costs.py [--duration 5]
+Default: the free-motion diagram (no compensation). ``--compensation``: the contact scenario
+with the demo's forest and hybrid in the loop (``closed_loop_rtf.demo_models``), timing the
+compensator, bias tracker and detector too, interleaved runs per model; "rest" is the step
+minus the timed updates (plant, controller, loggers, Drake's event handling).
+
+    python benchmarks/loop_costs.py [--duration 5] [--compensation [--repeats 2]]
 """
 
 from __future__ import annotations
 
 import argparse
 import json
+import os
 import time
 
 import numpy as np
@@ -21,7 +27,10 @@ from pydrake.systems.framework import BasicVector
 from ftdrake import ScenarioConfig, build_station
 from ftdrake.sim.simulate import set_initial_state
 from ftdrake.sim.station import plan_trajectory
+from ftdrake.systems.bias_tracker import OnlineBiasTracker
+from ftdrake.systems.compensator import CompensatorSystem
 from ftdrake.systems.contact_truth import ContactTruth
+from ftdrake.systems.detector import ContactDetector
 from ftdrake.systems.ft_sensor import ForceTorqueSensor, NoisyForceTorqueSensor
 
 UPDATES = {  # system class → the method Drake calls at every sample
@@ -29,12 +38,18 @@ UPDATES = {  # system class → the method Drake calls at every sample
     "noisy sensor": (NoisyForceTorqueSensor, "_sample"),
     "contact truth": (ContactTruth, "_sample"),
 }
+COMPENSATION_UPDATES = {
+    "compensator": (CompensatorSystem, "_update"),
+    "bias tracker": (OnlineBiasTracker, "_update"),
+    "detector": (ContactDetector, "_update"),
+}
 
 
-def timed_simulation(config, trajectory, duration):
+def timed_simulation(config, trajectory, duration, compensator=None):
     """µs per call of each update inside a simulation, and µs per simulated step."""
-    totals = {name: [0, 0] for name in UPDATES}
-    originals = {name: getattr(cls, method) for name, (cls, method) in UPDATES.items()}
+    updates = UPDATES if compensator is None else {**UPDATES, **COMPENSATION_UPDATES}
+    totals = {name: [0, 0] for name in updates}
+    originals = {name: getattr(cls, method) for name, (cls, method) in updates.items()}
 
     def timer(name, original):
         def update(self, *args):
@@ -44,10 +59,10 @@ def timed_simulation(config, trajectory, duration):
             totals[name][1] += 1
         return update
 
-    for name, (cls, method) in UPDATES.items():
+    for name, (cls, method) in updates.items():
         setattr(cls, method, timer(name, originals[name]))
     try:
-        sim = build_station(config, trajectory=trajectory)
+        sim = build_station(config, compensator, trajectory=trajectory)
         simulator = Simulator(sim.diagram)
         set_initial_state(sim, simulator.get_mutable_context())
         simulator.Initialize()
@@ -58,7 +73,7 @@ def timed_simulation(config, trajectory, duration):
         simulator.AdvanceTo(0.05 + duration)
         step_us = (time.perf_counter() - start) / duration * config.time_step * 1e6
     finally:
-        for name, (cls, method) in UPDATES.items():
+        for name, (cls, method) in updates.items():
             setattr(cls, method, originals[name])
     per_call = {name: ns / max(n, 1) / 1e3 for name, (ns, n) in totals.items()}
     # The noisy sensor's update evaluates its input, so it includes the ideal sensor's call.
@@ -66,23 +81,7 @@ def timed_simulation(config, trajectory, duration):
     return per_call, step_us, sim, simulator
 
 
-def hot_and_cold(sim, simulator, calls=2000):
-    """µs per call of each update on the simulation's final context, hot and cold."""
-    root = simulator.get_context()
-    contexts = {
-        "ideal sensor": sim.sensor.GetMyContextFromRoot(root),
-        "noisy sensor": sim.noisy_sensor.GetMyContextFromRoot(root),
-        "contact truth": sim.truth.GetMyContextFromRoot(root),
-    }
-    # Outputs are written into buffers made once, so the timings hold no allocation of ours.
-    wrench = BasicVector(6)
-    noisy_update = contexts["noisy sensor"].get_discrete_state().Clone()
-    truth_update = contexts["contact truth"].get_discrete_state().Clone()
-    calls_of = {
-        "ideal sensor": lambda: sim.sensor._calc_wrench(contexts["ideal sensor"], wrench),
-        "noisy sensor": lambda: sim.noisy_sensor._sample(contexts["noisy sensor"], noisy_update),
-        "contact truth": lambda: sim.truth._sample(contexts["contact truth"], truth_update),
-    }
+def _time_hot_and_cold(calls_of, calls):
     flush = np.ones(2_000_000)  # 16 MB, more than this machine's L2 cache
     result = {}
     for name, call in calls_of.items():
@@ -101,15 +100,39 @@ def hot_and_cold(sim, simulator, calls=2000):
     return result
 
 
-def main():
-    parser = argparse.ArgumentParser(description=__doc__)
-    parser.add_argument("--duration", type=float, default=5.0)
-    args = parser.parse_args()
+def _update_call(system, root, method):
+    """The update `method` of `system` on its context in `root`, into a scratch copy of its
+    discrete state (so the timings hold no allocation of ours)."""
+    context = system.GetMyContextFromRoot(root)
+    scratch = context.get_discrete_state().Clone()
+    update = getattr(system, method)
+    return lambda: update(context, scratch)
+
+
+def hot_and_cold(sim, simulator, calls=2000):
+    """µs per call of each update on the simulation's final context, hot and cold."""
+    root = simulator.get_context()
+    wrench = BasicVector(6)
+    sensor_context = sim.sensor.GetMyContextFromRoot(root)
+    calls_of = {
+        "ideal sensor": lambda: sim.sensor._calc_wrench(sensor_context, wrench),
+        "noisy sensor": _update_call(sim.noisy_sensor, root, "_sample"),
+        "contact truth": _update_call(sim.truth, root, "_sample"),
+    }
+    if sim.compensation is not None:
+        calls_of["compensator"] = _update_call(sim.compensation.compensator, root, "_update")
+        if sim.compensation.tracker is not None:
+            calls_of["bias tracker"] = _update_call(sim.compensation.tracker, root, "_update")
+        calls_of["detector"] = _update_call(sim.compensation.detector, root, "_update")
+    return _time_hot_and_cold(calls_of, calls)
+
+
+def free_motion(duration):
     config = ScenarioConfig()
     config.trajectory.kind = "fourier"
-    config.trajectory.duration_s = args.duration + 1.0
+    config.trajectory.duration_s = duration + 1.0
     trajectory = plan_trajectory(config)
-    per_call, step_us, sim, simulator = timed_simulation(config, trajectory, args.duration)
+    per_call, step_us, sim, simulator = timed_simulation(config, trajectory, duration)
     outside = hot_and_cold(sim, simulator)
     print(f"simulated step: {step_us:.1f} µs (real-time factor {1e3 / step_us:.1f})")
     print(f"{'update (µs per call)':<22}{'in simulation':>15}{'hot':>10}{'cold':>10}")
@@ -121,7 +144,63 @@ def main():
         "in_simulation_us": per_call,
         "hot_us": {k: v[0] for k, v in outside.items()},
         "cold_us": {k: v[1] for k, v in outside.items()},
+        "load_average_1min": os.getloadavg()[0],
     }))
+
+
+def compensation(duration, repeats):
+    """The contact scenario with the forest and the hybrid, interleaved runs, medians."""
+    from closed_loop_rtf import demo_models  # a sibling script: benchmarks/ is on sys.path
+
+    models = dict(zip(("forest", "hybrid"), demo_models(), strict=True))
+    config = ScenarioConfig()
+    trajectory = plan_trajectory(config)  # once: the same motion for every run
+    runs = {name: [] for name in models}
+    for _ in range(repeats):
+        for name, model in models.items():
+            per_call, step_us, sim, simulator = timed_simulation(config, trajectory, duration,
+                                                                 model)
+            outside = hot_and_cold(sim, simulator)
+            runs[name].append((per_call, step_us, outside))
+    names = list(UPDATES) + list(COMPENSATION_UPDATES)
+    table = {}
+    for model, samples in runs.items():
+        per_call = {k: float(np.median([s[0][k] for s in samples])) for k in names}
+        step = float(np.median([s[1] for s in samples]))
+        table[model] = {
+            "step_us": step, "in_simulation_us": per_call,
+            "rest_us": step - sum(per_call.values()),
+            "hot_us": {k: float(np.median([s[2][k][0] for s in samples])) for k in names},
+            "cold_us": {k: float(np.median([s[2][k][1] for s in samples])) for k in names},
+        }
+    print(f"contact scenario, 1 kHz, medians of {repeats} interleaved runs of {duration:g} s "
+          f"(load average {os.getloadavg()[0]:.2f})")
+    header = "".join(f"{m + ' ' + c:>16}" for m in models for c in ("in sim", "hot"))
+    print(f"{'µs per step':<22}{header}")
+    for name in names:
+        print(f"{name:<22}" + "".join(
+            f"{table[m]['in_simulation_us'][name]:>16.1f}{table[m]['hot_us'][name]:>16.1f}"
+            for m in models))
+    print(f"{'rest of the step':<22}" + "".join(f"{table[m]['rest_us']:>16.1f}{'':>16}"
+                                              for m in models))
+    print(f"{'whole step':<22}" + "".join(f"{table[m]['step_us']:>16.1f}{'':>16}"
+                                        for m in models))
+    print(json.dumps({"benchmark": "loop_costs_compensation", "repeats": repeats,
+                      "load_average_1min": os.getloadavg()[0], **table}))
+
+
+def main():
+    parser = argparse.ArgumentParser(description=__doc__)
+    parser.add_argument("--duration", type=float, default=5.0)
+    parser.add_argument("--compensation", action="store_true",
+                        help="the contact scenario with the forest and the hybrid in the loop")
+    parser.add_argument("--repeats", type=int, default=2,
+                        help="interleaved runs per model with --compensation")
+    args = parser.parse_args()
+    if args.compensation:
+        compensation(args.duration, args.repeats)
+    else:
+        free_motion(args.duration)
 
 
 if __name__ == "__main__":

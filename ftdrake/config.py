@@ -92,6 +92,9 @@ class SensorConfig:
     # uniformly in ±crosstalk (relative, torque rows scaled by crosstalk_length_m).
     crosstalk: float = 0.01
     crosstalk_length_m: float = 0.05
+    # Calibration gain error per axis, relative (0.01: the axis reads 1 % high); with the
+    # cross-talk it makes the sensor's calibration matrix diag(1 + gain_error)·(I + E).
+    gain_error: list[float] = dc.field(default_factory=lambda: [0.0] * 6)
     # Mounting error: the frame Sm the sensor measures in is S rotated by these roll, pitch,
     # yaw angles (deg, R_SSm = RollPitchYaw), about So; as a sensor mounted a bolt off or a
     # model's frame a little wrong. The controller's and compensators' models do not know it.
@@ -148,6 +151,10 @@ class SensorConfig:
                 for v in values:
                     (_non_negative if allow_zero else _positive)(v, f"{where}.{name}")
         _non_negative(self.crosstalk, f"{where}.crosstalk")
+        _six(self.gain_error, f"{where}.gain_error")
+        if max(abs(float(v)) for v in self.gain_error) >= 0.2:
+            raise ConfigError(f"{where}.gain_error: {self.gain_error} is implausibly large "
+                              "(each within ±0.2)")
         if self.crosstalk >= 0.2:
             raise ConfigError(f"{where}.crosstalk: {self.crosstalk} is implausibly large (< 0.2)")
         _vec(self.mounting_rpy_deg, 3, f"{where}.mounting_rpy_deg")

@@ -50,7 +50,7 @@ def data():
 
 def test_every_shipped_compensator_is_registered_once_with_a_distinct_class():
     classes = [e.cls for e in registry.REGISTRY.values()]
-    assert registry.names() == ["rf", "svr", "gpr", "physics", "hybrid"]
+    assert registry.names() == ["rf", "svr", "gpr", "physics", "hybrid", "arm"]
     assert len(set(classes)) == len(classes)
     for e in registry.REGISTRY.values():
         assert registry.entry_for(e.cls) is e and registry.entry(e.name) is e

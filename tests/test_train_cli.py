@@ -206,9 +206,13 @@ def test_physics_extrapolates_where_a_forest_cannot(ftdrake, tmp_path):
 # -- refusals -----------------------------------------------------------------------------------
 def test_physics_needs_a_wrench_and_a_robot(ftdrake, tmp_path):
     csv = UR3 / "id1.csv"
+    # On joint torques, physics is the whole arm's model: the robot must be that arm.
     line = failure(ftdrake, "train", "--data", csv, *TORQUES, "--model", "physics",
                    "--robot", "ftdrake", "--out", tmp_path / "m.ftd")
-    assert "predicts a wrench" in line and "tau_0" in line
+    assert "the data has 6 joints" in line and "has 7" in line
+    line = failure(ftdrake, "train", "--data", csv, *TORQUES, "--model", "hybrid",
+                   "--out", tmp_path / "m.ftd")
+    assert "needs --robot" in line
 
     # Torques relabelled as a wrench: the names pass, but no robot is given ...
     wrench = pd.read_csv(csv).rename(columns={f"tau_{i}": f"meas_{a}" for i, a in

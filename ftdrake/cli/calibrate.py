@@ -6,6 +6,8 @@ the sensor's orientation comes from joint angles) a model file ``evaluate`` and 
     ftdrake calibrate --data poses.csv --out cal/          # qw,qx,qy,qz / r00..r22 /
                                                            # roll,pitch,yaw / gx,gy,gz columns
     ftdrake calibrate --data log.parquet --time-series --robot ftdrake --out cal/
+    ftdrake calibrate --data poses.csv --correction full --known-mass 1.5 \
+                      --known-com 0.02,0.0067,0.0867 --out cal/   # + gain/cross-talk matrix
 
 A table of static poses (one pose and one wrench a row; no time column needed) is calibrated
 by :func:`ftdrake.compensation.calibration.calibrate_table`. A time series (``--time-series``,
@@ -20,7 +22,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..conventions import MEASURED, WRENCH_UNITS
+from ..conventions import MEASURED, TEMPERATURE, WRENCH_UNITS
 from ..errors import ConfigError, LogError
 
 
@@ -50,6 +52,16 @@ def register(subparsers) -> None:
                    help="do not identify the sensor's mounting rotation (joint-angle input)")
     p.add_argument("--time-series", action="store_true",
                    help="the log is a motion (time column): fit the dynamic physics model")
+    p.add_argument("--correction", choices=("block", "full"),
+                   help="also identify the sensor's gain/cross-talk correction matrix C "
+                        "(wrench = C·(reading − bias)): block = force and torque 3×3 blocks, "
+                        "full = 6×6 (needs 3 known loads to be fully determined; with one "
+                        "load it is the general linear model of that load). Static poses only")
+    p.add_argument("--known-mass", type=float, metavar="KG",
+                   help="the tool's known mass (weighed), for --correction: fixes the force "
+                        "gain the mass would otherwise absorb")
+    p.add_argument("--known-com", metavar="X,Y,Z",
+                   help="the tool's known centre of mass in S (m), with --known-mass")
     p.add_argument("--out", type=Path, required=True, metavar="DIR",
                    help="folder for calibration.yaml (and model.ftd)")
     p.set_defaults(run=run_calibrate)
@@ -74,8 +86,40 @@ def _prior(args):
         raise ConfigError(f"--prior-mass/--prior-com: {e}") from None
 
 
+def _known_payload(args):
+    if args.known_mass is None:
+        if args.known_com is not None:
+            raise ConfigError("--known-com needs --known-mass")
+        return None
+    if args.correction is None:
+        raise ConfigError("--known-mass is for the gain/cross-talk correction: add "
+                          "--correction block|full")
+    com = (0.0, 0.0, 0.0)
+    if args.known_com is not None:
+        try:
+            com = tuple(float(v) for v in args.known_com.split(","))
+        except ValueError:
+            raise ConfigError(f"--known-com {args.known_com}: expected X,Y,Z in m") from None
+        if len(com) != 3:
+            raise ConfigError(f"--known-com {args.known_com}: expected X,Y,Z in m")
+    return {"mass": args.known_mass, "com": com}
+
+
+def _print_warnings(caught, category) -> None:
+    """`category` warnings as `warning: …` lines on stderr; the others re-issued."""
+    import sys
+    import warnings
+
+    for w in caught:
+        if issubclass(w.category, category):
+            print(f"warning: {w.message}", file=sys.stderr)
+        else:
+            warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
+
+
 def run_calibrate(args) -> int:
     from ..compensation.calibration import calibrate_table, orientation_kind
+    from ..compensation.physics import ExcitationWarning
     from ..data.logs import read_frame
     from .main import output_path
 
@@ -86,19 +130,34 @@ def run_calibrate(args) -> int:
     if args.robot not in (None, "ftdrake") and not Path(args.robot).is_file():
         raise LogError(f"--robot {args.robot}: no such file")
     frame = read_frame(args.data)
+    known = _known_payload(args)
     if args.time_series or (orientation_kind(frame.columns) is None and "t" in frame
                             and _moving(frame, args.positions)):
-        return _time_series(args, prior)
-    cal = calibrate_table(frame, robot=args.robot, sensor_frame=args.sensor_frame,
-                          base_frame=args.base_frame, positions=args.positions,
-                          targets=args.targets, position_unit=args.position_unit, prior=prior,
-                          identification="least_squares" if args.least_squares else "consistent",
-                          identify_mounting=not args.no_mounting)
+        if args.correction is not None:
+            raise ConfigError("--correction needs a table of static poses (gravity known at "
+                              "each); this log is a motion")
+        return _time_series(args, prior, TEMPERATURE in frame)
+    import warnings
+
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always", ExcitationWarning)
+        cal = calibrate_table(
+            frame, robot=args.robot, sensor_frame=args.sensor_frame,
+            base_frame=args.base_frame, positions=args.positions, targets=args.targets,
+            position_unit=args.position_unit, prior=prior,
+            identification="least_squares" if args.least_squares else "consistent",
+            identify_mounting=not args.no_mounting, correction=args.correction,
+            known_payload=known)
     print(cal.summary())
+    _print_warnings(caught, ExcitationWarning)
+    if cal.correction is not None and cal.model is not None:
+        print("note: model.ftd is the gravity + bias model; the correction is in "
+              "calibration.yaml (apply it to readings: wrench = C·(reading − bias))")
     written = _write_yaml(args.out / "calibration.yaml", {"calibration": cal.to_dict(),
                                                          "data": str(args.data)})
     if cal.model is not None:
-        written.append(_save(cal.model, args, cal.model.n_joints_))
+        options = _read_options(args, cal.model.temperature_in_)
+        written.append(_save(cal.model, args, cal.model.n_joints_, options))
     else:
         print("no model file: the orientation was given directly, so a model that maps joint "
               "states to it needs a robot (give joint-angle columns with --robot)")
@@ -117,14 +176,22 @@ def _moving(frame, positions) -> bool:
     return bool(len(q) > 1 and np.abs(np.diff(q, axis=0)).max() > 0)
 
 
-def _time_series(args, prior) -> int:
-    """A motion log: read as `train` reads it, fitted by the dynamic physics model."""
-    from ..data.training import ReadOptions, load_training_data
+def _read_options(args, temperature: bool):
+    """How `evaluate` reads data for the model file (kept in its manifest)."""
+    from ..data.training import ReadOptions
+
+    return ReadOptions().updated(positions=args.positions, targets=args.targets,
+                                 position_unit=args.position_unit,
+                                 temperature=TEMPERATURE if temperature else None)
+
+
+def _time_series(args, prior, temperature: bool) -> int:
+    """A motion log: read as `train` reads it, fitted by the dynamic physics model (with the
+    temperature column, if the log has one)."""
+    from ..data.training import load_training_data
     from .train import RobotOptions, _physics
 
-    options = ReadOptions().updated(positions=args.positions, targets=args.targets,
-                                    position_unit=args.position_unit)
-    data = load_training_data(args.data, options)
+    data = load_training_data(args.data, _read_options(args, temperature))
     model = _physics("physics", RobotOptions(args.robot, args.sensor_frame, args.base_frame,
                                              data.scenario_yaml), "q,qd,qdd")
     model.set_params(prior=prior, identify_mounting=not args.no_mounting,
@@ -134,7 +201,7 @@ def _time_series(args, prior) -> int:
     table = json.loads(json.dumps(model.identified(), default=float))
     written = _write_yaml(args.out / "calibration.yaml", {"calibration": table,
                                                          "data": str(args.data)})
-    written.append(_save(model, args, data.n_joints))
+    written.append(_save(model, args, data.n_joints, data.options))
     print("wrote " + ", ".join(str(p) for p in written))
     return 0
 
@@ -161,12 +228,16 @@ def _plain(x):
     return x
 
 
-def _save(model, args, n_joints) -> Path:
+def _save(model, args, n_joints, options) -> Path:
+    """model.ftd, its manifest keeping how the data was read (so `evaluate` reads held-out
+    poses, temperature column included, the same way)."""
     from ..compensation.persistence import save_model
     from ..conventions import WRENCH_AXES
 
     path = args.out / "model.ftd"
     save_model(model, path, target_names=list(WRENCH_AXES), target_units=list(WRENCH_UNITS),
                sensor_frame=args.sensor_frame or "S",
-               extra={"calibration": {"data": str(args.data), "n_joints": int(n_joints)}})
+               extra={"calibration": {"data": str(args.data), "n_joints": int(n_joints)},
+                      "data": {"file": str(args.data), "kind": "table",
+                               "options": options.to_dict()}})
     return path

@@ -40,7 +40,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..conventions import WRENCH_AXES, WRENCH_UNITS
+from ..conventions import TEMPERATURE, WRENCH_AXES, WRENCH_UNITS
 from ..data.bag import is_bag
 from ..data.logs import QDD_ESTIMATES, option_spelling
 from ..data.training import ReadOptions, TrainingData, load_training_data
@@ -74,12 +74,15 @@ _READ_FLAGS = {
     "sg_polyorder": ("N", int, "Savitzky–Golay polynomial order, default 4"),
     "gap_factor": ("X", float, ("a time step longer than X × the median period is a gap, "
                                "default 3")),
+    "temperature": ("COL", str, ("the sensor's temperature column (°C, tables): read as the "
+                                "models' last input, so the model learns the zero drift "
+                                "with temperature; evaluate then needs it too")),
 }
 _CHOICES = {"position_unit": ("rad", "deg"), "qdd_estimate": QDD_ESTIMATES}
 # Options that describe the file (columns, topics): carried to `evaluate` only from the same
 # kind of file. The others (units, derivatives) always are.
 _FILE_OPTIONS = ("positions", "targets", "velocities", "accelerations", "time", "group",
-                 "joint_topic", "wrench_topic")
+                 "joint_topic", "wrench_topic", "temperature")
 
 
 def register(subparsers) -> None:
@@ -94,8 +97,9 @@ def register(subparsers) -> None:
     _add_read_flags(p)
     p.add_argument("--model", choices=models,
                    help=", ".join(f"{n}: {registry.entry(n).summary}" for n in models)
-                   + "; physics and hybrid need 6 wrench targets and --robot. Default: hybrid "
-                   "when --robot is given and the targets are a wrench, else rf")
+                   + "; physics and hybrid need --robot: on a wrench they identify the payload, "
+                   "on joint torques the whole arm (as arm). Default: hybrid when --robot is "
+                   "given, else rf")
     p.add_argument("--features", choices=FEATURE_SETS, metavar="q|q,qd|q,qd,qdd",
                    help="inputs the model uses (default q,qd,qdd; physics: q = static, "
                         "q,qd,qdd = dynamic; hybrid: the residual forest's, default q)")
@@ -107,6 +111,11 @@ def register(subparsers) -> None:
                         "simulated arm (physics, hybrid)")
     p.add_argument("--sensor-frame", metavar="NAME", help="frame S of the targets in --robot")
     p.add_argument("--base-frame", metavar="NAME", help="frame of --robot welded to the world")
+    p.add_argument("--drive-gains", choices=("fixed", "identify"), default="fixed",
+                   help="joint-torque targets with --robot: 'identify' when they are only "
+                        "proportional to the torques (motor currents, as UR's CB3 driver "
+                        "publishes in effort, or another sign convention): a gain per joint "
+                        "is identified with the arm's parameters")
     p.add_argument("--target-units", metavar="U,U,..",
                    help="unit per target (default: N/N*m for wrench axes, else N*m)")
     p.add_argument("--seed", type=int, default=0, help="random state of rf and gpr")
@@ -169,14 +178,15 @@ def _with_flags(base: ReadOptions, args) -> ReadOptions:
         raise ConfigError(message) from None
 
 
-def _read(args, options: ReadOptions, say) -> TrainingData:
+def _read(args, options: ReadOptions, say, static_poses: bool | None = False) -> TrainingData:
     say(f"reading {args.data} …")
     if not args.data.exists():
         raise LogError(f"--data {args.data}: no such file or folder")
     with option_spelling(flag_hint):
         try:
             data = load_training_data(args.data, options, t_start=args.t_start,
-                                      t_end=args.t_end, report=_warn)
+                                      t_end=args.t_end, report=_warn,
+                                      static_poses=static_poses)
         except LogError as e:
             from ..compensation.calibration import static_table_hint
 
@@ -203,6 +213,7 @@ class RobotOptions:
     sensor_frame: str | None = None
     base_frame: str | None = None
     scenario_yaml: str | None = None
+    drive_gains: str = "fixed"  # joint-torque models: "identify" for currents or unknown signs
 
 
 def make_estimator(model: str, *, features: str | None = None, seed: int = 0,
@@ -223,11 +234,21 @@ def make_estimator(model: str, *, features: str | None = None, seed: int = 0,
     from ..compensation.forest import RandomForestCompensator
 
     entry = registry.entry(model)
+    robot = robot or RobotOptions()
+    if model in ("physics", "hybrid", "arm") and target_names and not is_wrench(target_names):
+        # Joint torques (or anything per joint): the whole arm's rigid-body model.
+        physics = _arm(model, robot)
+        if model == "hybrid":
+            residual = RandomForestCompensator(features=features or "q", min_samples_leaf=5,
+                                               random_state=seed)
+            return entry.build(physics=physics, residual=residual)
+        return physics
     if entry.wrench_only and not is_wrench(target_names):
         raise ConfigError(
             f"--model {model} predicts a wrench: 6 targets named *Fx, *Fy, *Fz, *Tx, *Ty, "
             f"*Tz (N, N·m) in the sensor frame; got {list(target_names)}. Joint torques need "
-            f"rf, svr or gpr (or choose the wrench columns with --targets)"
+            f"rf, svr, gpr, or arm/physics/hybrid with --robot (or choose the wrench columns "
+            f"with --targets)"
         )
     if model == "hybrid":
         residual = RandomForestCompensator(features=features or "q", min_samples_leaf=5,
@@ -241,10 +262,36 @@ def make_estimator(model: str, *, features: str | None = None, seed: int = 0,
     return entry.build(**overrides)
 
 
-def default_model(robot: RobotOptions, target_names) -> str:
-    """The hybrid (physics + residual) when a robot description and a wrench are available:
-    it extrapolates where a black box cannot; otherwise the random forest."""
-    return "hybrid" if robot.robot is not None and is_wrench(target_names) else "rf"
+def default_model(robot: RobotOptions) -> str:
+    """The hybrid (physics + residual) when a robot description is available (a wrench with
+    the payload model, joint torques with the arm's rigid-body model): it extrapolates where
+    a black box cannot; otherwise the random forest."""
+    return "hybrid" if robot.robot is not None else "rf"
+
+
+def _arm(model: str, robot: RobotOptions):
+    """The arm's rigid-body torque model (:class:`~ftdrake.compensation.arm.
+    ArmDynamicsCompensator`) on `robot`, with the registry's defaults."""
+    from ..compensation.registry import entry
+    from ..physics.robot import ftdrake_arm
+    from ..sim.scene import robot_description
+
+    if robot.robot is None:
+        raise ConfigError(f"--model {model} on joint torques needs --robot FILE (the arm's "
+                          f"URDF/SDF), or --robot {BUILTIN_ROBOT} for the simulated arm")
+    options = {"drive_gains": robot.drive_gains}
+    if robot.robot == BUILTIN_ROBOT:
+        from ..config import parse_config
+
+        description = (robot_description(parse_config(robot.scenario_yaml))
+                       if robot.scenario_yaml else ftdrake_arm())
+        return entry("arm").build(robot=description.model,
+                                  package_xmls=description.package_xmls, **options)
+    path = Path(robot.robot)
+    if not path.is_file():
+        raise RobotModelError(f"--robot {path}: no such file")
+    return entry("arm").build(robot=str(path.resolve()), base_frame=robot.base_frame,
+                              **options)
 
 
 def _physics(model: str, robot: RobotOptions | None, features: str):
@@ -314,9 +361,10 @@ def run_train(args) -> int:
     say = _reporter(args.quiet)
     options = _with_flags(ReadOptions(), args)
     data = _read(args, options, say)
-    robot = RobotOptions(args.robot, args.sensor_frame, args.base_frame, data.scenario_yaml)
+    robot = RobotOptions(args.robot, args.sensor_frame, args.base_frame, data.scenario_yaml,
+                         args.drive_gains)
     if args.model is None:
-        args.model = default_model(robot, data.target_names)
+        args.model = default_model(robot)
         say(f"--model not given: {args.model} "
             + ("(a robot description and wrench targets: physics + learned residual)"
                if args.model == "hybrid" else "(no --robot: a black box)"))
@@ -387,6 +435,7 @@ def provenance(path: Path, data: TrainingData, model, search, *, kind: str,
         "columns": {
             "joints": data.joint_names,
             "targets": data.target_names,
+            "temperature": data.options.temperature if data.has_temperature else None,
             "derived": data.derivation,
         },
         "training_range": {
@@ -443,9 +492,11 @@ def run_evaluate(args) -> int:
         raise ModelFileError(f"--model {args.model}: no such file")
     manifest = read_manifest(args.model)
     options = _with_flags(stored_read_options(manifest, args.data), args)
-    data = _read(args, options, say)
+    # A table without its time column is a table of static poses (what `calibrate` takes).
+    data = _read(args, options, say, static_poses=None)
     _check_compatible(manifest, data, args)
     model = load_model(args.model, expect_n_joints=data.n_joints)
+    _check_temperature(model, data, args)
 
     prediction = np.asarray(model.predict(data.X)).reshape(data.Y.shape)
     std = (np.asarray(model.predict_std(data.X)).reshape(data.Y.shape)
@@ -498,6 +549,21 @@ def _check_compatible(manifest: dict, data: TrainingData, args) -> None:
     if manifest["target_names"] != data.target_names:
         _warn(f"warning: target names differ: model {manifest['target_names']}, "
               f"data {data.target_names}; compared in this order")
+
+
+def _check_temperature(model, data: TrainingData, args) -> None:
+    """A model trained with the sensor temperature needs it in the data, and the other way
+    round; the error names the column and the flag."""
+    needs = bool(getattr(model, "temperature_in_", False))
+    if needs and not data.has_temperature:
+        raise LogError(
+            f"{args.model} was trained with the sensor temperature (°C) as an input; "
+            f"{args.data.name} was read without one: name its column with --temperature COL "
+            f"(e.g. --temperature {TEMPERATURE})")
+    if data.has_temperature and not needs:
+        raise LogError(
+            f"{args.model} was trained without the sensor temperature; omit --temperature "
+            f"{data.options.temperature}")
 
 
 def _outside_by_input(model, X) -> dict:

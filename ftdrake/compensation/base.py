@@ -20,7 +20,10 @@ The protocol a compensator follows to run in a control loop and leave Python:
 * ``compiled_predictor()`` – ftdrake's compiled predictor (``predict(X)``, ``predict_one(x)``,
   equal to ``predict``), or None.
 * ``row_predictor()`` – a function ``row (3n,) → (mean (k,), std (k,))`` without
-  scikit-learn's input validation, for ``CompensatorSystem`` at the sensor rate.
+  scikit-learn's input validation, for ``CompensatorSystem`` at the sensor rate; a model
+  trained with the temperature takes ``row (3n + 1,)``, T last (physics, hybrid and forests
+  have a compiled row path with it; SVR and GP go through ``predict``: their compiled kernels
+  select features from the 3n joint layout only).
 * ``onnx_parts()`` – what :mod:`ftdrake.compensation.onnx_export` writes as a graph, or
   TypeError for models that have no ONNX form.
 
@@ -110,11 +113,12 @@ class Compensator(RegressorMixin, BaseEstimator):
     def out_of_domain(self, X, margin: float = 0.0) -> np.ndarray:
         """Boolean per row: True where a used input lies outside the training range.
 
-        `margin` widens each column's range by that fraction of its width.
+        `margin` widens each column's range by that fraction of its width. Only joint inputs
+        count (a temperature column, if any, is not checked).
         """
         check_is_fitted(self)
         X = np.atleast_2d(np.asarray(X, dtype=float))
-        used = select_features(X, self.features).shape[1]
+        used = select_features(X[:, :3 * self.n_joints_], self.features).shape[1]
         width = self.input_max_[:used] - self.input_min_[:used]
         lo = self.input_min_[:used] - margin * width
         hi = self.input_max_[:used] + margin * width
@@ -129,11 +133,14 @@ class Compensator(RegressorMixin, BaseEstimator):
         """A function ``row (3n,) [q, q̇, q̈] → (mean (k,), std (k,))`` for control loops.
 
         It skips scikit-learn's input validation (which costs more than a compiled forest);
-        the caller passes finite rows of the full layout. The std is zeros for models without
+        the caller passes finite rows of the full layout (with the temperature, °C, as one
+        more, last entry for a model trained with it). The std is zeros for models without
         ``provides_std``. Uses the compiled predictor when there is one.
         """
         check_is_fitted(self)
-        compiled = None if getattr(self, "temperature_in_", False) else self.compiled_predictor()
+        if getattr(self, "temperature_in_", False):
+            return temperature_row_predictor(self)
+        compiled = self.compiled_predictor()
         if compiled is None:
             return generic_row_predictor(self)
         if hasattr(compiled, "predict_one_with_std"):
@@ -186,6 +193,39 @@ class Compensator(RegressorMixin, BaseEstimator):
         tags.target_tags.multi_output = True
         tags.target_tags.single_output = True
         return tags
+
+
+def temperature_row_predictor(model):
+    """``row (3n + 1,) [q, q̇, q̈, T] → (mean, std)`` for a model trained with the temperature.
+
+    ftdrake's compiled predictors take the 3n joint layout and select their features from it,
+    so a temperature model cannot use them as they are. A forest's flattened trees (its
+    ``onnx_parts()``) index the selected features with T as the last one: the compiled walk
+    runs on ``[selected features, T]`` (equal to ``predict`` to round-off). Any other model
+    goes through ``predict`` (:func:`generic_row_predictor`).
+    """
+    from .compiled.forest import FlatForest, forest_accumulate_with_std  # noqa: PLC0415
+
+    try:
+        flat = model.onnx_parts()
+    except (TypeError, ValueError, AttributeError):
+        flat = None
+    used = check_feature_set(model.features) * int(model.n_joints_)
+    if not isinstance(flat, FlatForest) or flat.n_inputs != used + 1 \
+            or flat.n_outputs != int(model.n_outputs_):
+        return generic_row_predictor(model)
+    arrays = (flat.nodes, flat.leaf_values, flat.trees, flat.n_trees)
+    k = flat.n_outputs
+
+    def predict(row):
+        z = np.empty(used + 1)
+        z[:used] = row[:used]
+        z[used] = row[-1]
+        mean, std = np.empty(k), np.empty(k)
+        forest_accumulate_with_std(z, *arrays, mean, std)
+        return mean, std
+
+    return predict
 
 
 def generic_row_predictor(model):

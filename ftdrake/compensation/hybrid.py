@@ -23,8 +23,11 @@ from __future__ import annotations
 
 import numpy as np
 from sklearn.base import clone
+from sklearn.utils.validation import check_is_fitted
 
 from .base import Compensator
+from .compiled.forest import CompiledForest
+from .compiled.hybrid import CompiledHybrid, hybrid_row
 from .forest import RandomForestCompensator
 from .physics import PhysicsPayloadCompensator
 
@@ -102,8 +105,34 @@ class HybridCompensator(Compensator):
         """The physics part's identified parameters, as lines a user reads."""
         return self.physics_.summary()
 
+    def compiled_predictor(self):
+        """A :class:`~ftdrake.compensation.compiled.hybrid.CompiledHybrid` (payload model
+        and residual forest in one numba call per row, mean and std) when the residual's
+        compiled predictor is a forest and its std is the cross-validated error variance (the
+        default residual); None otherwise (a GP residual, a temperature column)."""
+        check_is_fitted(self)
+        if getattr(self, "temperature_in_", False) or self._residual_std_is_calibrated():
+            return None
+        residual = getattr(self.residual_, "compiled_predictor", lambda: None)()
+        if not isinstance(residual, CompiledForest):
+            return None
+        payload = self.physics_.packed_row(noise_var=np.nan_to_num(self._noise_var()))
+        return CompiledHybrid(payload, residual.flat, self.n_joints_)
+
     def row_predictor(self):
-        """Physics row plus residual row; the std combines both (module docstring)."""
+        """Physics row plus residual row; the std combines both (module docstring). One
+        compiled call per row with the compiled predictor (a forest residual), else the two
+        parts' row predictors combined in numpy."""
+        compiled = self.compiled_predictor()
+        if compiled is not None:
+            arrays = compiled.arrays
+
+            def fused(row):
+                mean, std = np.empty(6), np.empty(6)
+                hybrid_row(row, *arrays, mean, std)
+                return mean, std
+
+            return fused
         physics = self.physics_.row_predictor(include_noise=False)
         residual = self.residual_.row_predictor()
         calibrated = self._residual_std_is_calibrated()

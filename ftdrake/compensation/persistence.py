@@ -32,6 +32,7 @@ import skops.io as sio
 from sklearn.base import BaseEstimator
 from sklearn.utils.validation import check_is_fitted
 
+from ..conventions import TEMPERATURE
 from ..errors import ModelFileError
 from ..io import atomic_write_bytes
 from ..version import ftdrake_version
@@ -94,6 +95,8 @@ def _manifest(model, target_names, target_units, sensor_frame, extra) -> dict:
             f"{len(target_units)} target units"
         )
     inputs = feature_names("q,qd,qdd", model.n_joints_)
+    if getattr(model, "temperature_in_", False):
+        inputs.append(TEMPERATURE)  # X's last column, °C: its range is kept like the others'
     manifest = {
         "format_version": FORMAT_VERSION,
         "model_class": _qualified_name(type(model)),

@@ -12,8 +12,9 @@ with ω, α the angular velocity/acceleration of S, a the acceleration of So and
 expressed in S and computed from (q, q̇, q̈) by the compiled serial chain
 (:class:`~ftdrake.physics.chain.SerialChain`, extracted once from the robot's Drake plant and
 equal to Drake's own kinematics to round-off). One row — kinematics, the 6 × 16 regressor row
-and its product with the parameters — is one fused numba kernel (:meth:`predict_row`, about a
-microsecond). ``L(x)`` maps the 6 inertia entries
+and its product with the parameters — is one fused numba kernel
+(:mod:`ftdrake.compensation.compiled.payload`; :meth:`row_predictor`, with the std, about
+1.5 µs of work per row on ftdrake's arm). ``L(x)`` maps the 6 inertia entries
 ``[Ixx, Ixy, Ixz, Iyy, Iyz, Izz]`` to ``I·x``. ``mode="static"`` sets ω = α = a = 0 (gravity
 only: mass, centre of mass and biases, 10 parameters), as the usual ROS gravity-compensation
 tools do; ``mode="dynamic"`` (default) keeps the motion terms (16 parameters).
@@ -38,16 +39,16 @@ import functools
 import warnings
 import weakref
 
-import numba
 import numpy as np
 from pydrake.math import RollPitchYaw, RotationMatrix
 from scipy.optimize import least_squares
 from scipy.spatial.transform import Rotation
 
 from ..errors import ConfigError, RobotModelError
-from ..physics.chain import SerialChain, sensor_kinematics_row
+from ..physics.chain import SerialChain
 from ..physics.robot import RobotDescription, ftdrake_arm
 from .base import Compensator
+from .compiled.payload import pack_payload_row, payload_mean_std, payload_predict
 from .consistent import (
     DEFAULT_PRIOR_WEIGHT,
     PayloadPrior,
@@ -124,7 +125,7 @@ class PhysicsPayloadCompensator(Compensator):
     estimate as unconstrained (the linearised covariance; an active constraint of the
     consistent fit is ignored) and adds nothing for directions neither the data nor a prior
     determine (their covariance is the pseudo-inverse's 0). The loop computes it in the same
-    compiled kernel as the mean (one 6 × 16 by 16 × 16 product more: a few µs per row).
+    compiled kernel as the mean (one 6 × 16 by 16 × r product more: ~0.5 µs per row).
     """
 
     #: The std of a new reading (noise included), not just of the prediction.
@@ -305,7 +306,7 @@ class PhysicsPayloadCompensator(Compensator):
                 getattr(self, "mounting_rotation_", np.eye(3)), np.eye(3)):
             return self.row_predictor()(x)[0]
         out = np.empty(6)
-        _predict_row(x, *self._row_kernel_args(), self.parameters_, out)
+        payload_predict(x, *self._row_kernel_args(), self.parameters_, out)
         return out
 
     def row_predictor(self, include_noise: bool = True):
@@ -314,28 +315,40 @@ class PhysicsPayloadCompensator(Compensator):
         change it): kinematics, regressor row, mean ``B·θ`` and std (see the class
         docstring), mounting rotation included; the temperature term (row's last entry) is
         added after it. ``include_noise=False``: the parameters' uncertainty only."""
-        args = self._row_kernel_args()
-        parameters = self.parameters_.copy()
-        factor, noise_var, block_T = self._std_terms()
-        if not include_noise:
-            noise_var = np.zeros(6)
+        reals, ints = self.packed_row(None if include_noise else np.zeros(6))
         reference = getattr(self, "temperature_reference_", None)
-        with_temperature = getattr(self, "temperature_in_", False) and reference is not None
+        if not (getattr(self, "temperature_in_", False) and reference is not None):
+            def predict(row):
+                mean, std = np.empty(6), np.empty(6)
+                payload_mean_std(row, reals, ints, mean, std)
+                return mean, std
+
+            return predict
         k = np.asarray(getattr(self, "temperature_coefficients_", np.zeros(6)), dtype=float)
         k_se = np.nan_to_num(np.asarray(getattr(self, "temperature_std_errors_", np.zeros(6)),
                                         dtype=float))
 
-        def predict(row):
+        def predict_with_temperature(row):
             mean, std = np.empty(6), np.empty(6)
-            _predict_row_with_std(row, *args, block_T, parameters, factor, noise_var, mean,
-                                  std)
-            if with_temperature:
-                dt = row[-1] - reference
-                mean += k * dt
-                std[:] = np.sqrt(std * std + (k_se * dt) ** 2)
+            payload_mean_std(row, reals, ints, mean, std)
+            dt = row[-1] - reference
+            mean += k * dt
+            std[:] = np.sqrt(std * std + (k_se * dt) ** 2)
             return mean, std
 
-        return predict
+        return predict_with_temperature
+
+    def packed_row(self, noise_var=None) -> tuple[np.ndarray, np.ndarray]:
+        """This model's row kernel data, packed for
+        :func:`~ftdrake.compensation.compiled.payload.payload_mean_var` (a copy: refitting
+        the model afterwards does not change it): the chain, gravity, the mounting rotation,
+        the current parameters, the covariance factor and the variance σ² added per axis
+        (default: the residual RMS², the model's own noise term). No temperature term."""
+        n, gravity, X_pre, kinds, axes, q_index, v_index, static = self._row_kernel_args()
+        factor, own_noise_var, block_T = self._std_terms()
+        return pack_payload_row((X_pre, kinds, axes, q_index, v_index), n, gravity, static,
+                                block_T, self.parameters_, factor,
+                                own_noise_var if noise_var is None else noise_var)
 
     def _row_kernel_args(self) -> tuple:
         # Looking the chain up through the robot description costs microseconds (building and
@@ -618,91 +631,3 @@ def _kinematics_for(description: RobotDescription, gravity: tuple) -> _Kinematic
 
 #: Row-kernel arguments per model (weak: a model's cache goes with it, never into its file).
 _ROW_ARGS: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
-
-
-@numba.njit(cache=True)
-def _predict_row(x, n, gravity_W, X_pre, kinds, axes, q_index, v_index, static, parameters,
-                 out):
-    """One full-layout row [q, q̇, q̈] (3n) → wrench (6) = A(row) · parameters."""
-    R = np.empty((3, 3))
-    kin = np.empty((4, 3))  # ω, α, a of S and g, in S
-    sensor_kinematics_row(x[:n], x[n:2 * n], x[2 * n:3 * n], gravity_W, X_pre, kinds, axes,
-                          q_index, v_index, R, kin)
-    if static:
-        kin[:3, :] = 0.0
-    A = np.zeros((6, 16))
-    _regressor_row(kin[0], kin[1], kin[2] - kin[3], A)
-    for i in range(6):
-        s = 0.0
-        for j in range(16):
-            s += A[i, j] * parameters[j]
-        out[i] = s
-
-
-@numba.njit(cache=True)
-def _predict_row_with_std(x, n, gravity_W, X_pre, kinds, axes, q_index, v_index, static,
-                          block_T, parameters, factor, noise_var, mean, std):
-    """One full-layout row → reading mean (6) = B·θ and std (6) = √(‖B_i F‖² + σ_i²), with
-    B = [block_T · A_φ | I] the regressor row rotated into the measuring frame Sm."""
-    R = np.empty((3, 3))
-    kin = np.empty((4, 3))
-    sensor_kinematics_row(x[:n], x[n:2 * n], x[2 * n:3 * n], gravity_W, X_pre, kinds, axes,
-                          q_index, v_index, R, kin)
-    if static:
-        kin[:3, :] = 0.0
-    A = np.zeros((6, 16))
-    _regressor_row(kin[0], kin[1], kin[2] - kin[3], A)
-    B = np.zeros((6, 16))
-    for i in range(6):
-        for j in range(10):
-            s = 0.0
-            for m in range(6):
-                s += block_T[i, m] * A[m, j]
-            B[i, j] = s
-        B[i, 10 + i] = 1.0
-    r = factor.shape[1]
-    for i in range(6):
-        s = 0.0
-        for j in range(16):
-            s += B[i, j] * parameters[j]
-        mean[i] = s
-        v = noise_var[i]
-        for c in range(r):
-            t = 0.0
-            for j in range(16):
-                t += B[i, j] * factor[j, c]
-            v += t * t
-        std[i] = np.sqrt(v)
-
-
-@numba.njit(cache=True)
-def _regressor_row(w, al, d, A):
-    """The 6 × 16 regressor row of :func:`payload_regressor` (A zeroed on entry); d = a − g."""
-    wx, wy, wz = w[0], w[1], w[2]
-    ax, ay, az = al[0], al[1], al[2]
-    # [ω]×[ω]× = ω ωᵀ − |ω|² I
-    ww = wx * wx + wy * wy + wz * wz
-    W2 = np.empty((3, 3))
-    for i in range(3):
-        for j in range(3):
-            W2[i, j] = w[i] * w[j]
-        W2[i, i] -= ww
-    Sa = np.array([[0.0, -az, ay], [az, 0.0, -ax], [-ay, ax, 0.0]])
-    Sd = np.array([[0.0, -d[2], d[1]], [d[2], 0.0, -d[0]], [-d[1], d[0], 0.0]])
-    for i in range(3):
-        A[i, 0] = -d[i]
-        for j in range(3):
-            A[i, 1 + j] = -(Sa[i, j] + W2[i, j])
-            A[3 + i, 1 + j] = Sd[i, j]
-    # −(L(α) + [ω]× L(ω)) over [Ixx, Ixy, Ixz, Iyy, Iyz, Izz]
-    La = np.array([[ax, ay, az, 0.0, 0.0, 0.0], [0.0, ax, 0.0, ay, az, 0.0],
-                   [0.0, 0.0, ax, 0.0, ay, az]])
-    Lw = np.array([[wx, wy, wz, 0.0, 0.0, 0.0], [0.0, wx, 0.0, wy, wz, 0.0],
-                   [0.0, 0.0, wx, 0.0, wy, wz]])
-    Sw = np.array([[0.0, -wz, wy], [wz, 0.0, -wx], [-wy, wx, 0.0]])
-    for i in range(3):
-        for j in range(6):
-            A[3 + i, 4 + j] = -(La[i, j] + Sw[i, 0] * Lw[0, j] + Sw[i, 1] * Lw[1, j]
-                                + Sw[i, 2] * Lw[2, j])
-    for i in range(6):
-        A[i, 10 + i] = 1.0

@@ -13,6 +13,7 @@ import dataclasses as dc
 from collections.abc import Mapping
 from typing import Any
 
+from .arm import ArmDynamicsCompensator
 from .base import Compensator
 from .forest import RandomForestCompensator
 from .gpr import GPRCompensator
@@ -81,6 +82,9 @@ REGISTRY: dict[str, CompensatorEntry] = {e.name: e for e in (
                      "physics + a forest on its residual (cable, cross-talk, the rest)",
                      {"identification": "consistent"}, needs_robot=True, wrench_only=True,
                      trusted_types=_PHYSICS_TYPES),
+    CompensatorEntry("arm", ArmDynamicsCompensator,
+                     "joint torques: the arm's rigid-body dynamics + friction, physically "
+                     "consistent", {"identification": "consistent"}, needs_robot=True),
 )}
 
 #: Types a model file may hold beyond the registry's classes and skops's defaults.

@@ -45,7 +45,7 @@ import numpy as np
 import pandas as pd
 import pyarrow.parquet as pq
 
-from ..conventions import MEASURED, QD, QDD, TIME, Q, joint_columns
+from ..conventions import MEASURED, QD, QDD, TEMPERATURE, TIME, Q, joint_columns
 from ..errors import LogError
 from ..signals import causal_acceleration, savgol_derivative
 
@@ -112,6 +112,8 @@ class RobotLog:
       source: where the log came from and how it was read.
       derived: which of ``"qd"``, ``"qdd"`` were computed rather than read.
       t0: absolute time of ``t = 0`` in s (UNIX time for bags, 0 for tables).
+      temperature: (N,) the sensor's temperature in °C, when the log has one and it was
+        asked for (``read_table(temperature=...)``); else None.
     """
 
     t: np.ndarray
@@ -124,6 +126,7 @@ class RobotLog:
     source: str = ""
     derived: list[str] = field(default_factory=list)
     t0: float = 0.0
+    temperature: np.ndarray | None = None
 
     def __post_init__(self):
         n_rows, n = len(self.t), len(self.joint_names)
@@ -134,6 +137,9 @@ class RobotLog:
         if self.targets.shape != (n_rows, len(self.target_names)):
             raise LogError(f"targets have shape {self.targets.shape}, "
                            f"expected ({n_rows}, {len(self.target_names)})")
+        if self.temperature is not None and np.shape(self.temperature) != (n_rows,):
+            raise LogError(f"temperature has shape {np.shape(self.temperature)}, "
+                           f"expected ({n_rows},)")
 
     def __len__(self) -> int:
         return len(self.t)
@@ -143,15 +149,23 @@ class RobotLog:
         return len(self.joint_names)
 
     def X(self) -> np.ndarray:
-        """Model input ``[q, q̇, q̈]``, N × 3n (see :mod:`ftdrake.compensation.features`)."""
-        return np.hstack([self.q, self.qd, self.qdd])
+        """Model input ``[q, q̇, q̈]``, N × 3n (see :mod:`ftdrake.compensation.features`),
+        with the temperature (°C) as one more, last column when the log has one."""
+        blocks = [self.q, self.qd, self.qdd]
+        if self.temperature is not None:
+            blocks.append(self.temperature[:, None])
+        return np.hstack(blocks)
 
     def to_frame(self) -> pd.DataFrame:
         """Columns ``t, q_i, qd_i, qdd_i`` and the target names, as in simulated datasets."""
         n = self.n_joints
         blocks = [self.t[:, None], self.q, self.qd, self.qdd, self.targets]
-        names = [TIME, *joint_columns(Q, n), *joint_columns(QD, n), *joint_columns(QDD, n)]
-        return pd.DataFrame(np.hstack(blocks), columns=names + list(self.target_names))
+        names = [TIME, *joint_columns(Q, n), *joint_columns(QD, n), *joint_columns(QDD, n),
+                 *self.target_names]
+        if self.temperature is not None:
+            blocks.append(self.temperature[:, None])
+            names.append(TEMPERATURE)
+        return pd.DataFrame(np.hstack(blocks), columns=names)
 
 
 # --- Column selection ------------------------------------------------------------------------
@@ -232,15 +246,18 @@ def _take(t, blocks, rows):
 def assemble_log(
     t, q, qd, qdd, targets, target_names, joint_names, source, *,
     sort, t0, position_unit, sg_window, sg_polyorder, gap_factor, check_units,
-    qdd_estimate="savgol", acceleration_cutoff_hz=25.0,
+    qdd_estimate="savgol", acceleration_cutoff_hz=25.0, temperature=None,
 ) -> RobotLog:
-    """Cleans rows, checks units and fills missing derivatives; see the module docstring."""
+    """Cleans rows, checks units and fills missing derivatives; see the module docstring.
+
+    `temperature` (N,), °C, if given, is cleaned with the rows and kept in the log.
+    """
     if position_unit not in _ANGLE_UNITS:
         raise LogError(f"position_unit must be one of {list(_ANGLE_UNITS)}, got {position_unit!r}")
     if qdd_estimate not in QDD_ESTIMATES:
         raise LogError(f"qdd_estimate must be one of {list(QDD_ESTIMATES)}, got {qdd_estimate!r}")
     scale = _ANGLE_UNITS[position_unit]
-    blocks = {"q": q, "qd": qd, "qdd": qdd, "targets": targets}
+    blocks = {"q": q, "qd": qd, "qdd": qdd, "targets": targets, "temperature": temperature}
     blocks = {k: None if v is None else np.asarray(v, float).reshape(len(t), -1)
               for k, v in blocks.items()}
     for k in ("q", "qd", "qdd"):
@@ -301,6 +318,7 @@ def assemble_log(
         qdd=deriv["qdd"] if blocks["qdd"] is None else blocks["qdd"],
         targets=blocks["targets"], target_names=list(target_names),
         joint_names=list(joint_names), source=source, derived=derived, t0=t0,
+        temperature=None if blocks["temperature"] is None else blocks["temperature"][:, 0],
     )
 
 
@@ -404,6 +422,7 @@ def read_table(
     check_units: bool = True,
     qdd_estimate: str = "savgol",
     acceleration_cutoff_hz: float = 25.0,
+    temperature: str | None = None,
     label: str | None = None,
 ) -> RobotLog:
     """Reads a CSV or Parquet log (or a DataFrame) with named columns.
@@ -425,24 +444,13 @@ def read_table(
       qdd_estimate: how missing accelerations are computed: ``"savgol"`` (Savitzky–Golay of
         q, non-causal) or ``"causal"`` (:func:`ftdrake.signals.causal_acceleration` of q̇ at
         `acceleration_cutoff_hz`, the estimate ``CompensatorSystem`` makes in the loop).
+      temperature: the sensor's temperature column (°C), kept as ``RobotLog.temperature``
+        (a model then takes it as X's last column); None: not read.
       label: the name errors and warnings give the source (default: the file name, or
         ``"DataFrame"``).
     """
-    if isinstance(source, pd.DataFrame):
-        frame, name = source, "DataFrame"
-    else:
-        frame, name = read_frame(source), Path(source).name
-    label = label or name
-    cols = [str(c) for c in frame.columns]
-    frame = frame.set_axis(cols, axis=1).reset_index(drop=True)
-    selected = {}
-    for what, spec in [("positions", positions), ("velocities", velocities),
-                       ("accelerations", accelerations), ("targets", targets)]:
-        if spec is not None:
-            try:
-                selected[what] = expand_columns(spec, cols, f"{label} {what}")
-            except LogError as e:
-                raise LogError(f"{e}; choose them with {option_hint(what, 'PATTERN')}") from None
+    frame, label, cols, selected = _select_columns(
+        source, label, positions, velocities, accelerations, targets, temperature)
     n = len(selected["positions"])
     for what in ("velocities", "accelerations"):
         if what in selected and len(selected[what]) != n:
@@ -474,4 +482,73 @@ def read_table(
         sort=False, t0=t0, position_unit=position_unit, sg_window=sg_window,
         sg_polyorder=sg_polyorder, gap_factor=gap_factor, check_units=check_units,
         qdd_estimate=qdd_estimate, acceleration_cutoff_hz=acceleration_cutoff_hz,
+        temperature=arrays.get("temperature"),
     )
+
+
+def read_static_table(
+    source: str | Path | pd.DataFrame,
+    positions: Columns = "q_*",
+    targets: Columns = f"{MEASURED}_*",
+    *,
+    position_unit: str = "rad",
+    check_units: bool = True,
+    temperature: str | None = None,
+    label: str | None = None,
+) -> RobotLog:
+    """Reads a table of static poses: one pose held still and its reading a row.
+
+    What ``ftdrake calibrate`` takes (a calibration log is often such a table, with no time
+    column): joint positions and targets (and the temperature, °C, if named); velocities and
+    accelerations are zero (the robot is still; nothing to differentiate), and ``t`` is the
+    row number (no time; rows are independent). Rows with NaN/inf are dropped with a
+    :class:`LogWarning`; degree-like positions raise unless `check_units` is False.
+    """
+    frame, label, _, selected = _select_columns(source, label, positions, None, None, targets,
+                                                temperature)
+    if position_unit not in _ANGLE_UNITS:
+        raise LogError(f"position_unit must be one of {list(_ANGLE_UNITS)}, got {position_unit!r}")
+    arrays = {what: _numeric(frame, names, label) for what, names in selected.items()}
+    q = arrays["positions"] * _ANGLE_UNITS[position_unit]
+    bad = ~np.isfinite(np.hstack(list(arrays.values()))).all(axis=1)
+    if bad.any():
+        warn_log(f"{label}: dropped {bad.sum()} of {len(bad)} rows with NaN/inf")
+    keep = ~bad
+    if keep.sum() < 1:
+        raise LogError(f"{label}: no usable rows")
+    q = q[keep]
+    if check_units:
+        _check_units(q, None, np.zeros_like(q), selected["positions"], label)
+    T = arrays.get("temperature")
+    return RobotLog(
+        t=np.flatnonzero(keep).astype(float), q=q, qd=np.zeros_like(q), qdd=np.zeros_like(q),
+        targets=arrays["targets"][keep], target_names=list(selected["targets"]),
+        joint_names=list(selected["positions"]), source=f"{label} (static poses)",
+        temperature=None if T is None else T[keep, 0],
+    )
+
+
+def _select_columns(source, label, positions, velocities, accelerations, targets, temperature):
+    """(frame, label, column names, {what: selected columns}) of a table or DataFrame."""
+    if isinstance(source, pd.DataFrame):
+        frame, name = source, "DataFrame"
+    else:
+        frame, name = read_frame(source), Path(source).name
+    label = label or name
+    cols = [str(c) for c in frame.columns]
+    frame = frame.set_axis(cols, axis=1).reset_index(drop=True)
+    selected = {}
+    for what, spec in [("positions", positions), ("velocities", velocities),
+                       ("accelerations", accelerations), ("targets", targets)]:
+        if spec is not None:
+            try:
+                selected[what] = expand_columns(spec, cols, f"{label} {what}")
+            except LogError as e:
+                raise LogError(f"{e}; choose them with {option_hint(what, 'PATTERN')}") from None
+    if temperature is not None:
+        if temperature not in cols:
+            raise LogError(f"{label}: no temperature column {temperature!r} (the sensor's "
+                           f"temperature, °C); available columns: {cols}; choose it with "
+                           f"{option_hint('temperature', 'COLUMN')}")
+        selected["temperature"] = [temperature]
+    return frame, label, cols, selected

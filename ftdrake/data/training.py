@@ -13,6 +13,11 @@ names another) is read per trajectory: time restarts in each, derivatives never 
 one into the next, and ``TrainingData.groups`` keeps them apart for grouped cross-validation.
 ``ReadOptions.dataset("est")`` reads a ``collect`` dataset exactly as
 :func:`~.dataset.joint_state_layout` and :func:`~.dataset.wrench_targets` do.
+
+``ReadOptions.temperature`` names the sensor's temperature column (°C): it becomes X's last
+column, ``[q, q̇, q̈, T]`` (what every compensator takes as a temperature input). A table of
+static poses without a time column (what ``ftdrake calibrate`` takes) is read with
+``static_poses`` (q̇ = q̈ = 0; :func:`~.logs.read_static_table`).
 """
 
 from __future__ import annotations
@@ -38,6 +43,7 @@ from .logs import (
     is_table,
     option_hint,
     read_frame,
+    read_static_table,
     read_table,
 )
 
@@ -81,6 +87,9 @@ class ReadOptions:
       sg_window, sg_polyorder: Savitzky–Golay window (s) and order, see
         :func:`ftdrake.signals.savgol_derivative`.
       gap_factor: a time step longer than this × the median period is a gap.
+      temperature: the sensor's temperature column (°C, tables only); read as X's last
+        column, so that a model learns (and at run time applies) its zero drift. None: no
+        temperature input.
     """
 
     positions: str | None = None
@@ -98,6 +107,7 @@ class ReadOptions:
     sg_window: float = 0.1
     sg_polyorder: int = 4
     gap_factor: float = 3.0
+    temperature: str | None = None
 
     def __post_init__(self):
         if self.qdd_estimate not in QDD_ESTIMATES:
@@ -146,8 +156,10 @@ class ReadOptions:
 class TrainingData:
     """The rows of a log (or of several trajectories in one table) in the model layout.
 
-    X: (N, 3n) ``[q, q̇, q̈]`` in rad, rad/s, rad/s². Y: (N, m) targets as logged.
-    t: (N,) time in s. groups: (N,) trajectory id per row (0 for a single log).
+    X: (N, 3n) ``[q, q̇, q̈]`` in rad, rad/s, rad/s², with the temperature (°C) as one more,
+    last column when ``options.temperature`` names one. Y: (N, m) targets as logged.
+    t: (N,) time in s (a static table's: the row number). groups: (N,) trajectory id per row
+    (0 for a single log).
     rows: counts in the file, after the reader, outside the time window, used.
     options: the options read with (`acceleration_cutoff_hz` resolved).
     derivation: how each computed column (``"qd"``, ``"qdd"``) was computed.
@@ -166,10 +178,16 @@ class TrainingData:
     options: ReadOptions = dc.field(default_factory=ReadOptions)
     warnings: list[str] = dc.field(default_factory=list)
     scenario_yaml: str | None = None  # a `collect` dataset's scenario
+    static: bool = False  # a table of static poses (q̇ = q̈ = 0, no time column)
 
     @property
     def n_joints(self) -> int:
         return len(self.joint_names)
+
+    @property
+    def has_temperature(self) -> bool:
+        """Whether X carries the sensor temperature (°C) as its last column."""
+        return self.X.shape[1] == 3 * self.n_joints + 1
 
     @property
     def derivation(self) -> dict:
@@ -189,8 +207,14 @@ def load_training_data(
     t_start: float | None = None,
     t_end: float | None = None,
     report: Callable[[str], None] | None = None,
+    static_poses: bool | None = False,
 ) -> TrainingData:
     """Reads `path` (CSV/Parquet table, ROS 1 ``.bag`` file or ROS 2 bag folder).
+
+    `static_poses`: True reads a table as static poses (:func:`~.logs.read_static_table`:
+    q̇ = q̈ = 0, no time column needed, nothing differentiated); None does so when the table
+    has no time column (``options.time``, default ``t``); False never (a missing time
+    column is an error).
 
     Derivatives are computed on the whole log (per trajectory) first; then only the rows with
     `t_start` ≤ t ≤ `t_end` (s, on the log's own time axis: a table's time column, a bag's
@@ -206,7 +230,8 @@ def load_training_data(
         raise LogError(f"{path}: no such file or folder")
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always", LogWarning)
-        data = _read_bag(path, options) if is_bag(path) else _read_table(path, options)
+        data = (_read_bag(path, options) if is_bag(path)
+                else _read_table(path, options, static_poses))
     for w in caught:
         if issubclass(w.category, LogWarning):
             data.warnings.append(str(w.message))
@@ -214,6 +239,9 @@ def load_training_data(
                 report(f"warning: {w.message}")
         else:
             warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
+    if data.static and (t_start is not None or t_end is not None):
+        raise LogError(f"{path.name}: a table of static poses has no time axis; "
+                       f"{option_hint('t_start', None)} and {option_hint('t_end', None)}")
     return _time_window(data, t_start, t_end)
 
 
@@ -246,19 +274,24 @@ def _reader_keywords(options: ReadOptions, cutoff: float) -> dict:
             "acceleration_cutoff_hz": cutoff}
 
 
-def _read_table(path: Path, options: ReadOptions) -> TrainingData:
+def _read_table(path: Path, options: ReadOptions, static_poses: bool | None = False
+                ) -> TrainingData:
     if not is_table(path):
         raise LogError(f"{path}: unknown format; expected .csv, .parquet, a .bag file or a "
                        f"ROS 2 bag folder")
     frame = read_frame(path)
     scenario = frame.attrs.get("scenario") or None
     cutoff = _cutoff(options, scenario, path.name)
+    time = options.time or TABLE_DEFAULTS["time"]
+    if static_poses or (static_poses is None and time not in frame.columns):
+        return _read_static(frame, path, options, cutoff)
     kwargs = {
         "positions": column_spec(options.positions or TABLE_DEFAULTS["positions"]),
         "targets": column_spec(options.targets or TABLE_DEFAULTS["targets"]),
         "velocities": column_spec(options.velocities),
         "accelerations": column_spec(options.accelerations),
-        "time": options.time or TABLE_DEFAULTS["time"],
+        "time": time,
+        "temperature": options.temperature,
         **_reader_keywords(options, cutoff),
     }
     group = options.group
@@ -281,8 +314,26 @@ def _read_table(path: Path, options: ReadOptions) -> TrainingData:
     return data
 
 
+def _read_static(frame, path: Path, options: ReadOptions, cutoff: float) -> TrainingData:
+    """A table of static poses (one pose and its reading a row; q̇ = q̈ = 0)."""
+    log = read_static_table(
+        frame, column_spec(options.positions or TABLE_DEFAULTS["positions"]),
+        column_spec(options.targets or TABLE_DEFAULTS["targets"]),
+        position_unit=options.position_unit, check_units=options.check_units,
+        temperature=options.temperature, label=path.name)
+    data = _stack([log], [0], path.name)
+    data.rows["in_file"] = len(frame)
+    data.static = True
+    data.options = dc.replace(options, acceleration_cutoff_hz=cutoff)
+    return data
+
+
 def _read_bag(path: Path, options: ReadOptions) -> TrainingData:
     """A bag's JointState rows; `positions`/`targets` select joints and targets by name."""
+    if options.temperature is not None:
+        raise LogError(f"{path.name}: a bag has no temperature column; "
+                       f"{option_hint('temperature', None)} (the temperature input reads a "
+                       f"table column, °C)")
     positions, targets = column_spec(options.positions), options.targets
     kind = targets if targets in ("effort", "wrench") else None
     topic = options.joint_topic or BAG_JOINT_TOPIC

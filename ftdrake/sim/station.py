@@ -13,7 +13,8 @@
                                                                    contact detector
 
 :func:`build_station` builds it from one :class:`~ftdrake.config.ScenarioConfig`; the
-compensator and detector are added when a fitted compensator is given. Every part has a
+compensator and detector are added when a fitted compensator is given (and the sensor's
+``temperature`` port feeds the compensator's when its model was trained with it). Every part has a
 typed handle and a logger on :class:`Station`; :func:`ftdrake.sim.simulate.simulate` runs it.
 """
 
@@ -210,7 +211,7 @@ def build_station(config: ScenarioConfig, compensator=None, *, meshcat=None,
     compensation = arrows = None
     if compensator is not None:
         compensation = _add_compensation(builder, config, compensator, scene, events, period,
-                                         log)
+                                         log, noisy.get_output_port_temperature())
         if meshcat is not None:
             arrows = builder.AddNamedSystem("wrench_arrows", WrenchArrows(meshcat, plant, scene))
             builder.Connect(events.reading, arrows.get_input_port_measured())
@@ -234,8 +235,8 @@ def build_station(config: ScenarioConfig, compensator=None, *, meshcat=None,
                    loggers, compensation, arrows, events, friction, feedforward, feedforward_log)
 
 
-def _add_compensation(builder, config, model, scene, events: EventSignals, period, log
-                      ) -> Compensation:
+def _add_compensation(builder, config, model, scene, events: EventSignals, period, log,
+                      temperature) -> Compensation:
     plant = scene.plant
     compensator = builder.AddNamedSystem(
         "compensator",
@@ -245,6 +246,8 @@ def _add_compensation(builder, config, model, scene, events: EventSignals, perio
     builder.Connect(events.reading, compensator.get_input_port_wrench_measured())
     builder.Connect(plant.get_state_output_port(scene.arm),
                     compensator.get_input_port_joint_state())
+    if compensator.needs_temperature:  # a model trained with the sensor temperature (°C)
+        builder.Connect(temperature, compensator.get_input_port_temperature())
     detector = builder.AddNamedSystem("contact_detector", ContactDetector(config.detector, period))
     tracker = None
     external = compensator.get_output_port_wrench_external()

@@ -10,7 +10,9 @@ from pydrake.systems.framework import LeafSystem
 
 from ..compensation.base import generic_row_predictor
 from ..compensation.compiled.forest import CompiledForest, forest_accumulate_with_std
+from ..compensation.compiled.hybrid import CompiledHybrid, hybrid_row
 from ..compensation.features import check_feature_set
+from ..errors import ConfigError
 from ..signals import acceleration_filter_gain
 
 
@@ -23,6 +25,11 @@ class CompensatorSystem(LeafSystem):
       joint_acceleration (n, optional): v̇ in rad/s². When not connected, it is estimated
         inside by a causal difference of v low-passed at ``acceleration_cutoff_hz`` (a real
         controller has no q̈ sensor).
+      temperature (1, optional): the sensor's temperature in °C (the noisy sensor's
+        ``temperature`` port). Read only by a model trained with the temperature
+        (``model.temperature_in_``; ``needs_temperature``), which then requires it: a
+        ConfigError names the port at the first sample if it is not connected. A NaN/inf
+        temperature is a fault like any other input.
     Output ports (held between samples; updated every `period` s):
       wrench_internal (6): predicted internal wrench, N, N·m, S.
       wrench_external (6): wrench_measured − wrench_internal, N, N·m, S.
@@ -35,10 +42,10 @@ class CompensatorSystem(LeafSystem):
     ``predict``, ``features``, ``n_joints_`` and ``n_outputs_ == 6``. `n_joints`, if given,
     must match the model (e.g. ``plant.num_positions(arm)``). Each sample runs the model's
     ``row_predictor()`` (the compensator protocol, :mod:`ftdrake.compensation.base`); a
-    forest's compiled walk is fused with the input checks and the acceleration estimate into
-    one compiled call. ``fast=False`` goes through ``predict``/``predict_std`` instead (for
-    checking the compiled paths). The q̈ estimate is :func:`ftdrake.signals.causal_acceleration`,
-    row by row.
+    forest's compiled walk, or a hybrid's payload model and forest residual, is fused with the
+    input checks and the acceleration estimate into one compiled call. ``fast=False`` goes
+    through ``predict``/``predict_std`` instead (for checking the compiled paths). The q̈
+    estimate is :func:`ftdrake.signals.causal_acceleration`, row by row.
     """
 
     def __init__(self, model, period: float, *, n_joints: int | None = None,
@@ -50,8 +57,12 @@ class CompensatorSystem(LeafSystem):
         self.model = model
         self.period = float(period)
         n = self.n = int(model.n_joints_)
-        self._forest = _compiled_forest(model) if fast else None
-        if self._forest is not None:
+        #: Whether the model takes the sensor temperature as its last input (°C).
+        self.needs_temperature = bool(getattr(model, "temperature_in_", False))
+        # The fused update takes the 3n joint row only; a temperature model runs its
+        # own row predictor (compiled too, see Compensator.row_predictor).
+        self._fused = _fused_update(model) if fast and not self.needs_temperature else None
+        if self._fused is not None:
             self._predict = None
         elif fast and hasattr(model, "row_predictor"):
             self._predict = model.row_predictor()
@@ -66,6 +77,8 @@ class CompensatorSystem(LeafSystem):
         self._wrench_port = self.DeclareVectorInputPort("wrench_measured", 6)
         self._state_port = self.DeclareVectorInputPort("joint_state", 2 * n)
         self._accel_port = self.DeclareVectorInputPort("joint_acceleration", n)
+        self._temperature_port = self.DeclareVectorInputPort("temperature", 1)
+        self._nan_wrench = np.full(6, np.nan)
         # Previous v (n), filtered v̇ (n), primed flag, and copies of the fault and
         # out-of-domain outputs (so the compiled update knows when those change).
         self._estimator = self.DeclareDiscreteState(2 * n + 3)
@@ -88,6 +101,9 @@ class CompensatorSystem(LeafSystem):
 
     def get_input_port_joint_acceleration(self):
         return self.GetInputPort("joint_acceleration")
+
+    def get_input_port_temperature(self):
+        return self.GetInputPort("temperature")
 
     def get_output_port_wrench_internal(self):
         return self.GetOutputPort("wrench_internal")
@@ -114,13 +130,18 @@ class CompensatorSystem(LeafSystem):
         estimator = state.get_mutable_value(self._estimator)
         internal = state.get_mutable_value(self._internal)
         external = state.get_mutable_value(self._external)
-        if self._forest is not None:
-            status = _compensate_with_forest(
+        if self._fused is not None:
+            update, arrays = self._fused
+            status = update(
                 wrench, x, accel, measured, estimator, self._lo, self._hi, self._constants,
-                *self._forest, internal, external, state.get_mutable_value(self._std),
+                *arrays, internal, external, state.get_mutable_value(self._std),
             )
         else:
-            row = np.empty(3 * self.n)
+            row = np.empty(3 * self.n + self.needs_temperature)
+            if self.needs_temperature:
+                row[-1] = self._temperature(context)
+                if not math.isfinite(row[-1]):
+                    wrench = self._nan_wrench  # a fault: _prepare_row then writes nothing
             status = _prepare_row(wrench, x, accel, measured, estimator, row, self._lo,
                                   self._hi, self._constants)
             if not status & _FAULT:
@@ -133,6 +154,16 @@ class CompensatorSystem(LeafSystem):
             state.get_mutable_value(self._fault)[0] = float(status & _FAULT != 0)
         if status & _OOD_CHANGED:
             state.get_mutable_value(self._ood)[0] = float(status & _OOD != 0)
+
+
+    def _temperature(self, context) -> float:
+        if not self._temperature_port.HasValue(context):
+            raise ConfigError(
+                f"CompensatorSystem {self.get_name()!r}: the model was trained with the sensor "
+                "temperature (°C) as an input, but the 'temperature' input port is not "
+                "connected; connect the sensor's temperature output to it "
+                "(get_input_port_temperature())")
+        return float(self._temperature_port.Eval(context)[0])
 
 
 # Bits of the status the compiled update returns.
@@ -203,6 +234,22 @@ def _compensate_with_forest(wrench, x, accel, measured, estimator, lo, hi, const
     return status
 
 
+@numba.njit(cache=True)
+def _compensate_with_hybrid(wrench, x, accel, measured, estimator, lo, hi, constants,
+                            reals, ints, nodes, leaf_values, trees, n_trees, internal, external,
+                            std):
+    """_prepare_row, then the hybrid's payload model and residual forest
+    (:func:`~ftdrake.compensation.compiled.hybrid.hybrid_row`) into `internal` and `std`,
+    and measured − internal."""
+    row = np.empty(3 * len(accel))
+    status = _prepare_row(wrench, x, accel, measured, estimator, row, lo, hi, constants)
+    if not status & _FAULT:
+        hybrid_row(row, reals, ints, nodes, leaf_values, trees, n_trees, internal, std)
+        for j in range(6):
+            external[j] = wrench[j] - internal[j]
+    return status
+
+
 def check_model_fits(model, n_joints: int | None) -> None:
     """Raises ValueError unless `model` is a fitted 6-output compensator for `n_joints`."""
     for attr in ("predict", "features", "n_joints_", "n_outputs_"):
@@ -217,11 +264,16 @@ def check_model_fits(model, n_joints: int | None) -> None:
         )
 
 
-def _compiled_forest(model):
-    """The flat arrays of a forest compensator's compiled predictor, or None if not a forest:
-    a forest runs fused with the rest of the update in one compiled call."""
+def _fused_update(model):
+    """(compiled update, its model arrays) when the model's compiled predictor is a forest or
+    a hybrid with a forest residual: the whole sample then runs in one compiled call. None
+    for other models (they run their row predictor)."""
     compiled = model.compiled_predictor() if hasattr(model, "compiled_predictor") else None
-    return compiled.arrays if isinstance(compiled, CompiledForest) else None
+    if isinstance(compiled, CompiledForest):
+        return _compensate_with_forest, compiled.arrays
+    if isinstance(compiled, CompiledHybrid):
+        return _compensate_with_hybrid, compiled.arrays
+    return None
 
 
 def _training_box(model):

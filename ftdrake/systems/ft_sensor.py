@@ -114,9 +114,10 @@ class NoisyForceTorqueSensor(LeafSystem):
       sample count (1); the held reading (6); the saturation flag (1); the temperature (1).
 
     Per sample, in this order: the mounting rotation ``w_Sm = [R_SmS f; R_SmS τ]`` (about So)
-    and calibration cross-talk ``C·w_Sm``; first-order low-pass at ``bandwidth_hz``; +
-    constant bias + thermal zero drift ``k·(T − T_ambient)`` + random-walk drift + white noise;
-    saturation at ``±range``; quantization to ``resolution``. The temperature is
+    and the calibration error ``G·C·w_Sm`` (cross-talk C, per-axis gain error G);
+    first-order low-pass at ``bandwidth_hz``; + constant bias + thermal zero drift
+    ``k·(T − T_ambient)`` + random-walk drift + white noise; saturation at ``±range``;
+    quantization to ``resolution``. The temperature is
     ``T(t) = T_ambient + ΔT·(1 − exp(−t/τ))`` (the wrist warming up from t = 0). Noise is a
     pure function of (seed, sample index), so a run is reproducible from its seed and
     contexts can be cloned freely.
@@ -140,11 +141,14 @@ class NoisyForceTorqueSensor(LeafSystem):
         self.crosstalk_matrix = crosstalk_matrix(
             config.crosstalk, config.crosstalk_length_m, config.calibration_seed
         )
+        #: The calibration's per-axis gain error, diag(1 + gain_error).
+        self.gain_matrix = np.diag(1.0 + np.asarray(config.gain_error, dtype=float))
         #: R_SSm: the frame Sm the sensor measures in, in the model's S.
         self.mounting_rotation = mounting_rotation(config.mounting_rpy_deg)
         rotate = np.kron(np.eye(2), self.mounting_rotation.T)  # w_Sm = rotate · w_S
-        #: What the sensor does to a wrench in S, linearly: cross-talk after the mounting.
-        self.calibration_matrix = self.crosstalk_matrix @ rotate
+        #: What the sensor does to a wrench in S, linearly: the mounting rotation, then the
+        #: cross-talk and the gain error (W_Sm = calibration_matrix · W_S before the bias).
+        self.calibration_matrix = self.gain_matrix @ self.crosstalk_matrix @ rotate
         self._temperature_coefficients = np.asarray(config.temperature_coefficients, float)
         self._temperature = (float(config.temperature_ambient_c),
                              float(config.temperature_rise_c),

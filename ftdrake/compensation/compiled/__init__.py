@@ -13,6 +13,11 @@ wrench in N and N·m, or whatever the model was trained on), equal to scikit-lea
 * :class:`CompiledGaussianProcess` – a ``GPRCompensator``'s mean *and* standard deviation
   for one row by numba (kernel row, then forward substitution with the stored Cholesky
   factor), equal to its ``predict`` and ``predict_std``.
+* :mod:`.payload` – the physics payload model's row (serial-chain kinematics, regressor row,
+  mean and parameter variance) from two packed arrays; ``PhysicsPayloadCompensator``'s
+  row predictor.
+* :class:`CompiledHybrid` – a ``HybridCompensator``'s payload model and forest residual in one
+  numba call per row, mean and std, equal to its ``predict`` and ``predict_std``.
 
 All have ``predict(X)`` for (N, 3n) → (N, k) and ``predict_one(x, out=None)`` for
 (3n,) → (k,); all raise ``ValueError`` on a wrong column count or a NaN/inf input. They
@@ -23,11 +28,13 @@ A compensator builds its own with ``compiled_predictor()`` (the compensator prot
 
 from .forest import CompiledForest, FlatForest, flatten_forests, forest_accumulate
 from .gp import CompiledGaussianProcess
+from .hybrid import CompiledHybrid
 from .kernel import FastKernelModel, KernelExpansion
 
 __all__ = [
     "CompiledForest",
     "CompiledGaussianProcess",
+    "CompiledHybrid",
     "FastKernelModel",
     "FlatForest",
     "KernelExpansion",

@@ -1,0 +1,183 @@
+"""The physics payload model's row, compiled: S's kinematics on the serial chain, the 6 × 16
+regressor row, the reading's mean and the parameters' variance, from two packed arrays.
+
+A numba call costs about 0.15 µs per array argument (unboxing) before it does any work: a row
+kernel that took the chain, the parameters and the covariance factor as eleven arrays spent
+more time being called than computing. :func:`pack_payload_row` puts them into one float64
+and one int64 array once; :func:`payload_mean_var` unpacks views of them inside the kernel.
+:class:`~ftdrake.compensation.physics.PhysicsPayloadCompensator` and the hybrid's fused row
+(:mod:`.hybrid`) use it; the estimators fill it, this module knows nothing of them.
+
+Packed layout (m moving joints, n joints in the row, r columns of the covariance factor)::
+
+    reals (float64): g_W (3) | X_pre ((m + 1)·12) | axes (3m) | block_T (36) | θ (16)
+                     | F (16·r) | σ² (6)
+    ints (int64):    n, m, r, static, rotated | kinds (m) | q_index (m) | v_index (m)
+
+with X_pre, kinds, axes, q_index, v_index :class:`~ftdrake.physics.chain.SerialChain`'s kernel
+arrays, block_T (6 × 6) rotating a wrench from S into the measuring frame Sm, θ = [φ; b],
+F Fᵀ the parameters' covariance and σ² a variance added per axis; ``rotated`` is 0 when
+block_T is the identity (no mounting rotation: the kernel skips the product).
+"""
+
+from __future__ import annotations
+
+import numba
+import numpy as np
+
+from ...physics.chain import sensor_kinematics_row
+
+
+def pack_payload_row(chain_args, n_joints: int, gravity_W, static: bool, block_T, parameters,
+                     factor, noise_var) -> tuple[np.ndarray, np.ndarray]:
+    """(reals, ints) for :func:`payload_mean_var` (layout in the module docstring).
+
+    chain_args: ``SerialChain.kernel_args()`` (X_pre, kinds, axes, q_index, v_index);
+    block_T (6, 6); parameters (16,); factor (16, r ≤ 16); noise_var (6,).
+    """
+    X_pre, kinds, axes, q_index, v_index = chain_args
+    factor = np.asarray(factor, dtype=float)
+    if factor.ndim != 2 or factor.shape[0] != 16 or factor.shape[1] > 16 or \
+            np.shape(parameters) != (16,) or np.shape(block_T) != (6, 6):
+        raise ValueError("expected 16 parameters, a 16 × r factor (r <= 16) and a 6 × 6 "
+                         "rotation")
+    # Zero columns (directions with no uncertainty, e.g. a static model's inertia) add
+    # exact zeros to the variance: dropped.
+    used = np.flatnonzero(np.any(factor != 0.0, axis=0))
+    factor = factor[:, used] if len(used) else np.zeros((16, 1))
+    m, r = len(kinds), factor.shape[1]
+    reals = np.concatenate([
+        np.asarray(gravity_W, dtype=float).reshape(3), np.asarray(X_pre, float).reshape(-1),
+        np.asarray(axes, float).reshape(-1), np.asarray(block_T, float).reshape(-1),
+        np.asarray(parameters, float), factor.reshape(-1),
+        np.asarray(noise_var, float).reshape(6)])
+    rotated = int(not np.array_equal(block_T, np.eye(6)))
+    ints = np.concatenate([[n_joints, m, r, int(bool(static)), rotated], kinds, q_index,
+                           v_index]).astype(np.int64)
+    return np.ascontiguousarray(reals), np.ascontiguousarray(ints)
+
+
+@numba.njit(cache=True, nogil=True)
+def payload_mean_var(x, reals, ints, mean, var):
+    """One full-layout row x [q, q̇, q̈] (3n) → mean (6) = B·θ and var (6) = ‖B_i F‖² + σ_i²,
+    with B = [block_T · A_φ | I] the regressor row rotated into Sm."""
+    n, m, r, static, rotated = ints[0], ints[1], ints[2], ints[3], ints[4]
+    kinds, q_index, v_index = ints[5:5 + m], ints[5 + m:5 + 2 * m], ints[5 + 2 * m:5 + 3 * m]
+    k = 3
+    gravity_W = reals[:k]
+    X_pre = reals[k:k + (m + 1) * 12].reshape((m + 1, 3, 4))
+    k += (m + 1) * 12
+    axes = reals[k:k + 3 * m].reshape((m, 3))
+    k += 3 * m
+    block_T = reals[k:k + 36].reshape((6, 6))
+    k += 36
+    parameters = reals[k:k + 16]
+    k += 16
+    factor = reals[k:k + 16 * r].reshape((16, r))
+    k += 16 * r
+    noise_var = reals[k:k + 6]
+    work = np.zeros((2 * 6 + 1, 16))  # A, B and a row of B·F, in one allocation
+    A, B, t = work[:6], work[6:12], work[12]
+    kin = np.empty((7, 3))  # ω, α, a of S and g, in S; then R_WS
+    sensor_kinematics_row(x[:n], x[n:2 * n], x[2 * n:3 * n], gravity_W, X_pre, kinds, axes,
+                          q_index, v_index, kin[4:], kin[:4])
+    if static:
+        kin[:3, :] = 0.0
+    for c in range(3):
+        kin[3, c] = kin[2, c] - kin[3, c]  # a − g
+    regressor_row(kin[0], kin[1], kin[3], A)
+    if rotated:
+        for i in range(6):
+            for j in range(10):
+                s = 0.0
+                for c in range(6):
+                    s += block_T[i, c] * A[c, j]
+                B[i, j] = s
+            B[i, 10 + i] = 1.0
+    else:
+        B = A  # the product with the identity, exactly
+    for i in range(6):
+        s = 0.0
+        for j in range(16):
+            s += B[i, j] * parameters[j]
+        mean[i] = s
+    _variance(B, factor, noise_var, var, t)
+
+
+@numba.njit(cache=True, nogil=True)
+def _variance(B, factor, noise_var, var, t):
+    """var_i = σ_i² + ‖B_i F‖² (B: 6 × 16, F: 16 × r, t: scratch of ≥ r)."""
+    r = factor.shape[1]
+    for i in range(6):
+        # t = B_i F, summed over j in order for each column (the inner loop over the
+        # contiguous columns vectorises without reordering any sum).
+        t[:r] = 0.0
+        for j in range(16):
+            b = B[i, j]
+            for c in range(r):
+                t[c] += b * factor[j, c]
+        v = noise_var[i]
+        for c in range(r):
+            v += t[c] * t[c]
+        var[i] = v
+
+
+@numba.njit(cache=True, nogil=True)
+def payload_mean_std(x, reals, ints, mean, std):
+    """:func:`payload_mean_var`, then std = √var in place."""
+    payload_mean_var(x, reals, ints, mean, std)
+    for i in range(6):
+        std[i] = np.sqrt(std[i])
+
+
+@numba.njit(cache=True, nogil=True)
+def payload_predict(x, n, gravity_W, X_pre, kinds, axes, q_index, v_index, static, parameters,
+                    out):
+    """One full-layout row [q, q̇, q̈] (3n) → wrench (6) = A(row) · parameters (in S; the
+    mean-only path of ``PhysicsPayloadCompensator.predict_row``)."""
+    R = np.empty((3, 3))
+    kin = np.empty((4, 3))  # ω, α, a of S and g, in S
+    sensor_kinematics_row(x[:n], x[n:2 * n], x[2 * n:3 * n], gravity_W, X_pre, kinds, axes,
+                          q_index, v_index, R, kin)
+    if static:
+        kin[:3, :] = 0.0
+    A = np.zeros((6, 16))
+    regressor_row(kin[0], kin[1], kin[2] - kin[3], A)
+    for i in range(6):
+        s = 0.0
+        for j in range(16):
+            s += A[i, j] * parameters[j]
+        out[i] = s
+
+
+@numba.njit(cache=True, nogil=True)
+def regressor_row(w, al, d, A):
+    """The 6 × 16 regressor row of ``physics.payload_regressor`` (A zeroed on entry); ω, α and
+    d = a − g in S."""
+    wx, wy, wz = w[0], w[1], w[2]
+    ax, ay, az = al[0], al[1], al[2]
+    # Small matrices as tuples (no allocation); the same sums, term for term, as the
+    # matrix form: [ω]×[ω]× = ω ωᵀ − |ω|² I, [α]×, [d]×, L(α), L(ω), [ω]×.
+    ww = wx * wx + wy * wy + wz * wz
+    Sa = ((0.0, -az, ay), (az, 0.0, -ax), (-ay, ax, 0.0))
+    Sd = ((0.0, -d[2], d[1]), (d[2], 0.0, -d[0]), (-d[1], d[0], 0.0))
+    for i in range(3):
+        A[i, 0] = -d[i]
+        for j in range(3):
+            w2 = w[i] * w[j]
+            if i == j:
+                w2 -= ww
+            A[i, 1 + j] = -(Sa[i][j] + w2)
+            A[3 + i, 1 + j] = Sd[i][j]
+    # −(L(α) + [ω]× L(ω)) over [Ixx, Ixy, Ixz, Iyy, Iyz, Izz]
+    La = ((ax, ay, az, 0.0, 0.0, 0.0), (0.0, ax, 0.0, ay, az, 0.0),
+          (0.0, 0.0, ax, 0.0, ay, az))
+    Lw = ((wx, wy, wz, 0.0, 0.0, 0.0), (0.0, wx, 0.0, wy, wz, 0.0),
+          (0.0, 0.0, wx, 0.0, wy, wz))
+    Sw = ((0.0, -wz, wy), (wz, 0.0, -wx), (-wy, wx, 0.0))
+    for i in range(3):
+        for j in range(6):
+            A[3 + i, 4 + j] = -(La[i][j] + Sw[i][0] * Lw[0][j] + Sw[i][1] * Lw[1][j]
+                                + Sw[i][2] * Lw[2][j])
+    for i in range(6):
+        A[i, 10 + i] = 1.0
