@@ -31,6 +31,11 @@ def register(subparsers) -> None:
     p.add_argument("--duration", type=float, default=None, help="seconds per run")
     p.add_argument("--target", choices=["model_error", "feedback"], default="model_error",
                    help="what the GP learns (see FeedforwardPlan.target)")
+    p.add_argument("--ilc-gain", type=float, default=1.0,
+                   help="the ILC baseline's learning gain γ (default 1)")
+    p.add_argument("--ilc-cutoff", type=float, default=5.0, metavar="HZ",
+                   help="the ILC baseline's Q-filter cut-off (zero-phase Butterworth), "
+                        "default 5 Hz")
     p.add_argument("--quiet", action="store_true", help="no progress output")
     p.set_defaults(run=run_command)
 
@@ -39,7 +44,8 @@ def run_command(args) -> int:
     logging.basicConfig(level=logging.WARNING, format="%(levelname)s %(name)s: %(message)s")
     plan = experiment.FeedforwardPlan(iterations=args.iterations, trajectory=args.trajectory,
                                       seed=args.seed, duration_s=args.duration,
-                                      target=args.target)
+                                      target=args.target, ilc_gain=args.ilc_gain,
+                                      ilc_cutoff_hz=args.ilc_cutoff)
     summary = experiment.run_feedforward_experiment(
         load_config(args.config), plan, args.out, progress=not args.quiet)
     print(f"wrote {args.out}/summary.json, iterations.csv, tracking.png, feedforward_model.ftd "

@@ -330,7 +330,8 @@ class ArmDynamicsCompensator(Compensator):
     def summary(self) -> str:
         """Masses, friction and offsets per joint, and what the data determined, in words."""
         dyn = self.dynamics()
-        lines = [f"arm model {self.arm_model().label}: {len(dyn.bodies)} moving bodies, {dyn.n} joints; "
+        lines = [f"arm model {self.arm_model().label}: {len(dyn.bodies)} moving bodies, "
+                 f"{dyn.n} joints; "
                  f"the data determine {self.base_parameters_} of {len(self.parameters_)} "
                  f"parameter combinations (condition number {self.condition_number_:.3g}); "
                  f"{self.identification.replace('_', ' ')}"

@@ -67,6 +67,9 @@ class FeedforwardPlan:
             raise ConfigError(f"target: 'model_error' or 'feedback', got {self.target!r}")
         if self.iterations < 1:
             raise ConfigError(f"--iterations: must be >= 1, got {self.iterations}")
+        if not self.ilc_cutoff_hz > 0 or not self.ilc_gain > 0:
+            raise ConfigError(f"--ilc-cutoff and --ilc-gain must be > 0, got "
+                              f"{self.ilc_cutoff_hz} Hz and {self.ilc_gain}")
         if not 0.2 <= self.generalisation_speed <= 1.0:
             raise ConfigError("generalisation_speed: must be in [0.2, 1] (slower stays inside "
                               f"the learned velocities), got {self.generalisation_speed}")

@@ -60,7 +60,8 @@ class SensorGravity(LeafSystem):
 
     def _calc(self, context, output: BasicVector):
         # Runs at every sample the payload tracker takes: two port reads and one compiled
-        # call (the same arithmetic in numpy and pydrake calls cost ~5× more).
+        # call (with the arithmetic in numpy and pydrake calls this took 50 µs per call hot,
+        # now 18, most of it the two reads of the plant's abstract ports; one run, load ~2).
         X_WB = self._poses_port.Eval(context)[self._body]
         A_WB_W = (self._accelerations_port.Eval(context)[self._body].get_coeffs()
                   if self._acceleration else self._no_acceleration)
