@@ -150,14 +150,20 @@ def run_calibrate(args) -> int:
             known_payload=known)
     print(cal.summary())
     _print_warnings(caught, ExcitationWarning)
-    if cal.correction is not None and cal.model is not None:
-        print("note: model.ftd is the gravity + bias model; the correction is in "
-              "calibration.yaml (apply it to readings: wrench = C·(reading − bias))")
+    model = cal.model
+    if cal.correction is not None and model is not None:
+        if cal.correction.payload is not None:
+            model = model.with_correction(cal.correction)
+            print("model.ftd predicts readings through the correction: M·W_S + b (M = C⁻¹)")
+        else:
+            print("note: model.ftd is the gravity + bias model (the correction was fitted with "
+                  "a known payload per row); the correction is in calibration.yaml (apply it "
+                  "to readings: wrench = C·(reading − bias))")
     written = _write_yaml(args.out / "calibration.yaml", {"calibration": cal.to_dict(),
                                                          "data": str(args.data)})
-    if cal.model is not None:
-        options = _read_options(args, cal.model.temperature_in_)
-        written.append(_save(cal.model, args, cal.model.n_joints_, options))
+    if model is not None:
+        options = _read_options(args, model.temperature_in_)
+        written.append(_save(model, args, model.n_joints_, options))
     else:
         print("no model file: the orientation was given directly, so a model that maps joint "
               "states to it needs a robot (give joint-angle columns with --robot)")

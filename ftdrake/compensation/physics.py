@@ -249,7 +249,7 @@ class PhysicsPayloadCompensator(Compensator):
     def _predict_from(self, A, temperature=None):
         """Readings in Sm: ``R_SmS ⊗ (A_φ φ) + b + k·(T − T_ref)``."""
         wrench_S = A[:, :, :10] @ self.parameters_[:10]
-        out = wrench_S @ np.kron(np.eye(2), getattr(self, "mounting_rotation_", np.eye(3)))
+        out = wrench_S @ self.reading_matrix().T
         out = out + self.parameters_[10:]
         reference = getattr(self, "temperature_reference_", None)
         if temperature is not None and reference is not None:
@@ -295,15 +295,47 @@ class PhysicsPayloadCompensator(Compensator):
         lam, V = np.linalg.eigh(0.5 * (cov + cov.T))
         factor = np.ascontiguousarray(V * np.sqrt(np.maximum(lam, 0.0)))
         noise_var = np.asarray(getattr(self, "residual_rms_", np.zeros(6)), dtype=float) ** 2
-        rotation = getattr(self, "mounting_rotation_", np.eye(3))
-        return factor, noise_var, np.ascontiguousarray(np.kron(np.eye(2), rotation).T)
+        return factor, noise_var, np.ascontiguousarray(self.reading_matrix())
+
+    def reading_matrix(self) -> np.ndarray:
+        """(6, 6) M with reading = M·W_S + b (+ k·ΔT): the sensor's gain/cross-talk matrix
+        when one was set (``reading_matrix_``, from ``calibrate --correction``), else the
+        mounting rotation ``R_SmS`` on forces and torques (identity without one)."""
+        matrix = getattr(self, "reading_matrix_", None)
+        if matrix is not None:
+            return np.asarray(matrix, dtype=float)
+        return np.kron(np.eye(2), getattr(self, "mounting_rotation_", np.eye(3))).T
+
+    def with_correction(self, correction) -> PhysicsPayloadCompensator:
+        """A copy that predicts readings through a gain/cross-talk correction identified on
+        static poses (:class:`~ftdrake.compensation.calibration.CalibrationCorrection`):
+        ``M·W_S(payload) + b + k·ΔT`` with the correction's M, bias, temperature coefficients
+        and payload (it must have one payload for every row). The parameters' covariance stays
+        the rigid fit's (an approximation: M's own uncertainty is not propagated)."""
+        import copy
+
+        if correction.payload is None:
+            raise ConfigError("the correction was fitted with a known payload per row: no "
+                              "single payload to predict with")
+        model = copy.deepcopy(self)
+        model.parameters_ = self.parameters_.copy()
+        model.parameters_[:4] = correction.payload
+        model.parameters_[10:] = correction.bias
+        model.mounting_rotation_ = np.eye(3)  # M holds the mounting too
+        model.reading_matrix_ = np.asarray(correction.sensor_matrix, dtype=float).copy()
+        if correction.temperature_coefficients is not None:
+            model.temperature_coefficients_ = np.asarray(correction.temperature_coefficients)
+            model.temperature_std_errors_ = np.asarray(correction.temperature_std_errors)
+            model.temperature_reference_ = correction.temperature_reference
+        model.residual_rms_ = np.asarray(correction.residual_rms, dtype=float).copy()
+        return model
 
     def predict_row(self, x) -> np.ndarray:
         """One full-layout row (3n,) → wrench (6,), without input validation (control loops):
         one compiled kernel (kinematics, regressor row, product with the parameters)."""
         x = np.asarray(x, dtype=float)
         if getattr(self, "temperature_in_", False) or not np.array_equal(
-                getattr(self, "mounting_rotation_", np.eye(3)), np.eye(3)):
+                self.reading_matrix(), np.eye(6)):
             return self.row_predictor()(x)[0]
         out = np.empty(6)
         payload_predict(x, *self._row_kernel_args(), self.parameters_, out)
