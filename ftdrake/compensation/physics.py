@@ -35,6 +35,7 @@ column in X).
 
 from __future__ import annotations
 
+import copy
 import functools
 import warnings
 import weakref
@@ -312,8 +313,6 @@ class PhysicsPayloadCompensator(Compensator):
         ``M·W_S(payload) + b + k·ΔT`` with the correction's M, bias, temperature coefficients
         and payload (it must have one payload for every row). The parameters' covariance stays
         the rigid fit's (an approximation: M's own uncertainty is not propagated)."""
-        import copy
-
         if correction.payload is None:
             raise ConfigError("the correction was fitted with a known payload per row: no "
                               "single payload to predict with")
