@@ -159,3 +159,56 @@ def test_payload_tracking_is_refused():
         np.zeros((10, 3 * N)), np.zeros((10, 6)))
     with pytest.raises(ConfigError, match=r"bias_tracker\.track_payload"):
         HardwareStation(HardwareConfig(lcm_url="memq://"), model, scenario)
+
+
+def test_a_temperature_model_reads_the_temperature_channel_and_faults_when_it_goes_stale():
+    """A model trained with the sensor temperature: the station needs the channel, uses the
+    last temperature (the published wrench follows it), and publishes no wrench once the
+    temperature is older than its timeout."""
+    from ftdrake.hardware.messages import encode_temperature
+
+    rng = np.random.default_rng(1)
+    X = np.hstack([rng.uniform(-1, 1, (400, 3 * N)), rng.uniform(20, 40, (400, 1))])
+    Y = np.zeros((400, 6))
+    Y[:, 0] = 0.5 * (X[:, -1] - 20.0)  # Fx drifts 0.5 N/K
+    model = RandomForestCompensator(features="q", n_estimators=5).fit(X, Y)
+    scenario = ScenarioConfig()
+    scenario.bias_tracker.enabled = False
+    with pytest.raises(ConfigError, match=r"hardware\.temperature_channel"):
+        HardwareStation(HardwareConfig(lcm_url="memq://"), model, scenario, "memq://")
+    config = HardwareConfig(lcm_url="memq://", temperature_channel="FT_TEMPERATURE",
+                            temperature_timeout_s=0.5)
+    now = [0.0]
+    events = []
+    dut = HardwareStation(config, model, scenario, "memq://", clock=lambda: now[0],
+                          on_event=events.append)
+    wrenches = []
+    dut.lcm.subscribe(config.external_wrench_channel, lambda d: wrenches.append(decode_wrench(d)))
+    q = np.linspace(-0.5, 0.5, N)
+
+    def step(t, temperature=None):
+        now[0] = t
+        if temperature is not None:
+            dut.lcm.publish(config.temperature_channel, encode_temperature(t, temperature))
+        dut.lcm.publish(config.joint_state_channel,
+                        encode_joint_state("iiwa_status", t, q, np.zeros(N)))
+        dut.lcm.publish(config.ft_channel, encode_wrench(t, np.zeros(6)))
+        dut.spin_once(0)
+        dut.lcm.handle(0)
+
+    step(0.000)  # no temperature yet: fault, nothing published
+    assert not wrenches and dut.monitor.fault and "temperature" in dut.monitor.detail
+    step(0.001, 25.0)
+    step(0.002, 35.0)
+    assert len(wrenches) == 2
+    # external = measured (0) − predicted: Fx ≈ −0.5·(T − 20), from the forest's leaves.
+    assert wrenches[0].wrench[0] == pytest.approx(-2.5, abs=1.0)
+    assert wrenches[1].wrench[0] == pytest.approx(-7.5, abs=1.0)
+    for k in range(3, 10):  # the temperature stops; F/T and joints go on
+        step(0.001 * k)
+    assert len(wrenches) == 9
+    step(0.7)  # 0.698 s after the last temperature: stale
+    assert len(wrenches) == 9 and dut.monitor.reason == "temperature_timeout"
+    assert events[-1].reason == "temperature_timeout"
+    step(0.701, 30.0)  # recovers with a fresh temperature
+    assert len(wrenches) == 10 and not dut.monitor.fault

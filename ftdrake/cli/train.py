@@ -47,6 +47,8 @@ from ..data.training import ReadOptions, TrainingData, load_training_data
 from ..errors import ConfigError, FtdrakeError, LogError, ModelFileError, RobotModelError
 
 FEATURE_SETS = ("q", "q,qd", "q,qd,qdd")
+# `evaluate` prints a warning when a cause flags more than this share of some target's rows.
+UNTRUSTED_WARN_FRACTION = 0.1
 BUILTIN_ROBOT = "ftdrake"  # --robot value naming ftdrake's simulated arm
 
 _COLUMNS_HELP = ("PAT is a glob ('q_*'), a comma-separated list of names, or a regular "
@@ -508,6 +510,8 @@ def run_evaluate(args) -> int:
         metrics[key] = (report(data.Y[rows], prediction[rows], target_names=names,
                                std=None if std is None else std[rows])
                         if rows.sum() >= 2 else None)
+    trust = _trust(names, prediction, std, outside,
+                   *_trust_references(model, manifest, names, std))
     result = {
         "model": str(args.model),
         "model_class": manifest["model_class"].rsplit(".", 1)[-1],
@@ -523,14 +527,89 @@ def run_evaluate(args) -> int:
         "std": (None if std is None else "calibrated" if getattr(model, "std_includes_noise",
                                                                    False) else "not calibrated"),
         "metrics": metrics,
+        "trust": trust,
     }
     print_evaluation(result)
+    for line in trust["warnings"]:
+        _warn(line)
     if args.json is not None:
         from ..io import atomic_write_text
 
         atomic_write_text(args.json, json.dumps(result, indent=2))
         say(f"wrote {args.json}")
     return 0
+
+
+def _trust_references(model, manifest: dict, names, std):
+    """What `evaluate` compares predictions with to flag them: the model's RMS residual on
+    its training rows (models with a calibrated std that keep ``residual_rms_``: the GP,
+    physics) and the training range of every target (from the manifest), or None."""
+    residual = None
+    if std is not None and getattr(model, "std_includes_noise", False):
+        value = getattr(model, "residual_rms_", None)
+        if value is not None and np.size(value) == len(names):
+            residual = np.asarray(value, dtype=float)
+    ranges = manifest.get("extra", {}).get("training_range", {}).get("targets")
+    target_range = None
+    if isinstance(ranges, dict) and all(n in ranges for n in names):
+        target_range = tuple(np.array([ranges[n][i] for n in names], dtype=float)
+                             for i in (0, 1))
+    return residual, target_range
+
+
+def _trust(names, prediction, std, outside, residual, target_range) -> dict:
+    """Per target, the share of rows whose prediction should not be trusted, and why.
+
+    A row is flagged when any used input lies outside its training range, when the
+    predictive std exceeds ``UNCERTAIN_STD_FACTOR`` × the training residual (the model lacks
+    data there), or when the prediction lies outside the training range of its target
+    widened by ``TARGET_RANGE_MARGIN`` (extrapolating). One warning line per cause that
+    flags more than ``UNTRUSTED_WARN_FRACTION`` of the rows on some target.
+    """
+    from ..compensation.metrics import TARGET_RANGE_MARGIN, UNCERTAIN_STD_FACTOR
+
+    k = len(names)
+    causes = {"inputs_outside_range": np.repeat(outside[:, None], k, axis=1)}
+    if std is not None and residual is not None:
+        causes["std_above_factor_x_residual"] = std > UNCERTAIN_STD_FACTOR * residual
+    if target_range is not None:
+        lo, hi = target_range
+        pad = TARGET_RANGE_MARGIN * (hi - lo)
+        causes["prediction_outside_target_range"] = ((prediction < lo - pad)
+                                                     | (prediction > hi + pad))
+    flagged = np.logical_or.reduce(list(causes.values()))
+    share = {cause: dict(zip(names, np.round(rows.mean(axis=0), 4).tolist(), strict=True))
+             for cause, rows in causes.items()}
+    said = {
+        "inputs_outside_range": "inputs outside the training range",
+        "std_above_factor_x_residual": (f"predictive std > {UNCERTAIN_STD_FACTOR:g}× the "
+                                        "training residual (the model lacks data there)"),
+        "prediction_outside_target_range": (f"predictions beyond the training range of the "
+                                            f"target (±{100 * TARGET_RANGE_MARGIN:.0f} %)"),
+    }
+    warnings = []
+    if outside.mean() > UNTRUSTED_WARN_FRACTION:
+        warnings.append(f"warning: {said['inputs_outside_range']} on "
+                        f"{100 * outside.mean():.0f} % of rows")
+    for cause, per_target in list(share.items())[1:]:
+        worst = {n: v for n, v in per_target.items() if v > UNTRUSTED_WARN_FRACTION}
+        if worst:
+            listed = ", ".join(f"{n} {100 * v:.0f} %" for n, v in worst.items())
+            warnings.append(f"warning: {said[cause]} on {listed} of rows")
+    if warnings:
+        warnings.append("warning: predictions on flagged rows cannot be trusted; see "
+                        "'trust' in --json (share of rows flagged per target and cause)")
+    return {
+        "uncertain_std_factor": UNCERTAIN_STD_FACTOR if "std_above_factor_x_residual" in causes
+        else None,
+        "target_range_margin": TARGET_RANGE_MARGIN,
+        "residual_rms": None if residual is None else dict(
+            zip(names, residual.round(6).tolist(), strict=True)),
+        "untrusted_fraction": dict(zip(names, np.round(flagged.mean(axis=0), 4).tolist(),
+                                       strict=True)),
+        "by_cause": share,
+        "warnings": warnings,
+    }
 
 
 def _check_compatible(manifest: dict, data: TrainingData, args) -> None:
@@ -607,6 +686,11 @@ def print_evaluation(result: dict, file=None) -> None:
             print(f"  {name:<10}{_num(row.get('coverage_68'), 8, '.3f')}"
                   f"{_num(row.get('coverage_95'), 8, '.3f')}", file=file)
         print(file=file)
+    trust = result.get("trust")
+    if trust:
+        shares = ", ".join(f"{n} {100 * v:.0f} %" for n, v in trust["untrusted_fraction"].items())
+        print(f"  rows flagged as not to be trusted ({', '.join(trust['by_cause'])}): "
+              f"{shares}\n", file=file)
 
 
 def _num(x, width: int, fmt: str) -> str:

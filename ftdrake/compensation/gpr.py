@@ -12,16 +12,20 @@ Three choices keep it usable on 10k+-row logs on a 2-core machine:
 
 * **A data subset, chosen to cover the trajectory.** An exact GP on m rows costs O(m³) to fit
   and O(m²) memory; a prediction costs O(m·d) for the mean and O(m²) for the std. So the GP
-  is trained on at most ``max_points`` rows, picked by greedy farthest-point selection in the
-  standardised input space: each new row is the one farthest from all rows picked so far. As
-  an RBF GP's predictive variance grows with the distance to the nearest training row, this is
-  a cheap stand-in for "add the row with the largest predictive variance", needing no
-  hyperparameters yet. The subset spreads evenly along the trajectory instead of piling up
-  where the robot lingered, and its covering radius (largest distance from any row to its
-  nearest chosen row) is within 2× of the best possible (Gonzalez 1985); on a 12k-row test
-  trajectory it is 4-7× smaller than a random subset's. Selection costs O(N·m·d) time and
-  O(N) memory (2.5 s for N = 100k, d = 21, m = 2000). It also picks outliers first (e.g.
-  spikes in a numerically differentiated q̈): filter those before fitting. We chose a subset
+  is trained on at most ``max_points`` rows, picked by greedy farthest-point selection: each
+  new row is the one farthest from all rows picked so far, in the kernels' own metric (the
+  standardised inputs divided by the fitted ARD length scales, per input the shortest over
+  the outputs' kernels; the hyperparameters are fitted first, see below). As an RBF GP's
+  predictive variance grows with that distance to the nearest training row, this is a cheap
+  stand-in for "add the row with the largest predictive variance". The subset spreads evenly
+  along the trajectory instead of piling up where the robot lingered, and its covering radius
+  (largest distance from any row to its nearest chosen row) is within 2× of the best possible
+  (Gonzalez 1985); on a 12k-row test trajectory it is 4-7× smaller than a random subset's.
+  Selection costs O(N·m·d) time and O(N) memory (2.5 s for N = 100k, d = 21, m = 2000).
+  In plain standardised units (before) an input the kernel ignores counted as much as one it
+  uses, and spikes of a numerically differentiated q̈ were picked first: on a test log with 5 %
+  spike rows they made 99 % of a 100-row subset, now 2 % (``tests/test_velocity_features.py``).
+  Outliers in inputs the kernel does use are still picked first: filter them. We chose a subset
   of data over a sparse inducing-point method (SGPR/FITC/VFE) because scikit-learn has none;
   a subset keeps the exact GP algebra, so sklearn fits it and the fitted arrays below are all
   a fast predictor needs.
@@ -173,6 +177,7 @@ class GPRCompensator(Compensator):
                                        kernel hyperparameters, standardised units
     kernels_ : list of g fitted sklearn kernels (the same hyperparameters)
     noise_std_ : (k,)                  observation-noise std per output, in target units
+    residual_rms_ : (k,)               RMS of ``y - predict(X)`` on all training rows
 
     g = 1 with `shared_kernel` (kernel 0 serves every output), else g = k (kernel j serves
     output j). In standardised units, with r = exp(-½ |(z - X_train_) / l|²) (m,)::
@@ -228,12 +233,9 @@ class GPRCompensator(Compensator):
         Zs = (Z - self.input_mean_) / self.input_scale_
         Ys = (Y - self.target_mean_) / self.target_scale_
 
-        self.subset_indices_ = self._choose_subset(Zs, rng)
-        self.X_train_ = Zs[self.subset_indices_]
-        Y_train = Ys[self.subset_indices_]
-        m = len(self.X_train_)
+        # Hyperparameters first (from a random sample of all rows), then the subset, chosen
+        # in the kernels' own metric: see the module docstring.
         sample = rng.choice(len(Zs), min(self.optimize_points, len(Zs)), replace=False)
-
         self.kernels_ = []
         for cols in self.output_groups():
             kernel = self._initial_kernel(Z.shape[1])
@@ -247,6 +249,11 @@ class GPRCompensator(Compensator):
             [np.broadcast_to(k.k1.k2.length_scale, Z.shape[1:]) for k in self.kernels_]
         )
         self.noise_variance_ = np.array([k.k2.noise_level for k in self.kernels_])
+
+        self.subset_indices_ = self._choose_subset(Zs / self.length_scale_.min(axis=0), rng)
+        self.X_train_ = Zs[self.subset_indices_]
+        Y_train = Ys[self.subset_indices_]
+        m = len(self.X_train_)
         self.L_ = np.empty((len(self.kernels_), m, m))
         self.alpha_ = np.empty((m, Y.shape[1]))
         for g, (kernel, cols) in enumerate(zip(self.kernels_, self.output_groups(), strict=True)):
@@ -255,6 +262,8 @@ class GPRCompensator(Compensator):
             self.L_[g] = cholesky(K, lower=True, check_finite=False)
             self.alpha_[:, cols] = cho_solve((self.L_[g], True), Y_train[:, cols])
         self.noise_std_ = np.sqrt(self._per_output(self.noise_variance_)) * self.target_scale_
+        # What the std is compared with to flag predictions as uncertain (``evaluate``).
+        self.residual_rms_ = np.sqrt(np.mean((self._predict(Z) - Y) ** 2, axis=0))
 
     def _choose_subset(self, Zs: np.ndarray, rng) -> np.ndarray:
         if self.subset == "all" or len(Zs) <= self.max_points:

@@ -109,14 +109,56 @@ def coverage(y_true, y_pred, std, level: float = 0.95) -> np.ndarray:
     return np.mean(np.abs(a - b) <= z * s, axis=0)
 
 
+#: A row's prediction is "uncertain" when its predictive std exceeds this many times the
+#: model's residual on its own training rows (``residual_rms_``): where the model has data
+#: its std is about that residual, so a doubling says it is extrapolating or interpolating
+#: across a gap. Used by :func:`uncertain_fraction` and ``ftdrake evaluate``.
+UNCERTAIN_STD_FACTOR = 2.0
+#: A prediction is "outside the training targets" when it lies beyond the training
+#: [min, max] of its target widened by this fraction of the range on either side.
+TARGET_RANGE_MARGIN = 0.1
+
+
+def uncertain_fraction(std, residual_rms, factor: float = UNCERTAIN_STD_FACTOR) -> np.ndarray:
+    """Fraction per axis of rows whose predictive `std` exceeds ``factor · residual_rms``.
+
+    `std` is N × k (a 1-D array is one axis), `residual_rms` one positive value per axis (the
+    model's RMS residual on its training rows, in the target's units). Dimensionless, 0–1.
+    """
+    s = _as_columns(std, "std")
+    ref = np.broadcast_to(np.asarray(residual_rms, dtype=float), (s.shape[1],))
+    if not np.all(np.isfinite(ref) & (ref >= 0)) or factor <= 0:
+        raise ValueError(f"need finite residual_rms >= 0 and factor > 0; got {residual_rms!r}, "
+                         f"{factor!r}")
+    return np.mean(s > factor * ref, axis=0)
+
+
+def outside_range_fraction(y_pred, low, high, margin: float = TARGET_RANGE_MARGIN) -> np.ndarray:
+    """Fraction per axis of predictions beyond ``[low, high]`` widened by `margin` × its width.
+
+    `low`, `high`: the training minimum and maximum per axis (target units). A model that
+    predicts a torque the robot never produced while it was recorded is extrapolating.
+    """
+    p = _as_columns(y_pred, "y_pred")
+    lo = np.broadcast_to(np.asarray(low, dtype=float), (p.shape[1],))
+    hi = np.broadcast_to(np.asarray(high, dtype=float), (p.shape[1],))
+    if np.any(hi < lo) or margin < 0:
+        raise ValueError(f"need high >= low and margin >= 0; got {low!r}, {high!r}, {margin!r}")
+    pad = margin * (hi - lo)
+    return np.mean((p < lo - pad) | (p > hi + pad), axis=0)
+
+
 def report(y_true, y_pred, *, target_names=None, truth=None, noise_std=None,
-           std=None) -> dict:
+           std=None, train_residual_rms=None, target_range=None) -> dict:
     """JSON-ready metrics keyed by target name.
 
     ``{"Fx": {"mse": ..., "nmse": ..., "variance_score": ...}, ...}``; with `truth` (e.g. the
     noise-free internal wrench) also ``"rms_vs_truth"`` of `y_pred`, and with `noise_std` as
     well ``"rms_over_noise"``; with a predictive `std` (N × k) ``"coverage_68"`` and
-    ``"coverage_95"`` (:func:`coverage`). Default names are ``Fx..Tz`` for 6 columns, else
+    ``"coverage_95"`` (:func:`coverage`), and with the model's `train_residual_rms` (k)
+    too ``"uncertain_fraction"`` (:func:`uncertain_fraction`); with the training
+    `target_range` ``(low (k,), high (k,))`` ``"outside_target_range_fraction"``
+    (:func:`outside_range_fraction`). Default names are ``Fx..Tz`` for 6 columns, else
     ``y0, y1, …``. NaN (constant axis) becomes None so the dict dumps as strict JSON.
     """
     a, b = _pair(y_true, y_pred)
@@ -125,6 +167,10 @@ def report(y_true, y_pred, *, target_names=None, truth=None, noise_std=None,
     if std is not None:
         for level in COVERAGE_LEVELS:
             table[f"coverage_{round(100 * level)}"] = coverage(a, b, std, level)
+        if train_residual_rms is not None:
+            table["uncertain_fraction"] = uncertain_fraction(std, train_residual_rms)
+    if target_range is not None:
+        table["outside_target_range_fraction"] = outside_range_fraction(b, *target_range)
     if truth is not None:
         table["rms_vs_truth"] = residual_rms(_pair(a, truth, ("y_true", "truth"))[1], b)
         if noise_std is not None:

@@ -37,7 +37,10 @@ _RF_PRESETS = {
 _SVR_PRESETS = {
     "paper": [{"kernel": ["linear"], "C": _C_DECADES},
               {"kernel": ["rbf", "poly", "sigmoid"], "C": _C_DECADES, "gamma": _GAMMA_DECADES}],
-    "quick": [{"kernel": ["rbf"], "C": [1.0, 10.0, 100.0], "gamma": [0.03, 0.1]}],
+    # gamma by sklearn's rules, 1 / (n_inputs · var(inputs)) and 1 / n_inputs, so that the
+    # kernel's width follows the number of inputs; the fixed 0.03 and 0.1 were 2.5-20x below
+    # 'scale' (20x for q alone). See docs/torque_models/velocity_features.md.
+    "quick": [{"kernel": ["rbf"], "C": [1.0, 10.0, 100.0], "gamma": ["scale", "auto"]}],
 }
 # A GP keeps its fitted kernels (hyper-parameters only); skops does not trust them by default.
 _GP_KERNELS = tuple(f"sklearn.gaussian_process.kernels.{k}"

@@ -31,6 +31,9 @@ class HardwareConfig:
     Outputs: the external wrench (``lcmt_force_torque``) on `external_wrench_channel`; the
     contact state (``lcmt_drake_signal``, see :func:`encode_contact_state`) on
     `contact_channel`.
+    Temperature (only for a model trained with the sensor temperature): ``lcmt_drake_signal``
+    with one value in °C (:func:`encode_temperature`) on `temperature_channel`; older than
+    `temperature_timeout_s` it faults the inputs like a silent sensor.
     """
 
     lcm_url: str = "udpm://239.255.76.67:7667?ttl=0"
@@ -40,6 +43,10 @@ class HardwareConfig:
     ft_channel: str = "FT_SENSOR"
     external_wrench_channel: str = "FT_EXTERNAL_WRENCH"
     contact_channel: str = "FT_CONTACT_STATE"
+    # The sensor's temperature (lcmt_drake_signal, one value in °C; see messages), for models
+    # trained with it; "" when the model needs none.
+    temperature_channel: str = ""
+    temperature_timeout_s: float = 1.0
     sensor_timeout_s: float = 0.005
     joint_state_timeout_s: float = 0.02
     n_joints: int = 7
@@ -54,8 +61,10 @@ class HardwareConfig:
             raise ConfigError(f"{where}.velocity_channel: required when joint_state_type is "
                               "'robot_state' (that message carries positions only)")
         names = {}
+        optional = tuple(f for f in ("velocity_channel", "temperature_channel")
+                         if getattr(self, f))
         for field in ("joint_state_channel", "ft_channel", "external_wrench_channel",
-                      "contact_channel") + (("velocity_channel",) if self.velocity_channel else ()):
+                      "contact_channel", *optional):
             value = getattr(self, field)
             if not (isinstance(value, str) and value):
                 raise ConfigError(f"{where}.{field}: must be a non-empty channel name")
@@ -63,7 +72,7 @@ class HardwareConfig:
                 raise ConfigError(f"{where}.{field}: channel {value!r} is also "
                                   f"{where}.{names[value]}")
             names[value] = field
-        for field in ("sensor_timeout_s", "joint_state_timeout_s"):
+        for field in ("sensor_timeout_s", "joint_state_timeout_s", "temperature_timeout_s"):
             value = getattr(self, field)
             if not (isinstance(value, (int, float)) and value > 0 and math.isfinite(value)):
                 raise ConfigError(f"{where}.{field}: must be a positive number of seconds, "

@@ -34,8 +34,8 @@ from .messages import JointSample, WrenchSample
 #: Reasons a message is rejected or the inputs are faulted. ``unpaired`` (robot_state only)
 #: counts a position or velocity message that never met its partner; it is not a fault by
 #: itself (nothing stale is used; a silent pair stream faults by timeout).
-REASONS = ("sensor_timeout", "joint_timeout", "out_of_order", "duplicate", "not_finite",
-           "joint_count", "malformed", "unpaired")
+REASONS = ("sensor_timeout", "joint_timeout", "temperature_timeout", "out_of_order",
+           "duplicate", "not_finite", "joint_count", "malformed", "unpaired")
 
 
 class StreamMonitor:
@@ -46,8 +46,12 @@ class StreamMonitor:
     (``rejected_by[stream][reason]`` splits them).
     """
 
-    def __init__(self, n_joints: int, sensor_timeout_s: float, joint_state_timeout_s: float):
+    def __init__(self, n_joints: int, sensor_timeout_s: float, joint_state_timeout_s: float,
+                 temperature_timeout_s: float | None = None):
         self.n = int(n_joints)
+        # None: no temperature stream (the model needs none); else its staleness limit, s.
+        self.temperature_timeout_s = temperature_timeout_s
+        self.temperature = np.nan  # °C, the last accepted
         self.sensor_timeout_s = float(sensor_timeout_s)
         self.joint_state_timeout_s = float(joint_state_timeout_s)
         self.wrench = np.zeros(6)
@@ -58,9 +62,10 @@ class StreamMonitor:
         self.received = collections.Counter()
         self.accepted = collections.Counter()
         self.rejected = collections.Counter()
-        self.rejected_by = {"ft": collections.Counter(), "joint": collections.Counter()}
-        self._last_t = {"ft": None, "joint": None}
-        self._last_arrival = {"ft": None, "joint": None}
+        self.rejected_by = {"ft": collections.Counter(), "joint": collections.Counter(),
+                            "temperature": collections.Counter()}
+        self._last_t = {"ft": None, "joint": None, "temperature": None}
+        self._last_arrival = {"ft": None, "joint": None, "temperature": None}
         self._joint_bad = None  # (reason, detail) of a rejected joint message not yet made good
 
     # -- bookkeeping --------------------------------------------------------------------------
@@ -120,6 +125,36 @@ class StreamMonitor:
         self._joint_bad = None
         return True
 
+    def on_temperature(self, sample: tuple[float, float] | None, arrival: float) -> bool:
+        """One temperature message ``(t s, °C)``. A rejected one leaves the last good value,
+        which then ages into a ``temperature_timeout``; nothing is faulted by it alone."""
+        self.received["temperature"] += 1
+        if sample is None:
+            self.rejected["malformed"] += 1
+            self.rejected_by["temperature"]["malformed"] += 1
+            return False
+        t, celsius = sample
+        if not (np.isfinite(t) and np.isfinite(celsius)):
+            self.rejected["not_finite"] += 1
+            self.rejected_by["temperature"]["not_finite"] += 1
+            return False
+        self.temperature = float(celsius)
+        self._last_t["temperature"], self._last_arrival["temperature"] = t, arrival
+        self.accepted["temperature"] += 1
+        return True
+
+    def _temperature_problem(self, arrival: float) -> tuple[str, str] | None:
+        if self.temperature_timeout_s is None:
+            return None
+        last = self._last_arrival["temperature"]
+        if last is None:
+            return "no_data", "no sensor temperature received yet (the model needs it)"
+        if arrival - last > self.temperature_timeout_s:
+            return "temperature_timeout", (
+                f"last sensor temperature arrived {(arrival - last):.2f} s before this F/T "
+                f"message (timeout {self.temperature_timeout_s:g} s)")
+        return None
+
     def on_wrench(self, sample: WrenchSample | None, arrival: float) -> bool:
         """One F/T message. Returns True if it is accepted *and* the inputs are fault-free,
         i.e. the compensator may run on it and its result is fresh."""
@@ -148,6 +183,10 @@ class StreamMonitor:
             self.detail = (f"last joint state arrived {(arrival - joint) * 1e3:.1f} ms before "
                            f"this F/T message (timeout {self.joint_state_timeout_s * 1e3:g} ms)")
             return False
+        problem = self._temperature_problem(arrival)
+        if problem is not None:
+            self.fault, (self.reason, self.detail) = True, problem
+            return False
         self.fault, self.reason, self.detail = False, "", ""
         return True
 
@@ -162,6 +201,9 @@ class StreamMonitor:
                 self.fault, self.reason = True, reason
                 self.detail = (f"no {name} message for {(now - last) * 1e3:.1f} ms "
                                f"(timeout {timeout * 1e3:g} ms)")
+        problem = self._temperature_problem(now)
+        if problem is not None and problem[0] == "temperature_timeout" and not self.fault:
+            self.fault, (self.reason, self.detail) = True, problem
         return self.fault
 
 

@@ -15,6 +15,8 @@ Units and conventions (one place):
   No frame change or sign flip happens here.
 * Contact state: ``drake.lcmt_drake_signal`` (an existing, documented Drake type: ``dim``,
   ``val[dim]``, ``coord[dim]`` names, ``timestamp`` µs) with ``coord = CONTACT_COORDS``.
+* Sensor temperature (optional input): ``lcmt_drake_signal`` with one value, °C, named
+  ``TEMPERATURE_COORD`` (no Drake message carries a temperature; this one names its value).
 
 The ``drake`` message classes are plain lcm-gen Python (struct packing): decoding and
 encoding need no ``lcm`` package; only the transport and log files do.
@@ -32,6 +34,9 @@ from drake import (
     lcmt_panda_status,
     lcmt_robot_state,
 )
+
+#: Name of the value in the temperature message (°C).
+TEMPERATURE_COORD = "temperature_c"
 
 #: Names of the values in the contact-state message, in order.
 CONTACT_COORDS = ("contact", "contact_force", "fault", "out_of_domain")
@@ -134,6 +139,24 @@ def decode_contact_state(data: bytes) -> ContactState:
         raise ValueError(f"not a contact-state signal: coord {list(msg.coord)}")
     c, f, fault, ood = msg.val
     return ContactState(msg.timestamp * 1e-6, c > 0.5, f, fault > 0.5, ood > 0.5)
+
+
+def encode_temperature(t: float, celsius: float) -> bytes:
+    """``lcmt_drake_signal`` bytes: the sensor's temperature (°C) at t (s)."""
+    msg = lcmt_drake_signal()
+    msg.timestamp = _utime(t)
+    msg.dim = 1
+    msg.coord = [TEMPERATURE_COORD]
+    msg.val = [float(celsius)]
+    return msg.encode()
+
+
+def decode_temperature(data: bytes) -> tuple[float, float]:
+    """(t s, temperature °C); ValueError for a signal that is not a temperature."""
+    msg = lcmt_drake_signal.decode(data)
+    if msg.dim != 1 or list(msg.coord) != [TEMPERATURE_COORD]:
+        raise ValueError(f"not a temperature signal: coord {list(msg.coord)}")
+    return msg.timestamp * 1e-6, float(msg.val[0])
 
 
 def encode_joint_state(joint_state_type: str, t: float, q, v=None, tau=None) -> bytes:

@@ -42,7 +42,7 @@ from ftdrake.sim.events import apply_grasp
 from ftdrake.sim.simulate import SimResult, assemble_log, set_initial_state
 
 from .config import HardwareConfig
-from .messages import encode_joint_state, encode_wrench
+from .messages import encode_joint_state, encode_temperature, encode_wrench
 from .transport import open_lcm
 
 
@@ -61,9 +61,12 @@ class _Publisher:
                               f"has {self.n} joints")
         self._state = plant.get_state_output_port(arm)
         self._reading = station.events.reading
+        self._temperature = station.noisy_sensor.get_output_port_temperature()
         self.next_j = 0
         self._pending = None  # (t, reading) to publish after the next joint state
         self.published = {"joint": 0, "ft": 0}
+        if config.temperature_channel:
+            self.published["temperature"] = 0
 
     def __call__(self, root_context) -> EventStatus:
         t = root_context.get_time()
@@ -72,6 +75,12 @@ class _Publisher:
         t_j = self.next_j * self.period
         x = self._state.Eval(self._state.get_system().GetMyContextFromRoot(root_context))
         w = self._reading.Eval(self._reading.get_system().GetMyContextFromRoot(root_context))
+        if c_temperature := self.config.temperature_channel:
+            # The sensor reports its temperature with its reading (°C, same stamp).
+            celsius = self._temperature.Eval(
+                self._temperature.get_system().GetMyContextFromRoot(root_context))[0]
+            self.lcm.publish(c_temperature, encode_temperature(t_j, celsius))
+            self.published["temperature"] += 1
         c, n = self.config, self.n
         if c.joint_state_type == "robot_state":
             self.lcm.publish(c.joint_state_channel, encode_joint_state("robot_state", t_j, x[:n]))

@@ -53,6 +53,7 @@ from .live_inputs import RobotStatePairer, StreamMonitor
 from .messages import (
     ContactState,
     decode_joint_state,
+    decode_temperature,
     decode_wrench,
     encode_contact_state,
     encode_joint_state,
@@ -112,10 +113,15 @@ class HardwareStation:
             self.context, np.zeros(6))
         self._state_in = self.diagram.GetInputPort("joint_state").FixValue(
             self.context, np.zeros(2 * config.n_joints))
+        self._temperature_in = None
+        if self.compensator.needs_temperature:
+            self._temperature_in = self.diagram.GetInputPort("temperature").FixValue(
+                self.context, np.full(1, np.nan))
         self._out = {name: self.diagram.GetOutputPort(name) for name in (
             "wrench_external", "fault", "out_of_domain", "contact", "contact_force")}
-        self.monitor = StreamMonitor(config.n_joints, config.sensor_timeout_s,
-                                     config.joint_state_timeout_s)
+        self.monitor = StreamMonitor(
+            config.n_joints, config.sensor_timeout_s, config.joint_state_timeout_s,
+            config.temperature_timeout_s if self._temperature_in is not None else None)
         self.clock = clock
         self.on_event = on_event
         self.started = clock()
@@ -135,6 +141,8 @@ class HardwareStation:
         else:
             self.lcm.subscribe(config.joint_state_channel, self._on_joint)
         self.lcm.subscribe(config.ft_channel, self._on_wrench)
+        if self._temperature_in is not None:
+            self.lcm.subscribe(config.temperature_channel, self._on_temperature)
 
     def _build(self, model) -> None:
         s = self.scenario
@@ -166,6 +174,13 @@ class HardwareStation:
                         self.detector.get_input_port_wrench_std())
         builder.ExportInput(self.compensator.get_input_port_wrench_measured(), "wrench_measured")
         builder.ExportInput(self.compensator.get_input_port_joint_state(), "joint_state")
+        if self.compensator.needs_temperature:
+            if not self.config.temperature_channel:
+                raise ConfigError(
+                    "hardware.temperature_channel: the model was trained with the sensor "
+                    "temperature; name the LCM channel that carries it (lcmt_drake_signal, "
+                    "one value in °C)")
+            builder.ExportInput(self.compensator.get_input_port_temperature(), "temperature")
         builder.ExportOutput(self.compensator.get_output_port_wrench_external(),
                              "wrench_external")
         builder.ExportOutput(external, "wrench_detected")
@@ -201,6 +216,14 @@ class HardwareStation:
             self.monitor.on_joint(joined, arrival)
             self._note(None)
 
+    def _on_temperature(self, data: bytes):
+        arrival = self.clock()
+        try:
+            sample = decode_temperature(data)
+        except (ValueError, struct.error):
+            sample = None
+        self.monitor.on_temperature(sample, arrival)
+
     def _on_wrench(self, data: bytes):
         arrival = self.clock()
         try:
@@ -212,6 +235,9 @@ class HardwareStation:
         if fresh:
             self._wrench_in.GetMutableData().get_mutable_value().SetFromVector(self.monitor.wrench)
             self._state_in.GetMutableData().get_mutable_value().SetFromVector(self.monitor.joint_state)
+            if self._temperature_in is not None:
+                self._temperature_in.GetMutableData().get_mutable_value().SetFromVector(
+                    [self.monitor.temperature])
             self.simulator.AdvanceTo((self.processed + 0.5) * self.period)
             self.processed += 1
             if self._out["fault"].Eval(self.context)[0] <= 0.5:
