@@ -26,6 +26,10 @@ The protocol a compensator follows to run in a control loop and leave Python:
   select features from the 3n joint layout only).
 * ``onnx_parts()`` – what :mod:`ftdrake.compensation.onnx_export` writes as a graph, or
   TypeError for models that have no ONNX form.
+* ``reading_to_model_frame()`` – None, or the 6 × 6 matrix T that turns ``measured −
+  predicted`` (a wrench as the sensor reads it) into the model's frame S: the inverse of
+  an identified mounting rotation or gain/cross-talk correction (physics and hybrid).
+  ``CompensatorSystem`` applies it to the external wrench.
 
 A new compensator is one module with a subclass and one line in
 :mod:`ftdrake.compensation.registry`.
@@ -147,6 +151,10 @@ class Compensator(RegressorMixin, BaseEstimator):
             return compiled.predict_one_with_std
         zeros = np.zeros(self.n_outputs_)
         return lambda row: (compiled.predict_one(row), zeros)
+
+    def reading_to_model_frame(self):
+        """None: this model's readings are in S already (see the module docstring)."""
+        return None
 
     def onnx_parts(self):
         """The compiled form :func:`~ftdrake.compensation.onnx_export.build_onnx` writes."""

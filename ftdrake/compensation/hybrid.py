@@ -105,6 +105,10 @@ class HybridCompensator(Compensator):
         """The physics part's identified parameters, as lines a user reads."""
         return self.physics_.summary()
 
+    def reading_to_model_frame(self):
+        """The physics part's (the residual is learned in the reading's frame too)."""
+        return self.physics_.reading_to_model_frame()
+
     def compiled_predictor(self):
         """A :class:`~ftdrake.compensation.compiled.hybrid.CompiledHybrid` (payload model
         and residual forest in one numba call per row, mean and std) when the residual's

@@ -307,6 +307,16 @@ class PhysicsPayloadCompensator(Compensator):
             return np.asarray(matrix, dtype=float)
         return np.kron(np.eye(2), getattr(self, "mounting_rotation_", np.eye(3))).T
 
+    def reading_to_model_frame(self):
+        """T = M⁻¹ (M: :meth:`reading_matrix`), so that ``T·(measured − predicted)`` is the
+        external wrench in S; None when M is the identity (no mounting rotation and no
+        correction identified). The predicted reading is ``M·W_S + b``, so the difference
+        is ``M·W_ext,S`` (plus noise)."""
+        matrix = self.reading_matrix()
+        if np.array_equal(matrix, np.eye(6)):
+            return None
+        return np.linalg.inv(matrix)
+
     def with_correction(self, correction) -> PhysicsPayloadCompensator:
         """A copy that predicts readings through a gain/cross-talk correction identified on
         static poses (:class:`~ftdrake.compensation.calibration.CalibrationCorrection`):

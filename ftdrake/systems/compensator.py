@@ -32,7 +32,11 @@ class CompensatorSystem(LeafSystem):
         temperature is a fault like any other input.
     Output ports (held between samples; updated every `period` s):
       wrench_internal (6): predicted internal wrench, N, N·m, S.
-      wrench_external (6): wrench_measured − wrench_internal, N, N·m, S.
+      wrench_external (6): the contact wrench, N, N·m, about So in S: wrench_measured −
+        wrench_internal, times the model's ``reading_to_model_frame()`` T when it has one
+        (a physics or hybrid model that identified the sensor's mounting rotation or a
+        gain/cross-talk matrix: the reading is then in the sensor's own frame Sm, and T
+        turns it into S; without T the output is in the frame the sensor measures in).
       wrench_std (6): the model's predictive standard deviation; zeros where it gives none.
       out_of_domain (1): 1.0 when a used joint input lies outside the training range.
       fault (1): 1.0 when the latest inputs held NaN/inf; all other outputs then hold their
@@ -69,6 +73,9 @@ class CompensatorSystem(LeafSystem):
         else:
             self._predict = generic_row_predictor(model)
         self._has_std = bool(getattr(model, "provides_std", False))
+        to_model_frame = (model.reading_to_model_frame()
+                          if hasattr(model, "reading_to_model_frame") else None)
+        self._to_S = None if to_model_frame is None else np.ascontiguousarray(to_model_frame)
         self._lo, self._hi = _training_box(model)
         alpha = acceleration_filter_gain(acceleration_cutoff_hz, self.period)
         self._constants = np.array([alpha, self.period])
@@ -150,6 +157,8 @@ class CompensatorSystem(LeafSystem):
                 external[:] = wrench - mean
                 if self._has_std:
                     state.get_mutable_value(self._std)[:] = std
+        if self._to_S is not None and not status & _FAULT:
+            external[:] = self._to_S @ external
         if status & _FAULT_CHANGED:
             state.get_mutable_value(self._fault)[0] = float(status & _FAULT != 0)
         if status & _OOD_CHANGED:
