@@ -154,7 +154,6 @@ class Compensator(RegressorMixin, BaseEstimator):
 
     def reading_to_model_frame(self):
         """None: this model's readings are in S already (see the module docstring)."""
-        return None
 
     def onnx_parts(self):
         """The compiled form :func:`~ftdrake.compensation.onnx_export.build_onnx` writes."""

@@ -136,7 +136,8 @@ def run_demo(out: Path, config: ScenarioConfig | None = None, *, fourier: int = 
                                    "n_candidates": search.n_candidates,
                                    "best_cv_mse": -search.mean_score[0]}
     results["hybrid"]["model"] = {
-        "class": "HybridCompensator", "physics": "dynamic payload + biases (16 parameters) + mounting rotation",
+        "class": "HybridCompensator",
+        "physics": "dynamic payload + biases (16 parameters) + mounting rotation",
         "mounting_rpy_deg": np.degrees(RollPitchYaw(RotationMatrix(
             hybrid.physics_.mounting_rotation_)).vector()).round(3).tolist(),
         "residual": {"class": "RandomForestCompensator", "features": "q",
