@@ -1,11 +1,13 @@
 """The main job: collect → train → contact scenario with the compensator in the loop.
 
-1. Collect free-motion data: Fourier excitation around the home pose, plus rehearsals of the
-   task in the air (the contact scenario stopping 3 cm above the table) — on a real robot you
-   would record the same: the task's motions without contact.
+1. Collect free-motion data: Fourier excitation around the home pose, rehearsals of the
+   task in the air (the contact scenario stopping 3 cm above the table) and one run of each
+   of `OTHER_KINDS` — on a real robot you would record the same: the task's motions without
+   contact, and motion covering the configurations the arm will visit.
 2. Train, on the same data, the study's model — a multi-output random forest on joint
    positions, `quick` grid, folds grouped by trajectory segment — and the hybrid: the rigid
-   payload identified by least squares plus a forest on its residual. One rehearsal is held
+   payload, the biases and the sensor's mounting rotation identified (physically consistent
+   fit) plus a forest on its residual. One rehearsal is held
    out; each model's detector thresholds follow from its residual there and a budget of one
    false positive per hour (:func:`~ftdrake.systems.detector.thresholds_for_false_positive_rate`).
 3. Run the same contact scenario, trajectory seed and sensor noise not seen in training, with
