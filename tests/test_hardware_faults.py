@@ -212,3 +212,45 @@ def test_a_temperature_model_reads_the_temperature_channel_and_faults_when_it_go
     assert events[-1].reason == "temperature_timeout"
     step(0.701, 30.0)  # recovers with a fresh temperature
     assert len(wrenches) == 10 and not dut.monitor.fault
+
+
+def test_a_re_tare_message_resets_the_tracked_bias_and_nothing_reads_as_contact():
+    """The driver re-zeroes the sensor in an unknown pose: the reading jumps by 5 N / 0.2 N·m
+    and a message on the tare channel says so. The tracker re-initialises its bias and no
+    contact is raised; without the message the same jump reads as contact to the end."""
+    from ftdrake.hardware.messages import encode_tare
+
+    rng = np.random.default_rng(2)
+    model = RandomForestCompensator(features="q", n_estimators=3).fit(
+        rng.uniform(-1, 1, (50, 3 * N)), np.zeros((50, 6)))
+    scenario = ScenarioConfig()
+    config = HardwareConfig(lcm_url="memq://", tare_channel="FT_TARED", sensor_timeout_s=1.0,
+                            joint_state_timeout_s=1.0)
+    jump = np.array([5.0, -5.0, 5.0, 0.2, -0.2, 0.2])
+    q = np.linspace(-0.5, 0.5, N)
+
+    def run(send_tare: bool):
+        dut = HardwareStation(config, model, scenario, "memq://")
+        contact = []
+        dut.lcm.subscribe(config.contact_channel,
+                          lambda d: contact.append(decode_contact_state(d)))
+        for k in range(3000):  # 3 s at 1 kHz, the jump at 0.5 s
+            t = 0.001 * (k + 1)
+            if send_tare and k == 500:
+                dut.lcm.publish(config.tare_channel, encode_tare(t))
+            dut.lcm.publish(config.joint_state_channel,
+                            encode_joint_state("iiwa_status", t, q, np.zeros(N)))
+            dut.lcm.publish(config.ft_channel, encode_wrench(t, jump if k >= 500 else 0 * jump))
+            dut.spin_once(0)
+            dut.lcm.handle(0)
+        return dut, np.array([c.contact for c in contact if not c.fault])
+
+    tared, with_message = run(send_tare=True)
+    assert tared.summary()["tares"] == {"received": 1, "rejected": 0}
+    assert not with_message.any()
+    _, without = run(send_tare=False)
+    assert without[600:].all()  # read as contact from the jump to the end
+
+    scenario.bias_tracker.enabled = False
+    with pytest.raises(ConfigError, match=r"hardware\.tare_channel"):
+        HardwareStation(config, model, scenario, "memq://")

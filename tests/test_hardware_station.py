@@ -111,3 +111,29 @@ def test_simulated_robot_stream_gives_the_in_simulation_numbers(kind):
     else:
         np.testing.assert_allclose(got, expected, rtol=0, atol=0.5)  # float32 q, v
         assert (detected == log["detected"].to_numpy().astype(bool)).mean() > 0.99
+
+
+def test_the_simulated_robot_announces_its_re_tare_once():
+    """``events.retare_at_s`` in the simulation: the driver's zero offset jumps, and the
+    simulated robot sends one message on the tare channel, stamped with that time, which the
+    station receives (its tracker then re-initialises the bias; tests/test_hardware_faults)."""
+    from ftdrake.hardware.messages import decode_tare
+
+    scenario = ScenarioConfig()
+    scenario.trajectory.kind = "fourier"
+    scenario.trajectory.duration_s = 1.0
+    scenario.events.retare_at_s = 0.4
+    scenario.validate()
+    hardware = HardwareConfig(lcm_url="memq://", tare_channel="FT_TARED",
+                              sensor_timeout_s=100.0, joint_state_timeout_s=100.0)
+    model = fit_forest(scenario, duration=0.3)
+    _, handles = build_hardware_station(hardware, model, scenario, lcm="memq://")
+    dut = handles["station"]
+    stamps = []
+    dut.lcm.subscribe(hardware.tare_channel, lambda d: stamps.append(decode_tare(d)))
+    result = simulate_on_lcm(build_station(scenario), hardware, dut.lcm, progress=False)
+    while dut.spin_once(0):
+        pass
+    assert result.timing["published"]["tare"] == 1
+    assert dut.summary()["tares"] == {"received": 1, "rejected": 0}
+    assert stamps == [pytest.approx(0.4, abs=dut.period)]

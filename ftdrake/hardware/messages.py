@@ -15,6 +15,8 @@ Units and conventions (one place):
   No frame change or sign flip happens here.
 * Contact state: ``drake.lcmt_drake_signal`` (an existing, documented Drake type: ``dim``,
   ``val[dim]``, ``coord[dim]`` names, ``timestamp`` µs) with ``coord = CONTACT_COORDS``.
+* Re-tare (optional input): ``lcmt_drake_signal`` with one value named ``TARE_COORD``,
+  sent when the driver re-zeroes the sensor.
 * Sensor temperature (optional input): ``lcmt_drake_signal`` with one value, °C, named
   ``TEMPERATURE_COORD`` (no Drake message carries a temperature; this one names its value).
 
@@ -37,6 +39,8 @@ from drake import (
 
 #: Name of the value in the temperature message (°C).
 TEMPERATURE_COORD = "temperature_c"
+#: Name of the value in the re-tare message (1: the sensor was re-zeroed at its timestamp).
+TARE_COORD = "tared"
 
 #: Names of the values in the contact-state message, in order.
 CONTACT_COORDS = ("contact", "contact_force", "fault", "out_of_domain")
@@ -157,6 +161,24 @@ def decode_temperature(data: bytes) -> tuple[float, float]:
     if msg.dim != 1 or list(msg.coord) != [TEMPERATURE_COORD]:
         raise ValueError(f"not a temperature signal: coord {list(msg.coord)}")
     return msg.timestamp * 1e-6, float(msg.val[0])
+
+
+def encode_tare(t: float) -> bytes:
+    """``lcmt_drake_signal`` bytes: the driver re-zeroed (tared) the sensor at t (s)."""
+    msg = lcmt_drake_signal()
+    msg.timestamp = _utime(t)
+    msg.dim = 1
+    msg.coord = [TARE_COORD]
+    msg.val = [1.0]
+    return msg.encode()
+
+
+def decode_tare(data: bytes) -> float:
+    """t (s) of a re-tare; ValueError for a signal that is not one."""
+    msg = lcmt_drake_signal.decode(data)
+    if msg.dim != 1 or list(msg.coord) != [TARE_COORD]:
+        raise ValueError(f"not a re-tare signal: coord {list(msg.coord)}")
+    return msg.timestamp * 1e-6
 
 
 def encode_joint_state(joint_state_type: str, t: float, q, v=None, tau=None) -> bytes:

@@ -53,6 +53,7 @@ from .live_inputs import RobotStatePairer, StreamMonitor
 from .messages import (
     ContactState,
     decode_joint_state,
+    decode_tare,
     decode_temperature,
     decode_wrench,
     encode_contact_state,
@@ -117,6 +118,12 @@ class HardwareStation:
         if self.compensator.needs_temperature:
             self._temperature_in = self.diagram.GetInputPort("temperature").FixValue(
                 self.context, np.full(1, np.nan))
+        self._tared_in = None
+        self._tare_pending = False
+        self.tares = 0  # re-tare messages received
+        self.tares_rejected = 0
+        if config.tare_channel:
+            self._tared_in = self.diagram.GetInputPort("tared").FixValue(self.context, [0.0])
         self._out = {name: self.diagram.GetOutputPort(name) for name in (
             "wrench_external", "fault", "out_of_domain", "contact", "contact_force")}
         self.monitor = StreamMonitor(
@@ -143,6 +150,8 @@ class HardwareStation:
         self.lcm.subscribe(config.ft_channel, self._on_wrench)
         if self._temperature_in is not None:
             self.lcm.subscribe(config.temperature_channel, self._on_temperature)
+        if self._tared_in is not None:
+            self.lcm.subscribe(config.tare_channel, self._on_tare)
 
     def _build(self, model) -> None:
         s = self.scenario
@@ -169,6 +178,11 @@ class HardwareStation:
             builder.Connect(self.detector.get_output_port_contact(),
                             self.tracker.get_input_port_contact())
             external = self.tracker.get_output_port_wrench_external()
+        if self.config.tare_channel:
+            if self.tracker is None:
+                raise ConfigError("hardware.tare_channel: a re-tare goes to the bias tracker; "
+                                  "enable scenario.bias_tracker or leave the channel empty")
+            builder.ExportInput(self.tracker.get_input_port_tared(), "tared")
         builder.Connect(external, self.detector.get_input_port_wrench_external())
         builder.Connect(self.compensator.get_output_port_wrench_std(),
                         self.detector.get_input_port_wrench_std())
@@ -224,6 +238,15 @@ class HardwareStation:
             sample = None
         self.monitor.on_temperature(sample, arrival)
 
+    def _on_tare(self, data: bytes):
+        try:
+            decode_tare(data)
+        except (ValueError, struct.error):
+            self.tares_rejected += 1  # malformed: counted in summary(), not acted on
+            return
+        self.tares += 1
+        self._tare_pending = True
+
     def _on_wrench(self, data: bytes):
         arrival = self.clock()
         try:
@@ -238,6 +261,10 @@ class HardwareStation:
             if self._temperature_in is not None:
                 self._temperature_in.GetMutableData().get_mutable_value().SetFromVector(
                     [self.monitor.temperature])
+            if self._tared_in is not None:  # high for one update after a re-tare message
+                self._tared_in.GetMutableData().get_mutable_value().SetFromVector(
+                    [1.0 if self._tare_pending else 0.0])
+                self._tare_pending = False
             self.simulator.AdvanceTo((self.processed + 0.5) * self.period)
             self.processed += 1
             if self._out["fault"].Eval(self.context)[0] <= 0.5:
@@ -317,6 +344,7 @@ class HardwareStation:
             "rejected": dict(m.rejected), "processed": self.processed,
             "published_wrench": self.published, "published_contact": self.contact_published,
             "fault_episodes": dict(self.fault_episodes),
+            "tares": {"received": self.tares, "rejected": self.tares_rejected},
             "latency_ms": {"p50": p50 * 1e3, "p99": p99 * 1e3},
             "fault": bool(m.fault), "reason": m.reason,
         }
