@@ -72,12 +72,7 @@ def _prior(args):
         if args.prior_com is not None:
             raise ConfigError("--prior-com needs --prior-mass")
         return None
-    com = (0.0, 0.0, 0.0)
-    if args.prior_com is not None:
-        try:
-            com = tuple(float(v) for v in args.prior_com.split(","))
-        except ValueError:
-            raise ConfigError(f"--prior-com {args.prior_com}: expected X,Y,Z in m") from None
+    com = _point("--prior-com", args.prior_com)
     try:
         from ..compensation.consistent import PayloadPrior
 
@@ -94,15 +89,20 @@ def _known_payload(args):
     if args.correction is None:
         raise ConfigError("--known-mass is for the gain/cross-talk correction: add "
                           "--correction block|full")
-    com = (0.0, 0.0, 0.0)
-    if args.known_com is not None:
-        try:
-            com = tuple(float(v) for v in args.known_com.split(","))
-        except ValueError:
-            raise ConfigError(f"--known-com {args.known_com}: expected X,Y,Z in m") from None
-        if len(com) != 3:
-            raise ConfigError(f"--known-com {args.known_com}: expected X,Y,Z in m")
-    return {"mass": args.known_mass, "com": com}
+    return {"mass": args.known_mass, "com": _point("--known-com", args.known_com)}
+
+
+def _point(flag: str, text: str | None) -> tuple[float, float, float]:
+    """A point ``X,Y,Z`` in m from a flag's value; the origin when the flag is absent."""
+    if text is None:
+        return (0.0, 0.0, 0.0)
+    try:
+        point = tuple(float(v) for v in text.split(","))
+    except ValueError:
+        point = ()
+    if len(point) != 3:
+        raise ConfigError(f"{flag} {text}: expected X,Y,Z in m")
+    return point
 
 
 def _print_warnings(caught, category) -> None:

@@ -47,6 +47,7 @@ from scipy.spatial.transform import Rotation
 
 from ..errors import ConfigError, RobotModelError
 from ..physics.chain import SerialChain
+from ..physics.rigid_body import inertia_map, skew
 from ..physics.robot import RobotDescription, ftdrake_arm
 from .base import Compensator
 from .compiled.payload import pack_payload_row, payload_mean_std, payload_predict
@@ -586,9 +587,9 @@ def payload_regressor(w, alpha, a_minus_g) -> np.ndarray:
     N = len(w)
     A = np.zeros((N, 6, 16))
     A[:, :3, 0] = -a_minus_g
-    A[:, :3, 1:4] = -(_skew(alpha) + _skew(w) @ _skew(w))
-    A[:, 3:, 1:4] = _skew(a_minus_g)
-    A[:, 3:, 4:10] = -(_inertia_map(alpha) + _skew(w) @ _inertia_map(w))
+    A[:, :3, 1:4] = -(skew(alpha) + skew(w) @ skew(w))
+    A[:, 3:, 1:4] = skew(a_minus_g)
+    A[:, 3:, 4:10] = -(inertia_map(alpha) + skew(w) @ inertia_map(w))
     A[:, :, 10:16] = np.eye(6)
     return A
 
@@ -617,25 +618,6 @@ def weighted_least_squares(A, Y):
     cond = np.linalg.cond(Aw / scale)
     rms = np.sqrt(np.mean((Y - A @ theta) ** 2, axis=0))
     return theta, cov, rms, cond
-
-
-def _skew(v):
-    v = np.asarray(v)
-    S = np.zeros((*v.shape[:-1], 3, 3))
-    S[..., 0, 1], S[..., 0, 2] = -v[..., 2], v[..., 1]
-    S[..., 1, 0], S[..., 1, 2] = v[..., 2], -v[..., 0]
-    S[..., 2, 0], S[..., 2, 1] = -v[..., 1], v[..., 0]
-    return S
-
-
-def _inertia_map(x):
-    """L(x) with I·x = L(x)·[Ixx, Ixy, Ixz, Iyy, Iyz, Izz]."""
-    x = np.asarray(x)
-    L = np.zeros((*x.shape[:-1], 3, 6))
-    L[..., 0, 0], L[..., 0, 1], L[..., 0, 2] = x[..., 0], x[..., 1], x[..., 2]
-    L[..., 1, 1], L[..., 1, 3], L[..., 1, 4] = x[..., 0], x[..., 1], x[..., 2]
-    L[..., 2, 2], L[..., 2, 4], L[..., 2, 5] = x[..., 0], x[..., 1], x[..., 2]
-    return L
 
 
 def _full_layout(Z, n):

@@ -26,15 +26,14 @@ welded to a moving body join its group (a rigid group has one set of 10 paramete
 from __future__ import annotations
 
 import dataclasses as dc
-from pathlib import Path
 
 import numpy as np
 from pydrake.multibody.plant import MultibodyPlant
 from pydrake.multibody.tree import MultibodyForces, PrismaticJoint, RevoluteJoint
 
-from ..assets import offline_parser
 from ..errors import RobotModelError
-from .robot import DIRECTIVES_PREFIX
+from .rigid_body import inertia_map, skew
+from .robot import add_robot_model, model_label
 
 GRAVITY_W = (0.0, 0.0, -9.81)
 #: Per-body inertial parameter names (suffixed by the body's name in the stacked vector).
@@ -58,29 +57,19 @@ class ArmModel:
     @property
     def label(self) -> str:
         """A short name for messages (directives text is not one)."""
-        if self.model.lstrip().startswith(DIRECTIVES_PREFIX):
-            return "(model directives)"
-        return repr(self.model)
+        return model_label(self.model)
 
     def build_plant(self) -> MultibodyPlant:
         """A finalized plant of the arm; RobotModelError names what is wrong."""
         plant = MultibodyPlant(0.0)
-        try:
-            parser = offline_parser(plant, self.package_xmls)
-            if self.model.lstrip().startswith(DIRECTIVES_PREFIX):
-                parser.AddModelsFromString(self.model, "dmd.yaml")
-            elif "://" in self.model:
-                parser.AddModels(url=self.model)
-            elif not Path(self.model).is_file():
-                raise RobotModelError(f"robot model {self.model!r}: no such file")
-            else:
-                parser.AddModels(file_name=self.model)
-            if self.base_frame:
-                plant.WeldFrames(plant.world_frame(), plant.GetFrameByName(self.base_frame))
-        except FileNotFoundError as e:
-            raise RobotModelError(f"robot {self.label}: {e}") from None
-        except RuntimeError as e:  # Drake's parser reports every problem as RuntimeError
-            raise RobotModelError(f"cannot load robot model {self.label}: {e}") from None
+        add_robot_model(plant, self.model, self.package_xmls)
+        if self.base_frame:
+            try:
+                base = plant.GetFrameByName(self.base_frame)
+            except RuntimeError:
+                raise RobotModelError(f"robot model {self.label} has no base frame named "
+                                      f"{self.base_frame!r}") from None
+            plant.WeldFrames(plant.world_frame(), base)
         plant.Finalize()
         return plant
 
@@ -215,27 +204,10 @@ def body_wrench_regressor(w, alpha, d) -> np.ndarray:
     shape = w.shape[:-1]
     Y = np.zeros((*shape, 6, 10))
     Y[..., :3, 0] = d
-    Y[..., :3, 1:4] = _skew(alpha) + _skew(w) @ _skew(w)
-    Y[..., 3:, 1:4] = -_skew(d)  # h × d = −d × h
-    Y[..., 3:, 4:10] = _inertia_map(alpha) + _skew(w) @ _inertia_map(w)
+    Y[..., :3, 1:4] = skew(alpha) + skew(w) @ skew(w)
+    Y[..., 3:, 1:4] = -skew(d)  # h × d = −d × h
+    Y[..., 3:, 4:10] = inertia_map(alpha) + skew(w) @ inertia_map(w)
     return Y
-
-
-def _skew(v):
-    S = np.zeros((*v.shape[:-1], 3, 3))
-    S[..., 0, 1], S[..., 0, 2] = -v[..., 2], v[..., 1]
-    S[..., 1, 0], S[..., 1, 2] = v[..., 2], -v[..., 0]
-    S[..., 2, 0], S[..., 2, 1] = -v[..., 1], v[..., 0]
-    return S
-
-
-def _inertia_map(x):
-    """L(x) with I·x = L(x)·[Ixx, Ixy, Ixz, Iyy, Iyz, Izz]."""
-    L = np.zeros((*x.shape[:-1], 3, 6))
-    L[..., 0, 0], L[..., 0, 1], L[..., 0, 2] = x[..., 0], x[..., 1], x[..., 2]
-    L[..., 1, 1], L[..., 1, 3], L[..., 1, 4] = x[..., 0], x[..., 1], x[..., 2]
-    L[..., 2, 2], L[..., 2, 4], L[..., 2, 5] = x[..., 0], x[..., 1], x[..., 2]
-    return L
 
 
 def _dof_joint(plant, v_index):

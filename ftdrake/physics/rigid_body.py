@@ -86,3 +86,23 @@ def tool_inertia(plant, context, frame_S, bodies) -> tuple[float, np.ndarray, np
     p = M_SSo_S.get_com()
     I_Scm = M_SSo_S.Shift(p).CalcRotationalInertia().CopyToFullMatrix3()
     return M_SSo_S.get_mass(), p, I_Scm
+
+
+def skew(v):
+    """[v]× for (..., 3) vectors: ``skew(v) @ u = v × u`` (..., 3, 3)."""
+    v = np.asarray(v)
+    S = np.zeros((*v.shape[:-1], 3, 3))
+    S[..., 0, 1], S[..., 0, 2] = -v[..., 2], v[..., 1]
+    S[..., 1, 0], S[..., 1, 2] = v[..., 2], -v[..., 0]
+    S[..., 2, 0], S[..., 2, 1] = -v[..., 1], v[..., 0]
+    return S
+
+
+def inertia_map(x):
+    """L(x) (..., 3, 6) with I·x = L(x)·[Ixx, Ixy, Ixz, Iyy, Iyz, Izz] for a symmetric I."""
+    x = np.asarray(x)
+    L = np.zeros((*x.shape[:-1], 3, 6))
+    L[..., 0, 0], L[..., 0, 1], L[..., 0, 2] = x[..., 0], x[..., 1], x[..., 2]
+    L[..., 1, 1], L[..., 1, 3], L[..., 1, 4] = x[..., 0], x[..., 1], x[..., 2]
+    L[..., 2, 2], L[..., 2, 4], L[..., 2, 5] = x[..., 0], x[..., 1], x[..., 2]
+    return L

@@ -49,21 +49,7 @@ class RobotDescription:
         Raises RobotModelError naming the model and what is wrong with it.
         """
         plant = MultibodyPlant(0.0)
-        try:
-            parser = offline_parser(plant, self.package_xmls)
-        except FileNotFoundError as e:
-            raise RobotModelError(f"robot {self.label}: {e}") from None
-        try:
-            if self.model.lstrip().startswith(DIRECTIVES_PREFIX):
-                parser.AddModelsFromString(self.model, "dmd.yaml")
-            elif "://" in self.model:
-                parser.AddModels(url=self.model)
-            elif not Path(self.model).is_file():
-                raise RobotModelError(f"robot model {self.model!r}: no such file")
-            else:
-                parser.AddModels(file_name=self.model)
-        except RuntimeError as e:  # Drake's parser reports every problem as RuntimeError
-            raise RobotModelError(f"cannot load robot model {self.label}: {e}") from None
+        add_robot_model(plant, self.model, self.package_xmls)
         frame_S = self._frame(plant, self.sensor_frame, "sensor frame")
         if self.base_frame:
             base = self._frame(plant, self.base_frame, "base frame")
@@ -73,10 +59,8 @@ class RobotDescription:
 
     @property
     def label(self) -> str:
-        """A short name for messages (directives text is shown by its first model)."""
-        if self.model.lstrip().startswith(DIRECTIVES_PREFIX):
-            return "(model directives)"
-        return repr(self.model)
+        """A short name for messages (directives text is not one)."""
+        return model_label(self.model)
 
     def _frame(self, plant, name: str, what: str):
         model, _, frame = name.rpartition("::")
@@ -121,3 +105,32 @@ def ftdrake_arm() -> RobotDescription:
                        "arm_base", "flange", "ft_sensor", (0.0, 0.0, 0.95)),
         sensor_frame="tool::ft_sensor_weld_child",
     )
+
+
+def model_label(model: str) -> str:
+    """A short name of a robot model for messages (directives text is not one)."""
+    if model.lstrip().startswith(DIRECTIVES_PREFIX):
+        return "(model directives)"
+    return repr(model)
+
+
+def add_robot_model(plant, model: str, package_xmls=()) -> None:
+    """Parses `model` (a file, a ``package://`` URL or model-directives text) into `plant`
+    with the offline parser (every model from ``models/``, nothing downloaded). Raises
+    RobotModelError naming the model and what is wrong with it."""
+    label = model_label(model)
+    try:
+        parser = offline_parser(plant, package_xmls)
+    except FileNotFoundError as e:
+        raise RobotModelError(f"robot {label}: {e}") from None
+    try:
+        if model.lstrip().startswith(DIRECTIVES_PREFIX):
+            parser.AddModelsFromString(model, "dmd.yaml")
+        elif "://" in model:
+            parser.AddModels(url=model)
+        elif not Path(model).is_file():
+            raise RobotModelError(f"robot model {model!r}: no such file")
+        else:
+            parser.AddModels(file_name=model)
+    except RuntimeError as e:  # Drake's parser reports every problem as RuntimeError
+        raise RobotModelError(f"cannot load robot model {label}: {e}") from None
