@@ -152,13 +152,61 @@ def test_robot_state_pairs_positions_with_velocities():
     np.testing.assert_allclose(rig.dut.monitor.joint_state[:N], q32, rtol=0, atol=0)
 
 
-def test_payload_tracking_is_refused():
+def test_a_grasp_on_hardware_is_identified_from_the_joint_state():
+    """Payload tracking on hardware: gravity at the sensor comes from the joint state through
+    the scenario robot's chain. The arm holds five poses, 1.2 s each; at 0.5 s a 0.5 kg payload
+    at c = (0, 20, 120) mm in S is grasped and announced on the payload channel. The readings
+    carry its gravity wrench (m·g_S, c × m·g_S) with g_S from Drake's own kinematics. The
+    tracker must find m and m·c, and nothing may read as contact after the settle window."""
+    from ftdrake.hardware.messages import PAYLOAD_COORD, encode_event
+    from ftdrake.sim.scene import robot_description
+
     scenario = ScenarioConfig()
     scenario.bias_tracker.track_payload = True
     model = RandomForestCompensator(features="q", n_estimators=2).fit(
-        np.zeros((10, 3 * N)), np.zeros((10, 6)))
-    with pytest.raises(ConfigError, match=r"bias_tracker\.track_payload"):
-        HardwareStation(HardwareConfig(lcm_url="memq://"), model, scenario)
+        np.random.default_rng(0).uniform(-2, 2, (50, 3 * N)), np.zeros((50, 6)))
+    with pytest.raises(ConfigError, match=r"hardware\.payload_channel"):
+        off = ScenarioConfig()
+        HardwareStation(HardwareConfig(lcm_url="memq://", payload_channel="GRASP"), model, off,
+                        "memq://")
+    config = HardwareConfig(lcm_url="memq://", payload_channel="GRASP", sensor_timeout_s=10.0,
+                            joint_state_timeout_s=10.0)
+    dut = HardwareStation(config, model, scenario, "memq://")
+    contact = []
+    dut.lcm.subscribe(config.contact_channel, lambda d: contact.append(decode_contact_state(d)))
+
+    plant, frame_S = robot_description(scenario).build_plant()
+    context = plant.CreateDefaultContext()
+    mass, com = 0.5, np.array([0.0, 0.02, 0.12])
+    poses = np.array(scenario.home_q) + np.array(
+        [[0, 0, 0, 0, 0, 0, 0], [0.6, 0.3, 0, -0.4, 0.8, 0.5, 0],
+         [-0.5, 0, 0.4, 0.3, -0.9, -0.4, 1.0], [0.2, -0.3, -0.5, 0.2, 1.3, 0.2, -0.7],
+         [0, 0.2, 0.6, -0.2, -0.3, 0.7, 0.4]])
+    k = 0
+    for pose in poses:
+        plant.SetPositions(context, pose)
+        g_S = frame_S.CalcPoseInWorld(context).rotation().inverse() @ np.array([0, 0, -9.81])
+        payload = np.r_[mass * g_S, np.cross(com, mass * g_S)]
+        for _ in range(1200):
+            t = 0.001 * (k + 1)
+            if k == 500:
+                dut.lcm.publish(config.payload_channel, encode_event(t, PAYLOAD_COORD))
+            dut.lcm.publish(config.joint_state_channel,
+                            encode_joint_state("iiwa_status", t, pose, np.zeros(N)))
+            dut.lcm.publish(config.ft_channel,
+                            encode_wrench(t, payload if k >= 500 else np.zeros(6)))
+            dut.spin_once(0)
+            dut.lcm.handle(0)
+            k += 1
+
+    estimate = dut.tracker.get_output_port_payload().Eval(
+        dut.tracker.GetMyContextFromRoot(dut.context))
+    assert dut.summary()["signals"]["payload_changed"] == {"received": 1, "rejected": 0}
+    assert estimate[0] == pytest.approx(mass, rel=0.01)
+    np.testing.assert_allclose(estimate[1:] / estimate[0], com, atol=0.001)
+    after_settle = 500 + round(1000 * scenario.bias_tracker.payload_settle_s)
+    settled = [c.contact for c in contact[after_settle:]]
+    assert len(settled) > 0 and not any(settled)
 
 
 def test_a_temperature_model_reads_the_temperature_channel_and_faults_when_it_goes_stale():
@@ -218,7 +266,7 @@ def test_a_re_tare_message_resets_the_tracked_bias_and_nothing_reads_as_contact(
     """The driver re-zeroes the sensor in an unknown pose: the reading jumps by 5 N / 0.2 N·m
     and a message on the tare channel says so. The tracker re-initialises its bias and no
     contact is raised; without the message the same jump reads as contact to the end."""
-    from ftdrake.hardware.messages import encode_tare
+    from ftdrake.hardware.messages import TARE_COORD, encode_event
 
     rng = np.random.default_rng(2)
     model = RandomForestCompensator(features="q", n_estimators=3).fit(
@@ -237,7 +285,7 @@ def test_a_re_tare_message_resets_the_tracked_bias_and_nothing_reads_as_contact(
         for k in range(3000):  # 3 s at 1 kHz, the jump at 0.5 s
             t = 0.001 * (k + 1)
             if send_tare and k == 500:
-                dut.lcm.publish(config.tare_channel, encode_tare(t))
+                dut.lcm.publish(config.tare_channel, encode_event(t, TARE_COORD))
             dut.lcm.publish(config.joint_state_channel,
                             encode_joint_state("iiwa_status", t, q, np.zeros(N)))
             dut.lcm.publish(config.ft_channel, encode_wrench(t, jump if k >= 500 else 0 * jump))
@@ -246,7 +294,7 @@ def test_a_re_tare_message_resets_the_tracked_bias_and_nothing_reads_as_contact(
         return dut, np.array([c.contact for c in contact if not c.fault])
 
     tared, with_message = run(send_tare=True)
-    assert tared.summary()["tares"] == {"received": 1, "rejected": 0}
+    assert tared.summary()["signals"]["tared"] == {"received": 1, "rejected": 0}
     assert not with_message.any()
     _, without = run(send_tare=False)
     assert without[600:].all()  # read as contact from the jump to the end

@@ -113,27 +113,35 @@ def test_simulated_robot_stream_gives_the_in_simulation_numbers(kind):
         assert (detected == log["detected"].to_numpy().astype(bool)).mean() > 0.99
 
 
-def test_the_simulated_robot_announces_its_re_tare_once():
-    """``events.retare_at_s`` in the simulation: the driver's zero offset jumps, and the
-    simulated robot sends one message on the tare channel, stamped with that time, which the
-    station receives (its tracker then re-initialises the bias; tests/test_hardware_faults)."""
-    from ftdrake.hardware.messages import decode_tare
+def test_the_simulated_robot_announces_its_re_tare_and_grasp_once():
+    """``events.retare_at_s`` and ``grasp_at_s`` in the simulation: the driver's zero offset
+    jumps, a payload is added; the simulated robot sends one message on the tare and one on
+    the payload channel, stamped with those times, which the station receives (its tracker
+    then re-initialises the bias or payload; tests/test_hardware_faults)."""
+    from ftdrake.hardware.messages import PAYLOAD_COORD, TARE_COORD, decode_event
 
     scenario = ScenarioConfig()
     scenario.trajectory.kind = "fourier"
     scenario.trajectory.duration_s = 1.0
     scenario.events.retare_at_s = 0.4
+    scenario.events.grasp_at_s = 0.7
+    scenario.bias_tracker.track_payload = True
     scenario.validate()
     hardware = HardwareConfig(lcm_url="memq://", tare_channel="FT_TARED",
+                              payload_channel="FT_GRASP",
                               sensor_timeout_s=100.0, joint_state_timeout_s=100.0)
     model = fit_forest(scenario, duration=0.3)
     _, handles = build_hardware_station(hardware, model, scenario, lcm="memq://")
     dut = handles["station"]
-    stamps = []
-    dut.lcm.subscribe(hardware.tare_channel, lambda d: stamps.append(decode_tare(d)))
+    stamps, grasps = [], []
+    dut.lcm.subscribe(hardware.tare_channel, lambda d: stamps.append(decode_event(d, TARE_COORD)))
+    dut.lcm.subscribe(hardware.payload_channel,
+                      lambda d: grasps.append(decode_event(d, PAYLOAD_COORD)))
     result = simulate_on_lcm(build_station(scenario), hardware, dut.lcm, progress=False)
     while dut.spin_once(0):
         pass
-    assert result.timing["published"]["tare"] == 1
-    assert dut.summary()["tares"] == {"received": 1, "rejected": 0}
+    assert result.timing["published"]["tare"] == result.timing["published"]["payload"] == 1
+    assert dut.summary()["signals"] == {"tared": {"received": 1, "rejected": 0},
+                                        "payload_changed": {"received": 1, "rejected": 0}}
     assert stamps == [pytest.approx(0.4, abs=dut.period)]
+    assert grasps == [pytest.approx(0.7, abs=dut.period)]

@@ -34,10 +34,13 @@ class HardwareConfig:
     Temperature (only for a model trained with the sensor temperature): ``lcmt_drake_signal``
     with one value in °C (:func:`encode_temperature`) on `temperature_channel`; older than
     `temperature_timeout_s` it faults the inputs like a silent sensor.
-    Re-tare (optional; needs ``scenario.bias_tracker``): a ``lcmt_drake_signal`` on
-    `tare_channel` (:func:`encode_tare`) says the driver re-zeroed the sensor; the bias
-    tracker's ``tared`` input is high for the next F/T update (it re-initialises its bias and
-    averages over ``tare_settle_s`` of free motion).
+    Events (optional; for ``scenario.bias_tracker``): an ``lcmt_drake_signal``
+    (:func:`encode_event`) on `tare_channel` says the driver re-zeroed the sensor, one on
+    `payload_channel` that the gripper took or released a payload (needs ``track_payload``).
+    The tracker's ``tared`` / ``payload_changed`` input is then high for the next F/T update:
+    it re-initialises its bias or payload estimate and averages over ``tare_settle_s`` /
+    ``payload_settle_s`` of free motion. With ``track_payload`` the station computes gravity
+    at the sensor from the joint state on the scenario's robot (``JointStateGravity``).
     """
 
     lcm_url: str = "udpm://239.255.76.67:7667?ttl=0"
@@ -51,8 +54,9 @@ class HardwareConfig:
     # trained with it; "" when the model needs none.
     temperature_channel: str = ""
     temperature_timeout_s: float = 1.0
-    # The driver's re-tare signal (lcmt_drake_signal; see messages.encode_tare); "" for none.
+    # Event signals for the bias tracker (lcmt_drake_signal; messages.encode_event); "" none.
     tare_channel: str = ""
+    payload_channel: str = ""
     sensor_timeout_s: float = 0.005
     joint_state_timeout_s: float = 0.02
     n_joints: int = 7
@@ -67,7 +71,8 @@ class HardwareConfig:
             raise ConfigError(f"{where}.velocity_channel: required when joint_state_type is "
                               "'robot_state' (that message carries positions only)")
         names = {}
-        optional = tuple(f for f in ("velocity_channel", "temperature_channel", "tare_channel")
+        optional = tuple(f for f in ("velocity_channel", "temperature_channel",
+                                            "tare_channel", "payload_channel")
                          if getattr(self, f))
         for field in ("joint_state_channel", "ft_channel", "external_wrench_channel",
                       "contact_channel", *optional):

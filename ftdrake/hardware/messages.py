@@ -15,8 +15,8 @@ Units and conventions (one place):
   No frame change or sign flip happens here.
 * Contact state: ``drake.lcmt_drake_signal`` (an existing, documented Drake type: ``dim``,
   ``val[dim]``, ``coord[dim]`` names, ``timestamp`` µs) with ``coord = CONTACT_COORDS``.
-* Re-tare (optional input): ``lcmt_drake_signal`` with one value named ``TARE_COORD``,
-  sent when the driver re-zeroes the sensor.
+* Events (optional inputs): ``lcmt_drake_signal`` with one value named ``TARE_COORD`` (the
+  driver re-zeroed the sensor) or ``PAYLOAD_COORD`` (a payload was grasped or released).
 * Sensor temperature (optional input): ``lcmt_drake_signal`` with one value, °C, named
   ``TEMPERATURE_COORD`` (no Drake message carries a temperature; this one names its value).
 
@@ -39,8 +39,10 @@ from drake import (
 
 #: Name of the value in the temperature message (°C).
 TEMPERATURE_COORD = "temperature_c"
-#: Name of the value in the re-tare message (1: the sensor was re-zeroed at its timestamp).
+#: Names of the value in the event messages (:func:`encode_event`): the sensor was re-zeroed
+#: (re-tared), or a payload was grasped or released, at the message's timestamp.
 TARE_COORD = "tared"
+PAYLOAD_COORD = "payload_changed"
 
 #: Names of the values in the contact-state message, in order.
 CONTACT_COORDS = ("contact", "contact_force", "fault", "out_of_domain")
@@ -163,21 +165,22 @@ def decode_temperature(data: bytes) -> tuple[float, float]:
     return msg.timestamp * 1e-6, float(msg.val[0])
 
 
-def encode_tare(t: float) -> bytes:
-    """``lcmt_drake_signal`` bytes: the driver re-zeroed (tared) the sensor at t (s)."""
+def encode_event(t: float, name: str) -> bytes:
+    """``lcmt_drake_signal`` bytes announcing the event `name` (``TARE_COORD``: the driver
+    re-zeroed the sensor; ``PAYLOAD_COORD``: the gripper took or released a payload) at t."""
     msg = lcmt_drake_signal()
     msg.timestamp = _utime(t)
     msg.dim = 1
-    msg.coord = [TARE_COORD]
+    msg.coord = [name]
     msg.val = [1.0]
     return msg.encode()
 
 
-def decode_tare(data: bytes) -> float:
-    """t (s) of a re-tare; ValueError for a signal that is not one."""
+def decode_event(data: bytes, name: str) -> float:
+    """t (s) of the event `name`; ValueError for a signal that is not that event."""
     msg = lcmt_drake_signal.decode(data)
-    if msg.dim != 1 or list(msg.coord) != [TARE_COORD]:
-        raise ValueError(f"not a re-tare signal: coord {list(msg.coord)}")
+    if msg.dim != 1 or list(msg.coord) != [name]:
+        raise ValueError(f"not a {name!r} signal: coord {list(msg.coord)}")
     return msg.timestamp * 1e-6
 
 

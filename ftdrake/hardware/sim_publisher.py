@@ -42,7 +42,14 @@ from ftdrake.sim.events import apply_grasp
 from ftdrake.sim.simulate import SimResult, assemble_log, set_initial_state
 
 from .config import HardwareConfig
-from .messages import encode_joint_state, encode_tare, encode_temperature, encode_wrench
+from .messages import (
+    PAYLOAD_COORD,
+    TARE_COORD,
+    encode_event,
+    encode_joint_state,
+    encode_temperature,
+    encode_wrench,
+)
 from .transport import open_lcm
 
 
@@ -67,10 +74,17 @@ class _Publisher:
         self.published = {"joint": 0, "ft": 0}
         if config.temperature_channel:
             self.published["temperature"] = 0
-        self._tared = station.events.tared if config.tare_channel else None
-        self._was_tared = False
-        if self._tared is not None:
-            self.published["tare"] = 0
+        # The driver announces a re-tare, the gripper a grasp, once, when the simulated event
+        # starts: (port, channel, coordinate, was high at the last sample).
+        self._events = {
+            name: [port, channel, coord, False]
+            for name, port, channel, coord in (
+                ("tare", station.events.tared, config.tare_channel, TARE_COORD),
+                ("payload", station.events.payload_changed, config.payload_channel,
+                 PAYLOAD_COORD))
+            if channel and port is not None}
+        for name in self._events:
+            self.published[name] = 0
 
     def __call__(self, root_context) -> EventStatus:
         t = root_context.get_time()
@@ -85,14 +99,13 @@ class _Publisher:
                 self._temperature.get_system().GetMyContextFromRoot(root_context))[0]
             self.lcm.publish(c_temperature, encode_temperature(t_j, celsius))
             self.published["temperature"] += 1
-        if self._tared is not None:
-            # The driver announces a re-tare once, when the simulated zero offset jumps.
-            tared = self._tared.Eval(
-                self._tared.get_system().GetMyContextFromRoot(root_context))[0] > 0.5
-            if tared and not self._was_tared:
-                self.lcm.publish(self.config.tare_channel, encode_tare(t_j))
-                self.published["tare"] += 1
-            self._was_tared = tared
+        for name, event in self._events.items():
+            port, channel, coord, was_high = event
+            high = port.Eval(port.get_system().GetMyContextFromRoot(root_context))[0] > 0.5
+            if high and not was_high:
+                self.lcm.publish(channel, encode_event(t_j, coord))
+                self.published[name] += 1
+            event[3] = high
         c, n = self.config, self.n
         if c.joint_state_type == "robot_state":
             self.lcm.publish(c.joint_state_channel, encode_joint_state("robot_state", t_j, x[:n]))

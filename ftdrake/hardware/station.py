@@ -9,8 +9,9 @@
 
 The diagram is the one :func:`ftdrake.sim.station.build_station` puts in the loop —
 ``CompensatorSystem`` (``scenario.compensator``), ``OnlineBiasTracker``
-(``scenario.bias_tracker``, when enabled; no payload tracking: there is no ``gravity_S``
-here) and ``ContactDetector`` (``scenario.detector``, with the model's std) — unchanged, so
+(``scenario.bias_tracker``, when enabled; with ``track_payload`` its ``gravity_S`` comes from
+:class:`~ftdrake.systems.joint_gravity.JointStateGravity` on the scenario robot's chain) and
+``ContactDetector`` (``scenario.detector``, with the model's std) — unchanged, so
 the same messages give the same numbers as in simulation (``tests/test_live_end_to_end.py``
 checks it to 1e-9).
 
@@ -39,6 +40,7 @@ from __future__ import annotations
 
 import collections
 import dataclasses as dc
+import functools
 import struct
 import time
 
@@ -51,9 +53,11 @@ from ftdrake import CompensatorSystem, ConfigError, ContactDetector, ScenarioCon
 from .config import HardwareConfig
 from .live_inputs import RobotStatePairer, StreamMonitor
 from .messages import (
+    PAYLOAD_COORD,
+    TARE_COORD,
     ContactState,
+    decode_event,
     decode_joint_state,
-    decode_tare,
     decode_temperature,
     decode_wrench,
     encode_contact_state,
@@ -61,6 +65,17 @@ from .messages import (
     encode_wrench,
 )
 from .transport import open_lcm
+
+
+@dc.dataclass
+class _EventSignal:
+    """An event input of the tracker fed by LCM messages (see HardwareConfig)."""
+
+    coord: str
+    fixed: object  # the diagram input's FixedInputPortValue
+    pending: bool = False
+    received: int = 0
+    rejected: int = 0
 
 
 @dc.dataclass(frozen=True)
@@ -96,9 +111,6 @@ class HardwareStation:
                  lcm=None, *, clock=time.monotonic, on_event=None, max_events: int = 10_000):
         self.config = config.validate()
         self.scenario = (scenario or ScenarioConfig()).validate()
-        if self.scenario.bias_tracker.enabled and self.scenario.bias_tracker.track_payload:
-            raise ConfigError("scenario.bias_tracker.track_payload: the hardware station has "
-                              "no gravity_S input (no robot model); set it to false")
         self.lcm = open_lcm(lcm if lcm is not None else config.lcm_url)
         self.period = 1.0 / self.scenario.sensor.spec().rate_hz
         self._build(model)
@@ -118,12 +130,10 @@ class HardwareStation:
         if self.compensator.needs_temperature:
             self._temperature_in = self.diagram.GetInputPort("temperature").FixValue(
                 self.context, np.full(1, np.nan))
-        self._tared_in = None
-        self._tare_pending = False
-        self.tares = 0  # re-tare messages received
-        self.tares_rejected = 0
-        if config.tare_channel:
-            self._tared_in = self.diagram.GetInputPort("tared").FixValue(self.context, [0.0])
+        # The tracker's event inputs (tared, payload_changed): high for the one update after
+        # a message on their channel.
+        self._signals = {name: _EventSignal(coord, self.diagram.GetInputPort(name).FixValue(
+            self.context, [0.0])) for name, coord, channel in self._event_channels() if channel}
         self._out = {name: self.diagram.GetOutputPort(name) for name in (
             "wrench_external", "fault", "out_of_domain", "contact", "contact_force")}
         self.monitor = StreamMonitor(
@@ -150,8 +160,9 @@ class HardwareStation:
         self.lcm.subscribe(config.ft_channel, self._on_wrench)
         if self._temperature_in is not None:
             self.lcm.subscribe(config.temperature_channel, self._on_temperature)
-        if self._tared_in is not None:
-            self.lcm.subscribe(config.tare_channel, self._on_tare)
+        for name, _, channel in self._event_channels():
+            if channel:
+                self.lcm.subscribe(channel, functools.partial(self._on_event_signal, name))
 
     def _build(self, model) -> None:
         s = self.scenario
@@ -163,6 +174,7 @@ class HardwareStation:
                                                                            self.period))
         external = self.compensator.get_output_port_wrench_external()
         self.tracker = None
+        self.gravity = None
         if s.bias_tracker.enabled:
             from ftdrake.systems.bias_tracker import (  # noqa: PLC0415 (only with the tracker)
                 OnlineBiasTracker,
@@ -183,11 +195,20 @@ class HardwareStation:
                 raise ConfigError("hardware.tare_channel: a re-tare goes to the bias tracker; "
                                   "enable scenario.bias_tracker or leave the channel empty")
             builder.ExportInput(self.tracker.get_input_port_tared(), "tared")
+        if self.tracker is not None and self.tracker.track_payload:
+            self._add_payload_gravity(builder)
+        elif self.config.payload_channel:
+            raise ConfigError("hardware.payload_channel: a grasp goes to the bias tracker's "
+                              "payload estimate; set scenario.bias_tracker.enabled and "
+                              "track_payload, or leave the channel empty")
         builder.Connect(external, self.detector.get_input_port_wrench_external())
         builder.Connect(self.compensator.get_output_port_wrench_std(),
                         self.detector.get_input_port_wrench_std())
         builder.ExportInput(self.compensator.get_input_port_wrench_measured(), "wrench_measured")
-        builder.ExportInput(self.compensator.get_input_port_joint_state(), "joint_state")
+        joint_state = builder.ExportInput(self.compensator.get_input_port_joint_state(),
+                                          "joint_state")
+        if self.gravity is not None:
+            builder.ConnectInput(joint_state, self.gravity.get_input_port_joint_state())
         if self.compensator.needs_temperature:
             if not self.config.temperature_channel:
                 raise ConfigError(
@@ -238,14 +259,42 @@ class HardwareStation:
             sample = None
         self.monitor.on_temperature(sample, arrival)
 
-    def _on_tare(self, data: bytes):
+    def _event_channels(self):
+        c = self.config
+        return (("tared", TARE_COORD, c.tare_channel),
+                ("payload_changed", PAYLOAD_COORD, c.payload_channel))
+
+    def _add_payload_gravity(self, builder) -> None:
+        """g_S − a_So for the tracker's payload estimate, from the joint state through the
+        scenario robot's serial chain (there is no plant on hardware)."""
+        from ftdrake.physics.chain import SerialChain  # noqa: PLC0415 (payload tracking only)
+        from ftdrake.sim.scene import robot_description  # noqa: PLC0415
+        from ftdrake.systems.joint_gravity import JointStateGravity  # noqa: PLC0415
+
+        plant, frame_S = robot_description(self.scenario).build_plant()
+        chain = SerialChain.from_plant(plant, frame_S)
+        if chain.num_positions != self.config.n_joints:
+            raise ConfigError(f"scenario.bias_tracker.track_payload: the scenario's robot has "
+                              f"{chain.num_positions} joints, hardware.n_joints is "
+                              f"{self.config.n_joints}")
+        self.gravity = builder.AddNamedSystem("sensor_gravity", JointStateGravity(
+            chain, self.period,
+            acceleration_cutoff_hz=self.scenario.compensator.acceleration_cutoff_hz,
+            gravity_W=plant.gravity_field().gravity_vector()))
+        builder.Connect(self.gravity.get_output_port_gravity_S(),
+                        self.tracker.get_input_port_gravity_S())
+        if self.config.payload_channel:
+            builder.ExportInput(self.tracker.get_input_port_payload_changed(), "payload_changed")
+
+    def _on_event_signal(self, name: str, data: bytes):
+        signal = self._signals[name]
         try:
-            decode_tare(data)
+            decode_event(data, signal.coord)
         except (ValueError, struct.error):
-            self.tares_rejected += 1  # malformed: counted in summary(), not acted on
+            signal.rejected += 1  # malformed: counted in summary(), not acted on
             return
-        self.tares += 1
-        self._tare_pending = True
+        signal.received += 1
+        signal.pending = True
 
     def _on_wrench(self, data: bytes):
         arrival = self.clock()
@@ -261,10 +310,10 @@ class HardwareStation:
             if self._temperature_in is not None:
                 self._temperature_in.GetMutableData().get_mutable_value().SetFromVector(
                     [self.monitor.temperature])
-            if self._tared_in is not None:  # high for one update after a re-tare message
-                self._tared_in.GetMutableData().get_mutable_value().SetFromVector(
-                    [1.0 if self._tare_pending else 0.0])
-                self._tare_pending = False
+            for signal in self._signals.values():  # high for one update after its message
+                signal.fixed.GetMutableData().get_mutable_value().SetFromVector(
+                    [1.0 if signal.pending else 0.0])
+                signal.pending = False
             self.simulator.AdvanceTo((self.processed + 0.5) * self.period)
             self.processed += 1
             if self._out["fault"].Eval(self.context)[0] <= 0.5:
@@ -344,7 +393,8 @@ class HardwareStation:
             "rejected": dict(m.rejected), "processed": self.processed,
             "published_wrench": self.published, "published_contact": self.contact_published,
             "fault_episodes": dict(self.fault_episodes),
-            "tares": {"received": self.tares, "rejected": self.tares_rejected},
+            "signals": {name: {"received": signal.received, "rejected": signal.rejected}
+                        for name, signal in self._signals.items()},
             "latency_ms": {"p50": p50 * 1e3, "p99": p99 * 1e3},
             "fault": bool(m.fault), "reason": m.reason,
         }

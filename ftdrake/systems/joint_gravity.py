@@ -1,0 +1,90 @@
+"""JointStateGravity: the apparent gravity at the sensor from the joint state alone.
+
+The simulation's :class:`~ftdrake.systems.events.SensorGravity` reads the plant's body poses
+and accelerations. A live robot has no plant, only its joint state, so this system computes
+the same quantity from ``[q; v]`` through the robot's compiled serial chain
+(:class:`~ftdrake.physics.chain.SerialChain`), with q̈ estimated the way
+``CompensatorSystem`` estimates it (a causal difference of v, low-passed at
+``acceleration_cutoff_hz``). It feeds the bias tracker's payload estimate on hardware.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numba
+import numpy as np
+from pydrake.systems.framework import LeafSystem
+
+from ..physics.chain import SerialChain, sensor_kinematics_row
+from ..signals import acceleration_filter_gain
+
+
+class JointStateGravity(LeafSystem):
+    """Apparent gravity at the sensor origin So, ``g_S − a_So_S`` (the specific force, m/s²,
+    in S), from the joint state, updated every `period` s.
+
+    Input ports:
+      joint_state (2n): ``[q; v]`` in rad (or m), rad/s, in the chain's joint order.
+    Output ports:
+      gravity_S (3): m/s², in S (≈ R_SW·[0, 0, −9.81] at rest). Held between updates; zeros
+        before the first. A non-finite joint state leaves it unchanged (the compensator
+        raises the fault for the same sample).
+
+    With ``include_acceleration=False``, a_So is not subtracted (gravity alone: a payload is
+    then only identified right while the arm moves slowly). Neglected as in SensorGravity:
+    the payload's offset from So (α×c, ω×(ω×c)).
+    """
+
+    def __init__(self, chain: SerialChain, period: float, *, acceleration_cutoff_hz: float = 25.0,
+                 gravity_W=(0.0, 0.0, -9.81), include_acceleration: bool = True):
+        super().__init__()
+        if not (period > 0 and math.isfinite(period)):
+            raise ValueError(f"period must be a positive number of seconds, got {period!r}")
+        if chain.num_positions != chain.num_velocities:
+            raise ValueError("JointStateGravity needs one velocity per position (no quaternions)")
+        self.chain = chain
+        n = self.n = chain.num_positions
+        self._constants = np.array([acceleration_filter_gain(acceleration_cutoff_hz, period),
+                                    float(period), float(bool(include_acceleration))])
+        self._gravity_W = np.asarray(gravity_W, dtype=float)
+        self._state_port = self.DeclareVectorInputPort("joint_state", 2 * n)
+        # previous v (n), filtered v̇ (n), primed flag (1)
+        self._estimator = self.DeclareDiscreteState(2 * n + 1)
+        self._gravity = self.DeclareDiscreteState(3)
+        self.DeclarePeriodicDiscreteUpdateEvent(period, 0.0, self._update)
+        self.DeclareStateOutputPort("gravity_S", self._gravity)
+
+    def get_input_port_joint_state(self):
+        return self.GetInputPort("joint_state")
+
+    def get_output_port_gravity_S(self):
+        return self.GetOutputPort("gravity_S")
+
+    def _update(self, context, state):
+        _apparent_gravity(self._state_port.Eval(context), state.get_mutable_value(self._estimator),
+                          state.get_mutable_value(self._gravity), self._constants,
+                          self._gravity_W, *self.chain.kernel_args())
+
+
+@numba.njit(cache=True)
+def _apparent_gravity(x, estimator, g_S, constants, gravity_W, X_pre, kinds, axes, q_index,
+                      v_index):
+    n = len(x) // 2
+    for i in range(2 * n):
+        if not math.isfinite(x[i]):
+            return
+    alpha, period, with_acceleration = constants[0], constants[1], constants[2]
+    v_prev, vdot = estimator[:n], estimator[n:2 * n]
+    q, v = x[:n], x[n:]
+    if estimator[2 * n] > 0.5:
+        for i in range(n):
+            vdot[i] += alpha * ((v[i] - v_prev[i]) / period - vdot[i])
+    estimator[2 * n] = 1.0
+    for i in range(n):
+        v_prev[i] = v[i]
+    R = np.empty((3, 3))
+    out = np.empty((4, 3))
+    sensor_kinematics_row(q, v, vdot, gravity_W, X_pre, kinds, axes, q_index, v_index, R, out)
+    for j in range(3):
+        g_S[j] = out[3, j] - with_acceleration * out[2, j]

@@ -1,0 +1,70 @@
+"""JointStateGravity (the hardware station's gravity at the sensor) against Drake's kinematics."""
+
+import numpy as np
+import pytest
+from pydrake.multibody.tree import JacobianWrtVariable
+from pydrake.systems.analysis import Simulator
+
+from ftdrake import ScenarioConfig
+from ftdrake.physics.chain import SerialChain
+from ftdrake.sim.scene import robot_description
+from ftdrake.systems.joint_gravity import JointStateGravity
+
+PERIOD = 0.001
+
+
+@pytest.fixture(scope="module")
+def robot():
+    plant, frame_S = robot_description(ScenarioConfig()).build_plant()
+    return plant, frame_S, SerialChain.from_plant(plant, frame_S)
+
+
+def drake_apparent_gravity(plant, frame_S, q, v):
+    """g_S − a_So_S with q̈ = 0 (the bias acceleration), from Drake's own kinematics."""
+    context = plant.CreateDefaultContext()
+    plant.SetPositions(context, q)
+    plant.SetVelocities(context, v)
+    R_WS = frame_S.CalcPoseInWorld(context).rotation()
+    A_bias = plant.CalcBiasSpatialAcceleration(context, JacobianWrtVariable.kV, frame_S,
+                                               np.zeros(3), plant.world_frame(),
+                                               plant.world_frame())
+    g_W = plant.gravity_field().gravity_vector()
+    return R_WS.inverse() @ (g_W - A_bias.translational())
+
+
+@pytest.mark.parametrize("include_acceleration", [True, False])
+def test_constant_joint_velocities_give_drakes_gravity_minus_bias_acceleration(
+        robot, include_acceleration):
+    plant, frame_S, chain = robot
+    rng = np.random.default_rng(4)
+    q0, v = rng.uniform(-1.5, 1.5, 7), rng.uniform(-0.8, 0.8, 7)
+    dut = JointStateGravity(chain, PERIOD, include_acceleration=include_acceleration)
+    simulator = Simulator(dut)
+    context = simulator.get_mutable_context()
+    port = dut.get_input_port_joint_state().FixValue(context, np.r_[q0, v])
+    steps = 20
+    for k in range(steps):  # constant v: the causal q̈ estimate is exactly 0 once primed
+        port.GetMutableData().get_mutable_value().SetFromVector(np.r_[q0 + v * k * PERIOD, v])
+        simulator.AdvanceTo((k + 0.5) * PERIOD)
+    q_last = q0 + v * (steps - 1) * PERIOD
+    expected = (drake_apparent_gravity(plant, frame_S, q_last, v) if include_acceleration
+                else drake_apparent_gravity(plant, frame_S, q_last, 0 * v))
+    got = dut.get_output_port_gravity_S().Eval(context)
+    np.testing.assert_allclose(got, expected, atol=1e-9)
+    if include_acceleration:  # the centripetal part is really there
+        static = drake_apparent_gravity(plant, frame_S, q_last, 0 * v)
+        assert np.linalg.norm(expected - static) > 0.05
+
+
+def test_a_nan_joint_state_keeps_the_last_value(robot):
+    _, _, chain = robot
+    dut = JointStateGravity(chain, PERIOD)
+    simulator = Simulator(dut)
+    context = simulator.get_mutable_context()
+    port = dut.get_input_port_joint_state().FixValue(context, np.zeros(14))
+    simulator.AdvanceTo(0.5 * PERIOD)
+    before = dut.get_output_port_gravity_S().Eval(context).copy()
+    port.GetMutableData().get_mutable_value().SetFromVector(np.full(14, np.nan))
+    simulator.AdvanceTo(1.5 * PERIOD)
+    np.testing.assert_array_equal(dut.get_output_port_gravity_S().Eval(context), before)
+    assert np.linalg.norm(before) == pytest.approx(9.81, rel=1e-9)
