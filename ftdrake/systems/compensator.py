@@ -31,7 +31,8 @@ class CompensatorSystem(LeafSystem):
         ConfigError names the port at the first sample if it is not connected. A NaN/inf
         temperature is a fault like any other input.
     Output ports (held between samples; updated every `period` s):
-      wrench_internal (6): predicted internal wrench, N, N·m, S.
+      wrench_internal (6): predicted internal wrench as the sensor reads it, N, N·m (in S,
+        or in the sensor's own frame Sm for a model that identified its mounting).
       wrench_external (6): the contact wrench, N, N·m, about So in S: wrench_measured −
         wrench_internal, times the model's ``reading_to_model_frame()`` T when it has one
         (a physics or hybrid model that identified the sensor's mounting rotation or a
