@@ -33,6 +33,7 @@ from __future__ import annotations
 
 import argparse
 import dataclasses as dc
+import functools
 import json
 import re
 import sys
@@ -118,6 +119,9 @@ def register(subparsers) -> None:
                         "proportional to the torques (motor currents, as UR's CB3 driver "
                         "publishes in effort, or another sign convention): a gain per joint "
                         "is identified with the arm's parameters")
+    p.add_argument("--identify-mounting", action="store_true",
+                   help="physics/hybrid on a wrench: also identify the sensor's mounting "
+                        "rotation (the wrench is then reported in the model's frame S)")
     p.add_argument("--target-units", metavar="U,U,..",
                    help="unit per target (default: N/N*m for wrench axes, else N*m)")
     p.add_argument("--seed", type=int, default=0, help="random state of rf and gpr")
@@ -216,6 +220,7 @@ class RobotOptions:
     base_frame: str | None = None
     scenario_yaml: str | None = None
     drive_gains: str = "fixed"  # joint-torque models: "identify" for currents or unknown signs
+    identify_mounting: bool = False  # wrench models: also the sensor's mounting rotation
 
 
 def make_estimator(model: str, *, features: str | None = None, seed: int = 0,
@@ -237,6 +242,10 @@ def make_estimator(model: str, *, features: str | None = None, seed: int = 0,
 
     entry = registry.entry(model)
     robot = robot or RobotOptions()
+    if robot.identify_mounting and (model not in ("physics", "hybrid")
+                                    or (target_names and not is_wrench(target_names))):
+        raise ConfigError("--identify-mounting is for --model physics or hybrid on a wrench "
+                          "(the sensor's mounting rotation)")
     if model in ("physics", "hybrid", "arm") and target_names and not is_wrench(target_names):
         # Joint torques (or anything per joint): the whole arm's rigid-body model.
         physics = _arm(model, robot)
@@ -312,6 +321,11 @@ def _physics(model: str, robot: RobotOptions | None, features: str):
     if features == "q,qd":
         raise ConfigError("physics takes --features q (static: gravity only) or q,qd,qdd")
     mode = "static" if features == "q" else "dynamic"
+    if robot.identify_mounting and mode == "static":
+        raise ConfigError("--identify-mounting needs --features q,qd,qdd (the dynamic model); "
+                          "`ftdrake calibrate` identifies it from static poses")
+    build = functools.partial(PhysicsPayloadCompensator, features=features, mode=mode,
+                              identify_mounting=robot.identify_mounting)
     if robot.robot == BUILTIN_ROBOT:
         # The arm of the scenario that made the data (a collect dataset stores it), as a
         # robot description; the shipped default arm is robot=None.
@@ -319,18 +333,16 @@ def _physics(model: str, robot: RobotOptions | None, features: str):
         if robot.scenario_yaml:
             description = robot_description(parse_config(robot.scenario_yaml))
         if description == ftdrake_arm():
-            return PhysicsPayloadCompensator(features=features, mode=mode)
-        return PhysicsPayloadCompensator(
-            features=features, mode=mode, robot=description.model,
-            sensor_frame=description.sensor_frame, package_xmls=description.package_xmls)
+            return build()
+        return build(robot=description.model, sensor_frame=description.sensor_frame,
+                     package_xmls=description.package_xmls)
     path = Path(robot.robot)
     if not path.is_file():
         raise RobotModelError(f"--robot {path}: no such file")
     if not robot.sensor_frame:
         raise ConfigError(f"--robot {path} needs --sensor-frame (the frame of the targets)")
-    return PhysicsPayloadCompensator(features=features, mode=mode, robot=str(path.resolve()),
-                                     sensor_frame=robot.sensor_frame,
-                                     base_frame=robot.base_frame)
+    return build(robot=str(path.resolve()), sensor_frame=robot.sensor_frame,
+                 base_frame=robot.base_frame)
 
 
 def is_wrench(names) -> bool:
@@ -364,7 +376,7 @@ def run_train(args) -> int:
     options = _with_flags(ReadOptions(), args)
     data = _read(args, options, say)
     robot = RobotOptions(args.robot, args.sensor_frame, args.base_frame, data.scenario_yaml,
-                         args.drive_gains)
+                         args.drive_gains, args.identify_mounting)
     if args.model is None:
         args.model = default_model(robot)
         say(f"--model not given: {args.model} "
