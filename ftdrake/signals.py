@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import math
 
+import numba
 import numpy as np
 from scipy.signal import savgol_filter
 
@@ -67,8 +68,34 @@ def causal_acceleration(qd: np.ndarray, period: float, cutoff_hz: float) -> np.n
     :func:`acceleration_filter_gain`. It lags the true q̈ by about 1 / (2π·cutoff) s.
     """
     qd = np.asarray(qd, dtype=float)
-    alpha = acceleration_filter_gain(cutoff_hz, period)
-    out = np.zeros_like(qd)
-    for k in range(1, len(qd)):
-        out[k] = out[k - 1] + alpha * ((qd[k] - qd[k - 1]) / period - out[k - 1])
-    return out
+    rows = np.ascontiguousarray(qd.reshape(len(qd), -1))
+    out = np.zeros_like(rows)
+    _causal_acceleration_rows(rows, acceleration_filter_gain(cutoff_hz, period), float(period),
+                              out)
+    return out.reshape(qd.shape)
+
+
+@numba.njit(cache=True)
+def causal_acceleration_step(v, estimator, alpha, period, vdot):
+    """One sample of :func:`causal_acceleration` in place, for loops at the sensor rate.
+
+    `estimator` (2n + 1) holds the previous v, the previous estimate and a primed flag (0
+    before the first sample, which gives v̇ = 0); `vdot` (n) receives the new estimate.
+    """
+    n = len(v)
+    primed = estimator[2 * n] != 0.0
+    for i in range(n):
+        if primed:
+            vdot[i] = estimator[n + i] + alpha * ((v[i] - estimator[i]) / period
+                                                  - estimator[n + i])
+        else:
+            vdot[i] = 0.0
+        estimator[i], estimator[n + i] = v[i], vdot[i]
+    estimator[2 * n] = 1.0
+
+
+@numba.njit(cache=True)
+def _causal_acceleration_rows(qd, alpha, period, out):
+    estimator = np.zeros(2 * qd.shape[1] + 1)
+    for k in range(qd.shape[0]):
+        causal_acceleration_step(qd[k], estimator, alpha, period, out[k])

@@ -70,16 +70,28 @@ def test_row_predictor_applies_the_rotation(fits):
     np.testing.assert_allclose(np.array([row(x)[0] for x in X]), dut.predict(X), atol=1e-10)
 
 
-def test_the_loop_gives_the_contact_wrench_in_the_model_frame(fits):
+@pytest.mark.parametrize("kind", ["physics", "hybrid"])
+def test_the_loop_gives_the_contact_wrench_in_the_model_frame(fits, kind):
     """With the mounting identified, CompensatorSystem rotates ``measured − predicted`` (in
     the sensor's frame Sm) into S: a 25 N press along S's z reads as 25 N along z, not 1.3 N
-    on x and y (3° off), which is what ``measured − predicted`` alone gives."""
+    on x and y (3° off), which is what ``measured − predicted`` alone gives. The physics model
+    runs the row-predictor path, the hybrid the fused compiled update."""
     from pydrake.systems.analysis import Simulator
 
-    from ftdrake import CompensatorSystem
+    from ftdrake import CompensatorSystem, HybridCompensator, RandomForestCompensator
+    from ftdrake.systems.compensator import _fused_update
 
     plain, dut, _, _ = fits
     assert plain.reading_to_model_frame() is None
+    if kind == "hybrid":
+        rng = np.random.default_rng(0)
+        X = sinusoids(rng, range(7), n=1500)
+        # A residual forest of wide leaves: it averages the noise away (it has nothing to
+        # learn here), so what is left to check is the rotation.
+        residual = RandomForestCompensator(features="q", per_output=False, n_estimators=5,
+                                           min_samples_leaf=300, random_state=0)
+        dut = HybridCompensator(physics=dut, residual=residual).fit(X, reading(sensor(), X, rng))
+        assert _fused_update(dut) is not None
     mounted = sensor()
     X = sinusoids(np.random.default_rng(3), range(7), n=1)
     external_S = np.array([1.0, -2.0, 25.0, 0.1, -0.05, 0.2])

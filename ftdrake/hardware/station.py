@@ -228,18 +228,14 @@ class HardwareStation:
     # -- message callbacks ------------------------------------------------------------------
     def _on_joint(self, data: bytes):
         arrival = self.clock()
-        try:
-            sample = decode_joint_state(self.config.joint_state_type, data)
-        except (ValueError, struct.error):  # bad fingerprint or truncated message
-            sample = None
+        sample = _decoded(decode_joint_state, self.config.joint_state_type, data)
         self.monitor.on_joint(sample, arrival)
         self._note(None)
 
     def _on_half(self, half: str, data: bytes):
         arrival = self.clock()
-        try:
-            sample = decode_joint_state("robot_state", data)
-        except (ValueError, struct.error):
+        sample = _decoded(decode_joint_state, "robot_state", data)
+        if sample is None:
             self.monitor.on_joint(None, arrival)
             self._note(None)
             return
@@ -253,10 +249,7 @@ class HardwareStation:
 
     def _on_temperature(self, data: bytes):
         arrival = self.clock()
-        try:
-            sample = decode_temperature(data)
-        except (ValueError, struct.error):
-            sample = None
+        sample = _decoded(decode_temperature, data)
         self.monitor.on_temperature(sample, arrival)
 
     def _event_channels(self):
@@ -288,9 +281,7 @@ class HardwareStation:
 
     def _on_event_signal(self, name: str, data: bytes):
         signal = self._signals[name]
-        try:
-            decode_event(data, signal.coord)
-        except (ValueError, struct.error):
+        if _decoded(decode_event, data, signal.coord) is None:
             signal.rejected += 1  # malformed: counted in summary(), not acted on
             return
         signal.received += 1
@@ -298,10 +289,7 @@ class HardwareStation:
 
     def _on_wrench(self, data: bytes):
         arrival = self.clock()
-        try:
-            sample = decode_wrench(data)
-        except (ValueError, struct.error):
-            sample = None
+        sample = _decoded(decode_wrench, data)
         fresh = self.monitor.on_wrench(sample, arrival)
         t = sample.t if sample is not None and np.isfinite(sample.t) else self._stream_time()
         if fresh:
@@ -398,6 +386,14 @@ class HardwareStation:
             "latency_ms": {"p50": p50 * 1e3, "p99": p99 * 1e3},
             "fault": bool(m.fault), "reason": m.reason,
         }
+
+
+def _decoded(decode, *args):
+    """``decode(*args)``, or None for a message with a wrong fingerprint or truncated."""
+    try:
+        return decode(*args)
+    except (ValueError, struct.error):
+        return None
 
 
 def build_hardware_station(config: HardwareConfig, model, scenario: ScenarioConfig | None = None,

@@ -13,7 +13,7 @@ from ..compensation.compiled.forest import CompiledForest, forest_accumulate_wit
 from ..compensation.compiled.hybrid import CompiledHybrid, hybrid_row
 from ..compensation.features import check_feature_set
 from ..errors import ConfigError
-from ..signals import acceleration_filter_gain
+from ..signals import acceleration_filter_gain, causal_acceleration_step
 
 
 class CompensatorSystem(LeafSystem):
@@ -76,7 +76,9 @@ class CompensatorSystem(LeafSystem):
         self._has_std = bool(getattr(model, "provides_std", False))
         to_model_frame = (model.reading_to_model_frame()
                           if hasattr(model, "reading_to_model_frame") else None)
-        self._to_S = None if to_model_frame is None else np.ascontiguousarray(to_model_frame)
+        # (0, 6) when the reading is in S already: _external_wrench then only subtracts.
+        self._to_S = (np.empty((0, 6)) if to_model_frame is None
+                      else np.ascontiguousarray(to_model_frame, dtype=float))
         self._lo, self._hi = _training_box(model)
         alpha = acceleration_filter_gain(acceleration_cutoff_hz, self.period)
         self._constants = np.array([alpha, self.period])
@@ -142,7 +144,7 @@ class CompensatorSystem(LeafSystem):
             update, arrays = self._fused
             status = update(
                 wrench, x, accel, measured, estimator, self._lo, self._hi, self._constants,
-                *arrays, internal, external, state.get_mutable_value(self._std),
+                self._to_S, *arrays, internal, external, state.get_mutable_value(self._std),
             )
         else:
             row = np.empty(3 * self.n + self.needs_temperature)
@@ -155,11 +157,9 @@ class CompensatorSystem(LeafSystem):
             if not status & _FAULT:
                 mean, std = self._predict(row)
                 internal[:] = mean
-                external[:] = wrench - mean
+                _external_wrench(wrench, internal, self._to_S, external)
                 if self._has_std:
                     state.get_mutable_value(self._std)[:] = std
-        if self._to_S is not None and not status & _FAULT:
-            external[:] = self._to_S @ external
         if status & _FAULT_CHANGED:
             state.get_mutable_value(self._fault)[0] = float(status & _FAULT != 0)
         if status & _OOD_CHANGED:
@@ -208,19 +208,16 @@ def _prepare_row(wrench, x, accel, measured, estimator, row, lo, hi, constants):
     if estimator[fault_slot] != 0.0:
         estimator[fault_slot] = 0.0
         status |= _FAULT_CHANGED
-    alpha, period = constants[0], constants[1]
-    primed = estimator[2 * n] != 0.0
-    for i in range(n):
-        v = x[n + i]
-        if measured:
-            vdot = accel[i]
-        elif primed:
-            vdot = estimator[n + i] + alpha * ((v - estimator[i]) / period - estimator[n + i])
-        else:
-            vdot = 0.0  # first sample: no difference yet
-        estimator[i], estimator[n + i] = v, vdot
-        row[i], row[n + i], row[2 * n + i] = x[i], v, vdot
-    estimator[2 * n] = 1.0
+    if measured:
+        for i in range(n):
+            estimator[i], estimator[n + i] = x[n + i], accel[i]
+            row[2 * n + i] = accel[i]
+        estimator[2 * n] = 1.0
+    else:
+        causal_acceleration_step(x[n:2 * n], estimator, constants[0], constants[1],
+                                 row[2 * n:3 * n])
+    for i in range(2 * n):
+        row[i] = x[i]
     ood = False
     for i in range(len(lo)):
         ood = ood or row[i] < lo[i] or row[i] > hi[i]
@@ -231,32 +228,44 @@ def _prepare_row(wrench, x, accel, measured, estimator, row, lo, hi, constants):
 
 
 @numba.njit(cache=True)
-def _compensate_with_forest(wrench, x, accel, measured, estimator, lo, hi, constants,
+def _external_wrench(wrench, internal, to_S, external):
+    """external = to_S · (wrench − internal), or wrench − internal when to_S is (0, 6)."""
+    if to_S.shape[0] == 0:
+        for j in range(6):
+            external[j] = wrench[j] - internal[j]
+        return
+    for i in range(6):
+        total = 0.0
+        for j in range(6):
+            total += to_S[i, j] * (wrench[j] - internal[j])
+        external[i] = total
+
+
+@numba.njit(cache=True)
+def _compensate_with_forest(wrench, x, accel, measured, estimator, lo, hi, constants, to_S,
                             nodes, leaf_values, trees, n_trees, internal, external, std):
     """_prepare_row, then the compiled forest into `internal` (and its spread across trees
-    into `std`) and measured − internal."""
+    into `std`) and the external wrench (:func:`_external_wrench`)."""
     row = np.empty(3 * len(accel))
     status = _prepare_row(wrench, x, accel, measured, estimator, row, lo, hi, constants)
     if not status & _FAULT:
         forest_accumulate_with_std(row, nodes, leaf_values, trees, n_trees, internal, std)
-        for j in range(6):
-            external[j] = wrench[j] - internal[j]
+        _external_wrench(wrench, internal, to_S, external)
     return status
 
 
 @numba.njit(cache=True)
-def _compensate_with_hybrid(wrench, x, accel, measured, estimator, lo, hi, constants,
+def _compensate_with_hybrid(wrench, x, accel, measured, estimator, lo, hi, constants, to_S,
                             reals, ints, nodes, leaf_values, trees, n_trees, internal, external,
                             std):
     """_prepare_row, then the hybrid's payload model and residual forest
     (:func:`~ftdrake.compensation.compiled.hybrid.hybrid_row`) into `internal` and `std`,
-    and measured − internal."""
+    and the external wrench (:func:`_external_wrench`)."""
     row = np.empty(3 * len(accel))
     status = _prepare_row(wrench, x, accel, measured, estimator, row, lo, hi, constants)
     if not status & _FAULT:
         hybrid_row(row, reals, ints, nodes, leaf_values, trees, n_trees, internal, std)
-        for j in range(6):
-            external[j] = wrench[j] - internal[j]
+        _external_wrench(wrench, internal, to_S, external)
     return status
 
 

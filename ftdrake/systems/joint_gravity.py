@@ -17,7 +17,7 @@ import numpy as np
 from pydrake.systems.framework import LeafSystem
 
 from ..physics.chain import SerialChain, sensor_kinematics_row
-from ..signals import acceleration_filter_gain
+from ..signals import acceleration_filter_gain, causal_acceleration_step
 
 
 class JointStateGravity(LeafSystem):
@@ -74,15 +74,10 @@ def _apparent_gravity(x, estimator, g_S, constants, gravity_W, X_pre, kinds, axe
     for i in range(2 * n):
         if not math.isfinite(x[i]):
             return
-    alpha, period, with_acceleration = constants[0], constants[1], constants[2]
-    v_prev, vdot = estimator[:n], estimator[n:2 * n]
     q, v = x[:n], x[n:]
-    if estimator[2 * n] > 0.5:
-        for i in range(n):
-            vdot[i] += alpha * ((v[i] - v_prev[i]) / period - vdot[i])
-    estimator[2 * n] = 1.0
-    for i in range(n):
-        v_prev[i] = v[i]
+    vdot = np.empty(n)
+    causal_acceleration_step(v, estimator, constants[0], constants[1], vdot)
+    with_acceleration = constants[2]
     R = np.empty((3, 3))
     out = np.empty((4, 3))
     sensor_kinematics_row(q, v, vdot, gravity_W, X_pre, kinds, axes, q_index, v_index, R, out)
