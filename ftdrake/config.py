@@ -408,6 +408,11 @@ class CompensatorConfig:
         _positive(self.acceleration_cutoff_hz, f"{where}.acceleration_cutoff_hz")
 
 
+#: The payload inertia's prior std (kg·m², per entry of ΔI_So), consistent with the default
+#: mass and first-moment priors: (0.5 kg·m)² / 5 kg.
+PAYLOAD_INERTIA_PRIOR_STD = 0.05
+
+
 @dc.dataclass
 class BiasTrackerConfig:
     """Online bias and payload tracking (``OnlineBiasTracker``, between the compensator and
@@ -427,9 +432,15 @@ class BiasTrackerConfig:
     # outside the settle windows; .inf disables the bound. With drift_std 0 the bias then
     # changes only in settle windows (after a tare or a grasp).
     rate_bound_sigmas: float = 3.0
-    # Also estimate a payload (Δm, Δ(m·c)): adds the gravity_S and payload_changed inputs and
-    # the payload output.
+    # Also estimate a rigid payload (Δm, Δ(m·c), ΔI_So: 10 parameters): adds the gravity_S,
+    # motion_S and payload_changed inputs and the payload, payload_inertia outputs.
     track_payload: bool = False
+    # With track_payload: also feed the tracker S's angular velocity and acceleration
+    # (motion_S), so the payload's offset and rotational-inertia terms are modelled (10
+    # parameters). Off: gravity only (Δm, Δ(m·c) from g − a; the inertia stays at 0). Exact
+    # when the compensator is (tests/test_bias_tracker.py), but in the loop a grasp changes
+    # the motion and the compensator's error on it is what remains (README, "The bias tracker").
+    track_payload_motion: bool = False
     # Samples (from the signal on) whose update re-initialises the bias (tared) or payload
     # (payload_changed) block; covers the pipeline's one-sample lag.
     hold_samples: int = 3
@@ -437,31 +448,54 @@ class BiasTrackerConfig:
     # estimate averages the free motion since the tare (gain 1/n), so the model's error in
     # the tare pose is averaged out over the poses of this window.
     tare_settle_s: float = 2.0
+    # A re-tare is estimated as a jump of the bias when there is history (not at the run's
+    # start): the mean of the readings over this long after the hold, less the mean corrected
+    # wrench before the tare (s; 0: always reset and settle as above). The estimator keeps its
+    # memory: the model's error before and after the tare cancels instead of being taken as
+    # bias. The samples of the last `tare_guard_s` before the signal are left out of the
+    # "before" mean: a driver's pulse may come a few samples after the new reading.
+    tare_jump_window_s: float = 0.05
+    tare_guard_s: float = 0.01
     # After a grasp (and at start with payload tracking), bias and payload follow the estimate
     # unbounded for this long (s): rotate the tool within it to identify the CoM.
     payload_settle_s: float = 5.0
-    # Prior std (the regulariser): bias N, N·m; payload [kg, kg·m, kg·m, kg·m].
+    # Prior std (the regulariser): bias N, N·m; payload [Δm kg, Δ(m·c) kg·m (3), ΔI_So kg·m²
+    # (6: Ixx Ixy Ixz Iyy Iyz Izz)]. 4 entries (the gravity part) are accepted too: the
+    # inertia's then default to PAYLOAD_INERTIA_PRIOR_STD (5 kg at 0.1 m: 0.05 kg·m²).
     bias_prior_std: list[float] = dc.field(
         default_factory=lambda: [20.0, 20.0, 20.0, 2.0, 2.0, 2.0])
-    payload_prior_std: list[float] = dc.field(default_factory=lambda: [5.0, 0.5, 0.5, 0.5])
+    payload_prior_std: list[float] = dc.field(
+        default_factory=lambda: [5.0, 0.5, 0.5, 0.5] + [PAYLOAD_INERTIA_PRIOR_STD] * 6)
     # The bias estimate at start (N, N·m), e.g. the compensator's training bias.
     initial_bias: list[float] = dc.field(default_factory=lambda: [0.0] * 6)
 
     def validate(self, where: str = "bias_tracker") -> "BiasTrackerConfig":
-        for name in ("time_constant_s", "tare_settle_s", "payload_settle_s"):
+        for name in ("time_constant_s", "tare_settle_s", "payload_settle_s", "tare_guard_s"):
             _positive(getattr(self, name), f"{where}.{name}")
+        _non_negative(self.tare_jump_window_s, f"{where}.tare_jump_window_s")
         if not (self.rate_bound_sigmas > 0):
             raise ConfigError(f"{where}.rate_bound_sigmas: must be > 0 (inf disables), "
                               f"got {self.rate_bound_sigmas!r}")
         if int(self.hold_samples) < 1:
             raise ConfigError(f"{where}.hold_samples: must be >= 1, got {self.hold_samples!r}")
         _vec(self.bias_prior_std, 6, f"{where}.bias_prior_std")
-        _vec(self.payload_prior_std, 4, f"{where}.payload_prior_std")
+        if self.payload_prior_std is None or len(self.payload_prior_std) not in (4, 10):
+            got = 0 if self.payload_prior_std is None else len(self.payload_prior_std)
+            raise ConfigError(f"{where}.payload_prior_std: must have 10 entries [Δm, Δ(m·c) "
+                              f"(3), ΔI_So (6)] or 4 (Δm, Δ(m·c); the inertia's default), "
+                              f"got {got}")
+        _finite(self.payload_prior_std, f"{where}.payload_prior_std")
         _vec(self.initial_bias, 6, f"{where}.initial_bias")
         for name in ("bias_prior_std", "payload_prior_std"):
             if min(getattr(self, name)) <= 0:
                 raise ConfigError(f"{where}.{name}: entries must be positive")
         return self
+
+    def payload_prior(self) -> list[float]:
+        """`payload_prior_std` as 10 entries (a 4-entry list padded with the inertia's
+        default)."""
+        prior = list(self.payload_prior_std)
+        return prior + [PAYLOAD_INERTIA_PRIOR_STD] * (10 - len(prior))
 
 
 @dc.dataclass

@@ -4,7 +4,8 @@ import numpy as np
 import pytest
 from scipy.stats import chi2
 
-from ftdrake.systems.detector import thresholds_for_false_positive_rate
+from ftdrake.config import DetectorConfig
+from ftdrake.systems.detector import armed, thresholds_for_false_positive_rate
 
 SIGMA = np.array([0.03, 0.03, 0.03, 0.002, 0.002, 0.002])  # N, N·m
 
@@ -52,3 +53,18 @@ def test_heavy_tails_never_fire_on_the_data_that_set_the_thresholds():
 def test_bad_input_is_refused(residual, kwargs, match):
     with pytest.raises(ValueError, match=match):
         thresholds_for_false_positive_rate(residual, sample_rate_hz=1000.0, **kwargs)
+
+
+def test_the_unarmed_start_up_does_not_set_the_thresholds():
+    # A simulated run starts with a controller transient the detector does not judge (it arms
+    # after arm_after_s): a spike there must not raise the thresholds.
+    rng = np.random.default_rng(3)
+    t = np.arange(20_000) / 1000.0
+    residual = rng.normal(0, [0.025, 0.025, 0.05, 1e-3, 1e-3, 1e-3], (len(t), 6))
+    residual[:3] += [0.5, 0, 0, 0.03, 0, 0]  # the first 3 ms
+    judged = armed(t, DetectorConfig().arm_after_s)
+    assert judged.sum() == len(t) - 50 and not judged[:50].any()
+    with_start = thresholds_for_false_positive_rate(residual, sample_rate_hz=1000)
+    armed_only = thresholds_for_false_positive_rate(residual[judged], sample_rate_hz=1000)
+    assert with_start.force_on > 0.5 and with_start.torque_on > 0.03
+    assert armed_only.force_on < 0.4 and armed_only.torque_on < 0.01

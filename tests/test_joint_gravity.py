@@ -68,3 +68,53 @@ def test_a_nan_joint_state_keeps_the_last_value(robot):
     simulator.AdvanceTo(1.5 * PERIOD)
     np.testing.assert_array_equal(dut.get_output_port_gravity_S().Eval(context), before)
     assert np.linalg.norm(before) == pytest.approx(9.81, rel=1e-9)
+
+
+def drake_motion(plant, frame_S, q, v, vdot):
+    """[ω_WS_S; α_WS_S] and g_S − a_So_S at (q, v, v̇) from Drake: the frame's spatial
+    velocity, and its Jacobian times v̇ plus the bias acceleration."""
+    context = plant.CreateDefaultContext()
+    plant.SetPositions(context, q)
+    plant.SetVelocities(context, v)
+    W = plant.world_frame()
+    R_SW = frame_S.CalcPoseInWorld(context).rotation().inverse()
+    J = plant.CalcJacobianSpatialVelocity(context, JacobianWrtVariable.kV, frame_S, np.zeros(3),
+                                          W, W)
+    bias = plant.CalcBiasSpatialAcceleration(context, JacobianWrtVariable.kV, frame_S,
+                                             np.zeros(3), W, W)
+    A = J @ vdot + np.r_[bias.rotational(), bias.translational()]
+    w = R_SW @ frame_S.CalcSpatialVelocityInWorld(context).rotational()
+    g_S = R_SW @ (plant.gravity_field().gravity_vector() - A[3:])
+    return np.r_[w, R_SW @ A[:3]], g_S
+
+
+@pytest.mark.parametrize("include_acceleration", [True, False])
+def test_motion_is_drakes_angular_velocity_and_acceleration_of_S(robot, include_acceleration):
+    """Constant q̈: the loop's causal q̈ estimate converges to it (to round-off after 0.3 s at
+    25 Hz), so ω, α (and g − a_So) must be Drake's at the last sample."""
+    plant, frame_S, chain = robot
+    rng = np.random.default_rng(7)
+    q0, v0, a = rng.uniform(-1.5, 1.5, 7), rng.uniform(-0.8, 0.8, 7), rng.uniform(-3, 3, 7)
+    dut = JointStateGravity(chain, PERIOD, include_acceleration=include_acceleration)
+    simulator = Simulator(dut)
+    context = simulator.get_mutable_context()
+    port = dut.get_input_port_joint_state().FixValue(context, np.r_[q0, v0])
+    steps = 300
+    for k in range(steps):
+        t = k * PERIOD
+        port.GetMutableData().get_mutable_value().SetFromVector(
+            np.r_[q0 + v0 * t + 0.5 * a * t**2, v0 + a * t])
+        simulator.AdvanceTo((k + 0.5) * PERIOD)
+    t = (steps - 1) * PERIOD
+    q, v = q0 + v0 * t + 0.5 * a * t**2, v0 + a * t
+    got = dut.get_output_port_motion_S().Eval(context)
+    motion, g_S = drake_motion(plant, frame_S, q, v, a)
+    if not include_acceleration:
+        np.testing.assert_array_equal(got, np.zeros(6))
+        return
+    np.testing.assert_allclose(got[:3], motion[:3], atol=1e-10)
+    np.testing.assert_allclose(got[3:], motion[3:], atol=1e-8)
+    np.testing.assert_allclose(dut.get_output_port_gravity_S().Eval(context), g_S, atol=1e-8)
+    assert np.linalg.norm(motion[3:]) > 1.0  # α is really there
+    # and q̈ counts in it: at q̈ = 0 the angular acceleration differs
+    assert np.linalg.norm(drake_motion(plant, frame_S, q, v, 0 * a)[0][3:] - motion[3:]) > 0.5

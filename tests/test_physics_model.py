@@ -23,6 +23,7 @@ from ftdrake.data.dataset import joint_state_layout, wrench_targets
 from ftdrake.errors import RobotModelError
 from ftdrake.physics.rigid_body import SensorKinematics, newton_euler_wrench, sensor_kinematics
 from ftdrake.physics.robot import ftdrake_arm
+from ftdrake.sim.collection import collect
 from ftdrake.sim.scene import add_scene, robot_description
 
 TRUE_MASS = 1.5
@@ -209,24 +210,29 @@ def drake_prediction(model, X, plant, frame_S, instance=None):
     moving = model.mode == "dynamic"
     A = payload_regressor(kin.w_WS_S * moving, kin.alpha_WS_S * moving,
                           kin.a_WSo_S * moving - g_S)
-    return A @ model.parameters_
+    wrench = A @ model.parameters_[:16]
+    if model.weight_without_inertia:  # [m_w·g; (m_w·c_w) × g], written out independently
+        m_w, h_w = model.parameters_[16], model.parameters_[17:20]
+        wrench = wrench + np.hstack([m_w * g_S, np.cross(h_w, g_S)])
+    return wrench
 
 
 def fitted_by_hand(model, n_joints, seed=0):
     """The estimator with random parameters set as `fit` would (no data needed)."""
-    model.parameters_ = np.random.default_rng(seed).normal(size=16)
+    model.parameters_ = np.random.default_rng(seed).normal(size=model.n_parameters)
     model.n_joints_ = n_joints
     return model
 
 
 @settings(max_examples=40, deadline=None)
 @given(X=arrays(np.float64, (3, 21), elements=st.floats(-3, 3)),
-       static=st.booleans(), scale=st.floats(1, 8))
-def test_row_kernel_equals_drake_on_ftdrake_arm(X, static, scale):
+       static=st.booleans(), scale=st.floats(1, 8), weight=st.booleans())
+def test_row_kernel_equals_drake_on_ftdrake_arm(X, static, scale, weight):
     X[:, 14:] *= scale  # q̈ up to 24 rad/s²
     scene = _arm_scene()
     dut = fitted_by_hand(PhysicsPayloadCompensator(
-        mode="static" if static else "dynamic", features="q" if static else "q,qd,qdd"), 7)
+        mode="static" if static else "dynamic", features="q" if static else "q,qd,qdd",
+        weight_without_inertia=weight and not static), 7)
     expected = drake_prediction(dut, X, scene.plant, scene.sensor_frame, scene.arm)
     tol = 1e-12 * max(1.0, np.abs(expected).max())
     rows = np.array([dut.predict_row(x) for x in X])
@@ -281,3 +287,34 @@ def _arm_scene():
     if not _SCENE:
         _SCENE.append(add_scene(DiagramBuilder(), ScenarioConfig()))
     return _SCENE[0]
+
+
+def test_a_weight_carried_without_inertia_is_told_from_the_tool_mass():
+    """The cable's hanging weight alone (its spring off, no cross-talk): a force along gravity
+    that does not follow the tool's accelerations. The rigid model takes it for tool mass; with
+    ``weight_without_inertia`` both come out right (truth from the scene's SDF and config)."""
+    config = ScenarioConfig()
+    config.sensor.crosstalk = 0.0
+    config.cable.stiffness = 0.0
+    data = collect(config, 2, kind="fourier", duration=10.0, seed=3, n_jobs=2, progress=False)
+    X, Y = joint_state_layout(data)[::4], wrench_targets(data)[::4]
+    fits = {}
+    for weight in (False, True):
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", ExcitationWarning)
+            fits[weight] = PhysicsPayloadCompensator(
+                identify_mounting=True, weight_without_inertia=weight).fit(X, Y).parameters_
+    cable_mass = config.cable.weight_n / 9.81
+    assert fits[False][0] - TRUE_MASS > 0.8 * cable_mass  # the weight taken for mass
+    p = fits[True]
+    assert p[0] == pytest.approx(TRUE_MASS, rel=0.01)
+    np.testing.assert_allclose(p[1:4] / p[0], TRUE_COM, atol=1e-3)
+    assert p[16] == pytest.approx(cable_mass, rel=0.05)
+    np.testing.assert_allclose(p[17:20] / p[16], config.cable.p_SAttach, atol=0.01)
+
+
+def test_weight_without_inertia_needs_motion():
+    X = np.zeros((40, 21))
+    with pytest.raises(ValueError, match="static"):
+        PhysicsPayloadCompensator(mode="static", features="q",
+                                  weight_without_inertia=True).fit(X[:, :7], np.zeros((40, 6)))

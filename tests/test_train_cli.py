@@ -220,6 +220,19 @@ def test_physics_extrapolates_where_a_forest_cannot(ftdrake, tmp_path):
     mounted_nmse = np.array([m["nmse"] for m in result["metrics"]["all"].values()])
     assert mounted_nmse[:5].max() < 0.1 and mounted_nmse[5] < 0.6
 
+    # --weight-without-inertia reaches the model (20 parameters); a static fit refuses it.
+    path = tmp_path / "weight.ftd"
+    train(ftdrake, tmp_path / "run0.parquet", path, "--model", "physics", "--robot", "ftdrake",
+          "--preset", "none", "--weight-without-inertia")
+    loaded = load_model(path)
+    weighted = loaded[0] if isinstance(loaded, tuple) else loaded
+    assert weighted.weight_without_inertia and len(weighted.parameters_) == 20
+    assert "mw" in weighted.identified()
+    line = failure(ftdrake, "train", "--data", tmp_path / "run0.parquet", "--model", "physics",
+                   "--robot", "ftdrake", "--features", "q", "--weight-without-inertia",
+                   "--out", tmp_path / "static.ftd")
+    assert "--weight-without-inertia needs --features q,qd,qdd" in line
+
 
 # -- refusals -----------------------------------------------------------------------------------
 def test_physics_needs_a_wrench_and_a_robot(ftdrake, tmp_path):
@@ -234,6 +247,9 @@ def test_physics_needs_a_wrench_and_a_robot(ftdrake, tmp_path):
     line = failure(ftdrake, "train", "--data", csv, *TORQUES, "--model", "rf",
                    "--identify-mounting", "--out", tmp_path / "m.ftd")
     assert "--identify-mounting is for --model physics or hybrid on a wrench" in line
+    line = failure(ftdrake, "train", "--data", csv, *TORQUES, "--model", "rf",
+                   "--weight-without-inertia", "--out", tmp_path / "m.ftd")
+    assert "--weight-without-inertia is for --model physics or hybrid on a wrench" in line
 
     # Torques relabelled as a wrench: the names pass, but no robot is given ...
     wrench = pd.read_csv(csv).rename(columns={f"tau_{i}": f"meas_{a}" for i, a in

@@ -258,6 +258,9 @@ def _add_demo(sub):
     p.add_argument("--duration", type=positive_float, default=20.0,
                    help="seconds per training run")
     p.add_argument("--no-html", action="store_true", help="skip the Meshcat replay")
+    p.add_argument("--rehearse-all-surfaces", action="store_true",
+                   help="also train on (and hold out) one rehearsal at each other surface of "
+                        "the task (the wall)")
     p.add_argument("--quiet", action="store_true")
     p.set_defaults(run=_demo)
 
@@ -268,6 +271,7 @@ def _demo(args):
     config = load_scenario(args)
     output_path("--out", args.out, folder=True)
     summary = run_demo(args.out, config, fourier=args.trajectories, duration=args.duration,
+                       other_surfaces=args.rehearse_all_surfaces,
                        meshcat_html=not args.no_html, progress=not args.quiet)
     print_table(summary)
     print(f"wrote {args.out}/summary.json, contact.png, model_forest.ftd, model_hybrid.ftd, "

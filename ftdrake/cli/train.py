@@ -122,6 +122,9 @@ def register(subparsers) -> None:
     p.add_argument("--identify-mounting", action="store_true",
                    help="physics/hybrid on a wrench: also identify the sensor's mounting "
                         "rotation (the wrench is then reported in the model's frame S)")
+    p.add_argument("--weight-without-inertia", action="store_true",
+                   help="physics/hybrid on a wrench, dynamic model: also identify a weight the "
+                        "tool carries without its inertia (a hanging cable), 4 parameters")
     p.add_argument("--target-units", metavar="U,U,..",
                    help="unit per target (default: N/N*m for wrench axes, else N*m)")
     p.add_argument("--seed", type=int, default=0, help="random state of rf and gpr")
@@ -221,6 +224,7 @@ class RobotOptions:
     scenario_yaml: str | None = None
     drive_gains: str = "fixed"  # joint-torque models: "identify" for currents or unknown signs
     identify_mounting: bool = False  # wrench models: also the sensor's mounting rotation
+    weight_without_inertia: bool = False  # wrench models: also a weight without inertia
 
 
 def make_estimator(model: str, *, features: str | None = None, seed: int = 0,
@@ -246,6 +250,10 @@ def make_estimator(model: str, *, features: str | None = None, seed: int = 0,
                                     or (target_names and not is_wrench(target_names))):
         raise ConfigError("--identify-mounting is for --model physics or hybrid on a wrench "
                           "(the sensor's mounting rotation)")
+    if robot.weight_without_inertia and (model not in ("physics", "hybrid")
+                                         or (target_names and not is_wrench(target_names))):
+        raise ConfigError("--weight-without-inertia is for --model physics or hybrid on a "
+                          "wrench (a weight the tool carries without its inertia)")
     if model in ("physics", "hybrid", "arm") and target_names and not is_wrench(target_names):
         # Joint torques (or anything per joint): the whole arm's rigid-body model.
         physics = _arm(model, robot)
@@ -324,8 +332,12 @@ def _physics(model: str, robot: RobotOptions | None, features: str):
     if robot.identify_mounting and mode == "static":
         raise ConfigError("--identify-mounting needs --features q,qd,qdd (the dynamic model); "
                           "`ftdrake calibrate` identifies it from static poses")
+    if robot.weight_without_inertia and mode == "static":
+        raise ConfigError("--weight-without-inertia needs --features q,qd,qdd (only "
+                          "accelerations tell a weight without inertia from the tool's mass)")
     build = functools.partial(PhysicsPayloadCompensator, features=features, mode=mode,
-                              identify_mounting=robot.identify_mounting)
+                              identify_mounting=robot.identify_mounting,
+                              weight_without_inertia=robot.weight_without_inertia)
     if robot.robot == BUILTIN_ROBOT:
         # The arm of the scenario that made the data (a collect dataset stores it), as a
         # robot description; the shipped default arm is robot=None.
@@ -376,7 +388,8 @@ def run_train(args) -> int:
     options = _with_flags(ReadOptions(), args)
     data = _read(args, options, say)
     robot = RobotOptions(args.robot, args.sensor_frame, args.base_frame, data.scenario_yaml,
-                         args.drive_gains, args.identify_mounting)
+                         args.drive_gains, args.identify_mounting,
+                         args.weight_without_inertia)
     if args.model is None:
         args.model = default_model(robot)
         say(f"--model not given: {args.model} "

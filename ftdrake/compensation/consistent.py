@@ -4,9 +4,10 @@ The sensor's reading is linear in ``θ = [φ; b]``: the payload's 10 inertial pa
 ``φ = [m, m·cx, m·cy, m·cz, Ixx, Ixy, Ixz, Iyy, Iyz, Izz]`` (mass, first moment ``h = m·c``,
 inertia matrix entries about the sensor origin So; all expressed in S) and 6 biases — the
 model and regressor of :mod:`ftdrake.compensation.physics` (``reading = A·θ``, ``A`` of shape
-(N, 6, 16)). Plain least squares does not know that ``φ`` describes a body: with poor
-excitation it returns a negative mass or an inertia no body has. Here the fit is constrained
-to the set of bodies that exist.
+(N, 6, 16); (N, 6, 20) with a weight carried without inertia, whose 4 parameters are
+unconstrained like the biases). Plain least squares does not know that ``φ`` describes a
+body: with poor excitation it returns a negative mass or an inertia no body has. Here the fit
+is constrained to the set of bodies that exist.
 
 A body is physically realisable (a non-negative mass density, possibly degenerate: a point,
 a rod, a plate) if and only if its *pseudo-inertia*
@@ -45,9 +46,10 @@ from pydrake.solvers import ClarabelSolver, MathematicalProgram, ScsSolver, Solv
 
 from ..errors import ConfigError, FtdrakeError
 
-#: θ's entries, as in :data:`ftdrake.compensation.physics.PARAMETER_NAMES`.
+#: θ's entries: payload φ (10), biases (6) and, with a weight carried without inertia, its
+#: mass and first moment (4; :mod:`ftdrake.compensation.physics`).
 PARAMETER_NAMES = ("m", "mcx", "mcy", "mcz", "Ixx", "Ixy", "Ixz", "Iyy", "Iyz", "Izz",
-                   "bFx", "bFy", "bFz", "bTx", "bTy", "bTz")
+                   "bFx", "bFy", "bFz", "bTx", "bTy", "bTz", "mw", "mwcx", "mwcy", "mwcz")
 #: θ's entries a static (gravity-only) model identifies: mass, first moment, biases.
 STATIC_PARAMETERS = (0, 1, 2, 3, 10, 11, 12, 13, 14, 15)
 
@@ -271,7 +273,7 @@ class ConsistentIdentification:
     @property
     def parameters(self) -> tuple[int, ...]:
         """Indices of θ that were identified."""
-        return STATIC_PARAMETERS if self.static else tuple(range(16))
+        return STATIC_PARAMETERS if self.static else tuple(range(len(self.theta)))
 
     def summary(self) -> str:
         """A few lines a user can read: the estimate with standard errors and what decided it."""
@@ -342,7 +344,8 @@ def identify_consistent(A, Y, *, weights=None, static=False, prior=None,
     ValueError for malformed input.
     """
     A, Y = _check_data(A, Y, static)
-    cols = np.array(STATIC_PARAMETERS if static else range(16))
+    width = 16 if static else A.shape[-1]
+    cols = np.array(STATIC_PARAMETERS if static else range(width))
     if A.shape[-1] == 16 and static:
         A = A[:, :, cols]
     n_phi = 4 if static else 10  # inertial parameters among the identified columns
@@ -369,7 +372,8 @@ def identify_consistent(A, Y, *, weights=None, static=False, prior=None,
     # variables are of order one in the program.
     m_ref, length = _reference_scale(phi0, theta_ls, min_mass)
     typical = np.array([m_ref, m_ref * length, m_ref * length, m_ref * length]
-                       + [m_ref * length ** 2] * 6 + [1.0] * 6)[cols]
+                       + [m_ref * length ** 2] * 6 + [1.0] * 6
+                       + [m_ref, m_ref * length, m_ref * length, m_ref * length])[cols]
     scale = np.where(zero_columns, 1.0 / typical, scale)
     R_x = R * np.where(zero_columns, 0.0, 1.0)  # zero columns stay zero in R
 
@@ -412,15 +416,15 @@ def identify_consistent(A, Y, *, weights=None, static=False, prior=None,
     active = _active_constraints(theta_c, static, min_mass, m_ref, length)
 
     def full(v, fill):
-        out = np.full(16, fill, dtype=float)
+        out = np.full(width, fill, dtype=float)
         out[cols] = v
         return out
 
-    cov16 = np.full((16, 16), np.nan)
+    cov16 = np.full((width, width), np.nan)
     cov16[np.ix_(cols, cols)] = cov
     theta16 = full(theta_c, 0.0)
     theta_ls16 = full(theta_ls, 0.0)
-    A16 = A if A.shape[-1] == 16 else _embed(A, cols)
+    A16 = A if A.shape[-1] == width else _embed(A, cols)
     return ConsistentIdentification(
         theta=theta16,
         standard_errors=full(se, np.nan),
@@ -452,7 +456,8 @@ def identify_least_squares(A, Y, *, weights=None, static=False,
     estimate may be a body that cannot exist (``least_squares_consistent`` says so).
     """
     A, Y = _check_data(A, Y, static)
-    cols = np.array(STATIC_PARAMETERS if static else range(16))
+    width = 16 if static else A.shape[-1]
+    cols = np.array(STATIC_PARAMETERS if static else range(width))
     if A.shape[-1] == 16 and static:
         A = A[:, :, cols]
     p = len(cols)
@@ -473,14 +478,14 @@ def identify_least_squares(A, Y, *, weights=None, static=False,
     se[unseen] = np.inf
 
     def full(v, fill):
-        out = np.full(16, fill, dtype=float)
+        out = np.full(width, fill, dtype=float)
         out[cols] = v
         return out
 
-    cov16 = np.full((16, 16), np.nan)
+    cov16 = np.full((width, width), np.nan)
     cov16[np.ix_(cols, cols)] = cov
     theta16 = full(theta, 0.0)
-    A16 = A if A.shape[-1] == 16 else _embed(A, cols)
+    A16 = A if A.shape[-1] == width else _embed(A, cols)
     consistent = (is_physically_consistent(theta16[:10]) if not static
                   else bool(theta16[0] > 0))
     return ConsistentIdentification(
@@ -671,7 +676,7 @@ def _poorly_determined(R, data_cov, theta, cols, relative_se_limit):
     se = np.sqrt(np.maximum(np.diag(data_cov), 0.0))
     rel = np.full(len(cols), np.nan)
     magnitude = np.abs(theta)
-    for group in ((0,), (1, 2, 3), (4, 5, 6, 7, 8, 9)):
+    for group in ((0,), (1, 2, 3), (4, 5, 6, 7, 8, 9), (16,), (17, 18, 19)):
         idx = [i for i, c in enumerate(cols) if c in group]
         if not idx:
             continue
@@ -737,17 +742,18 @@ def _reference_scale(phi0, theta_ls, min_mass):
 # -- input checks --------------------------------------------------------------------------
 def _as_phi(theta10) -> np.ndarray:
     phi = np.asarray(theta10, dtype=float).reshape(-1)
-    if phi.shape[0] == 16:
+    if phi.shape[0] in (16, 20):
         phi = phi[:10]
     if phi.shape != (10,):
-        raise ValueError(f"expected the 10 inertial parameters (or all 16), got {phi.shape}")
+        raise ValueError(f"expected the 10 inertial parameters (or all 16 or 20), got "
+                         f"{phi.shape}")
     return phi
 
 
 def _check_data(A, Y, static):
     A = np.asarray(A, dtype=float)
     Y = np.asarray(Y, dtype=float)
-    widths = (16, 10) if static else (16,)
+    widths = (16, 10) if static else (16, 20)
     if A.ndim != 3 or A.shape[1] != 6 or A.shape[2] not in widths:
         raise ValueError(f"A must have shape (N, 6, {' or '.join(map(str, widths))}), "
                          f"got {A.shape}")

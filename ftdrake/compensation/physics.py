@@ -28,6 +28,17 @@ residual variance and (AᵀWA)⁻¹. The condition number of the column-normalis
 whether the data excites the parameters; a warning names the parameters the data cannot
 determine (from the regressor's null directions and the standard errors).
 
+A weight carried without inertia, optional (``weight_without_inertia=True``, 4 parameters more:
+``[m_w, m_w·c_w (3)]``): a force along gravity that does not follow the tool's accelerations,
+
+    F_w = m_w·g,    T_w = (m_w·c_w) × g,
+
+the part of a cable or hose hanging from the tool whose weight the tool carries while its
+other end, held elsewhere, does not accelerate with it. A rigid model takes such a weight for
+tool mass and multiplies it by the tool's accelerations (measured on the default scene: the
+cable's 1.2 N identified as 0.13 kg of payload). Only motion separates the two: in static poses
+the columns are those of m and m·c (refused with ``mode="static"``).
+
 Two more effects of a real sensor, optional: the rotation of the frame the sensor measures in
 (``identify_mounting``) and a linear zero drift with the sensor's temperature (a temperature
 column in X).
@@ -58,11 +69,17 @@ from .consistent import (
     identify_least_squares,
     is_physically_consistent,
 )
+from .consistent import PARAMETER_NAMES as CONSISTENT_NAMES
+from .consistent import STATIC_PARAMETERS as CONSISTENT_STATIC
 
-PARAMETER_NAMES = ["m", "mcx", "mcy", "mcz", "Ixx", "Ixy", "Ixz", "Iyy", "Iyz", "Izz",
-                   "bFx", "bFy", "bFz", "bTx", "bTy", "bTz"]
-PARAMETER_UNITS = ["kg", "kg*m", "kg*m", "kg*m"] + ["kg*m^2"] * 6 + ["N"] * 3 + ["N*m"] * 3
-STATIC_PARAMETERS = [0, 1, 2, 3, 10, 11, 12, 13, 14, 15]
+PARAMETER_NAMES = list(CONSISTENT_NAMES)
+PARAMETER_UNITS = (["kg", "kg*m", "kg*m", "kg*m"] + ["kg*m^2"] * 6 + ["N"] * 3 + ["N*m"] * 3
+                   + ["kg", "kg*m", "kg*m", "kg*m"])
+STATIC_PARAMETERS = list(CONSISTENT_STATIC)
+#: The weight carried without inertia (``weight_without_inertia``): θ[16:20].
+WEIGHT_PARAMETERS = [16, 17, 18, 19]
+#: The columns that are a wrench in S (rotated into Sm by a mounting); the biases are in Sm.
+BIASES = slice(10, 16)
 #: How the parameters are identified: plain weighted least squares, or constrained to a
 #: physically possible body (pseudo-inertia ⪰ 0, m > 0; :mod:`.consistent`) with a prior.
 IDENTIFICATIONS = ("least_squares", "consistent")
@@ -97,6 +114,9 @@ class PhysicsPayloadCompensator(Compensator):
         e.g. CAD values) or a mapping of its fields, for ``identification="consistent"``: it
         decides the directions the data do not excite; ``identified()`` says by how much.
     prior_weight : the prior's precision (default 100: it counts as ±10 %, 1σ).
+    weight_without_inertia : also identify a weight the tool carries without its inertia
+        (``m_w``, ``m_w·c_w``: a hanging cable; see the module docstring). Needs motion data
+        (``mode="dynamic"``); θ then has 20 entries.
     identify_mounting : also identify the rotation R_SSm of the frame Sm the sensor really
         measures in (a mounting error; the biases are then in Sm): nonlinear least squares
         (``scipy.optimize.least_squares``, soft-L1 robust loss) over the rotation, payload and
@@ -106,8 +126,9 @@ class PhysicsPayloadCompensator(Compensator):
     zero drift per axis, ``k·(T − T_ref)`` (``temperature_coefficients_``, N/K and N·m/K in
     Sm; ``temperature_reference_`` the training mean, at which the biases hold).
 
-    Fitted attributes: ``parameters_`` (16), ``standard_errors_`` (16; ∞ where nothing
-    determines a parameter), ``covariance_`` (16 × 16), ``condition_number_``,
+    Fitted attributes: ``parameters_`` (16, or 20 with ``weight_without_inertia``),
+    ``standard_errors_`` (same; ∞ where nothing determines a parameter), ``covariance_``,
+    ``condition_number_``,
     ``residual_rms_`` (6), ``physically_consistent_``, ``identification_`` (the full
     :class:`~.consistent.ConsistentIdentification`). An :class:`ExcitationWarning` names the
     parameters the data cannot determine.
@@ -133,11 +154,14 @@ class PhysicsPayloadCompensator(Compensator):
     #: The std of a new reading (noise included), not just of the prediction.
     provides_std = True
     std_includes_noise = True
+    #: Models saved before the option existed have no such attribute.
+    weight_without_inertia = False
 
     def __init__(self, features="q,qd,qdd", mode="dynamic", robot=None, sensor_frame=None,
                  base_frame=None, gravity=(0.0, 0.0, -9.81), package_xmls=(),
                  identification="least_squares", prior=None,
-                 prior_weight=DEFAULT_PRIOR_WEIGHT, identify_mounting=False):
+                 prior_weight=DEFAULT_PRIOR_WEIGHT, identify_mounting=False,
+                 weight_without_inertia=False):
         super().__init__(features=features)
         self.mode = mode
         self.robot = robot
@@ -149,17 +173,25 @@ class PhysicsPayloadCompensator(Compensator):
         self.prior = prior
         self.prior_weight = prior_weight
         self.identify_mounting = identify_mounting
+        self.weight_without_inertia = weight_without_inertia
+
+    @property
+    def n_parameters(self) -> int:
+        """16 (payload and biases), or 20 with the weight carried without inertia."""
+        return 20 if self.weight_without_inertia else 16
 
     # -- the regressor ----------------------------------------------------------------------
     def regressor(self, X) -> np.ndarray:
-        """The (N, 6, 16) regressor A with reading = A·[φ; b]."""
+        """The (N, 6, 16) regressor A with reading = A·[φ; b] (N, 6, 20 and θ = [φ; b; w] with
+        ``weight_without_inertia``)."""
         X = np.asarray(X, dtype=float)
         n = X.shape[1] // 3
         kin = self._kinematics().evaluate(X[:, :n], X[:, n:2 * n], X[:, 2 * n:])
         if self.mode == "static":
             kin = kin.__class__(kin.R_WS, 0 * kin.w_WS_S, 0 * kin.alpha_WS_S,
                                 0 * kin.a_WSo_S, kin.g_S)
-        return payload_regressor(kin.w_WS_S, kin.alpha_WS_S, kin.a_WSo_S - kin.g_S)
+        return payload_regressor(kin.w_WS_S, kin.alpha_WS_S, kin.a_WSo_S - kin.g_S,
+                                 kin.g_S if self.weight_without_inertia else None)
 
     def _fit(self, Z, Y):
         if self.mode not in ("dynamic", "static"):
@@ -173,6 +205,10 @@ class PhysicsPayloadCompensator(Compensator):
                               "prior)")
         if Y.shape[1] != 6:
             raise ValueError(f"the payload model predicts a wrench: 6 targets, got {Y.shape[1]}")
+        if self.weight_without_inertia and self.mode != "dynamic":
+            raise ConfigError("weight_without_inertia needs mode='dynamic': in static poses a "
+                              "weight without inertia and the payload's mass are the same "
+                              "columns (only accelerations separate them)")
         if self.mode == "dynamic" and self.features != "q,qd,qdd":
             raise ValueError("mode='dynamic' needs features='q,qd,qdd' (it uses q̇ and q̈)")
         Z, temperature = self._split_temperature(Z)
@@ -196,7 +232,8 @@ class PhysicsPayloadCompensator(Compensator):
         readings are rotated back into S, and the linear fit runs there.
         """
         static = self.mode == "static"
-        cols = STATIC_PARAMETERS if static else list(range(16))
+        p = 16 if static else A.shape[-1]
+        cols = STATIC_PARAMETERS if static else list(range(p))
         d = None
         self.temperature_reference_ = None
         if temperature is not None:
@@ -222,16 +259,16 @@ class PhysicsPayloadCompensator(Compensator):
         theta = result.theta.copy()
         cov = result.covariance.copy()
         # Biases were identified in S; the sensor adds them in Sm.
-        theta[10:] = block.T @ theta[10:]
-        to_Sm = np.eye(16)
-        to_Sm[10:, 10:] = block.T  # θ with the biases in Sm = to_Sm · θ in S
+        theta[BIASES] = block.T @ theta[BIASES]
+        to_Sm = np.eye(p)
+        to_Sm[BIASES, BIASES] = block.T  # θ with the biases in Sm = to_Sm · θ in S
         finite = np.isfinite(cov)
         cov = to_Sm @ np.where(finite, cov, 0.0) @ to_Sm.T
         cov[~finite] = np.nan  # parameters not identified (a static fit's inertia) stay NaN
         self.parameters_ = theta
         self.covariance_ = cov
         self.standard_errors_ = result.standard_errors.copy()
-        self.standard_errors_[10:] = np.sqrt(np.maximum(np.diag(cov[10:, 10:]), 0.0))
+        self.standard_errors_[BIASES] = np.sqrt(np.maximum(np.diag(cov[BIASES, BIASES]), 0.0))
         self.temperature_coefficients_ = np.zeros(6)
         self.temperature_std_errors_ = np.full(6, np.nan)
         if d is not None:
@@ -249,10 +286,12 @@ class PhysicsPayloadCompensator(Compensator):
         self._warn_if_poorly_excited()
 
     def _predict_from(self, A, temperature=None):
-        """Readings in Sm: ``R_SmS ⊗ (A_φ φ) + b + k·(T − T_ref)``."""
+        """Readings in Sm: ``R_SmS ⊗ (A_φ φ [+ A_w w]) + b + k·(T − T_ref)``."""
         wrench_S = A[:, :, :10] @ self.parameters_[:10]
+        if A.shape[-1] == 20:
+            wrench_S = wrench_S + A[:, :, 16:] @ self.parameters_[16:]
         out = wrench_S @ self.reading_matrix().T
-        out = out + self.parameters_[10:]
+        out = out + self.parameters_[BIASES]
         reference = getattr(self, "temperature_reference_", None)
         if temperature is not None and reference is not None:
             out = out + np.outer(temperature - reference, self.temperature_coefficients_)
@@ -278,6 +317,7 @@ class PhysicsPayloadCompensator(Compensator):
         A = self.regressor(X)
         B = A.copy()
         B[:, :, :10] = np.einsum("ij,njk->nik", block_T, A[:, :, :10])
+        B[:, :, 16:] = np.einsum("ij,njk->nik", block_T, A[:, :, 16:])
         var = np.einsum("nij,jr->nir", B, factor)
         var = np.einsum("nir,nir->ni", var, var)
         if include_noise:
@@ -289,10 +329,11 @@ class PhysicsPayloadCompensator(Compensator):
         return var
 
     def _std_terms(self):
-        """(F (16 × 16) with F Fᵀ = covariance_ (NaN entries: 0), σ² per axis (6,),
+        """(F (p × p) with F Fᵀ = covariance_ (NaN entries: 0), σ² per axis (6,),
         block_T (6 × 6) rotating a wrench from S into Sm)."""
         # A model whose parameters were set by hand (no fit) has no uncertainty: std 0.
-        cov = np.asarray(getattr(self, "covariance_", np.zeros((16, 16))), dtype=float)
+        p = len(self.parameters_)
+        cov = np.asarray(getattr(self, "covariance_", np.zeros((p, p))), dtype=float)
         cov = np.where(np.isfinite(cov), cov, 0.0)
         lam, V = np.linalg.eigh(0.5 * (cov + cov.T))
         factor = np.ascontiguousarray(V * np.sqrt(np.maximum(lam, 0.0)))
@@ -323,14 +364,17 @@ class PhysicsPayloadCompensator(Compensator):
         static poses (:class:`~ftdrake.compensation.calibration.CalibrationCorrection`):
         ``M·W_S(payload) + b + k·ΔT`` with the correction's M, bias, temperature coefficients
         and payload (it must have one payload for every row). The parameters' covariance stays
-        the rigid fit's (an approximation: M's own uncertainty is not propagated)."""
+        the rigid fit's (an approximation: M's own uncertainty is not propagated). A weight
+        carried without inertia is set to zero: the static poses' payload holds all the weight
+        there is."""
         if correction.payload is None:
             raise ConfigError("the correction was fitted with a known payload per row: no "
                               "single payload to predict with")
         model = copy.deepcopy(self)
         model.parameters_ = self.parameters_.copy()
         model.parameters_[:4] = correction.payload
-        model.parameters_[10:] = correction.bias
+        model.parameters_[BIASES] = correction.bias
+        model.parameters_[16:] = 0.0
         model.mounting_rotation_ = np.eye(3)  # M holds the mounting too
         model.reading_matrix_ = np.asarray(correction.sensor_matrix, dtype=float).copy()
         if correction.temperature_coefficients is not None:
@@ -418,11 +462,11 @@ class PhysicsPayloadCompensator(Compensator):
         """
         p, se = self.parameters_, self.standard_errors_
         result = getattr(self, "identification_", None)
-        share = result.prior_share if result is not None else np.zeros(16)
+        share = result.prior_share if result is not None else np.zeros(len(p))
         table = {
             name: {"value": float(p[i]), "std_error": float(se[i]), "unit": PARAMETER_UNITS[i],
                    "prior_share": float(np.nan_to_num(share[i]))}
-            for i, name in enumerate(PARAMETER_NAMES)
+            for i, name in enumerate(PARAMETER_NAMES[:len(p)])
             if self.mode == "dynamic" or i in STATIC_PARAMETERS
         }
         mass = p[0]
@@ -451,7 +495,7 @@ class PhysicsPayloadCompensator(Compensator):
         table["physically_consistent"] = bool(getattr(self, "physically_consistent_", True))
         table["not_determined"] = list(result.poorly_determined) if result is not None else []
         if result is not None and self.identification == "consistent":
-            cols = STATIC_PARAMETERS if self.mode == "static" else list(range(16))
+            cols = STATIC_PARAMETERS if self.mode == "static" else list(range(len(p)))
             table["least_squares"] = {
                 "values": {PARAMETER_NAMES[i]: float(result.theta_least_squares[i])
                            for i in cols},
@@ -468,7 +512,7 @@ class PhysicsPayloadCompensator(Compensator):
                   f"({self.mode} model; condition number {t['condition_number']:.3g})"),
                  f"  {'':5s} {'value':>12s} {'std error':>10s} {'unit':<7s} prior share"]
         for name in PARAMETER_NAMES:
-            if name in t:
+            if name in t and isinstance(t[name], dict) and "prior_share" in t[name]:
                 row = t[name]
                 lines.append(f"  {name:5s} {row['value']:12.5g} {row['std_error']:10.3g} "
                              f"{row['unit']:<7s} {row['prior_share']:.2f}")
@@ -555,15 +599,15 @@ def _fit_mounting(A, Y, d, cols):
     coefficients. Residuals are weighted per axis by 1 / RMS of a linear first fit; the loss
     is soft-L1 with a 3σ knee, so a few outliers (a bump, a glitch) do not rotate the frame.
     """
-    phys = [c for c in cols if c < 10]
+    phys = [c for c in cols if not 10 <= c < 16]  # a wrench in S: rotated
     A_phys = A[:, :, phys]
     first = np.linalg.lstsq(A[:, :, cols].reshape(-1, len(cols)), Y.reshape(-1), rcond=None)[0]
-    theta0 = np.zeros(16)
+    theta0 = np.zeros(A.shape[-1])
     theta0[cols] = first
     weights = 1.0 / np.maximum(np.sqrt(np.mean((Y - A @ theta0) ** 2, axis=0)),
                                1e-9 * (1 + np.abs(Y).max()))
     n_phys = len(phys)
-    x0 = np.concatenate([np.zeros(3), theta0[phys], theta0[10:],
+    x0 = np.concatenate([np.zeros(3), theta0[phys], theta0[BIASES],
                          np.zeros(6) if d is not None else []])
 
     def residuals(x):
@@ -582,10 +626,14 @@ def _fit_mounting(A, Y, d, cols):
             np.degrees(np.sqrt(np.maximum(np.diag(cov)[:3], 0.0))))
 
 
-def payload_regressor(w, alpha, a_minus_g) -> np.ndarray:
-    """(N, 6, 16) regressor from ω, α, a − g (each N × 3, in S)."""
+def payload_regressor(w, alpha, a_minus_g, gravity_S=None) -> np.ndarray:
+    """(N, 6, 16) regressor from ω, α, a − g (each N × 3, in S); (N, 6, 20) with `gravity_S`
+    (N × 3, g in S): the columns of a weight carried without inertia, [m_w·g; (m_w·c_w) × g]."""
     N = len(w)
-    A = np.zeros((N, 6, 16))
+    A = np.zeros((N, 6, 16 if gravity_S is None else 20))
+    if gravity_S is not None:
+        A[:, :3, 16] = gravity_S
+        A[:, 3:, 17:20] = -skew(gravity_S)
     A[:, :3, 0] = -a_minus_g
     A[:, :3, 1:4] = -(skew(alpha) + skew(w) @ skew(w))
     A[:, 3:, 1:4] = skew(a_minus_g)

@@ -1,15 +1,19 @@
 """The main job: collect → train → contact scenario with the compensator in the loop.
 
 1. Collect free-motion data: Fourier excitation around the home pose, rehearsals of the
-   task in the air (the contact scenario stopping 3 cm above the table) and one run of each
-   of `OTHER_KINDS` — on a real robot you would record the same: the task's motions without
-   contact, and motion covering the configurations the arm will visit.
+   task in the air (the contact scenario stopping 3 cm above the table) and one run of each of
+   `OTHER_KINDS` — on a real robot you would record the same: the task's motions without
+   contact, and motion covering the configurations the arm will visit. With
+   ``other_surfaces`` (``demo --rehearse-all-surfaces``) also one rehearsal at each other
+   surface of the task (the wall), trained on and held out: measured, it made the table
+   scenario worse (README), so it is off by default.
 2. Train, on the same data, the study's model — a multi-output random forest on joint
    positions, `quick` grid, folds grouped by trajectory segment — and the hybrid: the rigid
-   payload, the biases and the sensor's mounting rotation identified (physically consistent
-   fit) plus a forest on its residual. One rehearsal is held
-   out; each model's detector thresholds follow from its residual there and a budget of one
-   false positive per hour (:func:`~ftdrake.systems.detector.thresholds_for_false_positive_rate`).
+   payload, the biases, the sensor's mounting rotation and a weight carried without inertia
+   identified (physically consistent fit) plus a forest on its residual. One rehearsal and one
+   run of each free-motion kind are held out; each model's detector thresholds follow from
+   its residual there (the samples the detector judges) and a budget of one false positive
+   per hour (:func:`~ftdrake.systems.detector.thresholds_for_false_positive_rate`).
 3. Run the same contact scenario, trajectory seed and sensor noise not seen in training, with
    each model and its detector in the loop at the sensor rate, and score both against the
    plant's ground truth. The summary says which did better and why.
@@ -41,7 +45,7 @@ from ..sim.collection import collect
 from ..sim.evaluation import evaluate_detection
 from ..sim.simulate import simulate
 from ..sim.station import build_station
-from ..systems.detector import thresholds_for_false_positive_rate
+from ..systems.detector import armed, thresholds_for_false_positive_rate
 
 HELD_OUT_SEED = 1000
 FALSE_POSITIVES_PER_HOUR = 1.0  # the detector's budget; thresholds follow from it
@@ -55,7 +59,8 @@ OTHER_KINDS = ("random", "z_rich", "reference")
 
 def run_demo(out: Path, config: ScenarioConfig | None = None, *, fourier: int = 4,
              rehearsals: int = 3, duration: float = 20.0, other_kinds=OTHER_KINDS,
-             meshcat_html: bool = True, progress: bool = True) -> dict:
+             other_surfaces: bool = False, meshcat_html: bool = True,
+             progress: bool = True) -> dict:
     config = config or ScenarioConfig()
     started = time.perf_counter()
     stages = {}
@@ -74,8 +79,24 @@ def run_demo(out: Path, config: ScenarioConfig | None = None, *, fourier: int = 
         run = collect(config, 1, kind=kind, seed=200 + i, duration=duration, progress=progress)
         run["trajectory"] += fourier + rehearsals + i
         others.append(run)
+    # The task's other surfaces (the wall): one rehearsal each, trained on and held out.
+    surfaces = [dc.replace(config, trajectory=dc.replace(config.trajectory, contact_target=name))
+                for name in config.task.surfaces
+                if other_surfaces and name != config.trajectory.contact_target]
+    for j, surface in enumerate(surfaces):
+        run = collect(surface, 1, kind="rehearsal", seed=150 + j, progress=progress)
+        run["trajectory"] += fourier + rehearsals + len(other_kinds) + j
+        others.append(run)
     data = pd.concat([free, rehearsal, *others], ignore_index=True)
-    if data[col.CONTACT].any():
+    # Held out, with the held-out rehearsal: one run of each kind the arm will move in; the
+    # thresholds are calibrated on all of it (on rehearsals alone the 1-per-hour budget held
+    # for rehearsal-like motion only).
+    held_out = pd.concat([
+        *(collect(config, 1, kind=kind, seed=300 + i, duration=duration, progress=progress)
+          for i, kind in enumerate(("fourier", *other_kinds))),
+        *(collect(surface, 1, kind="rehearsal", seed=350 + j, progress=progress)
+          for j, surface in enumerate(surfaces))], ignore_index=True)
+    if data[col.CONTACT].any() or held_out[col.CONTACT].any():
         raise RuntimeError("training data touched the environment; it must be contact-free")
 
     stage("train")
@@ -94,14 +115,20 @@ def run_demo(out: Path, config: ScenarioConfig | None = None, *, fourier: int = 
         warnings.simplefilter("ignore", ExcitationWarning)
         # A sensor is rarely mounted exactly as its model says; the rotation is identified
         # with the payload (default_residual on what is left).
-        hybrid = HybridCompensator(
-            physics=PhysicsPayloadCompensator(identify_mounting=True)).fit(X, Y)
+        # A cable's hanging weight is not tool mass: its own 4 parameters
+        # (weight_without_inertia), so the payload's inertia is not inflated by it.
+        hybrid = HybridCompensator(physics=PhysicsPayloadCompensator(
+            identify_mounting=True, weight_without_inertia=True)).fit(X, Y)
     models = {"forest": forest, "hybrid": hybrid}
-    X_val, Y_val = joint_state_layout(validation), wrench_targets(validation)
+    judged = armed(validation[col.TIME].to_numpy(), config.detector.arm_after_s)
+    X_val, Y_val = joint_state_layout(validation)[judged], wrench_targets(validation)[judged]
+    calibration = pd.concat([validation, held_out], ignore_index=True)
+    judged = armed(calibration[col.TIME].to_numpy(), config.detector.arm_after_s)
+    X_cal, Y_cal = joint_state_layout(calibration)[judged], wrench_targets(calibration)[judged]
     rate_hz = config.sensor.spec().rate_hz
     detectors = {
         name: thresholds_for_false_positive_rate(
-            Y_val - model.predict(X_val), sample_rate_hz=rate_hz,
+            Y_cal - model.predict(X_cal), sample_rate_hz=rate_hz,
             false_positives_per_hour=FALSE_POSITIVES_PER_HOUR)
         for name, model in models.items()
     }
@@ -139,7 +166,12 @@ def run_demo(out: Path, config: ScenarioConfig | None = None, *, fourier: int = 
                                    "best_cv_mse": -search.mean_score[0]}
     results["hybrid"]["model"] = {
         "class": "HybridCompensator",
-        "physics": "dynamic payload + biases (16 parameters) + mounting rotation",
+        "physics": ("dynamic payload + biases + weight without inertia (20 parameters) "
+                    "+ mounting rotation"),
+        "weight_without_inertia": {
+            "mass_kg": round(float(hybrid.physics_.parameters_[16]), 4),
+            "first_moment_kgm": np.round(hybrid.physics_.parameters_[17:20], 5).tolist()},
+        "payload_mass_kg": round(float(hybrid.physics_.parameters_[0]), 4),
         "mounting_rpy_deg": np.degrees(RollPitchYaw(RotationMatrix(
             hybrid.physics_.mounting_rotation_)).vector()).round(3).tolist(),
         "residual": {"class": "RandomForestCompensator", "features": "q",

@@ -9,8 +9,9 @@
 
 The diagram is the one :func:`ftdrake.sim.station.build_station` puts in the loop —
 ``CompensatorSystem`` (``scenario.compensator``), ``OnlineBiasTracker``
-(``scenario.bias_tracker``, when enabled; with ``track_payload`` its ``gravity_S`` comes from
-:class:`~ftdrake.systems.joint_gravity.JointStateGravity` on the scenario robot's chain) and
+(``scenario.bias_tracker``, when enabled; with ``track_payload`` its ``gravity_S`` and
+``motion_S`` come from :class:`~ftdrake.systems.joint_gravity.JointStateGravity` on the
+scenario robot's chain) and
 ``ContactDetector`` (``scenario.detector``, with the model's std) — unchanged, so
 the same messages give the same numbers as in simulation (``tests/test_live_end_to_end.py``
 checks it to 1e-9).
@@ -258,8 +259,8 @@ class HardwareStation:
                 ("payload_changed", PAYLOAD_COORD, c.payload_channel))
 
     def _add_payload_gravity(self, builder) -> None:
-        """g_S − a_So for the tracker's payload estimate, from the joint state through the
-        scenario robot's serial chain (there is no plant on hardware)."""
+        """g_S − a_So and S's [ω; α] for the tracker's payload estimate, from the joint state
+        through the scenario robot's serial chain (there is no plant on hardware)."""
         from ftdrake.physics.chain import SerialChain  # noqa: PLC0415 (payload tracking only)
         from ftdrake.sim.scene import robot_description  # noqa: PLC0415
         from ftdrake.systems.joint_gravity import JointStateGravity  # noqa: PLC0415
@@ -276,6 +277,9 @@ class HardwareStation:
             gravity_W=plant.gravity_field().gravity_vector()))
         builder.Connect(self.gravity.get_output_port_gravity_S(),
                         self.tracker.get_input_port_gravity_S())
+        if self.scenario.bias_tracker.track_payload_motion:
+            builder.Connect(self.gravity.get_output_port_motion_S(),
+                            self.tracker.get_input_port_motion_S())
         if self.config.payload_channel:
             builder.ExportInput(self.tracker.get_input_port_payload_changed(), "payload_changed")
 

@@ -290,9 +290,14 @@ def _add_tracker(builder, config, scene, compensator, detector, events: EventSig
             "sensor_gravity", SensorGravity(scene.plant, scene.sensor_frame))
         builder.Connect(scene.plant.get_body_poses_output_port(),
                         gravity.get_input_port_body_poses())
+        builder.Connect(scene.plant.get_body_spatial_velocities_output_port(),
+                        gravity.get_input_port_body_spatial_velocities())
         builder.Connect(scene.plant.get_body_spatial_accelerations_output_port(),
                         gravity.get_input_port_body_spatial_accelerations())
         builder.Connect(gravity.get_output_port_gravity_S(), tracker.get_input_port_gravity_S())
+        if config.bias_tracker.track_payload_motion:
+            builder.Connect(gravity.get_output_port_motion_S(),
+                            tracker.get_input_port_motion_S())
         if events.payload_changed is not None:
             builder.Connect(events.payload_changed, tracker.get_input_port_payload_changed())
     return tracker

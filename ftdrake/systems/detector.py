@@ -100,6 +100,16 @@ def _detect(w, std, constants, flag, counter, force_out):
     force_out[0] = force if in_contact else 0.0
 
 
+def armed(times, arm_after_s: float = DetectorConfig.arm_after_s) -> np.ndarray:
+    """The samples the detector judges: run time (s, from each run's start) ≥ `arm_after_s`.
+
+    Thresholds come from these only: before it the detector is not armed, and the controller's
+    start-up transient there (|q̈| up to 8 rad/s² in the first milliseconds of a simulated run)
+    would otherwise set the largest-residual term of
+    :func:`thresholds_for_false_positive_rate`."""
+    return np.asarray(times, dtype=float) >= arm_after_s
+
+
 def thresholds_for_false_positive_rate(residual, *, sample_rate_hz: float,
                                        false_positives_per_hour: float = 1.0,
                                        **overrides) -> DetectorConfig:

@@ -1,6 +1,7 @@
 """Small systems for the scenario events (``scenario.events``) and the payload tracker.
 
-``SensorGravity`` gives gravity in the sensor frame, the payload tracker's regressor.
+``SensorGravity`` gives the apparent gravity and the rotation rates of the sensor frame, the
+payload tracker's regressor.
 ``ToolPush`` pushes the tool tip with a slowly growing force: the load a tracker must not take
 for bias. Both read the plant's body poses, so they work for any arm the plant holds.
 """
@@ -11,25 +12,34 @@ import numba
 import numpy as np
 from pydrake.common.value import AbstractValue
 from pydrake.math import RigidTransform
-from pydrake.multibody.math import SpatialAcceleration, SpatialForce
+from pydrake.multibody.math import SpatialAcceleration, SpatialForce, SpatialVelocity
 from pydrake.multibody.plant import ExternallyAppliedSpatialForce
-from pydrake.systems.framework import BasicVector, LeafSystem
+from pydrake.systems.framework import BasicVector, LeafSystem, ValueProducer
 
 
 class SensorGravity(LeafSystem):
-    """Gravity as the sensor's payload feels it, in the sensor frame S.
+    """Gravity as the sensor's payload feels it, and the rotation of the sensor frame S.
 
     Without accelerations: g_S = R_SW·g_W. With ``include_acceleration`` (the default): the
-    apparent gravity at the sensor origin, g_S − a_So_S (the specific force, m/s²), so that a
-    payload's force m·(g − a) is linear in its mass in motion too. Neglected: the terms of the
-    payload's offset from So, α×c + ω×(ω×c) (for c = 0.12 m and α = 5 rad/s², 0.6 m/s²).
+    apparent gravity at the sensor origin, g_S − a_So_S (the specific force, m/s²; a_So from
+    the body's spatial acceleration and velocity, shifted to So exactly), and the angular
+    velocity and acceleration of S: with these a rigid payload's wrench is linear in its
+    10 inertial parameters in motion too (the offset terms α×c + ω×(ω×c) and the rotational
+    inertia; OnlineBiasTracker's model).
 
     Input ports:
       body_poses (abstract, list of RigidTransform): the plant's body poses (X_WB).
+      body_spatial_velocities (abstract, list of SpatialVelocity; with
+        ``include_acceleration``): the plant's port (V_WB, in W).
       body_spatial_accelerations (abstract, list of SpatialAcceleration; with
         ``include_acceleration``): the plant's port (A_WB, in W).
     Output ports:
       gravity_S (3): m/s², in S (≈ R_SW·[0, 0, −9.81] at rest). Pointing down in the world.
+      motion_S (6): [ω_WS_S (rad/s); α_WS_S (rad/s²)], S's angular velocity and acceleration
+        in W, expressed in S; zeros without ``include_acceleration`` (gravity alone).
+
+    Both outputs come from one cached computation (the plant's ports are read once per
+    context change).
     """
 
     def __init__(self, plant, sensor_frame, include_acceleration: bool = True):
@@ -40,17 +50,31 @@ class SensorGravity(LeafSystem):
         self._p_BS = self._X_BS.translation()
         self._g_W = np.asarray(plant.gravity_field().gravity_vector(), dtype=float)
         self._acceleration = bool(include_acceleration)
-        self._no_acceleration = np.zeros(6)
+        self._no_motion = np.zeros(6)
         self._poses_port = self.DeclareAbstractInputPort(
             "body_poses", AbstractValue.Make([RigidTransform()] * plant.num_bodies()))
         if self._acceleration:
+            self._velocities_port = self.DeclareAbstractInputPort(
+                "body_spatial_velocities",
+                AbstractValue.Make([SpatialVelocity()] * plant.num_bodies()))
             self._accelerations_port = self.DeclareAbstractInputPort(
                 "body_spatial_accelerations",
                 AbstractValue.Make([SpatialAcceleration()] * plant.num_bodies()))
-        self.DeclareVectorOutputPort("gravity_S", 3, self._calc)
+        # [g_S (3); ω_S (3); α_S (3)], computed once for both outputs.
+        self._cache = self.DeclareCacheEntry(
+            "apparent gravity and motion of S",
+            ValueProducer(allocate=lambda: AbstractValue.Make(BasicVector(9)),
+                          calc=self._calc),
+            {self.all_input_ports_ticket()})
+        self.DeclareVectorOutputPort("gravity_S", 3, self._calc_gravity,
+                                     {self._cache.ticket()})
+        self.DeclareVectorOutputPort("motion_S", 6, self._calc_motion, {self._cache.ticket()})
 
     def get_input_port_body_poses(self):
         return self.GetInputPort("body_poses")
+
+    def get_input_port_body_spatial_velocities(self):
+        return self.GetInputPort("body_spatial_velocities")
 
     def get_input_port_body_spatial_accelerations(self):
         return self.GetInputPort("body_spatial_accelerations")
@@ -58,35 +82,54 @@ class SensorGravity(LeafSystem):
     def get_output_port_gravity_S(self):
         return self.GetOutputPort("gravity_S")
 
-    def _calc(self, context, output: BasicVector):
-        # Runs at every sample the payload tracker takes: two port reads and one compiled
-        # call (with the arithmetic in numpy and pydrake calls this took 50 µs per call hot,
-        # now 18, most of it the two reads of the plant's abstract ports; one run, load ~2).
+    def get_output_port_motion_S(self):
+        return self.GetOutputPort("motion_S")
+
+    def _calc(self, context, value):
+        # Runs at every sample the payload tracker takes: three port reads and one compiled
+        # call (most of the time is the reads of the plant's abstract ports).
         X_WB = self._poses_port.Eval(context)[self._body]
-        A_WB_W = (self._accelerations_port.Eval(context)[self._body].get_coeffs()
-                  if self._acceleration else self._no_acceleration)
-        _gravity_in_S(X_WB.rotation().matrix(), A_WB_W, self._R_BS, self._p_BS, self._g_W,
-                      output.get_mutable_value())
+        if self._acceleration:
+            V_WB_W = self._velocities_port.Eval(context)[self._body].get_coeffs()
+            A_WB_W = self._accelerations_port.Eval(context)[self._body].get_coeffs()
+        else:
+            V_WB_W = A_WB_W = self._no_motion
+        _gravity_in_S(X_WB.rotation().matrix(), V_WB_W, A_WB_W, self._R_BS, self._p_BS,
+                      self._g_W, value.get_mutable_value().get_mutable_value())
+
+    def _calc_gravity(self, context, output: BasicVector):
+        output.get_mutable_value()[:] = self._cache.Eval(context).value()[:3]
+
+    def _calc_motion(self, context, output: BasicVector):
+        output.get_mutable_value()[:] = self._cache.Eval(context).value()[3:]
 
 
 @numba.njit(cache=True)
-def _gravity_in_S(R_WB, A_WB_W, R_BS, p_BS, g_W, g_S):
-    """g_S = R_SB·R_BW·(g_W − a_So_W) with a_So_W = a_Bo + α × (R_WB·p_BS) and A_WB_W = [α; a_Bo]
-    (in W; zeros: gravity alone). ω is not on the plant's port, and its term, ω×(ω×p), is
-    second order in |p_BS| (a few cm): the shift uses α only."""
+def _gravity_in_S(R_WB, V_WB_W, A_WB_W, R_BS, p_BS, g_W, out):
+    """out = [g_S; ω_S; α_S] (9): g_S = R_SW·(g_W − a_So_W) with a_So_W = a_Bo + α × r +
+    ω × (ω × r), r = R_WB·p_BS, and ω_S = R_SW·ω, α_S = R_SW·α, from V_WB_W = [ω; v_Bo] and
+    A_WB_W = [α; a_Bo] (in W; zeros: gravity alone)."""
     p0 = R_WB[0, 0] * p_BS[0] + R_WB[0, 1] * p_BS[1] + R_WB[0, 2] * p_BS[2]
     p1 = R_WB[1, 0] * p_BS[0] + R_WB[1, 1] * p_BS[1] + R_WB[1, 2] * p_BS[2]
     p2 = R_WB[2, 0] * p_BS[0] + R_WB[2, 1] * p_BS[1] + R_WB[2, 2] * p_BS[2]
+    w0, w1, w2 = V_WB_W[0], V_WB_W[1], V_WB_W[2]
     a0, a1, a2 = A_WB_W[0], A_WB_W[1], A_WB_W[2]
-    g0 = g_W[0] - (A_WB_W[3] + (a1 * p2 - a2 * p1))
-    g1 = g_W[1] - (A_WB_W[4] + (a2 * p0 - a0 * p2))
-    g2 = g_W[2] - (A_WB_W[5] + (a0 * p1 - a1 * p0))
-    # g_B = R_WBᵀ g_W, then g_S = R_BSᵀ g_B
-    b0 = R_WB[0, 0] * g0 + R_WB[1, 0] * g1 + R_WB[2, 0] * g2
-    b1 = R_WB[0, 1] * g0 + R_WB[1, 1] * g1 + R_WB[2, 1] * g2
-    b2 = R_WB[0, 2] * g0 + R_WB[1, 2] * g1 + R_WB[2, 2] * g2
-    for j in range(3):
-        g_S[j] = R_BS[0, j] * b0 + R_BS[1, j] * b1 + R_BS[2, j] * b2
+    # ω × r, then ω × (ω × r)
+    c0, c1, c2 = w1 * p2 - w2 * p1, w2 * p0 - w0 * p2, w0 * p1 - w1 * p0
+    cc0, cc1, cc2 = w1 * c2 - w2 * c1, w2 * c0 - w0 * c2, w0 * c1 - w1 * c0
+    v = np.empty((3, 3))  # rows: g − a_So, ω, α in W
+    v[0, 0] = g_W[0] - (A_WB_W[3] + (a1 * p2 - a2 * p1) + cc0)
+    v[0, 1] = g_W[1] - (A_WB_W[4] + (a2 * p0 - a0 * p2) + cc1)
+    v[0, 2] = g_W[2] - (A_WB_W[5] + (a0 * p1 - a1 * p0) + cc2)
+    v[1, 0], v[1, 1], v[1, 2] = w0, w1, w2
+    v[2, 0], v[2, 1], v[2, 2] = a0, a1, a2
+    for k in range(3):
+        # x_B = R_WBᵀ x_W, then x_S = R_BSᵀ x_B
+        b0 = R_WB[0, 0] * v[k, 0] + R_WB[1, 0] * v[k, 1] + R_WB[2, 0] * v[k, 2]
+        b1 = R_WB[0, 1] * v[k, 0] + R_WB[1, 1] * v[k, 1] + R_WB[2, 1] * v[k, 2]
+        b2 = R_WB[0, 2] * v[k, 0] + R_WB[1, 2] * v[k, 1] + R_WB[2, 2] * v[k, 2]
+        for j in range(3):
+            out[3 * k + j] = R_BS[0, j] * b0 + R_BS[1, j] * b1 + R_BS[2, j] * b2
 
 
 class ToolPush(LeafSystem):

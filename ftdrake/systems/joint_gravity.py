@@ -1,11 +1,13 @@
-"""JointStateGravity: the apparent gravity at the sensor from the joint state alone.
+"""JointStateGravity: the apparent gravity at the sensor and the sensor frame's angular velocity
+and acceleration, from the joint state alone.
 
-The simulation's :class:`~ftdrake.systems.events.SensorGravity` reads the plant's body poses
-and accelerations. A live robot has no plant, only its joint state, so this system computes
-the same quantity from ``[q; v]`` through the robot's compiled serial chain
+The simulation's :class:`~ftdrake.systems.events.SensorGravity` reads the plant's body poses,
+velocities and accelerations. A live robot has no plant, only its joint state, so this system
+computes the same quantities from ``[q; v]`` through the robot's compiled serial chain
 (:class:`~ftdrake.physics.chain.SerialChain`), with q̈ estimated the way
 ``CompensatorSystem`` estimates it (a causal difference of v, low-passed at
-``acceleration_cutoff_hz``). It feeds the bias tracker's payload estimate on hardware.
+``acceleration_cutoff_hz``). It feeds the bias tracker's payload estimate on hardware. α (and
+a_So) inherit the q̈ estimate's filter: a lag of ~1/(2π·cutoff) (6 ms at 25 Hz).
 """
 
 from __future__ import annotations
@@ -22,18 +24,19 @@ from ..signals import acceleration_filter_gain, causal_acceleration_step
 
 class JointStateGravity(LeafSystem):
     """Apparent gravity at the sensor origin So, ``g_S − a_So_S`` (the specific force, m/s²,
-    in S), from the joint state, updated every `period` s.
+    in S), and S's angular velocity and acceleration, from the joint state, updated every
+    `period` s.
 
     Input ports:
       joint_state (2n): ``[q; v]`` in rad (or m), rad/s, in the chain's joint order.
     Output ports:
-      gravity_S (3): m/s², in S (≈ R_SW·[0, 0, −9.81] at rest). Held between updates; zeros
-        before the first. A non-finite joint state leaves it unchanged (the compensator
-        raises the fault for the same sample).
+      gravity_S (3): m/s², in S (≈ R_SW·[0, 0, −9.81] at rest).
+      motion_S (6): [ω_WS_S (rad/s); α_WS_S (rad/s²)], in S (α from the estimated q̈).
+      Both are held between updates and zeros before the first. A non-finite joint state
+      leaves them unchanged (the compensator raises the fault for the same sample).
 
-    With ``include_acceleration=False``, a_So is not subtracted (gravity alone: a payload is
-    then only identified right while the arm moves slowly). Neglected as in SensorGravity:
-    the payload's offset from So (α×c, ω×(ω×c)).
+    With ``include_acceleration=False``, a_So is not subtracted and motion_S is zero (gravity
+    alone: a payload is then only identified right while the arm moves slowly).
     """
 
     def __init__(self, chain: SerialChain, period: float, *, acceleration_cutoff_hz: float = 25.0,
@@ -52,8 +55,10 @@ class JointStateGravity(LeafSystem):
         # previous v (n), filtered v̇ (n), primed flag (1)
         self._estimator = self.DeclareDiscreteState(2 * n + 1)
         self._gravity = self.DeclareDiscreteState(3)
+        self._motion = self.DeclareDiscreteState(6)
         self.DeclarePeriodicDiscreteUpdateEvent(period, 0.0, self._update)
         self.DeclareStateOutputPort("gravity_S", self._gravity)
+        self.DeclareStateOutputPort("motion_S", self._motion)
 
     def get_input_port_joint_state(self):
         return self.GetInputPort("joint_state")
@@ -61,15 +66,19 @@ class JointStateGravity(LeafSystem):
     def get_output_port_gravity_S(self):
         return self.GetOutputPort("gravity_S")
 
+    def get_output_port_motion_S(self):
+        return self.GetOutputPort("motion_S")
+
     def _update(self, context, state):
         _apparent_gravity(self._state_port.Eval(context), state.get_mutable_value(self._estimator),
-                          state.get_mutable_value(self._gravity), self._constants,
+                          state.get_mutable_value(self._gravity),
+                          state.get_mutable_value(self._motion), self._constants,
                           self._gravity_W, *self.chain.kernel_args())
 
 
 @numba.njit(cache=True)
-def _apparent_gravity(x, estimator, g_S, constants, gravity_W, X_pre, kinds, axes, q_index,
-                      v_index):
+def _apparent_gravity(x, estimator, g_S, motion, constants, gravity_W, X_pre, kinds, axes,
+                      q_index, v_index):
     n = len(x) // 2
     for i in range(2 * n):
         if not math.isfinite(x[i]):
@@ -83,3 +92,5 @@ def _apparent_gravity(x, estimator, g_S, constants, gravity_W, X_pre, kinds, axe
     sensor_kinematics_row(q, v, vdot, gravity_W, X_pre, kinds, axes, q_index, v_index, R, out)
     for j in range(3):
         g_S[j] = out[3, j] - with_acceleration * out[2, j]
+        motion[j] = with_acceleration * out[0, j]
+        motion[3 + j] = with_acceleration * out[1, j]

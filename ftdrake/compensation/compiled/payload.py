@@ -1,5 +1,6 @@
-"""The physics payload model's row, compiled: S's kinematics on the serial chain, the 6 × 16
-regressor row, the reading's mean and the parameters' variance, from two packed arrays.
+"""The physics payload model's row, compiled: S's kinematics on the serial chain, the 6 × p
+regressor row (p = 16, or 20 with the weight carried without inertia), the reading's mean
+and the parameters' variance, from two packed arrays.
 
 A numba call costs about 0.15 µs per array argument (unboxing; 2.2 µs measured for 15) before
 it does any work, more than this kernel's arithmetic (~1.4 µs per row on ftdrake's arm) when
@@ -12,9 +13,9 @@ the chain, the parameters and the covariance factor go in as eleven arrays.
 
 Packed layout (m moving joints, n joints in the row, r columns of the covariance factor)::
 
-    reals (float64): g_W (3) | X_pre ((m + 1)·12) | axes (3m) | block_T (36) | θ (16)
-                     | Fᵀ (r·16) | σ² (6)
-    ints (int64):    n, m, r, static, rotated | kinds (m) | q_index (m) | v_index (m)
+    reals (float64): g_W (3) | X_pre ((m + 1)·12) | axes (3m) | block_T (36) | θ (p)
+                     | Fᵀ (r·p) | σ² (6)
+    ints (int64):    n, m, r, static, rotated, p | kinds (m) | q_index (m) | v_index (m)
 
 with X_pre, kinds, axes, q_index, v_index :class:`~ftdrake.physics.chain.SerialChain`'s kernel
 arrays, block_T (6 × 6) rotating a wrench from S into the measuring frame Sm, θ = [φ; b],
@@ -35,18 +36,19 @@ def pack_payload_row(chain_args, n_joints: int, gravity_W, static: bool, block_T
     """(reals, ints) for :func:`payload_mean_var` (layout in the module docstring).
 
     chain_args: ``SerialChain.kernel_args()`` (X_pre, kinds, axes, q_index, v_index);
-    block_T (6, 6); parameters (16,); factor (16, r ≤ 16); noise_var (6,).
+    block_T (6, 6); parameters (p,) with p = 16 or 20; factor (p, r ≤ p); noise_var (6,).
     """
     X_pre, kinds, axes, q_index, v_index = chain_args
     factor = np.asarray(factor, dtype=float)
-    if factor.ndim != 2 or factor.shape[0] != 16 or factor.shape[1] > 16 or \
-            np.shape(parameters) != (16,) or np.shape(block_T) != (6, 6):
-        raise ValueError("expected 16 parameters, a 16 × r factor (r <= 16) and a 6 × 6 "
+    p = len(np.asarray(parameters).reshape(-1))
+    if p not in (16, 20) or np.shape(parameters) != (p,) or factor.ndim != 2 or \
+            factor.shape[0] != p or factor.shape[1] > p or np.shape(block_T) != (6, 6):
+        raise ValueError("expected 16 or 20 parameters, a p × r factor (r <= p) and a 6 × 6 "
                          "rotation")
     # Zero columns (directions with no uncertainty, e.g. a static model's inertia) add
     # exact zeros to the variance: dropped.
     used = np.flatnonzero(np.any(factor != 0.0, axis=0))
-    factor = factor[:, used] if len(used) else np.zeros((16, 1))
+    factor = factor[:, used] if len(used) else np.zeros((p, 1))
     m, r = len(kinds), factor.shape[1]
     reals = np.concatenate([
         np.asarray(gravity_W, dtype=float).reshape(3), np.asarray(X_pre, float).reshape(-1),
@@ -54,7 +56,7 @@ def pack_payload_row(chain_args, n_joints: int, gravity_W, static: bool, block_T
         np.asarray(parameters, float), factor.T.reshape(-1),
         np.asarray(noise_var, float).reshape(6)])
     rotated = int(not np.array_equal(block_T, np.eye(6)))
-    ints = np.concatenate([[n_joints, m, r, int(bool(static)), rotated], kinds, q_index,
+    ints = np.concatenate([[n_joints, m, r, int(bool(static)), rotated, p], kinds, q_index,
                            v_index]).astype(np.int64)
     return np.ascontiguousarray(reals), np.ascontiguousarray(ints)
 
@@ -62,9 +64,10 @@ def pack_payload_row(chain_args, n_joints: int, gravity_W, static: bool, block_T
 @numba.njit(cache=True, nogil=True)
 def payload_mean_var(x, reals, ints, mean, var):
     """One full-layout row x [q, q̇, q̈] (3n) → mean (6) = B·θ and var (6) = ‖B_i F‖² + σ_i²,
-    with B = [block_T · A_φ | I] the regressor row rotated into Sm."""
-    n, m, r, static, rotated = ints[0], ints[1], ints[2], ints[3], ints[4]
-    kinds, q_index, v_index = ints[5:5 + m], ints[5 + m:5 + 2 * m], ints[5 + 2 * m:5 + 3 * m]
+    with B = [block_T · A_φ | I | block_T · A_w] the regressor row rotated into Sm (A_w: the
+    weight carried without inertia, when θ has 20 entries)."""
+    n, m, r, static, rotated, p = ints[0], ints[1], ints[2], ints[3], ints[4], ints[5]
+    kinds, q_index, v_index = ints[6:6 + m], ints[6 + m:6 + 2 * m], ints[6 + 2 * m:6 + 3 * m]
     k = 3
     gravity_W = reals[:k]
     X_pre = reals[k:k + (m + 1) * 12].reshape((m + 1, 3, 4))
@@ -73,24 +76,28 @@ def payload_mean_var(x, reals, ints, mean, var):
     k += 3 * m
     block_T = reals[k:k + 36].reshape((6, 6))
     k += 36
-    parameters = reals[k:k + 16]
-    k += 16
-    factor_T = reals[k:k + 16 * r].reshape((r, 16))
-    k += 16 * r
+    parameters = reals[k:k + p]
+    k += p
+    factor_T = reals[k:k + p * r].reshape((r, p))
+    k += p * r
     noise_var = reals[k:k + 6]
-    work = np.zeros((2, 6, 16))  # A and B in one allocation
+    work = np.zeros((2, 6, p))  # A and B in one allocation
     A, B = work[0], work[1]
     kin = np.empty((7, 3))  # ω, α, a of S and g, in S; then R_WS
     sensor_kinematics_row(x[:n], x[n:2 * n], x[2 * n:3 * n], gravity_W, X_pre, kinds, axes,
                           q_index, v_index, kin[4:], kin[:4])
     if static:
         kin[:3, :] = 0.0
+    if p == 20:
+        weight_columns(kin[3], A)  # before g is overwritten
     for c in range(3):
         kin[3, c] = kin[2, c] - kin[3, c]  # a − g
     regressor_row(kin[0], kin[1], kin[3], A)
     if rotated:
         for i in range(6):
-            for j in range(10):
+            for j in range(p):
+                if 10 <= j < 16:
+                    continue  # the biases are added in the measuring frame
                 s = 0.0
                 for c in range(6):
                     s += block_T[i, c] * A[c, j]
@@ -100,7 +107,7 @@ def payload_mean_var(x, reals, ints, mean, var):
         B = A  # the product with the identity, exactly
     for i in range(6):
         s = 0.0
-        for j in range(16):
+        for j in range(p):
             s += B[i, j] * parameters[j]
         mean[i] = s
     # var_i = σ_i² + ‖B_i F‖², F's columns as contiguous rows of Fᵀ. Scalar sums: as fast
@@ -110,7 +117,7 @@ def payload_mean_var(x, reals, ints, mean, var):
         v = noise_var[i]
         for c in range(r):
             t = 0.0
-            for j in range(16):
+            for j in range(p):
                 t += B[i, j] * factor_T[c, j]
             v += t * t
         var[i] = v
@@ -128,18 +135,21 @@ def payload_mean_std(x, reals, ints, mean, std):
 def payload_predict(x, n, gravity_W, X_pre, kinds, axes, q_index, v_index, static, parameters,
                     out):
     """One full-layout row [q, q̇, q̈] (3n) → wrench (6) = A(row) · parameters (in S; the
-    mean-only path of ``PhysicsPayloadCompensator.predict_row``)."""
+    mean-only path of ``PhysicsPayloadCompensator.predict_row``; 16 or 20 parameters)."""
     R = np.empty((3, 3))
     kin = np.empty((4, 3))  # ω, α, a of S and g, in S
     sensor_kinematics_row(x[:n], x[n:2 * n], x[2 * n:3 * n], gravity_W, X_pre, kinds, axes,
                           q_index, v_index, R, kin)
     if static:
         kin[:3, :] = 0.0
-    A = np.zeros((6, 16))
+    p = len(parameters)
+    A = np.zeros((6, p))
     regressor_row(kin[0], kin[1], kin[2] - kin[3], A)
+    if p == 20:
+        weight_columns(kin[3], A)
     for i in range(6):
         s = 0.0
-        for j in range(16):
+        for j in range(p):
             s += A[i, j] * parameters[j]
         out[i] = s
 
@@ -175,3 +185,15 @@ def regressor_row(w, al, d, A):
                                 + Sw[i][2] * Lw[2][j])
     for i in range(6):
         A[i, 10 + i] = 1.0
+
+
+@numba.njit(cache=True, nogil=True)
+def weight_columns(g, A):
+    """Columns 16–19 of the regressor: a weight carried without inertia, [m_w·g; (m_w·c_w) × g]
+    with g gravity in S (``physics.payload_regressor``'s ``gravity_S``)."""
+    for i in range(3):
+        A[i, 16] = g[i]
+    # (m_w·c_w) × g = [−g]× (m_w·c_w)
+    A[3, 17], A[3, 18], A[3, 19] = 0.0, g[2], -g[1]
+    A[4, 17], A[4, 18], A[4, 19] = -g[2], 0.0, g[0]
+    A[5, 17], A[5, 18], A[5, 19] = g[1], -g[0], 0.0
