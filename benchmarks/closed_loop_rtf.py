@@ -25,6 +25,7 @@ import numpy as np
 from pydrake.systems.analysis import Simulator
 
 from ftdrake import HybridCompensator, RandomForestCompensator, ScenarioConfig, build_station
+from ftdrake.compensation.physics import PhysicsPayloadCompensator
 from ftdrake.data.dataset import joint_state_layout, wrench_targets
 from ftdrake.sim.collection import collect
 from ftdrake.sim.simulate import set_initial_state
@@ -55,14 +56,16 @@ def rtf(config, compensator=None, duration=6.0, detections=None):
 
 def demo_models():
     """(forest, hybrid) trained on two simulated 8 s Fourier trajectories: the demo's layouts,
-    a multi-output forest of 100 trees on q and the hybrid with its default residual
+    a multi-output forest of 100 trees on q and the hybrid as the demo's (mounting rotation
+    and weight carried without inertia identified, 20 parameters) with its default residual
     (``hybrid.default_residual``: 50 trees on q)."""
     data = collect(ScenarioConfig(), 2, kind="fourier", duration=8.0, progress=False)
     X, Y = joint_state_layout(data)[::4], wrench_targets(data)[::4]
     forest = RandomForestCompensator(features="q", per_output=False, random_state=0).fit(X, Y)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        hybrid = HybridCompensator().fit(X, Y)
+        hybrid = HybridCompensator(physics=PhysicsPayloadCompensator(
+            identify_mounting=True, weight_without_inertia=True)).fit(X, Y)
     return forest, hybrid
 
 
