@@ -424,11 +424,11 @@ def _track(y, g, motion, flags, n, x, constants, steps, sigma, prior, corrected,
     lam, hold, tare_settle, payload_settle = constants[0], constants[1], constants[2], constants[3]
     window, guard = int(constants[4]), int(constants[5])
     jump = x[k + 4:]  # the tare-as-a-jump state (_jump_state_size)
-    if flags[3] > 0.5 and not _start_jump(jump, published, hold, window, guard):
+    if flags[3] > 0.5 and not _start_jump(jump, published, hold, window):
         x[k], x[k + 1] = hold, max(x[k + 1], tare_settle)
     if flags[3] <= 0.5:
-        jump[6 * guard + 30] = 0.0  # the level (if any) is over
-    jump[6 * guard + 29] = flags[3]
+        jump[_LEVEL_JUMPED] = 0.0  # the level (if any) is over
+    jump[_SIGNAL] = flags[3]
     if n == N_PAYLOAD and flags[4] > 0.5:
         x[k + 2], x[k + 3] = hold, payload_settle
     for v in y:
@@ -442,9 +442,9 @@ def _track(y, g, motion, flags, n, x, constants, steps, sigma, prior, corrected,
             return
     phi = np.empty((6, n))
     _regressor(g, motion, n, phi)
-    if _jump_phase(jump, guard) > 0:
-        _jump_step(y, phi, flags, n, theta, published, jump, window, guard, corrected, bias,
-                   payload, inertia, tracking)
+    if jump[_PHASE] > 0:
+        _jump_step(y, phi, flags, n, theta, published, jump, window, corrected, bias, payload,
+                   inertia, tracking)
         return
     # Hold and settle windows (after tared / payload_changed) update through contact: a
     # re-initialised estimate that froze at the first false contact would never recover.
@@ -522,17 +522,17 @@ def _publish(published, n, bias, payload, inertia):
 
 
 # -- a re-tare as a jump ---------------------------------------------------------------------
-# State (after the four counters): ring of the last `guard` corrected wrenches (6·guard),
-# ring count, ring position | mean of the older ones (6), its count | before (6), b0 (6),
-# after sum (6), after count, phase (samples left: hold + window), the last sample's signal,
-# whether the current level started a jump.
+# The jump's state (after the four counters), fixed fields first, then the ring of the last
+# `guard` corrected wrenches (6·guard).
+_BEFORE, _B0, _AFTER = 0, 6, 12  # 6 each: the "before" mean, the pulse's bias, the sum after
+_AFTER_N, _PHASE = 18, 19  # samples summed after; samples left (hold + window)
+_SIGNAL, _LEVEL_JUMPED = 20, 21  # the last sample's signal; whether this level started a jump
+_MEAN, _MEAN_N = 22, 28  # the running mean of the corrected wrench (6), its count
+_RING_N, _RING_POS, _RING = 29, 30, 31  # ring entries filled, next slot, the ring
+
+
 def _jump_state_size(guard: int) -> int:
-    return 6 * guard + 2 + 7 + 22
-
-
-@numba.njit(cache=True)
-def _jump_phase(jump, guard):
-    return jump[6 * guard + 2 + 7 + 19]
+    return _RING + 6 * guard
 
 
 @numba.njit(cache=True)
@@ -542,57 +542,50 @@ def _remember(jump, corrected, window, guard):
     then an exponential one of that length)."""
     if window <= 0:
         return
-    ring = jump[:6 * guard].reshape((guard, 6))
-    count, pos = jump[6 * guard], int(jump[6 * guard + 1])
-    mean = jump[6 * guard + 2:6 * guard + 8]
-    e = 6 * guard + 8
-    if count >= guard:
-        jump[e] += 1.0
-        w = 1.0 / min(jump[e], window)
+    ring = jump[_RING:_RING + 6 * guard].reshape((guard, 6))
+    pos = int(jump[_RING_POS])
+    if jump[_RING_N] >= guard:
+        jump[_MEAN_N] += 1.0
+        w = 1.0 / min(jump[_MEAN_N], window)
         for i in range(6):
-            mean[i] += (ring[pos, i] - mean[i]) * w
+            jump[_MEAN + i] += (ring[pos, i] - jump[_MEAN + i]) * w
     else:
-        jump[6 * guard] = count + 1.0
+        jump[_RING_N] += 1.0
     for i in range(6):
         ring[pos, i] = corrected[i]
-    jump[6 * guard + 1] = (pos + 1) % guard
+    jump[_RING_POS] = (pos + 1) % guard
 
 
 @numba.njit(cache=True)
-def _start_jump(jump, published, hold, window, guard):
+def _start_jump(jump, published, hold, window):
     """At a tared sample: starts the jump estimate at the signal's rising edge (a level's
     later samples change nothing: the jump is measured right after the edge, where the
     compensator's error is nearest the "before" level's). False when there is no history to
     compare with (the run's start, `window` 0): then the block resets."""
-    b = 6 * guard + 9
     if window <= 0:
         return False
-    if jump[b + 20] > 0.5 and (jump[b + 19] > 0 or jump[b + 21] > 0.5):
+    if jump[_SIGNAL] > 0.5 and (jump[_PHASE] > 0 or jump[_LEVEL_JUMPED] > 0.5):
         return True  # the same level, estimated (or being estimated) as a jump
-    if jump[b + 19] > 0:  # a second pulse: the hold starts again
-        jump[b + 19] = hold + window
-        jump[b + 12:b + 19] = 0.0
-        return True
-    if jump[6 * guard + 8] < window:
+    if jump[_PHASE] <= 0 and jump[_MEAN_N] < window:
         return False
-    for i in range(6):
-        jump[b + i] = jump[6 * guard + 2 + i]  # before: the mean corrected wrench before it
-        jump[b + 6 + i] = published[i]  # b0
-    jump[b + 12:b + 19] = 0.0
-    jump[b + 19] = hold + window
-    jump[b + 21] = 1.0
-    jump[6 * guard] = 0.0  # the ring refills after the jump
+    if jump[_PHASE] <= 0:  # a new jump; during one, a second pulse only restarts the hold
+        for i in range(6):
+            jump[_BEFORE + i] = jump[_MEAN + i]  # the mean corrected wrench before it
+            jump[_B0 + i] = published[i]
+        jump[_RING_N] = 0.0  # the ring refills after the jump
+    jump[_AFTER:_PHASE] = 0.0
+    jump[_PHASE] = hold + window
+    jump[_LEVEL_JUMPED] = 1.0
     return True
 
 
 @numba.njit(cache=True)
-def _jump_step(y, phi, flags, n, theta, published, jump, window, guard, corrected, bias,
-               payload, inertia, tracking):
+def _jump_step(y, phi, flags, n, theta, published, jump, window, corrected, bias, payload,
+               inertia, tracking):
     """One sample of a re-tare estimated as a jump of the bias (module docstring): the hold
     samples re-initialise from themselves, the next `window` ones average; at the end θ's bias
     moves by the jump and its information is kept. The estimator does not update meanwhile."""
-    b = 6 * guard + 9
-    before, b0, after = jump[b:b + 6], jump[b + 6:b + 12], jump[b + 12:b + 18]
+    before, b0, after = jump[_BEFORE:_B0], jump[_B0:_AFTER], jump[_AFTER:_AFTER_N]
     usable = flags[1] < 0.5 and flags[2] < 0.5
     if usable:
         level = np.empty(6)  # the reading less the published payload's wrench
@@ -601,16 +594,16 @@ def _jump_step(y, phi, flags, n, theta, published, jump, window, guard, correcte
             for j in range(6, n):
                 acc -= phi[i, j] * published[j]
             level[i] = acc
-        if jump[b + 19] > window:  # hold: this sample alone
+        if jump[_PHASE] > window:  # hold: this sample alone
             for i in range(6):
                 published[i] = level[i] - before[i]
         else:
-            jump[b + 18] += 1.0
+            jump[_AFTER_N] += 1.0
             for i in range(6):
                 after[i] += level[i]
-                published[i] = after[i] / jump[b + 18] - before[i]
-        jump[b + 19] -= 1.0
-        if jump[b + 19] <= 0:
+                published[i] = after[i] / jump[_AFTER_N] - before[i]
+        jump[_PHASE] -= 1.0
+        if jump[_PHASE] <= 0:
             for i in range(6):
                 theta[i] += published[i] - b0[i]
     for i in range(6):
