@@ -82,12 +82,18 @@ def test_simulate_and_serve_over_udp(tmp_path):
         lc.publish(hardware.ft_channel, encode_wrench(0.0, np.full(6, np.nan)))
         lc.publish(hardware.joint_state_channel,
                    encode_joint_state("iiwa_status", 0.0, np.zeros(6), np.zeros(6)))
-        sim = subprocess.run(
+        sim = subprocess.Popen(
             [sys.executable, "-m", "ftdrake", "simulate", "--config", tmp_path / "scenario.yaml",
              "--scenario", "free", "--lcm", URL, "--realtime", "--out", tmp_path / "sim",
-             "--quiet"], check=False, capture_output=True, text=True, env=env, timeout=120)
-        assert sim.returncode == 0, sim.stderr
-        # Meanwhile nothing was handled here: LCM queued it. Drain, let the timeout fire.
+             "--quiet"], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env)
+        # Read while it runs: left to queue for the whole run, this listener's own socket
+        # buffer overflowed on a loaded machine (10 of 3001 lost in one fresh-clone CI run).
+        started = time.monotonic()
+        while sim.poll() is None and time.monotonic() - started < 120:
+            lc.handle_timeout(5)
+        sim_out, sim_err = sim.communicate(timeout=30)
+        assert sim.returncode == 0, sim_err
+        # Drain, let the timeout fire.
         end = time.monotonic() + 1.0
         while time.monotonic() < end:
             lc.handle_timeout(20)
@@ -100,7 +106,7 @@ def test_simulate_and_serve_over_udp(tmp_path):
         pass
     assert serve.returncode == 0, serve_err.read_text()
     summary = json.loads(out.strip().splitlines()[-1])
-    published = json.loads(sim.stdout[sim.stdout.index("{"):])["published"]
+    published = json.loads(sim_out[sim_out.index("{"):])["published"]
     K = published["ft"]
     assert K == 3000 and published["joint"] == K + 1
 
