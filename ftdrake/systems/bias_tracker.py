@@ -499,19 +499,20 @@ def _track(y, g, motion, flags, n, x, constants, steps, sigma, prior, corrected,
             x[k + 1] -= 1
         if payload_window:
             x[k + 3] -= 1
+    _publish(y, phi, n, published, corrected, bias, payload, inertia)
+    if update and free and x[k] <= 0 and x[k + 1] <= 0:
+        _remember(jump, corrected, window, guard)
+    tracking[0] = 1.0 if update else 0.0
+
+
+@numba.njit(cache=True)
+def _publish(y, phi, n, published, corrected, bias, payload, inertia):
+    """The outputs from the published θ: the corrected wrench y − Φ·θ, the bias, the payload."""
     for i in range(6):
         acc = y[i]
         for j in range(n):
             acc -= phi[i, j] * published[j]
         corrected[i] = acc
-    if update and free and x[k] <= 0 and x[k + 1] <= 0:
-        _remember(jump, corrected, window, guard)
-    _publish(published, n, bias, payload, inertia)
-    tracking[0] = 1.0 if update else 0.0
-
-
-@numba.njit(cache=True)
-def _publish(published, n, bias, payload, inertia):
     for i in range(6):
         bias[i] = published[i]
     if n == N_PAYLOAD:
@@ -606,12 +607,7 @@ def _jump_step(y, phi, flags, n, theta, published, jump, window, corrected, bias
         if jump[_PHASE] <= 0:
             for i in range(6):
                 theta[i] += published[i] - b0[i]
-    for i in range(6):
-        acc = y[i]
-        for j in range(n):
-            acc -= phi[i, j] * published[j]
-        corrected[i] = acc
-    _publish(published, n, bias, payload, inertia)
+    _publish(y, phi, n, published, corrected, bias, payload, inertia)
     tracking[0] = 0.0
 
 
