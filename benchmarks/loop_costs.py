@@ -25,13 +25,14 @@ from pydrake.systems.analysis import Simulator
 from pydrake.systems.framework import BasicVector
 
 from ftdrake import ScenarioConfig, build_station
+from ftdrake.runtime.bias_tracker import OnlineBiasTracker
+from ftdrake.runtime.compensator import CompensatorSystem
+from ftdrake.runtime.detector import ContactDetector
 from ftdrake.sim.simulate import set_initial_state
 from ftdrake.sim.station import plan_trajectory
-from ftdrake.systems.bias_tracker import OnlineBiasTracker
-from ftdrake.systems.compensator import CompensatorSystem
 from ftdrake.systems.contact_truth import ContactTruth
-from ftdrake.systems.detector import ContactDetector
-from ftdrake.systems.ft_sensor import ForceTorqueSensor, NoisyForceTorqueSensor
+from ftdrake.systems.ft_sensor import ForceTorqueSensor
+from ftdrake.systems.noisy_sensor import NoisyForceTorqueSensor
 
 UPDATES = {  # system class → the method Drake calls at every sample
     "ideal sensor": (ForceTorqueSensor, "_calc_wrench"),

@@ -36,7 +36,7 @@ from ftdrake.compensation.physics import (
     ExcitationWarning,
     PhysicsPayloadCompensator,
 )
-from ftdrake.systems.ft_sensor import NoisyForceTorqueSensor
+from ftdrake.systems.noisy_sensor import NoisyForceTorqueSensor
 
 LOG_HZ = 50
 

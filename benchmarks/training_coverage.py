@@ -24,8 +24,8 @@ from ftdrake.compensation.hybrid import HybridCompensator
 from ftdrake.compensation.physics import ExcitationWarning, PhysicsPayloadCompensator
 from ftdrake.config import ScenarioConfig
 from ftdrake.data.dataset import joint_state_layout, wrench_targets
+from ftdrake.runtime.detector import thresholds_for_false_positive_rate
 from ftdrake.sim.collection import collect
-from ftdrake.systems.detector import thresholds_for_false_positive_rate
 
 KINDS = ("random", "z_rich", "reference")
 VALIDATION = 6  # trajectory id of the held-out rehearsal

@@ -2,10 +2,10 @@
 
 Your diagram has a robot (here: a plant built from ftdrake's models, but any MultibodyPlant
 with a weld for the sensor works), a source of F/T readings, and the robot's joint state.
-ftdrake adds two systems:
+ftdrake adds one system, the runtime chain (compensator → bias tracker → contact detector):
 
-    wrench_measured ──► CompensatorSystem ── wrench_external ──► ContactDetector ──► contact
-    joint_state ──────►                   ── wrench_std ───────►
+    wrench_measured ──► CompensationChain ──► wrench_contact, contact, contact_force, ...
+    joint_state ──────►
 
 Run:  python examples/compensate_in_your_diagram.py [--model MODEL.ftd]
 Without --model it trains a small forest first (a few seconds of simulated data).
@@ -59,20 +59,16 @@ def main():
                     controller.get_input_port_estimated_state())
     builder.Connect(controller.get_output_port_control(), plant.get_actuation_input_port(scene.arm))
 
-    # --- the two ftdrake systems, from a saved model ---------------------------------------
+    # --- ftdrake's runtime chain, from a saved model ---------------------------------------
     model = ftdrake.load_model(model_path, expect_n_joints=n)
-    period = 1e-3  # s: run at your sensor's rate
-    compensator = builder.AddSystem(
-        ftdrake.CompensatorSystem(model, period, n_joints=n))
-    detector = builder.AddSystem(ftdrake.ContactDetector(ftdrake.DetectorConfig(), period))
-    builder.Connect(sensor.GetOutputPort("wrench_measured"),
-                    compensator.GetInputPort("wrench_measured"))
-    builder.Connect(plant.get_state_output_port(scene.arm), compensator.GetInputPort("joint_state"))
-    builder.Connect(compensator.GetOutputPort("wrench_external"),
-                    detector.GetInputPort("wrench_external"))
-    builder.Connect(compensator.GetOutputPort("wrench_std"), detector.GetInputPort("wrench_std"))
-    external = LogVectorOutput(compensator.GetOutputPort("wrench_external"), builder, period)
-    contact = LogVectorOutput(detector.GetOutputPort("contact"), builder, period)
+    chain = builder.AddSystem(ftdrake.CompensationChain(model, config))
+    builder.Connect(sensor.get_output_port_wrench_measured(),
+                    chain.get_input_port_wrench_measured())
+    builder.Connect(plant.get_state_output_port(scene.arm), chain.get_input_port_joint_state())
+
+    period = chain.period  # s: the sensor's rate in config.sensor
+    external = LogVectorOutput(chain.get_output_port_wrench_contact(), builder, period)
+    contact = LogVectorOutput(chain.get_output_port_contact(), builder, period)
 
     simulator = Simulator(builder.Build())
     plant.SetPositions(plant.GetMyMutableContextFromRoot(simulator.get_mutable_context()),
@@ -80,7 +76,7 @@ def main():
     simulator.AdvanceTo(0.5)
     root = simulator.get_context()
     w = external.FindLog(root).data()[:, -1]
-    print(f"external wrench at rest (should be near zero): {np.round(w, 3)}")
+    print(f"contact wrench at rest (should be near zero): {np.round(w, 3)}")
     print(f"contact detected: {bool(contact.FindLog(root).data()[0, -1])}")
 
 

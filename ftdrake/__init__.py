@@ -1,11 +1,19 @@
 """ftdrake: learned compensation of wrist force/torque sensors, on Drake's systems framework.
 
 Everything a user needs is importable from here; examples never import a submodule. The
-layers, from the bottom up: ``conventions`` / ``errors`` / ``config`` / ``signals``,
-``physics`` (rigid-body kinematics), ``systems`` (one LeafSystem a module), ``compensation``
-(estimators, registry, compiled predictors), ``sim`` (scene, trajectories, station, simulate,
-evaluation, collection), ``data`` (datasets and robot logs), ``experiments`` (demo, study) and
-``cli``.
+layers, from the bottom up (a module imports only from its own layer or those below):
+
+1. ``conventions``, ``errors``, ``config``, ``signals``, ``io``, ``assets``: names, units, the
+   typed YAML tree, shared signal processing.
+2. ``physics``: rigid-body kinematics and dynamics, robot descriptions.
+3. ``data``: datasets and robot logs (tables, bags, LCM logs).
+4. ``compensation``: estimators, their registry, compiled predictors, persistence, ONNX.
+5. ``runtime``: the product, :class:`CompensationChain` (compensator → bias tracker →
+   detector) that both stations add.
+6. ``systems``: the simulation rig's LeafSystems (sensor model, contact truth, controller, ...).
+7. ``sim`` (scene, trajectories, station, simulate, evaluation, collection) and ``hardware``
+   (live LCM transport around the runtime chain; imports nothing of ``sim`` or ``systems``).
+8. ``experiments`` (demo, study, feedforward) and ``cli``.
 """
 
 from .version import ftdrake_version
@@ -42,23 +50,27 @@ from .errors import (
     RobotModelError,
     TrajectoryError,
 )
+from .runtime.bias_tracker import OnlineBiasTracker
+from .runtime.chain import CompensationChain
+from .runtime.compensator import CompensatorSystem
+from .runtime.detector import ContactDetector
+from .runtime.joint_gravity import JointStateGravity
 from .sim.collection import collect
 from .sim.evaluation import evaluate_detection
 from .sim.scene import Scene, add_scene, make_control_plant
 from .sim.simulate import SimResult, simulate
 from .sim.station import Station, build_station
-from .systems.bias_tracker import OnlineBiasTracker
-from .systems.compensator import CompensatorSystem
 from .systems.contact_truth import ContactTruth
 from .systems.controller import DiscreteInverseDynamicsController
-from .systems.detector import ContactDetector
-from .systems.ft_sensor import ForceTorqueSensor, NoisyForceTorqueSensor
+from .systems.ft_sensor import ForceTorqueSensor
+from .systems.noisy_sensor import NoisyForceTorqueSensor
 
 __all__ = [
     "WRENCH_AXES",
     "WRENCH_UNITS",
     "BiasTrackerConfig",
     "CableConfig",
+    "CompensationChain",
     "CompensatorConfig",
     "CompensatorSystem",
     "ConfigError",
@@ -72,6 +84,7 @@ __all__ = [
     "FtdrakeError",
     "GPRCompensator",
     "HybridCompensator",
+    "JointStateGravity",
     "LogError",
     "ModelFileError",
     "NoisyForceTorqueSensor",

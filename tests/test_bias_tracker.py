@@ -17,8 +17,8 @@ from pydrake.trajectories import PiecewisePolynomial
 from ftdrake import ScenarioConfig
 from ftdrake.config import DetectorConfig
 from ftdrake.errors import ConfigError
-from ftdrake.systems.bias_tracker import BiasTrackerConfig, OnlineBiasTracker
-from ftdrake.systems.detector import ContactDetector
+from ftdrake.runtime.bias_tracker import BiasTrackerConfig, OnlineBiasTracker
+from ftdrake.runtime.detector import ContactDetector
 
 SENSOR = ScenarioConfig().sensor
 PERIOD = 1.0 / SENSOR.spec().rate_hz
@@ -77,11 +77,11 @@ def run(wrench, *, config=None, contact=0.0, detector=None, flags=None, gravity=
     builder = DiagramBuilder()
     dut = builder.AddSystem(OnlineBiasTracker(config, SENSOR, PERIOD))
     builder.Connect(builder.AddSystem(zoh(wrench)).get_output_port(),
-                    dut.get_input_port_wrench_external())
+                    dut.get_input_port_wrench_compensated())
     flags = dict(flags or {})
     if detector is not None:
         det = builder.AddSystem(ContactDetector(detector, PERIOD))
-        builder.Connect(dut.get_output_port_wrench_external(), det.get_input_port_wrench_external())
+        builder.Connect(dut.get_output_port_wrench_contact(), det.get_input_port_wrench_contact())
         builder.Connect(det.get_output_port_contact(), dut.get_input_port_contact())
     elif "contact" not in flags:
         builder.Connect(builder.AddSystem(ConstantVectorSource([contact])).get_output_port(),
@@ -93,7 +93,7 @@ def run(wrench, *, config=None, contact=0.0, detector=None, flags=None, gravity=
             values = np.asarray(values, dtype=float).reshape(len(wrench), -1)
             builder.Connect(builder.AddSystem(zoh(values)).get_output_port(),
                             dut.GetInputPort(name))
-    names = ["wrench_external", "bias", "tracking"] + (["payload", "payload_inertia"]
+    names = ["wrench_contact", "bias", "tracking"] + (["payload", "payload_inertia"]
                                                        if dut.track_payload else [])
     logs = {name: LogVectorOutput(dut.GetOutputPort(name), builder, PERIOD) for name in names}
     if detector is not None:
@@ -133,7 +133,7 @@ def test_retare_step_settles_at_once_and_the_detector_stays_quiet(pulse_offset):
     tared[k_step + pulse_offset] = 1.0
     out, _ = run(true_bias + n, tared=tared, estimate=(BIAS, None),
                  detector=DetectorConfig(force_on=0.5, torque_on=0.05))
-    error = out["wrench_external"] - n  # what is left of the bias (the noise taken out)
+    error = out["wrench_contact"] - n  # what is left of the bias (the noise taken out)
     settle = settle_time(error, 2 * SIGMA, k_step)
     print(f"pulse offset {pulse_offset}: within 2σ after {1e3 * settle:.0f} ms")
     assert settle <= 2.0
@@ -164,7 +164,7 @@ def test_a_retare_is_a_jump_the_models_error_around_it_cancels(jump_window_s):
     with_tare, _ = run(BIAS + model_error + n + step, tared=tared, estimate=(BIAS, None),
                        config=config)
     without, _ = run(BIAS + model_error + n, estimate=(BIAS, None), config=config)
-    left = with_tare["wrench_external"] - without["wrench_external"]
+    left = with_tare["wrench_contact"] - without["wrench_contact"]
     settle = settle_time(left, 2 * SIGMA, k_step)
     print(f"jump window {jump_window_s} s: within 2σ after {1e3 * settle:.0f} ms, "
           f"largest left after 2 s {np.abs(left[k_step + 2000:] / SIGMA).max():.2f} σ")
@@ -254,7 +254,7 @@ def test_grasp_identified_while_rotating(bias_known):
     com_hat = out["payload"][:, 1:] / np.maximum(m_hat, 1e-9)[:, None]
     mass_time = settle_time((m_hat - mass)[:, None], 0.02 * mass, k0)
     com_time = settle_time(com_hat - com, 0.005, k0)
-    wrench_time = settle_time(out["wrench_external"] - n, 2 * SIGMA, k0)
+    wrench_time = settle_time(out["wrench_contact"] - n, 2 * SIGMA, k0)
     print(f"bias_known={bias_known}: Δm in {mass_time:.3f} s, CoM in {com_time:.3f} s, "
           f"wrench in {wrench_time:.3f} s; final Δm {m_hat[-1]:.4f} kg, "
           f"c {1e3 * com_hat[-1]} mm")
@@ -269,7 +269,7 @@ def arm_motion():
     """S's motion along 6 s of brisk multi-sine joint motion of the scenario's arm, from Drake
     (S's Jacobian and bias acceleration): g_S − a_So, [ω; α] (in S). |α| reaches ~10 rad/s²."""
     from ftdrake.physics.rigid_body import sensor_kinematics
-    from ftdrake.sim.scene import robot_description
+    from ftdrake.physics.scenario_robot import robot_description
 
     plant, frame_S = robot_description(ScenarioConfig()).build_plant()
     t = times(6.0)
@@ -313,7 +313,7 @@ def test_grasp_identified_in_arm_motion_with_the_motion_terms(arm_motion, with_m
     motion = np.hstack([kin.w_WS_S, kin.alpha_WS_S]) if with_motion else None
     out, _ = run(wrench, gravity=kin.g_S - kin.a_WSo_S, motion=motion, changed=changed,
                  estimate=(BIAS, np.zeros(4)))
-    error = (out["wrench_external"] - n) / SIGMA  # what is left of the payload, in σ
+    error = (out["wrench_contact"] - n) / SIGMA  # what is left of the payload, in σ
     late = t >= t[-1] - 1.0
     worst = np.abs(error[late]).max()
     print(f"with_motion={with_motion}: Δm {out['payload'][-1, 0]:.4f} kg, Δ(m·c) "
@@ -392,8 +392,8 @@ def test_frozen_exactly_while_flagged(flag, value, payload):
                                                                k_off - k_on, axis=0))
     assert np.all(out["tracking"][k_on:k_off] == 0.0)
     assert np.all(out["tracking"][:k_on] == 1.0) and np.all(out["tracking"][k_off:] == 1.0)
-    correction = wrench[k_on:k_off] - out["wrench_external"][k_on:k_off]
-    held = wrench[k_on - 1] - out["wrench_external"][k_on - 1]
+    correction = wrench[k_on:k_off] - out["wrench_contact"][k_on:k_off]
+    held = wrench[k_on - 1] - out["wrench_contact"][k_on - 1]
     if payload:  # the payload's correction follows the live g_S
         p = out["payload"][k_on]
         held = out["bias"][k_on] + payload_wrench(g[k_on:k_off], p[0], p[1:] / p[0])
@@ -439,9 +439,9 @@ def test_config_is_validated():
     assert tracking.n == 16 and tracking.prior_std.shape == (16,)
     assert [tracking.get_output_port(i).get_name()
             for i in range(tracking.num_output_ports())] == [
-        "wrench_external", "bias", "payload", "payload_inertia", "tracking"]
+        "wrench_contact", "bias", "payload", "payload_inertia", "tracking"]
     dut = OnlineBiasTracker(BiasTrackerConfig(), SENSOR)
     assert dut.lam == pytest.approx(math.exp(-PERIOD / TAU))
     np.testing.assert_allclose(dut.rate_bound, RATE)
     assert [dut.get_output_port(i).get_name() for i in range(dut.num_output_ports())] == [
-        "wrench_external", "bias", "tracking"]
+        "wrench_contact", "bias", "tracking"]

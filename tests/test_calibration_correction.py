@@ -22,7 +22,7 @@ from ftdrake.compensation.calibration import KNOWN_COM, KNOWN_MASS, calibrate_ta
 from ftdrake.compensation.physics import ExcitationWarning
 from ftdrake.conventions import WRENCH_AXES
 from ftdrake.errors import ConfigError
-from ftdrake.systems.ft_sensor import NoisyForceTorqueSensor
+from ftdrake.systems.noisy_sensor import NoisyForceTorqueSensor
 
 WRENCH = [f"meas_{a}" for a in WRENCH_AXES]
 # A sensor whose calibration is off: 1.5–3 % gains and 2 % cross-talk (force to torque up to

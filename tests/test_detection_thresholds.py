@@ -1,11 +1,11 @@
-"""Detector thresholds from a false-positive budget (systems.detector)."""
+"""Detector thresholds from a false-positive budget (runtime.detector)."""
 
 import numpy as np
 import pytest
 from scipy.stats import chi2
 
 from ftdrake.config import DetectorConfig
-from ftdrake.systems.detector import armed, thresholds_for_false_positive_rate
+from ftdrake.runtime.detector import armed, thresholds_for_false_positive_rate
 
 SIGMA = np.array([0.03, 0.03, 0.03, 0.002, 0.002, 0.002])  # N, N·m
 

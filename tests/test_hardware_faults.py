@@ -159,7 +159,7 @@ def test_a_grasp_on_hardware_is_identified_from_the_joint_state():
     carry its gravity wrench (m·g_S, c × m·g_S) with g_S from Drake's own kinematics. The
     tracker must find m and m·c, and nothing may read as contact after the settle window."""
     from ftdrake.hardware.messages import PAYLOAD_COORD, encode_event
-    from ftdrake.sim.scene import robot_description
+    from ftdrake.physics.scenario_robot import robot_description
 
     scenario = ScenarioConfig()
     scenario.bias_tracker.track_payload = True

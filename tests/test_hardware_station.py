@@ -13,8 +13,8 @@ from ftdrake.hardware.messages import (
     encode_joint_state,
     encode_wrench,
 )
-from ftdrake.hardware.sim_publisher import simulate_on_lcm
 from ftdrake.hardware.station import build_hardware_station
+from ftdrake.sim.lcm_publisher import simulate_on_lcm
 from ftdrake.sim.simulate import simulate
 from ftdrake.sim.station import build_station
 

@@ -16,7 +16,7 @@ from ftdrake.compensation.compiled.hybrid import CompiledHybrid
 from ftdrake.compensation.forest import RandomForestCompensator
 from ftdrake.compensation.hybrid import HybridCompensator
 from ftdrake.compensation.physics import PhysicsPayloadCompensator
-from ftdrake.systems.compensator import CompensatorSystem
+from ftdrake.runtime.compensator import CompensatorSystem
 
 USER_ARM = str(Path(__file__).parent / "data" / "prismatic_arm.urdf")  # 6 joints, one prismatic
 # [m, m·c, I_So, biases] of a tool, in S.
@@ -147,14 +147,14 @@ def test_compensator_system_runs_the_fused_hybrid_as_predict_does(case):
         builder.Connect(builder.AddSystem(TrajectorySource(state)).get_output_port(),
                         dut.get_input_port_joint_state())
         loggers = {name: LogVectorOutput(dut.GetOutputPort(name), builder, 1e-3)
-                   for name in ("wrench_internal", "wrench_external", "wrench_std")}
+                   for name in ("wrench_internal", "wrench_compensated", "wrench_std")}
         simulator = Simulator(builder.Build())
         simulator.AdvanceTo(0.015)
         logs[fast] = {name: log.FindLog(simulator.get_context()).data().T
                       for name, log in loggers.items()}
     fused, reference = logs[True], logs[False]
     scale = max(1.0, np.abs(reference["wrench_internal"]).max())
-    for name in ("wrench_internal", "wrench_external"):
+    for name in ("wrench_internal", "wrench_compensated"):
         np.testing.assert_allclose(fused[name], reference[name], rtol=0, atol=1e-12 * scale)
     np.testing.assert_allclose(fused["wrench_std"], reference["wrench_std"], rtol=0,
                                atol=1e-12)

@@ -7,8 +7,8 @@ from pydrake.systems.analysis import Simulator
 
 from ftdrake import ScenarioConfig
 from ftdrake.physics.chain import SerialChain
-from ftdrake.sim.scene import robot_description
-from ftdrake.systems.joint_gravity import JointStateGravity
+from ftdrake.physics.scenario_robot import robot_description
+from ftdrake.runtime.joint_gravity import JointStateGravity
 
 PERIOD = 0.001
 

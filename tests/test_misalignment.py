@@ -8,7 +8,7 @@ from test_physics_identification import SIGMA, THETA, sinusoids
 
 from ftdrake import SensorConfig
 from ftdrake.compensation.physics import ExcitationWarning, PhysicsPayloadCompensator
-from ftdrake.systems.ft_sensor import NoisyForceTorqueSensor
+from ftdrake.systems.noisy_sensor import NoisyForceTorqueSensor
 
 MOUNTING = [3.0, 3.0, 3.0]  # deg, roll pitch yaw of R_SSm
 
@@ -79,7 +79,7 @@ def test_the_loop_gives_the_contact_wrench_in_the_model_frame(fits, kind):
     from pydrake.systems.analysis import Simulator
 
     from ftdrake import CompensatorSystem, HybridCompensator, RandomForestCompensator
-    from ftdrake.systems.compensator import _fused_update
+    from ftdrake.runtime.compensator import _fused_update
 
     plain, dut, _, _ = fits
     assert plain.reading_to_model_frame() is None
@@ -105,7 +105,7 @@ def test_the_loop_gives_the_contact_wrench_in_the_model_frame(fits, kind):
     system.get_input_port_joint_state().FixValue(context, X[0, :14])
     system.get_input_port_joint_acceleration().FixValue(context, X[0, 14:])
     simulator.AdvanceTo(0.0005)
-    out = system.get_output_port_wrench_external().Eval(context)
+    out = system.get_output_port_wrench_compensated().Eval(context)
 
     # Measured: 3.4 mN on Fx (the identified rotation is 0.01° off), less elsewhere.
     assert np.all(np.abs(out - external_S) < [0.02, 0.02, 0.02, 1e-3, 1e-3, 1e-3])

@@ -23,8 +23,9 @@ from ftdrake.data.dataset import joint_state_layout, wrench_targets
 from ftdrake.errors import RobotModelError
 from ftdrake.physics.rigid_body import SensorKinematics, newton_euler_wrench, sensor_kinematics
 from ftdrake.physics.robot import ftdrake_arm
+from ftdrake.physics.scenario_robot import robot_description
 from ftdrake.sim.collection import collect
-from ftdrake.sim.scene import add_scene, robot_description
+from ftdrake.sim.scene import add_scene
 
 TRUE_MASS = 1.5
 TRUE_COM = np.array([0.02, 0.2 / 30, 0.26 / 3])  # m, from ft_sensor_tool.sdf

@@ -101,5 +101,5 @@ def test_a_new_compensator_runs_in_the_loop_through_its_row_predictor(registered
     expected = model.mean_ + 0.5 * q[0]  # independent of predict: the toy's own formula
     np.testing.assert_allclose(dut.get_output_port_wrench_internal().Eval(context), expected,
                                rtol=1e-12)
-    np.testing.assert_allclose(dut.get_output_port_wrench_external().Eval(context),
+    np.testing.assert_allclose(dut.get_output_port_wrench_compensated().Eval(context),
                                wrench - expected, rtol=1e-12)

@@ -9,7 +9,7 @@ from pydrake.systems.framework import DiagramBuilder
 from ftdrake import ScenarioConfig
 from ftdrake.physics.rigid_body import sensor_kinematics
 from ftdrake.sim.scene import add_scene
-from ftdrake.systems.events import SensorGravity
+from ftdrake.systems.sensor_gravity import SensorGravity
 
 
 @pytest.fixture(scope="module")

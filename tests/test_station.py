@@ -36,11 +36,19 @@ def forest():
         X, rng.normal(size=(200, 6)))
 
 
+def all_systems(diagram):
+    """The diagram's systems and those of every diagram inside it."""
+    for system in diagram.GetSystems():
+        yield system
+        if hasattr(system, "GetSystems"):
+            yield from all_systems(system)
+
+
 @pytest.mark.parametrize("cls", SYSTEMS, ids=lambda c: c.__name__)
 def test_every_named_port_accessor_returns_the_port_of_that_name(cls):
     station = build_station(short_free_config(), ftdrake.RandomForestCompensator(
         features="q", n_estimators=2).fit(np.zeros((5, 21)), np.zeros((5, 6))))
-    system = next(s for s in station.diagram.GetSystems() if isinstance(s, cls))
+    system = next(s for s in all_systems(station.diagram) if isinstance(s, cls))
     accessors = [name for name, _ in inspect.getmembers(cls, inspect.isfunction)
                  if name.startswith(("get_input_port_", "get_output_port_"))]
     assert accessors, f"{cls.__name__} has no named port accessors"
@@ -89,7 +97,7 @@ def test_simulate_returns_the_log_with_compensation_columns(forest):
     X = np.hstack([q, np.zeros_like(q), np.zeros_like(q)])
     np.testing.assert_allclose(predicted[5:], forest.predict(X[5:]), atol=1e-9)
     # The context is returned, not stored on the station: the loggers are still readable.
-    logger = station.compensation.loggers.internal
+    logger = station.compensation.loggers.wrench_internal
     assert logger.FindLog(result.context).num_samples() == len(log) + 1
 
 

@@ -14,9 +14,9 @@ from ftdrake.compensation.forest import RandomForestCompensator
 from ftdrake.compensation.persistence import load_model, save_model
 from ftdrake.config import DetectorConfig
 from ftdrake.data.dataset import joint_state_layout, wrench_targets
+from ftdrake.runtime.compensator import CompensatorSystem
+from ftdrake.runtime.detector import ContactDetector
 from ftdrake.sim.collection import collect
-from ftdrake.systems.compensator import CompensatorSystem
-from ftdrake.systems.detector import ContactDetector
 
 PERIOD = 1e-3
 N = 7
@@ -45,7 +45,7 @@ def run_compensator(model, wrench, state, accel=None, duration=0.01, **kwargs):
         builder.Connect(source(builder, accel).get_output_port(),
                         dut.GetInputPort("joint_acceleration"))
     logs = {name: LogVectorOutput(dut.GetOutputPort(name), builder, PERIOD)
-            for name in ("wrench_internal", "wrench_external", "wrench_std", "out_of_domain",
+            for name in ("wrench_internal", "wrench_compensated", "wrench_std", "out_of_domain",
                          "fault")}
     simulator = Simulator(builder.Build())
     simulator.AdvanceTo(duration)
@@ -60,7 +60,7 @@ def test_outputs_equal_predict_and_external_is_exact_difference(forest):
     out = run_compensator(forest, wrench, np.concatenate([q, v]), accel=a)
     expected = forest.predict(np.concatenate([q, v, a])[None, :])[0]
     np.testing.assert_allclose(out["wrench_internal"][-1], expected, rtol=0, atol=1e-9)
-    np.testing.assert_array_equal(out["wrench_external"][-1],
+    np.testing.assert_array_equal(out["wrench_compensated"][-1],
                                   wrench - out["wrench_internal"][-1])
     # The forest's spread across trees, from the fused compiled update.
     std = forest.predict_std(np.concatenate([q, v, a])[None, :])[0]
@@ -97,9 +97,9 @@ def test_nan_input_holds_last_good_value_and_raises_fault(forest):
     wrench = PiecewisePolynomial.ZeroOrderHold(t, np.column_stack([good, np.full(6, np.nan),
                                                                    np.full(6, np.nan)]))
     out = run_compensator(forest, wrench, np.zeros(2 * N), accel=np.zeros(N), duration=0.01)
-    assert np.all(np.isfinite(out["wrench_external"]))
+    assert np.all(np.isfinite(out["wrench_compensated"]))
     assert out["fault"][-1, 0] == 1.0 and out["fault"][2, 0] == 0.0
-    np.testing.assert_array_equal(out["wrench_external"][-1], out["wrench_external"][4])
+    np.testing.assert_array_equal(out["wrench_compensated"][-1], out["wrench_compensated"][4])
 
 
 def test_out_of_domain_flag(forest):
@@ -144,7 +144,7 @@ def run_detector(forces, config, std=None):
     dut = builder.AddSystem(ContactDetector(config, PERIOD))
     builder.Connect(builder.AddSystem(TrajectorySource(
         PiecewisePolynomial.ZeroOrderHold(t, W))).get_output_port(),
-        dut.GetInputPort("wrench_external"))
+        dut.GetInputPort("wrench_contact"))
     if std is not None:
         builder.Connect(source(builder, std).get_output_port(), dut.GetInputPort("wrench_std"))
     log = LogVectorOutput(dut.GetOutputPort("contact"), builder, PERIOD)
@@ -294,7 +294,7 @@ def test_fault_and_out_of_domain_clear_when_inputs_recover(forest, kind):
     np.testing.assert_array_equal(ood[1:12], [0, 0, 0, 0, 0, 0, 1, 1, 1, 0, 0])
     expected = model.predict(np.zeros((1, 3 * N)))[0]
     np.testing.assert_allclose(out["wrench_internal"][-1], expected, rtol=1e-9, atol=1e-12)
-    np.testing.assert_array_equal(out["wrench_external"][-1], good - out["wrench_internal"][-1])
+    np.testing.assert_array_equal(out["wrench_compensated"][-1], good - out["wrench_internal"][-1])
 
 
 @pytest.mark.parametrize("hybrid", [False, True])
@@ -322,5 +322,5 @@ def test_gp_in_the_diagram_outputs_its_predict_and_predict_std(hybrid):
     np.testing.assert_allclose(out["wrench_std"][-1], model.predict_std(row)[0],
                                rtol=1e-9, atol=1e-12)
     assert (out["wrench_std"][-1] > 0).all()
-    np.testing.assert_array_equal(out["wrench_external"][-1],
+    np.testing.assert_array_equal(out["wrench_compensated"][-1],
                                   wrench - out["wrench_internal"][-1])

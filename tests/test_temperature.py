@@ -15,7 +15,7 @@ from ftdrake import conventions as col
 from ftdrake.compensation.forest import RandomForestCompensator
 from ftdrake.compensation.hybrid import HybridCompensator
 from ftdrake.compensation.physics import ExcitationWarning, PhysicsPayloadCompensator
-from ftdrake.systems.ft_sensor import NoisyForceTorqueSensor
+from ftdrake.systems.noisy_sensor import NoisyForceTorqueSensor
 
 
 def run_sensor(config, duration, seed):

@@ -27,7 +27,7 @@ from ftdrake.sim.simulate import (
     simulate,
 )
 from ftdrake.sim.station import build_station
-from ftdrake.systems.events import SensorGravity
+from ftdrake.systems.sensor_gravity import SensorGravity
 
 PLAN = EventPlan(duration_s=10.0, event_at_s=3.0, push_ramp_s=4.0)
 
@@ -174,7 +174,6 @@ def test_the_station_feeds_the_trackers_motion_input_only_when_asked(trained, mo
     config = dc.replace(config, bias_tracker=dc.replace(
         config.bias_tracker, track_payload=True, track_payload_motion=motion))
     station = build_station(config, model)
-    diagram = station.diagram
-    tracker = diagram.GetSubsystemByName("bias_tracker")
-    context = tracker.GetMyContextFromRoot(diagram.CreateDefaultContext())
+    tracker = station.compensation.tracker
+    context = tracker.GetMyContextFromRoot(station.diagram.CreateDefaultContext())
     assert tracker.get_input_port_motion_S().HasValue(context) == motion

@@ -22,8 +22,8 @@ from ftdrake.data.dataset import joint_state_layout, save_dataset, wrench_target
 from ftdrake.data.logs import LogError, option_spelling
 from ftdrake.data.training import ReadOptions, load_training_data
 from ftdrake.errors import ConfigError
+from ftdrake.runtime.compensator import CompensatorSystem
 from ftdrake.signals import causal_acceleration
-from ftdrake.systems.compensator import CompensatorSystem
 
 RATE_HZ = 125.0
 DT = 1 / RATE_HZ

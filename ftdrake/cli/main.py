@@ -174,7 +174,7 @@ def _simulate(args):
     if meshcat is not None:
         meshcat.StartRecording(set_visualizations_while_recording=False)
     if args.lcm is not None or args.hardware is not None:
-        from ..hardware.sim_publisher import simulate_on_lcm
+        from ..sim.lcm_publisher import simulate_on_lcm
         from .hardware import describe_channels, hardware_from_args, open_transport
 
         hardware = hardware_from_args(args)

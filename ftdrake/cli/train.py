@@ -293,7 +293,7 @@ def _arm(model: str, robot: RobotOptions):
     ArmDynamicsCompensator`) on `robot`, with the registry's defaults."""
     from ..compensation.registry import entry
     from ..physics.robot import ftdrake_arm
-    from ..sim.scene import robot_description
+    from ..physics.scenario_robot import robot_description
 
     if robot.robot is None:
         raise ConfigError(f"--model {model} on joint torques needs --robot FILE (the arm's "
@@ -319,7 +319,7 @@ def _physics(model: str, robot: RobotOptions | None, features: str):
     PhysicsPayloadCompensator = entry("physics").build  # with the registry's defaults
     from ..config import parse_config
     from ..physics.robot import ftdrake_arm
-    from ..sim.scene import robot_description
+    from ..physics.scenario_robot import robot_description
 
     robot = robot or RobotOptions()
     if robot.robot is None:

@@ -99,8 +99,8 @@ class PhysicsPayloadCompensator(Compensator):
     robot : the robot the sensor is on (:class:`~ftdrake.physics.robot.RobotDescription`'s
         ``model``): a URDF/SDF/model-directives file or package:// URL, or model-directives
         text; None for ftdrake's simulated arm with its default models
-        (:func:`~ftdrake.physics.robot.ftdrake_arm`; ``ftdrake.sim.scene.robot_description``
-        describes any scenario's arm).
+        (:func:`~ftdrake.physics.robot.ftdrake_arm`;
+        :func:`~ftdrake.physics.scenario_robot.robot_description` describes any scenario's arm).
     sensor_frame : frame S in `robot` (``"model::frame"`` or a unique name); None with
         ``robot=None`` (the sensor weld's child frame).
     base_frame : frame of `robot` welded to the world, if the model does not weld it.

@@ -1,5 +1,5 @@
 """Learning control outside the compensators: time-indexed iterative learning control."""
 
-from .ilc import TimeIndexedFeedforward, ilc_update, q_filter
+from .ilc import ilc_update, q_filter
 
-__all__ = ["TimeIndexedFeedforward", "ilc_update", "q_filter"]
+__all__ = ["ilc_update", "q_filter"]

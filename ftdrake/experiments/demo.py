@@ -13,7 +13,7 @@
    identified (physically consistent fit) plus a forest on its residual. One rehearsal and one
    run of each free-motion kind are held out; each model's detector thresholds follow from
    its residual there (the samples the detector judges) and a budget of one false positive
-   per hour (:func:`~ftdrake.systems.detector.thresholds_for_false_positive_rate`).
+   per hour (:func:`~ftdrake.runtime.detector.thresholds_for_false_positive_rate`).
 3. Run the same contact scenario, trajectory seed and sensor noise not seen in training, with
    each model and its detector in the loop at the sensor rate, and score both against the
    plant's ground truth. The summary says which did better and why.
@@ -41,11 +41,11 @@ from ..compensation.tuning import segment_groups, tune
 from ..config import ScenarioConfig
 from ..data.dataset import joint_state_layout, wrench_targets
 from ..io import atomic_path, staged_outputs
+from ..runtime.detector import armed, thresholds_for_false_positive_rate
 from ..sim.collection import collect
 from ..sim.evaluation import evaluate_detection
 from ..sim.simulate import simulate
 from ..sim.station import build_station
-from ..systems.detector import armed, thresholds_for_false_positive_rate
 
 HELD_OUT_SEED = 1000
 FALSE_POSITIVES_PER_HOUR = 1.0  # the detector's budget; thresholds follow from it

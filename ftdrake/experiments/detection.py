@@ -4,7 +4,7 @@ For each compensator:
 
 1. **Thresholds** from a false-positive budget (default one per hour): held-out rehearsals of
    the task and held-out runs of each free-motion kind give the residual, and
-   :func:`~ftdrake.systems.detector.thresholds_for_false_positive_rate` the thresholds.
+   :func:`~ftdrake.runtime.detector.thresholds_for_false_positive_rate` the thresholds.
 2. **False positives**: long free motion (default 10 simulated minutes) of several trajectory
    kinds, compensator and detector in the loop; every detection is a false positive.
 3. **Misses and delays**: the contact scenario on the table and on the wall, commanded from
@@ -40,11 +40,11 @@ from ..config import DetectorConfig, ScenarioConfig, dump_config, parse_config
 from ..data.dataset import joint_state_layout, wrench_targets
 from ..errors import TrajectoryError
 from ..io import atomic_path, staged_outputs
+from ..runtime.detector import armed, thresholds_for_false_positive_rate
 from ..sim.collection import collect
 from ..sim.evaluation import TOUCHDOWN_S, evaluate_detection
 from ..sim.simulate import simulate
 from ..sim.station import build_station
-from ..systems.detector import armed, thresholds_for_false_positive_rate
 from . import tracking
 
 FREE_KINDS = ("fourier", "random", "z_rich", "reference")

@@ -29,13 +29,14 @@ from tqdm.auto import tqdm
 from .. import conventions as col
 from ..compensation.persistence import save_model
 from ..config import ScenarioConfig
-from ..control.ilc import TimeIndexedFeedforward, ilc_update
+from ..control.ilc import ilc_update
 from ..errors import ConfigError
 from ..io import atomic_path, atomic_write_text
 from ..sim.scene import make_control_plant
 from ..sim.simulate import simulate
 from ..sim.station import build_station
 from ..systems.learned_feedforward import LearnedFeedforward, fit_feedforward_gp
+from ..systems.time_indexed_feedforward import TimeIndexedFeedforward
 
 logger = logging.getLogger(__name__)
 

@@ -1,14 +1,14 @@
-"""ftdrake on a live robot over LCM (issue 11): configuration and message codecs.
+"""ftdrake on a live robot over LCM: configuration and message codecs.
 
 Modules: ``config`` (HardwareConfig: channels, message types, timeouts), ``messages``
 (decode joint state and F/T, encode the external wrench and the contact state),
 ``live_inputs`` (StreamMonitor: per-message checks, fault, counters; RobotStatePairer),
 ``transport`` (open_lcm: an LCM connection that does not drop queued messages), ``station``
-(HardwareStation: a message-driven loop around the simulation's unchanged compensator,
-bias tracker and detector; measure_latency), ``sim_publisher`` (a simulated robot publishing
-what a real one does), ``recording`` (LCM messages or log → the ``collect`` Parquet layout).
-The commands: ``ftdrake serve``, ``ftdrake record``, ``ftdrake simulate --lcm``
-(:mod:`ftdrake.cli.hardware`).
+(HardwareStation: a message-driven loop around the runtime chain; measure_latency),
+``recording`` (LCM messages or log → the ``collect`` Parquet layout).
+The simulated robot that publishes what a real one does is :mod:`ftdrake.sim.lcm_publisher`
+(this package imports nothing of the simulation). The commands: ``ftdrake serve``,
+``ftdrake record``, ``ftdrake simulate --lcm`` (:mod:`ftdrake.cli.hardware`).
 """
 
 from .config import JOINT_STATE_TYPES, HardwareConfig

@@ -8,7 +8,7 @@ Loadable with ``pydrake.common.yaml.yaml_load_typed(schema=HardwareConfig, ...)`
 import dataclasses as dc
 import math
 
-from ftdrake import ConfigError
+from ..errors import ConfigError
 
 #: Joint-state message types understood by :func:`ftdrake.hardware.messages.decode_joint_state`.
 JOINT_STATE_TYPES = ("iiwa_status", "panda_status", "robot_state")

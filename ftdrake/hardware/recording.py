@@ -19,10 +19,9 @@ import struct
 import numpy as np
 import pandas as pd
 
-from ftdrake import LogError
-from ftdrake.conventions import MEASURED, QD, TIME, Q, joint_columns, wrench_columns
-from ftdrake.io import atomic_path
-
+from ..conventions import MEASURED, QD, TIME, Q, joint_columns, wrench_columns
+from ..errors import LogError
+from ..io import atomic_path
 from .config import HardwareConfig
 from .live_inputs import RobotStatePairer
 from .messages import decode_joint_state, decode_wrench

@@ -1,20 +1,19 @@
-"""The hardware station: the simulation's compensation chain, driven by live LCM messages.
+"""The hardware station: the runtime chain, driven by live LCM messages.
 
     joint state ──► StreamMonitor ──► joint_state ──┐
     (iiwa/panda/robot_state)  (checks, counts)      ▼
-    F/T ──────────► StreamMonitor ──► wrench_measured ─► compensator ─► bias tracker ─► detector
-                                                               │              │           │
-                         lcmt_force_torque  ◄── wrench_external ◄─────────────┘           │
-                         lcmt_drake_signal  ◄── contact, contact_force, fault, ood ◄──────┘
+    F/T ──────────► StreamMonitor ──► wrench_measured ─► CompensationChain
+                                                               │
+                         lcmt_force_torque  ◄── wrench_compensated
+                         lcmt_drake_signal  ◄── contact, contact_force, fault, out_of_domain
 
-The diagram is the one :func:`ftdrake.sim.station.build_station` puts in the loop —
-``CompensatorSystem`` (``scenario.compensator``), ``OnlineBiasTracker``
-(``scenario.bias_tracker``, when enabled; with ``track_payload`` its ``gravity_S`` and
-``motion_S`` come from :class:`~ftdrake.systems.joint_gravity.JointStateGravity` on the
-scenario robot's chain) and
-``ContactDetector`` (``scenario.detector``, with the model's std) — unchanged, so
-the same messages give the same numbers as in simulation (``tests/test_live_end_to_end.py``
-checks it to 1e-9).
+The diagram is :class:`~ftdrake.runtime.chain.CompensationChain`, the one
+:func:`ftdrake.sim.station.build_station` puts in the loop, built from the same scenario
+(``compensator``, ``bias_tracker``, ``detector``); with ``track_payload`` the tracker's
+``gravity_S`` and ``motion_S`` come from the joint state through the scenario robot's chain
+(:class:`~ftdrake.runtime.joint_gravity.JointStateGravity`). The same messages therefore give
+the same numbers as in simulation (``tests/test_live_end_to_end.py`` checks it to 1e-9). This
+module imports nothing of the simulation.
 
 Why a loop and not a Simulator with LcmSubscriberSystems: a realtime Simulator samples the
 subscribers' latest message at its own periodic times, so a message can be processed twice
@@ -25,7 +24,7 @@ message advances a (non-realtime) Simulator to (k + ½)·period, so exactly the 
 k·period fires (diagram time is processed-message index × period, not the message's
 timestamp; they agree while no message is rejected).
 
-Published per F/T message: the external wrench (``lcmt_force_torque`` on
+Published per F/T message: the compensated wrench (``lcmt_force_torque`` on
 ``external_wrench_channel``) only when the inputs are fault-free — a stale wrench is never
 published as fresh — and the contact state (``lcmt_drake_signal`` on ``contact_channel``)
 always, with its fault flag. Both carry the F/T message's timestamp. When a stream goes
@@ -47,10 +46,10 @@ import time
 
 import numpy as np
 from pydrake.systems.analysis import Simulator
-from pydrake.systems.framework import DiagramBuilder
 
-from ftdrake import CompensatorSystem, ConfigError, ContactDetector, ScenarioConfig
-
+from ..config import ScenarioConfig
+from ..errors import ConfigError
+from ..runtime.chain import CompensationChain
 from .config import HardwareConfig
 from .live_inputs import RobotStatePairer, StreamMonitor
 from .messages import (
@@ -117,18 +116,14 @@ class HardwareStation:
         self._build(model)
         self.simulator = Simulator(self.diagram)
         self.context = self.simulator.get_mutable_context()
-        if self.tracker is not None:
-            settings = self.scenario.bias_tracker
-            self.tracker.set_estimate(self.tracker.GetMyMutableContextFromRoot(self.context),
-                                      settings.initial_bias, np.zeros(4),
-                                      settled=settings.start_settled)
+        self.chain.initialize(self.context)
         self.simulator.Initialize()
         self._wrench_in = self.diagram.GetInputPort("wrench_measured").FixValue(
             self.context, np.zeros(6))
         self._state_in = self.diagram.GetInputPort("joint_state").FixValue(
             self.context, np.zeros(2 * config.n_joints))
         self._temperature_in = None
-        if self.compensator.needs_temperature:
+        if self.chain.needs_temperature:
             self._temperature_in = self.diagram.GetInputPort("temperature").FixValue(
                 self.context, np.full(1, np.nan))
         # The tracker's event inputs (tared, payload_changed): high for the one update after
@@ -136,7 +131,7 @@ class HardwareStation:
         self._signals = {name: _EventSignal(coord, self.diagram.GetInputPort(name).FixValue(
             self.context, [0.0])) for name, coord, channel in self._event_channels() if channel}
         self._out = {name: self.diagram.GetOutputPort(name) for name in (
-            "wrench_external", "fault", "out_of_domain", "contact", "contact_force")}
+            "wrench_compensated", "fault", "out_of_domain", "contact", "contact_force")}
         self.monitor = StreamMonitor(
             config.n_joints, config.sensor_timeout_s, config.joint_state_timeout_s,
             config.temperature_timeout_s if self._temperature_in is not None else None)
@@ -166,65 +161,27 @@ class HardwareStation:
                 self.lcm.subscribe(channel, functools.partial(self._on_event_signal, name))
 
     def _build(self, model) -> None:
-        s = self.scenario
-        builder = DiagramBuilder()
-        self.compensator = builder.AddNamedSystem("compensator", CompensatorSystem(
-            model, self.period, n_joints=self.config.n_joints,
-            acceleration_cutoff_hz=s.compensator.acceleration_cutoff_hz))
-        self.detector = builder.AddNamedSystem("detector", ContactDetector(s.detector,
-                                                                           self.period))
-        external = self.compensator.get_output_port_wrench_external()
-        self.tracker = None
-        self.gravity = None
-        if s.bias_tracker.enabled:
-            from ftdrake.systems.bias_tracker import (  # noqa: PLC0415 (only with the tracker)
-                OnlineBiasTracker,
-            )
-
-            self.tracker = builder.AddNamedSystem(
-                "bias_tracker", OnlineBiasTracker(s.bias_tracker, s.sensor, self.period))
-            builder.Connect(external, self.tracker.get_input_port_wrench_external())
-            builder.Connect(self.compensator.get_output_port_out_of_domain(),
-                            self.tracker.get_input_port_out_of_domain())
-            builder.Connect(self.compensator.get_output_port_fault(),
-                            self.tracker.get_input_port_fault())
-            builder.Connect(self.detector.get_output_port_contact(),
-                            self.tracker.get_input_port_contact())
-            external = self.tracker.get_output_port_wrench_external()
-        if self.config.tare_channel:
-            if self.tracker is None:
-                raise ConfigError("hardware.tare_channel: a re-tare goes to the bias tracker; "
-                                  "enable scenario.bias_tracker or leave the channel empty")
-            builder.ExportInput(self.tracker.get_input_port_tared(), "tared")
-        if self.tracker is not None and self.tracker.track_payload:
-            self._add_payload_gravity(builder)
-        elif self.config.payload_channel:
+        """The runtime chain, its joint-state gravity on the scenario robot's serial chain
+        (there is no plant on hardware), checked against the hardware channels."""
+        self.diagram = chain = CompensationChain(
+            model, self.scenario, period=self.period, n_joints=self.config.n_joints,
+            gravity="joint_state")
+        chain.set_name("ftdrake_hardware")
+        self.chain = chain
+        self.compensator, self.tracker, self.detector = (chain.compensator, chain.tracker,
+                                                         chain.detector)
+        if self.config.tare_channel and not chain.HasInputPort("tared"):
+            raise ConfigError("hardware.tare_channel: a re-tare goes to the bias tracker; "
+                              "enable scenario.bias_tracker or leave the channel empty")
+        if self.config.payload_channel and not chain.HasInputPort("payload_changed"):
             raise ConfigError("hardware.payload_channel: a grasp goes to the bias tracker's "
                               "payload estimate; set scenario.bias_tracker.enabled and "
                               "track_payload, or leave the channel empty")
-        builder.Connect(external, self.detector.get_input_port_wrench_external())
-        builder.Connect(self.compensator.get_output_port_wrench_std(),
-                        self.detector.get_input_port_wrench_std())
-        builder.ExportInput(self.compensator.get_input_port_wrench_measured(), "wrench_measured")
-        joint_state = builder.ExportInput(self.compensator.get_input_port_joint_state(),
-                                          "joint_state")
-        if self.gravity is not None:
-            builder.ConnectInput(joint_state, self.gravity.get_input_port_joint_state())
-        if self.compensator.needs_temperature:
-            if not self.config.temperature_channel:
-                raise ConfigError(
-                    "hardware.temperature_channel: the model was trained with the sensor "
-                    "temperature; name the LCM channel that carries it (lcmt_drake_signal, "
-                    "one value in °C)")
-            builder.ExportInput(self.compensator.get_input_port_temperature(), "temperature")
-        builder.ExportOutput(self.compensator.get_output_port_wrench_external(),
-                             "wrench_external")
-        builder.ExportOutput(external, "wrench_detected")
-        for system, port in ((self.compensator, "fault"), (self.compensator, "out_of_domain"),
-                             (self.detector, "contact"), (self.detector, "contact_force")):
-            builder.ExportOutput(system.GetOutputPort(port), port)
-        self.diagram = builder.Build()
-        self.diagram.set_name("ftdrake_hardware")
+        if chain.needs_temperature and not self.config.temperature_channel:
+            raise ConfigError(
+                "hardware.temperature_channel: the model was trained with the sensor "
+                "temperature; name the LCM channel that carries it (lcmt_drake_signal, "
+                "one value in °C)")
 
     # -- message callbacks ------------------------------------------------------------------
     def _on_joint(self, data: bytes):
@@ -258,31 +215,6 @@ class HardwareStation:
         return (("tared", TARE_COORD, c.tare_channel),
                 ("payload_changed", PAYLOAD_COORD, c.payload_channel))
 
-    def _add_payload_gravity(self, builder) -> None:
-        """g_S − a_So and S's [ω; α] for the tracker's payload estimate, from the joint state
-        through the scenario robot's serial chain (there is no plant on hardware)."""
-        from ftdrake.physics.chain import SerialChain  # noqa: PLC0415 (payload tracking only)
-        from ftdrake.sim.scene import robot_description  # noqa: PLC0415
-        from ftdrake.systems.joint_gravity import JointStateGravity  # noqa: PLC0415
-
-        plant, frame_S = robot_description(self.scenario).build_plant()
-        chain = SerialChain.from_plant(plant, frame_S)
-        if chain.num_positions != self.config.n_joints:
-            raise ConfigError(f"scenario.bias_tracker.track_payload: the scenario's robot has "
-                              f"{chain.num_positions} joints, hardware.n_joints is "
-                              f"{self.config.n_joints}")
-        self.gravity = builder.AddNamedSystem("sensor_gravity", JointStateGravity(
-            chain, self.period,
-            acceleration_cutoff_hz=self.scenario.compensator.acceleration_cutoff_hz,
-            gravity_W=plant.gravity_field().gravity_vector()))
-        builder.Connect(self.gravity.get_output_port_gravity_S(),
-                        self.tracker.get_input_port_gravity_S())
-        if self.scenario.bias_tracker.track_payload_motion:
-            builder.Connect(self.gravity.get_output_port_motion_S(),
-                            self.tracker.get_input_port_motion_S())
-        if self.config.payload_channel:
-            builder.ExportInput(self.tracker.get_input_port_payload_changed(), "payload_changed")
-
     def _on_event_signal(self, name: str, data: bytes):
         signal = self._signals[name]
         if _decoded(decode_event, data, signal.coord) is None:
@@ -309,7 +241,7 @@ class HardwareStation:
             self.simulator.AdvanceTo((self.processed + 0.5) * self.period)
             self.processed += 1
             if self._out["fault"].Eval(self.context)[0] <= 0.5:
-                external = self._out["wrench_external"].Eval(self.context)
+                external = self._out["wrench_compensated"].Eval(self.context)
                 self.lcm.publish(self.config.external_wrench_channel,
                                  encode_wrench(t, external))
                 self.latencies.append(self.clock() - arrival)

@@ -14,7 +14,7 @@ from __future__ import annotations
 
 from collections.abc import Callable
 
-from ftdrake import ConfigError
+from ..errors import ConfigError
 
 #: Messages LCM may hold per subscription before it drops (LCM's default is 30).
 QUEUE_CAPACITY = 10_000

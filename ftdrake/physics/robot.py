@@ -8,7 +8,7 @@ S of the F/T sensor in it. It is all a physics compensator needs: no simulation,
 
 ftdrake's simulated arm is described by :func:`ftdrake_arm` (the SDA10D-like arm with the
 sensor and tool welded to its flange, as :func:`ftdrake.sim.scene.add_scene` builds it);
-``ftdrake.sim.scene.robot_description(config)`` gives the description of any scenario's arm.
+``physics.scenario_robot.robot_description(config)`` gives the description of any scenario's arm.
 """
 
 from __future__ import annotations

@@ -8,7 +8,7 @@
   time (:func:`apply_grasp`, called by ``simulate``): the plant's dynamics change, nothing else
   knows. ``payload_changed`` is high for ``events.signal_s`` like ``tared``: the tracker
   re-initialises the payload while the controller catches the new weight.
-- The **push** is :class:`~ftdrake.systems.events.ToolPush` between the scene's cable-weight
+- The **push** is :class:`~ftdrake.systems.tool_push.ToolPush` between the scene's cable-weight
   source and the plant's applied-force port.
 
 Signals are Drake primitives (zero-order-hold trajectory sources, an adder): no Python runs per
@@ -25,7 +25,7 @@ from pydrake.systems.primitives import Adder, TrajectorySource
 from pydrake.trajectories import PiecewisePolynomial
 
 from ..config import EventsConfig
-from ..systems.events import ToolPush
+from ..systems.tool_push import ToolPush
 
 
 @dc.dataclass

@@ -126,12 +126,8 @@ def set_initial_state(station: Station, root_context) -> None:
     plant.SetVelocities(
         plant_context, station.scene.arm, station.trajectory.derivative(1).value(t0).ravel()
     )
-    tracker = station.compensation.tracker if station.compensation is not None else None
-    if tracker is not None:
-        settings = station.config.bias_tracker
-        tracker.set_estimate(tracker.GetMyMutableContextFromRoot(root_context),
-                             settings.initial_bias, np.zeros(4),
-                             settled=settings.start_settled)
+    if station.compensation is not None:
+        station.compensation.chain.initialize(root_context)
 
 
 def assemble_log(station: Station, root_context) -> pd.DataFrame:
@@ -145,7 +141,8 @@ def assemble_log(station: Station, root_context) -> pd.DataFrame:
     t, x = data(station.loggers.state)
     keep = t > 0.5 * station.config.time_step  # see module docstring: drop the t = 0 row
     series = {"t": t, "x": x}
-    for name in ("acceleration", "ideal", "measured", "saturated", "external", "contact"):
+    for name in ("acceleration", "ideal", "measured", "saturated", "wrench_contact_true",
+                 "contact_true"):
         ti, values = data(getattr(station.loggers, name))
         if len(ti) != len(t) or not np.allclose(ti, t):
             raise RuntimeError(f"logger {name!r} is not sampled with the state logger")
@@ -160,19 +157,19 @@ def assemble_log(station: Station, root_context) -> pd.DataFrame:
         frame.update(zip(col.joint_columns(prefix, n), values.T, strict=True))
     if station.loggers.push is not None:
         push = data(station.loggers.push)[1]
-        series["external"] = series["external"] + push
+        series["wrench_contact_true"] = series["wrench_contact_true"] + push
         frame_push = np.linalg.norm(push[keep, :3], axis=1)
-    internal_physical = series["ideal"] - series["external"]
+    internal_physical = series["ideal"] - series["wrench_contact_true"]
     internal = station.noisy_sensor.deterministic_reading(internal_physical, t)
     if station.loggers.offset is not None:
         offset = data(station.loggers.offset)[1]
         internal = internal + offset
     for prefix, values in (
         (col.IDEAL, series["ideal"]), (col.MEASURED, series["measured"]),
-        (col.INTERNAL, internal), (col.EXTERNAL, series["external"]),
+        (col.INTERNAL, internal), (col.EXTERNAL, series["wrench_contact_true"]),
     ):
         frame.update(zip(col.wrench_columns(prefix), values[keep].T, strict=True))
-    frame[col.CONTACT] = series["contact"][keep, 0].astype(np.int8)
+    frame[col.CONTACT] = series["contact_true"][keep, 0].astype(np.int8)
     frame[col.SATURATED] = series["saturated"][keep, 0].astype(np.int8)
     if station.loggers.temperature is not None:
         frame[col.TEMPERATURE] = data(station.loggers.temperature)[1][keep, 0]
@@ -192,8 +189,8 @@ def _add_compensation_columns(frame: dict, loggers, root_context, t, keep) -> No
             raise RuntimeError(f"compensation logger {name!r} is not sampled with the state")
         return log.data().T[keep]
 
-    for prefix, name in ((PREDICTED, "internal"), (ESTIMATED, "external"),
-                         (COMPENSATED, "compensated"), (PREDICTED_STD, "std")):
+    for prefix, name in ((PREDICTED, "wrench_internal"), (ESTIMATED, "wrench_contact"),
+                         (COMPENSATED, "wrench_compensated"), (PREDICTED_STD, "wrench_std")):
         frame.update(zip(col.wrench_columns(prefix), values(name).T, strict=True))
     if loggers.bias is not None:
         frame.update(zip(col.wrench_columns(BIAS_ESTIMATE), values("bias").T, strict=True))
@@ -201,5 +198,5 @@ def _add_compensation_columns(frame: dict, loggers, root_context, t, keep) -> No
         frame.update(zip(PAYLOAD_ESTIMATE, values("payload").T, strict=True))
     frame["out_of_domain"] = values("out_of_domain")[:, 0].astype(np.int8)
     frame["fault"] = values("fault")[:, 0].astype(np.int8)
-    frame["detected"] = values("detected")[:, 0].astype(np.int8)
-    frame["detected_force"] = values("detected_force")[:, 0]
+    frame["detected"] = values("contact")[:, 0].astype(np.int8)
+    frame["detected_force"] = values("contact_force")[:, 0]

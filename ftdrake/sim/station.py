@@ -29,14 +29,13 @@ from pydrake.systems.primitives import LogVectorOutput, TrajectorySource, Vector
 from pydrake.trajectories import PiecewisePolynomial
 
 from ..config import ScenarioConfig
-from ..systems.bias_tracker import OnlineBiasTracker
-from ..systems.compensator import CompensatorSystem
+from ..runtime.chain import CompensationChain
 from ..systems.contact_truth import ContactTruth
 from ..systems.controller import DiscreteInverseDynamicsController
-from ..systems.detector import ContactDetector
-from ..systems.events import SensorGravity
 from ..systems.friction import JointFriction, check_explicit_stability
-from ..systems.ft_sensor import ForceTorqueSensor, NoisyForceTorqueSensor
+from ..systems.ft_sensor import ForceTorqueSensor
+from ..systems.noisy_sensor import NoisyForceTorqueSensor
+from ..systems.sensor_gravity import SensorGravity
 from ..systems.wrench_arrows import WrenchArrows
 from .events import EventSignals, add_sensor_events
 from .scene import Scene, add_scene, make_control_plant
@@ -52,8 +51,8 @@ class Loggers:
     ideal: VectorLogSink  # ideal sensor wrench (N, N·m; S)
     measured: VectorLogSink  # the sensor reading the compensator gets (after a re-tare offset)
     saturated: VectorLogSink
-    external: VectorLogSink  # true contact wrench at the sensor
-    contact: VectorLogSink  # true contact flag
+    wrench_contact_true: VectorLogSink  # true contact wrench at the sensor (N, N·m; S)
+    contact_true: VectorLogSink  # true contact flag
     offset: VectorLogSink | None = None  # the driver's zero offset (with a re-tare event)
     push: VectorLogSink | None = None  # the push's wrench at the sensor (with a push event)
     temperature: VectorLogSink | None = None  # the sensor's temperature, °C
@@ -61,29 +60,45 @@ class Loggers:
 
 @dc.dataclass
 class CompensationLoggers:
-    """Loggers of the compensator's and detector's outputs, at the sensor rate."""
+    """Loggers of the runtime chain's outputs at the sensor rate, one per output port of
+    :class:`~ftdrake.runtime.chain.CompensationChain`, named as the port (None where the
+    chain has no such port: ``bias`` without the tracker, ``payload`` without
+    ``track_payload``)."""
 
-    internal: VectorLogSink  # predicted internal wrench (N, N·m; S)
-    external: VectorLogSink  # what the detector reads: measured − predicted − tracked bias
-    compensated: VectorLogSink  # measured − predicted (the compensator's own output)
-    std: VectorLogSink  # the model's predictive std
+    PORTS = ("wrench_internal", "wrench_compensated", "wrench_contact", "wrench_std",
+             "out_of_domain", "fault", "contact", "contact_force", "bias", "payload")
+
+    wrench_internal: VectorLogSink
+    wrench_compensated: VectorLogSink
+    wrench_contact: VectorLogSink
+    wrench_std: VectorLogSink
     out_of_domain: VectorLogSink
     fault: VectorLogSink
-    detected: VectorLogSink  # detector's contact flag
-    detected_force: VectorLogSink  # detector's ‖F‖ while in contact (N)
-    bias: VectorLogSink | None = None  # the tracker's published bias (N, N·m; S)
-    payload: VectorLogSink | None = None  # the tracker's [Δm, Δ(m·c)] (kg, kg·m; S)
+    contact: VectorLogSink
+    contact_force: VectorLogSink
+    bias: VectorLogSink | None = None
+    payload: VectorLogSink | None = None
 
 
 @dc.dataclass
 class Compensation:
-    """The compensator and detector in the loop, with their loggers."""
+    """The runtime chain in the loop, with its loggers."""
 
-    compensator: CompensatorSystem
-    detector: ContactDetector
+    chain: CompensationChain
     loggers: CompensationLoggers
-    tracker: OnlineBiasTracker | None = None  # None with scenario.bias_tracker.enabled off
-    tracked_external: object = None  # OutputPort: the wrench the detector reads
+
+    @property
+    def compensator(self):
+        return self.chain.compensator
+
+    @property
+    def detector(self):
+        return self.chain.detector
+
+    @property
+    def tracker(self):
+        """The bias tracker; None with ``scenario.bias_tracker.enabled`` off."""
+        return self.chain.tracker
 
 
 @dc.dataclass
@@ -200,8 +215,8 @@ def build_station(config: ScenarioConfig, compensator=None, *, meshcat=None,
         ideal=log(sensor.get_output_port_wrench()),
         measured=log(events.reading),
         saturated=log(noisy.get_output_port_saturated()),
-        external=log(truth.get_output_port_wrench_external()),
-        contact=log(truth.get_output_port_contact()),
+        wrench_contact_true=log(truth.get_output_port_wrench_contact_true()),
+        contact_true=log(truth.get_output_port_contact_true()),
         offset=log(events.offset) if events.offset is not None else None,
         push=log(events.push.get_output_port_wrench_S()) if events.push is not None else None,
         temperature=log(noisy.get_output_port_temperature()),
@@ -215,7 +230,8 @@ def build_station(config: ScenarioConfig, compensator=None, *, meshcat=None,
         if meshcat is not None:
             arrows = builder.AddNamedSystem("wrench_arrows", WrenchArrows(meshcat, plant, scene))
             builder.Connect(events.reading, arrows.get_input_port_measured())
-            builder.Connect(compensation.tracked_external, arrows.get_input_port_external())
+            builder.Connect(compensation.chain.get_output_port_wrench_contact(),
+                            arrows.get_input_port_external())
             builder.Connect(plant.get_body_poses_output_port(), arrows.get_input_port_body_poses())
     if meshcat is not None:
         from pydrake.visualization import (  # noqa: PLC0415 (only with Meshcat)
@@ -237,70 +253,39 @@ def build_station(config: ScenarioConfig, compensator=None, *, meshcat=None,
 
 def _add_compensation(builder, config, model, scene, events: EventSignals, period, log,
                       temperature) -> Compensation:
+    """The runtime chain in the loop: the sensor's reading and the arm's state in; the
+    tracker's payload regressor from the plant's own kinematics (SensorGravity)."""
     plant = scene.plant
-    compensator = builder.AddNamedSystem(
-        "compensator",
-        CompensatorSystem(model, period, n_joints=plant.num_positions(scene.arm),
-                          acceleration_cutoff_hz=config.compensator.acceleration_cutoff_hz),
-    )
-    builder.Connect(events.reading, compensator.get_input_port_wrench_measured())
-    builder.Connect(plant.get_state_output_port(scene.arm),
-                    compensator.get_input_port_joint_state())
-    if compensator.needs_temperature:  # a model trained with the sensor temperature (°C)
-        builder.Connect(temperature, compensator.get_input_port_temperature())
-    detector = builder.AddNamedSystem("contact_detector", ContactDetector(config.detector, period))
-    tracker = None
-    external = compensator.get_output_port_wrench_external()
-    if config.bias_tracker.enabled:
-        tracker = _add_tracker(builder, config, scene, compensator, detector, events, period)
-        external = tracker.get_output_port_wrench_external()
-    builder.Connect(external, detector.get_input_port_wrench_external())
-    builder.Connect(compensator.get_output_port_wrench_std(), detector.get_input_port_wrench_std())
-    loggers = CompensationLoggers(
-        internal=log(compensator.get_output_port_wrench_internal()),
-        external=log(external),
-        compensated=log(compensator.get_output_port_wrench_external()),
-        std=log(compensator.get_output_port_wrench_std()),
-        out_of_domain=log(compensator.get_output_port_out_of_domain()),
-        fault=log(compensator.get_output_port_fault()),
-        detected=log(detector.get_output_port_contact()),
-        detected_force=log(detector.get_output_port_contact_force()),
-        bias=log(tracker.get_output_port_bias()) if tracker else None,
-        payload=(log(tracker.get_output_port_payload())
-                 if tracker and tracker.track_payload else None),
-    )
-    return Compensation(compensator, detector, loggers, tracker, external)
+    chain = builder.AddNamedSystem("compensation_chain", CompensationChain(
+        model, config, period=period, n_joints=plant.num_positions(scene.arm), gravity="input"))
+    builder.Connect(events.reading, chain.get_input_port_wrench_measured())
+    builder.Connect(plant.get_state_output_port(scene.arm), chain.get_input_port_joint_state())
+    if chain.needs_temperature:  # a model trained with the sensor temperature (°C)
+        builder.Connect(temperature, chain.get_input_port_temperature())
+    if events.tared is not None and chain.HasInputPort("tared"):
+        builder.Connect(events.tared, chain.get_input_port_tared())
+    if chain.HasInputPort("gravity_S"):
+        _add_sensor_gravity(builder, scene, chain)
+    if events.payload_changed is not None and chain.HasInputPort("payload_changed"):
+        builder.Connect(events.payload_changed, chain.get_input_port_payload_changed())
+    loggers = CompensationLoggers(**{
+        name: log(chain.GetOutputPort(name)) if chain.HasOutputPort(name) else None
+        for name in CompensationLoggers.PORTS})
+    return Compensation(chain, loggers)
 
 
-def _add_tracker(builder, config, scene, compensator, detector, events: EventSignals,
-                 period) -> OnlineBiasTracker:
-    """The bias tracker between the compensator and the detector (bias_tracker.py's wiring)."""
-    tracker = builder.AddNamedSystem(
-        "bias_tracker", OnlineBiasTracker(config.bias_tracker, config.sensor, period))
-    builder.Connect(compensator.get_output_port_wrench_external(),
-                    tracker.get_input_port_wrench_external())
-    builder.Connect(compensator.get_output_port_out_of_domain(),
-                    tracker.get_input_port_out_of_domain())
-    builder.Connect(compensator.get_output_port_fault(), tracker.get_input_port_fault())
-    builder.Connect(detector.get_output_port_contact(), tracker.get_input_port_contact())
-    if events.tared is not None:
-        builder.Connect(events.tared, tracker.get_input_port_tared())
-    if tracker.track_payload:
-        gravity = builder.AddNamedSystem(
-            "sensor_gravity", SensorGravity(scene.plant, scene.sensor_frame))
-        builder.Connect(scene.plant.get_body_poses_output_port(),
-                        gravity.get_input_port_body_poses())
-        builder.Connect(scene.plant.get_body_spatial_velocities_output_port(),
-                        gravity.get_input_port_body_spatial_velocities())
-        builder.Connect(scene.plant.get_body_spatial_accelerations_output_port(),
-                        gravity.get_input_port_body_spatial_accelerations())
-        builder.Connect(gravity.get_output_port_gravity_S(), tracker.get_input_port_gravity_S())
-        if config.bias_tracker.track_payload_motion:
-            builder.Connect(gravity.get_output_port_motion_S(),
-                            tracker.get_input_port_motion_S())
-        if events.payload_changed is not None:
-            builder.Connect(events.payload_changed, tracker.get_input_port_payload_changed())
-    return tracker
+def _add_sensor_gravity(builder, scene, chain: CompensationChain) -> None:
+    """g_S − a_So and S's [ω; α] from the plant's kinematics, into the chain's tracker."""
+    plant = scene.plant
+    gravity = builder.AddNamedSystem("sensor_gravity", SensorGravity(plant, scene.sensor_frame))
+    builder.Connect(plant.get_body_poses_output_port(), gravity.get_input_port_body_poses())
+    builder.Connect(plant.get_body_spatial_velocities_output_port(),
+                    gravity.get_input_port_body_spatial_velocities())
+    builder.Connect(plant.get_body_spatial_accelerations_output_port(),
+                    gravity.get_input_port_body_spatial_accelerations())
+    builder.Connect(gravity.get_output_port_gravity_S(), chain.get_input_port_gravity_S())
+    if chain.HasInputPort("motion_S"):
+        builder.Connect(gravity.get_output_port_motion_S(), chain.get_input_port_motion_S())
 
 
 def plan_trajectory(config: ScenarioConfig, geometry: RobotGeometry | None = None):

@@ -16,10 +16,10 @@ class ContactTruth(LeafSystem):
       contact_results (abstract ContactResults): the plant's contact results port.
       body_poses (abstract, list of RigidTransform): the plant's body poses port (X_WB).
     Output ports (sampled every `period` s, like the sensor):
-      wrench_external (6): ``[Fx Fy Fz Tx Ty Tz]`` N, N·m: the sum of contact forces the
+      wrench_contact_true (6): ``[Fx Fy Fz Tx Ty Tz]`` N, N·m: the sum of contact forces the
         environment applies to the tool, about the sensor origin So, expressed in S. This is
         what the sensor reads on top of the internal wrench.
-      contact (1): 1.0 while any tool body touches any environment body, else 0.0.
+      contact_true (1): 1.0 while any tool body touches any environment body, else 0.0.
 
     Point contact only (the plant ftdrake builds uses ContactModel.kPoint). Like the plant's
     sampled ports, this reads no contact before the first step.
@@ -43,8 +43,8 @@ class ContactTruth(LeafSystem):
         self._wrench = self.DeclareDiscreteState(6)
         self._contact = self.DeclareDiscreteState(1)
         self.DeclarePeriodicDiscreteUpdateEvent(period, 0.0, self._sample)
-        self.DeclareStateOutputPort("wrench_external", self._wrench)
-        self.DeclareStateOutputPort("contact", self._contact)
+        self.DeclareStateOutputPort("wrench_contact_true", self._wrench)
+        self.DeclareStateOutputPort("contact_true", self._contact)
 
     def get_input_port_contact_results(self):
         return self.GetInputPort("contact_results")
@@ -52,11 +52,11 @@ class ContactTruth(LeafSystem):
     def get_input_port_body_poses(self):
         return self.GetInputPort("body_poses")
 
-    def get_output_port_wrench_external(self):
-        return self.GetOutputPort("wrench_external")
+    def get_output_port_wrench_contact_true(self):
+        return self.GetOutputPort("wrench_contact_true")
 
-    def get_output_port_contact(self):
-        return self.GetOutputPort("contact")
+    def get_output_port_contact_true(self):
+        return self.GetOutputPort("contact_true")
 
     def _sample(self, context, discrete_state):
         results = self._results.Eval(context)

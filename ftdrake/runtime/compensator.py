@@ -33,7 +33,7 @@ class CompensatorSystem(LeafSystem):
     Output ports (held between samples; updated every `period` s):
       wrench_internal (6): predicted internal wrench as the sensor reads it, N, N·m (in S,
         or in the sensor's own frame Sm for a model that identified its mounting).
-      wrench_external (6): the contact wrench, N, N·m, about So in S: wrench_measured −
+      wrench_compensated (6): the compensated wrench, N, N·m, about So in S: wrench_measured −
         wrench_internal, times the model's ``reading_to_model_frame()`` T when it has one
         (a physics or hybrid model that identified the sensor's mounting rotation or a
         gain/cross-talk matrix: the reading is then in the sensor's own frame Sm, and T
@@ -99,7 +99,7 @@ class CompensatorSystem(LeafSystem):
         self._fault = self.DeclareDiscreteState(1)
         self.DeclarePeriodicDiscreteUpdateEvent(self.period, 0.0, self._update)
         for name, index in (("wrench_internal", self._internal),
-                            ("wrench_external", self._external), ("wrench_std", self._std),
+                            ("wrench_compensated", self._external), ("wrench_std", self._std),
                             ("out_of_domain", self._ood), ("fault", self._fault)):
             self.DeclareStateOutputPort(name, index)
 
@@ -118,8 +118,8 @@ class CompensatorSystem(LeafSystem):
     def get_output_port_wrench_internal(self):
         return self.GetOutputPort("wrench_internal")
 
-    def get_output_port_wrench_external(self):
-        return self.GetOutputPort("wrench_external")
+    def get_output_port_wrench_compensated(self):
+        return self.GetOutputPort("wrench_compensated")
 
     def get_output_port_wrench_std(self):
         return self.GetOutputPort("wrench_std")

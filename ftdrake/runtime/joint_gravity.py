@@ -1,10 +1,10 @@
 """JointStateGravity: the apparent gravity at the sensor and the sensor frame's angular velocity
 and acceleration, from the joint state alone.
 
-The simulation's :class:`~ftdrake.systems.events.SensorGravity` reads the plant's body poses,
-velocities and accelerations. A live robot has no plant, only its joint state, so this system
-computes the same quantities from ``[q; v]`` through the robot's compiled serial chain
-(:class:`~ftdrake.physics.chain.SerialChain`), with q̈ estimated the way
+The simulation's :class:`~ftdrake.systems.sensor_gravity.SensorGravity` reads the plant's
+body poses, velocities and accelerations. A live robot has no plant, only its joint state,
+so this system computes the same quantities from ``[q; v]`` through the robot's compiled
+serial chain (:class:`~ftdrake.physics.chain.SerialChain`), with q̈ estimated the way
 ``CompensatorSystem`` estimates it (a causal difference of v, low-passed at
 ``acceleration_cutoff_hz``). It feeds the bias tracker's payload estimate on hardware. α (and
 a_So) inherit the q̈ estimate's filter: a lag of ~1/(2π·cutoff) (6 ms at 25 Hz).

@@ -16,7 +16,7 @@ class ContactDetector(LeafSystem):
     """Detects contact from the external wrench, with hysteresis and debouncing.
 
     Input ports:
-      wrench_external (6): ``[Fx Fy Fz Tx Ty Tz]`` N, N·m (e.g. CompensatorSystem's output).
+      wrench_contact (6): ``[Fx Fy Fz Tx Ty Tz]`` N, N·m (e.g. CompensatorSystem's output).
       wrench_std (6, optional): the compensator's predictive std; raises the thresholds by
         ``std_gain · ‖std‖`` when connected.
     Output ports (updated every `period` s):
@@ -30,7 +30,7 @@ class ContactDetector(LeafSystem):
         super().__init__()
         self.config = config.validate()
         self.period = float(period)
-        self._wrench_port = self.DeclareVectorInputPort("wrench_external", 6)
+        self._wrench_port = self.DeclareVectorInputPort("wrench_contact", 6)
         self._std_port = self.DeclareVectorInputPort("wrench_std", 6)
         self._flag = self.DeclareDiscreteState(1)
         self._force = self.DeclareDiscreteState(1)
@@ -45,8 +45,8 @@ class ContactDetector(LeafSystem):
         self._arm_after_s, self._uses_std = c.arm_after_s, c.std_gain > 0
         self._no_std = np.zeros(6)
 
-    def get_input_port_wrench_external(self):
-        return self.GetInputPort("wrench_external")
+    def get_input_port_wrench_contact(self):
+        return self.GetInputPort("wrench_contact")
 
     def get_input_port_wrench_std(self):
         return self.GetInputPort("wrench_std")

@@ -38,11 +38,8 @@ from pydrake.systems.analysis import Simulator
 from pydrake.systems.framework import EventStatus
 from tqdm.auto import tqdm
 
-from ftdrake.sim.events import apply_grasp
-from ftdrake.sim.simulate import SimResult, assemble_log, set_initial_state
-
-from .config import HardwareConfig
-from .messages import (
+from ..hardware.config import HardwareConfig
+from ..hardware.messages import (
     PAYLOAD_COORD,
     TARE_COORD,
     encode_event,
@@ -50,7 +47,9 @@ from .messages import (
     encode_temperature,
     encode_wrench,
 )
-from .transport import open_lcm
+from ..hardware.transport import open_lcm
+from .events import apply_grasp
+from .simulate import SimResult, assemble_log, set_initial_state
 
 
 class _Publisher:

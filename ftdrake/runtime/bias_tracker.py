@@ -2,21 +2,12 @@
 squares with forgetting, frozen during contact. Sits between CompensatorSystem and
 ContactDetector::
 
-    compensator.wrench_external ──▶ tracker ──▶ detector.wrench_external
+    compensator.wrench_compensated ──▶ tracker ──▶ detector.wrench_contact
     compensator.out_of_domain, fault ──▶ tracker ◀── detector.contact
 
-Wiring (names of the ports)::
-
-    tracker = builder.AddSystem(OnlineBiasTracker(BiasTrackerConfig(), scenario.sensor))
-    builder.Connect(comp.get_output_port_wrench_external(),
-                    tracker.get_input_port_wrench_external())
-    builder.Connect(comp.get_output_port_out_of_domain(), tracker.get_input_port_out_of_domain())
-    builder.Connect(comp.get_output_port_fault(), tracker.get_input_port_fault())
-    builder.Connect(tracker.get_output_port_wrench_external(), det.get_input_port_wrench_external())
-    builder.Connect(det.get_output_port_contact(), tracker.get_input_port_contact())
-
-The detector's ``contact`` is a state output (updated at the same sample times), so the tracker
-reads the flag computed from the previous sample: there is no algebraic loop and no
+Wired by :class:`~ftdrake.runtime.chain.CompensationChain`. The detector's ``contact`` is a
+state output (updated at the same sample times), so the tracker reads the flag computed from
+the previous sample: there is no algebraic loop and no
 direct-feedthrough path through the pair.
 
 The model (one sample, sensor frame S, ``[Fx Fy Fz Tx Ty Tz]`` in N, N·m)::
@@ -163,7 +154,7 @@ class OnlineBiasTracker(LeafSystem):
     """Tracks the bias (and optionally a payload) of the external wrench while not in contact.
 
     Input ports:
-      wrench_external (6): measured − predicted internal wrench (CompensatorSystem), N, N·m, S.
+      wrench_compensated (6): measured − predicted internal wrench (CompensatorSystem), N, N·m, S.
       contact (1): the detector's flag (its state output: the previous sample's decision).
       out_of_domain (1, optional): the compensator's flag; unconnected = 0.
       fault (1, optional): the compensator's flag; unconnected = 0.
@@ -180,7 +171,7 @@ class OnlineBiasTracker(LeafSystem):
       payload_changed (1, optional, with ``track_payload``): > 0.5 when a payload was grasped
         or released.
     Output ports (updated every `period` s):
-      wrench_external (6): input − bias − [F_P; T_P] (the payload's wrench, module
+      wrench_contact (6): input − bias − [F_P; T_P] (the payload's wrench, module
         docstring), N, N·m, S.
       bias (6): the published bias estimate, N, N·m, S.
       payload (4, with ``track_payload``): [Δm (kg), Δ(m·c) about So in S (kg·m)].
@@ -244,7 +235,7 @@ class OnlineBiasTracker(LeafSystem):
         self._inertia = self.DeclareDiscreteState(6) if self.track_payload else None
         self._tracking = self.DeclareDiscreteState(1)
 
-        self._wrench_port = self.DeclareVectorInputPort("wrench_external", 6)
+        self._wrench_port = self.DeclareVectorInputPort("wrench_compensated", 6)
         self._contact_port = self.DeclareVectorInputPort("contact", 1)
         self._ood_port = self.DeclareVectorInputPort("out_of_domain", 1)
         self._fault_port = self.DeclareVectorInputPort("fault", 1)
@@ -254,7 +245,7 @@ class OnlineBiasTracker(LeafSystem):
             self._motion_port = self.DeclareVectorInputPort("motion_S", 6)
             self._changed_port = self.DeclareVectorInputPort("payload_changed", 1)
         self.DeclarePeriodicDiscreteUpdateEvent(self.period, 0.0, self._update)
-        self.DeclareStateOutputPort("wrench_external", self._corrected)
+        self.DeclareStateOutputPort("wrench_contact", self._corrected)
         self.DeclareStateOutputPort("bias", self._bias)
         if self.track_payload:
             self.DeclareStateOutputPort("payload", self._payload)
@@ -266,8 +257,8 @@ class OnlineBiasTracker(LeafSystem):
         self._no_payload = np.zeros(n)
 
     # -- ports ---------------------------------------------------------------------------------
-    def get_input_port_wrench_external(self):
-        return self.GetInputPort("wrench_external")
+    def get_input_port_wrench_compensated(self):
+        return self.GetInputPort("wrench_compensated")
 
     def get_input_port_contact(self):
         return self.GetInputPort("contact")
@@ -290,8 +281,8 @@ class OnlineBiasTracker(LeafSystem):
     def get_input_port_payload_changed(self):
         return self.GetInputPort("payload_changed")
 
-    def get_output_port_wrench_external(self):
-        return self.GetOutputPort("wrench_external")
+    def get_output_port_wrench_contact(self):
+        return self.GetOutputPort("wrench_contact")
 
     def get_output_port_bias(self):
         return self.GetOutputPort("bias")

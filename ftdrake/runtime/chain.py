@@ -1,0 +1,242 @@
+"""CompensationChain: the product, one Diagram that the simulated and the live station both add.
+
+    wrench_measured ──► CompensatorSystem ── wrench_compensated ──► OnlineBiasTracker
+    joint_state ───────►  (model)                                 (bias, re-tare, grasp)
+    temperature ───────►      │ wrench_std, out_of_domain, fault        │ wrench_contact
+                              ▼                                         ▼
+                        ContactDetector ◄───────────────────────────────┘
+                              │ contact, contact_force
+                              └──► (back to the tracker: it freezes during contact)
+
+Built from one :class:`~ftdrake.config.ScenarioConfig` (its ``compensator``, ``bias_tracker``,
+``detector`` and ``sensor`` sections) and a fitted compensator. With the tracker disabled the
+detector reads ``wrench_compensated`` directly. With ``bias_tracker.track_payload`` the tracker
+needs the apparent gravity at the sensor: from the joint state through the robot's serial chain
+(``gravity="joint_state"``, the live robot's way; :class:`JointStateGravity`), or from inputs
+(``gravity="input"``, the simulation's way: the plant's kinematics).
+
+Adding it to a diagram (frames, units and signs as in :mod:`ftdrake.conventions`)::
+
+    chain = builder.AddSystem(CompensationChain(model, scenario))
+    builder.Connect(sensor_reading, chain.get_input_port_wrench_measured())
+    builder.Connect(plant.get_state_output_port(arm), chain.get_input_port_joint_state())
+"""
+
+from __future__ import annotations
+
+import math
+
+from pydrake.systems.framework import Diagram, DiagramBuilder
+
+from ..config import ScenarioConfig
+from ..errors import ConfigError
+from ..physics.chain import SerialChain
+from ..physics.robot import RobotDescription
+from ..physics.scenario_robot import robot_description
+from .bias_tracker import OnlineBiasTracker
+from .compensator import CompensatorSystem
+from .detector import ContactDetector
+from .joint_gravity import JointStateGravity
+
+GRAVITY_SOURCES = ("joint_state", "input")
+
+
+class CompensationChain(Diagram):
+    """Compensator → bias tracker → contact detector, with exported ports (held between
+    samples, updated every `period` s; the compensator's output lags its inputs by one sample).
+
+    Input ports:
+      wrench_measured (6): the sensor reading ``[Fx Fy Fz Tx Ty Tz]`` in N, N·m, in the frame
+        the sensor measures in (S, or its own frame Sm when the model identified a mounting).
+      joint_state (2n): ``[q; v]`` in rad, rad/s, in the model's joint order.
+      temperature (1; only when the model was trained with it): the sensor's temperature, °C.
+      tared (1; with the bias tracker): > 0.5 for a sample when the sensor was re-tared.
+      payload_changed (1; with ``track_payload``): > 0.5 when a payload was grasped or let go.
+      gravity_S (3), motion_S (6; with ``track_payload`` and ``gravity="input"``; motion_S
+        with ``track_payload_motion``): ``g − a_So`` in m/s² and S's ``[ω; α]`` in rad/s,
+        rad/s², all in S.
+    Output ports:
+      wrench_internal (6): the model's internal wrench as the sensor reads it, N, N·m.
+      wrench_compensated (6): measured − internal, turned into S (N, N·m, about So).
+      wrench_contact (6): the contact wrench estimate the detector judges: compensated − the
+        tracker's bias and payload wrench (= wrench_compensated without the tracker).
+      wrench_std (6): the model's predictive std (zeros for a model without one).
+      out_of_domain (1), fault (1): 1.0 when a joint input is outside the training range /
+        the latest inputs were not finite (outputs then hold their last good values).
+      contact (1): 1.0 while the detector reports contact.
+      contact_force (1): ‖F‖ of wrench_contact in N while in contact, else 0.
+      bias (6; with the tracker): the tracker's published bias, N, N·m, in S.
+      payload (4; with ``track_payload``): ``[Δm; Δ(m·c)]`` in kg, kg·m (S).
+
+    `model`: a fitted ftdrake compensator (``load_model``). `config`: the scenario (default:
+    ``ScenarioConfig()``). `period`: s (default: the sensor's rate). `n_joints`: checked against
+    the model. `gravity`: see above. `robot`: the RobotDescription whose chain gives
+    ``gravity_S`` from the joint state (default: the scenario's robot).
+    """
+
+    def __init__(self, model, config: ScenarioConfig | None = None, *,
+                 period: float | None = None, n_joints: int | None = None,
+                 gravity: str = "joint_state", robot: RobotDescription | None = None):
+        super().__init__()
+        if gravity not in GRAVITY_SOURCES:
+            raise ConfigError(f"CompensationChain: gravity must be one of {GRAVITY_SOURCES}; "
+                              f"got {gravity!r}")
+        config = config if config is not None else ScenarioConfig()
+        period = float(period) if period is not None else 1.0 / config.sensor.spec().rate_hz
+        if not (period > 0 and math.isfinite(period)):
+            raise ConfigError(f"CompensationChain: period must be a positive number of seconds; "
+                              f"got {period!r}")
+        self.config, self.period = config, period
+        builder = DiagramBuilder()
+        self.compensator = builder.AddNamedSystem("compensator", CompensatorSystem(
+            model, period, n_joints=n_joints,
+            acceleration_cutoff_hz=config.compensator.acceleration_cutoff_hz))
+        self.detector = builder.AddNamedSystem("contact_detector",
+                                               ContactDetector(config.detector, period))
+        self.tracker = self.gravity = None
+        comp = self.compensator
+        contact_wrench = comp.get_output_port_wrench_compensated()
+        if config.bias_tracker.enabled:
+            self.tracker = builder.AddNamedSystem(
+                "bias_tracker", OnlineBiasTracker(config.bias_tracker, config.sensor, period))
+            self._wire_tracker(builder)
+            contact_wrench = self.tracker.get_output_port_wrench_contact()
+        builder.Connect(contact_wrench, self.detector.get_input_port_wrench_contact())
+        builder.Connect(comp.get_output_port_wrench_std(),
+                        self.detector.get_input_port_wrench_std())
+
+        builder.ExportInput(comp.get_input_port_wrench_measured(), "wrench_measured")
+        joint_state = builder.ExportInput(comp.get_input_port_joint_state(), "joint_state")
+        if comp.needs_temperature:
+            builder.ExportInput(comp.get_input_port_temperature(), "temperature")
+        if self.tracker is not None:
+            builder.ExportInput(self.tracker.get_input_port_tared(), "tared")
+            if self.tracker.track_payload:
+                self._wire_gravity(builder, gravity, joint_state, robot, model)
+                builder.ExportInput(self.tracker.get_input_port_payload_changed(),
+                                    "payload_changed")
+
+        builder.ExportOutput(comp.get_output_port_wrench_internal(), "wrench_internal")
+        builder.ExportOutput(comp.get_output_port_wrench_compensated(), "wrench_compensated")
+        builder.ExportOutput(contact_wrench, "wrench_contact")
+        builder.ExportOutput(comp.get_output_port_wrench_std(), "wrench_std")
+        builder.ExportOutput(comp.get_output_port_out_of_domain(), "out_of_domain")
+        builder.ExportOutput(comp.get_output_port_fault(), "fault")
+        builder.ExportOutput(self.detector.get_output_port_contact(), "contact")
+        builder.ExportOutput(self.detector.get_output_port_contact_force(), "contact_force")
+        if self.tracker is not None:
+            builder.ExportOutput(self.tracker.get_output_port_bias(), "bias")
+            if self.tracker.track_payload:
+                builder.ExportOutput(self.tracker.get_output_port_payload(), "payload")
+        builder.BuildInto(self)
+        self.set_name("compensation_chain")
+
+    @property
+    def needs_temperature(self) -> bool:
+        """Whether the model takes the sensor temperature (the ``temperature`` input exists)."""
+        return self.compensator.needs_temperature
+
+    def initialize(self, root_context) -> None:
+        """Sets the tracker's starting estimate from ``config.bias_tracker`` (``initial_bias``,
+        ``start_settled``) in `root_context` (the context of the diagram holding the chain)."""
+        if self.tracker is None:
+            return
+        settings = self.config.bias_tracker
+        self.tracker.set_estimate(self.tracker.GetMyMutableContextFromRoot(root_context),
+                                  settings.initial_bias, [0.0] * 4,
+                                  settled=settings.start_settled)
+
+    def _wire_tracker(self, builder) -> None:
+        comp, tracker = self.compensator, self.tracker
+        builder.Connect(comp.get_output_port_wrench_compensated(),
+                        tracker.get_input_port_wrench_compensated())
+        builder.Connect(comp.get_output_port_out_of_domain(),
+                        tracker.get_input_port_out_of_domain())
+        builder.Connect(comp.get_output_port_fault(), tracker.get_input_port_fault())
+        # The detector's contact is a state output (the previous sample's flag): no algebraic
+        # loop through the pair.
+        builder.Connect(self.detector.get_output_port_contact(), tracker.get_input_port_contact())
+
+    def _wire_gravity(self, builder, gravity: str, joint_state, robot, model) -> None:
+        tracker = self.tracker
+        motion = self.config.bias_tracker.track_payload_motion
+        if gravity == "input":
+            builder.ExportInput(tracker.get_input_port_gravity_S(), "gravity_S")
+            if motion:
+                builder.ExportInput(tracker.get_input_port_motion_S(), "motion_S")
+            return
+        self.gravity = builder.AddNamedSystem(
+            "sensor_gravity", _joint_state_gravity(self.config, robot, model, self.period))
+        builder.ConnectInput(joint_state, self.gravity.get_input_port_joint_state())
+        builder.Connect(self.gravity.get_output_port_gravity_S(),
+                        tracker.get_input_port_gravity_S())
+        if motion:
+            builder.Connect(self.gravity.get_output_port_motion_S(),
+                            tracker.get_input_port_motion_S())
+
+    # Named accessors of the exported ports (those a configuration leaves out raise).
+    def get_input_port_wrench_measured(self):
+        return self.GetInputPort("wrench_measured")
+
+    def get_input_port_joint_state(self):
+        return self.GetInputPort("joint_state")
+
+    def get_input_port_temperature(self):
+        return self.GetInputPort("temperature")
+
+    def get_input_port_tared(self):
+        return self.GetInputPort("tared")
+
+    def get_input_port_payload_changed(self):
+        return self.GetInputPort("payload_changed")
+
+    def get_input_port_gravity_S(self):
+        return self.GetInputPort("gravity_S")
+
+    def get_input_port_motion_S(self):
+        return self.GetInputPort("motion_S")
+
+    def get_output_port_wrench_internal(self):
+        return self.GetOutputPort("wrench_internal")
+
+    def get_output_port_wrench_compensated(self):
+        return self.GetOutputPort("wrench_compensated")
+
+    def get_output_port_wrench_contact(self):
+        return self.GetOutputPort("wrench_contact")
+
+    def get_output_port_wrench_std(self):
+        return self.GetOutputPort("wrench_std")
+
+    def get_output_port_out_of_domain(self):
+        return self.GetOutputPort("out_of_domain")
+
+    def get_output_port_fault(self):
+        return self.GetOutputPort("fault")
+
+    def get_output_port_contact(self):
+        return self.GetOutputPort("contact")
+
+    def get_output_port_contact_force(self):
+        return self.GetOutputPort("contact_force")
+
+    def get_output_port_bias(self):
+        return self.GetOutputPort("bias")
+
+    def get_output_port_payload(self):
+        return self.GetOutputPort("payload")
+
+
+def _joint_state_gravity(config: ScenarioConfig, robot, model, period) -> JointStateGravity:
+    """g_S − a_So and S's [ω; α] from the joint state, on `robot`'s serial chain (default: the
+    scenario's robot; there is no plant on a live robot)."""
+    description = robot if robot is not None else robot_description(config)
+    plant, frame_S = description.build_plant()
+    chain = SerialChain.from_plant(plant, frame_S)
+    if chain.num_positions != int(model.n_joints_):
+        raise ConfigError(f"bias_tracker.track_payload: the robot has {chain.num_positions} "
+                          f"joints, the model {int(model.n_joints_)}; pass the robot the model "
+                          "was trained on (CompensationChain(..., robot=...))")
+    return JointStateGravity(chain, period,
+                             acceleration_cutoff_hz=config.compensator.acceleration_cutoff_hz,
+                             gravity_W=plant.gravity_field().gravity_vector())

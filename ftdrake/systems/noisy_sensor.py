@@ -1,0 +1,227 @@
+"""NoisyForceTorqueSensor: a real sensor's imperfections added to an ideal wrench.
+
+Same frames, units and signs as :mod:`ftdrake.systems.ft_sensor` (wrench ``[F; T]`` in N and
+N·m about So, expressed in S, the load the tool side applies to the sensor). What it adds, each
+set by :class:`~ftdrake.config.SensorConfig`: sampling and a hold, noise, bias drift,
+temperature drift, gain and cross-talk, a mounting rotation, saturation and a low-pass.
+"""
+
+from __future__ import annotations
+
+import functools
+
+import numba
+import numpy as np
+from pydrake.math import RollPitchYaw
+from pydrake.systems.framework import LeafSystem
+
+from ..config import SensorConfig
+
+
+class NoisyForceTorqueSensor(LeafSystem):
+    """Adds a real sensor's imperfections to an ideal wrench, sampled at ``rate_hz``.
+
+    Input ports:
+      wrench_ideal (6): ``[Fx Fy Fz Tx Ty Tz]`` in N, N·m, sensor frame S (the model's).
+    Output ports:
+      wrench_measured (6): in the frame Sm the sensor really measures in (S rotated by the
+        mounting error, ``config.mounting_rpy_deg``), N, N·m; held between samples.
+      saturated (1): 1.0 while any axis is at its range limit.
+      temperature (1): the sensor's temperature, °C, held between samples.
+    State (discrete, updated every 1/rate_hz s): low-pass filter and drift (12) with the
+      sample count (1); the held reading (6); the saturation flag (1); the temperature (1).
+
+    Per sample, in this order: the mounting rotation ``w_Sm = [R_SmS f; R_SmS τ]`` (about So)
+    and the calibration error ``G·C·w_Sm`` (cross-talk C, per-axis gain error G);
+    first-order low-pass at ``bandwidth_hz``; + constant bias + thermal zero drift
+    ``k·(T − T_ambient)`` + random-walk drift + white noise; saturation at ``±range``;
+    quantization to ``resolution``. The temperature is
+    ``T(t) = T_ambient + ΔT·(1 − exp(−t/τ))`` (the wrist warming up from t = 0). Noise is a
+    pure function of (seed, sample index), so a run is reproducible from its seed and
+    contexts can be cloned freely.
+    """
+
+    _BLOCK = 4096  # samples of noise drawn at once
+
+    def __init__(self, config: SensorConfig):
+        super().__init__()
+        config.validate()
+        self.config = config
+        spec = config.spec()
+        self.period = 1.0 / spec.rate_hz
+        self._on = bool(config.imperfections)
+        self._range = np.asarray(spec.range, dtype=float)
+        self._resolution = np.asarray(spec.resolution, dtype=float)
+        self._noise_std = np.asarray(spec.noise_std, dtype=float)
+        self._bias = np.asarray(config.bias, dtype=float)
+        self._drift_step = np.asarray(config.drift_std, dtype=float) * np.sqrt(self.period)
+        self._alpha = 1.0 - np.exp(-2 * np.pi * spec.bandwidth_hz * self.period)
+        self.crosstalk_matrix = crosstalk_matrix(
+            config.crosstalk, config.crosstalk_length_m, config.calibration_seed
+        )
+        #: The calibration's per-axis gain error, diag(1 + gain_error).
+        self.gain_matrix = np.diag(1.0 + np.asarray(config.gain_error, dtype=float))
+        #: R_SSm: the frame Sm the sensor measures in, in the model's S.
+        self.mounting_rotation = mounting_rotation(config.mounting_rpy_deg)
+        rotate = np.kron(np.eye(2), self.mounting_rotation.T)  # w_Sm = rotate · w_S
+        #: What the sensor does to a wrench in S, linearly: the mounting rotation, then the
+        #: cross-talk and the gain error (W_Sm = calibration_matrix · W_S before the bias).
+        self.calibration_matrix = self.gain_matrix @ self.crosstalk_matrix @ rotate
+        self._temperature_coefficients = np.asarray(config.temperature_coefficients, float)
+        self._temperature = (float(config.temperature_ambient_c),
+                             float(config.temperature_rise_c),
+                             float(config.temperature_time_constant_s))
+        self._input = self.DeclareVectorInputPort("wrench_ideal", 6)
+        # Three state groups so the outputs are plain state ports (no Python call per read).
+        self._internal = self.DeclareDiscreteState(13)  # filter (6), drift (6), sample count
+        self._reading = self.DeclareDiscreteState(6)
+        self._saturated = self.DeclareDiscreteState(1)
+        self._temperature_state = self.DeclareDiscreteState([self._temperature[0]])
+        self.DeclarePeriodicDiscreteUpdateEvent(self.period, 0.0, self._sample)
+        self.DeclareStateOutputPort("wrench_measured", self._reading)
+        self.DeclareStateOutputPort("saturated", self._saturated)
+        self.DeclareStateOutputPort("temperature", self._temperature_state)
+        # All constants in one array, so the compiled update takes few arguments (each costs
+        # time at every call): rows 0–5 the cross-talk matrix, then per axis bias, noise σ,
+        # drift step, range, resolution and the filter's α; the temperature coefficients;
+        # [ambient, rise, time constant, period, 0, 0].
+        self._constants = np.vstack([
+            self.calibration_matrix, self._bias, self._noise_std, self._drift_step, self._range,
+            self._resolution, np.full(6, self._alpha), self._temperature_coefficients,
+            [*self._temperature, self.period, 0.0, 0.0],
+        ])
+        # (block index, its draws): the last noise block this sensor used.
+        self._noise = (-1, np.zeros((self._BLOCK, 12)))
+
+    # -- what the sensor does to a wrench without randomness ---------------------------------
+    def get_input_port_wrench_ideal(self):
+        return self.GetInputPort("wrench_ideal")
+
+    def get_output_port_wrench_measured(self):
+        return self.GetOutputPort("wrench_measured")
+
+    def get_output_port_saturated(self):
+        return self.GetOutputPort("saturated")
+
+    def get_output_port_temperature(self):
+        return self.GetOutputPort("temperature")
+
+    def temperature(self, t) -> np.ndarray:
+        """The sensor's temperature (°C) at times `t` (s): ``T_a + ΔT·(1 − exp(−t/τ))``."""
+        ambient, rise, tau = self._temperature
+        return ambient + rise * (1.0 - np.exp(-np.asarray(t, dtype=float) / tau))
+
+    def deterministic_reading(self, wrench, t=None) -> np.ndarray:
+        """``C·R·w + bias`` (+ the thermal zero drift at times `t`, s, if given) for (N, 6) or
+        (6,) wrenches in S: the reading without noise, random-walk drift, filter and
+        quantization, in the frame Sm the sensor measures in."""
+        w = np.asarray(wrench, dtype=float)
+        if not self._on:
+            return w.copy()
+        reading = w @ self.calibration_matrix.T + self._bias
+        if t is not None:
+            rise = self.temperature(t) - self._temperature[0]
+            reading = reading + np.multiply.outer(rise, self._temperature_coefficients)
+        return reading
+
+    # -- the discrete update -----------------------------------------------------------------
+    def _sample(self, context, discrete_state):
+        # Runs every sample (1 kHz by default), so it makes few Python calls: the update
+        # buffer starts as a copy of the current state and is updated in place.
+        internal = discrete_state.get_mutable_value(self._internal)
+        reading = discrete_state.get_mutable_value(self._reading)
+        saturated = discrete_state.get_mutable_value(self._saturated)
+        temperature = discrete_state.get_mutable_value(self._temperature_state)
+        w = self._input.Eval(context)
+        temperature[0] = _temperature_at(internal[12], self._constants[13])
+        if not self._on:
+            _ideal_sample(internal, w, reading, saturated)
+            return
+        block, noise = self._noise
+        if not _imperfect_sample(internal, w, self._constants, block, noise, reading, saturated):
+            # This sample's draws are in another block (every 4096 samples, or a new run).
+            block = int(internal[12]) // self._BLOCK
+            self._noise = (block, _noise_block(self.config.seed, block, self._BLOCK))
+            _imperfect_sample(internal, w, self._constants, *self._noise, reading, saturated)
+
+
+@numba.njit(cache=True)
+def _imperfect_sample(internal, w, constants, block, noise_block, reading, saturated):
+    """One sample of the imperfect sensor, written in place; False (nothing written) if this
+    sample's draws are not in `noise_block`.
+
+    `internal` is [filter (6), drift (6), sample count]; `constants` as built in
+    NoisyForceTorqueSensor.__init__; `noise_block` is block number `block` of the draws
+    (12 per sample: white noise then drift increments).
+    """
+    count = int(internal[12])
+    size = noise_block.shape[0]
+    if count // size != block:
+        return False
+    C, axis = constants[:6], constants[6:]
+    alpha = axis[5, 0]
+    noise = noise_block[count % size]
+    first = internal[12] == 0
+    saturated[0] = 0.0
+    warm = _temperature_at(internal[12], constants[13]) - constants[13, 0]
+    for i in range(6):
+        wi = 0.0
+        for j in range(6):
+            wi += C[i, j] * w[j]
+        filtered = wi if first else internal[i] + alpha * (wi - internal[i])
+        drift = internal[6 + i] + axis[2, i] * noise[6 + i]
+        value = (filtered + axis[0, i] + axis[6, i] * warm + drift
+                 + axis[1, i] * noise[i])
+        limit = axis[3, i]
+        if abs(value) >= limit:
+            saturated[0] = 1.0
+            value = limit if value > 0 else -limit
+        resolution = axis[4, i]
+        if resolution > 0:
+            value = np.round(value / resolution) * resolution
+        internal[i], internal[6 + i], reading[i] = filtered, drift, value
+    internal[12] += 1
+    return True
+
+
+@numba.njit(cache=True)
+def _temperature_at(count, row):
+    """Temperature (°C) at sample `count`; row = [ambient, rise, time constant, period, ...]."""
+    return row[0] + row[1] * (1.0 - np.exp(-count * row[3] / row[2]))
+
+
+@numba.njit(cache=True)
+def _ideal_sample(internal, w, reading, saturated):
+    """Sample-and-hold only (imperfections off)."""
+    for i in range(6):
+        internal[i] = w[i]
+        reading[i] = w[i]
+    saturated[0] = 0.0
+    internal[12] += 1
+
+
+@functools.lru_cache(maxsize=4)
+def _noise_block(seed: int, block: int, size: int) -> np.ndarray:
+    """Standard normal draws (size × 12) for samples [block·size, (block+1)·size)."""
+    return np.random.default_rng([seed, block]).standard_normal((size, 12))
+
+
+def mounting_rotation(rpy_deg) -> np.ndarray:
+    """R_SSm of a mounting error given as roll, pitch, yaw in degrees (Drake's RollPitchYaw:
+    R = Rz(yaw)·Ry(pitch)·Rx(roll))."""
+    return RollPitchYaw(np.radians(np.asarray(rpy_deg, dtype=float))).ToRotationMatrix().matrix()
+
+
+def crosstalk_matrix(magnitude: float, length_m: float, seed: int) -> np.ndarray:
+    """Calibration matrix ``C = I + E``: small off-diagonal coupling between axes.
+
+    Entries of E are uniform in ±magnitude (dimensionless between like axes); a force leaking
+    into a torque channel is scaled by `length_m` (N·m per N), a torque into a force channel by
+    1/length_m. Drawn from `seed`, so a sensor's calibration error is fixed per seed.
+    """
+    rng = np.random.default_rng([seed, 7919])
+    E = rng.uniform(-magnitude, magnitude, size=(6, 6))
+    np.fill_diagonal(E, 0.0)
+    E[3:, :3] *= length_m
+    E[:3, 3:] /= length_m
+    return np.eye(6) + E
