@@ -19,16 +19,13 @@ import json
 import os
 import platform
 import time
-import warnings
 
 import numpy as np
 from pydrake.systems.analysis import Simulator
 
-from ftdrake import HybridCompensator, RandomForestCompensator, ScenarioConfig, build_station
-from ftdrake.compensation.physics import PhysicsPayloadCompensator
-from ftdrake.data.dataset import joint_state_layout, wrench_targets
-from ftdrake.sim.collection import collect
+from ftdrake import ScenarioConfig, build_station
 from ftdrake.sim.simulate import set_initial_state
+from ftdrake.testing import demo_models
 
 REPEATS = 3
 
@@ -52,21 +49,6 @@ def rtf(config, compensator=None, duration=6.0, detections=None):
         n = min(len(detected), len(truth))
         detections.append(float(np.mean((detected[:n] > 0.5) & (truth[:n] < 0.5))))
     return factor
-
-
-def demo_models():
-    """(forest, hybrid) trained on two simulated 8 s Fourier trajectories: the demo's layouts,
-    a multi-output forest of 100 trees on q and the hybrid as the demo's (mounting rotation
-    and weight carried without inertia identified, 20 parameters) with its default residual
-    (``hybrid.default_residual``: 50 trees on q)."""
-    data = collect(ScenarioConfig(), 2, kind="fourier", duration=8.0, progress=False)
-    X, Y = joint_state_layout(data)[::4], wrench_targets(data)[::4]
-    forest = RandomForestCompensator(features="q", per_output=False, random_state=0).fit(X, Y)
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        hybrid = HybridCompensator(physics=PhysicsPayloadCompensator(
-            identify_mounting=True, weight_without_inertia=True)).fit(X, Y)
-    return forest, hybrid
 
 
 def main():

@@ -29,8 +29,7 @@ from ftdrake.compensation.physics import ExcitationWarning, PhysicsPayloadCompen
 from ftdrake.config import dump_config
 from ftdrake.data.dataset import joint_state_layout, wrench_targets
 from ftdrake.sim.collection import simulate_one, trajectory_config
-
-MASS_GOAL, COM_GOAL_MM = 0.01, 2.0
+from ftdrake.testing import COM_SPREAD_GOAL_MM, MASS_SPREAD_GOAL, identification_spread
 
 
 def run_configs(base: ScenarioConfig, run: int, trajectories: int) -> list[str]:
@@ -50,18 +49,6 @@ def identify(frame: pd.DataFrame) -> tuple[float, np.ndarray]:
         model = PhysicsPayloadCompensator(identification="consistent").fit(X, Y)
     p = model.parameters_
     return float(p[0]), p[1:4] / p[0]
-
-
-def spread(masses, coms) -> dict:
-    masses, coms = np.asarray(masses), np.asarray(coms)
-    return {
-        "mass_mean_kg": float(masses.mean()),
-        "mass_range_rel": float(np.ptp(masses) / masses.mean()),
-        "mass_std_rel": float(masses.std(ddof=1) / masses.mean()),
-        "com_range_mm": (1e3 * np.ptp(coms, axis=0)).tolist(),
-        "com_std_mm": (1e3 * coms.std(axis=0, ddof=1)).tolist(),
-        "com_max_dev_mm": float(1e3 * np.linalg.norm(coms - coms.mean(0), axis=1).max()),
-    }
 
 
 def main(argv=None) -> int:
@@ -88,14 +75,15 @@ def main(argv=None) -> int:
         masses.append(m)
         coms.append(c)
         print(f"{run:>4} {m:9.4f} " + " ".join(f"{1e3 * v:8.2f}" for v in c))
-    result = spread(masses, coms)
+    result = identification_spread(masses, coms)
     print(f"\nmass: mean {result['mass_mean_kg']:.4f} kg, "
-          f"range {100 * result['mass_range_rel']:.2f} % (goal < {100 * MASS_GOAL:.0f} %), "
+          f"range {100 * result['mass_range_rel']:.2f} % (goal < {100 * MASS_SPREAD_GOAL:.0f} %), "
           f"std {100 * result['mass_std_rel']:.2f} %")
     print("CoM range per axis: " + ", ".join(f"{v:.2f}" for v in result["com_range_mm"])
-          + f" mm (goal < {COM_GOAL_MM} mm); largest distance from the mean "
+          + f" mm (goal < {COM_SPREAD_GOAL_MM} mm); largest distance from the mean "
           f"{result['com_max_dev_mm']:.2f} mm")
-    ok = result["mass_range_rel"] < MASS_GOAL and max(result["com_range_mm"]) < COM_GOAL_MM
+    ok = (result["mass_range_rel"] < MASS_SPREAD_GOAL
+          and max(result["com_range_mm"]) < COM_SPREAD_GOAL_MM)
     print("goal met" if ok else "goal NOT met")
     print(json.dumps({"benchmark": "identification_repeatability", "runs": args.runs,
                       "trajectories": args.trajectories, "duration_s": args.duration, **result,

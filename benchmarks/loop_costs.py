@@ -6,7 +6,7 @@ wrapped around each system's update method for one run; "hot" repeats a call on 
 context; "cold" sums a 16 MB array before each call, as a plant step evicts the caches.
 
 Default: the free-motion diagram (no compensation). ``--compensation``: the contact scenario
-with the demo's forest and hybrid in the loop (``closed_loop_rtf.demo_models``), timing the
+with the demo's forest and hybrid in the loop (``ftdrake.testing.demo_models``), timing the
 compensator, bias tracker and detector too, interleaved runs per model; "rest" is the step
 minus the timed updates (plant, controller, loggers, Drake's event handling).
 
@@ -33,6 +33,7 @@ from ftdrake.sim.station import plan_trajectory
 from ftdrake.systems.contact_truth import ContactTruth
 from ftdrake.systems.ft_sensor import ForceTorqueSensor
 from ftdrake.systems.noisy_sensor import NoisyForceTorqueSensor
+from ftdrake.testing import demo_models
 
 UPDATES = {  # system class → the method Drake calls at every sample
     "ideal sensor": (ForceTorqueSensor, "_calc_wrench"),
@@ -151,8 +152,6 @@ def free_motion(duration):
 
 def compensation(duration, repeats):
     """The contact scenario with the forest and the hybrid, interleaved runs, medians."""
-    from closed_loop_rtf import demo_models  # a sibling script: benchmarks/ is on sys.path
-
     models = dict(zip(("forest", "hybrid"), demo_models(), strict=True))
     config = ScenarioConfig()
     trajectory = plan_trajectory(config)  # once: the same motion for every run

@@ -17,10 +17,8 @@ from __future__ import annotations
 import argparse
 import json
 import platform
-import sys
 import time
 import warnings
-from pathlib import Path
 
 import numpy as np
 from pydrake.systems.analysis import Simulator
@@ -28,15 +26,13 @@ from pydrake.systems.framework import DiagramBuilder
 from pydrake.systems.primitives import LogVectorOutput, TrajectorySource
 from pydrake.trajectories import PiecewisePolynomial
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
-from test_physics_identification import THETA, sinusoids
-
 from ftdrake import SensorConfig
 from ftdrake.compensation.physics import (
     ExcitationWarning,
     PhysicsPayloadCompensator,
 )
 from ftdrake.systems.noisy_sensor import NoisyForceTorqueSensor
+from ftdrake.testing import THETA, sinusoids
 
 LOG_HZ = 50
 

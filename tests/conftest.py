@@ -28,11 +28,6 @@ def realistic_dataset():
     return _collect(4, 10.0, seed=10)
 
 
-def split_by_trajectory(frame, test_ids):
-    test = frame["trajectory"].isin(test_ids).to_numpy()
-    return frame[~test], frame[test]
-
-
 @pytest.fixture
 def rng():
     return np.random.default_rng(0)

@@ -3,8 +3,8 @@ parameters, drive gains, the UR3 model and the train/evaluate round trip on real
 
 from __future__ import annotations
 
+import importlib.util
 import json
-import sys
 from pathlib import Path
 
 import numpy as np
@@ -25,6 +25,15 @@ UR3_DATA = ROOT / "tests" / "data" / "ur3"
 @pytest.fixture(scope="module")
 def ur3():
     return ArmDynamics(ArmModel(UR3).build_plant())
+
+
+def _load_script(path: Path):
+    """A script outside the package (models/*.py), loaded as a module without touching
+    sys.path."""
+    spec = importlib.util.spec_from_file_location(path.stem, path)
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
 
 
 def _states(rng, n, rows, scale=2.0):
@@ -51,11 +60,7 @@ def test_regressor_on_ftdrakes_arm_with_its_welded_tool_and_joint_damping():
 
 
 def test_ur3_urdf_matches_the_published_dh_kinematics(ur3):
-    sys.path.insert(0, str(ROOT / "models"))
-    try:
-        import make_ur3_urdf as dh
-    finally:
-        sys.path.pop(0)
+    dh = _load_script(ROOT / "models" / "make_ur3_urdf.py")  # the generator's DH tables
     plant, ctx = ur3.plant, ur3.context
     tool0 = plant.GetFrameByName("tool0")
     for q in np.random.default_rng(2).uniform(-3, 3, (5, 6)):

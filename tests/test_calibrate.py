@@ -5,8 +5,6 @@ import numpy as np
 import pandas as pd
 import pytest
 import yaml
-from test_physics_identification import SIGMA, THETA
-from test_uncertainty import static_poses
 
 from ftdrake.cli.main import main
 from ftdrake.compensation.calibration import calibrate_table
@@ -14,36 +12,10 @@ from ftdrake.compensation.persistence import load_model
 from ftdrake.compensation.physics import PhysicsPayloadCompensator
 from ftdrake.conventions import WRENCH_AXES
 from ftdrake.errors import ConfigError, LogError, RobotModelError
+from ftdrake.testing import SIGMA, THETA, pose_tables, static_poses
 
 WRENCH = [f"meas_{a}" for a in WRENCH_AXES]
 TRUE_COM = THETA[1:4] / THETA[0]
-
-
-def pose_tables(seed, n, temperature=False):
-    """The same static poses of ftdrake's arm as joint angles and as quaternions of R_WS."""
-    rng = np.random.default_rng(seed)
-    X = static_poses(rng, n)
-    physics = PhysicsPayloadCompensator(mode="static", features="q")
-    theta = THETA.copy()
-    Y = physics.regressor(X) @ theta + rng.normal(size=(n, 6)) * SIGMA
-    R = physics._kinematics().evaluate(X[:, :7], X[:, 7:14], X[:, 14:]).R_WS
-    w = np.sqrt(np.maximum(1 + R[:, 0, 0] + R[:, 1, 1] + R[:, 2, 2], 1e-12)) / 2
-    quat = np.column_stack([w, (R[:, 2, 1] - R[:, 1, 2]) / (4 * w),
-                            (R[:, 0, 2] - R[:, 2, 0]) / (4 * w),
-                            (R[:, 1, 0] - R[:, 0, 1]) / (4 * w)])
-    extra = {}
-    if temperature:
-        T = 25 + 10 * rng.uniform(size=n)
-        Y = Y + np.outer(T - 30, [0.02, -0.01, 0.05, 0.001, 0.0, -0.002])
-        extra["temperature"] = T
-    wrench = dict(zip(WRENCH, Y.T, strict=True))
-    joints = pd.DataFrame({**{f"q_{j}": X[:, j] for j in range(7)}, **wrench, **extra})
-    rotation = pd.DataFrame({**dict(zip(("qw", "qx", "qy", "qz"), quat.T, strict=True)),
-                             **wrench, **extra})
-    truth = physics.regressor(X) @ theta
-    if temperature:
-        truth = truth + np.outer(T - 30, [0.02, -0.01, 0.05, 0.001, 0.0, -0.002])
-    return joints, rotation, truth
 
 
 def test_orientation_only_predicts_held_out_poses_as_well_as_joint_angles_with_a_robot():

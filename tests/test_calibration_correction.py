@@ -14,7 +14,6 @@ from pydrake.systems.analysis import Simulator
 from pydrake.systems.framework import DiagramBuilder
 from pydrake.systems.primitives import LogVectorOutput, TrajectorySource
 from pydrake.trajectories import PiecewisePolynomial
-from test_physics_identification import SIGMA
 
 from ftdrake import SensorConfig
 from ftdrake.cli.main import main
@@ -23,6 +22,7 @@ from ftdrake.compensation.physics import ExcitationWarning
 from ftdrake.conventions import WRENCH_AXES
 from ftdrake.errors import ConfigError
 from ftdrake.systems.noisy_sensor import NoisyForceTorqueSensor
+from ftdrake.testing import SIGMA
 
 WRENCH = [f"meas_{a}" for a in WRENCH_AXES]
 # A sensor whose calibration is off: 1.5–3 % gains and 2 % cross-talk (force to torque up to

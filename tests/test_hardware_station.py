@@ -5,7 +5,6 @@ import numpy as np
 import pytest
 
 from ftdrake import RandomForestCompensator, ScenarioConfig
-from ftdrake.conventions import MEASURED, QD, QDD, Q, joint_columns, wrench_columns
 from ftdrake.hardware import HardwareConfig
 from ftdrake.hardware.messages import (
     decode_contact_state,
@@ -15,31 +14,8 @@ from ftdrake.hardware.messages import (
 )
 from ftdrake.hardware.station import build_hardware_station
 from ftdrake.sim.lcm_publisher import simulate_on_lcm
-from ftdrake.sim.simulate import simulate
 from ftdrake.sim.station import build_station
-
-JOINT_COLUMNS = [*joint_columns(Q, 7), *joint_columns(QD, 7), *joint_columns(QDD, 7)]
-
-
-def push_scenario(duration: float = 3.0, push_at: float = 1.0) -> ScenarioConfig:
-    """Free (Fourier) motion with a push at the tool tip that the detector sees (shared with
-    test_live_end_to_end.py)."""
-    scenario = ScenarioConfig()
-    scenario.trajectory.kind = "fourier"
-    scenario.trajectory.duration_s = duration
-    scenario.events.push_at_s = push_at
-    scenario.events.push_ramp_s = 0.3
-    scenario.events.push_hold_s = 0.4
-    return scenario.validate()
-
-
-def fit_forest(scenario: ScenarioConfig, duration: float = 1.0, seed: int = 0):
-    """A 5-tree forest on the first `duration` s of the scenario's motion (before the push)."""
-    log = simulate(build_station(scenario), progress=False, duration=duration).log
-    X = log[JOINT_COLUMNS].to_numpy()
-    Y = log[wrench_columns(MEASURED)].to_numpy()
-    return RandomForestCompensator(features="q,qd,qdd", n_estimators=5, n_jobs=1,
-                                   random_state=seed).fit(X, Y)
+from ftdrake.testing import fit_forest, push_scenario
 
 
 def test_station_compensates_each_message_once():

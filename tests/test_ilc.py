@@ -3,7 +3,8 @@
 import numpy as np
 import pytest
 
-from ftdrake.control import TimeIndexedFeedforward, ilc_update, q_filter
+from ftdrake.control import ilc_update, q_filter
+from ftdrake.systems.time_indexed_feedforward import TimeIndexedFeedforward
 
 DT = 1e-3
 

@@ -17,7 +17,6 @@ import time
 
 import numpy as np
 import pytest
-from test_hardware_station import fit_forest, push_scenario
 
 from ftdrake import save_model
 from ftdrake.config import save_config
@@ -32,6 +31,7 @@ from ftdrake.hardware.messages import (
 )
 from ftdrake.sim.simulate import simulate
 from ftdrake.sim.station import build_station
+from ftdrake.testing import fit_forest, push_scenario
 
 lcm = pytest.importorskip("lcm")
 PORT = 7600 + os.getpid() % 300  # unusual, and distinct between concurrent test runs

@@ -4,11 +4,11 @@ import warnings
 
 import numpy as np
 import pytest
-from test_physics_identification import SIGMA, THETA, sinusoids
 
 from ftdrake import SensorConfig
 from ftdrake.compensation.physics import ExcitationWarning, PhysicsPayloadCompensator
 from ftdrake.systems.noisy_sensor import NoisyForceTorqueSensor
+from ftdrake.testing import SIGMA, THETA, sinusoids
 
 MOUNTING = [3.0, 3.0, 3.0]  # deg, roll pitch yaw of R_SSm
 

@@ -11,35 +11,7 @@ from ftdrake.compensation.hybrid import HybridCompensator
 from ftdrake.compensation.physics import ExcitationWarning, PhysicsPayloadCompensator
 from ftdrake.compensation.registry import entry
 from ftdrake.errors import ConfigError
-
-SIGMA = np.array([1 / 40, 1 / 40, 1 / 20, 1 / 800, 1 / 800, 1 / 800])  # ati_gamma noise
-MASS, COM = 1.5, np.array([0.02, 0.0067, 0.0867])  # m, from ft_sensor_tool.sdf
-BOX_DIMS = np.array([0.06, 0.08, 0.17])  # a box of the tool's size, m
-INERTIA_COM = MASS / 12 * np.array([BOX_DIMS[1] ** 2 + BOX_DIMS[2] ** 2, 0, 0,
-                                    BOX_DIMS[0] ** 2 + BOX_DIMS[2] ** 2, 0,
-                                    BOX_DIMS[0] ** 2 + BOX_DIMS[1] ** 2])
-TRUE = PayloadPrior(MASS, tuple(COM), tuple(INERTIA_COM))
-THETA = np.r_[TRUE.phi(), [0.6, -0.4, 1.2, 0.02, -0.015, 0.01]]
-HOME = np.array([0.0, 0.4, 0.0, -1.2, 0.0, 0.8, 0.0])
-
-
-def sinusoids(rng, joints, n=1500, duration=20.0, amplitude=0.6):
-    """[q, q̇, q̈] rows of a sum of three sinusoids on `joints`, the others held at HOME."""
-    t = np.linspace(0, duration, n)
-    q, qd, qdd = np.tile(HOME, (n, 1)), np.zeros((n, 7)), np.zeros((n, 7))
-    for j in joints:
-        for k in range(3):
-            w = 2 * np.pi * rng.uniform(0.05, 0.4)
-            a, phase = amplitude * rng.uniform(0.2, 1) / (k + 1), rng.uniform(0, 2 * np.pi)
-            q[:, j] += a * np.sin(w * t + phase)
-            qd[:, j] += a * w * np.cos(w * t + phase)
-            qdd[:, j] -= a * w * w * np.sin(w * t + phase)
-    return np.hstack([q, qd, qdd])
-
-
-def readings(X, rng, theta=THETA):
-    """What the sensor reads for a rigid payload `theta` (the model's regressor) + noise."""
-    return PhysicsPayloadCompensator().regressor(X) @ theta + rng.normal(size=(len(X), 6)) * SIGMA
+from ftdrake.testing import MASS, SIGMA, THETA, TRUE_PAYLOAD, readings, sinusoids
 
 
 def fit(X, Y, **params):
@@ -81,7 +53,7 @@ def test_the_warning_names_the_undetermined_parameters_and_the_prior_decides_the
     with pytest.warns(ExcitationWarning, match=r"not determined by the data.*Ixx.*Izz"):
         PhysicsPayloadCompensator(identification="consistent").fit(X, Y)
     with pytest.warns(ExcitationWarning, match=r"the prior decided .*Ixx \d+%"):
-        dut = PhysicsPayloadCompensator(identification="consistent", prior=TRUE).fit(X, Y)
+        dut = PhysicsPayloadCompensator(identification="consistent", prior=TRUE_PAYLOAD).fit(X, Y)
     table = dut.identified()
     assert table["Ixx"]["prior_share"] > 0.5  # unexcited: the prior's value
     assert table["m"]["prior_share"] < 0.05  # excited: the data's

@@ -4,7 +4,6 @@ import warnings
 
 import numpy as np
 import pytest
-from conftest import split_by_trajectory
 from hypothesis import given, settings
 from hypothesis import strategies as st
 from hypothesis.extra.numpy import arrays
@@ -26,6 +25,7 @@ from ftdrake.physics.robot import ftdrake_arm
 from ftdrake.physics.scenario_robot import robot_description
 from ftdrake.sim.collection import collect
 from ftdrake.sim.scene import add_scene
+from ftdrake.testing import split_by_trajectory
 
 TRUE_MASS = 1.5
 TRUE_COM = np.array([0.02, 0.2 / 30, 0.26 / 3])  # m, from ft_sensor_tool.sdf

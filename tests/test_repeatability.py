@@ -1,17 +1,21 @@
 """Repeatability of the payload identification across noise seeds (the cheap version of
 benchmarks/identification_repeatability.py: the model's own regressor, 3 seeds)."""
 
-import sys
 import warnings
-from pathlib import Path
 
 import numpy as np
-from test_physics_identification import COM, MASS, SIGMA, THETA, sinusoids
 
 from ftdrake.compensation.physics import ExcitationWarning, PhysicsPayloadCompensator
-
-sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
-from identification_repeatability import COM_GOAL_MM, MASS_GOAL, spread
+from ftdrake.testing import (
+    COM,
+    COM_SPREAD_GOAL_MM,
+    MASS,
+    MASS_SPREAD_GOAL,
+    SIGMA,
+    THETA,
+    identification_spread,
+    sinusoids,
+)
 
 
 def test_three_noise_seeds_give_the_same_mass_and_centre_of_mass():
@@ -27,8 +31,8 @@ def test_three_noise_seeds_give_the_same_mass_and_centre_of_mass():
                 X, A @ THETA + noise + drift)
         masses.append(dut.parameters_[0])
         coms.append(dut.parameters_[1:4] / dut.parameters_[0])
-    result = spread(masses, coms)
-    assert result["mass_range_rel"] < MASS_GOAL, result
-    assert max(result["com_range_mm"]) < COM_GOAL_MM, result
+    result = identification_spread(masses, coms)
+    assert result["mass_range_rel"] < MASS_SPREAD_GOAL, result
+    assert max(result["com_range_mm"]) < COM_SPREAD_GOAL_MM, result
     assert abs(result["mass_mean_kg"] - MASS) < 0.01 * MASS
     np.testing.assert_allclose(np.mean(coms, axis=0), COM, atol=2e-3)

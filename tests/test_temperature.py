@@ -8,7 +8,6 @@ from pydrake.systems.analysis import Simulator
 from pydrake.systems.framework import DiagramBuilder
 from pydrake.systems.primitives import LogVectorOutput, TrajectorySource
 from pydrake.trajectories import PiecewisePolynomial
-from test_physics_identification import THETA, sinusoids
 
 from ftdrake import SensorConfig
 from ftdrake import conventions as col
@@ -16,6 +15,7 @@ from ftdrake.compensation.forest import RandomForestCompensator
 from ftdrake.compensation.hybrid import HybridCompensator
 from ftdrake.compensation.physics import ExcitationWarning, PhysicsPayloadCompensator
 from ftdrake.systems.noisy_sensor import NoisyForceTorqueSensor
+from ftdrake.testing import THETA, sinusoids
 
 
 def run_sensor(config, duration, seed):

@@ -10,8 +10,6 @@ import warnings
 import numpy as np
 import pandas as pd
 import pytest
-from test_calibrate import pose_tables
-from test_physics_identification import SIGMA, THETA, sinusoids
 
 from ftdrake.cli.main import main
 from ftdrake.compensation.persistence import load_model, read_manifest, save_model
@@ -19,6 +17,7 @@ from ftdrake.compensation.physics import ExcitationWarning, PhysicsPayloadCompen
 from ftdrake.conventions import WRENCH_AXES
 from ftdrake.data.training import ReadOptions, load_training_data
 from ftdrake.errors import LogError
+from ftdrake.testing import SIGMA, THETA, pose_tables, sinusoids
 
 K = np.array([0.04, -0.03, 0.12, 0.003, -0.0025, 0.002])  # N/K, N·m/K
 WRENCH = [f"meas_{a}" for a in WRENCH_AXES]

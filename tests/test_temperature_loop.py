@@ -10,8 +10,6 @@ import pytest
 from pydrake.systems.analysis import Simulator
 from pydrake.systems.framework import DiagramBuilder
 from pydrake.systems.primitives import ConstantVectorSource
-from test_physics_identification import THETA
-from test_uncertainty import static_poses
 
 from ftdrake import CompensatorSystem, ScenarioConfig, build_station, simulate
 from ftdrake import conventions as col
@@ -20,6 +18,7 @@ from ftdrake.compensation.hybrid import HybridCompensator
 from ftdrake.compensation.physics import ExcitationWarning, PhysicsPayloadCompensator
 from ftdrake.errors import ConfigError
 from ftdrake.sim.simulate import PREDICTED, PREDICTED_STD
+from ftdrake.testing import THETA, static_poses
 
 K = np.array([0.039, -0.026, 0.12, 0.003, -0.0025, 0.002])  # the sensor's defaults, N/K
 

@@ -6,20 +6,13 @@ import warnings
 
 import numpy as np
 import pytest
-from test_physics_identification import HOME, SIGMA, THETA, readings, sinusoids
 
 from ftdrake.compensation.forest import RandomForestCompensator
 from ftdrake.compensation.gpr import GPRCompensator
 from ftdrake.compensation.hybrid import HybridCompensator
 from ftdrake.compensation.metrics import coverage, report
 from ftdrake.compensation.physics import ExcitationWarning, PhysicsPayloadCompensator
-
-
-def static_poses(rng, n, joints=range(7)):
-    """i.i.d. static poses around HOME (q̇ = q̈ = 0): held-out rows are in-domain."""
-    q = np.tile(HOME, (n, 1))
-    q[:, list(joints)] += rng.uniform(-0.8, 0.8, (n, len(joints)))
-    return np.hstack([q, np.zeros((n, 14))])
+from ftdrake.testing import SIGMA, THETA, readings, sinusoids, static_poses
 
 
 def static_readings(X, rng):
