@@ -273,7 +273,12 @@ def test_unsorted_timestamps_raise_for_tables():
     frame.iloc[[300, 301]] = frame.iloc[[301, 300]].to_numpy()
     with pytest.raises(LogError, match=r"backwards at 2 row\(s\) \(first from 0.808 to 0.8 s"):
         read_table(frame)
-    read_quietly(frame.sort_values("t"))  # the way out the message suggests
+    dut = read_quietly(frame.sort_values("t"))  # the way out the message suggests
+    # Sorted, the swapped rows are back in place: the log is the unswapped table's rows.
+    original = sine_frame()
+    np.testing.assert_array_equal(dut.t, original["t"].to_numpy())
+    np.testing.assert_array_equal(dut.q, original.filter(regex=r"^q_").to_numpy())
+    np.testing.assert_array_equal(dut.targets, original[wrench_columns("meas")].to_numpy())
 
 
 def test_duplicate_timestamps_are_dropped_and_counted():
@@ -313,7 +318,11 @@ def test_velocities_disagreeing_with_positions(factor, expected):
     frame[cols] *= factor  # deg/s next to rad; or a driver that publishes zeros
     with pytest.raises(LogError, match=f"given qd is {expected}"):
         read_table(frame, velocities="qd_*")
-    read_quietly(frame, velocities="qd_*", check_units=False)
+    # Turned off, the check lets the user's velocities through as given (not converted, not
+    # replaced by the positions' derivative).
+    dut = read_quietly(frame, velocities="qd_*", check_units=False)
+    assert dut.derived == ["qdd"]
+    np.testing.assert_array_equal(dut.qd, frame[cols].to_numpy())
 
 
 def test_a_log_at_rest_with_zero_velocities_is_fine():
@@ -322,7 +331,10 @@ def test_a_log_at_rest_with_zero_velocities_is_fine():
     q_cols, qd_cols = frame.filter(regex=r"^q_").columns, frame.filter(regex=r"^qd_").columns
     frame[q_cols] = 0.3 + rng.normal(0, 1e-5, (len(frame), len(q_cols)))  # encoder noise
     frame[qd_cols] = 0.0
-    read_quietly(frame, velocities="qd_*")
+    dut = read_quietly(frame, velocities="qd_*")  # no unit error: the derivative is noise too
+    assert len(dut) == 500 and dut.derived == ["qdd"]
+    np.testing.assert_array_equal(dut.q, frame[q_cols].to_numpy())
+    np.testing.assert_array_equal(dut.qd, np.zeros((500, 3)))
 
 
 def test_too_few_rows():

@@ -87,9 +87,13 @@ def test_manifest_describes_the_model(forest_file, data):
     assert json.loads(path.read_bytes().split(b"\n")[1]) == manifest
 
 
-def test_expectations_that_match_load(forest_file):
-    _, path = forest_file
-    load_model(path, expect_n_joints=N_JOINTS, expect_features="q,qd")
+def test_expectations_that_match_load(forest_file, data):
+    model, path = forest_file
+    dut = load_model(path, expect_n_joints=N_JOINTS, expect_features="q,qd")
+    assert type(dut) is RandomForestCompensator
+    assert dut.n_joints_ == N_JOINTS and dut.features == "q,qd"
+    X, _ = data
+    np.testing.assert_array_equal(dut.predict(X), model.predict(X))
 
 
 # -- refusals --------------------------------------------------------------------------------
