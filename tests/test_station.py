@@ -1,6 +1,5 @@
-"""The station: one diagram from one config, typed handles, named ports, a returned result."""
-
-import inspect
+"""The station: one diagram from one config, typed handles, a returned result (the named port
+accessors of every system: test_ports.py)."""
 
 import numpy as np
 import pytest
@@ -17,10 +16,6 @@ from ftdrake.sim.simulate import (
     PREDICTED_STD,
 )
 
-SYSTEMS = [ftdrake.ForceTorqueSensor, ftdrake.NoisyForceTorqueSensor, ftdrake.ContactTruth,
-           ftdrake.CompensatorSystem, ftdrake.ContactDetector,
-           ftdrake.DiscreteInverseDynamicsController]
-
 
 def short_free_config(duration=0.3):
     config = ScenarioConfig()
@@ -34,35 +29,6 @@ def forest():
     X = rng.uniform(-1, 2, (200, 21))
     return ftdrake.RandomForestCompensator(features="q", n_estimators=3, random_state=0).fit(
         X, rng.normal(size=(200, 6)))
-
-
-def all_systems(diagram):
-    """The diagram's systems and those of every diagram inside it."""
-    for system in diagram.GetSystems():
-        yield system
-        if hasattr(system, "GetSystems"):
-            yield from all_systems(system)
-
-
-@pytest.mark.parametrize("cls", SYSTEMS, ids=lambda c: c.__name__)
-def test_every_named_port_accessor_returns_the_port_of_that_name(cls):
-    station = build_station(short_free_config(), ftdrake.RandomForestCompensator(
-        features="q", n_estimators=2).fit(np.zeros((5, 21)), np.zeros((5, 6))))
-    system = next(s for s in all_systems(station.diagram) if isinstance(s, cls))
-    accessors = [name for name, _ in inspect.getmembers(cls, inspect.isfunction)
-                 if name.startswith(("get_input_port_", "get_output_port_"))]
-    assert accessors, f"{cls.__name__} has no named port accessors"
-    for name in accessors:
-        port = getattr(system, name)()
-        if cls is ftdrake.DiscreteInverseDynamicsController:
-            continue  # its names follow Drake's InverseDynamicsController
-        assert port.get_name() == name.split("_port_", 1)[1]
-    # And every port has an accessor.
-    if cls is not ftdrake.DiscreteInverseDynamicsController:
-        for i in range(system.num_input_ports()):
-            assert f"get_input_port_{system.get_input_port(i).get_name()}" in accessors
-        for i in range(system.num_output_ports()):
-            assert f"get_output_port_{system.get_output_port(i).get_name()}" in accessors
 
 
 def test_station_without_compensator_has_no_compensation_parts():
