@@ -19,12 +19,15 @@ def test_demo_compares_forest_and_hybrid_on_the_same_held_out_contact(tmp_path, 
         assert result["true_contacts"] == 1, name
         assert result["missed_contacts"] == 0, name
         assert (out / f"model_{name}.ftd").is_file()
-    assert summary["better"] == better_model(summary["models"])
     # The hybrid's physics extrapolates where a forest on little data cannot: its worst
     # free-motion axis is closer to the sensor noise.
     hybrid, forest = summary["models"]["hybrid"], summary["models"]["forest"]
     assert max(hybrid["compensation_error_over_noise"]) < max(
         forest["compensation_error_over_noise"])
+    # So the summary names the hybrid: both find the one contact without a miss, the hybrid
+    # raises no more false alarms than the forest, and its error is the lower.
+    assert hybrid["false_positives"] <= forest["false_positives"]
+    assert summary["better"] == "hybrid"
     # The sensor is mounted rotated by the scenario's default (1.5, -2, 1) deg; the hybrid
     # identifies it. The cable and the cross-talk, which the rigid model lacks, pull the fit
     # off by up to ~1.4 deg on this short run (2.28, -3.36, ...), so: within 1.5 deg.
