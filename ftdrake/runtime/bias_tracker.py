@@ -321,7 +321,7 @@ class OnlineBiasTracker(LeafSystem):
             counters = np.zeros(4)
         else:
             info = np.eye(n)
-            hold, tare_settle, payload_settle = self._constants[1:]
+            hold, tare_settle, payload_settle = self._constants[1:4]
             counters = np.array([hold, tare_settle] + ([hold, payload_settle]
                                                        if self.track_payload else [0, 0]))
         x = np.concatenate([theta, theta, info.ravel(), counters,
