@@ -160,9 +160,10 @@ print("\\n".join(name for name in sys.modules if name.startswith("ftdrake.")))
     ("ftdrake.runtime", ("sim", "systems", "hardware", "experiments", "cli")),
 ])
 def test_the_live_layers_load_no_simulation(layer, never):
+    path = os.pathsep.join([str(PACKAGE.parent), *filter(None, [os.environ.get("PYTHONPATH")])])
     done = subprocess.run([sys.executable, "-c", _LOADED, str(PACKAGE), layer],
                           capture_output=True, text=True, timeout=120, check=False,
-                          env={**os.environ, "PYTHONPATH": str(PACKAGE.parent)})
+                          env={**os.environ, "PYTHONPATH": path})
     assert done.returncode == 0, done.stderr
     loaded = done.stdout.split()
     assert layer in loaded
