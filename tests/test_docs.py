@@ -35,11 +35,8 @@ def site(tmp_path_factory):
 
 
 def page(site: Path, src: str) -> Path:
-    """The built HTML of a source page (use_directory_urls: a/b.md -> a/b/index.html)."""
-    stem = src.removesuffix(".md")
-    if stem == "index" or stem.endswith("/index"):
-        return site / stem.removesuffix("index") / "index.html"
-    return site / stem / "index.html"
+    """The built HTML of a source page (use_directory_urls off: a/b.md -> a/b.html)."""
+    return site / (src.removesuffix(".md") + ".html")
 
 
 def source_pages() -> list[str]:
@@ -68,7 +65,7 @@ def test_every_source_page_and_every_package_has_a_page(site):
     missing = [src for src in source_pages() if not page(site, src).is_file()]
     assert not missing
     for package in packages():
-        text = (site / "api" / package / "index.html").read_text(encoding="utf-8")
+        text = (site / "api" / f"{package}.html").read_text(encoding="utf-8")
         assert f'id="{package}"' in text  # the package's docstring rendered under its name
     assert len(packages()) >= 10
 
@@ -91,7 +88,7 @@ def test_every_drake_system_is_drawn_with_the_ports_of_a_live_instance(site):
     for cls in classes:
         svg = site / "diagrams" / f"{cls.__name__}.svg"
         assert svg.is_file(), cls.__name__
-        api = (site / "api" / cls.__module__.rsplit(".", 1)[0] / "index.html").read_text(
+        api = (site / "api" / f"{cls.__module__.rsplit('.', 1)[0]}.html").read_text(
             encoding="utf-8")
         assert f"Ports of <code>{cls.__name__}</code>" in api  # inline, under its heading
 
@@ -106,7 +103,7 @@ def test_the_chain_api_page_shows_every_port_with_its_size(site):
     dut = ftdrake.CompensationChain(model, config, gravity="input")
     ports = [dut.get_input_port(i) for i in range(dut.num_input_ports())] + [
         dut.get_output_port(i) for i in range(dut.num_output_ports())]
-    api = (site / "api" / "ftdrake.runtime" / "index.html").read_text(encoding="utf-8")
+    api = (site / "api" / "ftdrake.runtime.html").read_text(encoding="utf-8")
     figure = re.search(r'<figure class="ftdrake-ports">(.*?)</figure>',
                        api[api.index('id="ftdrake.runtime.chain.CompensationChain"'):], re.DOTALL)
     labels = set(re.findall(r"<text[^>]*>([^<]*)</text>", figure.group(1)))
@@ -138,8 +135,8 @@ def test_every_internal_link_and_image_resolves(site):
                 continue
             base = site if parts.path.startswith("/") else path.parent  # 404.html: from the root
             target = (base / unquote(parts.path).lstrip("/")).resolve()
-            if target.is_dir():
-                target = target / "index.html"
+            if target.is_dir() and any(target.iterdir()):  # a folder of result files
+                continue
             if not target.is_file():
                 broken.append(f"{path.relative_to(site)} -> {url}")
                 continue
