@@ -20,6 +20,7 @@ from .version import ftdrake_version
 
 __version__ = ftdrake_version()
 
+from .compensation.calibration import calibrate_table
 from .compensation.forest import RandomForestCompensator
 from .compensation.gpr import GPRCompensator
 from .compensation.hybrid import HybridCompensator
@@ -42,6 +43,7 @@ from .config import (
 )
 from .conventions import WRENCH_AXES, WRENCH_UNITS
 from .data.dataset import joint_state_layout, load_dataset, save_dataset, wrench_targets
+from .data.training import ReadOptions, load_training_data
 from .errors import (
     ConfigError,
     FtdrakeError,
@@ -50,6 +52,8 @@ from .errors import (
     RobotModelError,
     TrajectoryError,
 )
+from .hardware.config import HardwareConfig
+from .hardware.station import HardwareStation
 from .runtime.bias_tracker import OnlineBiasTracker
 from .runtime.chain import CompensationChain
 from .runtime.compensator import CompensatorSystem
@@ -83,6 +87,8 @@ __all__ = [
     "ForceTorqueSensor",
     "FtdrakeError",
     "GPRCompensator",
+    "HardwareConfig",
+    "HardwareStation",
     "HybridCompensator",
     "JointStateGravity",
     "LogError",
@@ -91,6 +97,7 @@ __all__ = [
     "OnlineBiasTracker",
     "PhysicsPayloadCompensator",
     "RandomForestCompensator",
+    "ReadOptions",
     "RobotModelError",
     "SVRCompensator",
     "ScenarioConfig",
@@ -104,12 +111,14 @@ __all__ = [
     "__version__",
     "add_scene",
     "build_station",
+    "calibrate_table",
     "collect",
     "evaluate_detection",
     "joint_state_layout",
     "load_config",
     "load_dataset",
     "load_model",
+    "load_training_data",
     "make_control_plant",
     "save_config",
     "save_dataset",

@@ -4,7 +4,7 @@ One place defines them so that `simulate`, `collect`, `train` and `evaluate` agr
 
 Units: time in s, joint positions in rad, velocities in rad/s, accelerations in rad/s²,
 forces in N, torques in N·m. Wrenches are ordered ``[Fx, Fy, Fz, Tx, Ty, Tz]`` and are
-expressed in the sensor frame S about its origin So (see :mod:`ftdrake.sensor`).
+expressed in the sensor frame S about its origin So (see :mod:`ftdrake.systems.ft_sensor`).
 """
 
 from __future__ import annotations

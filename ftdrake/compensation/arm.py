@@ -86,7 +86,7 @@ class ArmDynamicsCompensator(Compensator):
         proportional to the joint torques with an unknown gain and sign per joint (motor
         currents, as UR's CB3 drivers publish in ``effort``, or torques in another sign
         convention); ``target_j = g_j·τ_j`` with ``g_j`` identified (see
-        :meth:`_identify_with_gains`). The gains' common scale is set by the prior's masses.
+        :meth:`_identify`). The gains' common scale is set by the prior's masses.
 
     Fitted attributes: ``parameters_`` (φ, then fv, fc, τ0 per joint), ``gains_`` (n,),
     ``gain_std_errors_``, ``parameter_names_``,

@@ -82,7 +82,7 @@ def run_study(out_dir, *, preset="quick", trajectories: int = TRAJECTORIES,
     ``"RandomForestCompensator"``, ``"SVRCompensator"`` work too). Each dataset has
     `trajectories` free-motion runs of `duration` s, the last `test_trajectories` held out.
     `data` maps each dataset name to an already collected frame (as
-    :func:`ftdrake.data.collect` returns) and skips collection. Writes ``results.json``,
+    :func:`ftdrake.sim.collection.collect` returns) and skips collection. Writes ``results.json``,
     ``results.md`` and PNG figures into `out_dir`, all or nothing; returns the results.
 
     `faithful` (default: unless `data` is given without a ``"study"`` frame) first runs the
