@@ -254,10 +254,10 @@ def test_physics_needs_a_wrench_and_a_robot(ftdrake, tmp_path):
     assert "needs --robot" in line
     line = failure(ftdrake, "train", "--data", csv, *TORQUES, "--kind", "rf",
                    "--identify-mounting", "--out", tmp_path / "m.ftd")
-    assert "--identify-mounting is for --model physics or hybrid on a wrench" in line
+    assert "--identify-mounting is for --kind physics or hybrid on a wrench" in line
     line = failure(ftdrake, "train", "--data", csv, *TORQUES, "--kind", "rf",
                    "--weight-without-inertia", "--out", tmp_path / "m.ftd")
-    assert "--weight-without-inertia is for --model physics or hybrid on a wrench" in line
+    assert "--weight-without-inertia is for --kind physics or hybrid on a wrench" in line
 
     # Torques relabelled as a wrench: the names pass, but no robot is given ...
     wrench = pd.read_csv(csv).rename(columns={f"tau_{i}": f"meas_{a}" for i, a in

@@ -254,11 +254,11 @@ def make_estimator(model: str, *, features: str | None = None, seed: int = 0,
     robot = robot or RobotOptions()
     if robot.identify_mounting and (model not in ("physics", "hybrid")
                                     or (target_names and not is_wrench(target_names))):
-        raise ConfigError("--identify-mounting is for --model physics or hybrid on a wrench "
+        raise ConfigError("--identify-mounting is for --kind physics or hybrid on a wrench "
                           "(the sensor's mounting rotation)")
     if robot.weight_without_inertia and (model not in ("physics", "hybrid")
                                          or (target_names and not is_wrench(target_names))):
-        raise ConfigError("--weight-without-inertia is for --model physics or hybrid on a "
+        raise ConfigError("--weight-without-inertia is for --kind physics or hybrid on a "
                           "wrench (a weight the tool carries without its inertia)")
     if model in ("physics", "hybrid", "arm") and target_names and not is_wrench(target_names):
         # Joint torques (or anything per joint): the whole arm's rigid-body model.
@@ -270,7 +270,7 @@ def make_estimator(model: str, *, features: str | None = None, seed: int = 0,
         return physics
     if entry.wrench_only and not is_wrench(target_names):
         raise ConfigError(
-            f"--model {model} predicts a wrench: 6 targets named *Fx, *Fy, *Fz, *Tx, *Ty, "
+            f"--kind {model} predicts a wrench: 6 targets named *Fx, *Fy, *Fz, *Tx, *Ty, "
             f"*Tz (N, N·m) in the sensor frame; got {list(target_names)}. Joint torques need "
             f"rf, svr, gpr, or arm/physics/hybrid with --robot (or choose the wrench columns "
             f"with --targets)"
@@ -302,7 +302,7 @@ def _arm(model: str, robot: RobotOptions):
     from ..physics.scenario_robot import robot_description
 
     if robot.robot is None:
-        raise ConfigError(f"--model {model} on joint torques needs --robot FILE (the arm's "
+        raise ConfigError(f"--kind {model} on joint torques needs --robot FILE (the arm's "
                           f"URDF/SDF), or --robot {BUILTIN_ROBOT} for the simulated arm")
     options = {"drive_gains": robot.drive_gains}
     if robot.robot == BUILTIN_ROBOT:
@@ -329,7 +329,7 @@ def _physics(model: str, robot: RobotOptions | None, features: str):
 
     robot = robot or RobotOptions()
     if robot.robot is None:
-        raise ConfigError(f"--model {model} needs --robot FILE (URDF/SDF) with "
+        raise ConfigError(f"--kind {model} needs --robot FILE (URDF/SDF) with "
                           f"--sensor-frame NAME, or --robot {BUILTIN_ROBOT} for the simulated "
                           f"arm")
     if features == "q,qd":
