@@ -83,13 +83,16 @@ def test_cli_writes_yaml_and_a_model_file_and_names_bad_input(tmp_path, capsys):
     sdf = "models/ft_sensor_tool.sdf"
     with pytest.raises(RobotModelError, match="no_such_frame"):
         calibrate_table(joints, robot=sdf, sensor_frame="no_such_frame")
-    assert main(["calibrate", "--data", str(tmp_path / "rotation.csv"), "--prior-mass", "-1",
-                 "--out", str(tmp_path / "c")]) == 2
-    assert "prior.mass: -1.0 kg is not a positive mass" in capsys.readouterr().err
+    with pytest.raises(SystemExit):
+        main(["calibrate", "--data", str(tmp_path / "rotation.csv"), "--prior-mass", "-1",
+              "--out", str(tmp_path / "c")])
+    assert "argument --prior-mass: must be a positive number; got '-1'" in \
+        capsys.readouterr().err
+    assert not (tmp_path / "c").exists()
     with pytest.raises(ConfigError, match=r"prior\.mass"):
         calibrate_table(rotation, prior={"mass": -1.0})
     # `train` on a static table (no time column) says to use calibrate.
-    assert main(["train", "--data", str(tmp_path / "rotation.csv"), "--model", "physics",
+    assert main(["train", "--data", str(tmp_path / "rotation.csv"), "--kind", "physics",
                  "--robot", "ftdrake", "--out", str(tmp_path / "m.ftd"), "--quiet"]) == 2
     assert "ftdrake calibrate" in capsys.readouterr().err
 

@@ -152,13 +152,16 @@ def test_cli_prints_and_writes_the_correction_and_names_bad_input(tmp_path, caps
     correction = saved["calibration"]["correction"]
     assert np.shape(correction["matrix"]) == (6, 6) and correction["std_errors"][3][3] == "inf"
     assert correction["payload"] == "known (given)"
-    for argv, message in (
-            (["--correction", "block", "--known-mass", "-1"], "positive number of kg"),
-            (["--known-mass", "1.5"], "add --correction"),
+    assert main(["calibrate", "--data", str(tmp_path / "poses.csv"), "--known-mass", "1.5",
+                 "--out", str(tmp_path / "bad")]) == 2
+    assert "add --correction" in capsys.readouterr().err
+    for argv, message in (  # refused while parsing
+            (["--correction", "block", "--known-mass", "-1"], "--known-mass: must be a positive"),
             (["--correction", "full", "--known-mass", "1", "--known-com", "1,2"],
-             "expected X,Y,Z")):
-        assert main(["calibrate", "--data", str(tmp_path / "poses.csv"), *argv,
-                     "--out", str(tmp_path / "bad")]) == 2
+             "--known-com: expected X,Y,Z")):
+        with pytest.raises(SystemExit):
+            main(["calibrate", "--data", str(tmp_path / "poses.csv"), *argv,
+                  "--out", str(tmp_path / "bad")])
         assert message in capsys.readouterr().err
     with pytest.raises(ConfigError, match="correction must be one of"):
         calibrate_table(table, correction="diagonal")

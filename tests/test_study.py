@@ -272,7 +272,7 @@ def test_cli_paper_runs_the_study_protocol_on_a_cluster(monkeypatch, capsys):
 
     monkeypatch.setattr(protocols, "run_paper", fake_run_paper)
     args = _parser().parse_args(["study", "--paper", "--quiet", "--out", "o",
-                                 "--scheduler", "tcp://h:8786"])
+                                 "--cluster", "tcp://h:8786"])
     assert args.run(args) == 0
     first = capsys.readouterr().out.splitlines()[0]
     # The exhaustive count: 720 RF candidates on q × 5 folds × 6 axes.

@@ -52,7 +52,7 @@ def test_train_and_evaluate_read_the_temperature_column(tmp_path, capsys):
     flags = ["--velocities", "qd_*", "--accelerations", "qdd_*"]
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", ExcitationWarning)
-        code, out, err = run(capsys, "train", "--data", tmp_path / "train.csv", "--model",
+        code, out, err = run(capsys, "train", "--data", tmp_path / "train.csv", "--kind",
                              "physics", "--robot", "ftdrake", "--preset", "none",
                              "--temperature", "temp_c", *flags, "--out", tmp_path / "m.ftd")
     assert code == 0, err

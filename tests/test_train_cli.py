@@ -56,6 +56,14 @@ def variance_scores(result, rows="all"):
     return np.array([m["variance_score"] for m in result["metrics"][rows].values()])
 
 
+def refused(capsys, *argv) -> str:
+    """The error line of a command line argparse must refuse before running (exit code 2)."""
+    with pytest.raises(SystemExit) as exit_:
+        train_cli([str(a) for a in argv])
+    assert exit_.value.code == 2
+    return capsys.readouterr().err.strip().splitlines()[-1]
+
+
 def failure(ftdrake, *argv) -> str:
     """stderr of a command that must fail with exit code 2 and a one-line error."""
     code, _, err = ftdrake(*argv)
@@ -70,7 +78,7 @@ def failure(ftdrake, *argv) -> str:
 def id1_model(tmp_path_factory):
     """A forest (default parameters) trained on id1.csv."""
     path = tmp_path_factory.mktemp("model") / "id1.ftd"
-    code = train_cli([str(a) for a in ["train", "--data", UR3 / "id1.csv", *TORQUES, "--model",
+    code = train_cli([str(a) for a in ["train", "--data", UR3 / "id1.csv", *TORQUES, "--kind",
                                        "rf", "--preset", "none", "--out", path, "--quiet"]])
     assert code == 0
     return path
@@ -116,7 +124,7 @@ def test_ur3_train_on_id1_evaluate_on_id2(ftdrake, id1_model, tmp_path):
 def test_ur3_bag_split_by_time(ftdrake, tmp_path):
     """Train on the bag's first 10 s, evaluate on the remaining 7.4 s."""
     model = tmp_path / "bag.ftd"
-    manifest = train(ftdrake, BAG, model, "--joint-topic", "/arm", "--model", "rf",
+    manifest = train(ftdrake, BAG, model, "--joint-topic", "/arm", "--kind", "rf",
                      "--preset", "none", "--t-end", "10")
     extra = manifest["extra"]
     assert extra["rows"] == {"in_file": 2179, "read": 2179, "dropped_by_reader": 0,
@@ -146,7 +154,7 @@ def test_svr_tuned_and_gpr_on_a_slice(ftdrake, tmp_path):
         path = tmp_path / f"{model}.ftd"
         # One BLAS thread: on a busy 2-core machine a 300-point GP fits 2-4× slower with two.
         with threadpool_limits(1, user_api="blas"):
-            manifest = train(ftdrake, UR3 / "id1.csv", path, *TORQUES, "--model", model,
+            manifest = train(ftdrake, UR3 / "id1.csv", path, *TORQUES, "--kind", model,
                              *options, *first)
         assert manifest["extra"]["rows"]["used"] == 300
         tuning = manifest["extra"]["tuning"]
@@ -167,7 +175,7 @@ def test_a_dataset_of_several_trajectories_is_read_per_trajectory(ftdrake, tmp_p
               for i, name in enumerate(["id1.csv", "id2.csv"])]
     pd.concat(frames).to_parquet(tmp_path / "both.parquet")
     manifest = train(ftdrake, tmp_path / "both.parquet", tmp_path / "m.ftd", *TORQUES,
-                     "--model", "rf", "--preset", "none", "--t-end", "5")
+                     "--kind", "rf", "--preset", "none", "--t-end", "5")
     assert manifest["extra"]["rows"]["used"] == sum((f["t"] <= 5).sum() for f in frames)
     assert "2 trajectories" in manifest["extra"]["data"]["source"]
 
@@ -192,7 +200,7 @@ def test_physics_extrapolates_where_a_forest_cannot(ftdrake, tmp_path):
     nmse = {}
     for model in ("physics", "hybrid", "rf"):
         path = tmp_path / f"{model}.ftd"
-        manifest = train(ftdrake, tmp_path / "run0.parquet", path, "--model", model,
+        manifest = train(ftdrake, tmp_path / "run0.parquet", path, "--kind", model,
                          "--robot", "ftdrake", "--preset", "none")
         assert manifest["sensor_frame"] == "S" and manifest["target_units"][0] == "N"
         result, _ = evaluate(ftdrake, path, tmp_path / "run1.parquet", tmp_path)
@@ -208,7 +216,7 @@ def test_physics_extrapolates_where_a_forest_cannot(ftdrake, tmp_path):
     # clean data, tests/test_demo.py on the demo's). Here: the flag reaches the model file,
     # and the model still extrapolates like the plain one (NMSE 0.002-0.057, Tz 0.085).
     path = tmp_path / "mounted.ftd"
-    train(ftdrake, tmp_path / "run0.parquet", path, "--model", "physics", "--robot", "ftdrake",
+    train(ftdrake, tmp_path / "run0.parquet", path, "--kind", "physics", "--robot", "ftdrake",
           "--preset", "none", "--identify-mounting")
     from ftdrake.compensation.persistence import load_model
 
@@ -222,13 +230,13 @@ def test_physics_extrapolates_where_a_forest_cannot(ftdrake, tmp_path):
 
     # --weight-without-inertia reaches the model (20 parameters); a static fit refuses it.
     path = tmp_path / "weight.ftd"
-    train(ftdrake, tmp_path / "run0.parquet", path, "--model", "physics", "--robot", "ftdrake",
+    train(ftdrake, tmp_path / "run0.parquet", path, "--kind", "physics", "--robot", "ftdrake",
           "--preset", "none", "--weight-without-inertia")
     loaded = load_model(path)
     weighted = loaded[0] if isinstance(loaded, tuple) else loaded
     assert weighted.weight_without_inertia and len(weighted.parameters_) == 20
     assert "mw" in weighted.identified()
-    line = failure(ftdrake, "train", "--data", tmp_path / "run0.parquet", "--model", "physics",
+    line = failure(ftdrake, "train", "--data", tmp_path / "run0.parquet", "--kind", "physics",
                    "--robot", "ftdrake", "--features", "q", "--weight-without-inertia",
                    "--out", tmp_path / "static.ftd")
     assert "--weight-without-inertia needs --features q,qd,qdd" in line
@@ -238,28 +246,28 @@ def test_physics_extrapolates_where_a_forest_cannot(ftdrake, tmp_path):
 def test_physics_needs_a_wrench_and_a_robot(ftdrake, tmp_path):
     csv = UR3 / "id1.csv"
     # On joint torques, physics is the whole arm's model: the robot must be that arm.
-    line = failure(ftdrake, "train", "--data", csv, *TORQUES, "--model", "physics",
+    line = failure(ftdrake, "train", "--data", csv, *TORQUES, "--kind", "physics",
                    "--robot", "ftdrake", "--out", tmp_path / "m.ftd")
     assert "the data has 6 joints" in line and "has 7" in line
-    line = failure(ftdrake, "train", "--data", csv, *TORQUES, "--model", "hybrid",
+    line = failure(ftdrake, "train", "--data", csv, *TORQUES, "--kind", "hybrid",
                    "--out", tmp_path / "m.ftd")
     assert "needs --robot" in line
-    line = failure(ftdrake, "train", "--data", csv, *TORQUES, "--model", "rf",
+    line = failure(ftdrake, "train", "--data", csv, *TORQUES, "--kind", "rf",
                    "--identify-mounting", "--out", tmp_path / "m.ftd")
-    assert "--identify-mounting is for --model physics or hybrid on a wrench" in line
-    line = failure(ftdrake, "train", "--data", csv, *TORQUES, "--model", "rf",
+    assert "--identify-mounting is for --kind physics or hybrid on a wrench" in line
+    line = failure(ftdrake, "train", "--data", csv, *TORQUES, "--kind", "rf",
                    "--weight-without-inertia", "--out", tmp_path / "m.ftd")
-    assert "--weight-without-inertia is for --model physics or hybrid on a wrench" in line
+    assert "--weight-without-inertia is for --kind physics or hybrid on a wrench" in line
 
     # Torques relabelled as a wrench: the names pass, but no robot is given ...
     wrench = pd.read_csv(csv).rename(columns={f"tau_{i}": f"meas_{a}" for i, a in
                                               enumerate(["Fx", "Fy", "Fz", "Tx", "Ty", "Tz"])})
     wrench.to_csv(tmp_path / "wrench.csv", index=False)
-    line = failure(ftdrake, "train", "--data", tmp_path / "wrench.csv", "--model", "hybrid",
+    line = failure(ftdrake, "train", "--data", tmp_path / "wrench.csv", "--kind", "hybrid",
                    "--out", tmp_path / "m.ftd")
     assert "needs --robot" in line
     # ... and ftdrake's 7-joint arm does not fit 6-joint data.
-    line = failure(ftdrake, "train", "--data", tmp_path / "wrench.csv", "--model", "physics",
+    line = failure(ftdrake, "train", "--data", tmp_path / "wrench.csv", "--kind", "physics",
                    "--robot", "ftdrake", "--out", tmp_path / "m.ftd")
     assert "the data has 6 joints; the robot model has 7" in line
     assert not (tmp_path / "m.ftd").exists()
@@ -291,7 +299,7 @@ def id1():
     return pd.read_csv(UR3 / "id1.csv")
 
 
-def test_bad_tables_are_one_line_errors(ftdrake, id1, tmp_path):
+def test_bad_tables_are_one_line_errors(ftdrake, id1, tmp_path, capsys):
     cases = {
         "backwards": (id1.iloc[[*range(300), *range(400, 750), *range(300, 400)]],
                       "time goes backwards at 1 row(s)"),
@@ -303,20 +311,20 @@ def test_bad_tables_are_one_line_errors(ftdrake, id1, tmp_path):
         frame.to_csv(tmp_path / f"{name}.csv", index=False)
         columns = ["--targets", "tau_0,tau_1,tau_2,tau_3"] if name == "no_torques" else TORQUES
         line = failure(ftdrake, "train", "--data", tmp_path / f"{name}.csv", *columns,
-                       "--model", "rf", "--preset", "none", "--out", tmp_path / "m.ftd")
+                       "--kind", "rf", "--preset", "none", "--out", tmp_path / "m.ftd")
         assert message in line, name
-    line = failure(ftdrake, "train", "--data", tmp_path / "missing.csv", *TORQUES,
-                   "--model", "rf", "--out", tmp_path / "m.ftd")
+    line = refused(capsys, "train", "--data", tmp_path / "missing.csv", *TORQUES,
+                   "--kind", "rf", "--out", tmp_path / "m.ftd")
     assert "missing.csv: no such file" in line
     (tmp_path / "bad.bag").write_bytes(bytes(range(256)) * 4)
-    line = failure(ftdrake, "train", "--data", tmp_path / "bad.bag", "--model", "rf",
+    line = failure(ftdrake, "train", "--data", tmp_path / "bad.bag", "--kind", "rf",
                    "--out", tmp_path / "m.ftd")
     assert "bad.bag: not a readable ROS 1 or ROS 2 bag" in line
     line = failure(ftdrake, "train", "--data", BAG, "--joint-topic", "/joint_states",
-                   "--model", "rf", "--out", tmp_path / "m.ftd")
+                   "--kind", "rf", "--out", tmp_path / "m.ftd")
     assert "no topic '/joint_states'" in line and "/arm" in line
     line = failure(ftdrake, "train", "--data", UR3 / "id1.csv", *TORQUES, "--t-start", "100",
-                   "--model", "rf", "--out", tmp_path / "m.ftd")
+                   "--kind", "rf", "--out", tmp_path / "m.ftd")
     assert "no rows in the time window" in line and "3.6..9.592" in line
     assert not (tmp_path / "m.ftd").exists()
 
@@ -325,7 +333,7 @@ def test_dropped_rows_are_warned_counted_and_recorded(ftdrake, id1, tmp_path):
     frame = pd.concat([id1, id1.iloc[[10, 20]]]).sort_values("t", kind="stable")
     frame.loc[frame.index[[100, 101, 102]], "tau_2"] = np.nan
     frame.to_csv(tmp_path / "dirty.csv", index=False)
-    code, _, err = ftdrake("train", "--data", tmp_path / "dirty.csv", *TORQUES, "--model", "rf",
+    code, _, err = ftdrake("train", "--data", tmp_path / "dirty.csv", *TORQUES, "--kind", "rf",
                            "--preset", "none", "--out", tmp_path / "m.ftd")
     assert code == 0, err
     assert "warning: dirty.csv: dropped 3 of 752 rows with NaN/inf (targets: 3)" in err
@@ -337,7 +345,7 @@ def test_dropped_rows_are_warned_counted_and_recorded(ftdrake, id1, tmp_path):
 
 
 # -- messages for command-line users ------------------------------------------------------------
-def test_messages_name_the_flag_that_fixes_them(ftdrake, id1, tmp_path):
+def test_messages_name_the_flag_that_fixes_them(ftdrake, id1, tmp_path, capsys):
     """Every reader error a flag fixes names that flag, never a Python keyword."""
     id2 = pd.read_csv(UR3 / "id2.csv")
     cases = {
@@ -352,28 +360,34 @@ def test_messages_name_the_flag_that_fixes_them(ftdrake, id1, tmp_path):
     for name, (frame, columns, expected) in cases.items():
         frame.to_csv(tmp_path / f"{name}.csv", index=False)
         line = failure(ftdrake, "train", "--data", tmp_path / f"{name}.csv", *columns,
-                       "--model", "rf", "--preset", "none", "--out", tmp_path / "m.ftd")
+                       "--kind", "rf", "--preset", "none", "--out", tmp_path / "m.ftd")
         for text in expected:
             assert text in line, (name, line)
         assert "check_units" not in line and "=" not in line, (name, line)
-    line = failure(ftdrake, "train", "--data", BAG, "--model", "rf", "--out", tmp_path / "m.ftd")
+    line = failure(ftdrake, "train", "--data", BAG, "--kind", "rf", "--out", tmp_path / "m.ftd")
     assert "no topic '/joint_states'" in line and "choose one with --joint-topic TOPIC" in line
     line = failure(ftdrake, "train", "--data", UR3 / "id1.csv", *TORQUES, "--t-start", "100",
-                   "--model", "rf", "--out", tmp_path / "m.ftd")
+                   "--kind", "rf", "--out", tmp_path / "m.ftd")
     assert "choose --t-start S and --t-end S in it" in line
-    line = failure(ftdrake, "train", "--data", tmp_path / "missing.csv", "--model", "rf",
+    line = refused(capsys, "train", "--data", tmp_path / "missing.csv", "--kind", "rf",
                    "--out", tmp_path / "m.ftd")
-    assert line.endswith("--data " + str(tmp_path / "missing.csv") + ": no such file or folder")
+    assert line.endswith("argument --data: " + str(tmp_path / "missing.csv")
+                         + ": no such file or folder")
     assert not (tmp_path / "m.ftd").exists()
 
     # The named flags do fix them.
     pd.concat([id1.assign(recording=0), id2.assign(recording=1)]).to_csv(
         tmp_path / "joined.csv", index=False)
-    manifest = train(ftdrake, tmp_path / "joined.csv", tmp_path / "m.ftd", *TORQUES, "--model",
-                     "rf", "--preset", "none", "--group", "recording")
+    # (--model KIND: the spelling --kind replaces, still accepted with a warning)
+    code, _, err = ftdrake("train", "--data", tmp_path / "joined.csv", "--out", tmp_path / "m.ftd",
+                           *TORQUES, "--model", "rf", "--preset", "none", "--group", "recording")
+    assert code == 0, err
+    assert "warning: --model rf is deprecated" in err and "use --kind rf" in err
+    manifest = read_manifest(tmp_path / "m.ftd")
+    assert manifest["extra"]["model"]["kind"] == "rf"
     assert "2 trajectories" in manifest["extra"]["data"]["source"]
     assert manifest["extra"]["data"]["options"]["group"] == "recording"
-    train(ftdrake, tmp_path / "degrees.csv", tmp_path / "m.ftd", *TORQUES, "--model", "rf",
+    train(ftdrake, tmp_path / "degrees.csv", tmp_path / "m.ftd", *TORQUES, "--kind", "rf",
           "--preset", "none", "--no-check-units")
 
 
@@ -381,7 +395,7 @@ def test_train_prints_the_model_file_size(ftdrake, tmp_path):
     from ftdrake.cli.train import file_size
 
     path = tmp_path / "m.ftd"
-    code, out, err = ftdrake("train", "--data", UR3 / "id1.csv", *TORQUES, "--model", "rf",
+    code, out, err = ftdrake("train", "--data", UR3 / "id1.csv", *TORQUES, "--kind", "rf",
                              "--preset", "none", "--out", path, "--quiet")
     assert code == 0 and err == ""
     size = path.stat().st_size
@@ -394,7 +408,7 @@ def test_train_prints_the_model_file_size(ftdrake, tmp_path):
 def test_train_with_the_loops_causal_acceleration(ftdrake, tmp_path):
     """--qdd-estimate causal is kept in the manifest, and evaluate reads with it."""
     path = tmp_path / "m.ftd"
-    manifest = train(ftdrake, UR3 / "id1.csv", path, *TORQUES, "--model", "rf",
+    manifest = train(ftdrake, UR3 / "id1.csv", path, *TORQUES, "--kind", "rf",
                      "--preset", "none", "--qdd-estimate", "causal",
                      "--acceleration-cutoff-hz", "10")
     extra = manifest["extra"]

@@ -17,21 +17,45 @@ like ``train`` does and fitted by the physics model (dynamic, physically consist
 
 from __future__ import annotations
 
+import argparse
 import json
+import sys
+import warnings
 from pathlib import Path
 
 import numpy as np
+import yaml
 
-from ..conventions import MEASURED, TEMPERATURE, WRENCH_UNITS
+from ..compensation.calibration import calibrate_table, orientation_kind
+from ..compensation.consistent import PayloadPrior
+from ..compensation.persistence import save_model
+from ..compensation.physics import ExcitationWarning
+from ..conventions import MEASURED, TEMPERATURE, WRENCH_AXES, WRENCH_UNITS
+from ..data.logs import expand_columns, read_frame
+from ..data.training import ReadOptions
 from ..errors import ConfigError, LogError
+from ..io import atomic_write_text
+from . import args as a
+
+
+def point(text: str) -> tuple[float, float, float]:
+    """An argument type: a point ``X,Y,Z`` in m."""
+    try:
+        values = tuple(float(v) for v in text.split(","))
+    except ValueError:
+        values = ()
+    if len(values) != 3 or not all(np.isfinite(values)):
+        raise argparse.ArgumentTypeError(f"expected X,Y,Z in m; got {text!r}")
+    return values
 
 
 def register(subparsers) -> None:
     """Adds ``calibrate`` to an ``argparse`` subparsers object."""
-    p = subparsers.add_parser(
-        "calibrate", help="identify payload, biases, mounting, temperature drift of the sensor "
-        "from static poses (or a slow motion); write calibration.yaml and a model file")
-    p.add_argument("--data", type=Path, required=True, metavar="FILE",
+    p = a.add_command(
+        subparsers, "calibrate", "identify payload, biases, mounting, drift",
+        "Of the sensor and its tool, from static poses (or a slow motion): writes "
+        "calibration.yaml and a model file.")
+    p.add_argument("--data", type=a.existing_file, required=True, metavar="FILE",
                    help="CSV/Parquet: one row per static pose, 6 wrench columns and joint "
                         "angles or an orientation (qw,qx,qy,qz | r00..r22 | roll,pitch,yaw | "
                         "gx,gy,gz gravity in S); optional 'temperature' (°C)")
@@ -39,13 +63,15 @@ def register(subparsers) -> None:
                    "'ftdrake' for the simulated arm (with joint-angle columns)")
     p.add_argument("--sensor-frame", metavar="NAME", help="frame S of the wrench in --robot")
     p.add_argument("--base-frame", metavar="NAME", help="frame of --robot welded to the world")
-    p.add_argument("--positions", default="q_*", metavar="PAT",
-                   help="joint angle columns (default 'q_*')")
+    p.add_argument("--positions", default="q_*", metavar="PAT", help="joint angle columns")
     p.add_argument("--targets", default=f"{MEASURED}_*", metavar="PAT",
-                   help=f"wrench columns Fx..Tz (default '{MEASURED}_*')")
-    p.add_argument("--position-unit", choices=("rad", "deg"), default="rad")
-    p.add_argument("--prior-mass", type=float, metavar="KG", help="prior mass of the tool")
-    p.add_argument("--prior-com", metavar="X,Y,Z", help="prior centre of mass in S (m)")
+                   help="wrench columns Fx..Tz")
+    p.add_argument("--position-unit", choices=("rad", "deg"), default="rad",
+                   help="angle unit of the joint columns")
+    p.add_argument("--prior-mass", type=a.positive_float, metavar="KG",
+                   help="prior mass of the tool")
+    p.add_argument("--prior-com", type=point, metavar="X,Y,Z",
+                   help="prior centre of mass in S (m), with --prior-mass")
     p.add_argument("--least-squares", action="store_true",
                    help="plain least squares instead of the physically consistent fit")
     p.add_argument("--no-mounting", action="store_true",
@@ -57,13 +83,15 @@ def register(subparsers) -> None:
                         "(wrench = C·(reading − bias)): block = force and torque 3×3 blocks, "
                         "full = 6×6 (needs 3 known loads to be fully determined; with one "
                         "load it is the general linear model of that load). Static poses only")
-    p.add_argument("--known-mass", type=float, metavar="KG",
+    p.add_argument("--known-mass", type=a.positive_float, metavar="KG",
                    help="the tool's known mass (weighed), for --correction: fixes the force "
                         "gain the mass would otherwise absorb")
-    p.add_argument("--known-com", metavar="X,Y,Z",
+    p.add_argument("--known-com", type=point, metavar="X,Y,Z",
                    help="the tool's known centre of mass in S (m), with --known-mass")
-    p.add_argument("--out", type=Path, required=True, metavar="DIR",
+    p.add_argument("--out", type=a.output_folder, required=True, metavar="DIR",
                    help="folder for calibration.yaml (and model.ftd)")
+    a.add_quiet(p, "print only the files written and warnings, not the identified "
+                "parameters (calibration.yaml holds them)")
     p.set_defaults(run=run_calibrate)
 
 
@@ -72,11 +100,8 @@ def _prior(args):
         if args.prior_com is not None:
             raise ConfigError("--prior-com needs --prior-mass")
         return None
-    com = _point("--prior-com", args.prior_com)
     try:
-        from ..compensation.consistent import PayloadPrior
-
-        return PayloadPrior(args.prior_mass, com)
+        return PayloadPrior(args.prior_mass, args.prior_com or (0.0, 0.0, 0.0))
     except ConfigError as e:
         raise ConfigError(f"--prior-mass/--prior-com: {e}") from None
 
@@ -89,27 +114,11 @@ def _known_payload(args):
     if args.correction is None:
         raise ConfigError("--known-mass is for the gain/cross-talk correction: add "
                           "--correction block|full")
-    return {"mass": args.known_mass, "com": _point("--known-com", args.known_com)}
-
-
-def _point(flag: str, text: str | None) -> tuple[float, float, float]:
-    """A point ``X,Y,Z`` in m from a flag's value; the origin when the flag is absent."""
-    if text is None:
-        return (0.0, 0.0, 0.0)
-    try:
-        point = tuple(float(v) for v in text.split(","))
-    except ValueError:
-        point = ()
-    if len(point) != 3:
-        raise ConfigError(f"{flag} {text}: expected X,Y,Z in m")
-    return point
+    return {"mass": args.known_mass, "com": args.known_com or (0.0, 0.0, 0.0)}
 
 
 def _print_warnings(caught, category) -> None:
     """`category` warnings as `warning: …` lines on stderr; the others re-issued."""
-    import sys
-    import warnings
-
     for w in caught:
         if issubclass(w.category, category):
             print(f"warning: {w.message}", file=sys.stderr)
@@ -118,14 +127,7 @@ def _print_warnings(caught, category) -> None:
 
 
 def run_calibrate(args) -> int:
-    from ..compensation.calibration import calibrate_table, orientation_kind
-    from ..compensation.physics import ExcitationWarning
-    from ..data.logs import read_frame
-    from .main import output_path
-
-    if not args.data.is_file():
-        raise LogError(f"--data {args.data}: no such file")
-    output_path("--out", args.out, folder=True)
+    say = _printer(args.quiet)
     prior = _prior(args)
     if args.robot not in (None, "ftdrake") and not Path(args.robot).is_file():
         raise LogError(f"--robot {args.robot}: no such file")
@@ -137,8 +139,6 @@ def run_calibrate(args) -> int:
             raise ConfigError("--correction needs a table of static poses (gravity known at "
                               "each); this log is a motion")
         return _time_series(args, prior, TEMPERATURE in frame)
-    import warnings
-
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always", ExcitationWarning)
         cal = calibrate_table(
@@ -148,32 +148,35 @@ def run_calibrate(args) -> int:
             identification="least_squares" if args.least_squares else "consistent",
             identify_mounting=not args.no_mounting, correction=args.correction,
             known_payload=known)
-    print(cal.summary())
+    say(cal.summary())
     _print_warnings(caught, ExcitationWarning)
     model = cal.model
     if cal.correction is not None and model is not None:
         if cal.correction.payload is not None:
             model = model.with_correction(cal.correction)
-            print("model.ftd predicts readings through the correction: M·W_S + b (M = C⁻¹)")
+            say("model.ftd predicts readings through the correction: M·W_S + b (M = C⁻¹)")
         else:
-            print("note: model.ftd is the gravity + bias model (the correction was fitted with "
-                  "a known payload per row); the correction is in calibration.yaml (apply it "
-                  "to readings: wrench = C·(reading − bias))")
+            say("note: model.ftd is the gravity + bias model (the correction was fitted with "
+                "a known payload per row); the correction is in calibration.yaml (apply it "
+                "to readings: wrench = C·(reading − bias))")
     written = _write_yaml(args.out / "calibration.yaml", {"calibration": cal.to_dict(),
                                                          "data": str(args.data)})
     if model is not None:
         options = _read_options(args, model.temperature_in_)
         written.append(_save(model, args, model.n_joints_, options))
     else:
-        print("no model file: the orientation was given directly, so a model that maps joint "
-              "states to it needs a robot (give joint-angle columns with --robot)")
+        say("no model file: the orientation was given directly, so a model that maps joint "
+            "states to it needs a robot (give joint-angle columns with --robot)")
     print("wrote " + ", ".join(str(p) for p in written))
     return 0
 
 
-def _moving(frame, positions) -> bool:
-    from ..data.logs import expand_columns
+def _printer(quiet: bool):
+    """`print`, or nothing under --quiet."""
+    return (lambda *_: None) if quiet else print
 
+
+def _moving(frame, positions) -> bool:
     try:
         cols = expand_columns(positions, list(frame.columns))
     except LogError:
@@ -184,8 +187,6 @@ def _moving(frame, positions) -> bool:
 
 def _read_options(args, temperature: bool):
     """How `evaluate` reads data for the model file (kept in its manifest)."""
-    from ..data.training import ReadOptions
-
     return ReadOptions().updated(positions=args.positions, targets=args.targets,
                                  position_unit=args.position_unit,
                                  temperature=TEMPERATURE if temperature else None)
@@ -203,7 +204,8 @@ def _time_series(args, prior, temperature: bool) -> int:
     model.set_params(prior=prior, identify_mounting=not args.no_mounting,
                      identification="least_squares" if args.least_squares else "consistent")
     model.fit(data.X, data.Y)
-    print(model.summary())
+    if not args.quiet:
+        print(model.summary())
     table = json.loads(json.dumps(model.identified(), default=float))
     written = _write_yaml(args.out / "calibration.yaml", {"calibration": table,
                                                          "data": str(args.data)})
@@ -213,10 +215,6 @@ def _time_series(args, prior, temperature: bool) -> int:
 
 
 def _write_yaml(path: Path, table: dict) -> list[Path]:
-    import yaml
-
-    from ..io import atomic_write_text
-
     path.parent.mkdir(parents=True, exist_ok=True)
     atomic_write_text(path, yaml.safe_dump(_plain(table), sort_keys=False))
     return [path]
@@ -237,9 +235,6 @@ def _plain(x):
 def _save(model, args, n_joints, options) -> Path:
     """model.ftd, its manifest keeping how the data was read (so `evaluate` reads held-out
     poses, temperature column included, the same way)."""
-    from ..compensation.persistence import save_model
-    from ..conventions import WRENCH_AXES
-
     path = args.out / "model.ftd"
     save_model(model, path, target_names=list(WRENCH_AXES), target_units=list(WRENCH_UNITS),
                sensor_frame=args.sensor_frame or "S",

@@ -10,33 +10,34 @@ controller's model knows neither it nor the true tool) and writes ``summary.json
 from __future__ import annotations
 
 import logging
-from pathlib import Path
 
-from ..config import TRAJECTORY_KINDS, load_config
 from ..experiments import feedforward as experiment
+from . import args as a
 
 
 def register(subparsers) -> None:
     """Adds ``ftdrake learn-feedforward`` to an argparse subparsers."""
-    p = subparsers.add_parser(
-        "learn-feedforward",
-        help="learn the torque feedforward from earlier runs (GP), time-indexed ILC beside it")
-    p.add_argument("--iterations", type=int, default=5, help="learning iterations (default 5)")
-    p.add_argument("--trajectory", choices=TRAJECTORY_KINDS, default="rehearsal",
-                   help="the task's trajectory kind (default: rehearsal, the contact task "
-                        "in the air)")
-    p.add_argument("--out", type=Path, default=Path("out/feedforward"))
-    p.add_argument("--config", type=Path, help="scenario YAML (default: the shipped one)")
-    p.add_argument("--seed", type=int, default=0, help="the trajectory's seed")
-    p.add_argument("--duration", type=float, default=None, help="seconds per run")
+    p = a.add_command(
+        subparsers, "learn-feedforward",
+        "learn the torque feedforward (GP), ILC beside it",
+        "A GP learns from earlier runs; a time-indexed ILC is the baseline.")
+    p.add_argument("--iterations", type=a.positive_int, default=5, metavar="N",
+                   help="learning iterations")
+    a.add_trajectory(p, default="rehearsal",
+                     help="the task's trajectory kind (rehearsal: the contact task in the air)")
+    p.add_argument("--out", type=a.output_folder, default="out/feedforward", metavar="DIR",
+                   help="folder for summary.json, iterations.csv, tracking.png and the model")
+    a.add_config(p)
+    a.add_seed(p, 0, "the trajectory's seed")
+    p.add_argument("--duration", type=a.positive_float, metavar="S",
+                   help="seconds per run (default: the scenario's trajectory.duration_s)")
     p.add_argument("--target", choices=["model_error", "feedback"], default="model_error",
                    help="what the GP learns (see FeedforwardPlan.target)")
-    p.add_argument("--ilc-gain", type=float, default=1.0,
-                   help="the ILC baseline's learning gain γ (default 1)")
-    p.add_argument("--ilc-cutoff", type=float, default=5.0, metavar="HZ",
-                   help="the ILC baseline's Q-filter cut-off (zero-phase Butterworth), "
-                        "default 5 Hz")
-    p.add_argument("--quiet", action="store_true", help="no progress output")
+    p.add_argument("--ilc-gain", type=a.positive_float, default=1.0, metavar="GAMMA",
+                   help="the ILC baseline's learning gain γ")
+    p.add_argument("--ilc-cutoff", type=a.positive_float, default=5.0, metavar="HZ",
+                   help="the ILC baseline's Q-filter cut-off (zero-phase Butterworth), Hz")
+    a.add_quiet(p)
     p.set_defaults(run=run_command)
 
 
@@ -47,7 +48,7 @@ def run_command(args) -> int:
                                       target=args.target, ilc_gain=args.ilc_gain,
                                       ilc_cutoff_hz=args.ilc_cutoff)
     summary = experiment.run_feedforward_experiment(
-        load_config(args.config), plan, args.out, progress=not args.quiet)
+        a.load_scenario(args), plan, args.out, progress=not args.quiet)
     print(f"wrote {args.out}/summary.json, iterations.csv, tracking.png, feedforward_model.ftd "
           f"in {summary['wall_time_s']:.0f} s")
     print("tool-tip tracking RMS (mm) per iteration:")

@@ -7,12 +7,12 @@
 ``--hardware`` is a :class:`~ftdrake.hardware.config.HardwareConfig` YAML (channels, message
 types, timeouts, joint count); ``--lcm`` overrides its ``lcm_url``. ``--config`` is the usual
 scenario YAML: serve takes the compensator, bias-tracker, detector and sensor (rate, drift)
-settings from it. ``ftdrake simulate --lcm URL [--realtime]`` (cli/main.py) publishes a
+settings from it. ``ftdrake simulate --lcm URL [--realtime]`` (cli/simulation.py) publishes a
 simulated robot on the same channels.
 
-serve prints the channels, then a status line twice a second (stderr), each fault and
-recovery as it happens (stderr), and on Ctrl-C (SIGINT or SIGTERM) or after ``--duration`` a
-JSON summary of the counts (stdout).
+serve prints the channels, then a status line twice a second (stderr; neither with
+``--quiet``), each fault and recovery as it happens (stderr), and on Ctrl-C (SIGINT or
+SIGTERM) or after ``--duration`` a JSON summary of the counts (stdout).
 """
 
 from __future__ import annotations
@@ -23,68 +23,71 @@ import math
 import signal
 import sys
 import time
-from pathlib import Path
 
-from ..errors import ConfigError, ModelFileError
-from .main import existing_file, load_scenario, naming, output_path, positive_float
+from ..compensation.persistence import load_model
+from ..config import load_config
+from ..hardware.config import HardwareConfig
+from ..hardware.recording import read_lcm_log, table_from_messages, write_table
+from ..hardware.station import HardwareStation
+from ..hardware.transport import open_lcm
+from . import args as a
 
 STATUS_PERIOD_S = 0.5  # status line rate: 2 Hz
 
 
 def register(sub) -> None:
     """Adds ``serve`` and ``record`` to an ``argparse`` subparsers object."""
-    p = sub.add_parser("serve", help="run a compensator on a live robot's LCM streams; publish "
-                       "the external wrench and the contact state")
-    p.add_argument("--model", type=Path, required=True, help="a model file (train's --out)")
-    p.add_argument("--config", type=Path, help="scenario YAML: compensator, bias_tracker, "
-                   "detector, sensor settings (default: the shipped one)")
-    _add_transport_flags(p)
-    p.add_argument("--duration", type=positive_float, help="stop after S seconds (wall clock)")
-    p.set_defaults(run=_serve)
+    p = a.add_command(sub, "serve", "run a compensator on a live robot (LCM)",
+                      "Reads the joint state and F/T streams; publishes the external wrench "
+                      "and the contact state.")
+    a.add_model_file(p, required=True)
+    a.add_config(p, help="scenario YAML: compensator, bias_tracker, detector, sensor settings "
+                 "(default: the shipped one)")
+    add_transport_flags(p)
+    p.add_argument("--duration", type=a.positive_float, metavar="S",
+                   help="stop after S seconds, wall clock (default: on Ctrl-C)")
+    a.add_quiet(p, "no channel list and no status line (faults and the summary still print)")
+    p.set_defaults(run=run_serve)
 
-    p = sub.add_parser("record", help="record a live robot's joint state and F/T (LCM) into the "
-                       "Parquet layout of `collect`, for train/evaluate")
-    source = p.add_mutually_exclusive_group()
-    source.add_argument("--from-log", type=Path, metavar="LCMLOG",
-                        help="convert an lcm-logger file instead of listening")
-    _add_transport_flags(p)
-    p.add_argument("--out", type=Path, required=True, help="FILE.parquet")
-    p.add_argument("--duration", type=positive_float,
+    p = a.add_command(sub, "record", "record a live robot (LCM) for train/evaluate",
+                      "The joint state and F/T, in the Parquet layout of `collect`.")
+    p.add_argument("--from-log", type=a.existing_file, metavar="LCMLOG",
+                   help="convert an lcm-logger file instead of listening")
+    add_transport_flags(p)
+    p.add_argument("--out", type=a.output_file, required=True, metavar="FILE",
+                   help="FILE.parquet")
+    p.add_argument("--duration", type=a.positive_float, metavar="S",
                    help="stop after S seconds (default: on Ctrl-C)")
-    p.add_argument("--tolerance", type=positive_float, default=0.002, metavar="S",
-                   help="a joint state older than this (s) matches no F/T row, default 0.002")
-    p.set_defaults(run=_record)
+    p.add_argument("--tolerance", type=a.positive_float, default=0.002, metavar="S",
+                   help="a joint state older than this (s) matches no F/T row")
+    a.add_quiet(p, "no channel line on stderr")
+    p.set_defaults(run=run_record)
 
 
-def _add_transport_flags(p) -> None:
-    p.add_argument("--hardware", type=Path, metavar="FILE",
-                   help="HardwareConfig YAML: channels, message types, timeouts, n_joints")
-    p.add_argument("--lcm", metavar="URL", help="LCM URL, e.g. 'udpm://239.255.76.67:7667?ttl=0'"
-                   " or 'memq://' (default: the --hardware file's lcm_url)")
+def add_transport_flags(p, lcm_help: str = "LCM URL, e.g. 'udpm://239.255.76.67:7667?ttl=0' "
+                        "or 'memq://' (default: the --hardware file's lcm_url)") -> None:
+    """``--hardware FILE`` and ``--lcm URL``: the live robot's channels and transport."""
+    p.add_argument("--hardware", type=a.existing_file, metavar="FILE",
+                   help="HardwareConfig YAML: channels, message types, timeouts, n_joints "
+                        "(default: ftdrake's channels)")
+    p.add_argument("--lcm", metavar="URL", help=lcm_help)
 
 
-def hardware_from_args(args):
+def hardware_from_args(args) -> HardwareConfig:
     """The HardwareConfig of --hardware (defaults without it) with --lcm applied."""
-    from ..config import load_config
-    from ..hardware.config import HardwareConfig
-
-    path = getattr(args, "hardware", None)
-    if path is None:
+    if args.hardware is None:
         config = HardwareConfig()
     else:
-        existing_file("--hardware", path, ConfigError)
-        with naming("--hardware", path):
-            config = load_config(path, schema=HardwareConfig)
-    if getattr(args, "lcm", None):
+        with a.naming("--hardware", args.hardware):
+            config = load_config(args.hardware, schema=HardwareConfig)
+    if args.lcm:
         config.lcm_url = args.lcm
-    with naming("--lcm", args.lcm) if getattr(args, "lcm", None) else contextlib.nullcontext():
+    with a.naming("--lcm", args.lcm) if args.lcm else contextlib.nullcontext():
         return config.validate()
 
 
-def open_transport(args, hardware):
-    from ..hardware.transport import open_lcm
-
-    where = (f"--lcm {args.lcm}" if getattr(args, "lcm", None)
+def open_transport(args, hardware: HardwareConfig):
+    where = (f"--lcm {args.lcm}" if args.lcm
              else f"--hardware {args.hardware}" if args.hardware else "hardware.lcm_url")
     return open_lcm(hardware.lcm_url, where=where)
 
@@ -117,11 +120,12 @@ def stop_on_signals():
 
 
 class _Status:
-    """The throttled status line: message rates per stream, counts, the current state."""
+    """The throttled status line: message rates per stream, counts, the current state. The
+    rates are measured also when `quiet` (the summary reports the last ones)."""
 
-    def __init__(self, station, stream=sys.stderr):
-        self.station, self.stream = station, stream
-        self.tty = stream.isatty()
+    def __init__(self, station, stream=sys.stderr, quiet: bool = False):
+        self.station, self.stream, self.quiet = station, stream, quiet
+        self.tty = stream.isatty() and not quiet
         self.last = time.monotonic()
         self.last_counts = dict(station.monitor.received)
         self.rates = {}
@@ -134,6 +138,8 @@ class _Status:
         self.rates = {k: (received[k] - self.last_counts.get(k, 0)) / dt
                       for k in ("joint", "ft")}
         self.last, self.last_counts = now, dict(received)
+        if self.quiet:
+            return
         s = self.station
         m = s.monitor
         state = f"FAULT {m.reason}" if m.fault else "ok"
@@ -146,14 +152,10 @@ class _Status:
         print(line.ljust(100), end=end, file=self.stream, flush=True)
 
 
-def _serve(args) -> int:
-    from ..compensation.persistence import load_model
-    from ..hardware.station import HardwareStation
-
-    scenario = load_scenario(args)
+def run_serve(args) -> int:
+    scenario = a.load_scenario(args)
     hardware = hardware_from_args(args)
-    existing_file("--model", args.model, ModelFileError)
-    with naming("--model", args.model):
+    with a.naming("--model", args.model):
         model = load_model(args.model, expect_n_joints=hardware.n_joints)
     transport = open_transport(args, hardware)
 
@@ -161,10 +163,11 @@ def _serve(args) -> int:
         print(f"ftdrake serve: {event}", file=sys.stderr, flush=True)
 
     station = HardwareStation(hardware, model, scenario, transport, on_event=on_event)
-    print(f"ftdrake serve: {type(model).__name__} from {args.model}, "
-          f"{1 / station.period:g} Hz updates\n{describe_channels(hardware)}",
-          file=sys.stderr, flush=True)
-    status = _Status(station)
+    if not args.quiet:
+        print(f"ftdrake serve: {type(model).__name__} from {args.model}, "
+              f"{1 / station.period:g} Hz updates\n{describe_channels(hardware)}",
+              file=sys.stderr, flush=True)
+    status = _Status(station, quiet=args.quiet)
     start = time.monotonic()
     with stop_on_signals() as stop:
         while not stop[0]:
@@ -184,14 +187,10 @@ def _serve(args) -> int:
     return 0
 
 
-def _record(args) -> int:
-    from ..hardware.recording import read_lcm_log, table_from_messages, write_table
-
+def run_record(args) -> int:
     hardware = hardware_from_args(args)
-    output_path("--out", args.out, folder=False)
     if args.from_log is not None:
-        existing_file("--from-log", args.from_log)
-        with naming("--from-log", args.from_log):
+        with a.naming("--from-log", args.from_log):
             table, report = read_lcm_log(args.from_log, hardware, args.tolerance)
     else:
         transport = open_transport(args, hardware)
@@ -201,8 +200,9 @@ def _record(args) -> int:
             channels.append(hardware.velocity_channel)
         for channel in channels:
             transport.subscribe(channel, lambda data, c=channel: messages.append((c, data)))
-        print(f"ftdrake record: {describe_channels(hardware).splitlines()[1].strip()} "
-              f"on {hardware.lcm_url} → {args.out}", file=sys.stderr, flush=True)
+        if not args.quiet:
+            print(f"ftdrake record: {describe_channels(hardware).splitlines()[1].strip()} "
+                  f"on {hardware.lcm_url} → {args.out}", file=sys.stderr, flush=True)
         start = time.monotonic()
         with stop_on_signals() as stop:
             while not stop[0]:

@@ -2,49 +2,66 @@
 
 from __future__ import annotations
 
-from pathlib import Path
+import dataclasses as dc
+import sys
 
-from ..config import load_config
+from ..errors import ConfigError
 from ..experiments import study
-from ..experiments.study import FEATURES, FIGURES
+from ..experiments.study import FEATURES, FIGURES, protocols
+from ..experiments.study.report import tool_markdown
+from ..sim.station import plan_trajectory, robot_geometry
+from ..sim.trajectories import trajectory_extent
+from . import args as a
+
+halving_factor = a.number(int, lambda v: v >= 2, "must be a whole number >= 2")
+iteration_cap = a.number(int, lambda v: v >= 1 or v == -1,
+                         "must be a whole number >= 1, or -1 for no cap")
 
 
 def register(subparsers) -> None:
     """Adds ``ftdrake study [--quick|--paper] [--out DIR] ...`` to an argparse subparsers."""
-    p = subparsers.add_parser("study", help="RF vs SVR (+ physics, hybrid): the study repeated")
+    p = a.add_command(subparsers, "study", "RF vs SVR (+ physics, hybrid): the study repeated")
     grid = p.add_mutually_exclusive_group()
     grid.add_argument("--quick", dest="preset", action="store_const", const="quick",
                       help="small grids, one search per protocol pair (see "
                            "docs/study/quick_vs_full.md); under 5 min on 2 idle cores (default)")
     grid.add_argument("--paper", dest="preset", action="store_const", const="paper",
                       help="the study's full grids (days; not for CI)")
-    p.add_argument("--out", type=Path, default=Path("out/study"))
-    p.add_argument("--config", type=Path, help="scenario YAML (default: the shipped one)")
-    p.add_argument("--trajectories", type=int, default=study.TRAJECTORIES,
-                   help="runs per dataset")
-    p.add_argument("--test-trajectories", type=int, default=study.TEST_TRAJECTORIES,
-                   help="of those, held out whole for testing")
-    p.add_argument("--duration", type=float, default=study.DURATION_S, help="seconds per run")
-    p.add_argument("--train-hz", type=float, default=study.TRAIN_HZ,
+    p.add_argument("--out", type=a.output_folder, default="out/study", metavar="DIR",
+                   help="folder for the results and figures")
+    a.add_config(p)
+    p.add_argument("--trajectories", type=a.positive_int, default=study.TRAJECTORIES,
+                   metavar="N", help="runs per dataset")
+    p.add_argument("--test-trajectories", type=a.positive_int,
+                   default=study.TEST_TRAJECTORIES, metavar="N",
+                   help="of those, held out whole for testing (fewer than --trajectories)")
+    p.add_argument("--duration", type=a.positive_float, default=study.DURATION_S, metavar="S",
+                   help="seconds per run")
+    p.add_argument("--train-hz", type=a.positive_float, default=study.TRAIN_HZ, metavar="HZ",
                    help="training rows per second of log (logs are 1 kHz)")
-    p.add_argument("--cv", choices=["grouped", "shuffled"], default="grouped")
-    p.add_argument("--seed", type=int, default=0)
-    p.add_argument("--jobs", type=int, default=-1, help="worker processes (-1: all cores)")
-    p.add_argument("--quiet", action="store_true", help="no progress output")
-    p.add_argument("--scheduler", metavar="ADDRESS",
-                   help="--paper: a Dask scheduler (default: a LocalCluster of --jobs workers)")
+    p.add_argument("--cv", choices=["grouped", "shuffled"], default="grouped",
+                   help="cross-validation folds: grouped by trajectory segment, or the study's "
+                        "plain shuffled K-fold")
+    a.add_seed(p, 0, "seed of the runs and the searches")
+    a.add_jobs(p, "worker processes (-1: all cores)")
+    a.add_quiet(p)
+    cluster = a.add_cluster(p, "--paper: a Dask scheduler (default: a LocalCluster of --jobs "
+                            "workers)")
+    a.add_deprecated(p, "--scheduler", cluster)
     p.add_argument("--search", choices=["halving", "grid"], default="halving",
-                   help="--paper: successive halving (default) or the exhaustive grid")
-    p.add_argument("--features", default="q",
-                   help="--paper: feature sets, ';'-separated (default: q)")
-    p.add_argument("--max-train-rows", type=int, default=None,
+                   help="--paper: successive halving or the exhaustive grid")
+    p.add_argument("--features", default="q", metavar="SETS",
+                   help="--paper: feature sets, ';'-separated")
+    p.add_argument("--max-train-rows", type=a.positive_int, metavar="N",
                    help="--paper: training rows drawn from the split (default: all)")
-    p.add_argument("--halving-factor", type=int, default=None,
-                   help="--paper --search halving: keep 1/FACTOR per round (default 3)")
+    p.add_argument("--halving-factor", type=halving_factor, metavar="FACTOR",
+                   help="--paper --search halving: keep 1/FACTOR per round (default: 3)")
     p.add_argument("--rf-resource", choices=["n_estimators", "n_samples"], default=None,
-                   help="--paper --search halving: RF's budget, trees (default) or rows")
-    p.add_argument("--svr-max-iter", type=int, default=None,
-                   help="--paper: libsvm iteration cap per SVR fit (default 100000; -1 none)")
+                   help="--paper --search halving: RF's budget, trees or rows "
+                        "(default: n_estimators)")
+    p.add_argument("--svr-max-iter", type=iteration_cap, metavar="N",
+                   help="--paper: libsvm iteration cap per SVR fit, -1 for none "
+                        "(default: 100000)")
     p.add_argument("--tool-table", action="store_true",
                    help="only simulate the study's trajectory and write study_tool.md")
     p.set_defaults(preset="quick", run=run_command)
@@ -56,6 +73,9 @@ def run_command(args) -> int:
         return _tool_table(args)
     if args.preset == "paper":
         return _paper(args)
+    if not args.test_trajectories < args.trajectories:
+        raise ConfigError(f"--test-trajectories {args.test_trajectories}: must be fewer than "
+                          f"--trajectories ({args.trajectories}): the others are trained on")
     sizes = study.grid_sizes(args.preset)
     estimate = study.estimate_seconds(
         args.preset, trajectories=args.trajectories, duration=args.duration,
@@ -69,7 +89,7 @@ def run_command(args) -> int:
         args.out, preset=args.preset, trajectories=args.trajectories,
         test_trajectories=args.test_trajectories, duration=args.duration,
         train_hz=args.train_hz, cv=args.cv, n_jobs=args.jobs, progress=not args.quiet,
-        seed=args.seed, config=load_config(args.config))
+        seed=args.seed, config=a.load_scenario(args))
     print(f"wrote {args.out}/results.json, results.md and {2 * len(FIGURES)} figures "
           f"in {results['wall_time_s']:.0f} s")
     for f in results["findings"]:
@@ -94,10 +114,6 @@ def _fmt_duration(seconds: float) -> str:
 
 def _paper(args) -> int:
     """The paper grid on the study's protocol, on a Dask cluster."""
-    import sys
-
-    from ..experiments.study import protocols
-
     features = tuple(f.strip() for f in args.features.split(";"))
     halving = {k: v for k, v in (("factor", args.halving_factor),
                                  ("rf_resource", args.rf_resource),
@@ -106,12 +122,12 @@ def _paper(args) -> int:
     print("study --paper: exhaustive grid search would fit "
           + "; ".join(f"{m} {f} {n}" for m, v in fits.items() for f, n in v.items())
           + f" models; running {args.search} on "
-          + (args.scheduler or f"a LocalCluster of {max(args.jobs, 1) if args.jobs > 0 else 2}"
+          + (args.cluster or f"a LocalCluster of {max(args.jobs, 1) if args.jobs > 0 else 2}"
              " workers"), flush=True)
     out = protocols.run_paper(
-        args.out, scheduler=args.scheduler, features=features, search=args.search,
+        args.out, scheduler=args.cluster, features=features, search=args.search,
         max_train_rows=args.max_train_rows, seed=args.seed, progress=not args.quiet,
-        config=load_config(args.config), n_workers=args.jobs if args.jobs > 0 else 2,
+        config=a.load_scenario(args), n_workers=args.jobs if args.jobs > 0 else 2,
         halving=halving, command="ftdrake " + " ".join(sys.argv[1:]))
     print(f"wrote {args.out}/paper.json and paper.md in {out['wall_time_s']:.0f} s")
     for k, v in out.get("exhaustive_s_estimate", {}).items():
@@ -124,14 +140,7 @@ def _paper(args) -> int:
 
 def _tool_table(args) -> int:
     """Simulates the study's trajectory with its tool; writes the Tables 1–3 comparison."""
-    import dataclasses as dc
-
-    from ..experiments.study import protocols
-    from ..experiments.study.report import tool_markdown
-    from ..sim.station import plan_trajectory, robot_geometry
-    from ..sim.trajectories import trajectory_extent
-
-    config = protocols.study_scenario(load_config(args.config))
+    config = protocols.study_scenario(a.load_scenario(args))
     frame = protocols.collect_study(config, heldout=0, seed=args.seed, n_jobs=1)
     sensor = protocols.sensor_table(frame)
     config = dc.replace(config, trajectory=dc.replace(config.trajectory, seed=args.seed))

@@ -5,7 +5,7 @@ table or a ROS bag (a ROS 1 ``.bag`` file or a ROS 2 bag folder) — into the mo
 ``X = [q, q̇, q̈]`` (rad, rad/s, rad/s²) and targets ``Y`` (a wrench in N, N·m, or joint
 torques in N·m; any number of columns)::
 
-    ftdrake train --data id1.csv --targets 'tau_*' --velocities 'qd_*' --model rf --out m.ftd
+    ftdrake train --data id1.csv --targets 'tau_*' --velocities 'qd_*' --kind rf --out m.ftd
     ftdrake evaluate --model m.ftd --data id2.csv --json eval.json
 
 The read flags are the fields of :class:`~ftdrake.data.training.ReadOptions` (``--positions``
@@ -16,7 +16,7 @@ of the same kind, table or bag). ``--t-start``/``--t-end`` keep the rows in a ti
 ``--qdd-estimate causal`` trains on the q̈ estimate the loop makes (see ReadOptions).
 
 `train` tunes the model with the ``quick`` grid and grouped CV (``--preset none`` fits the
-defaults), locally or on a Dask cluster (``--dask ADDRESS``), saves it with
+defaults), locally or on a Dask cluster (``--cluster ADDRESS``), saves it with
 :func:`~ftdrake.compensation.persistence.save_model` and prints the file's size. The
 manifest's ``extra`` records the data file and its ReadOptions, the columns used and how the
 computed ones were derived, the training ranges of time and targets (those of the inputs are
@@ -41,11 +41,13 @@ from pathlib import Path
 
 import numpy as np
 
+from ..compensation import registry
 from ..conventions import TEMPERATURE, WRENCH_AXES, WRENCH_UNITS
 from ..data.bag import is_bag
 from ..data.logs import QDD_ESTIMATES, option_spelling
 from ..data.training import ReadOptions, TrainingData, load_training_data
 from ..errors import ConfigError, FtdrakeError, LogError, ModelFileError, RobotModelError
+from . import args as a
 
 FEATURE_SETS = ("q", "q,qd", "q,qd,qdd")
 # `evaluate` prints a warning when a cause flags more than this share of some target's rows.
@@ -71,12 +73,13 @@ _READ_FLAGS = {
     "qdd_estimate": ("savgol|causal", str, ("missing accelerations: savgol (Savitzky–Golay "
                      "of q, default) or causal (the estimate the compensator makes in the "
                      "loop, from q̇; use it for q,qd,qdd models that run in the loop)")),
-    "acceleration_cutoff_hz": ("HZ", float, ("cut-off of --qdd-estimate causal; default the "
-                               "dataset scenario's compensator.acceleration_cutoff_hz, or 25")),
-    "sg_window": ("S", float, "Savitzky–Golay window (s), default 0.1"),
-    "sg_polyorder": ("N", int, "Savitzky–Golay polynomial order, default 4"),
-    "gap_factor": ("X", float, ("a time step longer than X × the median period is a gap, "
-                               "default 3")),
+    "acceleration_cutoff_hz": ("HZ", a.positive_float, (
+        "cut-off of --qdd-estimate causal; default the dataset scenario's "
+        "compensator.acceleration_cutoff_hz, or 25")),
+    "sg_window": ("S", a.positive_float, "Savitzky–Golay window (s), default 0.1"),
+    "sg_polyorder": ("N", a.non_negative_int, "Savitzky–Golay polynomial order, default 4"),
+    "gap_factor": ("X", a.positive_float, ("a time step longer than X × the median period is "
+                                           "a gap, default 3")),
     "temperature": ("COL", str, ("the sensor's temperature column (°C, tables): read as the "
                                 "models' last input, so the model learns the zero drift "
                                 "with temperature; evaluate then needs it too")),
@@ -90,25 +93,24 @@ _FILE_OPTIONS = ("positions", "targets", "velocities", "accelerations", "time", 
 
 def register(subparsers) -> None:
     """Adds ``train`` and ``evaluate`` to an ``argparse`` subparsers object."""
-    from ..compensation import registry
-
     models = registry.names()
-    p = subparsers.add_parser("train", help="fit a compensator on a robot log; save it",
-                              description=_COLUMNS_HELP)
-    p.add_argument("--data", type=Path, required=True, metavar="FILE",
+    p = a.add_command(subparsers, "train", "fit a compensator on a robot log; save it",
+                      description=_COLUMNS_HELP)
+    p.add_argument("--data", type=a.existing_path, required=True, metavar="FILE",
                    help="CSV/Parquet table, ROS 1 .bag file or ROS 2 bag folder")
     _add_read_flags(p)
-    p.add_argument("--model", choices=models,
-                   help=", ".join(f"{n}: {registry.entry(n).summary}" for n in models)
-                   + "; physics and hybrid need --robot: on a wrench they identify the payload, "
-                   "on joint torques the whole arm (as arm). Default: hybrid when --robot is "
-                   "given, else rf")
+    kind = p.add_argument(
+        "--kind", choices=models,
+        help=", ".join(f"{n}: {registry.entry(n).summary}" for n in models)
+        + "; physics and hybrid need --robot: on a wrench they identify the payload, on joint "
+        "torques the whole arm (as arm). (default: hybrid when --robot is given, else rf)")
+    a.add_deprecated(p, "--model", kind)
     p.add_argument("--features", choices=FEATURE_SETS, metavar="q|q,qd|q,qd,qdd",
-                   help="inputs the model uses (default q,qd,qdd; physics: q = static, "
+                   help="inputs the model uses (default: q,qd,qdd; physics: q = static, "
                         "q,qd,qdd = dynamic; hybrid: the residual forest's, default q)")
     p.add_argument("--preset", choices=["quick", "none"], default="quick",
                    help="quick: grid search with grouped CV (rf, svr; gpr, physics and hybrid "
-                        "fit their parameters from data); none: default parameters")
+                        "fit their parameters from data); none: the kind's own parameters")
     p.add_argument("--robot", metavar="FILE",
                    help=f"URDF/SDF holding the sensor frame, or '{BUILTIN_ROBOT}' for the "
                         "simulated arm (physics, hybrid)")
@@ -127,23 +129,27 @@ def register(subparsers) -> None:
                         "tool carries without its inertia (a hanging cable), 4 parameters")
     p.add_argument("--target-units", metavar="U,U,..",
                    help="unit per target (default: N/N*m for wrench axes, else N*m)")
-    p.add_argument("--seed", type=int, default=0, help="random state of rf and gpr")
-    p.add_argument("--jobs", type=int, default=-1, help="parallel CV fits (-1: all cores)")
-    p.add_argument("--dask", metavar="ADDRESS", help="run the grid search on this Dask scheduler")
-    p.add_argument("--out", type=Path, required=True, metavar="MODEL")
-    p.add_argument("--quiet", action="store_true", help="no progress output")
+    a.add_seed(p, 0, "random state of rf and gpr")
+    a.add_jobs(p, "parallel CV fits (-1: all cores)")
+    cluster = a.add_cluster(p, "run the grid search on this Dask scheduler")
+    a.add_deprecated(p, "--dask", cluster)
+    p.add_argument("--out", type=a.output_file, required=True, metavar="MODEL",
+                   help="the model file to write (e.g. m.ftd)")
+    a.add_quiet(p)
     p.set_defaults(run=run_train)
 
-    p = subparsers.add_parser(
-        "evaluate", help="score a saved compensator on a robot log",
+    p = a.add_command(
+        subparsers, "evaluate", "score a saved compensator on a robot log",
         description=_COLUMNS_HELP + " Read flags not given are those the model was trained "
         "with (column and topic flags: when the file is of the same kind, table or bag), else "
         "the defaults.")
-    p.add_argument("--model", type=Path, required=True, metavar="MODEL")
-    p.add_argument("--data", type=Path, required=True, metavar="FILE")
+    a.add_model_file(p, required=True)
+    p.add_argument("--data", type=a.existing_path, required=True, metavar="FILE",
+                   help="CSV/Parquet table, ROS 1 .bag file or ROS 2 bag folder")
     _add_read_flags(p)
-    p.add_argument("--json", type=Path, metavar="OUT", help="also write the results as JSON")
-    p.add_argument("--quiet", action="store_true")
+    p.add_argument("--json", type=a.output_file, metavar="OUT",
+                   help="also write the results as JSON")
+    a.add_quiet(p)
     p.set_defaults(run=run_evaluate)
 
 
@@ -153,8 +159,10 @@ def _add_read_flags(p) -> None:
                        choices=_CHOICES.get(name))
     p.add_argument("--no-check-units", dest="check_units", action="store_const", const=False,
                    help="accept positions beyond ±2π rad and velocities that disagree with q")
-    p.add_argument("--t-start", type=float, metavar="S", help="drop rows before this time (s)")
-    p.add_argument("--t-end", type=float, metavar="S", help="drop rows after this time (s)")
+    p.add_argument("--t-start", type=a.finite_float, metavar="S",
+                   help="drop rows before this time (s)")
+    p.add_argument("--t-end", type=a.finite_float, metavar="S",
+                   help="drop rows after this time (s)")
 
 
 def _flag_name(option: str) -> str:
@@ -189,8 +197,6 @@ def _with_flags(base: ReadOptions, args) -> ReadOptions:
 
 def _read(args, options: ReadOptions, say, static_poses: bool | None = False) -> TrainingData:
     say(f"reading {args.data} …")
-    if not args.data.exists():
-        raise LogError(f"--data {args.data}: no such file or folder")
     with option_spelling(flag_hint):
         try:
             data = load_training_data(args.data, options, t_start=args.t_start,
@@ -248,11 +254,11 @@ def make_estimator(model: str, *, features: str | None = None, seed: int = 0,
     robot = robot or RobotOptions()
     if robot.identify_mounting and (model not in ("physics", "hybrid")
                                     or (target_names and not is_wrench(target_names))):
-        raise ConfigError("--identify-mounting is for --model physics or hybrid on a wrench "
+        raise ConfigError("--identify-mounting is for --kind physics or hybrid on a wrench "
                           "(the sensor's mounting rotation)")
     if robot.weight_without_inertia and (model not in ("physics", "hybrid")
                                          or (target_names and not is_wrench(target_names))):
-        raise ConfigError("--weight-without-inertia is for --model physics or hybrid on a "
+        raise ConfigError("--weight-without-inertia is for --kind physics or hybrid on a "
                           "wrench (a weight the tool carries without its inertia)")
     if model in ("physics", "hybrid", "arm") and target_names and not is_wrench(target_names):
         # Joint torques (or anything per joint): the whole arm's rigid-body model.
@@ -264,7 +270,7 @@ def make_estimator(model: str, *, features: str | None = None, seed: int = 0,
         return physics
     if entry.wrench_only and not is_wrench(target_names):
         raise ConfigError(
-            f"--model {model} predicts a wrench: 6 targets named *Fx, *Fy, *Fz, *Tx, *Ty, "
+            f"--kind {model} predicts a wrench: 6 targets named *Fx, *Fy, *Fz, *Tx, *Ty, "
             f"*Tz (N, N·m) in the sensor frame; got {list(target_names)}. Joint torques need "
             f"rf, svr, gpr, or arm/physics/hybrid with --robot (or choose the wrench columns "
             f"with --targets)"
@@ -296,7 +302,7 @@ def _arm(model: str, robot: RobotOptions):
     from ..physics.scenario_robot import robot_description
 
     if robot.robot is None:
-        raise ConfigError(f"--model {model} on joint torques needs --robot FILE (the arm's "
+        raise ConfigError(f"--kind {model} on joint torques needs --robot FILE (the arm's "
                           f"URDF/SDF), or --robot {BUILTIN_ROBOT} for the simulated arm")
     options = {"drive_gains": robot.drive_gains}
     if robot.robot == BUILTIN_ROBOT:
@@ -323,7 +329,7 @@ def _physics(model: str, robot: RobotOptions | None, features: str):
 
     robot = robot or RobotOptions()
     if robot.robot is None:
-        raise ConfigError(f"--model {model} needs --robot FILE (URDF/SDF) with "
+        raise ConfigError(f"--kind {model} needs --robot FILE (URDF/SDF) with "
                           f"--sensor-frame NAME, or --robot {BUILTIN_ROBOT} for the simulated "
                           f"arm")
     if features == "q,qd":
@@ -390,34 +396,34 @@ def run_train(args) -> int:
     robot = RobotOptions(args.robot, args.sensor_frame, args.base_frame, data.scenario_yaml,
                          args.drive_gains, args.identify_mounting,
                          args.weight_without_inertia)
-    if args.model is None:
-        args.model = default_model(robot)
-        say(f"--model not given: {args.model} "
+    if args.kind is None:
+        args.kind = default_model(robot)
+        say(f"--kind not given: {args.kind} "
             + ("(a robot description and wrench targets: physics + learned residual)"
-               if args.model == "hybrid" else "(no --robot: a black box)"))
-    estimator = make_estimator(args.model, features=args.features, seed=args.seed,
+               if args.kind == "hybrid" else "(no --robot: a black box)"))
+    estimator = make_estimator(args.kind, features=args.features, seed=args.seed,
                                target_names=data.target_names, robot=robot)
     units = target_units(args.target_units, data.target_names)
     search = None
-    if args.preset == "quick" and "quick" in registry.entry(args.model).presets:
+    if args.preset == "quick" and "quick" in registry.entry(args.kind).presets:
         from ..compensation.tuning import segment_groups, tune
         from ..sim.collection import dask_backend
 
-        where = f"Dask scheduler {args.dask}" if args.dask else "local processes"
-        say(f"tuning {args.model} (quick grid, grouped 5-fold CV) on {where} …")
-        with dask_backend(args.dask):
+        where = f"Dask scheduler {args.cluster}" if args.cluster else "local processes"
+        say(f"tuning {args.kind} (quick grid, grouped 5-fold CV) on {where} …")
+        with dask_backend(args.cluster):
             model, search = tune(estimator, data.X, data.Y, groups=segment_groups(data.groups),
                                  preset="quick", cv="grouped", target_names=data.target_names,
                                  n_jobs=args.jobs, progress=not args.quiet)
         say(f"best {search.best_params[0]}, CV MSE {-search.mean_score[0]:.4g}")
     else:
         why = "" if args.preset == "none" else " (no grid: its parameters are fitted from data)"
-        say(f"fitting {args.model}{why} …")
-        model = _fit(estimator, data, needs_robot=registry.entry(args.model).needs_robot)
+        say(f"fitting {args.kind}{why} …")
+        model = _fit(estimator, data, needs_robot=registry.entry(args.kind).needs_robot)
     if hasattr(model, "summary"):  # physics and hybrid: the identified payload
         print(model.summary())
-    extra = provenance(args.data, data, model, search, kind=args.model,
-                       time_window=(args.t_start, args.t_end), dask=args.dask)
+    extra = provenance(args.data, data, model, search, kind=args.kind,
+                       time_window=(args.t_start, args.t_end), dask=args.cluster)
     args.out.parent.mkdir(parents=True, exist_ok=True)
     sensor_frame = args.sensor_frame or ("S" if is_wrench(data.target_names) else "joints")
     save_model(model, args.out, target_names=data.target_names, target_units=units,
@@ -515,9 +521,8 @@ def run_evaluate(args) -> int:
     from ..compensation.persistence import load_model, read_manifest
 
     say = _reporter(args.quiet)
-    if not args.model.is_file():
-        raise ModelFileError(f"--model {args.model}: no such file")
-    manifest = read_manifest(args.model)
+    with a.naming("--model", args.model):
+        manifest = read_manifest(args.model)
     options = _with_flags(stored_read_options(manifest, args.data), args)
     # A table without its time column is a table of static poses (what `calibrate` takes).
     data = _read(args, options, say, static_poses=None)
@@ -750,12 +755,7 @@ def main(argv=None) -> int:
     code 2; any other exception is a bug and keeps its traceback."""
     parser = argparse.ArgumentParser(prog="ftdrake")
     register(parser.add_subparsers(dest="command", required=True))
-    args = parser.parse_args(argv)
-    try:
-        return args.run(args)
-    except FtdrakeError as e:
-        print(f"ftdrake {args.command}: error: {e}", file=sys.stderr)
-        return 2
+    return a.run(parser.parse_args(argv))
 
 
 if __name__ == "__main__":

@@ -80,7 +80,7 @@ STATIC_NAMES = ("m", "mcx", "mcy", "mcz", "bFx", "bFy", "bFz", "bTx", "bTy", "bT
 STATIC_UNITS = ("kg", "kg*m", "kg*m", "kg*m", "N", "N", "N", "N*m", "N*m", "N*m")
 NOT_IDENTIFIABLE = ("static poses determine the mass, the first moment m·c (so the centre of "
                     "mass) and the biases; the inertia needs motion (a dynamic log with "
-                    "`ftdrake train --model physics`)")
+                    "`ftdrake train --kind physics`)")
 #: Structures of the gain/cross-talk correction C: two 3 × 3 blocks, or all of the 6 × 6.
 CORRECTIONS = ("block", "full")
 #: Table columns of a known payload per row (kg; m, from So in S): several loads in one table.

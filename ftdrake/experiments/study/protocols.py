@@ -502,7 +502,7 @@ def run_paper(out_dir, *, scheduler: str | None = None, features=("q",), search=
 
 #: The paper grid without any reduction (weeks on 2 cores; see paper.md's estimate).
 FULL_PAPER_COMMAND = ("ftdrake study --paper --search grid --svr-max-iter -1 "
-                      "--features 'q;q,qd;q,qd,qdd' --scheduler ADDRESS")
+                      "--features 'q;q,qd;q,qd,qdd' --cluster ADDRESS")
 
 
 def paper_markdown(out: dict, protocols_section: str) -> str:

@@ -1,0 +1,288 @@
+"""The command line's shared grammar: argument types, the flags every command spells alike, the
+help format, the deprecated-spelling action, and the run-time helpers that name a flag in
+every error.
+
+One spelling per concept, in every command that takes it:
+
+==========================  =====================================================
+``--config FILE``           the scenario YAML (default: the shipped one)
+``--trajectory KIND``       a trajectory kind, from the library's list of kinds
+``--kind KIND``             a compensator kind, from the compensator registry
+``--model FILE``            a saved model file (``train --out``)
+``--cluster ADDRESS``       a Dask scheduler, ``[PROTOCOL://]HOST:PORT``
+``--jobs N``                local worker processes: N >= 1, or -1 for all cores
+``--seed N``                a random seed in [0, 2**32)
+``--html/--no-html``        write the Meshcat replay (replay.html) or not
+``--quiet``                 no progress or status output on stderr
+``--out PATH``              the output folder or file, checked before the run
+==========================  =====================================================
+
+Bad values are refused while parsing, before anything runs, as argparse refuses them:
+``ftdrake CMD: error: argument --FLAG: REQUIREMENT; got VALUE`` and exit code 2. A spelling
+replaced by one of these keeps working for one release through :class:`DeprecatedSpelling`,
+which prints on stderr the spelling that replaces it.
+
+A problem found while running (a field of the scenario, a model file) is a
+:class:`~ftdrake.errors.FtdrakeError`; :func:`run` prints it as one line naming the flag that
+set it, ``ftdrake CMD: error: --FLAG VALUE: MESSAGE``, and exits with 2. Any other exception
+is a bug in ftdrake and keeps its traceback.
+"""
+
+from __future__ import annotations
+
+import argparse
+import contextlib
+import math
+import re
+import sys
+from pathlib import Path
+
+from ..config import TRAJECTORY_KINDS, ScenarioConfig, load_config
+from ..errors import ConfigError, FtdrakeError
+
+
+# -- argument types -----------------------------------------------------------------------------
+# Each takes the flag's text and returns its value, or raises ArgumentTypeError with the
+# requirement; argparse prefixes the flag: "argument --duration: must be a positive number".
+def number(parse, accept, requirement: str):
+    """An argument type: `parse` (int or float) of the text, refused unless `accept(value)`;
+    the refusal states `requirement` (the allowed range) and the text given."""
+
+    def convert(text: str):
+        try:
+            value = parse(text)
+        except ValueError:
+            value = None
+        if value is None or not accept(value):
+            raise argparse.ArgumentTypeError(f"{requirement}; got {text!r}")
+        return value
+
+    return convert
+
+
+positive_int = number(int, lambda v: v >= 1, "must be a whole number >= 1")
+non_negative_int = number(int, lambda v: v >= 0, "must be a whole number >= 0")
+positive_float = number(float, lambda v: 0 < v < math.inf, "must be a positive number")
+finite_float = number(float, math.isfinite, "must be a finite number")
+seed = number(int, lambda v: 0 <= v < 2**32, "must be a whole number in [0, 2**32)")
+jobs = number(int, lambda v: v >= 1 or v == -1,
+              "must be a number of processes >= 1, or -1 for all cores")
+
+
+def existing_file(text: str) -> Path:
+    """An argument type: the path of a file that exists."""
+    path = Path(text)
+    if not path.is_file():
+        raise argparse.ArgumentTypeError(
+            f"{text}: {'a folder, not a file' if path.is_dir() else 'no such file'}")
+    return path
+
+
+def existing_path(text: str) -> Path:
+    """An argument type: the path of a file or folder that exists (a ROS 2 bag is a folder)."""
+    path = Path(text)
+    if not path.exists():
+        raise argparse.ArgumentTypeError(f"{text}: no such file or folder")
+    return path
+
+
+def _writable(text: str, *, folder: bool) -> Path:
+    """`text` as a path that can be written: a folder (`folder`) or a file, below a folder
+    (created as needed)."""
+    path = Path(text)
+    if path.exists() and path.is_dir() != folder:
+        raise argparse.ArgumentTypeError(
+            f"{text}: is a {'file' if folder else 'folder'}; "
+            f"give a {'folder' if folder else 'file'} name")
+    parent = path.parent
+    while not parent.exists():
+        parent = parent.parent
+    if not parent.is_dir():
+        raise argparse.ArgumentTypeError(f"{text}: {parent} is a file, not a folder")
+    return path
+
+
+def output_folder(text: str) -> Path:
+    """An argument type: a folder to write into (it may exist; it must not be a file)."""
+    return _writable(text, folder=True)
+
+
+def output_file(text: str) -> Path:
+    """An argument type: a file to write (it may exist; it must not be a folder)."""
+    return _writable(text, folder=False)
+
+
+_ADDRESS = re.compile(r"((tcp|tls|ucx|ws|wss)://)?(\[[0-9A-Fa-f:.]+\]|[^\s:/\[\]]+):(\d+)")
+
+
+def cluster_address(text: str) -> str:
+    """An argument type: a Dask scheduler address ``[PROTOCOL://]HOST:PORT``, as
+    ``dask.distributed.Client`` takes it (a TCP address needs its port)."""
+    found = _ADDRESS.fullmatch(text)
+    if found is None or not 0 < int(found.group(4)) < 65536:
+        raise argparse.ArgumentTypeError(
+            "must be a Dask scheduler address [PROTOCOL://]HOST:PORT, e.g. tcp://10.0.0.5:8786 "
+            f"(PROTOCOL: tcp, tls, ucx, ws, wss; PORT 1..65535); got {text!r}")
+    return text
+
+
+# -- the flags every command spells alike --------------------------------------------------------
+def add_config(p, help: str = "scenario YAML (default: the shipped one)"):
+    return p.add_argument("--config", type=existing_file, metavar="FILE", help=help)
+
+
+def add_trajectory(p, *, default: str, kinds=TRAJECTORY_KINDS, help: str = "trajectory kind"):
+    """``--trajectory KIND``, one of `kinds` (a list the library keeps)."""
+    return p.add_argument("--trajectory", choices=kinds, default=default, help=help)
+
+
+def add_cluster(p, help: str):
+    return p.add_argument("--cluster", type=cluster_address, metavar="ADDRESS", help=help)
+
+
+def add_jobs(p, help: str = "local worker processes (-1: all cores)"):
+    return p.add_argument("--jobs", type=jobs, default=-1, metavar="N", help=help)
+
+
+def add_seed(p, default: int | None, help: str):
+    return p.add_argument("--seed", type=seed, default=default, metavar="N", help=help)
+
+
+def add_html(p, *, default: bool):
+    """``--html/--no-html``: the Meshcat replay, replay.html."""
+    return p.add_argument("--html", action=argparse.BooleanOptionalAction, default=default,
+                          help="write replay.html, a Meshcat replay of the run")
+
+
+def add_quiet(p, help: str = "no progress output"):
+    return p.add_argument("--quiet", action="store_true", help=help)
+
+
+def add_model_file(p, help: str = "a model file (train's --out)", **kwargs):
+    return p.add_argument("--model", type=existing_file, metavar="FILE", help=help, **kwargs)
+
+
+# -- old spellings --------------------------------------------------------------------------------
+class DeprecatedSpelling(argparse.Action):
+    """An old spelling of a flag, kept for one release: it sets what the new spelling sets
+    (`values` maps an old value to the new one) and prints on stderr the spelling to use
+    instead. Hidden from ``--help``."""
+
+    def __init__(self, option_strings, dest, *, new: str, values: dict | None = None,
+                 **kwargs):
+        super().__init__(option_strings, dest, help=argparse.SUPPRESS, **kwargs)
+        self.new, self.values = new, values
+
+    def __call__(self, parser, namespace, values, option_string=None):
+        value = self.const if self.nargs == 0 else values
+        if self.values is not None:
+            value = self.values[value]
+        setattr(namespace, self.dest, value)
+        instead = self.new if self.nargs == 0 else f"{self.new} {value}"
+        given = option_string if self.nargs == 0 else f"{option_string} {values}"
+        print(f"{parser.prog}: warning: {given} is deprecated and will be removed in the next "
+              f"release; use {instead}", file=sys.stderr, flush=True)
+
+
+def add_deprecated(p, old: str, new: argparse.Action, *, values: dict | None = None) -> None:
+    """Adds `old` as a deprecated spelling of the argument `new` (what ``add_argument``
+    returned): same destination and checks; `values` maps old values to new ones (its keys
+    are the old spelling's choices). A flag without a value (``store_true``, ``--html``) sets
+    True. The help of `new` says which spelling it replaces."""
+    new.help = f"{new.help or ''} (replaces {old})".lstrip()
+    if new.nargs == 0:
+        p.add_argument(old, action=DeprecatedSpelling, new=new.option_strings[0],
+                       dest=new.dest, nargs=0, const=True)
+        return
+    p.add_argument(old, action=DeprecatedSpelling, new=new.option_strings[0], dest=new.dest,
+                   values=values, type=None if values else new.type,
+                   choices=list(values) if values else new.choices, metavar=new.metavar)
+
+
+# -- help --------------------------------------------------------------------------------------
+class HelpFormatter(argparse.HelpFormatter):
+    """Shows each option's default after its help, ``(default: X)``, unless the help already
+    says it or there is none to show (None; a flag without a value, but for ``--x/--no-x``)."""
+
+    def _get_help_string(self, action):
+        text = action.help or ""
+        default = action.default
+        if isinstance(action, argparse.BooleanOptionalAction) and default is not None:
+            return f"{text} (default: {action.option_strings[0 if default else 1]})"
+        if (not action.option_strings or action.nargs == 0 or "(default" in text
+                or default is None or default is argparse.SUPPRESS):
+            return text
+        return f"{text} (default: %(default)s)"
+
+
+def add_command(subparsers, name: str, help: str, description: str = ""):
+    """A command's parser: `help` is its one line in ``ftdrake --help`` and opens its own
+    ``--help``, followed by `description`; option defaults are shown."""
+    return subparsers.add_parser(name, help=help, description=f"{help}. {description}".strip(),
+                                 formatter_class=HelpFormatter)
+
+
+# -- run time: loading what a flag names -------------------------------------------------------
+@contextlib.contextmanager
+def naming(flag: str, value):
+    """Prefixes the message of a FtdrakeError raised inside with the flag that set `value`, so
+    ``x.yaml: sensor.rate_hz ...`` reads ``--config x.yaml: sensor.rate_hz ...``."""
+    try:
+        yield
+    except FtdrakeError as e:
+        message = str(e)
+        for prefix in (f"{value}: ", f"{value} "):
+            message = message.removeprefix(prefix)
+        raise type(e)(f"{flag} {value}: {message}") from None
+
+
+def load_scenario(args) -> ScenarioConfig:
+    """The scenario of --config (the shipped one without it); errors name --config."""
+    if args.config is None:
+        return load_config(None)
+    with naming("--config", args.config):
+        return load_config(args.config)
+
+
+def scenario_from_args(args, kind: str | None = None) -> ScenarioConfig:
+    """Loads --config and applies the trajectory `kind` and the --duration/--seed overrides
+    common to commands."""
+    config = load_scenario(args)
+    if kind is not None:
+        config.trajectory.kind = kind
+    if getattr(args, "duration", None) is not None:
+        config.trajectory.duration_s = args.duration
+    if getattr(args, "seed", None) is not None:
+        config.trajectory.seed = args.seed
+        config.sensor.seed = args.seed
+    return config.validate()
+
+
+def run(args) -> int:
+    """Runs a parsed command. A :class:`FtdrakeError` (a problem the user can fix: its message
+    names the flag or field) prints as ``ftdrake CMD: error: MESSAGE`` and exits with 2, like
+    argparse's own errors. Any other exception is a bug in ftdrake and keeps its traceback."""
+    try:
+        return args.run(args) or 0
+    except FtdrakeError as e:
+        print(f"ftdrake {args.command}: error: {_naming_the_flag(e, args)}", file=sys.stderr)
+        return 2
+
+
+# Scenario fields that a command's flag sets (`--duration` overrides the file's duration_s).
+_FIELD_FLAGS = {"trajectory.duration_s": "--duration"}
+
+
+def _naming_the_flag(error: FtdrakeError, args) -> str:
+    """The message of `error`, reworded to name the flag that sets the field it is about: the
+    field's own flag if one was given, else --config for a scenario field (``scenario.x``)."""
+    message = str(error)
+    for field, flag in _FIELD_FLAGS.items():
+        value = getattr(args, flag.removeprefix("--").replace("-", "_"), None)
+        found = re.match(rf"(scenario\.)?{re.escape(field)}: ", message)
+        if value is not None and found:
+            return f"{flag} {value}: {message[found.end():]}"
+    config = getattr(args, "config", None)
+    if isinstance(error, ConfigError) and config is not None and message.startswith("scenario."):
+        return f"--config {config}: {message}"
+    return message

@@ -1,0 +1,73 @@
+"""``ftdrake demo`` and ``ftdrake evaluate-detection``: the main job end to end, and contact
+detection measured on unseen seeds.
+
+    ftdrake demo [--trajectories 4] [--duration 20] [--no-html] [--out DIR]
+    ftdrake evaluate-detection --model a.ftd [--model b.ftd ...] [--minutes 10] [--out DIR]
+"""
+
+from __future__ import annotations
+
+from ..compensation.persistence import load_model
+from ..experiments.demo import print_table, run_demo
+from ..experiments.detection import DetectionPlan, markdown, run_detection_evaluation
+from . import args as a
+
+
+def register(sub) -> None:
+    """Adds ``demo`` and ``evaluate-detection`` to an ``argparse`` subparsers object."""
+    p = a.add_command(sub, "demo", "collect → train → contact scenario in the loop")
+    a.add_config(p)
+    p.add_argument("--out", type=a.output_folder, default="out/demo", metavar="DIR",
+                   help="folder for the summary, figures, models and logs")
+    p.add_argument("--trajectories", type=a.positive_int, default=4, metavar="N",
+                   help="Fourier runs to train on")
+    p.add_argument("--duration", type=a.positive_float, default=20.0, metavar="S",
+                   help="seconds per training run")
+    a.add_html(p, default=True)
+    p.add_argument("--rehearse-all-surfaces", action="store_true",
+                   help="also train on (and hold out) one rehearsal at each other surface of "
+                        "the task (the wall)")
+    a.add_quiet(p)
+    p.set_defaults(run=run_demo_command)
+
+    p = a.add_command(
+        sub, "evaluate-detection", "contact detection of models on unseen seeds",
+        "False positives in long free motion, misses and delays of presses on table and wall, "
+        "a detection-rate plot.")
+    a.add_model_file(p, action="append", required=True,
+                     help="a model file (repeat to compare models; named by file stem)")
+    a.add_config(p)
+    p.add_argument("--minutes", type=a.positive_float, default=10.0, metavar="MIN",
+                   help="simulated minutes of free motion, split over the trajectory kinds")
+    p.add_argument("--budget", type=a.positive_float, default=1.0, metavar="PER_HOUR",
+                   help="false positives per hour the thresholds are set for")
+    a.add_jobs(p)
+    p.add_argument("--out", type=a.output_folder, default="out/detection", metavar="DIR",
+                   help="folder for detection.json, detection.md, detection_rate.png")
+    a.add_quiet(p)
+    p.set_defaults(run=run_evaluate_detection)
+
+
+def run_demo_command(args) -> int:
+    config = a.load_scenario(args)
+    summary = run_demo(args.out, config, fourier=args.trajectories, duration=args.duration,
+                       other_surfaces=args.rehearse_all_surfaces, meshcat_html=args.html,
+                       progress=not args.quiet)
+    print_table(summary)
+    print(f"wrote {args.out}/summary.json, contact.png, model_forest.ftd, model_hybrid.ftd, "
+          "contact_log_*.parquet" + (", replay.html" if args.html else ""))
+    return 0
+
+
+def run_evaluate_detection(args) -> int:
+    config = a.load_scenario(args)
+    models = {}
+    for path in args.model:
+        with a.naming("--model", path):
+            models[path.stem] = load_model(path, expect_n_joints=len(config.home_q))
+    plan = DetectionPlan(free_minutes=args.minutes, false_positives_per_hour=args.budget)
+    results = run_detection_evaluation(args.out, models, config, plan, n_jobs=args.jobs,
+                                       progress=not args.quiet)
+    print(markdown(results, plan))
+    print(f"wrote {args.out}/detection.json, detection.md, detection_rate.png")
+    return 0
