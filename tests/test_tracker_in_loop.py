@@ -15,17 +15,13 @@ from ftdrake import ScenarioConfig
 from ftdrake import conventions as col
 from ftdrake.compensation.physics import PhysicsPayloadCompensator
 from ftdrake.config import DetectorConfig
+from ftdrake.conventions import BIAS_ESTIMATE, ESTIMATED, PAYLOAD_ESTIMATE
 from ftdrake.data.dataset import joint_state_layout, wrench_targets
 from ftdrake.errors import ConfigError
 from ftdrake.experiments.tracking import EventPlan, event_configs, push_metrics
 from ftdrake.sim.collection import collect
 from ftdrake.sim.events import with_point_mass
-from ftdrake.sim.simulate import (
-    BIAS_ESTIMATE,
-    ESTIMATED,
-    PAYLOAD_ESTIMATE,
-    simulate,
-)
+from ftdrake.sim.simulate import simulate
 from ftdrake.sim.station import build_station
 from ftdrake.systems.sensor_gravity import SensorGravity
 
@@ -63,7 +59,7 @@ def test_retare_offset_is_tracked_as_a_jump_and_raises_no_contact(retare_logs):
     t = logs["with"][col.TIME].to_numpy()
     offset = np.asarray(PLAN.retare_offset)
     # The log's truth carries the offset from the event on.
-    np.testing.assert_allclose(logs["with"][col.wrench_columns("offset")].to_numpy()[t > 3.01],
+    np.testing.assert_allclose(logs["with"][col.wrench_columns(col.OFFSET)].to_numpy()[t > 3.01],
                                np.tile(offset, ((t > 3.01).sum(), 1)))
     # The re-tare is estimated as a jump (50 ms after the pulse against the mean corrected
     # wrench before it) and the estimator keeps its memory: from 0.1 s after the event on, the

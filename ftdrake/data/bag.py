@@ -13,9 +13,9 @@ from pathlib import Path
 
 import numpy as np
 
-from ..conventions import MEASURED, joint_columns, wrench_columns
+from ..conventions import MEASURED, TORQUE, joint_columns, wrench_columns
 from ..errors import LogError
-from .logs import TORQUE, RobotLog, assemble_log, option_hint, warn_log
+from .logs import RobotLog, assemble_log, option_hint, warn_log
 
 # --- Bags --------------------------------------------------------------------------------------
 

@@ -50,7 +50,6 @@ from ..errors import LogError
 from ..signals import causal_acceleration, savgol_derivative
 
 MIN_ROWS = 10
-TORQUE = "tau"  # target prefix for joint efforts read from a JointState topic
 _TIME_UNITS = {"s": 1.0, "ms": 1e-3, "us": 1e-6, "ns": 1e-9}
 _ANGLE_UNITS = {"rad": 1.0, "deg": np.pi / 180}
 _GLOB_CHARS = set("*?[")

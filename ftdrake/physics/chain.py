@@ -31,7 +31,9 @@ import dataclasses as dc
 import numba
 import numpy as np
 
+from ..conventions import GRAVITY_W
 from ..errors import RobotModelError
+from .rigid_body import SensorKinematics
 
 #: Joint types the compiled chain handles (Drake's ``Joint.type_name()``).
 REVOLUTE, PRISMATIC, WELD = "revolute", "prismatic", "weld"
@@ -141,10 +143,8 @@ class SerialChain:
         """The arrays the compiled kernels take, in their order."""
         return self.X_pre, self.kinds, self.axes, self.q_index, self.v_index
 
-    def evaluate(self, q, v, vdot, gravity_W=(0.0, 0.0, -9.81)):
+    def evaluate(self, q, v, vdot, gravity_W=GRAVITY_W):
         """Rows (N × n) of q, v, v̇ → :class:`~ftdrake.physics.rigid_body.SensorKinematics`."""
-        from .rigid_body import SensorKinematics  # noqa: PLC0415 (keeps the modules apart)
-
         q, v, vdot = (np.ascontiguousarray(np.atleast_2d(np.asarray(a, dtype=float)))
                       for a in (q, v, vdot))
         if q.shape[1] != self.num_positions or v.shape[1] != self.num_velocities or \

@@ -139,10 +139,10 @@ from pydrake.systems.framework import LeafSystem
 
 from ..compensation.compiled.payload import regressor_row
 from ..config import BiasTrackerConfig, SensorConfig
+from ..conventions import STANDARD_GRAVITY
 
 __all__ = ["BiasTrackerConfig", "OnlineBiasTracker"]
 
-STANDARD_GRAVITY = 9.80665
 #: rad/s²: the scale of |α| + |ω|² the inertia's rate bound is set for (brisk free motion; at
 #: the sensor the default scenario's fourier trajectory has 4.6 at its 99th percentile, 6.5 max).
 ANGULAR_SCALE = 10.0

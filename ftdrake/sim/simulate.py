@@ -63,10 +63,6 @@ from ..signals import differentiate
 from .events import apply_grasp
 from .station import Station
 
-PREDICTED, ESTIMATED, PREDICTED_STD = "pred", "est_external", "pred_std"
-COMPENSATED, BIAS_ESTIMATE, OFFSET = "comp_external", "bias_est", "offset"
-PAYLOAD_ESTIMATE = ("payload_est_dm", "payload_est_mcx", "payload_est_mcy", "payload_est_mcz")
-
 
 @dc.dataclass
 class SimResult:
@@ -174,9 +170,9 @@ def assemble_log(station: Station, root_context) -> pd.DataFrame:
     if station.loggers.temperature is not None:
         frame[col.TEMPERATURE] = data(station.loggers.temperature)[1][keep, 0]
     if station.loggers.offset is not None:
-        frame.update(zip(col.wrench_columns(OFFSET), offset[keep].T, strict=True))
+        frame.update(zip(col.wrench_columns(col.OFFSET), offset[keep].T, strict=True))
     if station.loggers.push is not None:
-        frame["push_force"] = frame_push
+        frame[col.PUSH_FORCE] = frame_push
     if station.compensation is not None:
         _add_compensation_columns(frame, station.compensation.loggers, root_context, t, keep)
     return pd.DataFrame(frame)
@@ -189,14 +185,15 @@ def _add_compensation_columns(frame: dict, loggers, root_context, t, keep) -> No
             raise RuntimeError(f"compensation logger {name!r} is not sampled with the state")
         return log.data().T[keep]
 
-    for prefix, name in ((PREDICTED, "wrench_internal"), (ESTIMATED, "wrench_contact"),
-                         (COMPENSATED, "wrench_compensated"), (PREDICTED_STD, "wrench_std")):
+    for prefix, name in ((col.PREDICTED, "wrench_internal"), (col.ESTIMATED, "wrench_contact"),
+                         (col.COMPENSATED, "wrench_compensated"),
+                         (col.PREDICTED_STD, "wrench_std")):
         frame.update(zip(col.wrench_columns(prefix), values(name).T, strict=True))
     if loggers.bias is not None:
-        frame.update(zip(col.wrench_columns(BIAS_ESTIMATE), values("bias").T, strict=True))
+        frame.update(zip(col.wrench_columns(col.BIAS_ESTIMATE), values("bias").T, strict=True))
     if loggers.payload is not None:
-        frame.update(zip(PAYLOAD_ESTIMATE, values("payload").T, strict=True))
-    frame["out_of_domain"] = values("out_of_domain")[:, 0].astype(np.int8)
-    frame["fault"] = values("fault")[:, 0].astype(np.int8)
-    frame["detected"] = values("contact")[:, 0].astype(np.int8)
-    frame["detected_force"] = values("contact_force")[:, 0]
+        frame.update(zip(col.PAYLOAD_ESTIMATE, values("payload").T, strict=True))
+    frame[col.OUT_OF_DOMAIN] = values("out_of_domain")[:, 0].astype(np.int8)
+    frame[col.FAULT] = values("fault")[:, 0].astype(np.int8)
+    frame[col.DETECTED] = values("contact")[:, 0].astype(np.int8)
+    frame[col.DETECTED_FORCE] = values("contact_force")[:, 0]
