@@ -14,11 +14,11 @@ from pydrake.math import RigidTransform
 from ftdrake import ScenarioConfig
 from ftdrake import conventions as col
 from ftdrake.compensation.physics import PhysicsPayloadCompensator
-from ftdrake.config import DetectorConfig
 from ftdrake.conventions import BIAS_ESTIMATE, ESTIMATED, PAYLOAD_ESTIMATE
 from ftdrake.data.dataset import joint_state_layout, wrench_targets
 from ftdrake.errors import ConfigError
 from ftdrake.experiments.tracking import EventPlan, event_configs, push_metrics
+from ftdrake.runtime.thresholds import thresholds_from_quantile
 from ftdrake.sim.collection import collect
 from ftdrake.sim.events import with_point_mass
 from ftdrake.sim.simulate import simulate
@@ -35,7 +35,7 @@ def trained():
                    progress=False)
     model = PhysicsPayloadCompensator().fit(joint_state_layout(data), wrench_targets(data))
     residual = wrench_targets(data) - model.predict(joint_state_layout(data))
-    config = dc.replace(config, detector=DetectorConfig.from_residuals(residual))
+    config = dc.replace(config, detector=thresholds_from_quantile(residual))
     return model, config
 
 

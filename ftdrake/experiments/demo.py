@@ -12,8 +12,9 @@
    payload, the biases, the sensor's mounting rotation and a weight carried without inertia
    identified (physically consistent fit) plus a forest on its residual. One rehearsal and one
    run of each free-motion kind are held out; each model's detector thresholds follow from
-   its residual there (the samples the detector judges) and a budget of one false positive
-   per hour (:func:`~ftdrake.runtime.detector.thresholds_for_false_positive_rate`).
+   its residual there (the samples the detector judges) and the scenario's false-positive
+   budget, ``detector.false_positives_per_hour``
+   (:func:`~ftdrake.runtime.thresholds.thresholds_for_false_positive_rate`).
 3. Run the same contact scenario, trajectory seed and sensor noise not seen in training, with
    each model and its detector in the loop at the sensor rate, and score both against the
    plant's ground truth. The summary says which did better and why.
@@ -41,14 +42,13 @@ from ..compensation.tuning import segment_groups, tune
 from ..config import ScenarioConfig
 from ..data.dataset import joint_state_layout, wrench_targets
 from ..io import atomic_path, staged_outputs
-from ..runtime.detector import armed, thresholds_for_false_positive_rate
+from ..runtime.thresholds import armed, thresholds_for_false_positive_rate
 from ..sim.collection import collect
 from ..sim.evaluation import evaluate_detection
 from ..sim.simulate import simulate
 from ..sim.station import build_station
 
 HELD_OUT_SEED = 1000
-FALSE_POSITIVES_PER_HOUR = 1.0  # the detector's budget; thresholds follow from it
 
 
 #: One free-motion run of each of these kinds joins the training data: without them 27-58 % of
@@ -129,7 +129,7 @@ def run_demo(out: Path, config: ScenarioConfig | None = None, *, fourier: int = 
     detectors = {
         name: thresholds_for_false_positive_rate(
             Y_cal - model.predict(X_cal), sample_rate_hz=rate_hz,
-            false_positives_per_hour=FALSE_POSITIVES_PER_HOUR)
+            false_positives_per_hour=config.detector.false_positives_per_hour)
         for name, model in models.items()
     }
 
@@ -187,7 +187,7 @@ def run_demo(out: Path, config: ScenarioConfig | None = None, *, fourier: int = 
         "contact_scenario_s": float(logs["forest"]["t"].iloc[-1]),
         "training_rows": len(X),
         "training_trajectories": int(train["trajectory"].nunique()),
-        "false_positives_per_hour_budget": FALSE_POSITIVES_PER_HOUR,
+        "false_positives_per_hour_budget": config.detector.false_positives_per_hour,
         "sensor_preset": scenario.sensor.preset,
         "held_out_seed": HELD_OUT_SEED,
     }
