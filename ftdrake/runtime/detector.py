@@ -27,7 +27,7 @@ class ContactDetector(LeafSystem):
 
     def __init__(self, config: DetectorConfig, period: float):
         super().__init__()
-        self.config = config.validate()
+        self.config = config.validate()  # built on its own too, from a DetectorConfig alone
         self.period = float(period)
         self._wrench_port = self.DeclareVectorInputPort("wrench_contact", 6)
         self._std_port = self.DeclareVectorInputPort("wrench_std", 6)

@@ -91,9 +91,9 @@ def make_trajectory(config: TrajectoryConfig, home_q, limits: JointLimits, robot
     """Builds and checks the trajectory `config.kind` starting and ending at `home_q`.
 
     `robot` (a :class:`RobotGeometry`) is needed for the contact kinds (inverse kinematics)
-    and used to keep free motion clear of the environment.
+    and used to keep free motion clear of the environment. `config` is taken as valid (it is
+    checked with its scenario, where that is loaded).
     """
-    config.validate()
     home_q = np.asarray(home_q, dtype=float)
     if np.any(home_q < limits.lower) or np.any(home_q > limits.upper):
         raise TrajectoryError(f"home_q {home_q.round(3).tolist()} is outside the joint limits")
