@@ -1,4 +1,4 @@
-"""The bias tracker in the station's loop: re-tare, grasp and slow push events (issue 10).
+"""The bias tracker in the station's loop: re-tare, grasp and slow push events.
 
 One trajectory, trained on (in domain), simulated with each event; the physics model keeps
 training cheap. Checks against independent quantities: the injected offset, the grasped

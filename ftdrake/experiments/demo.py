@@ -5,8 +5,7 @@
    `OTHER_KINDS` — on a real robot you would record the same: the task's motions without
    contact, and motion covering the configurations the arm will visit. With
    ``other_surfaces`` (``demo --rehearse-all-surfaces``) also one rehearsal at each other
-   surface of the task (the wall), trained on and held out: measured, it made the table
-   scenario worse (README), so it is off by default.
+   surface of the task (the wall), trained on and held out; off by default.
 2. Train, on the same data, the study's model — a multi-output random forest on joint
    positions, `quick` grid, folds grouped by trajectory segment — and the hybrid: the rigid
    payload, the biases, the sensor's mounting rotation and a weight carried without inertia
@@ -51,9 +50,8 @@ from ..sim.station import build_station
 HELD_OUT_SEED = 1000
 
 
-#: One free-motion run of each of these kinds joins the training data: without them 27-58 % of
-#: held-out runs of these kinds lay outside the training ranges and the hybrid's residual
-#: crossed the 1-per-hour thresholds on up to 3.7 % of their samples (see README).
+#: One free-motion run of each of these kinds joins the training data, so that held-out runs
+#: of these kinds stay inside the training ranges the thresholds were calibrated on.
 OTHER_KINDS = ("random", "z_rich", "reference")
 
 

@@ -61,7 +61,8 @@ SEED = 5000  # trajectories and noise from here on: never used by demo, study or
 
 @dc.dataclass
 class DetectionPlan:
-    """What to run; the defaults are the issue's evaluation (10 min of free motion)."""
+    """What to run; the defaults: 10 simulated minutes of free motion, presses on table and
+    wall."""
 
     free_minutes: float = 10.0
     kinds: tuple[str, ...] = FREE_KINDS

@@ -18,8 +18,8 @@ def armed(times, arm_after_s: float = DetectorConfig.arm_after_s) -> np.ndarray:
     """The samples the detector judges: run time (s, from each run's start) ≥ `arm_after_s`.
 
     Thresholds come from these only: before it the detector is not armed, and the controller's
-    start-up transient there (|q̈| up to 8 rad/s² in the first milliseconds of a simulated run)
-    would otherwise set the largest-residual term of
+    start-up transient there (large q̈ in the first milliseconds of a simulated run) would
+    otherwise set the largest-residual term of
     :func:`thresholds_for_false_positive_rate`."""
     return np.asarray(times, dtype=float) >= arm_after_s
 

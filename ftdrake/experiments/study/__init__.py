@@ -1,4 +1,4 @@
-"""The RF-vs-SVR study of F/T compensation, repeated on simulated data (issue 3 item 5).
+"""The RF-vs-SVR study of F/T compensation, repeated on simulated data.
 
 The study (Motoman SDA10D, one pre-defined slow trajectory, 13,745 rows) trained one random
 forest (RF) and one SVR per wrench axis on three feature sets — ``q``, ``q,qd``, ``q,qd,qdd``
@@ -22,8 +22,8 @@ study, on purpose:
   the static payload model (gravity, CoM, biases), ``q,qd`` the dynamic model with q̈ = 0,
   ``q,qd,qdd`` the full Newton-Euler model.
 * Logs are 1 kHz; training rows are taken at ``train_hz`` (default 12.5 Hz: the motion is
-  below 1 Hz, so denser rows are near copies, and it keeps the quick study within 5 minutes on
-  2 cores), test rows at ``test_hz`` (100 Hz). SVR trains on at most ``svr_max_rows`` rows,
+  below 1 Hz, so denser rows are near copies, and it keeps the quick study short), test rows
+  at ``test_hz`` (100 Hz). SVR trains on at most ``svr_max_rows`` rows,
   evenly spaced in time (the quick defaults stay below it).
 
 Metrics per axis on the test rows: MSE (N², (N·m)²), NMSE = MSE / var(measured), variance score
@@ -32,7 +32,7 @@ prediction against the true internal wrench (N, N·m) and that over the sensor's
 
 Typical use::
 
-    results = run_study("out/study")          # ~3 min on 2 cores with the quick grid
+    results = run_study("out/study")          # the quick grid
     for f in results["findings"]:
         print(f["claim"], f["reproduced"], f["evidence"])
 

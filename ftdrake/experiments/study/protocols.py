@@ -1,4 +1,4 @@
-"""The study repeated faithfully (issue 12): its motion, its tool, its protocol, then ours.
+"""The study repeated faithfully: its motion, its tool, its protocol, then ours.
 
 The data: one ``study`` trajectory (:func:`ftdrake.sim.trajectories.study_motion`: Table 1's
 joint ranges and means, 13,745 rows at the study's assumed 40 Hz) carrying the study tool
@@ -64,9 +64,7 @@ TABLE2_TOLERANCE = {"force": 4.0, "torque": 0.05}
 #: The controller's integral gain (1/s³) in the study scenario. The study's industrial
 #: controller holds its joints on the path; ftdrake's default (kp 400, kd 40, ki 0: stiff in
 #: acceleration, not torque) lets the light wrist roll sag under the study tool's unmodelled
-#: load and friction by 2.9° on average (up to 10°), which put q7 6–8° outside Table 1's
-#: range. With this ki (stable: ki < kp·kd) the error is under 0.15° after the first 3 s
-#: (measured on 30 s of the trajectory).
+#: load and friction, out of Table 1's range. This ki (stable: ki < kp·kd) holds it.
 STUDY_KI = 2000.0
 
 

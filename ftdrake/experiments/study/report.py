@@ -411,7 +411,7 @@ FIGURE_MAKERS = {"nmse": _fig_nmse, "mse": _fig_mse,
 
 
 # ----------------------------------------------------------------------------------------------
-# The study repeated faithfully (issue 12): its tables, its protocol and ours.
+# The study repeated faithfully: its tables, its protocol and ours.
 # ----------------------------------------------------------------------------------------------
 PROTOCOL_LABELS = {
     "study": "study's protocol (random rows of one trajectory, shuffled CV)",

@@ -48,7 +48,7 @@ SEGMENT_S = 4.0  # length of a grouped-CV segment (s): longer than a row's near 
 #: settings smooth over the sensor noise that the residual mostly is.
 HYBRID_RESIDUAL = {"n_estimators": 40, "max_features": 1.0, "min_samples_leaf": 5}
 
-# Defaults: `ftdrake study --quick` in under 5 minutes on 2 cores (see the module docstring).
+# Defaults: the quick study (`ftdrake study --quick`; see the module docstring).
 TRAJECTORIES = 6  # per dataset
 TEST_TRAJECTORIES = 2  # of those, held out whole
 DURATION_S = 20.0  # per trajectory: one period of the reference motion's base frequency
@@ -191,7 +191,7 @@ def collect_all(config: ScenarioConfig, *, trajectories: int, duration: float, s
 
 
 def _faithful(config, data, stage_s, *, preset, seed, n_jobs, progress, say) -> dict:
-    """The study's trajectory, tool and protocol beside ftdrake's (issue 12)."""
+    """The study's trajectory, tool and protocol beside ftdrake's."""
     from . import protocols  # noqa: PLC0415 (imports run → protocols → layout only)
 
     frame = data["study"]
