@@ -1,4 +1,7 @@
-"""Figures. Matplotlib with the Agg backend: no screen needed."""
+"""Figures. Matplotlib with the Agg backend: no screen needed.
+
+Modules that draw figures of their own take ``plt`` (pyplot, Agg selected) from here.
+"""
 
 from __future__ import annotations
 

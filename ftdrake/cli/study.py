@@ -96,7 +96,7 @@ def _paper(args) -> int:
     """The paper grid on the study's protocol, on a Dask cluster."""
     import sys
 
-    from ..experiments.study import protocols
+    from ..experiments.study import paper as protocols
 
     features = tuple(f.strip() for f in args.features.split(";"))
     halving = {k: v for k, v in (("factor", args.halving_factor),

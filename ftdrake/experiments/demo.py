@@ -41,6 +41,7 @@ from ..compensation.tuning import segment_groups, tune
 from ..config import ScenarioConfig
 from ..data.dataset import joint_state_layout, wrench_targets
 from ..io import atomic_path, staged_outputs
+from ..plots import plot_contact_comparison
 from ..runtime.thresholds import armed, thresholds_for_false_positive_rate
 from ..sim.collection import collect
 from ..sim.evaluation import evaluate_detection
@@ -189,8 +190,6 @@ def run_demo(out: Path, config: ScenarioConfig | None = None, *, fourier: int = 
         "sensor_preset": scenario.sensor.preset,
         "held_out_seed": HELD_OUT_SEED,
     }
-    from ..plots import plot_contact_comparison  # noqa: PLC0415 (matplotlib only when plotting)
-
     with staged_outputs(out) as staging:
         plot_contact_comparison(logs, staging / "contact.png")
         for name, log in logs.items():

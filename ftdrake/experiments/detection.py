@@ -41,6 +41,7 @@ from ..config import DetectorConfig, ScenarioConfig, dump_config, parse_config
 from ..data.dataset import joint_state_layout, wrench_targets
 from ..errors import TrajectoryError
 from ..io import atomic_path, staged_outputs
+from ..plots import plt
 from ..runtime.thresholds import armed, thresholds_for_false_positive_rate
 from ..sim.collection import collect
 from ..sim.evaluation import TOUCHDOWN_S, evaluate_detection
@@ -238,11 +239,6 @@ def markdown(results: dict, plan: DetectionPlan) -> str:
 
 def plot_detection_rate(results: dict, path: Path) -> None:
     """Detection rate against contact force (log scale), one line per model."""
-    import matplotlib  # noqa: PLC0415 (matplotlib only when plotting)
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt  # noqa: PLC0415 (after matplotlib.use)
-
     fig, ax = plt.subplots(figsize=(7, 4))
     edges = np.logspace(np.log10(0.1), np.log10(100), 13)
     centres = np.sqrt(edges[:-1] * edges[1:])

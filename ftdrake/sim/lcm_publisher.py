@@ -38,6 +38,7 @@ from pydrake.systems.analysis import Simulator
 from pydrake.systems.framework import EventStatus
 from tqdm.auto import tqdm
 
+from ..errors import ConfigError
 from ..hardware.config import HardwareConfig
 from ..hardware.messages import (
     PAYLOAD_COORD,
@@ -61,8 +62,6 @@ class _Publisher:
         plant, arm = station.scene.plant, station.scene.arm
         self.n = plant.num_positions(arm)
         if self.n != config.n_joints:
-            from ftdrake import ConfigError  # noqa: PLC0415
-
             raise ConfigError(f"hardware.n_joints: {config.n_joints}, but the simulated arm "
                               f"has {self.n} joints")
         self._state = plant.get_state_output_port(arm)
