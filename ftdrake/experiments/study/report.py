@@ -233,17 +233,7 @@ def _dataset_markdown(results, d) -> list[str]:
               "| | " + " | ".join(AXES) + " |", "|---" * (len(AXES) + 1) + "|"]
     for stat in ("max", "min", "mean", "std"):
         lines.append(f"| {stat} | " + " | ".join(f"{ws[a][stat]:.3g}" for a in AXES) + " |")
-    for metric, title in (("nmse", "NMSE (MSE / var of the measured wrench)"),
-                          ("variance_score", "Variance score"),
-                          ("mse", "MSE (N², (N·m)²)"),
-                          ("rms_over_noise", "RMS against the true internal wrench / noise σ")):
-        lines += ["", f"**{title}**", "", "| method | features | " + " | ".join(AXES) + " |",
-                  "|---" * (len(AXES) + 2) + "|"]
-        for method in METHODS:
-            for f in FEATURES:
-                cell = results["metrics"][d][method][f]
-                lines.append(f"| {METHOD_LABELS[method]} | {f} | "
-                             + " | ".join(f"{cell[a][metric]:.3g}" for a in AXES) + " |")
+    lines += _metric_tables(results["metrics"][d])
     lines += ["", "**Timings** (s; tune = grid search with refit, fit = one refit)", "",
               "| method | features | tune | fit | predict | µs/row |", "|---|---|---|---|---|---|"]
     for method in METHODS:
@@ -263,6 +253,23 @@ def _dataset_markdown(results, d) -> list[str]:
     lines += ["", f"Figures: {figs}.", ""]
     if results["warnings"][d]:
         lines += ["Warnings: " + " / ".join(results["warnings"][d]), ""]
+    return lines
+
+
+def _metric_tables(metrics: dict) -> list[str]:
+    """One table per metric: every method × feature set, per axis."""
+    lines = []
+    for metric, title in (("nmse", "NMSE (MSE / var of the measured wrench)"),
+                          ("variance_score", "Variance score"),
+                          ("mse", "MSE (N², (N·m)²)"),
+                          ("rms_over_noise", "RMS against the true internal wrench / noise σ")):
+        lines += ["", f"**{title}**", "", "| method | features | " + " | ".join(AXES) + " |",
+                  "|---" * (len(AXES) + 2) + "|"]
+        for method in METHODS:
+            for f in FEATURES:
+                cell = metrics[method][f]
+                lines.append(f"| {METHOD_LABELS[method]} | {f} | "
+                             + " | ".join(f"{cell[a][metric]:.3g}" for a in AXES) + " |")
     return lines
 
 
