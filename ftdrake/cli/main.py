@@ -9,6 +9,7 @@ import re
 import sys
 from pathlib import Path
 
+from .. import conventions as col
 from ..config import ScenarioConfig, load_config
 from ..errors import ConfigError, FtdrakeError, ModelFileError
 
@@ -187,7 +188,7 @@ def _simulate(args):
         result = simulate(station, progress=not args.quiet,
                           realtime_rate=1.0 if args.realtime else 0.0)
     log, summary = result.log, dict(result.timing)
-    contact_times = log.loc[log["contact"] == 1, "t"]
+    contact_times = log.loc[log[col.CONTACT] == 1, col.TIME]
     summary.update(
         scenario=args.scenario,
         trajectory=config.trajectory.kind,
@@ -195,9 +196,9 @@ def _simulate(args):
         sensor_rate_hz=config.sensor.spec().rate_hz,
         first_contact_time_s=float(contact_times.iloc[0]) if len(contact_times) else None,
         max_contact_force_n=float(
-            (log[["external_Fx", "external_Fy", "external_Fz"]] ** 2).sum(axis=1).max() ** 0.5
+            (log[col.wrench_columns(col.EXTERNAL)[:3]] ** 2).sum(axis=1).max() ** 0.5
         ),
-        saturated_samples=int(log["saturated"].sum()),
+        saturated_samples=int(log[col.SATURATED].sum()),
     )
     with staged_outputs(args.out) as stage:
         log.to_parquet(stage / "log.parquet", index=False)
@@ -244,8 +245,8 @@ def _collect(args):
         raise FtdrakeError(f"--dask {args.dask}: {e}") from e
     save_dataset(frame, args.out)
     print(json.dumps({"out": str(args.out), "rows": len(frame),
-                      "trajectories": int(frame["trajectory"].nunique()),
-                      "contact_rows": int(frame["contact"].sum())}))
+                      "trajectories": int(frame[col.TRAJECTORY].nunique()),
+                      "contact_rows": int(frame[col.CONTACT].sum())}))
     return 0
 
 
@@ -314,8 +315,9 @@ def _add_evaluate_detection(sub):
     p.add_argument("--config", type=Path, help="scenario YAML (default: the shipped one)")
     p.add_argument("--minutes", type=positive_float, default=10.0,
                    help="simulated minutes of free motion, split over the trajectory kinds")
-    p.add_argument("--budget", type=positive_float, default=1.0,
-                   help="false positives per hour the thresholds are set for")
+    p.add_argument("--budget", type=positive_float, default=None,
+                   help="false positives per hour the thresholds are set for (default: the "
+                        "scenario's detector.false_positives_per_hour)")
     p.add_argument("--jobs", type=jobs, default=-1, help="local worker processes (-1: all)")
     p.add_argument("--out", type=Path, default=Path("out/detection"))
     p.add_argument("--quiet", action="store_true")
