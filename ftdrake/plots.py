@@ -1,4 +1,7 @@
-"""Figures. Matplotlib with the Agg backend: no screen needed."""
+"""Figures. Matplotlib with the Agg backend: no screen needed.
+
+Modules that draw figures of their own take ``plt`` (pyplot, Agg selected) from here.
+"""
 
 from __future__ import annotations
 
@@ -57,7 +60,7 @@ def plot_contact_comparison(logs: dict, path: Path,
         for r, axis in enumerate(("Fx", "Fy", "Fz")):
             ax = axes[r, c]
             ax.plot(t, log[f"{col.MEASURED}_{axis}"], lw=0.7, color="0.55", label="measured (raw)")
-            ax.plot(t, log[f"est_external_{axis}"], lw=0.8, color="tab:blue",
+            ax.plot(t, log[f"{col.ESTIMATED}_{axis}"], lw=0.8, color="tab:blue",
                     label="compensated (estimated external)")
             ax.plot(t, log[f"{col.EXTERNAL}_{axis}"], lw=1.0, color="tab:red", ls="--",
                     label="true external")
@@ -67,7 +70,7 @@ def plot_contact_comparison(logs: dict, path: Path,
                 ax.set_ylabel(f"{axis} [N]")
         axes[0, c].set_title(name)
         shade_contact(axes[3, c], t, log[col.CONTACT])
-        axes[3, c].step(t, log["detected"], where="post", color="k", lw=1.0, label="detected")
+        axes[3, c].step(t, log[col.DETECTED], where="post", color="k", lw=1.0, label="detected")
         axes[3, c].set_yticks([0, 1])
         axes[3, c].set_xlabel("time [s]")
     axes[0, 0].legend(loc="lower left", fontsize=8)

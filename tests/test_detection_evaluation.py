@@ -30,8 +30,10 @@ def test_summary_counts_false_positives_per_hour_and_the_smallest_reliable_force
     # 0.6 N is detected but 0.4 N is not; every press from 0.6 N on is.
     assert dut["smallest_reliably_detected_force_n"] == 0.6
     assert dut["max_delay_s_presses_from_5n"] == 0.005
-    assert "| 2 of 6 |" in markdown({"m": {**dut, "detector": {"force_on": 1.0, "torque_on": 0.1},
-                                            "presses": presses}}, DetectionPlan())
+    detector = {"force_on": 1.0, "torque_on": 0.1, "false_positives_per_hour": 2.0}
+    text = markdown({"m": {**dut, "detector": detector, "presses": presses}}, DetectionPlan())
+    assert "| 2 of 6 |" in text
+    assert "(budget 2 false positive per hour)" in text
 
 
 @pytest.mark.slow

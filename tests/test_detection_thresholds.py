@@ -1,11 +1,16 @@
-"""Detector thresholds from a false-positive budget (runtime.detector)."""
+"""Detector thresholds from a false-positive budget (runtime.thresholds)."""
 
 import numpy as np
 import pytest
 from scipy.stats import chi2
 
-from ftdrake.config import DetectorConfig
-from ftdrake.runtime.detector import armed, thresholds_for_false_positive_rate
+from ftdrake.config import DetectorConfig, parse_config
+from ftdrake.errors import ConfigError
+from ftdrake.runtime.thresholds import (
+    armed,
+    thresholds_for_false_positive_rate,
+    thresholds_from_quantile,
+)
 
 SIGMA = np.array([0.03, 0.03, 0.03, 0.002, 0.002, 0.002])  # N, N·m
 
@@ -68,3 +73,31 @@ def test_the_unarmed_start_up_does_not_set_the_thresholds():
     armed_only = thresholds_for_false_positive_rate(residual[judged], sample_rate_hz=1000)
     assert with_start.force_on > 0.5 and with_start.torque_on > 0.03
     assert armed_only.force_on < 0.4 and armed_only.torque_on < 0.01
+
+
+def test_the_budget_is_the_scenarios_and_the_thresholds_record_it():
+    residual = np.random.default_rng(4).normal(0, SIGMA, (1000, 6))
+    scenario = parse_config("detector: {false_positives_per_hour: 10.0}")
+    dut = thresholds_for_false_positive_rate(
+        residual, sample_rate_hz=1000.0,
+        false_positives_per_hour=scenario.detector.false_positives_per_hour)
+    p = 10.0 / 3600 / 1000 / 2
+    rms = np.sqrt(np.mean(residual**2, axis=0))
+    assert dut.force_on == pytest.approx(np.sqrt(chi2.isf(p, 3)) * rms[:3].max(), rel=1e-12)
+    assert dut.false_positives_per_hour == 10.0
+    # Without a budget: the config tree's default (one per hour), recorded as well.
+    default = thresholds_for_false_positive_rate(residual, sample_rate_hz=1000.0)
+    assert default.false_positives_per_hour == DetectorConfig().false_positives_per_hour == 1.0
+    assert default.force_on > dut.force_on
+    with pytest.raises(ConfigError, match=r"detector\.false_positives_per_hour"):
+        parse_config("detector: {false_positives_per_hour: 0.0}")
+
+
+def test_quantile_thresholds_are_the_margin_times_the_norms_quantile_floored():
+    rng = np.random.default_rng(5)
+    residual = rng.normal(0, [0.5, 0.5, 0.5, 1e-3, 1e-3, 1e-3], (2000, 6))
+    dut = thresholds_from_quantile(residual, margin=2.0, quantile=0.99, debounce_on=5)
+    force = np.sort(np.linalg.norm(residual[:, :3], axis=1))
+    assert force[1979] <= dut.force_on / 2.0 <= force[1980]  # the 0.99 quantile of 2000
+    assert dut.torque_on == 0.02  # the floor: the torque residual is far below it
+    assert dut.debounce_on == 5

@@ -14,7 +14,9 @@ from ftdrake import conventions as col
 from ftdrake.cli.main import main
 from ftdrake.config import (
     TRAJECTORY_KINDS,
+    CableConfig,
     TaskConfig,
+    TrajectoryConfig,
     default_scenario_path,
     dump_config,
     parse_config,
@@ -27,6 +29,22 @@ def test_shipped_default_yaml_equals_defaults_and_round_trips(tmp_path):
     assert load_config() == ScenarioConfig()
     assert parse_config(dump_config(ScenarioConfig())) == ScenarioConfig()
     assert default_scenario_path().is_file()
+
+
+def test_a_loaded_scenario_is_validated_once_on_the_way_to_a_station(monkeypatch):
+    calls = []
+    for section in (ScenarioConfig, TrajectoryConfig, CableConfig):
+        original = section.validate
+
+        def counted(self, *args, _original=original, **kwargs):
+            calls.append(type(self).__name__)
+            return _original(self, *args, **kwargs)
+
+        monkeypatch.setattr(section, "validate", counted)
+    config = load_config()
+    assert sorted(calls) == ["CableConfig", "ScenarioConfig", "TrajectoryConfig"]
+    build_station(config)  # the free-standing systems inside check only their own section
+    assert sorted(calls) == ["CableConfig", "ScenarioConfig", "TrajectoryConfig"]
 
 
 @pytest.mark.parametrize(

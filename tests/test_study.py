@@ -262,7 +262,7 @@ def test_cli_prints_estimate_then_findings(monkeypatch, capsys):
 
 
 def test_cli_paper_runs_the_study_protocol_on_a_cluster(monkeypatch, capsys):
-    from ftdrake.experiments.study import protocols
+    from ftdrake.experiments.study import paper
 
     calls = {}
 
@@ -270,7 +270,7 @@ def test_cli_paper_runs_the_study_protocol_on_a_cluster(monkeypatch, capsys):
         calls.update(kwargs, out_dir=out_dir)
         return {"wall_time_s": 2.0, "findings": {"study": {"a": {"reproduced": False}}}}
 
-    monkeypatch.setattr(protocols, "run_paper", fake_run_paper)
+    monkeypatch.setattr(paper, "run_paper", fake_run_paper)
     args = _parser().parse_args(["study", "--paper", "--quiet", "--out", "o",
                                  "--cluster", "tcp://h:8786"])
     assert args.run(args) == 0

@@ -5,6 +5,7 @@ import pandas as pd
 import pytest
 
 from ftdrake import conventions as col
+from ftdrake.experiments.study import paper
 from ftdrake.experiments.study import protocols as dut
 from ftdrake.sim import trajectories as traj
 
@@ -99,7 +100,7 @@ def test_findings_need_both_feature_sets_for_b_and_d():
 
 @pytest.mark.parametrize("n_splits", [5])
 def test_exhaustive_fit_count_is_the_papers_grid(n_splits):
-    fits = dut.exhaustive_fits("paper", ("q",), n_splits)
+    fits = paper.exhaustive_fits("paper", ("q",), n_splits)
     # 20 tree counts × 6 max_features ≤ 7 (2..7) × 6 leaf sizes = 720 RF candidates on q.
     assert fits["rf"]["q"] == 720 * n_splits * 6
     assert fits["svr"]["q"] == 114 * n_splits * 6  # the study's 114 SVR candidates
@@ -165,7 +166,7 @@ def test_halving_search_runs_the_grid_with_a_growing_budget(monkeypatch):
     assert m["study_on_new"]["svr"]["q"]["Fx"]["mse"] > 0
     assert res["cv_mse"]["study"]["rf"]["q"]["Fy"] > 0
     # The exhaustive estimate scales the last round: RF per tree × every candidate's trees.
-    est = dut.exhaustive_seconds(res["best_params"]["study"], train_rows=280, preset=grids)
+    est = paper.exhaustive_seconds(res["best_params"]["study"], train_rows=280, preset=grids)
     per_tree = sum(p["last_round_mean_fit_s"] / 15 for p in rf.values())
     assert est["rf q"] == pytest.approx(per_tree * (5 + 15) * 4 * 5, rel=1e-9)
     assert est["svr q"] > 0
@@ -174,7 +175,7 @@ def test_halving_search_runs_the_grid_with_a_growing_budget(monkeypatch):
            "exhaustive_fits": {"rf": {"q": 120}, "svr": {"q": 150}},
            "fitted_candidates": {"rf q": {a: 6 for a in col.WRENCH_AXES}},
            "exhaustive_s_estimate": est}
-    text = dut.paper_markdown(out, "")
+    text = paper.paper_markdown(out, "")
     assert "factor 3" in text and "2,000 iterations" in text and "rf q Fx:" in text
 
 

@@ -16,6 +16,7 @@ from ftdrake.config import DetectorConfig
 from ftdrake.data.dataset import joint_state_layout, wrench_targets
 from ftdrake.runtime.compensator import CompensatorSystem
 from ftdrake.runtime.detector import ContactDetector
+from ftdrake.runtime.thresholds import thresholds_from_quantile
 from ftdrake.sim.collection import collect
 
 PERIOD = 1e-3
@@ -210,7 +211,7 @@ def held_out_contact_run(model, task_data, seed=777):
     residual = wrench_targets(validation) - model.predict(joint_state_layout(validation))
     scenario = ScenarioConfig()
     scenario.trajectory.seed = scenario.sensor.seed = seed  # not in training
-    scenario.detector = DetectorConfig.from_residuals(residual)
+    scenario.detector = thresholds_from_quantile(residual)
     log = simulate(build_station(scenario, model), progress=False).log
     return evaluate_detection(log, scenario.sensor.spec().noise_std)
 

@@ -16,8 +16,8 @@ from ftdrake import conventions as col
 from ftdrake.compensation.forest import RandomForestCompensator
 from ftdrake.compensation.hybrid import HybridCompensator
 from ftdrake.compensation.physics import ExcitationWarning, PhysicsPayloadCompensator
+from ftdrake.conventions import PREDICTED, PREDICTED_STD
 from ftdrake.errors import ConfigError
-from ftdrake.sim.simulate import PREDICTED, PREDICTED_STD
 from ftdrake.testing import THETA, static_poses
 
 K = np.array([0.039, -0.026, 0.12, 0.003, -0.0025, 0.002])  # the sensor's defaults, N/K

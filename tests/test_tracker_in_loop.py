@@ -1,4 +1,4 @@
-"""The bias tracker in the station's loop: re-tare, grasp and slow push events (issue 10).
+"""The bias tracker in the station's loop: re-tare, grasp and slow push events.
 
 One trajectory, trained on (in domain), simulated with each event; the physics model keeps
 training cheap. Checks against independent quantities: the injected offset, the grasped
@@ -14,18 +14,14 @@ from pydrake.math import RigidTransform
 from ftdrake import ScenarioConfig
 from ftdrake import conventions as col
 from ftdrake.compensation.physics import PhysicsPayloadCompensator
-from ftdrake.config import DetectorConfig
+from ftdrake.conventions import BIAS_ESTIMATE, ESTIMATED, PAYLOAD_ESTIMATE
 from ftdrake.data.dataset import joint_state_layout, wrench_targets
 from ftdrake.errors import ConfigError
 from ftdrake.experiments.tracking import EventPlan, event_configs, push_metrics
+from ftdrake.runtime.thresholds import thresholds_from_quantile
 from ftdrake.sim.collection import collect
 from ftdrake.sim.events import with_point_mass
-from ftdrake.sim.simulate import (
-    BIAS_ESTIMATE,
-    ESTIMATED,
-    PAYLOAD_ESTIMATE,
-    simulate,
-)
+from ftdrake.sim.simulate import simulate
 from ftdrake.sim.station import build_station
 from ftdrake.systems.sensor_gravity import SensorGravity
 
@@ -39,7 +35,7 @@ def trained():
                    progress=False)
     model = PhysicsPayloadCompensator().fit(joint_state_layout(data), wrench_targets(data))
     residual = wrench_targets(data) - model.predict(joint_state_layout(data))
-    config = dc.replace(config, detector=DetectorConfig.from_residuals(residual))
+    config = dc.replace(config, detector=thresholds_from_quantile(residual))
     return model, config
 
 
@@ -63,7 +59,7 @@ def test_retare_offset_is_tracked_as_a_jump_and_raises_no_contact(retare_logs):
     t = logs["with"][col.TIME].to_numpy()
     offset = np.asarray(PLAN.retare_offset)
     # The log's truth carries the offset from the event on.
-    np.testing.assert_allclose(logs["with"][col.wrench_columns("offset")].to_numpy()[t > 3.01],
+    np.testing.assert_allclose(logs["with"][col.wrench_columns(col.OFFSET)].to_numpy()[t > 3.01],
                                np.tile(offset, ((t > 3.01).sum(), 1)))
     # The re-tare is estimated as a jump (50 ms after the pulse against the mean corrected
     # wrench before it) and the estimator keeps its memory: from 0.1 s after the event on, the

@@ -39,8 +39,9 @@ def register(sub) -> None:
     a.add_config(p)
     p.add_argument("--minutes", type=a.positive_float, default=10.0, metavar="MIN",
                    help="simulated minutes of free motion, split over the trajectory kinds")
-    p.add_argument("--budget", type=a.positive_float, default=1.0, metavar="PER_HOUR",
-                   help="false positives per hour the thresholds are set for")
+    p.add_argument("--budget", type=a.positive_float, default=None, metavar="PER_HOUR",
+                   help="false positives per hour the thresholds are set for (default: the "
+                        "scenario's detector.false_positives_per_hour)")
     a.add_jobs(p)
     p.add_argument("--out", type=a.output_folder, default="out/detection", metavar="DIR",
                    help="folder for detection.json, detection.md, detection_rate.png")

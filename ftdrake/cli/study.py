@@ -7,7 +7,7 @@ import sys
 
 from ..errors import ConfigError
 from ..experiments import study
-from ..experiments.study import FEATURES, FIGURES, protocols
+from ..experiments.study import FEATURES, FIGURES, paper, protocols
 from ..experiments.study.report import tool_markdown
 from ..sim.station import plan_trajectory, robot_geometry
 from ..sim.trajectories import trajectory_extent
@@ -118,13 +118,13 @@ def _paper(args) -> int:
     halving = {k: v for k, v in (("factor", args.halving_factor),
                                  ("rf_resource", args.rf_resource),
                                  ("svr_max_iter", args.svr_max_iter)) if v is not None}
-    fits = protocols.exhaustive_fits("paper", features)
+    fits = paper.exhaustive_fits("paper", features)
     print("study --paper: exhaustive grid search would fit "
           + "; ".join(f"{m} {f} {n}" for m, v in fits.items() for f, n in v.items())
           + f" models; running {args.search} on "
           + (args.cluster or f"a LocalCluster of {max(args.jobs, 1) if args.jobs > 0 else 2}"
              " workers"), flush=True)
-    out = protocols.run_paper(
+    out = paper.run_paper(
         args.out, scheduler=args.cluster, features=features, search=args.search,
         max_train_rows=args.max_train_rows, seed=args.seed, progress=not args.quiet,
         config=a.load_scenario(args), n_workers=args.jobs if args.jobs > 0 else 2,

@@ -39,6 +39,7 @@ import warnings
 import numpy as np
 from pydrake.solvers import MathematicalProgram, SolverOptions
 
+from ..conventions import GRAVITY_W
 from ..errors import ConfigError, RobotModelError
 from ..physics.arm_dynamics import INERTIAL_NAMES, INERTIAL_UNITS, ArmDynamics, ArmModel
 from .base import Compensator
@@ -99,7 +100,7 @@ class ArmDynamicsCompensator(Compensator):
     std_includes_noise = True
 
     def __init__(self, features="q,qd,qdd", robot=None, base_frame=None, package_xmls=(),
-                 gravity=(0.0, 0.0, -9.81), identification="consistent", prior="model",
+                 gravity=GRAVITY_W, identification="consistent", prior="model",
                  prior_weight=DEFAULT_PRIOR_WEIGHT, friction=True, coulomb_velocity=0.02,
                  offsets=True, drive_gains="fixed"):
         super().__init__(features=features)

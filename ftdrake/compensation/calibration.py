@@ -63,7 +63,7 @@ import numpy as np
 import pandas as pd
 from pydrake.math import RollPitchYaw
 
-from ..conventions import MEASURED, TEMPERATURE, WRENCH_AXES
+from ..conventions import GRAVITY_W, MEASURED, TEMPERATURE, WRENCH_AXES
 from ..data.logs import expand_columns, is_table, read_frame
 from ..errors import ConfigError, LogError
 from .consistent import PayloadPrior, identify_consistent, identify_least_squares
@@ -201,7 +201,7 @@ def orientation_kind(columns) -> str | None:
     return None
 
 
-def gravity_in_sensor(frame: pd.DataFrame, kind: str, gravity=(0.0, 0.0, -9.81)) -> np.ndarray:
+def gravity_in_sensor(frame: pd.DataFrame, kind: str, gravity=GRAVITY_W) -> np.ndarray:
     """(N, 3) gravity expressed in S from the orientation columns of `kind`."""
     g_W = np.asarray(gravity, dtype=float)
     values = _numeric(frame, ORIENTATIONS[kind])
@@ -256,7 +256,7 @@ class StaticCalibration:
     mounting_rpy_deg: np.ndarray | None = None
     mounting_std_deg: np.ndarray | None = None
     model: PhysicsPayloadCompensator | None = None
-    gravity: tuple = (0.0, 0.0, -9.81)
+    gravity: tuple = GRAVITY_W
     positions: tuple = ()
     position_unit: str = "rad"
     correction: CalibrationCorrection | None = None
@@ -374,7 +374,7 @@ class StaticCalibration:
 def calibrate_table(frame: pd.DataFrame, *, robot=None, sensor_frame=None, base_frame=None,
                     positions="q_*", targets=f"{MEASURED}_*", position_unit="rad",
                     prior=None, identification="consistent", identify_mounting=True,
-                    gravity=(0.0, 0.0, -9.81), correction=None,
+                    gravity=GRAVITY_W, correction=None,
                     known_payload=None) -> StaticCalibration:
     """Identifies payload, biases (and mounting, temperature coefficients) from static poses.
 

@@ -56,6 +56,7 @@ from pydrake.math import RollPitchYaw, RotationMatrix
 from scipy.optimize import least_squares
 from scipy.spatial.transform import Rotation
 
+from ..conventions import GRAVITY_W
 from ..errors import ConfigError, RobotModelError
 from ..physics.chain import SerialChain
 from ..physics.rigid_body import inertia_map, skew
@@ -158,7 +159,7 @@ class PhysicsPayloadCompensator(Compensator):
     weight_without_inertia = False
 
     def __init__(self, features="q,qd,qdd", mode="dynamic", robot=None, sensor_frame=None,
-                 base_frame=None, gravity=(0.0, 0.0, -9.81), package_xmls=(),
+                 base_frame=None, gravity=GRAVITY_W, package_xmls=(),
                  identification="least_squares", prior=None,
                  prior_weight=DEFAULT_PRIOR_WEIGHT, identify_mounting=False,
                  weight_without_inertia=False):

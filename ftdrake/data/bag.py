@@ -9,13 +9,14 @@ warning, gaps, units, missing derivatives.
 from __future__ import annotations
 
 from collections.abc import Sequence
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
-from ..conventions import MEASURED, joint_columns, wrench_columns
+from ..conventions import MEASURED, TORQUE, joint_columns, wrench_columns
 from ..errors import LogError
-from .logs import TORQUE, RobotLog, assemble_log, option_hint, warn_log
+from .robot_log import RobotLog, assemble_log, option_hint, warn_log
 
 # --- Bags --------------------------------------------------------------------------------------
 
@@ -81,9 +82,50 @@ def read_bag(
         they are computed from positions.
       Other arguments as in :func:`~.logs.read_table`.
     """
-    from rosbags.highlevel import AnyReader  # noqa: PLC0415 (rosbags only for ROS bags)
-    from rosbags.typesys import Stores, get_typestore  # noqa: PLC0415 (as above)
+    targets = _check_options(stamps, align, targets, wrench_topic)
+    paths = [Path(p) for p in ([path] if isinstance(path, (str, Path)) else path)]
+    label = ", ".join(p.name for p in paths)
+    m = _read_messages(paths, label, joint_topic, wrench_topic, joints, stamps)
+    joints = m.joints
+    if m.skipped:
+        warn_log(f"{label}: skipped {m.skipped} {joint_topic} message(s) lacking some of "
+                 f"{joints}")
+    if m.zero_stamps:
+        warn_log(f"{label}: {m.zero_stamps} {joint_topic} message(s) have a zero header stamp; "
+                 f"used their receive time")
+    if not m.pos:
+        raise LogError(f"{label}: no usable messages on {joint_topic!r}")
 
+    t0_ns = min(m.stamp_ns)
+    t = (np.asarray(m.stamp_ns) - t0_ns) * 1e-9
+    q = np.array(m.pos)
+    qd = np.array(m.vel) if use_velocities and all(v is not None for v in m.vel) else None
+    source = f"{label} {joint_topic} ({stamps} stamps)"
+    if targets == "effort":
+        target, target_names = _efforts(m, label, joint_topic)
+    else:
+        if len(m.w) < 2:
+            raise LogError(f"{label}: {len(m.w)} message(s) on {wrench_topic!r}; need at least 2")
+        target = _align(t, (np.asarray(m.w_ns) - t0_ns) * 1e-9, np.array(m.w), align)
+        target_names = wrench_columns(MEASURED)
+        outside = np.isnan(target[:, 0])
+        if outside.any():
+            warn_log(f"{label}: dropped {outside.sum()} joint state(s) outside the time span "
+                     f"of {wrench_topic}")
+            t, q, target = t[~outside], q[~outside], target[~outside]
+            qd = None if qd is None else qd[~outside]
+        source += f", {wrench_topic} in frame {m.frame_id!r} ({align})"
+    return assemble_log(
+        t, q, qd, None, target, target_names, joints, source,
+        sort=True, t0=t0_ns * 1e-9, position_unit=position_unit, sg_window=sg_window,
+        sg_polyorder=sg_polyorder, gap_factor=gap_factor, check_units=check_units,
+        qdd_estimate=qdd_estimate, acceleration_cutoff_hz=acceleration_cutoff_hz,
+    )
+
+
+def _check_options(stamps: str, align: str, targets: str | None, wrench_topic) -> str:
+    """The reader's choices checked; returns the targets (default: the wrench with a
+    wrench topic, else the efforts)."""
     if stamps not in ("header", "receive"):
         raise LogError(f"stamps must be 'header' or 'receive', got {stamps!r}")
     if align not in ("linear", "nearest"):
@@ -92,74 +134,68 @@ def read_bag(
     if targets not in ("effort", "wrench") or (targets == "wrench" and not wrench_topic):
         raise LogError(f"targets must be 'effort', or 'wrench' with a wrench_topic; "
                        f"got {targets!r}, wrench_topic={wrench_topic!r}")
-    paths = [Path(p) for p in ([path] if isinstance(path, (str, Path)) else path)]
-    label = ", ".join(p.name for p in paths)
+    return targets
 
-    skipped = zero_stamps = 0
-    stamp_ns, pos, vel, eff, w_ns, w, frame_id = [], [], [], [], [], [], ""
+
+@dataclass
+class _Messages:
+    """What a bag's topics held, one entry per used message."""
+
+    joints: list | None  # the joint names kept, in order
+    stamp_ns: list = field(default_factory=list)
+    pos: list = field(default_factory=list)
+    vel: list = field(default_factory=list)  # None where a message has no velocities
+    eff: list = field(default_factory=list)  # None where a message has no efforts
+    w_ns: list = field(default_factory=list)
+    w: list = field(default_factory=list)
+    frame_id: str = ""
+    skipped: int = 0  # joint messages lacking one of `joints`
+    zero_stamps: int = 0  # joint messages whose header stamp is zero
+
+
+def _read_messages(paths, label, joint_topic, wrench_topic, joints, stamps) -> _Messages:
+    from rosbags.highlevel import AnyReader  # noqa: PLC0415 (rosbags only for ROS bags)
+    from rosbags.typesys import Stores, get_typestore  # noqa: PLC0415 (as above)
+
+    m = _Messages(joints=joints)
     default_typestore = get_typestore(Stores.LATEST)  # for ROS 2 bags without definitions
     with AnyReader(paths, default_typestore=default_typestore) as reader:
         joint_conns = _topic(reader, joint_topic, JOINT_STATE, label, "joint_topic")
         for conn, receive_ns, raw in reader.messages(connections=joint_conns):
-            msg = reader.deserialize(raw, conn.msgtype)
-            names = list(msg.name)
-            joints = list(joints or names)  # the first message's names unless given
-            if not set(joints) <= set(names):
-                skipped += 1
-                continue
-            idx = [names.index(j) for j in joints]
-            ns = _header_ns(msg) if stamps == "header" else receive_ns
-            zero_stamps += ns == 0
-            stamp_ns.append(ns or receive_ns)
-            pos.append(np.asarray(msg.position)[idx])
-            vel.append(np.asarray(msg.velocity)[idx] if len(msg.velocity) == len(names) else None)
-            eff.append(np.asarray(msg.effort)[idx] if len(msg.effort) == len(names) else None)
+            _add_joint_state(m, reader.deserialize(raw, conn.msgtype), receive_ns, stamps)
         if wrench_topic:
             for conn, receive_ns, raw in reader.messages(
                 connections=_topic(reader, wrench_topic, WRENCH_STAMPED, label, "wrench_topic")
             ):
                 msg = reader.deserialize(raw, conn.msgtype)
-                f, m = msg.wrench.force, msg.wrench.torque
-                w_ns.append((_header_ns(msg) if stamps == "header" else 0) or receive_ns)
-                w.append([f.x, f.y, f.z, m.x, m.y, m.z])
-                frame_id = msg.header.frame_id
-    if skipped:
-        warn_log(f"{label}: skipped {skipped} {joint_topic} message(s) lacking some of {joints}")
-    if zero_stamps:
-        warn_log(f"{label}: {zero_stamps} {joint_topic} message(s) have a zero header stamp; "
-              f"used their receive time")
-    if not pos:
-        raise LogError(f"{label}: no usable messages on {joint_topic!r}")
+                f, t = msg.wrench.force, msg.wrench.torque
+                m.w_ns.append((_header_ns(msg) if stamps == "header" else 0) or receive_ns)
+                m.w.append([f.x, f.y, f.z, t.x, t.y, t.z])
+                m.frame_id = msg.header.frame_id
+    return m
 
-    t0_ns = min(stamp_ns)
-    t = (np.asarray(stamp_ns) - t0_ns) * 1e-9
-    q = np.array(pos)
-    qd = np.array(vel) if use_velocities and all(v is not None for v in vel) else None
-    source = f"{label} {joint_topic} ({stamps} stamps)"
-    if targets == "effort":
-        if any(e is None for e in eff):
-            raise LogError(f"{label}: {joint_topic} messages carry no efforts; pass "
-                           f"{option_hint('wrench_topic', 'TOPIC')} and "
-                           f"{option_hint('targets', 'wrench')}")
-        target, target_names = np.array(eff), joint_columns(TORQUE, len(joints))
-    else:
-        if len(w) < 2:
-            raise LogError(f"{label}: {len(w)} message(s) on {wrench_topic!r}; need at least 2")
-        target = _align(t, (np.asarray(w_ns) - t0_ns) * 1e-9, np.array(w), align)
-        target_names = wrench_columns(MEASURED)
-        outside = np.isnan(target[:, 0])
-        if outside.any():
-            warn_log(f"{label}: dropped {outside.sum()} joint state(s) outside the time span "
-                  f"of {wrench_topic}")
-            t, q, target = t[~outside], q[~outside], target[~outside]
-            qd = None if qd is None else qd[~outside]
-        source += f", {wrench_topic} in frame {frame_id!r} ({align})"
-    return assemble_log(
-        t, q, qd, None, target, target_names, joints, source,
-        sort=True, t0=t0_ns * 1e-9, position_unit=position_unit, sg_window=sg_window,
-        sg_polyorder=sg_polyorder, gap_factor=gap_factor, check_units=check_units,
-        qdd_estimate=qdd_estimate, acceleration_cutoff_hz=acceleration_cutoff_hz,
-    )
+
+def _add_joint_state(m: _Messages, msg, receive_ns: int, stamps: str) -> None:
+    names = list(msg.name)
+    m.joints = list(m.joints or names)  # the first message's names unless given
+    if not set(m.joints) <= set(names):
+        m.skipped += 1
+        return
+    idx = [names.index(j) for j in m.joints]
+    ns = _header_ns(msg) if stamps == "header" else receive_ns
+    m.zero_stamps += ns == 0
+    m.stamp_ns.append(ns or receive_ns)
+    m.pos.append(np.asarray(msg.position)[idx])
+    m.vel.append(np.asarray(msg.velocity)[idx] if len(msg.velocity) == len(names) else None)
+    m.eff.append(np.asarray(msg.effort)[idx] if len(msg.effort) == len(names) else None)
+
+
+def _efforts(m: _Messages, label: str, joint_topic: str):
+    if any(e is None for e in m.eff):
+        raise LogError(f"{label}: {joint_topic} messages carry no efforts; pass "
+                       f"{option_hint('wrench_topic', 'TOPIC')} and "
+                       f"{option_hint('targets', 'wrench')}")
+    return np.array(m.eff), joint_columns(TORQUE, len(m.joints))
 
 
 def _align(t, t_w, w, align):

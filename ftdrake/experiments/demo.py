@@ -5,15 +5,15 @@
    `OTHER_KINDS` — on a real robot you would record the same: the task's motions without
    contact, and motion covering the configurations the arm will visit. With
    ``other_surfaces`` (``demo --rehearse-all-surfaces``) also one rehearsal at each other
-   surface of the task (the wall), trained on and held out: measured, it made the table
-   scenario worse (README), so it is off by default.
+   surface of the task (the wall), trained on and held out; off by default.
 2. Train, on the same data, the study's model — a multi-output random forest on joint
    positions, `quick` grid, folds grouped by trajectory segment — and the hybrid: the rigid
    payload, the biases, the sensor's mounting rotation and a weight carried without inertia
    identified (physically consistent fit) plus a forest on its residual. One rehearsal and one
    run of each free-motion kind are held out; each model's detector thresholds follow from
-   its residual there (the samples the detector judges) and a budget of one false positive
-   per hour (:func:`~ftdrake.runtime.detector.thresholds_for_false_positive_rate`).
+   its residual there (the samples the detector judges) and the scenario's false-positive
+   budget, ``detector.false_positives_per_hour``
+   (:func:`~ftdrake.runtime.thresholds.thresholds_for_false_positive_rate`).
 3. Run the same contact scenario, trajectory seed and sensor noise not seen in training, with
    each model and its detector in the loop at the sensor rate, and score both against the
    plant's ground truth. The summary says which did better and why.
@@ -41,19 +41,18 @@ from ..compensation.tuning import segment_groups, tune
 from ..config import ScenarioConfig
 from ..data.dataset import joint_state_layout, wrench_targets
 from ..io import atomic_path, staged_outputs
-from ..runtime.detector import armed, thresholds_for_false_positive_rate
+from ..plots import plot_contact_comparison
+from ..runtime.thresholds import armed, thresholds_for_false_positive_rate
 from ..sim.collection import collect
 from ..sim.evaluation import evaluate_detection
 from ..sim.simulate import simulate
 from ..sim.station import build_station
 
 HELD_OUT_SEED = 1000
-FALSE_POSITIVES_PER_HOUR = 1.0  # the detector's budget; thresholds follow from it
 
 
-#: One free-motion run of each of these kinds joins the training data: without them 27-58 % of
-#: held-out runs of these kinds lay outside the training ranges and the hybrid's residual
-#: crossed the 1-per-hour thresholds on up to 3.7 % of their samples (see README).
+#: One free-motion run of each of these kinds joins the training data, so that held-out runs
+#: of these kinds stay inside the training ranges the thresholds were calibrated on.
 OTHER_KINDS = ("random", "z_rich", "reference")
 
 
@@ -61,6 +60,9 @@ def run_demo(out: Path, config: ScenarioConfig | None = None, *, fourier: int = 
              rehearsals: int = 3, duration: float = 20.0, other_kinds=OTHER_KINDS,
              other_surfaces: bool = False, meshcat_html: bool = True,
              progress: bool = True) -> dict:
+    """Runs the three steps of the module docstring; writes ``summary.json``, the contact
+    logs, the models and ``contact.png`` (and ``replay.html`` with `meshcat_html`) into `out`
+    and returns the summary."""
     config = config or ScenarioConfig()
     started = time.perf_counter()
     stages = {}
@@ -71,6 +73,44 @@ def run_demo(out: Path, config: ScenarioConfig | None = None, *, fourier: int = 
             print(f"[demo] {name} …", flush=True)
 
     stage("collect")
+    data, held_out = _collect_free_motion(config, fourier, rehearsals, duration, other_kinds,
+                                          other_surfaces, progress)
+    stage("train")
+    validation_id = fourier + rehearsals - 1  # a rehearsal: free motion like the task's
+    train = data[data["trajectory"] != validation_id]
+    validation = data[data["trajectory"] == validation_id]
+    models, search, X = _train(train, progress)
+    detectors = _calibrate_detectors(models, config, validation, held_out)
+
+    stage("contact scenario")
+    scenario = dc.replace(
+        config,
+        trajectory=dc.replace(config.trajectory, kind="contact", seed=HELD_OUT_SEED),
+        sensor=dc.replace(config.sensor, seed=HELD_OUT_SEED),
+    )
+    results, logs, meshcat = _contact_runs(models, detectors, scenario, config, validation,
+                                           meshcat_html, progress)
+    _describe_models(results, models, search)
+
+    stage("write")
+    summary = {
+        "models": results,
+        "better": better_model(results),
+        "contact_scenario_s": float(logs["forest"]["t"].iloc[-1]),
+        "training_rows": len(X),
+        "training_trajectories": int(train["trajectory"].nunique()),
+        "false_positives_per_hour_budget": config.detector.false_positives_per_hour,
+        "sensor_preset": scenario.sensor.preset,
+        "held_out_seed": HELD_OUT_SEED,
+    }
+    _write(out, summary, logs, models, meshcat, started, stages)
+    return summary
+
+
+def _collect_free_motion(config, fourier, rehearsals, duration, other_kinds, other_surfaces,
+                         progress):
+    """The training data (Fourier runs, rehearsals, one run of each other kind, and with
+    `other_surfaces` a rehearsal at each other surface) and the held-out runs."""
     free = collect(config, fourier, kind="fourier", duration=duration, progress=progress)
     rehearsal = collect(config, rehearsals, kind="rehearsal", seed=100, progress=progress)
     rehearsal["trajectory"] += fourier
@@ -89,7 +129,7 @@ def run_demo(out: Path, config: ScenarioConfig | None = None, *, fourier: int = 
         others.append(run)
     data = pd.concat([free, rehearsal, *others], ignore_index=True)
     # Held out, with the held-out rehearsal: one run of each kind the arm will move in; the
-    # thresholds are calibrated on all of it (on rehearsals alone the 1-per-hour budget held
+    # thresholds are calibrated on all of it (a budget calibrated on rehearsals alone holds
     # for rehearsal-like motion only).
     held_out = pd.concat([
         *(collect(config, 1, kind=kind, seed=300 + i, duration=duration, progress=progress)
@@ -98,11 +138,11 @@ def run_demo(out: Path, config: ScenarioConfig | None = None, *, fourier: int = 
           for j, surface in enumerate(surfaces))], ignore_index=True)
     if data[col.CONTACT].any() or held_out[col.CONTACT].any():
         raise RuntimeError("training data touched the environment; it must be contact-free")
+    return data, held_out
 
-    stage("train")
-    validation_id = fourier + rehearsals - 1  # a rehearsal: free motion like the task's
-    train = data[data["trajectory"] != validation_id]
-    validation = data[data["trajectory"] == validation_id]
+
+def _train(train, progress):
+    """The study's forest (tuned, grouped folds) and the hybrid, on the same rows."""
     every = 4  # 250 Hz of a 1 kHz log is plenty for a position-only forest
     X, Y = joint_state_layout(train)[::every], wrench_targets(train)[::every]
     groups = segment_groups(train["trajectory"].to_numpy()[::every])
@@ -119,26 +159,29 @@ def run_demo(out: Path, config: ScenarioConfig | None = None, *, fourier: int = 
         # (weight_without_inertia), so the payload's inertia is not inflated by it.
         hybrid = HybridCompensator(physics=PhysicsPayloadCompensator(
             identify_mounting=True, weight_without_inertia=True)).fit(X, Y)
-    models = {"forest": forest, "hybrid": hybrid}
-    judged = armed(validation[col.TIME].to_numpy(), config.detector.arm_after_s)
-    X_val, Y_val = joint_state_layout(validation)[judged], wrench_targets(validation)[judged]
+    return {"forest": forest, "hybrid": hybrid}, search, X
+
+
+def _calibrate_detectors(models, config, validation, held_out) -> dict:
+    """Each model's thresholds from its residual on the judged samples of the validation
+    rehearsal and the held-out runs, for the scenario's false-positive budget."""
     calibration = pd.concat([validation, held_out], ignore_index=True)
     judged = armed(calibration[col.TIME].to_numpy(), config.detector.arm_after_s)
     X_cal, Y_cal = joint_state_layout(calibration)[judged], wrench_targets(calibration)[judged]
     rate_hz = config.sensor.spec().rate_hz
-    detectors = {
+    return {
         name: thresholds_for_false_positive_rate(
             Y_cal - model.predict(X_cal), sample_rate_hz=rate_hz,
-            false_positives_per_hour=FALSE_POSITIVES_PER_HOUR)
+            false_positives_per_hour=config.detector.false_positives_per_hour)
         for name, model in models.items()
     }
 
-    stage("contact scenario")
-    scenario = dc.replace(
-        config,
-        trajectory=dc.replace(config.trajectory, kind="contact", seed=HELD_OUT_SEED),
-        sensor=dc.replace(config.sensor, seed=HELD_OUT_SEED),
-    )
+
+def _contact_runs(models, detectors, scenario, config, validation, meshcat_html, progress):
+    """Each model and its detector in the loop on the contact scenario, scored against the
+    plant's truth; the hybrid's run recorded in Meshcat with `meshcat_html`."""
+    judged = armed(validation[col.TIME].to_numpy(), config.detector.arm_after_s)
+    X_val, Y_val = joint_state_layout(validation)[judged], wrench_targets(validation)[judged]
     meshcat = None
     results, logs = {}, {}
     for name, model in models.items():
@@ -159,6 +202,13 @@ def run_demo(out: Path, config: ScenarioConfig | None = None, *, fourier: int = 
                 "torque_nm": float(np.sqrt(np.mean(np.sum(residual[:, 3:] ** 2, axis=1)))),
             },
         }
+    return results, logs, meshcat
+
+
+def _describe_models(results: dict, models: dict, search) -> None:
+    """What each model is, for the summary: the forest's tuned parameters, the hybrid's
+    identified physics."""
+    hybrid = models["hybrid"]
     results["forest"]["model"] = {"class": "RandomForestCompensator", "features": "q",
                                   "per_output": False, **search.best_params[0]}
     results["forest"]["tuning"] = {"preset": "quick", "cv": "grouped",
@@ -180,19 +230,8 @@ def run_demo(out: Path, config: ScenarioConfig | None = None, *, fourier: int = 
         "physics_condition_number": hybrid.physics_.condition_number_,
     }
 
-    stage("write")
-    summary = {
-        "models": results,
-        "better": better_model(results),
-        "contact_scenario_s": float(logs["forest"]["t"].iloc[-1]),
-        "training_rows": len(X),
-        "training_trajectories": int(train["trajectory"].nunique()),
-        "false_positives_per_hour_budget": FALSE_POSITIVES_PER_HOUR,
-        "sensor_preset": scenario.sensor.preset,
-        "held_out_seed": HELD_OUT_SEED,
-    }
-    from ..plots import plot_contact_comparison  # noqa: PLC0415 (matplotlib only when plotting)
 
+def _write(out, summary, logs, models, meshcat, started, stages) -> None:
     with staged_outputs(out) as staging:
         plot_contact_comparison(logs, staging / "contact.png")
         for name, log in logs.items():
@@ -208,7 +247,6 @@ def run_demo(out: Path, config: ScenarioConfig | None = None, *, fourier: int = 
         summary["stage_times_s"] = _durations(stages, time.perf_counter())
         with atomic_path(staging / "summary.json") as tmp:
             tmp.write_text(json.dumps(summary, indent=2))
-    return summary
 
 
 def better_model(results: dict) -> str:

@@ -32,6 +32,7 @@ from ..config import ScenarioConfig
 from ..control.ilc import ilc_update
 from ..errors import ConfigError
 from ..io import atomic_path, atomic_write_text
+from ..plots import plt
 from ..sim.scene import make_control_plant
 from ..sim.simulate import simulate
 from ..sim.station import build_station
@@ -311,11 +312,6 @@ def write_outputs(out: Path, table: pd.DataFrame, summary: dict, model, plan) ->
 
 
 def plot_tracking(summary: dict, path: Path) -> None:
-    import matplotlib  # noqa: PLC0415
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt  # noqa: PLC0415
-
     fig, (ax, bx) = plt.subplots(1, 2, figsize=(10, 4), gridspec_kw={"width_ratios": [2, 1]})
     for method, label in (("gp", "learned feedforward (GP)"), ("ilc", "ILC (time-indexed)")):
         tips = summary["task"][method]["tip_rms_mm"]

@@ -23,7 +23,7 @@ from tqdm.auto import tqdm
 
 from .. import conventions as col
 from ..config import ScenarioConfig, dump_config, parse_config
-from ..sim.simulate import BIAS_ESTIMATE, ESTIMATED, PAYLOAD_ESTIMATE, simulate
+from ..sim.simulate import simulate
 from ..sim.station import build_station
 
 EVENTS = ("retare", "grasp", "push")
@@ -126,8 +126,8 @@ def recovery_metrics(with_event, untracked, reference, sigma, plan: EventPlan, *
             "false_contact_s": float(_contact_seconds(log, after)),
         }
     row["reference_false_contact_s"] = float(_contact_seconds(reference, after))
-    if payload and PAYLOAD_ESTIMATE[0] in with_event:
-        row["payload_estimate"] = [float(with_event[c].iloc[-1]) for c in PAYLOAD_ESTIMATE]
+    if payload and col.PAYLOAD_ESTIMATE[0] in with_event:
+        row["payload_estimate"] = [float(with_event[c].iloc[-1]) for c in col.PAYLOAD_ESTIMATE]
     return row
 
 
@@ -135,26 +135,26 @@ def push_metrics(with_event, reference, plan: EventPlan) -> dict:
     """When the slow push was detected, at what force, and how much of it became bias."""
     t = with_event[col.TIME].to_numpy()
     start = np.searchsorted(t, plan.event_at_s)
-    detected = with_event["detected"].to_numpy()[start:] > 0
-    bias = with_event[col.wrench_columns(BIAS_ESTIMATE)[:3]].to_numpy()
+    detected = with_event[col.DETECTED].to_numpy()[start:] > 0
+    bias = with_event[col.wrench_columns(col.BIAS_ESTIMATE)[:3]].to_numpy()
     row = {"reference_false_contact_s": float(_contact_seconds(reference, t >= plan.event_at_s))}
     if not detected.any():
         return {**row, "detected": False, "delay_s": None, "force_at_detection_n": None,
                 "bias_absorbed_n": float(np.linalg.norm(bias[-1] - bias[start]))}
     i = start + int(np.argmax(detected))
     return {**row, "detected": True, "delay_s": float(t[i] - plan.event_at_s),
-            "force_at_detection_n": float(with_event["push_force"].iloc[i]),
+            "force_at_detection_n": float(with_event[col.PUSH_FORCE].iloc[i]),
             "bias_absorbed_n": float(np.linalg.norm(bias[i] - bias[start]))}
 
 
 def _estimate(log):
-    return log[col.wrench_columns(ESTIMATED)].to_numpy()
+    return log[col.wrench_columns(col.ESTIMATED)].to_numpy()
 
 
 def _contact_seconds(log, mask) -> float:
     t = log[col.TIME].to_numpy()
     period = float(np.median(np.diff(t)))
-    return float((log["detected"].to_numpy()[mask] > 0).sum() * period)
+    return float((log[col.DETECTED].to_numpy()[mask] > 0).sum() * period)
 
 
 def markdown(results: dict, plan: EventPlan) -> str:

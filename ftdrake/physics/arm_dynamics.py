@@ -31,11 +31,11 @@ import numpy as np
 from pydrake.multibody.plant import MultibodyPlant
 from pydrake.multibody.tree import MultibodyForces, PrismaticJoint, RevoluteJoint
 
+from ..conventions import GRAVITY_W
 from ..errors import RobotModelError
 from .rigid_body import inertia_map, skew
 from .robot import add_robot_model, model_label
 
-GRAVITY_W = (0.0, 0.0, -9.81)
 #: Per-body inertial parameter names (suffixed by the body's name in the stacked vector).
 INERTIAL_NAMES = ("m", "mcx", "mcy", "mcz", "Ixx", "Ixy", "Ixz", "Iyy", "Iyz", "Izz")
 INERTIAL_UNITS = ("kg", "kg*m", "kg*m", "kg*m") + ("kg*m^2",) * 6

@@ -31,7 +31,9 @@ import dataclasses as dc
 import numba
 import numpy as np
 
+from ..conventions import GRAVITY_W
 from ..errors import RobotModelError
+from .rigid_body import SensorKinematics
 
 #: Joint types the compiled chain handles (Drake's ``Joint.type_name()``).
 REVOLUTE, PRISMATIC, WELD = "revolute", "prismatic", "weld"
@@ -141,10 +143,8 @@ class SerialChain:
         """The arrays the compiled kernels take, in their order."""
         return self.X_pre, self.kinds, self.axes, self.q_index, self.v_index
 
-    def evaluate(self, q, v, vdot, gravity_W=(0.0, 0.0, -9.81)):
+    def evaluate(self, q, v, vdot, gravity_W=GRAVITY_W):
         """Rows (N × n) of q, v, v̇ → :class:`~ftdrake.physics.rigid_body.SensorKinematics`."""
-        from .rigid_body import SensorKinematics  # noqa: PLC0415 (keeps the modules apart)
-
         q, v, vdot = (np.ascontiguousarray(np.atleast_2d(np.asarray(a, dtype=float)))
                       for a in (q, v, vdot))
         if q.shape[1] != self.num_positions or v.shape[1] != self.num_velocities or \
@@ -237,8 +237,7 @@ def sensor_kinematics_row(q, v, vdot, gravity_W, X_pre, kinds, axes, q_index, v_
     R[:, :] = 0.0
     R[0, 0] = R[1, 1] = R[2, 2] = 1.0
     # One allocation for the 3-vectors and Rj (rows of `work`, C-contiguous views): the
-    # kernel runs once per 1 kHz sample, and ten small allocations were a fifth of its time
-    # (794 → 625 ns per row on ftdrake's arm, best of 40 batches).
+    # kernel runs once per 1 kHz sample, and ten small allocations were a fifth of its time.
     work = np.zeros((12, 3))
     p, w, al, vel, acc = work[0], work[1], work[2], work[3], work[4]
     r, t1, t2, u = work[5], work[6], work[7], work[8]
@@ -248,48 +247,61 @@ def sensor_kinematics_row(q, v, vdot, gravity_W, X_pre, kinds, axes, q_index, v_
         for i in range(3):  # the axis in W
             u[i] = R[i, 0] * axes[k, 0] + R[i, 1] * axes[k, 1] + R[i, 2] * axes[k, 2]
         x, xd, xdd = q[q_index[k]], v[v_index[k]], vdot[v_index[k]]
-        if kinds[k] == 0:  # revolute: R_WM = R_WF · Rot(â, θ), Mo = Fo
-            _cross(w, u, t1)
-            for i in range(3):
-                al[i] += u[i] * xdd + t1[i] * xd
-                w[i] += u[i] * xd
-            s, c = np.sin(x), np.cos(x)
-            ax, ay, az = axes[k, 0], axes[k, 1], axes[k, 2]
-            C = 1.0 - c
-            Rj[0, 0] = c + ax * ax * C
-            Rj[0, 1] = ax * ay * C - az * s
-            Rj[0, 2] = ax * az * C + ay * s
-            Rj[1, 0] = ay * ax * C + az * s
-            Rj[1, 1] = c + ay * ay * C
-            Rj[1, 2] = ay * az * C - ax * s
-            Rj[2, 0] = az * ax * C - ay * s
-            Rj[2, 1] = az * ay * C + ax * s
-            Rj[2, 2] = c + az * az * C
-            for i in range(3):
-                r0, r1, r2 = R[i, 0], R[i, 1], R[i, 2]
-                for j in range(3):
-                    t2[j] = r0 * Rj[0, j] + r1 * Rj[1, j] + r2 * Rj[2, j]
-                for j in range(3):
-                    R[i, j] = t2[j]
-        else:  # prismatic: Mo = Fo + â d, R_WM = R_WF
-            for i in range(3):
-                r[i] = u[i] * x
-            _cross(w, r, t1)
-            _cross(w, t1, t2)
-            for i in range(3):
-                vel[i] += t1[i] + u[i] * xd
-                acc[i] += t2[i] + u[i] * xdd
-                p[i] += r[i]
-            _cross(al, r, t1)
-            _cross(w, u, t2)
-            for i in range(3):
-                acc[i] += t1[i] + 2.0 * t2[i] * xd
+        if kinds[k] == 0:
+            _revolute(R, w, al, u, axes[k], x, xd, xdd, Rj, t1, t2)
+        else:
+            _prismatic(p, w, al, vel, acc, u, x, xd, xdd, r, t1, t2)
     _shift(R, p, w, al, vel, acc, X_pre[len(kinds)], r, t1, t2)
     for j in range(3):  # express in S: x_S = R_WSᵀ x_W
         out[0, j] = R[0, j] * w[0] + R[1, j] * w[1] + R[2, j] * w[2]
         out[1, j] = R[0, j] * al[0] + R[1, j] * al[1] + R[2, j] * al[2]
         out[2, j] = R[0, j] * acc[0] + R[1, j] * acc[1] + R[2, j] * acc[2]
         out[3, j] = R[0, j] * gravity_W[0] + R[1, j] * gravity_W[1] + R[2, j] * gravity_W[2]
+
+
+@numba.njit(cache=True)
+def _revolute(R, w, al, u, axis, x, xd, xdd, Rj, t1, t2):
+    """Across a revolute joint of angle x about `axis` (û = the axis in W):
+    R_WM = R_WF · Rot(â, x), Mo = Fo; ω += û ẋ, α += û ẍ + ω × û ẋ."""
+    _cross(w, u, t1)
+    for i in range(3):
+        al[i] += u[i] * xdd + t1[i] * xd
+        w[i] += u[i] * xd
+    s, c = np.sin(x), np.cos(x)
+    ax, ay, az = axis[0], axis[1], axis[2]
+    C = 1.0 - c
+    Rj[0, 0] = c + ax * ax * C
+    Rj[0, 1] = ax * ay * C - az * s
+    Rj[0, 2] = ax * az * C + ay * s
+    Rj[1, 0] = ay * ax * C + az * s
+    Rj[1, 1] = c + ay * ay * C
+    Rj[1, 2] = ay * az * C - ax * s
+    Rj[2, 0] = az * ax * C - ay * s
+    Rj[2, 1] = az * ay * C + ax * s
+    Rj[2, 2] = c + az * az * C
+    for i in range(3):
+        r0, r1, r2 = R[i, 0], R[i, 1], R[i, 2]
+        for j in range(3):
+            t2[j] = r0 * Rj[0, j] + r1 * Rj[1, j] + r2 * Rj[2, j]
+        for j in range(3):
+            R[i, j] = t2[j]
+
+
+@numba.njit(cache=True)
+def _prismatic(p, w, al, vel, acc, u, x, xd, xdd, r, t1, t2):
+    """Across a prismatic joint of travel x along û (in W): Mo = Fo + û x, R_WM = R_WF."""
+    for i in range(3):
+        r[i] = u[i] * x
+    _cross(w, r, t1)
+    _cross(w, t1, t2)
+    for i in range(3):
+        vel[i] += t1[i] + u[i] * xd
+        acc[i] += t2[i] + u[i] * xdd
+        p[i] += r[i]
+    _cross(al, r, t1)
+    _cross(w, u, t2)
+    for i in range(3):
+        acc[i] += t1[i] + 2.0 * t2[i] * xd
 
 
 @numba.njit(cache=True)

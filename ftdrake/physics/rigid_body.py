@@ -14,7 +14,7 @@ import dataclasses as dc
 import numpy as np
 from pydrake.multibody.tree import JacobianWrtVariable
 
-GRAVITY_W = np.array([0.0, 0.0, -9.81])  # m/s², Drake's default
+from ..conventions import GRAVITY_W
 
 
 @dc.dataclass
@@ -61,7 +61,7 @@ def sensor_kinematics(plant, context, frame_S, q, v, vdot, instance=None) -> Sen
         out["w"][k] = V_WS_W[:3] @ R_WS
         out["alpha"][k] = A_WS_W[:3] @ R_WS
         out["a"][k] = A_WS_W[3:] @ R_WS
-        out["g"][k] = GRAVITY_W @ R_WS
+        out["g"][k] = np.asarray(GRAVITY_W) @ R_WS
     return SensorKinematics(R, out["w"], out["alpha"], out["a"], out["g"])
 
 

@@ -18,6 +18,7 @@ import numba
 import numpy as np
 from pydrake.systems.framework import LeafSystem
 
+from ..conventions import GRAVITY_W
 from ..physics.chain import SerialChain, sensor_kinematics_row
 from ..signals import acceleration_filter_gain, causal_acceleration_step
 
@@ -40,7 +41,7 @@ class JointStateGravity(LeafSystem):
     """
 
     def __init__(self, chain: SerialChain, period: float, *, acceleration_cutoff_hz: float = 25.0,
-                 gravity_W=(0.0, 0.0, -9.81), include_acceleration: bool = True):
+                 gravity_W=GRAVITY_W, include_acceleration: bool = True):
         super().__init__()
         if not (period > 0 and math.isfinite(period)):
             raise ValueError(f"period must be a positive number of seconds, got {period!r}")

@@ -30,8 +30,8 @@ def attach_point_in_body(sensor_frame, config: CableConfig) -> np.ndarray:
 
 
 def add_cable_spring(plant, arm, sensor_frame, config: CableConfig) -> LinearSpringDamper:
-    """Adds the cable's spring to `plant` (before Finalize)."""
-    config.validate()
+    """Adds the cable's spring to `plant` (before Finalize); `config` is taken as valid (it is
+    checked with its scenario, where that is loaded)."""
     if not plant.HasBodyNamed(config.anchor_body, arm):
         raise ValueError(f"scenario.cable.anchor_body: no body {config.anchor_body!r} in the arm")
     anchor = plant.GetBodyByName(config.anchor_body, arm)

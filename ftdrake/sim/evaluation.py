@@ -12,7 +12,6 @@ import numpy as np
 import pandas as pd
 
 from .. import conventions as col
-from .simulate import ESTIMATED, PREDICTED
 
 STARTUP_SAMPLES = 2  # the sensor chain reads the plant's pre-step zero for this many samples
 TOUCHDOWN_S = 0.02  # s after each contact onset left out of the "after touchdown" error
@@ -35,7 +34,7 @@ def evaluate_detection(log: pd.DataFrame, noise_std) -> dict:
     """
     t = log[col.TIME].to_numpy()
     truth = log[col.CONTACT].to_numpy().astype(bool)
-    detected = log["detected"].to_numpy().astype(bool)
+    detected = log[col.DETECTED].to_numpy().astype(bool)
     true_eps, det_eps = _episodes(truth), _episodes(detected)
     margin = 0.5
     delays, missed = [], 0
@@ -51,10 +50,10 @@ def evaluate_detection(log: pd.DataFrame, noise_std) -> dict:
     )
     free = ~truth
     free[:STARTUP_SAMPLES] = False
-    pred = log[col.wrench_columns(PREDICTED)].to_numpy()
+    pred = log[col.wrench_columns(col.PREDICTED)].to_numpy()
     internal = log[col.wrench_columns(col.INTERNAL)].to_numpy()
     comp_rms = np.sqrt(np.mean((pred[free] - internal[free]) ** 2, axis=0))
-    est = log[col.wrench_columns(ESTIMATED)].to_numpy()
+    est = log[col.wrench_columns(col.ESTIMATED)].to_numpy()
     ext = log[col.wrench_columns(col.EXTERNAL)].to_numpy()
     ext_rms = (np.sqrt(np.mean((est[truth] - ext[truth]) ** 2, axis=0))
                if truth.any() else np.full(6, np.nan))
@@ -73,8 +72,8 @@ def evaluate_detection(log: pd.DataFrame, noise_std) -> dict:
         "external_wrench_error_rms_after_touchdown": steady_rms.tolist(),
         "compensation_error_rms": comp_rms.tolist(),
         "compensation_error_over_noise": (comp_rms / np.asarray(noise_std)).tolist(),
-        "out_of_domain_fraction": float(log["out_of_domain"].mean()),
-        "fault_samples": int(log["fault"].sum()),
+        "out_of_domain_fraction": float(log[col.OUT_OF_DOMAIN].mean()),
+        "fault_samples": int(log[col.FAULT].sum()),
         "excluded_startup_samples": STARTUP_SAMPLES,
     }
 

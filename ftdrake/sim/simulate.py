@@ -63,10 +63,6 @@ from ..signals import differentiate
 from .events import apply_grasp
 from .station import Station
 
-PREDICTED, ESTIMATED, PREDICTED_STD = "pred", "est_external", "pred_std"
-COMPENSATED, BIAS_ESTIMATE, OFFSET = "comp_external", "bias_est", "offset"
-PAYLOAD_ESTIMATE = ("payload_est_dm", "payload_est_mcx", "payload_est_mcy", "payload_est_mcz")
-
 
 @dc.dataclass
 class SimResult:
@@ -133,53 +129,71 @@ def set_initial_state(station: Station, root_context) -> None:
 def assemble_log(station: Station, root_context) -> pd.DataFrame:
     """The loggers' contents as one DataFrame with the documented columns."""
     n = station.scene.plant.num_positions(station.scene.arm)
-
-    def data(logger):
-        log = logger.FindLog(root_context)
-        return log.sample_times(), log.data().T
-
-    t, x = data(station.loggers.state)
+    t, x = _log_data(station.loggers.state, root_context)
     keep = t > 0.5 * station.config.time_step  # see module docstring: drop the t = 0 row
-    series = {"t": t, "x": x}
+    series = _sampled_with_state(station.loggers, root_context, t)
+    frame = {col.TIME: t[keep]}
+    _add_joint_columns(frame, t[keep], x[keep], series["acceleration"][keep], n)
+    _add_sensor_columns(frame, station, root_context, t, keep, series)
+    if station.compensation is not None:
+        _add_compensation_columns(frame, station.compensation.loggers, root_context, t, keep)
+    return pd.DataFrame(frame)
+
+
+def _log_data(logger, root_context):
+    log = logger.FindLog(root_context)
+    return log.sample_times(), log.data().T
+
+
+def _sampled_with_state(loggers, root_context, t) -> dict:
+    """The loggers every station has, each checked to be sampled with the state logger."""
+    series = {}
     for name in ("acceleration", "ideal", "measured", "saturated", "wrench_contact_true",
                  "contact_true"):
-        ti, values = data(getattr(station.loggers, name))
+        ti, values = _log_data(getattr(loggers, name), root_context)
         if len(ti) != len(t) or not np.allclose(ti, t):
             raise RuntimeError(f"logger {name!r} is not sampled with the state logger")
         series[name] = values
-    frame = {col.TIME: t[keep]}
-    q, qd = x[keep, :n], x[keep, n:]
-    qd_est, qdd_est = differentiate(t[keep], q)
+    return series
+
+
+def _add_joint_columns(frame: dict, t, x, acceleration, n: int) -> None:
+    """q, q̇, q̈ from the plant, and q̇, q̈ as a real robot would get them from sampled q."""
+    q, qd = x[:, :n], x[:, n:]
+    qd_est, qdd_est = differentiate(t, q)
     for prefix, values in (
-        (col.Q, q), (col.QD, qd), (col.QDD, series["acceleration"][keep]),
+        (col.Q, q), (col.QD, qd), (col.QDD, acceleration),
         (col.QD_EST, qd_est), (col.QDD_EST, qdd_est),
     ):
         frame.update(zip(col.joint_columns(prefix, n), values.T, strict=True))
-    if station.loggers.push is not None:
-        push = data(station.loggers.push)[1]
-        series["wrench_contact_true"] = series["wrench_contact_true"] + push
-        frame_push = np.linalg.norm(push[keep, :3], axis=1)
-    internal_physical = series["ideal"] - series["wrench_contact_true"]
-    internal = station.noisy_sensor.deterministic_reading(internal_physical, t)
-    if station.loggers.offset is not None:
-        offset = data(station.loggers.offset)[1]
+
+
+def _add_sensor_columns(frame: dict, station: Station, root_context, t, keep, series) -> None:
+    """The sensor's wrenches and the truth: ideal, measured, internal, external (with an
+    ``events`` push), contact, saturation; temperature, offset and push force when logged."""
+    loggers = station.loggers
+    external = series["wrench_contact_true"]
+    push = offset = None
+    if loggers.push is not None:
+        push = _log_data(loggers.push, root_context)[1]
+        external = external + push
+    internal = station.noisy_sensor.deterministic_reading(series["ideal"] - external, t)
+    if loggers.offset is not None:
+        offset = _log_data(loggers.offset, root_context)[1]
         internal = internal + offset
     for prefix, values in (
         (col.IDEAL, series["ideal"]), (col.MEASURED, series["measured"]),
-        (col.INTERNAL, internal), (col.EXTERNAL, series["wrench_contact_true"]),
+        (col.INTERNAL, internal), (col.EXTERNAL, external),
     ):
         frame.update(zip(col.wrench_columns(prefix), values[keep].T, strict=True))
     frame[col.CONTACT] = series["contact_true"][keep, 0].astype(np.int8)
     frame[col.SATURATED] = series["saturated"][keep, 0].astype(np.int8)
-    if station.loggers.temperature is not None:
-        frame[col.TEMPERATURE] = data(station.loggers.temperature)[1][keep, 0]
-    if station.loggers.offset is not None:
-        frame.update(zip(col.wrench_columns(OFFSET), offset[keep].T, strict=True))
-    if station.loggers.push is not None:
-        frame["push_force"] = frame_push
-    if station.compensation is not None:
-        _add_compensation_columns(frame, station.compensation.loggers, root_context, t, keep)
-    return pd.DataFrame(frame)
+    if loggers.temperature is not None:
+        frame[col.TEMPERATURE] = _log_data(loggers.temperature, root_context)[1][keep, 0]
+    if offset is not None:
+        frame.update(zip(col.wrench_columns(col.OFFSET), offset[keep].T, strict=True))
+    if push is not None:
+        frame[col.PUSH_FORCE] = np.linalg.norm(push[keep, :3], axis=1)
 
 
 def _add_compensation_columns(frame: dict, loggers, root_context, t, keep) -> None:
@@ -189,14 +203,15 @@ def _add_compensation_columns(frame: dict, loggers, root_context, t, keep) -> No
             raise RuntimeError(f"compensation logger {name!r} is not sampled with the state")
         return log.data().T[keep]
 
-    for prefix, name in ((PREDICTED, "wrench_internal"), (ESTIMATED, "wrench_contact"),
-                         (COMPENSATED, "wrench_compensated"), (PREDICTED_STD, "wrench_std")):
+    for prefix, name in ((col.PREDICTED, "wrench_internal"), (col.ESTIMATED, "wrench_contact"),
+                         (col.COMPENSATED, "wrench_compensated"),
+                         (col.PREDICTED_STD, "wrench_std")):
         frame.update(zip(col.wrench_columns(prefix), values(name).T, strict=True))
     if loggers.bias is not None:
-        frame.update(zip(col.wrench_columns(BIAS_ESTIMATE), values("bias").T, strict=True))
+        frame.update(zip(col.wrench_columns(col.BIAS_ESTIMATE), values("bias").T, strict=True))
     if loggers.payload is not None:
-        frame.update(zip(PAYLOAD_ESTIMATE, values("payload").T, strict=True))
-    frame["out_of_domain"] = values("out_of_domain")[:, 0].astype(np.int8)
-    frame["fault"] = values("fault")[:, 0].astype(np.int8)
-    frame["detected"] = values("contact")[:, 0].astype(np.int8)
-    frame["detected_force"] = values("contact_force")[:, 0]
+        frame.update(zip(col.PAYLOAD_ESTIMATE, values("payload").T, strict=True))
+    frame[col.OUT_OF_DOMAIN] = values("out_of_domain")[:, 0].astype(np.int8)
+    frame[col.FAULT] = values("fault")[:, 0].astype(np.int8)
+    frame[col.DETECTED] = values("contact")[:, 0].astype(np.int8)
+    frame[col.DETECTED_FORCE] = values("contact_force")[:, 0]

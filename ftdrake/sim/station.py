@@ -6,12 +6,15 @@
                                                      ├──► contact truth           noisy sensor
                                                      │                   wrench_measured │
                                                      └── joint_state ──► compensator ◄───┘
-                                              wrench_external, wrench_std │
+                                           wrench_compensated, wrench_std │
                                                                           ▼
                                                  bias tracker (drift, re-tare, grasp)
+                                                           wrench_contact │
                                                                           ▼
                                                                    contact detector
 
+Compensator, bias tracker and detector are the runtime chain
+(:class:`~ftdrake.runtime.chain.CompensationChain`), the same the live station adds.
 :func:`build_station` builds it from one :class:`~ftdrake.config.ScenarioConfig`; the
 compensator and detector are added when a fitted compensator is given (and the sensor's
 ``temperature`` port feeds the compensator's when its model was trained with it). Every part has a
@@ -144,8 +147,11 @@ def build_station(config: ScenarioConfig, compensator=None, *, meshcat=None,
     its torque correction to the controller's output. `meshcat` (a pydrake Meshcat) adds a
     visualizer (and, with a compensator, the wrench arrows). The models are parsed once for
     the simulation and once for the controller's own (imperfect) model.
+
+    `config` is taken as valid: :func:`~ftdrake.config.load_config` checks a file, and a
+    config built or edited in Python is checked by ``config.validate()``. What only the
+    models can tell (frame names, the joint count) is checked here, naming the field.
     """
-    config.validate()
     builder = DiagramBuilder()
     scene = add_scene(builder, config)
     plant = scene.plant
@@ -157,36 +163,8 @@ def build_station(config: ScenarioConfig, compensator=None, *, meshcat=None,
         "trajectory", TrajectorySource(placeholder, output_derivative_order=1))
     vd_source = builder.AddNamedSystem(
         "trajectory_acceleration", TrajectorySource(placeholder.derivative(2)))
-
-    c = config.controller
-    controller = builder.AddNamedSystem(
-        "controller",
-        DiscreteInverseDynamicsController(
-            make_control_plant(config, scene), kp=c.kp, ki=c.ki, kd=c.kd, period=config.time_step
-        ),
-    )
-    builder.Connect(plant.get_state_output_port(scene.arm),
-                    controller.get_input_port_estimated_state())
-    builder.Connect(q_source.get_output_port(), controller.get_input_port_desired_state())
-    builder.Connect(vd_source.get_output_port(), controller.get_input_port_desired_acceleration())
-    actuation = controller.get_output_port_control()
-    if feedforward is not None:  # controller → + learned correction → (friction) → plant
-        builder.AddNamedSystem("feedforward", feedforward)
-        builder.Connect(actuation, feedforward.get_input_port_control())
-        builder.Connect(q_source.get_output_port(), feedforward.get_input_port_desired_state())
-        builder.Connect(vd_source.get_output_port(),
-                        feedforward.get_input_port_desired_acceleration())
-        actuation = feedforward.get_output_port_control()
-    friction = None
-    if config.friction.enabled:  # joint friction the controller's model does not know
-        friction = builder.AddNamedSystem(
-            "joint_friction", JointFriction(config.friction, plant.num_velocities(scene.arm)))
-        check_explicit_stability(friction, plant, scene.arm, config.home_q, config.time_step)
-        builder.Connect(actuation, friction.get_input_port_actuation())
-        builder.Connect(plant.get_state_output_port(scene.arm),
-                        friction.get_input_port_joint_state())
-        actuation = friction.get_output_port_actuation()
-    builder.Connect(actuation, plant.get_actuation_input_port(scene.arm))
+    controller, friction = _add_control(builder, config, scene, q_source, vd_source,
+                                        feedforward)
 
     sensor = builder.AddNamedSystem("ft_sensor", ForceTorqueSensor(plant, scene.sensor_joint))
     builder.Connect(plant.get_reaction_forces_output_port(),
@@ -228,11 +206,7 @@ def build_station(config: ScenarioConfig, compensator=None, *, meshcat=None,
         compensation = _add_compensation(builder, config, compensator, scene, events, period,
                                          log, noisy.get_output_port_temperature())
         if meshcat is not None:
-            arrows = builder.AddNamedSystem("wrench_arrows", WrenchArrows(meshcat, plant, scene))
-            builder.Connect(events.reading, arrows.get_input_port_measured())
-            builder.Connect(compensation.chain.get_output_port_wrench_contact(),
-                            arrows.get_input_port_external())
-            builder.Connect(plant.get_body_poses_output_port(), arrows.get_input_port_body_poses())
+            arrows = _add_arrows(builder, meshcat, scene, events, compensation)
     if meshcat is not None:
         from pydrake.visualization import (  # noqa: PLC0415 (only with Meshcat)
             AddDefaultVisualization,
@@ -249,6 +223,55 @@ def build_station(config: ScenarioConfig, compensator=None, *, meshcat=None,
     vd_source.UpdateTrajectory(trajectory.derivative(2))
     return Station(config, diagram, scene, trajectory, controller, sensor, noisy, truth,
                    loggers, compensation, arrows, events, friction, feedforward, feedforward_log)
+
+
+def _add_control(builder, config: ScenarioConfig, scene: Scene, q_source, vd_source,
+                 feedforward):
+    """trajectory → controller (→ + feedforward) (→ − joint friction) → the plant's actuation.
+    Returns the controller and the friction system (None unless ``friction.enabled``)."""
+    plant = scene.plant
+    c = config.controller
+    controller = builder.AddNamedSystem(
+        "controller",
+        DiscreteInverseDynamicsController(
+            make_control_plant(config, scene), kp=c.kp, ki=c.ki, kd=c.kd, period=config.time_step
+        ),
+    )
+    builder.Connect(plant.get_state_output_port(scene.arm),
+                    controller.get_input_port_estimated_state())
+    builder.Connect(q_source.get_output_port(), controller.get_input_port_desired_state())
+    builder.Connect(vd_source.get_output_port(), controller.get_input_port_desired_acceleration())
+    actuation = controller.get_output_port_control()
+    if feedforward is not None:  # controller → + learned correction → (friction) → plant
+        builder.AddNamedSystem("feedforward", feedforward)
+        builder.Connect(actuation, feedforward.get_input_port_control())
+        builder.Connect(q_source.get_output_port(), feedforward.get_input_port_desired_state())
+        builder.Connect(vd_source.get_output_port(),
+                        feedforward.get_input_port_desired_acceleration())
+        actuation = feedforward.get_output_port_control()
+    friction = None
+    if config.friction.enabled:  # joint friction the controller's model does not know
+        friction = builder.AddNamedSystem(
+            "joint_friction", JointFriction(config.friction, plant.num_velocities(scene.arm)))
+        check_explicit_stability(friction, plant, scene.arm, config.home_q, config.time_step)
+        builder.Connect(actuation, friction.get_input_port_actuation())
+        builder.Connect(plant.get_state_output_port(scene.arm),
+                        friction.get_input_port_joint_state())
+        actuation = friction.get_output_port_actuation()
+    builder.Connect(actuation, plant.get_actuation_input_port(scene.arm))
+    return controller, friction
+
+
+def _add_arrows(builder, meshcat, scene: Scene, events: EventSignals,
+                compensation: Compensation) -> WrenchArrows:
+    """The measured and the estimated contact force drawn in Meshcat."""
+    plant = scene.plant
+    arrows = builder.AddNamedSystem("wrench_arrows", WrenchArrows(meshcat, plant, scene))
+    builder.Connect(events.reading, arrows.get_input_port_measured())
+    builder.Connect(compensation.chain.get_output_port_wrench_contact(),
+                    arrows.get_input_port_external())
+    builder.Connect(plant.get_body_poses_output_port(), arrows.get_input_port_body_poses())
+    return arrows
 
 
 def _add_compensation(builder, config, model, scene, events: EventSignals, period, log,

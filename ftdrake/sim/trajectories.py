@@ -36,6 +36,8 @@ import numpy as np
 from pydrake.multibody.inverse_kinematics import InverseKinematics
 from pydrake.solvers import Solve
 from pydrake.trajectories import PiecewisePolynomial
+from scipy.optimize import brentq
+from scipy.special import gammaln
 
 from ..config import TrajectoryConfig
 from ..errors import TrajectoryError
@@ -91,9 +93,9 @@ def make_trajectory(config: TrajectoryConfig, home_q, limits: JointLimits, robot
     """Builds and checks the trajectory `config.kind` starting and ending at `home_q`.
 
     `robot` (a :class:`RobotGeometry`) is needed for the contact kinds (inverse kinematics)
-    and used to keep free motion clear of the environment.
+    and used to keep free motion clear of the environment. `config` is taken as valid (it is
+    checked with its scenario, where that is loaded).
     """
-    config.validate()
     home_q = np.asarray(home_q, dtype=float)
     if np.any(home_q < limits.lower) or np.any(home_q > limits.upper):
         raise TrajectoryError(f"home_q {home_q.round(3).tolist()} is outside the joint limits")
@@ -238,9 +240,6 @@ def study_motion(duration: float, seed: int) -> PiecewisePolynomial:
     is the start of the same motion. `seed` draws the phases φ, so seeds give different
     trajectories with the same joint statistics (held-out test trajectories).
     """
-    from scipy.optimize import brentq  # noqa: PLC0415
-    from scipy.special import gammaln  # noqa: PLC0415 (scipy only for this kind)
-
     hi, lo, mean = np.radians(STUDY_JOINTS_DEG)
     hi, lo = hi - np.radians(STUDY_MARGIN_DEG), lo + np.radians(STUDY_MARGIN_DEG)
     fraction = (mean - lo) / (hi - lo)

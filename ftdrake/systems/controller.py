@@ -3,7 +3,7 @@
 A robot's joint controller runs at a fixed rate. Drake's ``InverseDynamicsController`` keeps its
 PID integral as *continuous* state, which makes the simulator integrate an ODE between the
 plant's discrete steps (an error-controlled Runge–Kutta step and witness checks every
-millisecond, about 15 % of the free-motion diagram's run time, measured with py-spy). This
+millisecond). This
 controller is the same law with the integral updated once per period, built only from Drake's
 C++ systems, so a diagram that uses it has no continuous state at all.
 """

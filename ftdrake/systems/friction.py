@@ -46,7 +46,7 @@ class JointFriction(LeafSystem):
 
     def __init__(self, config: FrictionConfig, n_joints: int):
         super().__init__()
-        config.validate()
+        config.validate()  # the system is built on its own too, from a FrictionConfig alone
         n = self.n = int(n_joints)
         if len(config.coulomb) != n:
             raise ConfigError(f"friction.coulomb: must have one entry per arm joint ({n}), "

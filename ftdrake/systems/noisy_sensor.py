@@ -45,7 +45,7 @@ class NoisyForceTorqueSensor(LeafSystem):
 
     def __init__(self, config: SensorConfig):
         super().__init__()
-        config.validate()
+        config.validate()  # the system is built on its own too, from a SensorConfig alone
         self.config = config
         spec = config.spec()
         self.period = 1.0 / spec.rate_hz

@@ -1,4 +1,4 @@
-"""The RF-vs-SVR study of F/T compensation, repeated on simulated data (issue 3 item 5).
+"""The RF-vs-SVR study of F/T compensation, repeated on simulated data.
 
 The study (Motoman SDA10D, one pre-defined slow trajectory, 13,745 rows) trained one random
 forest (RF) and one SVR per wrench axis on three feature sets — ``q``, ``q,qd``, ``q,qd,qdd``
@@ -22,8 +22,8 @@ study, on purpose:
   the static payload model (gravity, CoM, biases), ``q,qd`` the dynamic model with q̈ = 0,
   ``q,qd,qdd`` the full Newton-Euler model.
 * Logs are 1 kHz; training rows are taken at ``train_hz`` (default 12.5 Hz: the motion is
-  below 1 Hz, so denser rows are near copies, and it keeps the quick study within 5 minutes on
-  2 cores), test rows at ``test_hz`` (100 Hz). SVR trains on at most ``svr_max_rows`` rows,
+  below 1 Hz, so denser rows are near copies, and it keeps the quick study short), test rows
+  at ``test_hz`` (100 Hz). SVR trains on at most ``svr_max_rows`` rows,
   evenly spaced in time (the quick defaults stay below it).
 
 Metrics per axis on the test rows: MSE (N², (N·m)²), NMSE = MSE / var(measured), variance score
@@ -32,58 +32,59 @@ prediction against the true internal wrench (N, N·m) and that over the sensor's
 
 Typical use::
 
-    results = run_study("out/study")          # ~3 min on 2 cores with the quick grid
+    results = run_study("out/study")          # the quick grid
     for f in results["findings"]:
         print(f["claim"], f["reproduced"], f["evidence"])
 
 The package, by the data path:
 
-* :mod:`.layout` — what the tables hold: datasets, methods, feature sets, axes, metrics.
+* :mod:`.layout` — what the tables hold: datasets, methods, feature sets, axes, metrics,
+  figures, and the study's published Table 2.
+* :mod:`.settings` — what is tuned, the quick run's defaults, each method's grid.
 * :mod:`.run` — :func:`run_study`; the split, the tuning and scoring of each method, the
-  derived tables (CV disagreement, importances, tool-tip extent), the time estimate.
+  derived tables (CV disagreement, importances, tool-tip extent).
+* :mod:`.estimate` — :func:`estimate_seconds`, the run's time estimate.
 * :mod:`.findings` — :func:`check_findings`: each claim's verdict and numbers, no prose.
-* :mod:`.report` — the prose chosen from those numbers, results.md and the figures.
+* :mod:`.report` — the prose chosen from those numbers, results.md; :mod:`.figures` — the
+  figures.
+* :mod:`.protocols` — the study repeated faithfully (its motion, tool and protocol beside
+  ftdrake's); :mod:`.search` — its per-axis grid and halving search; :mod:`.paper` — the
+  paper grid on a Dask cluster.
 
 The command line (``ftdrake study``) is :mod:`ftdrake.cli.study`.
 """
 
+from .estimate import estimate_seconds
+from .figures import FIGURE_MAKERS, write_figures
 from .findings import Q_SHARE, UNCHANGED_VS, Finding, check_findings
-from .layout import AXES, DATASETS, FEATURES, METHODS, METRICS
-from .report import (
-                     CLAIMS,
-                     FIGURE_MAKERS,
-                     FIGURES,
-                     METHOD_LABELS,
-                     describe,
-                     finding_records,
-                     markdown,
-                     write_figures,
-)
+from .layout import AXES, DATASETS, FEATURES, FIGURES, METHODS, METRICS
+from .report import CLAIMS, METHOD_LABELS, describe, finding_records, markdown
 from .run import (
-                     DURATION_S,
-                     HYBRID_RESIDUAL,
-                     N_SPLITS,
-                     PHYSICS_MODE,
-                     SEGMENT_S,
-                     SVR_MAX_ROWS,
-                     TEST_HZ,
-                     TEST_TRAJECTORIES,
-                     TRAIN_HZ,
-                     TRAJECTORIES,
-                     TUNED,
-                     Split,
-                     cv_disagreement,
-                     decimate,
-                     estimate_seconds,
-                     fx_importances,
-                     grid_sizes,
-                     only,
-                     physical_model,
-                     prepare_split,
-                     run_study,
-                     split_trajectories,
-                     study_dataset,
-                     tool_tip_extent,
+    Split,
+    cv_disagreement,
+    decimate,
+    fx_importances,
+    only,
+    physical_model,
+    prepare_split,
+    run_study,
+    split_trajectories,
+    study_dataset,
+    tool_tip_extent,
+)
+from .settings import (
+    DURATION_S,
+    HYBRID_RESIDUAL,
+    N_SPLITS,
+    PHYSICS_MODE,
+    SEGMENT_S,
+    SVR_MAX_ROWS,
+    TEST_HZ,
+    TEST_TRAJECTORIES,
+    TRAIN_HZ,
+    TRAJECTORIES,
+    TUNED,
+    grid_sizes,
 )
 
 __all__ = [

@@ -10,7 +10,6 @@ from __future__ import annotations
 
 import dataclasses
 import json
-import os
 import time
 import warnings
 from dataclasses import dataclass
@@ -19,49 +18,41 @@ import numpy as np
 import pandas as pd
 from joblib import Parallel, delayed
 from sklearn.base import clone
-from sklearn.model_selection import ParameterGrid
 from threadpoolctl import threadpool_limits
 
 from ... import conventions as col
-from ...compensation.features import FEATURE_SETS, check_feature_set, feature_names
+from ...compensation.features import check_feature_set, feature_names
 from ...compensation.metrics import report
 from ...compensation.physics import ExcitationWarning
 from ...compensation.registry import entry
-from ...compensation.tuning import grid_size, param_grid, segment_groups, tune
+from ...compensation.tuning import segment_groups, tune
 from ...config import ScenarioConfig, dump_config
 from ...data.dataset import joint_state_layout, wrench_targets
 from ...io import atomic_path, staged_outputs
 from ...sim.collection import simulate_one, trajectory_config
 from ...sim.station import plan_trajectory, robot_geometry
 from ...sim.trajectories import trajectory_extent
+from . import protocols
 from . import report as outputs
+from .estimate import estimate_seconds
+from .figures import write_figures
 from .findings import check_findings
 from .layout import AXES, DATASETS, FEATURES, METHODS
-
-#: The methods tuned by grid search, by their compensator's registry name (its grids).
-TUNED = {"rf": "rf", "svr": "svr", "svr_scaled": "svr"}
-#: The physics rows: the payload model that reads only the feature set's joint-state blocks.
-PHYSICS_MODE = {"q": "static", "q,qd": "dynamic", "q,qd,qdd": "dynamic"}
-
-SEGMENT_S = 4.0  # length of a grouped-CV segment (s): longer than a row's near copies
-#: The hybrid's residual forest is not tuned (its grid would double the run time); these
-#: settings smooth over the sensor noise that the residual mostly is.
-HYBRID_RESIDUAL = {"n_estimators": 40, "max_features": 1.0, "min_samples_leaf": 5}
-
-# Defaults: `ftdrake study --quick` in under 5 minutes on 2 cores (see the module docstring).
-TRAJECTORIES = 6  # per dataset
-TEST_TRAJECTORIES = 2  # of those, held out whole
-DURATION_S = 20.0  # per trajectory: one period of the reference motion's base frequency
-TRAIN_HZ = 12.5  # training rows per second of log (the motion is below 1 Hz)
-TEST_HZ = 100.0
-SVR_MAX_ROWS = 2000
-N_SPLITS = 5  # the study's 5-fold CV
-
-#: Cost model of the time estimate, fitted on the 2-core development machine.
-_SIM_S_PER_S = 0.2  # wall s per simulated s, per worker
-_RF_S = 2.4e-8  # s per tree · row · log2(row) · (features tried + 2)
-_SVR_S = 5e-8  # s per row² per fit (rbf, C ≤ 100; large C and poly take far longer)
-_FIXED_S = 25.0  # imports, physics fits, predictions, trajectory planning, figures
+from .settings import (
+    DURATION_S,
+    HYBRID_RESIDUAL,
+    N_SPLITS,
+    PHYSICS_MODE,
+    SEGMENT_S,
+    SVR_MAX_ROWS,
+    TEST_HZ,
+    TEST_TRAJECTORIES,
+    TRAIN_HZ,
+    TRAJECTORIES,
+    TUNED,
+    grid_sizes,
+    method_grid,
+)
 
 
 # ----------------------------------------------------------------------------------------------
@@ -145,7 +136,7 @@ def run_study(out_dir, *, preset="quick", trajectories: int = TRAJECTORIES,
     say("[study] writing results and figures …")
     with staged_outputs(out_dir) as stage:
         t0 = time.perf_counter()
-        outputs.write_figures(results, stage)
+        write_figures(results, stage)
         stage_s["figures"] = time.perf_counter() - t0
         results["stage_s"] = {k: round(v, 2) for k, v in stage_s.items()}
         results["wall_time_s"] = round(time.perf_counter() - started, 2)
@@ -166,8 +157,6 @@ def collect_all(config: ScenarioConfig, *, trajectories: int, duration: float, s
     """Every simulation of the study in one pool, longest first: each dataset's
     `trajectories` runs and (`faithful`) the study trajectories, whose long first run
     would otherwise leave the other workers idle. Returns {dataset: stacked logs}."""
-    from . import protocols  # noqa: PLC0415
-
     jobs = []  # (dataset, trajectory id, seconds, scenario YAML, runner)
     if faithful:
         study = protocols.study_scenario(config)
@@ -191,9 +180,7 @@ def collect_all(config: ScenarioConfig, *, trajectories: int, duration: float, s
 
 
 def _faithful(config, data, stage_s, *, preset, seed, n_jobs, progress, say) -> dict:
-    """The study's trajectory, tool and protocol beside ftdrake's (issue 12)."""
-    from . import protocols  # noqa: PLC0415 (imports run → protocols → layout only)
-
+    """The study's trajectory, tool and protocol beside ftdrake's."""
     frame = data["study"]
     t0 = time.perf_counter()
     say("[study] the study's protocol and ftdrake's …")
@@ -339,7 +326,7 @@ def _tune(method, features, X, Y, groups, *, preset, cv, n_splits, n_repeats, n_
     estimator = (cls(features=features, random_state=seed) if method == "rf" else
                  cls(features=features, scale_targets=method == "svr_scaled"))
     t0 = time.perf_counter()
-    model, search = tune(estimator, X, Y, groups=groups, preset=_grid(preset, TUNED[method]),
+    model, search = tune(estimator, X, Y, groups=groups, preset=method_grid(preset, TUNED[method]),
                          cv=cv, n_splits=n_splits, n_repeats=n_repeats, per_output=True,
                          target_names=AXES, n_jobs=n_jobs, progress=progress,
                          random_state=seed)
@@ -371,24 +358,6 @@ def _timed_fit(model, X, Y) -> float:
     t0 = time.perf_counter()
     model.fit(X, Y)
     return time.perf_counter() - t0
-
-
-def _grid(preset, name: str):
-    """The grid of registry name `name`: from a preset name, or a custom preset dict keyed by
-    registry name or class name."""
-    if isinstance(preset, str):
-        return param_grid(preset, name)
-    cls_name = entry(name).cls.__name__
-    return preset[name] if name in preset else preset[cls_name]
-
-
-def grid_sizes(preset) -> dict:
-    """Candidates per tuned estimator (keyed by class name) and feature set (max_features is
-    clipped to the set)."""
-    n = col.N_JOINTS
-    by_class = {entry(name).cls.__name__: name for name in set(TUNED.values())}
-    return {cls_name: {f: grid_size(_grid(preset, name), name, FEATURE_SETS[f] * n)
-                       for f in FEATURES} for cls_name, name in sorted(by_class.items())}
 
 
 # -- data -------------------------------------------------------------------------------------
@@ -466,66 +435,6 @@ def fx_importances(model, features: str) -> dict:
     """Impurity importances of the tuned Fx forest, by input name (they sum to 1)."""
     values = model.estimators_[0].feature_importances_[0]
     return dict(zip(feature_names(features, col.N_JOINTS), map(float, values), strict=True))
-
-
-def estimate_seconds(preset, *, trajectories=TRAJECTORIES, duration=DURATION_S,
-                     test_trajectories=TEST_TRAJECTORIES, train_hz=TRAIN_HZ,
-                     svr_max_rows=SVR_MAX_ROWS, n_splits=N_SPLITS, n_repeats=1, n_jobs=-1,
-                     collect=True, faithful=True) -> float:
-    """Rough wall time (s) of :func:`run_study` on an idle machine, from a cost model fitted
-    on the 2-core development machine; `faithful`: with the study trajectory's part (its
-    collection and both protocols). SVR with large C or a poly kernel (the paper grid) can
-    take far longer: read it as a lower bound there."""
-    workers = (os.cpu_count() or 1) if n_jobs == -1 else max(1, n_jobs)
-    extra = (_faithful_seconds(preset, workers, n_splits=n_splits, collect=collect)
-             if faithful else 0.0)
-    sim = 2 * trajectories * duration * _SIM_S_PER_S / workers if collect else 0.0
-    rows = (trajectories - test_trajectories) * duration * train_hz * (n_splits - 1) / n_splits
-    svr_rows = min(rows, svr_max_rows)
-    # Every tuned problem: axes × folds × repeats fits, plus the refit and the timed fit.
-    fits = len(AXES) * (n_splits * n_repeats + 2)
-    per_set = {}
-    for features, blocks in FEATURE_SETS.items():
-        n = blocks * col.N_JOINTS
-        rf = sum(_rf_fit_s(p["n_estimators"], p["max_features"], n, rows)
-                 for p in _candidates(preset, "rf", n))
-        svr = _SVR_S * svr_rows**2 * len(_candidates(preset, "svr", n))
-        hybrid = len(AXES) * _rf_fit_s(HYBRID_RESIDUAL["n_estimators"], 1.0, n, rows)
-        per_set[features] = fits * (rf + svr) + hybrid
-    other_cv = per_set["q"]  # RF on q tuned with the other fold scheme (an over-estimate)
-    learn = 2 * (sum(per_set.values()) + other_cv) / workers  # both datasets
-    return round(sim + learn + extra + _FIXED_S, 0)
-
-
-def _faithful_seconds(preset, workers: int, *, n_splits: int, collect: bool) -> float:
-    """The study trajectory's part: its collection (the long trajectory is the critical
-    path) and the searches of both protocols (one when --quick reuses the parameters)."""
-    from ...sim.trajectories import STUDY_DURATION_S  # noqa: PLC0415
-    from .protocols import HELDOUT, HELDOUT_S, QUICK_TRAIN_ROWS  # noqa: PLC0415
-
-    sim = (max(STUDY_DURATION_S, (STUDY_DURATION_S + HELDOUT * HELDOUT_S) / workers)
-           * _SIM_S_PER_S if collect else 0.0)
-    rows = QUICK_TRAIN_ROWS * (n_splits - 1) / n_splits
-    fits = len(AXES) * (n_splits + 1)
-    searches = 1 if preset == "quick" else 2
-    learn = 0.0
-    for blocks in FEATURE_SETS.values():
-        n = blocks * col.N_JOINTS
-        rf = sum(_rf_fit_s(p["n_estimators"], p["max_features"], n, rows)
-                 for p in _candidates(preset, "rf", n))
-        svr = _SVR_S * rows**2 * len(_candidates(preset, "svr", n))
-        learn += searches * fits * (rf + svr)
-    return sim + learn / workers
-
-
-def _rf_fit_s(trees, max_features, n_features, rows) -> float:
-    tried = max_features * n_features if isinstance(max_features, float) else max_features
-    return _RF_S * trees * rows * np.log2(max(rows, 2)) * (tried + 2)
-
-
-def _candidates(preset, name, n_features):
-    return list(ParameterGrid(param_grid(_grid(preset, name), name, n_features)))
-
 
 
 def _quiet(*args, **kwargs):

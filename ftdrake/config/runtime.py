@@ -1,0 +1,153 @@
+"""The product's configuration: compensator, bias tracker and contact detector."""
+
+# No `from __future__ import annotations`: Drake's YAML loader needs real type objects.
+
+import dataclasses as dc
+import math
+
+from ..errors import ConfigError
+from .checks import finite, non_negative, positive, vector
+
+
+@dc.dataclass
+class CompensatorConfig:
+    """How a trained compensator runs in the loop (``CompensatorSystem``)."""
+
+    # Cut-off (Hz) of the first-order low-pass on the causal difference of q̇ that estimates q̈
+    # in the loop (a real controller has no q̈ sensor); training can use the same estimate.
+    acceleration_cutoff_hz: float = 25.0
+
+    def validate(self, where: str = "compensator") -> None:
+        positive(self.acceleration_cutoff_hz, f"{where}.acceleration_cutoff_hz")
+
+
+#: The payload inertia's prior std (kg·m², per entry of ΔI_So), consistent with the default
+#: mass and first-moment priors: (0.5 kg·m)² / 5 kg.
+PAYLOAD_INERTIA_PRIOR_STD = 0.05
+
+
+@dc.dataclass
+class BiasTrackerConfig:
+    """Online bias and payload tracking (``OnlineBiasTracker``, between the compensator and
+    the detector). See :mod:`ftdrake.runtime.bias_tracker` for the estimator and its guards."""
+
+    # In the chain when a compensator is there. Off: the detector reads the compensator's
+    # wrench directly.
+    enabled: bool = True
+    # How a run starts. True: from `initial_bias`, as after τ seconds of tracking (the trained
+    # compensator is trusted; only drift is followed). False: as after a tare (the first
+    # samples set the bias, so the model's error in the start pose is taken as bias).
+    start_settled: bool = True
+    # τ (s): memory of the estimator, λ = exp(−period/τ). Long compared with the time a push
+    # needs to cross the detector's threshold (≤ 1 s): a ramp is absorbed ~ t²/(2τ).
+    time_constant_s: float = 20.0
+    # The published bias moves at most k·drift_std/√τ (per axis, from the sensor's drift_std)
+    # outside the settle windows; .inf disables the bound. With drift_std 0 the bias then
+    # changes only in settle windows (after a tare or a grasp).
+    rate_bound_sigmas: float = 3.0
+    # Also estimate a rigid payload (Δm, Δ(m·c), ΔI_So: 10 parameters): adds the gravity_S,
+    # motion_S and payload_changed inputs and the payload, payload_inertia outputs.
+    track_payload: bool = False
+    # With track_payload: also feed the tracker S's angular velocity and acceleration
+    # (motion_S), so the payload's offset and rotational-inertia terms are modelled (10
+    # parameters). Off: gravity only (Δm, Δ(m·c) from g − a; the inertia stays at 0). Exact
+    # when the compensator is; in the loop a grasp changes the motion, and the compensator's
+    # error on that motion is then fitted too.
+    track_payload_motion: bool = False
+    # Samples (from the signal on) whose update re-initialises the bias (tared) or payload
+    # (payload_changed) block; covers the pipeline's one-sample lag.
+    hold_samples: int = 3
+    # After a tare, the published bias follows the estimate unbounded for this long (s): the
+    # estimate averages the free motion since the tare (gain 1/n), so the model's error in
+    # the tare pose is averaged out over the poses of this window.
+    tare_settle_s: float = 2.0
+    # A re-tare is estimated as a jump of the bias when there is history (not at the run's
+    # start): the mean of the readings over this long after the hold, less the mean corrected
+    # wrench before the tare (s; 0: always reset and settle as above). The estimator keeps its
+    # memory: the model's error before and after the tare cancels instead of being taken as
+    # bias. The samples of the last `tare_guard_s` before the signal are left out of the
+    # "before" mean: a driver's pulse may come a few samples after the new reading.
+    tare_jump_window_s: float = 0.05
+    tare_guard_s: float = 0.01
+    # After a grasp (and at start with payload tracking), bias and payload follow the estimate
+    # unbounded for this long (s): rotate the tool within it to identify the CoM.
+    payload_settle_s: float = 5.0
+    # Prior std (the regulariser): bias N, N·m; payload [Δm kg, Δ(m·c) kg·m (3), ΔI_So kg·m²
+    # (6: Ixx Ixy Ixz Iyy Iyz Izz)]. 4 entries (the gravity part) are accepted too: the
+    # inertia's then default to PAYLOAD_INERTIA_PRIOR_STD (5 kg at 0.1 m: 0.05 kg·m²).
+    bias_prior_std: list[float] = dc.field(
+        default_factory=lambda: [20.0, 20.0, 20.0, 2.0, 2.0, 2.0])
+    payload_prior_std: list[float] = dc.field(
+        default_factory=lambda: [5.0, 0.5, 0.5, 0.5] + [PAYLOAD_INERTIA_PRIOR_STD] * 6)
+    # The bias estimate at start (N, N·m), e.g. the compensator's training bias.
+    initial_bias: list[float] = dc.field(default_factory=lambda: [0.0] * 6)
+
+    def validate(self, where: str = "bias_tracker") -> "BiasTrackerConfig":
+        for name in ("time_constant_s", "tare_settle_s", "payload_settle_s", "tare_guard_s"):
+            positive(getattr(self, name), f"{where}.{name}")
+        non_negative(self.tare_jump_window_s, f"{where}.tare_jump_window_s")
+        if not (self.rate_bound_sigmas > 0):
+            raise ConfigError(f"{where}.rate_bound_sigmas: must be > 0 (inf disables), "
+                              f"got {self.rate_bound_sigmas!r}")
+        if int(self.hold_samples) < 1:
+            raise ConfigError(f"{where}.hold_samples: must be >= 1, got {self.hold_samples!r}")
+        vector(self.bias_prior_std, 6, f"{where}.bias_prior_std")
+        if self.payload_prior_std is None or len(self.payload_prior_std) not in (4, 10):
+            got = 0 if self.payload_prior_std is None else len(self.payload_prior_std)
+            raise ConfigError(f"{where}.payload_prior_std: must have 10 entries [Δm, Δ(m·c) "
+                              f"(3), ΔI_So (6)] or 4 (Δm, Δ(m·c); the inertia's default), "
+                              f"got {got}")
+        finite(self.payload_prior_std, f"{where}.payload_prior_std")
+        vector(self.initial_bias, 6, f"{where}.initial_bias")
+        for name in ("bias_prior_std", "payload_prior_std"):
+            if min(getattr(self, name)) <= 0:
+                raise ConfigError(f"{where}.{name}: entries must be positive")
+        return self
+
+    def payload_prior(self) -> list[float]:
+        """`payload_prior_std` as 10 entries (a 4-entry list padded with the inertia's
+        default)."""
+        prior = list(self.payload_prior_std)
+        return prior + [PAYLOAD_INERTIA_PRIOR_STD] * (10 - len(prior))
+
+
+@dc.dataclass
+class DetectorConfig:
+    """Thresholds of the contact detector.
+
+    Contact switches on when ‖F‖ > force_on (N) or ‖T‖ > torque_on (N·m) for `debounce_on`
+    consecutive samples, and off when both are below ``release_ratio`` × those thresholds for
+    `debounce_off` samples (hysteresis). With `std_gain` > 0 the thresholds grow by
+    ``std_gain · ‖std‖`` of the model's predictive standard deviation.
+    """
+
+    force_on: float = 2.5
+    torque_on: float = 0.25
+    release_ratio: float = 0.6
+    debounce_on: int = 3
+    debounce_off: int = 25
+    std_gain: float = 0.0
+    # Detection is off for this long after start: the sensor chain and the compensator's
+    # acceleration filter settle first (a real detector arms after the sensor is tared).
+    arm_after_s: float = 0.05
+    # The false-positive budget (per hour of free motion) that thresholds are calibrated for
+    # (ftdrake.runtime.thresholds.thresholds_for_false_positive_rate); the detector itself
+    # reads only the thresholds.
+    false_positives_per_hour: float = 1.0
+
+    def validate(self, where: str = "detector") -> "DetectorConfig":
+        for name in ("force_on", "torque_on"):
+            value = getattr(self, name)
+            if not (value > 0 and math.isfinite(value)):
+                raise ConfigError(f"{where}.{name}: must be positive, got {value!r}")
+        if not 0 < self.release_ratio <= 1:
+            raise ConfigError(f"{where}.release_ratio: {self.release_ratio} not in (0, 1]")
+        for name in ("debounce_on", "debounce_off"):
+            if int(getattr(self, name)) < 1:
+                raise ConfigError(f"{where}.{name}: must be >= 1")
+        if self.std_gain < 0:
+            raise ConfigError(f"{where}.std_gain: must be >= 0, got {self.std_gain}")
+        if not self.arm_after_s >= 0:
+            raise ConfigError(f"{where}.arm_after_s: must be >= 0, got {self.arm_after_s}")
+        positive(self.false_positives_per_hour, f"{where}.false_positives_per_hour")
+        return self

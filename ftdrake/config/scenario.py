@@ -1,0 +1,74 @@
+"""ScenarioConfig: one simulated scenario, the root of the YAML tree."""
+
+# No `from __future__ import annotations`: Drake's YAML loader needs real type objects.
+
+import dataclasses as dc
+
+from ..errors import ConfigError
+from .checks import finite, positive, vector
+from .plant import CableConfig, ControllerConfig, FrictionConfig, ModelsConfig
+from .runtime import BiasTrackerConfig, CompensatorConfig, DetectorConfig
+from .sensor import SensorConfig
+from .task import EventsConfig, TaskConfig, TrajectoryConfig
+
+
+@dc.dataclass
+class ScenarioConfig:
+    """One simulated scenario: plant, controller, sensor, cable, trajectory and logging."""
+
+    time_step: float = 1e-3  # s, discrete plant step
+    contact_approximation: str = "sap"
+    models: ModelsConfig = dc.field(default_factory=ModelsConfig)
+    # Joint configuration the trajectories start from and move around (rad).
+    home_q: list[float] = dc.field(
+        default_factory=lambda: [0.0, 0.55, 0.0, 1.45, 0.0, 1.14, 0.0]
+    )
+    controller: ControllerConfig = dc.field(default_factory=ControllerConfig)
+    sensor: SensorConfig = dc.field(default_factory=SensorConfig)
+    cable: CableConfig = dc.field(default_factory=CableConfig)
+    trajectory: TrajectoryConfig = dc.field(default_factory=TrajectoryConfig)
+    task: TaskConfig = dc.field(default_factory=TaskConfig)
+    compensator: CompensatorConfig = dc.field(default_factory=CompensatorConfig)
+    detector: DetectorConfig = dc.field(default_factory=DetectorConfig)
+    bias_tracker: BiasTrackerConfig = dc.field(default_factory=BiasTrackerConfig)
+    events: EventsConfig = dc.field(default_factory=EventsConfig)
+    friction: FrictionConfig = dc.field(default_factory=FrictionConfig)
+
+    def validate(self) -> "ScenarioConfig":
+        positive(self.time_step, "scenario.time_step")
+        if self.time_step > 0.01:
+            raise ConfigError(f"scenario.time_step: {self.time_step} s is too coarse (<= 0.01)")
+        if self.contact_approximation not in ("sap", "tamsi", "similar", "lagged"):
+            raise ConfigError(
+                f"scenario.contact_approximation: unknown {self.contact_approximation!r}"
+            )
+        vector(self.models.p_WArmBase, 3, "scenario.models.p_WArmBase")
+        # One angle per arm joint: the count is known only once the arm's model is parsed,
+        # where add_scene checks it; here, what the config alone can say.
+        if not self.home_q:
+            raise ConfigError("scenario.home_q: must list one angle (rad) per arm joint, got none")
+        finite(self.home_q, "scenario.home_q")
+        self.controller.validate("scenario.controller")
+        self.sensor.validate("scenario.sensor")
+        self.cable.validate("scenario.cable")
+        self.trajectory.validate("scenario.trajectory")
+        self.task.validate("scenario.task")
+        if self.trajectory.contact_target not in self.task.surfaces:
+            raise ConfigError(
+                f"scenario.trajectory.contact_target: {self.trajectory.contact_target!r} is not "
+                f"a surface of scenario.task.surfaces {sorted(self.task.surfaces)}"
+            )
+        self.compensator.validate("scenario.compensator")
+        self.detector.validate("scenario.detector")
+        self.bias_tracker.validate("scenario.bias_tracker")
+        self.events.validate("scenario.events")
+        self.friction.validate("scenario.friction")
+        rate = self.sensor.spec().rate_hz
+        ratio = 1.0 / (rate * self.time_step)
+        if abs(ratio - round(ratio)) > 1e-6 or round(ratio) < 1:
+            raise ConfigError(
+                f"scenario.sensor.rate_hz: {rate} Hz must divide the plant rate "
+                f"{1 / self.time_step:g} Hz"
+            )
+        return self
+

@@ -1,0 +1,85 @@
+"""Contact-detector thresholds from held-out free motion (the detector's calibration).
+
+:func:`thresholds_for_false_positive_rate` sets them for a false-positive budget (a scenario's
+``detector.false_positives_per_hour``) from a Gaussian model of the residual checked against
+the data; :func:`thresholds_from_quantile` from a quantile of the residual's norms.
+:func:`armed` selects the samples the detector judges, the only ones thresholds may come from.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from scipy.stats import chi2
+
+from ..config import DetectorConfig
+
+
+def armed(times, arm_after_s: float = DetectorConfig.arm_after_s) -> np.ndarray:
+    """The samples the detector judges: run time (s, from each run's start) ≥ `arm_after_s`.
+
+    Thresholds come from these only: before it the detector is not armed, and the controller's
+    start-up transient there (large q̈ in the first milliseconds of a simulated run) would
+    otherwise set the largest-residual term of
+    :func:`thresholds_for_false_positive_rate`."""
+    return np.asarray(times, dtype=float) >= arm_after_s
+
+
+def thresholds_for_false_positive_rate(
+        residual, *, sample_rate_hz: float,
+        false_positives_per_hour: float = DetectorConfig.false_positives_per_hour,
+        **overrides) -> DetectorConfig:
+    """Detector thresholds for a target false-positive rate, from held-out free motion.
+
+    `residual` (N × 6) is measured − predicted wrench on contact-free data the model was not
+    trained on, sampled at `sample_rate_hz`. The thresholds come from a Gaussian model of
+    that residual, checked against the data itself:
+
+    * Per axis the residual is taken as zero-mean Gaussian with the held-out RMS s_i as its
+      standard deviation (model error plus sensor noise). ‖F‖ is then at most s_max·χ₃
+      (χ with 3 degrees of freedom), with s_max the largest force-axis RMS; likewise ‖T‖.
+    * A budget of R false positives per hour is a per-sample probability
+      p = R / (3600·f_s) for each of force and torque (half each). Debouncing
+      (``debounce_on`` consecutive samples) is not counted as a further reduction: at 1 kHz a
+      model's error is smooth, so one exceeding sample is usually followed by more.
+    * force_on = max(s_max·√(χ²₃ quantile at 1 − p/2), 1.05 × the largest ‖F‖ seen on the
+      held-out data); torque_on likewise. The second term keeps heavy tails (where the
+      motion leaves the training data) from firing on the very data that set the thresholds.
+
+    The smallest contact force it then detects is about force_on plus the residual at that
+    moment; ``ftdrake.sim.evaluation`` measures it. The budget is a scenario's
+    ``detector.false_positives_per_hour``; the returned config records it. `overrides` set
+    the other fields.
+    """
+    r = np.asarray(residual, dtype=float)
+    if r.ndim != 2 or r.shape[1] != 6 or len(r) < 100:
+        raise ValueError(f"residual must be N × 6 with N >= 100; got shape {r.shape}")
+    if not np.isfinite(r).all():
+        raise ValueError("residual holds NaN or infinity; drop those rows first")
+    if not (false_positives_per_hour > 0 and sample_rate_hz > 0):
+        raise ValueError("false_positives_per_hour and sample_rate_hz must be positive")
+    p = false_positives_per_hour / (3600.0 * sample_rate_hz) / 2.0
+    k = float(np.sqrt(chi2.isf(p, 3)))
+    rms = np.sqrt(np.mean(r**2, axis=0))
+    thresholds = []
+    for block in (slice(0, 3), slice(3, 6)):
+        gaussian = k * rms[block].max()
+        observed = 1.05 * np.linalg.norm(r[:, block], axis=1).max()
+        thresholds.append(float(max(gaussian, observed)))
+    return DetectorConfig(force_on=thresholds[0], torque_on=thresholds[1],
+                          false_positives_per_hour=false_positives_per_hour,
+                          **overrides).validate()
+
+
+def thresholds_from_quantile(residual, margin: float = 1.5, quantile: float = 0.999,
+                             **overrides) -> DetectorConfig:
+    """Thresholds from free-motion residuals (N × 6: measured − predicted wrench on held-out
+    contact-free data): `margin` × the `quantile` of ‖F‖ and ‖T‖, floored at 0.5 N and
+    0.02 N·m. A quantile, not k·RMS: a learned model's residuals are heavy-tailed (largest
+    where the motion leaves the training data). `overrides` set the other fields."""
+    r = np.asarray(residual, dtype=float)
+    if r.ndim != 2 or r.shape[1] != 6 or len(r) < 100:
+        raise ValueError(f"residual must be N × 6 with N >= 100; got shape {r.shape}")
+    force = np.quantile(np.linalg.norm(r[:, :3], axis=1), quantile)
+    torque = np.quantile(np.linalg.norm(r[:, 3:], axis=1), quantile)
+    return DetectorConfig(force_on=max(0.5, margin * force),
+                          torque_on=max(0.02, margin * torque), **overrides).validate()
