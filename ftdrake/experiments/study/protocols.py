@@ -37,7 +37,8 @@ from ...compensation.registry import entry
 from ...compensation.tuning import param_grid, segment_groups, tune
 from ...config import ScenarioConfig, dump_config
 from ...data.dataset import joint_state_layout, wrench_targets
-from ...sim.collection import dask_backend, simulate_one, trajectory_config
+from ...parallel import dask_backend
+from ...sim.collection import simulate_one, trajectory_config
 from ...sim.trajectories import STUDY_DURATION_S, STUDY_SAMPLE_HZ, model_to_study
 from .layout import AXES, FEATURES
 
