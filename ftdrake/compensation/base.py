@@ -24,6 +24,11 @@ The protocol a compensator follows to run in a control loop and leave Python:
   trained with the temperature takes ``row (3n + 1,)``, T last (physics, hybrid and forests
   have a compiled row path with it; SVR and GP go through ``predict``: their compiled kernels
   select features from the 3n joint layout only).
+* ``fused_loop_update()`` – ``(update, arrays)``: a compiled update that runs a whole
+  ``CompensatorSystem`` sample (input checks, q̈ estimate, prediction, compensated wrench) in
+  one call, with the model's arrays it takes (:mod:`ftdrake.compensation.compiled.loop`), or
+  None (the loop then calls ``row_predictor()``). Forests and hybrids with a forest residual
+  have one; it takes the 3n joint row only, so a model trained with the temperature has none.
 * ``onnx_parts()`` – what :mod:`ftdrake.compensation.onnx_export` writes as a graph, or
   TypeError for models that have no ONNX form.
 * ``reading_to_model_frame()`` – None, or the 6 × 6 matrix T that turns ``measured −
@@ -151,6 +156,9 @@ class Compensator(RegressorMixin, BaseEstimator):
             return compiled.predict_one_with_std
         zeros = np.zeros(self.n_outputs_)
         return lambda row: (compiled.predict_one(row), zeros)
+
+    def fused_loop_update(self):
+        """None: this model has no fused loop update (see the module docstring)."""
 
     def reading_to_model_frame(self):
         """None: this model's readings are in S already (see the module docstring)."""

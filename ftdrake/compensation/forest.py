@@ -23,6 +23,7 @@ from sklearn.utils.validation import check_is_fitted
 
 from .base import Compensator
 from .compiled.forest import CompiledForest, flatten_forests
+from .compiled.loop import compensate_with_forest
 
 
 class RandomForestCompensator(Compensator):
@@ -81,6 +82,15 @@ class RandomForestCompensator(Compensator):
         """A :class:`~ftdrake.compensation.compiled.CompiledForest` of the fitted forests."""
         check_is_fitted(self)
         return CompiledForest(self.forests_, self.features, self.n_joints_)
+
+    def fused_loop_update(self):
+        """The compiled forest's loop update
+        (:func:`~ftdrake.compensation.compiled.loop.compensate_with_forest`) and its arrays;
+        None for a model trained with the temperature."""
+        check_is_fitted(self)
+        if getattr(self, "temperature_in_", False):
+            return None
+        return compensate_with_forest, self.compiled_predictor().arrays
 
     def onnx_parts(self):
         check_is_fitted(self)

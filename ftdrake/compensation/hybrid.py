@@ -28,6 +28,7 @@ from sklearn.utils.validation import check_is_fitted
 from .base import Compensator
 from .compiled.forest import CompiledForest
 from .compiled.hybrid import CompiledHybrid, hybrid_row
+from .compiled.loop import compensate_with_hybrid
 from .forest import RandomForestCompensator
 from .physics import PhysicsPayloadCompensator
 
@@ -122,6 +123,13 @@ class HybridCompensator(Compensator):
             return None
         payload = self.physics_.packed_row(noise_var=np.nan_to_num(self._noise_var()))
         return CompiledHybrid(payload, residual.flat, self.n_joints_)
+
+    def fused_loop_update(self):
+        """The compiled hybrid's loop update
+        (:func:`~ftdrake.compensation.compiled.loop.compensate_with_hybrid`) and its arrays,
+        when there is a compiled predictor (:meth:`compiled_predictor`); else None."""
+        compiled = self.compiled_predictor()
+        return None if compiled is None else (compensate_with_hybrid, compiled.arrays)
 
     def row_predictor(self):
         """Physics row plus residual row; the std combines both (module docstring). One
