@@ -20,11 +20,14 @@ from .version import ftdrake_version
 
 __version__ = ftdrake_version()
 
+from .compensation.build import RobotOptions
+from .compensation.evaluation import evaluate_model, target_ranges
 from .compensation.forest import RandomForestCompensator
 from .compensation.gpr import GPRCompensator
 from .compensation.hybrid import HybridCompensator
 from .compensation.persistence import load_model, save_model
 from .compensation.physics import PhysicsPayloadCompensator
+from .compensation.registry import make_estimator
 from .compensation.svr import SVRCompensator
 from .config import (
     BiasTrackerConfig,
@@ -42,6 +45,7 @@ from .config import (
 )
 from .conventions import WRENCH_AXES, WRENCH_UNITS
 from .data.dataset import joint_state_layout, load_dataset, save_dataset, wrench_targets
+from .data.training import ReadOptions, load_training_data
 from .errors import (
     ConfigError,
     FtdrakeError,
@@ -91,7 +95,9 @@ __all__ = [
     "OnlineBiasTracker",
     "PhysicsPayloadCompensator",
     "RandomForestCompensator",
+    "ReadOptions",
     "RobotModelError",
+    "RobotOptions",
     "SVRCompensator",
     "ScenarioConfig",
     "Scene",
@@ -106,14 +112,18 @@ __all__ = [
     "build_station",
     "collect",
     "evaluate_detection",
+    "evaluate_model",
     "joint_state_layout",
     "load_config",
     "load_dataset",
     "load_model",
+    "load_training_data",
     "make_control_plant",
+    "make_estimator",
     "save_config",
     "save_dataset",
     "save_model",
     "simulate",
+    "target_ranges",
     "wrench_targets",
 ]

@@ -18,12 +18,24 @@ like ``train`` does and fitted by the physics model (dynamic, physically consist
 from __future__ import annotations
 
 import json
+import sys
+import warnings
 from pathlib import Path
 
 import numpy as np
+import yaml
 
-from ..conventions import MEASURED, TEMPERATURE, WRENCH_UNITS
+from ..compensation.build import RobotOptions
+from ..compensation.calibration import calibrate_table, orientation_kind
+from ..compensation.consistent import PayloadPrior
+from ..compensation.persistence import save_model
+from ..compensation.physics import ExcitationWarning
+from ..compensation.registry import make_estimator
+from ..conventions import MEASURED, TEMPERATURE, WRENCH_AXES, WRENCH_UNITS
+from ..data.logs import expand_columns, read_frame
+from ..data.training import ReadOptions, load_training_data
 from ..errors import ConfigError, LogError
+from ..io import atomic_write_text
 
 
 def register(subparsers) -> None:
@@ -74,8 +86,6 @@ def _prior(args):
         return None
     com = _point("--prior-com", args.prior_com)
     try:
-        from ..compensation.consistent import PayloadPrior
-
         return PayloadPrior(args.prior_mass, com)
     except ConfigError as e:
         raise ConfigError(f"--prior-mass/--prior-com: {e}") from None
@@ -107,9 +117,6 @@ def _point(flag: str, text: str | None) -> tuple[float, float, float]:
 
 def _print_warnings(caught, category) -> None:
     """`category` warnings as `warning: …` lines on stderr; the others re-issued."""
-    import sys
-    import warnings
-
     for w in caught:
         if issubclass(w.category, category):
             print(f"warning: {w.message}", file=sys.stderr)
@@ -118,9 +125,6 @@ def _print_warnings(caught, category) -> None:
 
 
 def run_calibrate(args) -> int:
-    from ..compensation.calibration import calibrate_table, orientation_kind
-    from ..compensation.physics import ExcitationWarning
-    from ..data.logs import read_frame
     from .main import output_path
 
     if not args.data.is_file():
@@ -137,8 +141,6 @@ def run_calibrate(args) -> int:
             raise ConfigError("--correction needs a table of static poses (gravity known at "
                               "each); this log is a motion")
         return _time_series(args, prior, TEMPERATURE in frame)
-    import warnings
-
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always", ExcitationWarning)
         cal = calibrate_table(
@@ -172,8 +174,6 @@ def run_calibrate(args) -> int:
 
 
 def _moving(frame, positions) -> bool:
-    from ..data.logs import expand_columns
-
     try:
         cols = expand_columns(positions, list(frame.columns))
     except LogError:
@@ -184,8 +184,6 @@ def _moving(frame, positions) -> bool:
 
 def _read_options(args, temperature: bool):
     """How `evaluate` reads data for the model file (kept in its manifest)."""
-    from ..data.training import ReadOptions
-
     return ReadOptions().updated(positions=args.positions, targets=args.targets,
                                  position_unit=args.position_unit,
                                  temperature=TEMPERATURE if temperature else None)
@@ -194,12 +192,11 @@ def _read_options(args, temperature: bool):
 def _time_series(args, prior, temperature: bool) -> int:
     """A motion log: read as `train` reads it, fitted by the dynamic physics model (with the
     temperature column, if the log has one)."""
-    from ..data.training import load_training_data
-    from .train import RobotOptions, _physics
-
     data = load_training_data(args.data, _read_options(args, temperature))
-    model = _physics("physics", RobotOptions(args.robot, args.sensor_frame, args.base_frame,
-                                             data.scenario_yaml), "q,qd,qdd")
+    robot = RobotOptions(args.robot, args.sensor_frame, args.base_frame, data.scenario_yaml)
+    # The dynamic payload model train builds on a wrench (calibrate's targets are Fx..Tz).
+    model = make_estimator("physics", features="q,qd,qdd", target_names=WRENCH_AXES,
+                           robot=robot)
     model.set_params(prior=prior, identify_mounting=not args.no_mounting,
                      identification="least_squares" if args.least_squares else "consistent")
     model.fit(data.X, data.Y)
@@ -213,10 +210,6 @@ def _time_series(args, prior, temperature: bool) -> int:
 
 
 def _write_yaml(path: Path, table: dict) -> list[Path]:
-    import yaml
-
-    from ..io import atomic_write_text
-
     path.parent.mkdir(parents=True, exist_ok=True)
     atomic_write_text(path, yaml.safe_dump(_plain(table), sort_keys=False))
     return [path]
@@ -237,9 +230,6 @@ def _plain(x):
 def _save(model, args, n_joints, options) -> Path:
     """model.ftd, its manifest keeping how the data was read (so `evaluate` reads held-out
     poses, temperature column included, the same way)."""
-    from ..compensation.persistence import save_model
-    from ..conventions import WRENCH_AXES
-
     path = args.out / "model.ftd"
     save_model(model, path, target_names=list(WRENCH_AXES), target_units=list(WRENCH_UNITS),
                sensor_frame=args.sensor_frame or "S",
