@@ -239,6 +239,10 @@ class CompiledForest:
         self.predict_one(np.zeros(3 * self.n_joints))
         self.predict_one_with_std(np.zeros(3 * self.n_joints))
 
+    def onnx_parts(self) -> FlatForest:
+        """The flattened forests: the form :mod:`ftdrake.compensation.onnx_export` writes."""
+        return self.flat
+
     def predict(self, X) -> np.ndarray:
         """X: (N, 3n) rows of [q, q̇, q̈]. Returns (N, k)."""
         X = checked_rows(X, self.n_joints)

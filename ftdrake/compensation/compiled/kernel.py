@@ -83,6 +83,15 @@ class FastKernelModel:
     def n_outputs(self) -> int:
         return len(self.intercept)
 
+    @property
+    def n_inputs(self) -> int:
+        """The selected feature columns it takes."""
+        return len(self.input_scale)
+
+    def onnx_parts(self) -> FastKernelModel:
+        """Itself: the form :mod:`ftdrake.compensation.onnx_export` writes."""
+        return self
+
     @classmethod
     def from_svrs(
         cls, scaler, svrs, features: str = "q,qd,qdd", target_mean=None, target_scale=None,
