@@ -46,6 +46,7 @@ import numpy as np
 from sklearn.base import BaseEstimator, RegressorMixin
 from sklearn.utils.validation import check_is_fitted, validate_data
 
+from .compiled.forest import FlatForest, forest_accumulate_with_std
 from .features import check_feature_set, joints_in_layout, select_features
 
 
@@ -219,8 +220,6 @@ def temperature_row_predictor(model):
     runs on ``[selected features, T]`` (equal to ``predict`` to round-off). Any other model
     goes through ``predict`` (:func:`generic_row_predictor`).
     """
-    from .compiled.forest import FlatForest, forest_accumulate_with_std  # noqa: PLC0415
-
     try:
         flat = model.onnx_parts()
     except (TypeError, ValueError, AttributeError):

@@ -8,11 +8,9 @@ whose trees split on all axes at once (smaller and faster, usually a little less
 ``predict_std`` is the standard deviation of the trees' predictions around the forest's mean
 (per output). It is **not a calibrated predictive uncertainty**: it measures how much the
 bootstrapped trees disagree, not the sensor noise, and it shrinks where the trees share their
-leaves' training rows. How much of held-out data ±1.96 of it covers depends on the data,
-not on a probability model: measured, 40–75 % per axis on a held-out free-motion trajectory
-of the simulated arm (4 × 10 s, 50 trees) and 95–99.5 % on i.i.d. random static poses
-(``tests/test_uncertainty.py``). Use it to rank rows (where the forest is unsure), not as
-an error bar; the GP, physics and hybrid models give calibrated ones.
+leaves' training rows. How much of held-out data ±1.96 of it covers depends on the data, not
+on a probability model. Use it to rank rows (where the forest is unsure), not as an error bar;
+the GP, physics and hybrid models give calibrated ones.
 """
 
 from __future__ import annotations

@@ -186,8 +186,8 @@ def default_residual() -> RandomForestCompensator:
 
     Why not the study's per-axis forests: the residual is small and smooth (cable, cross-talk,
     what the rigid model misses), one forest predicts all six axes of it, and the hybrid must
-    run in the loop: per-axis forests of 100 trees cost ~45 µs per row, one multi-output
-    forest of 50 trees ~4 µs (``benchmarks/compensator_latency.py``).
+    run in the loop, where one multi-output forest of 50 trees costs a fraction of six
+    per-axis forests of 100 (``benchmarks/compensator_latency.py`` measures both).
     """
     return RandomForestCompensator(features="q", per_output=False, n_estimators=50,
                                    min_samples_leaf=5, random_state=0)

@@ -2,8 +2,8 @@
 
 The graph takes ``X`` (N × 3n float64, the full ``[q, q̇, q̈]`` layout) and returns ``Y``
 (N × k float64); feature selection and input scaling happen inside it, so a runtime needs
-nothing else. ONNX Runtime reproduces scikit-learn's ``predict`` to ~1e-15 relative (tested
-at 1e-9).
+nothing else. ONNX Runtime reproduces scikit-learn's ``predict`` to 1e-9 relative (the tested
+bound).
 
 Why the graphs are built here rather than by ``skl2onnx``: its converters emit ai.onnx.ml
 opset-3 ``TreeEnsembleRegressor`` / ``SVMRegressor``, whose outputs are float32 (≈1e-7

@@ -13,11 +13,11 @@ expressed in S and computed from (q, q̇, q̈) by the compiled serial chain
 (:class:`~ftdrake.physics.chain.SerialChain`, extracted once from the robot's Drake plant and
 equal to Drake's own kinematics to round-off). One row — kinematics, the 6 × 16 regressor row
 and its product with the parameters — is one fused numba kernel
-(:mod:`ftdrake.compensation.compiled.payload`; :meth:`row_predictor`, with the std, about
-1.5 µs of work per row on ftdrake's arm). ``L(x)`` maps the 6 inertia entries
-``[Ixx, Ixy, Ixz, Iyy, Iyz, Izz]`` to ``I·x``. ``mode="static"`` sets ω = α = a = 0 (gravity
-only: mass, centre of mass and biases, 10 parameters), as the usual ROS gravity-compensation
-tools do; ``mode="dynamic"`` (default) keeps the motion terms (16 parameters).
+(:mod:`ftdrake.compensation.compiled.payload`; :meth:`row_predictor`, with the std).
+``L(x)`` maps the 6 inertia entries ``[Ixx, Ixy, Ixz, Iyy, Iyz, Izz]`` to ``I·x``.
+``mode="static"`` sets ω = α = a = 0 (gravity only: mass, centre of mass and biases, 10
+parameters), as the usual ROS gravity-compensation tools do; ``mode="dynamic"`` (default)
+keeps the motion terms (16 parameters).
 
 Identification is weighted least squares (``identification="least_squares"``) or the same fit
 constrained to a physically possible body with an optional prior
@@ -35,9 +35,8 @@ A weight carried without inertia, optional (``weight_without_inertia=True``, 4 p
 
 the part of a cable or hose hanging from the tool whose weight the tool carries while its
 other end, held elsewhere, does not accelerate with it. A rigid model takes such a weight for
-tool mass and multiplies it by the tool's accelerations (measured on the default scene: the
-cable's 1.2 N identified as 0.13 kg of payload). Only motion separates the two: in static poses
-the columns are those of m and m·c (refused with ``mode="static"``).
+tool mass and multiplies it by the tool's accelerations. Only motion separates the two: in
+static poses the columns are those of m and m·c (refused with ``mode="static"``).
 
 Two more effects of a real sensor, optional: the rotation of the frame the sensor measures in
 (``identify_mounting``) and a linear zero drift with the sensor's temperature (a temperature
@@ -148,7 +147,7 @@ class PhysicsPayloadCompensator(Compensator):
     estimate as unconstrained (the linearised covariance; an active constraint of the
     consistent fit is ignored) and adds nothing for directions neither the data nor a prior
     determine (their covariance is the pseudo-inverse's 0). The loop computes it in the same
-    compiled kernel as the mean (one 6 × 16 by 16 × r product more: ~0.5 µs per row).
+    compiled kernel as the mean (one 6 × 16 by 16 × r product more).
     """
 
     #: The std of a new reading (noise included), not just of the prediction.

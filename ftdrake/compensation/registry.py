@@ -54,8 +54,7 @@ _SVR_PRESETS = {
     "paper": [{"kernel": ["linear"], "C": _C_DECADES},
               {"kernel": ["rbf", "poly", "sigmoid"], "C": _C_DECADES, "gamma": _GAMMA_DECADES}],
     # gamma by sklearn's rules, 1 / (n_inputs · var(inputs)) and 1 / n_inputs, so that the
-    # kernel's width follows the number of inputs; the fixed 0.03 and 0.1 were 2.5-20x below
-    # 'scale' (20x for q alone). See docs/torque_models/velocity_features.md.
+    # kernel's width follows the number of inputs (fixed values suit one feature set only).
     "quick": [{"kernel": ["rbf"], "C": [1.0, 10.0, 100.0], "gamma": ["scale", "auto"]}],
 }
 # A GP keeps its fitted kernels (hyper-parameters only); skops does not trust them by default.

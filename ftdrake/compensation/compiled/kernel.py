@@ -169,8 +169,8 @@ class FastKernelModel:
 
 
 def _powi(base: np.ndarray, n: int) -> np.ndarray:
-    """base**n for an int n >= 0 by repeated squaring, as libsvm computes it (and ~20× faster
-    than numpy's float power)."""
+    """base**n for an int n >= 0 by repeated squaring, as libsvm computes it (and faster than
+    numpy's float power)."""
     result, power = np.ones_like(base), base
     while n > 0:
         if n % 2:
