@@ -36,8 +36,8 @@ The protocol a compensator follows to run in a control loop and leave Python:
   an identified mounting rotation or gain/cross-talk correction (physics and hybrid).
   ``CompensatorSystem`` applies it to the external wrench.
 
-A new compensator is one module with a subclass and one line in
-:mod:`ftdrake.compensation.registry`.
+A new compensator is one module (a subclass, with its own ``make`` and train options when the
+registry's defaults do not build it) and one entry in :mod:`ftdrake.compensation.registry`.
 """
 
 from __future__ import annotations
