@@ -194,8 +194,9 @@ def option_owners(name: str) -> list[str]:
 
 def default_kind(robot: RobotOptions | None = None) -> str:
     """The compensator ``train`` fits when none is named (:data:`DEFAULT_KIND`)."""
-    return DEFAULT_KIND_WITH_ROBOT if robot is not None and robot.robot is not None \
-        else DEFAULT_KIND
+    if robot is not None and robot.robot is not None:
+        return DEFAULT_KIND_WITH_ROBOT
+    return DEFAULT_KIND
 
 
 def make_estimator(kind: str, *, features: str | None = None, seed: int = 0, target_names=(),
