@@ -31,8 +31,7 @@ from pathlib import Path
 import lcm
 import numpy as np
 
-from ftdrake import ScenarioConfig, save_model
-from ftdrake.cli.train import make_estimator
+from ftdrake import ScenarioConfig, make_estimator, save_model
 from ftdrake.config import save_config
 from ftdrake.conventions import (
     MEASURED,

@@ -24,8 +24,7 @@ import json
 import os
 import platform
 
-from ftdrake import ScenarioConfig
-from ftdrake.cli.train import RobotOptions, make_estimator
+from ftdrake import RobotOptions, ScenarioConfig, make_estimator
 from ftdrake.conventions import MEASURED, QD, QDD, WRENCH_AXES, Q, joint_columns, wrench_columns
 from ftdrake.hardware.station import measure_latency
 from ftdrake.sim.simulate import simulate

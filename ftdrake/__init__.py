@@ -20,12 +20,15 @@ from .version import ftdrake_version
 
 __version__ = ftdrake_version()
 
+from .compensation.build import RobotOptions
 from .compensation.calibration import calibrate_table
+from .compensation.evaluation import evaluate_model, target_ranges
 from .compensation.forest import RandomForestCompensator
 from .compensation.gpr import GPRCompensator
 from .compensation.hybrid import HybridCompensator
 from .compensation.persistence import load_model, save_model
 from .compensation.physics import PhysicsPayloadCompensator
+from .compensation.registry import make_estimator
 from .compensation.svr import SVRCompensator
 from .config import (
     BiasTrackerConfig,
@@ -99,6 +102,7 @@ __all__ = [
     "RandomForestCompensator",
     "ReadOptions",
     "RobotModelError",
+    "RobotOptions",
     "SVRCompensator",
     "ScenarioConfig",
     "Scene",
@@ -114,15 +118,18 @@ __all__ = [
     "calibrate_table",
     "collect",
     "evaluate_detection",
+    "evaluate_model",
     "joint_state_layout",
     "load_config",
     "load_dataset",
     "load_model",
     "load_training_data",
     "make_control_plant",
+    "make_estimator",
     "save_config",
     "save_dataset",
     "save_model",
     "simulate",
+    "target_ranges",
     "wrench_targets",
 ]

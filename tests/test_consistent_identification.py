@@ -102,7 +102,7 @@ def test_pseudo_inertia_of_point_masses_is_its_definition(points, masses):
     ph = np.c_[points, np.ones(5)]
     expected = sum(m * np.outer(p, p) for m, p in zip(masses, ph, strict=True))
     np.testing.assert_allclose(pseudo_inertia(phi), expected, atol=1e-12)
-    np.testing.assert_allclose(consistent._from_pseudo_inertia(expected), phi, atol=1e-12)
+    np.testing.assert_allclose(consistent.from_pseudo_inertia(expected), phi, atol=1e-12)
     assert is_physically_consistent(phi)
 
 

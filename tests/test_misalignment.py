@@ -79,7 +79,6 @@ def test_the_loop_gives_the_contact_wrench_in_the_model_frame(fits, kind):
     from pydrake.systems.analysis import Simulator
 
     from ftdrake import CompensatorSystem, HybridCompensator, RandomForestCompensator
-    from ftdrake.runtime.compensator import _fused_update
 
     plain, dut, _, _ = fits
     assert plain.reading_to_model_frame() is None
@@ -91,7 +90,7 @@ def test_the_loop_gives_the_contact_wrench_in_the_model_frame(fits, kind):
         residual = RandomForestCompensator(features="q", per_output=False, n_estimators=5,
                                            min_samples_leaf=300, random_state=0)
         dut = HybridCompensator(physics=dut, residual=residual).fit(X, reading(sensor(), X, rng))
-        assert _fused_update(dut) is not None
+        assert dut.fused_loop_update() is not None
     mounted = sensor()
     X = sinusoids(np.random.default_rng(3), range(7), n=1)
     external_S = np.array([1.0, -2.0, 25.0, 0.1, -0.05, 0.2])

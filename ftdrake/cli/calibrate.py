@@ -26,13 +26,15 @@ from pathlib import Path
 import numpy as np
 import yaml
 
+from ..compensation.build import RobotOptions
 from ..compensation.calibration import calibrate_table, orientation_kind
 from ..compensation.consistent import PayloadPrior
 from ..compensation.persistence import save_model
 from ..compensation.physics import ExcitationWarning
+from ..compensation.registry import make_estimator
 from ..conventions import MEASURED, TEMPERATURE, WRENCH_AXES, WRENCH_UNITS
 from ..data.logs import expand_columns, read_frame
-from ..data.training import ReadOptions
+from ..data.training import ReadOptions, load_training_data
 from ..errors import ConfigError, LogError
 from ..io import atomic_write_text
 from . import args as a
@@ -195,12 +197,11 @@ def _read_options(args, temperature: bool):
 def _time_series(args, prior, temperature: bool) -> int:
     """A motion log: read as `train` reads it, fitted by the dynamic physics model (with the
     temperature column, if the log has one)."""
-    from ..data.training import load_training_data
-    from .train import RobotOptions, _physics
-
     data = load_training_data(args.data, _read_options(args, temperature))
-    model = _physics("physics", RobotOptions(args.robot, args.sensor_frame, args.base_frame,
-                                             data.scenario_yaml), "q,qd,qdd")
+    robot = RobotOptions(args.robot, args.sensor_frame, args.base_frame, data.scenario_yaml)
+    # The dynamic payload model train builds on a wrench (calibrate's targets are Fx..Tz).
+    model = make_estimator("physics", features="q,qd,qdd", target_names=WRENCH_AXES,
+                           robot=robot)
     model.set_params(prior=prior, identify_mounting=not args.no_mounting,
                      identification="least_squares" if args.least_squares else "consistent")
     model.fit(data.X, data.Y)

@@ -33,26 +33,26 @@ from __future__ import annotations
 
 import argparse
 import dataclasses as dc
-import functools
 import json
-import re
 import sys
 from pathlib import Path
 
-import numpy as np
-
 from ..compensation import registry
-from ..conventions import TEMPERATURE, WRENCH_AXES, WRENCH_UNITS
+from ..compensation.build import BUILTIN_ROBOT, RobotOptions, is_wrench
+from ..compensation.calibration import static_table_hint
+from ..compensation.evaluation import evaluate_model, target_ranges
+from ..compensation.persistence import load_model, read_manifest, save_model
+from ..compensation.tuning import segment_groups, tune
+from ..conventions import TEMPERATURE, WRENCH_UNITS
 from ..data.bag import is_bag
 from ..data.logs import QDD_ESTIMATES, option_spelling
 from ..data.training import ReadOptions, TrainingData, load_training_data
 from ..errors import ConfigError, FtdrakeError, LogError, ModelFileError, RobotModelError
+from ..io import atomic_write_text
+from ..parallel import dask_backend
 from . import args as a
 
 FEATURE_SETS = ("q", "q,qd", "q,qd,qdd")
-# `evaluate` prints a warning when a cause flags more than this share of some target's rows.
-UNTRUSTED_WARN_FRACTION = 0.1
-BUILTIN_ROBOT = "ftdrake"  # --robot value naming ftdrake's simulated arm
 
 _COLUMNS_HELP = ("PAT is a glob ('q_*'), a comma-separated list of names, or a regular "
                  "expression after 're:'. Times are in s on the log's own axis (a bag's: since "
@@ -116,17 +116,7 @@ def register(subparsers) -> None:
                         "simulated arm (physics, hybrid)")
     p.add_argument("--sensor-frame", metavar="NAME", help="frame S of the targets in --robot")
     p.add_argument("--base-frame", metavar="NAME", help="frame of --robot welded to the world")
-    p.add_argument("--drive-gains", choices=("fixed", "identify"), default="fixed",
-                   help="joint-torque targets with --robot: 'identify' when they are only "
-                        "proportional to the torques (motor currents, as UR's CB3 driver "
-                        "publishes in effort, or another sign convention): a gain per joint "
-                        "is identified with the arm's parameters")
-    p.add_argument("--identify-mounting", action="store_true",
-                   help="physics/hybrid on a wrench: also identify the sensor's mounting "
-                        "rotation (the wrench is then reported in the model's frame S)")
-    p.add_argument("--weight-without-inertia", action="store_true",
-                   help="physics/hybrid on a wrench, dynamic model: also identify a weight the "
-                        "tool carries without its inertia (a hanging cable), 4 parameters")
+    _add_model_options(p)
     p.add_argument("--target-units", metavar="U,U,..",
                    help="unit per target (default: N/N*m for wrench axes, else N*m)")
     a.add_seed(p, 0, "random state of rf and gpr")
@@ -151,6 +141,20 @@ def register(subparsers) -> None:
                    help="also write the results as JSON")
     a.add_quiet(p)
     p.set_defaults(run=run_evaluate)
+
+
+def _add_model_options(p) -> None:
+    """The options the registered compensators take (their registry entries' train options)."""
+    for option in registry.train_options():
+        if option.kind is bool:
+            p.add_argument(option.flag, action="store_true", help=option.help)
+        else:
+            p.add_argument(option.flag, type=option.kind, default=option.default,
+                           choices=option.choices, metavar=option.metavar, help=option.help)
+
+
+def _model_options(args) -> dict:
+    return {option.name: getattr(args, option.name) for option in registry.train_options()}
 
 
 def _add_read_flags(p) -> None:
@@ -203,173 +207,12 @@ def _read(args, options: ReadOptions, say, static_poses: bool | None = False) ->
                                       t_end=args.t_end, report=_warn,
                                       static_poses=static_poses)
         except LogError as e:
-            from ..compensation.calibration import static_table_hint
-
             hint = static_table_hint(args.data)
             if hint is None:
                 raise
             raise LogError(f"{e}; {hint}") from None
     say(_describe(data))
     return data
-
-
-# -- the model factory --------------------------------------------------------------------------
-@dc.dataclass(frozen=True)
-class RobotOptions:
-    """The robot description a physics-based compensator identifies its payload on.
-
-    robot: URDF/SDF file, or ``"ftdrake"`` for the simulated arm (the arm of a ``collect``
-    dataset's scenario, `scenario_yaml`, else the default arm). sensor_frame: frame S of the
-    targets in `robot`.
-    base_frame: frame of `robot` welded to the world (default: its root).
-    """
-
-    robot: str | None = None
-    sensor_frame: str | None = None
-    base_frame: str | None = None
-    scenario_yaml: str | None = None
-    drive_gains: str = "fixed"  # joint-torque models: "identify" for currents or unknown signs
-    identify_mounting: bool = False  # wrench models: also the sensor's mounting rotation
-    weight_without_inertia: bool = False  # wrench models: also a weight without inertia
-
-
-def make_estimator(model: str, *, features: str | None = None, seed: int = 0,
-                   target_names=(), robot: RobotOptions | None = None):
-    """The unfitted compensator registered as `model`, with `train`'s defaults.
-
-    Args:
-      model: a registry name (``rf``, ``svr``, ``gpr``, ``physics``, ``hybrid``).
-      features: ``q``, ``q,qd`` or ``q,qd,qdd``; None: the model's default (physics: q is
-        static, q,qd,qdd dynamic; hybrid: the residual forest's, default q).
-      seed: random state of the models that have one.
-      target_names: the data's targets; a wrench-only model refuses others.
-      robot: the robot description of physics and hybrid.
-
-    Errors name the ``train`` flag that fixes them.
-    """
-    from ..compensation import registry
-    from ..compensation.forest import RandomForestCompensator
-
-    entry = registry.entry(model)
-    robot = robot or RobotOptions()
-    if robot.identify_mounting and (model not in ("physics", "hybrid")
-                                    or (target_names and not is_wrench(target_names))):
-        raise ConfigError("--identify-mounting is for --kind physics or hybrid on a wrench "
-                          "(the sensor's mounting rotation)")
-    if robot.weight_without_inertia and (model not in ("physics", "hybrid")
-                                         or (target_names and not is_wrench(target_names))):
-        raise ConfigError("--weight-without-inertia is for --kind physics or hybrid on a "
-                          "wrench (a weight the tool carries without its inertia)")
-    if model in ("physics", "hybrid", "arm") and target_names and not is_wrench(target_names):
-        # Joint torques (or anything per joint): the whole arm's rigid-body model.
-        physics = _arm(model, robot)
-        if model == "hybrid":
-            residual = RandomForestCompensator(features=features or "q", min_samples_leaf=5,
-                                               random_state=seed)
-            return entry.build(physics=physics, residual=residual)
-        return physics
-    if entry.wrench_only and not is_wrench(target_names):
-        raise ConfigError(
-            f"--kind {model} predicts a wrench: 6 targets named *Fx, *Fy, *Fz, *Tx, *Ty, "
-            f"*Tz (N, N·m) in the sensor frame; got {list(target_names)}. Joint torques need "
-            f"rf, svr, gpr, or arm/physics/hybrid with --robot (or choose the wrench columns "
-            f"with --targets)"
-        )
-    if model == "hybrid":
-        residual = RandomForestCompensator(features=features or "q", min_samples_leaf=5,
-                                           random_state=seed)
-        return entry.build(physics=_physics(model, robot, "q,qd,qdd"), residual=residual)
-    if model == "physics":
-        return _physics(model, robot, features or "q,qd,qdd")
-    overrides = {"features": features} if features else {}
-    if "random_state" in entry.cls().get_params():
-        overrides["random_state"] = seed
-    return entry.build(**overrides)
-
-
-def default_model(robot: RobotOptions) -> str:
-    """The hybrid (physics + residual) when a robot description is available (a wrench with
-    the payload model, joint torques with the arm's rigid-body model): it extrapolates where
-    a black box cannot; otherwise the random forest."""
-    return "hybrid" if robot.robot is not None else "rf"
-
-
-def _arm(model: str, robot: RobotOptions):
-    """The arm's rigid-body torque model (:class:`~ftdrake.compensation.arm.
-    ArmDynamicsCompensator`) on `robot`, with the registry's defaults."""
-    from ..compensation.registry import entry
-    from ..physics.robot import ftdrake_arm
-    from ..physics.scenario_robot import robot_description
-
-    if robot.robot is None:
-        raise ConfigError(f"--kind {model} on joint torques needs --robot FILE (the arm's "
-                          f"URDF/SDF), or --robot {BUILTIN_ROBOT} for the simulated arm")
-    options = {"drive_gains": robot.drive_gains}
-    if robot.robot == BUILTIN_ROBOT:
-        from ..config import parse_config
-
-        description = (robot_description(parse_config(robot.scenario_yaml))
-                       if robot.scenario_yaml else ftdrake_arm())
-        return entry("arm").build(robot=description.model,
-                                  package_xmls=description.package_xmls, **options)
-    path = Path(robot.robot)
-    if not path.is_file():
-        raise RobotModelError(f"--robot {path}: no such file")
-    return entry("arm").build(robot=str(path.resolve()), base_frame=robot.base_frame,
-                              **options)
-
-
-def _physics(model: str, robot: RobotOptions | None, features: str):
-    from ..compensation.registry import entry
-
-    PhysicsPayloadCompensator = entry("physics").build  # with the registry's defaults
-    from ..config import parse_config
-    from ..physics.robot import ftdrake_arm
-    from ..physics.scenario_robot import robot_description
-
-    robot = robot or RobotOptions()
-    if robot.robot is None:
-        raise ConfigError(f"--kind {model} needs --robot FILE (URDF/SDF) with "
-                          f"--sensor-frame NAME, or --robot {BUILTIN_ROBOT} for the simulated "
-                          f"arm")
-    if features == "q,qd":
-        raise ConfigError("physics takes --features q (static: gravity only) or q,qd,qdd")
-    mode = "static" if features == "q" else "dynamic"
-    if robot.identify_mounting and mode == "static":
-        raise ConfigError("--identify-mounting needs --features q,qd,qdd (the dynamic model); "
-                          "`ftdrake calibrate` identifies it from static poses")
-    if robot.weight_without_inertia and mode == "static":
-        raise ConfigError("--weight-without-inertia needs --features q,qd,qdd (only "
-                          "accelerations tell a weight without inertia from the tool's mass)")
-    build = functools.partial(PhysicsPayloadCompensator, features=features, mode=mode,
-                              identify_mounting=robot.identify_mounting,
-                              weight_without_inertia=robot.weight_without_inertia)
-    if robot.robot == BUILTIN_ROBOT:
-        # The arm of the scenario that made the data (a collect dataset stores it), as a
-        # robot description; the shipped default arm is robot=None.
-        description = ftdrake_arm()
-        if robot.scenario_yaml:
-            description = robot_description(parse_config(robot.scenario_yaml))
-        if description == ftdrake_arm():
-            return build()
-        return build(robot=description.model, sensor_frame=description.sensor_frame,
-                     package_xmls=description.package_xmls)
-    path = Path(robot.robot)
-    if not path.is_file():
-        raise RobotModelError(f"--robot {path}: no such file")
-    if not robot.sensor_frame:
-        raise ConfigError(f"--robot {path} needs --sensor-frame (the frame of the targets)")
-    return build(robot=str(path.resolve()), sensor_frame=robot.sensor_frame,
-                 base_frame=robot.base_frame)
-
-
-def is_wrench(names) -> bool:
-    """True for 6 names ending in Fx, Fy, Fz, Tx, Ty, Tz (or force_x … torque_z), in order."""
-    if len(names) != 6:
-        return False
-    aliases = [(a.lower(), ("force" if a[0] == "F" else "torque") + a[1]) for a in WRENCH_AXES]
-    squashed = [re.sub(r"[^a-z]", "", n.lower()) for n in names]
-    return all(s.endswith(alias) for s, alias in zip(squashed, aliases, strict=True))
 
 
 def target_units(text: str | None, names: list[str]) -> list[str]:
@@ -387,28 +230,21 @@ def target_units(text: str | None, names: list[str]) -> list[str]:
 
 # -- train --------------------------------------------------------------------------------------
 def run_train(args) -> int:
-    from ..compensation import registry
-    from ..compensation.persistence import save_model
-
     say = _reporter(args.quiet)
     options = _with_flags(ReadOptions(), args)
     data = _read(args, options, say)
-    robot = RobotOptions(args.robot, args.sensor_frame, args.base_frame, data.scenario_yaml,
-                         args.drive_gains, args.identify_mounting,
-                         args.weight_without_inertia)
+    robot = RobotOptions(args.robot, args.sensor_frame, args.base_frame, data.scenario_yaml)
     if args.kind is None:
-        args.kind = default_model(robot)
+        args.kind = registry.default_kind(robot)
         say(f"--kind not given: {args.kind} "
             + ("(a robot description and wrench targets: physics + learned residual)"
                if args.kind == "hybrid" else "(no --robot: a black box)"))
-    estimator = make_estimator(args.kind, features=args.features, seed=args.seed,
-                               target_names=data.target_names, robot=robot)
+    estimator = registry.make_estimator(args.kind, features=args.features, seed=args.seed,
+                                        target_names=data.target_names, robot=robot,
+                                        options=_model_options(args))
     units = target_units(args.target_units, data.target_names)
     search = None
     if args.preset == "quick" and "quick" in registry.entry(args.kind).presets:
-        from ..compensation.tuning import segment_groups, tune
-        from ..sim.collection import dask_backend
-
         where = f"Dask scheduler {args.cluster}" if args.cluster else "local processes"
         say(f"tuning {args.kind} (quick grid, grouped 5-fold CV) on {where} …")
         with dask_backend(args.cluster):
@@ -473,9 +309,7 @@ def provenance(path: Path, data: TrainingData, model, search, *, kind: str,
         },
         "training_range": {
             "t_s": [float(data.t.min()), float(data.t.max())],
-            "targets": {n: [float(lo), float(hi)] for n, lo, hi
-                        in zip(data.target_names, data.Y.min(axis=0), data.Y.max(axis=0),
-                               strict=True)},
+            "targets": target_ranges(data.Y, data.target_names),
             "inputs": "see the manifest's input_range",
         },
         "rows": data.rows,
@@ -517,9 +351,6 @@ def stored_read_options(manifest: dict, path: Path) -> ReadOptions:
 
 
 def run_evaluate(args) -> int:
-    from ..compensation.metrics import report
-    from ..compensation.persistence import load_model, read_manifest
-
     say = _reporter(args.quiet)
     with a.naming("--model", args.model):
         manifest = read_manifest(args.model)
@@ -530,18 +361,9 @@ def run_evaluate(args) -> int:
     model = load_model(args.model, expect_n_joints=data.n_joints)
     _check_temperature(model, data, args)
 
-    prediction = np.asarray(model.predict(data.X)).reshape(data.Y.shape)
-    std = (np.asarray(model.predict_std(data.X)).reshape(data.Y.shape)
-           if getattr(model, "provides_std", False) else None)
-    outside = model.out_of_domain(data.X)
     names = data.target_names
-    metrics = {"all": report(data.Y, prediction, target_names=names, std=std)}
-    for key, rows in (("in_domain", ~outside), ("out_of_domain", outside)):
-        metrics[key] = (report(data.Y[rows], prediction[rows], target_names=names,
-                               std=None if std is None else std[rows])
-                        if rows.sum() >= 2 else None)
-    trust = _trust(names, prediction, std, outside,
-                   *_trust_references(model, manifest, names, std))
+    ranges = manifest.get("extra", {}).get("training_range", {}).get("targets")
+    scores = evaluate_model(model, data.X, data.Y, target_names=names, training_ranges=ranges)
     result = {
         "model": str(args.model),
         "model_class": manifest["model_class"].rsplit(".", 1)[-1],
@@ -549,97 +371,18 @@ def run_evaluate(args) -> int:
         "source": data.source,
         "rows": data.rows,
         "reader_warnings": data.warnings,
-        "in_domain_rows": int((~outside).sum()),
-        "out_of_domain_rows": int(outside.sum()),
-        "out_of_domain_fraction": float(outside.mean()),
-        "out_of_domain_by_input": _outside_by_input(model, data.X),
+        **{key: scores[key] for key in ("in_domain_rows", "out_of_domain_rows",
+                                        "out_of_domain_fraction", "out_of_domain_by_input")},
         "target_units": dict(zip(names, manifest["target_units"], strict=True)),
-        "std": (None if std is None else "calibrated" if getattr(model, "std_includes_noise",
-                                                                   False) else "not calibrated"),
-        "metrics": metrics,
-        "trust": trust,
+        **{key: scores[key] for key in ("std", "metrics", "trust")},
     }
     print_evaluation(result)
-    for line in trust["warnings"]:
+    for line in scores["trust"]["warnings"]:
         _warn(line)
     if args.json is not None:
-        from ..io import atomic_write_text
-
         atomic_write_text(args.json, json.dumps(result, indent=2))
         say(f"wrote {args.json}")
     return 0
-
-
-def _trust_references(model, manifest: dict, names, std):
-    """What `evaluate` compares predictions with to flag them: the model's RMS residual on
-    its training rows (models with a calibrated std that keep ``residual_rms_``: the GP,
-    physics) and the training range of every target (from the manifest), or None."""
-    residual = None
-    if std is not None and getattr(model, "std_includes_noise", False):
-        value = getattr(model, "residual_rms_", None)
-        if value is not None and np.size(value) == len(names):
-            residual = np.asarray(value, dtype=float)
-    ranges = manifest.get("extra", {}).get("training_range", {}).get("targets")
-    target_range = None
-    if isinstance(ranges, dict) and all(n in ranges for n in names):
-        target_range = tuple(np.array([ranges[n][i] for n in names], dtype=float)
-                             for i in (0, 1))
-    return residual, target_range
-
-
-def _trust(names, prediction, std, outside, residual, target_range) -> dict:
-    """Per target, the share of rows whose prediction should not be trusted, and why.
-
-    A row is flagged when any used input lies outside its training range, when the
-    predictive std exceeds ``UNCERTAIN_STD_FACTOR`` × the training residual (the model lacks
-    data there), or when the prediction lies outside the training range of its target
-    widened by ``TARGET_RANGE_MARGIN`` (extrapolating). One warning line per cause that
-    flags more than ``UNTRUSTED_WARN_FRACTION`` of the rows on some target.
-    """
-    from ..compensation.metrics import TARGET_RANGE_MARGIN, UNCERTAIN_STD_FACTOR
-
-    k = len(names)
-    causes = {"inputs_outside_range": np.repeat(outside[:, None], k, axis=1)}
-    if std is not None and residual is not None:
-        causes["std_above_factor_x_residual"] = std > UNCERTAIN_STD_FACTOR * residual
-    if target_range is not None:
-        lo, hi = target_range
-        pad = TARGET_RANGE_MARGIN * (hi - lo)
-        causes["prediction_outside_target_range"] = ((prediction < lo - pad)
-                                                     | (prediction > hi + pad))
-    flagged = np.logical_or.reduce(list(causes.values()))
-    share = {cause: dict(zip(names, np.round(rows.mean(axis=0), 4).tolist(), strict=True))
-             for cause, rows in causes.items()}
-    said = {
-        "inputs_outside_range": "inputs outside the training range",
-        "std_above_factor_x_residual": (f"predictive std > {UNCERTAIN_STD_FACTOR:g}× the "
-                                        "training residual (the model lacks data there)"),
-        "prediction_outside_target_range": (f"predictions beyond the training range of the "
-                                            f"target (±{100 * TARGET_RANGE_MARGIN:.0f} %)"),
-    }
-    warnings = []
-    if outside.mean() > UNTRUSTED_WARN_FRACTION:
-        warnings.append(f"warning: {said['inputs_outside_range']} on "
-                        f"{100 * outside.mean():.0f} % of rows")
-    for cause, per_target in list(share.items())[1:]:
-        worst = {n: v for n, v in per_target.items() if v > UNTRUSTED_WARN_FRACTION}
-        if worst:
-            listed = ", ".join(f"{n} {100 * v:.0f} %" for n, v in worst.items())
-            warnings.append(f"warning: {said[cause]} on {listed} of rows")
-    if warnings:
-        warnings.append("warning: predictions on flagged rows cannot be trusted; see "
-                        "'trust' in --json (share of rows flagged per target and cause)")
-    return {
-        "uncertain_std_factor": UNCERTAIN_STD_FACTOR if "std_above_factor_x_residual" in causes
-        else None,
-        "target_range_margin": TARGET_RANGE_MARGIN,
-        "residual_rms": None if residual is None else dict(
-            zip(names, residual.round(6).tolist(), strict=True)),
-        "untrusted_fraction": dict(zip(names, np.round(flagged.mean(axis=0), 4).tolist(),
-                                       strict=True)),
-        "by_cause": share,
-        "warnings": warnings,
-    }
 
 
 def _check_compatible(manifest: dict, data: TrainingData, args) -> None:
@@ -673,16 +416,6 @@ def _check_temperature(model, data: TrainingData, args) -> None:
         raise LogError(
             f"{args.model} was trained without the sensor temperature; omit --temperature "
             f"{data.options.temperature}")
-
-
-def _outside_by_input(model, X) -> dict:
-    """Rows outside the training range, per used input column (only columns with any)."""
-    from ..compensation.features import feature_names
-
-    used = feature_names(model.features, model.n_joints_)
-    Z = X[:, : len(used)]
-    counts = ((Z < model.input_min_[: len(used)]) | (Z > model.input_max_[: len(used)])).sum(0)
-    return {n: int(c) for n, c in zip(used, counts, strict=True) if c}
 
 
 def print_evaluation(result: dict, file=None) -> None:

@@ -43,14 +43,8 @@ from ..conventions import GRAVITY_W
 from ..errors import ConfigError, RobotModelError
 from ..physics.arm_dynamics import INERTIAL_NAMES, INERTIAL_UNITS, ArmDynamics, ArmModel
 from .base import Compensator
-from .consistent import (
-    IdentificationError,
-    _pick_solver,
-    _prior_precision,
-    is_physically_consistent,
-    physical_violations,
-    pseudo_inertia,
-)
+from .consistent_program import IdentificationError, pick_solver, prior_precision
+from .inertial import is_physically_consistent, physical_violations, pseudo_inertia
 
 IDENTIFICATIONS = ("least_squares", "consistent")
 #: Default weight of the model file's values as a prior (consistent identification): about a
@@ -260,7 +254,7 @@ class ArmDynamicsCompensator(Compensator):
                 phi0 = prior[10 * k:10 * k + 10]
                 if phi0[0] <= 0:
                     continue  # a massless group in the file: no prior for it
-                P = _prior_precision(phi0, float(self.prior_weight), False)
+                P = prior_precision(phi0, float(self.prior_weight), False)
                 L = np.linalg.cholesky(P).T / scale[10 * k:10 * k + 10]  # on x
                 block = np.zeros((10, p))
                 block[:, 10 * k:10 * k + 10] = L
@@ -284,7 +278,7 @@ class ArmDynamicsCompensator(Compensator):
             n = dyn.n
             prog.AddBoundingBoxConstraint(0.0, np.inf, x[10 * nb:10 * nb + 2 * n])
         prog.AddL2NormCostUsingConicConstraint(np.vstack(rows), -np.concatenate(rhs), x)
-        solver, name = _pick_solver(None)
+        solver, name = pick_solver(None)
         result = solver.Solve(prog, None, SolverOptions())
         if not result.is_success():
             raise IdentificationError(

@@ -24,6 +24,11 @@ The protocol a compensator follows to run in a control loop and leave Python:
   trained with the temperature takes ``row (3n + 1,)``, T last (physics, hybrid and forests
   have a compiled row path with it; SVR and GP go through ``predict``: their compiled kernels
   select features from the 3n joint layout only).
+* ``fused_loop_update()`` – ``(update, arrays)``: a compiled update that runs a whole
+  ``CompensatorSystem`` sample (input checks, q̈ estimate, prediction, compensated wrench) in
+  one call, with the model's arrays it takes (:mod:`ftdrake.compensation.compiled.loop`), or
+  None (the loop then calls ``row_predictor()``). Forests and hybrids with a forest residual
+  have one; it takes the 3n joint row only, so a model trained with the temperature has none.
 * ``onnx_parts()`` – what :mod:`ftdrake.compensation.onnx_export` writes as a graph, or
   TypeError for models that have no ONNX form.
 * ``reading_to_model_frame()`` – None, or the 6 × 6 matrix T that turns ``measured −
@@ -31,8 +36,8 @@ The protocol a compensator follows to run in a control loop and leave Python:
   an identified mounting rotation or gain/cross-talk correction (physics and hybrid).
   ``CompensatorSystem`` applies it to the external wrench.
 
-A new compensator is one module with a subclass and one line in
-:mod:`ftdrake.compensation.registry`.
+A new compensator is one module (a subclass, with its own ``make`` and train options when the
+registry's defaults do not build it) and one entry in :mod:`ftdrake.compensation.registry`.
 """
 
 from __future__ import annotations
@@ -41,6 +46,7 @@ import numpy as np
 from sklearn.base import BaseEstimator, RegressorMixin
 from sklearn.utils.validation import check_is_fitted, validate_data
 
+from .compiled.forest import FlatForest, forest_accumulate_with_std
 from .features import check_feature_set, joints_in_layout, select_features
 
 
@@ -152,6 +158,9 @@ class Compensator(RegressorMixin, BaseEstimator):
         zeros = np.zeros(self.n_outputs_)
         return lambda row: (compiled.predict_one(row), zeros)
 
+    def fused_loop_update(self):
+        """None: this model has no fused loop update (see the module docstring)."""
+
     def reading_to_model_frame(self):
         """None: this model's readings are in S already (see the module docstring)."""
 
@@ -211,8 +220,6 @@ def temperature_row_predictor(model):
     runs on ``[selected features, T]`` (equal to ``predict`` to round-off). Any other model
     goes through ``predict`` (:func:`generic_row_predictor`).
     """
-    from .compiled.forest import FlatForest, forest_accumulate_with_std  # noqa: PLC0415
-
     try:
         flat = model.onnx_parts()
     except (TypeError, ValueError, AttributeError):

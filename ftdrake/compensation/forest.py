@@ -8,11 +8,9 @@ whose trees split on all axes at once (smaller and faster, usually a little less
 ``predict_std`` is the standard deviation of the trees' predictions around the forest's mean
 (per output). It is **not a calibrated predictive uncertainty**: it measures how much the
 bootstrapped trees disagree, not the sensor noise, and it shrinks where the trees share their
-leaves' training rows. How much of held-out data ±1.96 of it covers depends on the data,
-not on a probability model: measured, 40–75 % per axis on a held-out free-motion trajectory
-of the simulated arm (4 × 10 s, 50 trees) and 95–99.5 % on i.i.d. random static poses
-(``tests/test_uncertainty.py``). Use it to rank rows (where the forest is unsure), not as
-an error bar; the GP, physics and hybrid models give calibrated ones.
+leaves' training rows. How much of held-out data ±1.96 of it covers depends on the data, not
+on a probability model. Use it to rank rows (where the forest is unsure), not as an error bar;
+the GP, physics and hybrid models give calibrated ones.
 """
 
 from __future__ import annotations
@@ -23,6 +21,7 @@ from sklearn.utils.validation import check_is_fitted
 
 from .base import Compensator
 from .compiled.forest import CompiledForest, flatten_forests
+from .compiled.loop import compensate_with_forest
 
 
 class RandomForestCompensator(Compensator):
@@ -81,6 +80,15 @@ class RandomForestCompensator(Compensator):
         """A :class:`~ftdrake.compensation.compiled.CompiledForest` of the fitted forests."""
         check_is_fitted(self)
         return CompiledForest(self.forests_, self.features, self.n_joints_)
+
+    def fused_loop_update(self):
+        """The compiled forest's loop update
+        (:func:`~ftdrake.compensation.compiled.loop.compensate_with_forest`) and its arrays;
+        None for a model trained with the temperature."""
+        check_is_fitted(self)
+        if getattr(self, "temperature_in_", False):
+            return None
+        return compensate_with_forest, self.compiled_predictor().arrays
 
     def onnx_parts(self):
         check_is_fitted(self)

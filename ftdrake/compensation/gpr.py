@@ -20,12 +20,10 @@ Three choices keep it usable on 10k+-row logs on a 2-core machine:
   stand-in for "add the row with the largest predictive variance". The subset spreads evenly
   along the trajectory instead of piling up where the robot lingered, and its covering radius
   (largest distance from any row to its nearest chosen row) is within 2× of the best possible
-  (Gonzalez 1985); on a 12k-row test trajectory it is 4-7× smaller than a random subset's.
-  Selection costs O(N·m·d) time and O(N) memory (2.5 s for N = 100k, d = 21, m = 2000).
-  In plain standardised units (before) an input the kernel ignores counted as much as one it
-  uses, and spikes of a numerically differentiated q̈ were picked first: on a test log with 5 %
-  spike rows they made 99 % of a 100-row subset, now 2 % (``tests/test_velocity_features.py``).
-  Outliers in inputs the kernel does use are still picked first: filter them. We chose a subset
+  (Gonzalez 1985). Selection costs O(N·m·d) time and O(N) memory. Measured in the kernels'
+  metric, an input the kernel ignores does not spread the subset (spikes of a numerically
+  differentiated q̈ are not picked first when the kernel ignores q̈); outliers in inputs the
+  kernel does use are still picked first: filter them. We chose a subset
   of data over a sparse inducing-point method (SGPR/FITC/VFE) because scikit-learn has none;
   a subset keeps the exact GP algebra, so sklearn fits it and the fitted arrays below are all
   a fast predictor needs.
@@ -34,8 +32,7 @@ Three choices keep it usable on 10k+-row logs on a 2-core machine:
   hyperparameters are fitted on ``optimize_points`` rows drawn at random from all training
   rows; the final model then uses the whole subset with those hyperparameters fixed. Random,
   not the farthest-point prefix: that prefix has by construction no close pairs of rows, and
-  close pairs are what separate noise from signal (on sparse 7-D data the prefix
-  under-estimated the torque noise 2.5×, a random sample by 1.25×).
+  close pairs are what separate noise from signal.
 * **One GP per output by default.** sklearn's multi-output GP shares the kernel *including
   the noise level*, which after per-output standardisation forces the same signal-to-noise
   ratio on every axis; a force axis and a torque axis rarely have it, and a contact detector
@@ -43,13 +40,9 @@ Three choices keep it usable on 10k+-row logs on a 2-core machine:
   Independent GPs cost k× the fit time, memory (k Cholesky factors, 32 MB each for
   m = 2000) and std-prediction time; ``shared_kernel=True`` trades that calibration for a
   k× cheaper model (one kernel, one Cholesky factor, one triangular solve for all outputs).
-  On a 12k-row trajectory its 95% intervals covered 0.75-1.00 per axis, per-output GPs'
-  0.93-0.96.
 
-Indicative cost (shared 2-core machine, one BLAS thread; 12k rows, 21 inputs, 6 outputs,
-m = 2000, defaults): fit 10 s (2 s with `shared_kernel`); in batches, mean 0.15 ms and std
-0.6 ms per row; the std of a single row ≈ 6 ms (k triangular solves reading k·m² numbers;
-1 ms with `shared_kernel`).
+The std of a single row costs k triangular solves reading k·m² numbers (one with
+`shared_kernel`).
 
 What the std means. ``include_noise=True`` (default) gives the std of a new *measurement*
 around the prediction, √(var f + n): the spread of ``measured − predicted`` without contact,

@@ -28,6 +28,7 @@ from sklearn.utils.validation import check_is_fitted
 from .base import Compensator
 from .compiled.forest import CompiledForest
 from .compiled.hybrid import CompiledHybrid, hybrid_row
+from .compiled.loop import compensate_with_hybrid
 from .forest import RandomForestCompensator
 from .physics import PhysicsPayloadCompensator
 
@@ -123,6 +124,13 @@ class HybridCompensator(Compensator):
         payload = self.physics_.packed_row(noise_var=np.nan_to_num(self._noise_var()))
         return CompiledHybrid(payload, residual.flat, self.n_joints_)
 
+    def fused_loop_update(self):
+        """The compiled hybrid's loop update
+        (:func:`~ftdrake.compensation.compiled.loop.compensate_with_hybrid`) and its arrays,
+        when there is a compiled predictor (:meth:`compiled_predictor`); else None."""
+        compiled = self.compiled_predictor()
+        return None if compiled is None else (compensate_with_hybrid, compiled.arrays)
+
     def row_predictor(self):
         """Physics row plus residual row; the std combines both (module docstring). One
         compiled call per row with the compiled predictor (a forest residual), else the two
@@ -178,8 +186,8 @@ def default_residual() -> RandomForestCompensator:
 
     Why not the study's per-axis forests: the residual is small and smooth (cable, cross-talk,
     what the rigid model misses), one forest predicts all six axes of it, and the hybrid must
-    run in the loop: per-axis forests of 100 trees cost ~45 µs per row, one multi-output
-    forest of 50 trees ~4 µs (``benchmarks/compensator_latency.py``).
+    run in the loop, where one multi-output forest of 50 trees costs a fraction of six
+    per-axis forests of 100 (``benchmarks/compensator_latency.py`` measures both).
     """
     return RandomForestCompensator(features="q", per_output=False, n_estimators=50,
                                    min_samples_leaf=5, random_state=0)

@@ -2,8 +2,8 @@
 
 The graph takes ``X`` (N × 3n float64, the full ``[q, q̇, q̈]`` layout) and returns ``Y``
 (N × k float64); feature selection and input scaling happen inside it, so a runtime needs
-nothing else. ONNX Runtime reproduces scikit-learn's ``predict`` to ~1e-15 relative (tested
-at 1e-9).
+nothing else. ONNX Runtime reproduces scikit-learn's ``predict`` to 1e-9 relative (the tested
+bound).
 
 Why the graphs are built here rather than by ``skl2onnx``: its converters emit ai.onnx.ml
 opset-3 ``TreeEnsembleRegressor`` / ``SVMRegressor``, whose outputs are float32 (≈1e-7
@@ -31,8 +31,7 @@ import onnx
 from onnx import TensorProto, helper, numpy_helper
 
 from ..io import atomic_write_bytes
-from .base import Compensator
-from .compiled.forest import CompiledForest, FlatForest, flatten_forests
+from .compiled.forest import FlatForest, flatten_forests
 from .compiled.kernel import FastKernelModel
 from .compiled.rows import joints_for
 
@@ -152,46 +151,48 @@ def _given(name: str, given, own):
     return own if own is not None else given
 
 
+#: How each ONNX form is written: the forms a compensator's ``onnx_parts()`` returns.
+_GRAPHS = {FlatForest: _forest_graph, FastKernelModel: _kernel_graph}
+
+
 def _as_parts(m, n_joints, features):
-    """(FlatForest or FastKernelModel, n_joints, features) from whatever was passed."""
-    if isinstance(m, (CompiledForest, FastKernelModel)):
-        _given("features", features, m.features)
-        _given("n_joints", n_joints, m.n_joints)
-        return (m.flat if isinstance(m, CompiledForest) else m), m.n_joints, m.features
-    if isinstance(m, FlatForest):
-        return m, joints_for(m.n_inputs, features, n_joints), features
-    if isinstance(m, Compensator):  # the compensator protocol: it says what it exports
-        _given("features", features, m.features)
-        _given("n_joints", n_joints, m.n_joints_)
-        return _as_parts(m.onnx_parts(), m.n_joints_, m.features)
+    """(ONNX form, n_joints, features) from whatever was passed: a compensator or a compiled
+    predictor (they say what they export, ``onnx_parts()``), an ONNX form itself, a tuple of
+    a scaler and SVRs, or fitted forests."""
+    own_features = getattr(m, "features", None)
+    own_joints = getattr(m, "n_joints_", getattr(m, "n_joints", None))
+    if type(m) in _GRAPHS:
+        part = m
+    elif hasattr(m, "onnx_parts"):  # the compensator protocol (TypeError: no ONNX form)
+        part = m.onnx_parts()
+    else:
+        own_features = own_joints = None
+        if features is None:
+            raise ValueError("pass features= for a model without a `features` attribute")
+        if isinstance(m, tuple) and len(m) in (2, 4):  # (scaler, svrs[, target_mean, scale])
+            part = FastKernelModel.from_svrs(m[0], m[1], features, *m[2:], n_joints=n_joints)
+        else:
+            part = flatten_forests(getattr(m, "forests_", m))  # ValueError if not forests
+    features = _given("features", features, own_features)
     if features is None:
         raise ValueError("pass features= for a model without a `features` attribute")
-    if isinstance(m, tuple) and len(m) in (2, 4):  # (scaler, svrs[, target_mean, scale])
-        kernel_model = FastKernelModel.from_svrs(m[0], m[1], features, *m[2:], n_joints=n_joints)
-        return kernel_model, kernel_model.n_joints, features
-    flat = flatten_forests(getattr(m, "forests_", m))  # ValueError if not forests
-    return flat, joints_for(flat.n_inputs, features, n_joints), features
+    n_joints = _given("n_joints", n_joints, own_joints)
+    return part, joints_for(part.n_inputs, features, n_joints), features
 
 
 def build_onnx(model_or_parts, n_joints: int | None = None, features: str | None = None):
     """The ONNX ModelProto of a fitted model; see :func:`export_onnx` for the arguments."""
     part, n_joints, features = _as_parts(model_or_parts, n_joints, features)
-    n_used = part.n_inputs if isinstance(part, FlatForest) else len(part.input_scale)
     g = _GraphBuilder()
     Z = "X"
-    if n_used != 3 * n_joints:
+    if part.n_inputs != 3 * n_joints:
         Z = g.op("Slice", "X", g.const(np.array([0]), "starts"),
-                 g.const(np.array([n_used]), "ends"), g.const(np.array([1]), "axes"))
-    if isinstance(part, FlatForest):
-        Y = _forest_graph(g, Z, part)
-    else:
-        Y = _kernel_graph(g, Z, part)
-    g.op("Identity", Y, output="Y")
-    k = len(part.n_trees) if isinstance(part, FlatForest) else part.n_outputs
+                 g.const(np.array([part.n_inputs]), "ends"), g.const(np.array([1]), "axes"))
+    g.op("Identity", _GRAPHS[type(part)](g, Z, part), output="Y")
     graph = helper.make_graph(
         g.nodes, "ftdrake_compensator",
         [helper.make_tensor_value_info("X", TensorProto.DOUBLE, ["N", 3 * n_joints])],
-        [helper.make_tensor_value_info("Y", TensorProto.DOUBLE, ["N", k])],
+        [helper.make_tensor_value_info("Y", TensorProto.DOUBLE, ["N", part.n_outputs])],
         initializer=g.initializers,
     )
     model = helper.make_model(

@@ -13,11 +13,11 @@ expressed in S and computed from (q, q̇, q̈) by the compiled serial chain
 (:class:`~ftdrake.physics.chain.SerialChain`, extracted once from the robot's Drake plant and
 equal to Drake's own kinematics to round-off). One row — kinematics, the 6 × 16 regressor row
 and its product with the parameters — is one fused numba kernel
-(:mod:`ftdrake.compensation.compiled.payload`; :meth:`row_predictor`, with the std, about
-1.5 µs of work per row on ftdrake's arm). ``L(x)`` maps the 6 inertia entries
-``[Ixx, Ixy, Ixz, Iyy, Iyz, Izz]`` to ``I·x``. ``mode="static"`` sets ω = α = a = 0 (gravity
-only: mass, centre of mass and biases, 10 parameters), as the usual ROS gravity-compensation
-tools do; ``mode="dynamic"`` (default) keeps the motion terms (16 parameters).
+(:mod:`ftdrake.compensation.compiled.payload`; :meth:`row_predictor`, with the std).
+``L(x)`` maps the 6 inertia entries ``[Ixx, Ixy, Ixz, Iyy, Iyz, Izz]`` to ``I·x``.
+``mode="static"`` sets ω = α = a = 0 (gravity only: mass, centre of mass and biases, 10
+parameters), as the usual ROS gravity-compensation tools do; ``mode="dynamic"`` (default)
+keeps the motion terms (16 parameters).
 
 Identification is weighted least squares (``identification="least_squares"``) or the same fit
 constrained to a physically possible body with an optional prior
@@ -35,9 +35,8 @@ A weight carried without inertia, optional (``weight_without_inertia=True``, 4 p
 
 the part of a cable or hose hanging from the tool whose weight the tool carries while its
 other end, held elsewhere, does not accelerate with it. A rigid model takes such a weight for
-tool mass and multiplies it by the tool's accelerations (measured on the default scene: the
-cable's 1.2 N identified as 0.13 kg of payload). Only motion separates the two: in static poses
-the columns are those of m and m·c (refused with ``mode="static"``).
+tool mass and multiplies it by the tool's accelerations. Only motion separates the two: in
+static poses the columns are those of m and m·c (refused with ``mode="static"``).
 
 Two more effects of a real sensor, optional: the rotation of the frame the sensor measures in
 (``identify_mounting``) and a linear zero drift with the sensor's temperature (a temperature
@@ -52,35 +51,35 @@ import warnings
 import weakref
 
 import numpy as np
-from pydrake.math import RollPitchYaw, RotationMatrix
-from scipy.optimize import least_squares
-from scipy.spatial.transform import Rotation
 
 from ..conventions import GRAVITY_W
 from ..errors import ConfigError, RobotModelError
 from ..physics.chain import SerialChain
-from ..physics.rigid_body import inertia_map, skew
 from ..physics.robot import RobotDescription, ftdrake_arm
 from .base import Compensator
 from .compiled.payload import pack_payload_row, payload_mean_std, payload_predict
-from .consistent import (
-    DEFAULT_PRIOR_WEIGHT,
-    PayloadPrior,
-    identify_consistent,
-    identify_least_squares,
-    is_physically_consistent,
-)
+from .consistent import DEFAULT_PRIOR_WEIGHT, PayloadPrior, is_physically_consistent
 from .consistent import PARAMETER_NAMES as CONSISTENT_NAMES
 from .consistent import STATIC_PARAMETERS as CONSISTENT_STATIC
+from .payload_identification import (
+    BIASES,
+    full_layout,
+    identify_payload,
+    payload_regressor,
+    weighted_least_squares,
+)
+from .payload_report import PARAMETER_UNITS, excitation_message, identified_table, summary_text
+
+__all__ = [  # with the identification's names that callers take from here
+    "BIASES", "IDENTIFICATIONS", "PARAMETER_NAMES", "PARAMETER_UNITS", "STATIC_PARAMETERS",
+    "WEIGHT_PARAMETERS", "ExcitationWarning", "PhysicsPayloadCompensator", "payload_regressor",
+    "weighted_least_squares",
+]
 
 PARAMETER_NAMES = list(CONSISTENT_NAMES)
-PARAMETER_UNITS = (["kg", "kg*m", "kg*m", "kg*m"] + ["kg*m^2"] * 6 + ["N"] * 3 + ["N*m"] * 3
-                   + ["kg", "kg*m", "kg*m", "kg*m"])
 STATIC_PARAMETERS = list(CONSISTENT_STATIC)
 #: The weight carried without inertia (``weight_without_inertia``): θ[16:20].
 WEIGHT_PARAMETERS = [16, 17, 18, 19]
-#: The columns that are a wrench in S (rotated into Sm by a mounting); the biases are in Sm.
-BIASES = slice(10, 16)
 #: How the parameters are identified: plain weighted least squares, or constrained to a
 #: physically possible body (pseudo-inertia ⪰ 0, m > 0; :mod:`.consistent`) with a prior.
 IDENTIFICATIONS = ("least_squares", "consistent")
@@ -149,7 +148,7 @@ class PhysicsPayloadCompensator(Compensator):
     estimate as unconstrained (the linearised covariance; an active constraint of the
     consistent fit is ignored) and adds nothing for directions neither the data nor a prior
     determine (their covariance is the pseudo-inverse's 0). The loop computes it in the same
-    compiled kernel as the mean (one 6 × 16 by 16 × r product more: ~0.5 µs per row).
+    compiled kernel as the mean (one 6 × 16 by 16 × r product more).
     """
 
     #: The std of a new reading (noise included), not just of the prediction.
@@ -213,7 +212,7 @@ class PhysicsPayloadCompensator(Compensator):
         if self.mode == "dynamic" and self.features != "q,qd,qdd":
             raise ValueError("mode='dynamic' needs features='q,qd,qdd' (it uses q̇ and q̈)")
         Z, temperature = self._split_temperature(Z)
-        X = _full_layout(Z, self.n_joints_)
+        X = full_layout(Z, self.n_joints_)
         self._check_robot_joints()
         A = self.regressor(X)
         self._identify(A, Y, prior, temperature)
@@ -224,62 +223,13 @@ class PhysicsPayloadCompensator(Compensator):
         return Z, None
 
     def _identify(self, A, Y, prior, temperature=None):
-        """Sets the fitted attributes from the (N, 6, 16) regressor and the readings.
-
-        With a temperature, its per-axis coefficient is eliminated first (Frisch–Waugh–Lovell:
-        each axis's data projected orthogonal to T − T_ref), so that the linear and the
-        consistent fit see the payload and biases only; the coefficients follow from the
-        residual. With ``identify_mounting`` the rotation comes first (nonlinear), the
-        readings are rotated back into S, and the linear fit runs there.
-        """
+        """Sets the fitted attributes from the (N, 6, p) regressor and the readings
+        (:func:`~.payload_identification.identify_payload`)."""
         static = self.mode == "static"
-        p = 16 if static else A.shape[-1]
-        cols = STATIC_PARAMETERS if static else list(range(p))
-        d = None
-        self.temperature_reference_ = None
-        if temperature is not None:
-            self.temperature_reference_ = float(np.mean(temperature))
-            d = np.asarray(temperature, float) - self.temperature_reference_
-            if not np.any(np.abs(d) > 1e-9):
-                d = None  # a constant temperature: its coefficients are not observable
-        self.mounting_rotation_ = np.eye(3)
-        self.mounting_std_deg_ = np.zeros(3)
-        if self.identify_mounting:
-            self.mounting_rotation_, self.mounting_std_deg_ = _fit_mounting(
-                A, Y, d, cols)
-        block = np.kron(np.eye(2), self.mounting_rotation_)  # y_S = block · y_Sm
-        Y_S = Y @ block.T
-        A_fit, Y_fit = (A, Y_S) if d is None else (_project_out(A, d), _project_out(Y_S, d))
-        if self.identification == "consistent":
-            result = identify_consistent(
-                A_fit[:, :, cols], Y_fit, static=static,
-                prior=None if prior is None else prior.phi(), prior_weight=self.prior_weight)
-        else:
-            result = identify_least_squares(A_fit[:, :, cols], Y_fit, static=static)
-        self.identification_ = result
-        theta = result.theta.copy()
-        cov = result.covariance.copy()
-        # Biases were identified in S; the sensor adds them in Sm.
-        theta[BIASES] = block.T @ theta[BIASES]
-        to_Sm = np.eye(p)
-        to_Sm[BIASES, BIASES] = block.T  # θ with the biases in Sm = to_Sm · θ in S
-        finite = np.isfinite(cov)
-        cov = to_Sm @ np.where(finite, cov, 0.0) @ to_Sm.T
-        cov[~finite] = np.nan  # parameters not identified (a static fit's inertia) stay NaN
-        self.parameters_ = theta
-        self.covariance_ = cov
-        self.standard_errors_ = result.standard_errors.copy()
-        self.standard_errors_[BIASES] = np.sqrt(np.maximum(np.diag(cov[BIASES, BIASES]), 0.0))
-        self.temperature_coefficients_ = np.zeros(6)
-        self.temperature_std_errors_ = np.full(6, np.nan)
-        if d is not None:
-            residual_S = Y_S - A @ result.theta
-            k_S = residual_S.T @ d / (d @ d)
-            self.temperature_coefficients_ = block.T @ k_S
-            rms = np.sqrt(np.mean((residual_S - np.outer(d, k_S)) ** 2, axis=0))
-            self.temperature_std_errors_ = block.T @ (rms / np.sqrt(d @ d))
-            self.temperature_std_errors_ = np.abs(self.temperature_std_errors_)
-        self.condition_number_ = float(result.condition_number)
+        vars(self).update(identify_payload(
+            A, Y, static=static, identification=self.identification, prior=prior,
+            prior_weight=self.prior_weight, identify_mounting=self.identify_mounting,
+            temperature=temperature))
         self.residual_rms_ = np.sqrt(np.mean((Y - self._predict_from(A, temperature)) ** 2,
                                              axis=0))
         self.physically_consistent_ = (is_physically_consistent(self.parameters_[:10])
@@ -300,7 +250,7 @@ class PhysicsPayloadCompensator(Compensator):
 
     def _predict(self, Z):
         Z, temperature = self._split_temperature(Z)
-        X = _full_layout(Z, self.n_joints_)
+        X = full_layout(Z, self.n_joints_)
         return self._predict_from(self.regressor(X), temperature)
 
     def _predict_std(self, Z):
@@ -313,7 +263,7 @@ class PhysicsPayloadCompensator(Compensator):
 
     def _variance(self, Z, include_noise):
         Z, temperature = self._split_temperature(Z)
-        X = _full_layout(Z, self.n_joints_)
+        X = full_layout(Z, self.n_joints_)
         factor, noise_var, block_T = self._std_terms()
         A = self.regressor(X)
         B = A.copy()
@@ -452,117 +402,18 @@ class PhysicsPayloadCompensator(Compensator):
 
     # -- reporting --------------------------------------------------------------------------
     def identified(self) -> dict:
-        """Identified parameters with standard errors and units, plus derived CoM (m).
-
-        Each parameter: ``value``, ``std_error`` (∞ where the data leave it free and no prior
-        decides it), ``unit`` and ``prior_share`` (how much the prior decided it, 0–1; 0
-        without a prior). Also ``com`` (``p_SoScm_S``, m, with standard errors by the delta
-        method), ``condition_number``, ``identification``, ``physically_consistent``,
-        ``not_determined`` (parameters the data cannot determine) and, for the consistent
-        fit, ``least_squares`` (the unconstrained estimate and whether it is a body).
-        """
-        p, se = self.parameters_, self.standard_errors_
-        result = getattr(self, "identification_", None)
-        share = result.prior_share if result is not None else np.zeros(len(p))
-        table = {
-            name: {"value": float(p[i]), "std_error": float(se[i]), "unit": PARAMETER_UNITS[i],
-                   "prior_share": float(np.nan_to_num(share[i]))}
-            for i, name in enumerate(PARAMETER_NAMES[:len(p)])
-            if self.mode == "dynamic" or i in STATIC_PARAMETERS
-        }
-        mass = p[0]
-        com_se = None
-        cov = getattr(self, "covariance_", None)
-        if mass and cov is not None and np.all(np.isfinite(cov[:4, :4])):
-            # c = h / m: Jacobian [−h/m², I/m] on (m, h).
-            J = np.hstack([-p[1:4, None] / mass ** 2, np.eye(3) / mass])
-            com_se = np.sqrt(np.maximum(np.diag(J @ cov[:4, :4] @ J.T), 0.0)).tolist()
-        table["com"] = {"value": (p[1:4] / mass).tolist() if mass else None,
-                        "std_error": com_se, "unit": "m"}
-        rotation = getattr(self, "mounting_rotation_", None)
-        if rotation is not None and self.identify_mounting:
-            table["mounting_rpy_deg"] = {
-                "value": np.degrees(RollPitchYaw(RotationMatrix(rotation)).vector()).tolist(),
-                "std_error": self.mounting_std_deg_.tolist(), "unit": "deg",
-                "frame": "R_SSm: the frame the sensor measures in, in S (roll, pitch, yaw)"}
-        if getattr(self, "temperature_reference_", None) is not None:
-            table["temperature"] = {
-                "coefficients": self.temperature_coefficients_.tolist(),
-                "std_error": self.temperature_std_errors_.tolist(),
-                "unit": "N/K (forces), N*m/K (torques)",
-                "reference_c": self.temperature_reference_}
-        table["condition_number"] = self.condition_number_
-        table["identification"] = getattr(self, "identification", "least_squares")
-        table["physically_consistent"] = bool(getattr(self, "physically_consistent_", True))
-        table["not_determined"] = list(result.poorly_determined) if result is not None else []
-        if result is not None and self.identification == "consistent":
-            cols = STATIC_PARAMETERS if self.mode == "static" else list(range(len(p)))
-            table["least_squares"] = {
-                "values": {PARAMETER_NAMES[i]: float(result.theta_least_squares[i])
-                           for i in cols},
-                "physically_consistent": bool(result.least_squares_consistent)}
-            table["active_constraints"] = list(result.active_constraints)
-        return table
+        """Identified parameters with standard errors and units, plus derived CoM (m)
+        (:func:`~.payload_report.identified_table`)."""
+        return identified_table(self)
 
     def summary(self) -> str:
         """The identified parameters with standard errors, as lines a user reads."""
-        t = self.identified()
-        how = {"least_squares": "weighted least squares",
-               "consistent": "least squares over physically possible bodies (SDP)"}
-        lines = [(f"payload identified by {how.get(t['identification'], t['identification'])} "
-                  f"({self.mode} model; condition number {t['condition_number']:.3g})"),
-                 f"  {'':5s} {'value':>12s} {'std error':>10s} {'unit':<7s} prior share"]
-        for name in PARAMETER_NAMES:
-            if name in t and isinstance(t[name], dict) and "prior_share" in t[name]:
-                row = t[name]
-                lines.append(f"  {name:5s} {row['value']:12.5g} {row['std_error']:10.3g} "
-                             f"{row['unit']:<7s} {row['prior_share']:.2f}")
-        com = t["com"]
-        if com["value"] is not None:
-            se = com["std_error"] or [np.nan] * 3
-            lines.append("  centre of mass p_SoScm_S: "
-                         + ", ".join(f"{1e3 * v:.2f} ± {1e3 * e:.2f}"
-                                     for v, e in zip(com["value"], se, strict=True)) + " mm")
-        if "mounting_rpy_deg" in t:
-            m = t["mounting_rpy_deg"]
-            lines.append("  sensor mounting R_SSm roll, pitch, yaw: " + ", ".join(
-                f"{v:.3f} ± {e:.3f}" for v, e in zip(m["value"], m["std_error"], strict=True))
-                + " deg")
-        if "temperature" in t:
-            k = t["temperature"]
-            lines.append(f"  zero drift per K (Fx..Tz, about {k['reference_c']:.2f} °C): "
-                         + ", ".join(
-                f"{v:.4g} ± {e:.2g}" for v, e in zip(k["coefficients"], k["std_error"],
-                                                      strict=True)))
-        lines.append(f"  physically possible body: {'yes' if t['physically_consistent'] else 'NO'}"
-                     + ("" if "least_squares" not in t else
-                        f" (plain least squares: "
-                        f"{'yes' if t['least_squares']['physically_consistent'] else 'no'})"))
-        lines.append(f"  not determined by the data: {', '.join(t['not_determined']) or 'none'}")
-        return "\n".join(lines)
+        return summary_text(self)
 
     def _warn_if_poorly_excited(self):
-        result = self.identification_
-        # Only the inertial parameters can be "poorly excited"; a bias named here is one the
-        # data determine only in a combination with the mass (a constant gravity direction).
-        poor = list(result.poorly_determined)
-        if self.condition_number_ <= 1e4 and not poor:
-            return
-        share = result.prior_share
-        if self.prior is not None and self.identification == "consistent":
-            decided = ", ".join(f"{n} {share[PARAMETER_NAMES.index(n)]:.0%}" for n in poor
-                                if n in PARAMETER_NAMES[:10])
-            how = f"the prior decided (share of each estimate): {decided or 'none'}"
-        else:
-            how = ("give a prior (identification='consistent', prior=PayloadPrior(...)) or "
-                   "use a richer trajectory (e.g. kind 'fourier' or 'z_rich')")
-        warnings.warn(
-            f"the data does not excite the payload parameters well (condition number "
-            f"{self.condition_number_:.3g}); not determined by the data (a null direction of "
-            f"the regressor, or standard error > 25% of its group's scale): "
-            f"{', '.join(poor) or 'none'}; {how}",
-            ExcitationWarning, stacklevel=4,
-        )
+        message = excitation_message(self)
+        if message is not None:
+            warnings.warn(message, ExcitationWarning, stacklevel=4)
 
     # -- kinematics -------------------------------------------------------------------------
     def _kinematics(self):
@@ -584,96 +435,6 @@ class PhysicsPayloadCompensator(Compensator):
         n = self._kinematics().num_joints
         if n != self.n_joints_:
             raise ValueError(f"the data has {self.n_joints_} joints; the robot model has {n}")
-
-
-def _project_out(M, d):
-    """Each axis's data orthogonal to the temperature deviation d (N,): M (N, 6[, p])."""
-    coef = np.tensordot(d, M, axes=(0, 0)) / (d @ d)
-    return M - np.multiply.outer(d, coef)
-
-
-def _fit_mounting(A, Y, d, cols):
-    """(R_SSm, its 1σ angles about S's axes in degrees) by robust nonlinear least squares.
-
-    Unknowns: the rotation vector of R_SSm, the inertial parameters in `cols` (all 10, or
-    mass and first moment), the biases in Sm and, with a temperature deviation `d`, its
-    coefficients. Residuals are weighted per axis by 1 / RMS of a linear first fit; the loss
-    is soft-L1 with a 3σ knee, so a few outliers (a bump, a glitch) do not rotate the frame.
-    """
-    phys = [c for c in cols if not 10 <= c < 16]  # a wrench in S: rotated
-    A_phys = A[:, :, phys]
-    first = np.linalg.lstsq(A[:, :, cols].reshape(-1, len(cols)), Y.reshape(-1), rcond=None)[0]
-    theta0 = np.zeros(A.shape[-1])
-    theta0[cols] = first
-    weights = 1.0 / np.maximum(np.sqrt(np.mean((Y - A @ theta0) ** 2, axis=0)),
-                               1e-9 * (1 + np.abs(Y).max()))
-    n_phys = len(phys)
-    x0 = np.concatenate([np.zeros(3), theta0[phys], theta0[BIASES],
-                         np.zeros(6) if d is not None else []])
-
-    def residuals(x):
-        R = Rotation.from_rotvec(x[:3]).as_matrix()
-        wrench = A_phys @ x[3:3 + n_phys]
-        pred = wrench @ np.kron(np.eye(2), R) + x[3 + n_phys:9 + n_phys]
-        if d is not None:
-            pred = pred + np.outer(d, x[9 + n_phys:])
-        return ((Y - pred) * weights).ravel()
-
-    fit = least_squares(residuals, x0, loss="soft_l1", f_scale=3.0, x_scale="jac")
-    dof = max(1, fit.fun.size - fit.x.size)
-    sigma2 = float(fit.fun @ fit.fun / dof)
-    cov = sigma2 * np.linalg.pinv(fit.jac.T @ fit.jac)
-    return (Rotation.from_rotvec(fit.x[:3]).as_matrix(),
-            np.degrees(np.sqrt(np.maximum(np.diag(cov)[:3], 0.0))))
-
-
-def payload_regressor(w, alpha, a_minus_g, gravity_S=None) -> np.ndarray:
-    """(N, 6, 16) regressor from ω, α, a − g (each N × 3, in S); (N, 6, 20) with `gravity_S`
-    (N × 3, g in S): the columns of a weight carried without inertia, [m_w·g; (m_w·c_w) × g]."""
-    N = len(w)
-    A = np.zeros((N, 6, 16 if gravity_S is None else 20))
-    if gravity_S is not None:
-        A[:, :3, 16] = gravity_S
-        A[:, 3:, 17:20] = -skew(gravity_S)
-    A[:, :3, 0] = -a_minus_g
-    A[:, :3, 1:4] = -(skew(alpha) + skew(w) @ skew(w))
-    A[:, 3:, 1:4] = skew(a_minus_g)
-    A[:, 3:, 4:10] = -(inertia_map(alpha) + skew(w) @ inertia_map(w))
-    A[:, :, 10:16] = np.eye(6)
-    return A
-
-
-def weighted_least_squares(A, Y):
-    """Solves Y ≈ A θ over all samples and axes, each axis weighted by 1/residual RMS.
-
-    Returns (θ, covariance of θ, per-axis residual RMS, condition number of the
-    column-normalised weighted regressor).
-    """
-    p = A.shape[-1]
-    theta = np.linalg.lstsq(A.reshape(-1, p), Y.reshape(-1), rcond=None)[0]
-    rms = np.sqrt(np.mean((Y - A @ theta) ** 2, axis=0))
-    weights = 1.0 / np.maximum(rms, 1e-9 * (1 + np.abs(Y).max()))
-    Aw = (A * weights[None, :, None]).reshape(-1, p)
-    yw = (Y * weights).reshape(-1)
-    scale = np.linalg.norm(Aw, axis=0)
-    scale[scale == 0] = 1.0
-    theta_s, *_ = np.linalg.lstsq(Aw / scale, yw, rcond=None)
-    theta = theta_s / scale
-    residual = yw - Aw @ theta
-    dof = max(1, Aw.shape[0] - p)
-    sigma2 = residual @ residual / dof
-    normal = (Aw / scale).T @ (Aw / scale)
-    cov = sigma2 * np.linalg.pinv(normal) / np.outer(scale, scale)
-    cond = np.linalg.cond(Aw / scale)
-    rms = np.sqrt(np.mean((Y - A @ theta) ** 2, axis=0))
-    return theta, cov, rms, cond
-
-
-def _full_layout(Z, n):
-    """Pads selected features back to [q, q̇, q̈] with zeros (static models use only q)."""
-    X = np.zeros((len(Z), 3 * n))
-    X[:, : Z.shape[1]] = Z
-    return X
 
 
 # ----------------------------------------------------------------------------------------------

@@ -4,16 +4,21 @@ from __future__ import annotations
 
 import math
 
-import numba
 import numpy as np
 from pydrake.systems.framework import LeafSystem
 
 from ..compensation.base import generic_row_predictor
-from ..compensation.compiled.forest import CompiledForest, forest_accumulate_with_std
-from ..compensation.compiled.hybrid import CompiledHybrid, hybrid_row
+from ..compensation.compiled.loop import (
+    FAULT,
+    FAULT_CHANGED,
+    OOD,
+    OOD_CHANGED,
+    external_wrench,
+    prepare_row,
+)
 from ..compensation.features import check_feature_set
 from ..errors import ConfigError
-from ..signals import acceleration_filter_gain, causal_acceleration_step
+from ..signals import acceleration_filter_gain
 
 
 class CompensatorSystem(LeafSystem):
@@ -46,9 +51,10 @@ class CompensatorSystem(LeafSystem):
     `model` is any fitted ftdrake compensator (or one loaded with ``load_model``): it must have
     ``predict``, ``features``, ``n_joints_`` and ``n_outputs_ == 6``. `n_joints`, if given,
     must match the model (e.g. ``plant.num_positions(arm)``). Each sample runs the model's
-    ``row_predictor()`` (the compensator protocol, :mod:`ftdrake.compensation.base`); a
-    forest's compiled walk, or a hybrid's payload model and forest residual, is fused with the
-    input checks and the acceleration estimate into one compiled call. ``fast=False`` goes
+    ``row_predictor()`` (the compensator protocol, :mod:`ftdrake.compensation.base`); a model
+    whose ``fused_loop_update()`` gives a compiled update (a forest, a hybrid with a forest
+    residual) runs the input checks, the acceleration estimate and its prediction in that one
+    compiled call (:mod:`ftdrake.compensation.compiled.loop`). ``fast=False`` goes
     through ``predict``/``predict_std`` instead (for checking the compiled paths). The q̈
     estimate is :func:`ftdrake.signals.causal_acceleration`, row by row.
     """
@@ -66,7 +72,8 @@ class CompensatorSystem(LeafSystem):
         self.needs_temperature = bool(getattr(model, "temperature_in_", False))
         # The fused update takes the 3n joint row only; a temperature model runs its
         # own row predictor (compiled too, see Compensator.row_predictor).
-        self._fused = _fused_update(model) if fast and not self.needs_temperature else None
+        fused = getattr(model, "fused_loop_update", None)
+        self._fused = fused() if fast and fused and not self.needs_temperature else None
         if self._fused is not None:
             self._predict = None
         elif fast and hasattr(model, "row_predictor"):
@@ -152,19 +159,18 @@ class CompensatorSystem(LeafSystem):
                 row[-1] = self._temperature(context)
                 if not math.isfinite(row[-1]):
                     wrench = self._nan_wrench  # a fault: _prepare_row then writes nothing
-            status = _prepare_row(wrench, x, accel, measured, estimator, row, self._lo,
-                                  self._hi, self._constants)
-            if not status & _FAULT:
+            status = prepare_row(wrench, x, accel, measured, estimator, row, self._lo,
+                                 self._hi, self._constants)
+            if not status & FAULT:
                 mean, std = self._predict(row)
                 internal[:] = mean
-                _external_wrench(wrench, internal, self._to_S, external)
+                external_wrench(wrench, internal, self._to_S, external)
                 if self._has_std:
                     state.get_mutable_value(self._std)[:] = std
-        if status & _FAULT_CHANGED:
-            state.get_mutable_value(self._fault)[0] = float(status & _FAULT != 0)
-        if status & _OOD_CHANGED:
-            state.get_mutable_value(self._ood)[0] = float(status & _OOD != 0)
-
+        if status & FAULT_CHANGED:
+            state.get_mutable_value(self._fault)[0] = float(status & FAULT != 0)
+        if status & OOD_CHANGED:
+            state.get_mutable_value(self._ood)[0] = float(status & OOD != 0)
 
     def _temperature(self, context) -> float:
         if not self._temperature_port.HasValue(context):
@@ -174,99 +180,6 @@ class CompensatorSystem(LeafSystem):
                 "connected; connect the sensor's temperature output to it "
                 "(get_input_port_temperature())")
         return float(self._temperature_port.Eval(context)[0])
-
-
-# Bits of the status the compiled update returns.
-_FAULT, _FAULT_CHANGED, _OOD, _OOD_CHANGED = 1, 2, 4, 8
-
-
-@numba.njit(cache=True)
-def _prepare_row(wrench, x, accel, measured, estimator, row, lo, hi, constants):
-    """Checks the inputs and builds the feature row [q, v, v̇] in place.
-
-    On NaN/inf in any input, writes nothing but the fault copy and returns _FAULT. Otherwise
-    updates the acceleration estimator (a causal difference of v, low-passed with
-    ``constants = [α, period]``) unless `measured`, and checks the used inputs against
-    [lo, hi]. Returns the status bits.
-    """
-    n = len(accel)
-    fault_slot, ood_slot = 2 * n + 1, 2 * n + 2
-    finite = True
-    for value in wrench:
-        finite = finite and np.isfinite(value)
-    for value in x:
-        finite = finite and np.isfinite(value)
-    if measured:
-        for value in accel:
-            finite = finite and np.isfinite(value)
-    status = 0
-    if not finite:
-        if estimator[fault_slot] == 0.0:
-            estimator[fault_slot] = 1.0
-            status |= _FAULT_CHANGED
-        return status | _FAULT
-    if estimator[fault_slot] != 0.0:
-        estimator[fault_slot] = 0.0
-        status |= _FAULT_CHANGED
-    if measured:
-        for i in range(n):
-            estimator[i], estimator[n + i] = x[n + i], accel[i]
-            row[2 * n + i] = accel[i]
-        estimator[2 * n] = 1.0
-    else:
-        causal_acceleration_step(x[n:2 * n], estimator, constants[0], constants[1],
-                                 row[2 * n:3 * n])
-    for i in range(2 * n):
-        row[i] = x[i]
-    ood = False
-    for i in range(len(lo)):
-        ood = ood or row[i] < lo[i] or row[i] > hi[i]
-    if ood != (estimator[ood_slot] != 0.0):
-        estimator[ood_slot] = 1.0 if ood else 0.0
-        status |= _OOD_CHANGED
-    return status | (_OOD if ood else 0)
-
-
-@numba.njit(cache=True)
-def _external_wrench(wrench, internal, to_S, external):
-    """external = to_S · (wrench − internal), or wrench − internal when to_S is (0, 6)."""
-    if to_S.shape[0] == 0:
-        for j in range(6):
-            external[j] = wrench[j] - internal[j]
-        return
-    for i in range(6):
-        total = 0.0
-        for j in range(6):
-            total += to_S[i, j] * (wrench[j] - internal[j])
-        external[i] = total
-
-
-@numba.njit(cache=True)
-def _compensate_with_forest(wrench, x, accel, measured, estimator, lo, hi, constants, to_S,
-                            nodes, leaf_values, trees, n_trees, internal, external, std):
-    """_prepare_row, then the compiled forest into `internal` (and its spread across trees
-    into `std`) and the external wrench (:func:`_external_wrench`)."""
-    row = np.empty(3 * len(accel))
-    status = _prepare_row(wrench, x, accel, measured, estimator, row, lo, hi, constants)
-    if not status & _FAULT:
-        forest_accumulate_with_std(row, nodes, leaf_values, trees, n_trees, internal, std)
-        _external_wrench(wrench, internal, to_S, external)
-    return status
-
-
-@numba.njit(cache=True)
-def _compensate_with_hybrid(wrench, x, accel, measured, estimator, lo, hi, constants, to_S,
-                            reals, ints, nodes, leaf_values, trees, n_trees, internal, external,
-                            std):
-    """_prepare_row, then the hybrid's payload model and residual forest
-    (:func:`~ftdrake.compensation.compiled.hybrid.hybrid_row`) into `internal` and `std`,
-    and the external wrench (:func:`_external_wrench`)."""
-    row = np.empty(3 * len(accel))
-    status = _prepare_row(wrench, x, accel, measured, estimator, row, lo, hi, constants)
-    if not status & _FAULT:
-        hybrid_row(row, reals, ints, nodes, leaf_values, trees, n_trees, internal, std)
-        _external_wrench(wrench, internal, to_S, external)
-    return status
 
 
 def check_model_fits(model, n_joints: int | None) -> None:
@@ -281,18 +194,6 @@ def check_model_fits(model, n_joints: int | None) -> None:
         raise ValueError(
             f"model was trained for {model.n_joints_} joints; this robot has {n_joints}"
         )
-
-
-def _fused_update(model):
-    """(compiled update, its model arrays) when the model's compiled predictor is a forest or
-    a hybrid with a forest residual: the whole sample then runs in one compiled call. None
-    for other models (they run their row predictor)."""
-    compiled = model.compiled_predictor() if hasattr(model, "compiled_predictor") else None
-    if isinstance(compiled, CompiledForest):
-        return _compensate_with_forest, compiled.arrays
-    if isinstance(compiled, CompiledHybrid):
-        return _compensate_with_hybrid, compiled.arrays
-    return None
 
 
 def _training_box(model):

@@ -10,16 +10,16 @@ no Drake object is ever pickled.
 
 from __future__ import annotations
 
-import contextlib
 import dataclasses as dc
 
 import numpy as np
 import pandas as pd
-from joblib import Parallel, delayed, parallel_config
+from joblib import Parallel, delayed
 from tqdm.auto import tqdm
 
 from .. import conventions as col
 from ..config import ConfigError, ScenarioConfig, dump_config, parse_config
+from ..parallel import dask_backend
 from .simulate import simulate
 from .station import build_station
 
@@ -74,15 +74,3 @@ def collect(base: ScenarioConfig, trajectories: int, *, seed: int = 0, kind: str
     frame.attrs["scenario"] = dump_config(base)
     return frame
 
-
-@contextlib.contextmanager
-def dask_backend(dask_address: str | None):
-    """joblib's Dask backend on a Client of `dask_address`; nothing when it is None."""
-    if dask_address is None:
-        yield
-        return
-    from dask.distributed import Client  # noqa: PLC0415 (dask only with a cluster address)
-
-    with Client(dask_address) as client, parallel_config(backend="dask"):
-        del client
-        yield

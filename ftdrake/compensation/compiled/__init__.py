@@ -7,7 +7,7 @@ wrench in N and N·m, or whatever the model was trained on), equal to scikit-lea
 ``predict`` to 1e-9:
 
 * :class:`CompiledForest` – regression forests (one per output, or one multi-output forest)
-  flattened into arrays and walked by numba, a few µs per row.
+  flattened into arrays and walked by numba.
 * :class:`FastKernelModel` – SVRs as an input affine map, kernel expansions against stored
   points, and an output affine map.
 * :class:`CompiledGaussianProcess` – a ``GPRCompensator``'s mean *and* standard deviation
@@ -18,6 +18,9 @@ wrench in N and N·m, or whatever the model was trained on), equal to scikit-lea
   row predictor.
 * :class:`CompiledHybrid` – a ``HybridCompensator``'s payload model and forest residual in one
   numba call per row, mean and std, equal to its ``predict`` and ``predict_std``.
+* :mod:`.loop` – a whole ``CompensatorSystem`` sample in one compiled call (input checks, q̈
+  estimate, prediction, compensated wrench): what a compensator's ``fused_loop_update()``
+  returns.
 
 All have ``predict(X)`` for (N, 3n) → (N, k) and ``predict_one(x, out=None)`` for
 (3n,) → (k,); all raise ``ValueError`` on a wrong column count or a NaN/inf input. They

@@ -1,4 +1,4 @@
-"""Regression forests flattened into arrays and walked by numba: a few µs per row.
+"""Regression forests flattened into arrays and walked by numba, one row at a time.
 
 Equal to scikit-learn's ``predict`` to rounding: the same float32 cast of the input, the same
 ``<=`` rule, the same summation order. :func:`forest_accumulate` is the numba kernel other
@@ -161,7 +161,7 @@ def forest_accumulate_with_std(x, nodes, leaf_values, trees, n_trees, out, std):
     a calibrated uncertainty; see :mod:`ftdrake.compensation.forest`).
 
     The lockstep walk is written out again here rather than shared with forest_accumulate:
-    a shared inlined helper measured 8.2 → 10.9 µs per row (one pair of runs, random rows).
+    a shared inlined helper was slower.
     """
     out[:] = 0.0
     std[:] = 0.0
@@ -238,6 +238,10 @@ class CompiledForest:
         self.predict(np.zeros((2, 3 * self.n_joints)))
         self.predict_one(np.zeros(3 * self.n_joints))
         self.predict_one_with_std(np.zeros(3 * self.n_joints))
+
+    def onnx_parts(self) -> FlatForest:
+        """The flattened forests: the form :mod:`ftdrake.compensation.onnx_export` writes."""
+        return self.flat
 
     def predict(self, X) -> np.ndarray:
         """X: (N, 3n) rows of [q, q̇, q̈]. Returns (N, k)."""

@@ -1,11 +1,10 @@
 """Physics + forest residual in one compiled call: a ``HybridCompensator``'s row.
 
-The unfused row made two compiled calls (the payload kernel, then the forest) and combined
-them in numpy: ~4 µs of Python per row, more than the forest's walk (with the same kernels,
-10.4 µs per row against 6.2 fused: ``benchmarks/compensator_latency.py``). Here one numba call
-computes the payload model's mean and parameter variance (:func:`.payload.payload_mean_var`,
-the residual's error variance packed as its σ²) and walks the forest
-(:func:`.forest.forest_accumulate`, mean only: a forest's spread is not the hybrid's std):
+Two compiled calls (the payload kernel, then the forest) combined in numpy cost more Python
+per row than the forest's walk. Here one numba call computes the payload model's mean and
+parameter variance (:func:`.payload.payload_mean_var`, the residual's error variance packed
+as its σ²) and walks the forest (:func:`.forest.forest_accumulate`, mean only: a forest's
+spread is not the hybrid's std):
 
     mean = B·θ + forest(row),    std = √(‖B F‖² + σ²_residual)
 

@@ -83,6 +83,15 @@ class FastKernelModel:
     def n_outputs(self) -> int:
         return len(self.intercept)
 
+    @property
+    def n_inputs(self) -> int:
+        """The selected feature columns it takes."""
+        return len(self.input_scale)
+
+    def onnx_parts(self) -> FastKernelModel:
+        """Itself: the form :mod:`ftdrake.compensation.onnx_export` writes."""
+        return self
+
     @classmethod
     def from_svrs(
         cls, scaler, svrs, features: str = "q,qd,qdd", target_mean=None, target_scale=None,
@@ -160,8 +169,8 @@ class FastKernelModel:
 
 
 def _powi(base: np.ndarray, n: int) -> np.ndarray:
-    """base**n for an int n >= 0 by repeated squaring, as libsvm computes it (and ~20× faster
-    than numpy's float power)."""
+    """base**n for an int n >= 0 by repeated squaring, as libsvm computes it (and faster than
+    numpy's float power)."""
     result, power = np.ones_like(base), base
     while n > 0:
         if n % 2:

@@ -2,12 +2,10 @@
 regressor row (p = 16, or 20 with the weight carried without inertia), the reading's mean
 and the parameters' variance, from two packed arrays.
 
-A numba call costs about 0.15 µs per array argument (unboxing; 2.2 µs measured for 15) before
-it does any work, more than this kernel's arithmetic (~1.4 µs per row on ftdrake's arm) when
-the chain, the parameters and the covariance factor go in as eleven arrays.
-:func:`pack_payload_row` puts them into one float64 and one int64 array once;
-:func:`payload_mean_var` unpacks views of them inside the kernel (the physics row predictor:
-4.1 → 2.4 µs per row, with the leaner kernel; one session, load ~1.9).
+A numba call pays for unboxing each array argument before it does any work; with the chain,
+the parameters and the covariance factor as eleven arrays that would cost more than this
+kernel's arithmetic. :func:`pack_payload_row` puts them into one float64 and one int64 array
+once; :func:`payload_mean_var` unpacks views of them inside the kernel.
 :class:`~ftdrake.compensation.physics.PhysicsPayloadCompensator` and the hybrid's fused row
 (:mod:`.hybrid`) use it; the estimators fill it, this module knows nothing of them.
 

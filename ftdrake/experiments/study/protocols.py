@@ -32,7 +32,8 @@ from ...compensation.metrics import report
 from ...compensation.tuning import segment_groups
 from ...config import ScenarioConfig, dump_config
 from ...data.dataset import joint_state_layout, wrench_targets
-from ...sim.collection import dask_backend, simulate_one, trajectory_config
+from ...parallel import dask_backend
+from ...sim.collection import simulate_one, trajectory_config
 from ...sim.trajectories import STUDY_DURATION_S, STUDY_SAMPLE_HZ, model_to_study
 from .layout import AXES, FEATURES, STUDY_TABLE2, TABLE2_TOLERANCE
 from .search import HALVING, refit, rf_importances, search_per_axis

@@ -1,0 +1,149 @@
+"""What a compensator is built from for training: the targets, a robot description and the
+options its registry entry offers.
+
+A registry entry (:mod:`ftdrake.compensation.registry`) builds its unfitted compensator from
+a :class:`BuildRequest`: the feature set, a random seed, the names of the targets (a wrench
+or joint torques, see :func:`is_wrench`), a :class:`RobotOptions` and the values of the
+entry's own :class:`TrainOption` s, which ``ftdrake train`` offers as flags. Errors name the
+``train`` flag that fixes them.
+"""
+
+from __future__ import annotations
+
+import dataclasses as dc
+import re
+from collections.abc import Mapping
+from pathlib import Path
+from typing import Any
+
+from ..config import parse_config
+from ..conventions import WRENCH_AXES
+from ..errors import ConfigError, RobotModelError
+from ..physics.robot import RobotDescription, ftdrake_arm
+from ..physics.scenario_robot import robot_description
+
+BUILTIN_ROBOT = "ftdrake"  # RobotOptions.robot naming ftdrake's simulated arm
+
+
+@dc.dataclass(frozen=True)
+class RobotOptions:
+    """The robot description a robot-based compensator identifies its model on.
+
+    robot: URDF/SDF file, or ``"ftdrake"`` for the simulated arm (the arm of a ``collect``
+    dataset's scenario, `scenario_yaml`, else the default arm); None: no robot.
+    sensor_frame: frame S of the targets in `robot`.
+    base_frame: frame of `robot` welded to the world (default: its root).
+    scenario_yaml: the scenario a ``collect`` dataset was simulated with (its YAML text).
+    """
+
+    robot: str | None = None
+    sensor_frame: str | None = None
+    base_frame: str | None = None
+    scenario_yaml: str | None = None
+
+    @property
+    def is_simulated_arm(self) -> bool:
+        """Whether `robot` names ftdrake's simulated arm."""
+        return self.robot == BUILTIN_ROBOT
+
+    def simulated_arm(self) -> RobotDescription:
+        """The arm of the scenario that made the data (`scenario_yaml`), else ftdrake's
+        default arm."""
+        if self.scenario_yaml:
+            return robot_description(parse_config(self.scenario_yaml))
+        return ftdrake_arm()
+
+    def robot_file(self) -> str:
+        """`robot` as an absolute path; a RobotModelError when there is no such file."""
+        path = Path(self.robot)
+        if not path.is_file():
+            raise RobotModelError(f"--robot {path}: no such file")
+        return str(path.resolve())
+
+
+@dc.dataclass(frozen=True)
+class TrainOption:
+    """One option a registry entry reads when it builds its compensator; ``ftdrake train``
+    offers it as the flag :attr:`flag` (a switch when `kind` is bool).
+
+    name: the keyword in :attr:`BuildRequest.options` (``identify_mounting`` →
+      ``--identify-mounting``).
+    help: what it does, for ``train --help``.
+    default: its value when not given; a value other than this is "given".
+    kind: the value's type (bool: a switch, given by its presence).
+    choices, metavar: the values it takes and how help shows them.
+    scope: when it applies, for the error that refuses it elsewhere (e.g. "on a wrench (the
+      sensor's mounting rotation)").
+    """
+
+    name: str
+    help: str
+    default: Any = None
+    kind: type = str
+    choices: tuple | None = None
+    metavar: str | None = None
+    scope: str = ""
+
+    @property
+    def flag(self) -> str:
+        return "--" + self.name.replace("_", "-")
+
+    def given(self, value) -> bool:
+        """Whether `value` differs from the default (the user asked for something)."""
+        return value is not None and value != self.default
+
+    def misuse(self, owners) -> ConfigError:
+        """The error for this option given to a model that does not take it: it names the
+        models (registry names `owners`) that do."""
+        scope = f" {self.scope}" if self.scope else ""
+        return ConfigError(f"{self.flag} is for --kind {join_or(owners)}{scope}")
+
+
+@dc.dataclass(frozen=True)
+class BuildRequest:
+    """What an entry builds its unfitted compensator for.
+
+    kind: the registry name asked for (errors name it as ``--model KIND``).
+    features: ``q``, ``q,qd`` or ``q,qd,qdd``; None for the entry's default.
+    seed: random state of the models that have one.
+    target_names: the data's targets (a wrench, :func:`is_wrench`, or anything else).
+    robot: the robot description of robot-based entries.
+    options: the values of the entry's :class:`TrainOption` s (every one present).
+    """
+
+    kind: str
+    features: str | None = None
+    seed: int = 0
+    target_names: tuple[str, ...] = ()
+    robot: RobotOptions = RobotOptions()
+    options: Mapping[str, Any] = dc.field(default_factory=dict)
+
+    @property
+    def on_wrench(self) -> bool:
+        """Whether the targets are a wrench (or no targets were named)."""
+        return not self.target_names or is_wrench(self.target_names)
+
+
+def is_wrench(names) -> bool:
+    """True for 6 names ending in Fx, Fy, Fz, Tx, Ty, Tz (or force_x … torque_z), in order."""
+    if len(names) != 6:
+        return False
+    aliases = [(a.lower(), ("force" if a[0] == "F" else "torque") + a[1]) for a in WRENCH_AXES]
+    squashed = [re.sub(r"[^a-z]", "", n.lower()) for n in names]
+    return all(s.endswith(alias) for s, alias in zip(squashed, aliases, strict=True))
+
+
+def join_or(names) -> str:
+    """``["a"]`` → ``"a"``; ``["a", "b", "c"]`` → ``"a, b or c"``."""
+    names = list(names)
+    return names[0] if len(names) == 1 else f"{', '.join(names[:-1])} or {names[-1]}"
+
+
+def wrench_only_error(kind: str, target_names) -> ConfigError:
+    """The error of a wrench-only model asked to fit other targets."""
+    return ConfigError(
+        f"--kind {kind} predicts a wrench: 6 targets named *Fx, *Fy, *Fz, *Tx, *Ty, "
+        f"*Tz (N, N·m) in the sensor frame; got {list(target_names)}. Joint torques need "
+        f"rf, svr, gpr, or arm/physics/hybrid with --robot (or choose the wrench columns "
+        f"with --targets)"
+    )

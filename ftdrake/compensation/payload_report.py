@@ -1,0 +1,132 @@
+"""What a fitted payload model identified, as a table and as lines a user reads, and the
+warning when the data do not excite its parameters.
+
+The functions take a fitted :class:`~.physics.PhysicsPayloadCompensator` (its
+``identified()``, ``summary()`` and fit call them).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from pydrake.math import RollPitchYaw, RotationMatrix
+
+from .consistent import PARAMETER_NAMES, STATIC_PARAMETERS
+
+#: The unit of each entry of θ (:data:`~.consistent.PARAMETER_NAMES`).
+PARAMETER_UNITS = (["kg", "kg*m", "kg*m", "kg*m"] + ["kg*m^2"] * 6 + ["N"] * 3 + ["N*m"] * 3
+                   + ["kg", "kg*m", "kg*m", "kg*m"])
+
+
+def identified_table(model) -> dict:
+    """Identified parameters with standard errors and units, plus derived CoM (m).
+
+    Each parameter: ``value``, ``std_error`` (∞ where the data leave it free and no prior
+    decides it), ``unit`` and ``prior_share`` (how much the prior decided it, 0–1; 0
+    without a prior). Also ``com`` (``p_SoScm_S``, m, with standard errors by the delta
+    method), ``condition_number``, ``identification``, ``physically_consistent``,
+    ``not_determined`` (parameters the data cannot determine) and, for the consistent
+    fit, ``least_squares`` (the unconstrained estimate and whether it is a body).
+    """
+    p, se = model.parameters_, model.standard_errors_
+    result = getattr(model, "identification_", None)
+    share = result.prior_share if result is not None else np.zeros(len(p))
+    table = {
+        name: {"value": float(p[i]), "std_error": float(se[i]), "unit": PARAMETER_UNITS[i],
+               "prior_share": float(np.nan_to_num(share[i]))}
+        for i, name in enumerate(PARAMETER_NAMES[:len(p)])
+        if model.mode == "dynamic" or i in STATIC_PARAMETERS
+    }
+    mass = p[0]
+    com_se = None
+    cov = getattr(model, "covariance_", None)
+    if mass and cov is not None and np.all(np.isfinite(cov[:4, :4])):
+        # c = h / m: Jacobian [−h/m², I/m] on (m, h).
+        J = np.hstack([-p[1:4, None] / mass ** 2, np.eye(3) / mass])
+        com_se = np.sqrt(np.maximum(np.diag(J @ cov[:4, :4] @ J.T), 0.0)).tolist()
+    table["com"] = {"value": (p[1:4] / mass).tolist() if mass else None,
+                    "std_error": com_se, "unit": "m"}
+    rotation = getattr(model, "mounting_rotation_", None)
+    if rotation is not None and model.identify_mounting:
+        table["mounting_rpy_deg"] = {
+            "value": np.degrees(RollPitchYaw(RotationMatrix(rotation)).vector()).tolist(),
+            "std_error": model.mounting_std_deg_.tolist(), "unit": "deg",
+            "frame": "R_SSm: the frame the sensor measures in, in S (roll, pitch, yaw)"}
+    if getattr(model, "temperature_reference_", None) is not None:
+        table["temperature"] = {
+            "coefficients": model.temperature_coefficients_.tolist(),
+            "std_error": model.temperature_std_errors_.tolist(),
+            "unit": "N/K (forces), N*m/K (torques)",
+            "reference_c": model.temperature_reference_}
+    table["condition_number"] = model.condition_number_
+    table["identification"] = getattr(model, "identification", "least_squares")
+    table["physically_consistent"] = bool(getattr(model, "physically_consistent_", True))
+    table["not_determined"] = list(result.poorly_determined) if result is not None else []
+    if result is not None and model.identification == "consistent":
+        cols = STATIC_PARAMETERS if model.mode == "static" else list(range(len(p)))
+        table["least_squares"] = {
+            "values": {PARAMETER_NAMES[i]: float(result.theta_least_squares[i])
+                       for i in cols},
+            "physically_consistent": bool(result.least_squares_consistent)}
+        table["active_constraints"] = list(result.active_constraints)
+    return table
+
+
+def summary_text(model) -> str:
+    """The identified parameters with standard errors, as lines a user reads."""
+    t = identified_table(model)
+    how = {"least_squares": "weighted least squares",
+           "consistent": "least squares over physically possible bodies (SDP)"}
+    lines = [(f"payload identified by {how.get(t['identification'], t['identification'])} "
+              f"({model.mode} model; condition number {t['condition_number']:.3g})"),
+             f"  {'':5s} {'value':>12s} {'std error':>10s} {'unit':<7s} prior share"]
+    for name in PARAMETER_NAMES:
+        if name in t and isinstance(t[name], dict) and "prior_share" in t[name]:
+            row = t[name]
+            lines.append(f"  {name:5s} {row['value']:12.5g} {row['std_error']:10.3g} "
+                         f"{row['unit']:<7s} {row['prior_share']:.2f}")
+    com = t["com"]
+    if com["value"] is not None:
+        se = com["std_error"] or [np.nan] * 3
+        lines.append("  centre of mass p_SoScm_S: "
+                     + ", ".join(f"{1e3 * v:.2f} ± {1e3 * e:.2f}"
+                                 for v, e in zip(com["value"], se, strict=True)) + " mm")
+    if "mounting_rpy_deg" in t:
+        m = t["mounting_rpy_deg"]
+        lines.append("  sensor mounting R_SSm roll, pitch, yaw: " + ", ".join(
+            f"{v:.3f} ± {e:.3f}" for v, e in zip(m["value"], m["std_error"], strict=True))
+            + " deg")
+    if "temperature" in t:
+        k = t["temperature"]
+        lines.append(f"  zero drift per K (Fx..Tz, about {k['reference_c']:.2f} °C): "
+                     + ", ".join(
+            f"{v:.4g} ± {e:.2g}" for v, e in zip(k["coefficients"], k["std_error"],
+                                                  strict=True)))
+    lines.append(f"  physically possible body: {'yes' if t['physically_consistent'] else 'NO'}"
+                 + ("" if "least_squares" not in t else
+                    f" (plain least squares: "
+                    f"{'yes' if t['least_squares']['physically_consistent'] else 'no'})"))
+    lines.append(f"  not determined by the data: {', '.join(t['not_determined']) or 'none'}")
+    return "\n".join(lines)
+
+
+def excitation_message(model) -> str | None:
+    """What the warning says when the data do not excite the payload parameters well
+    (condition number above 1e4, or parameters the data cannot determine); None otherwise."""
+    result = model.identification_
+    # Only the inertial parameters can be "poorly excited"; a bias named here is one the
+    # data determine only in a combination with the mass (a constant gravity direction).
+    poor = list(result.poorly_determined)
+    if model.condition_number_ <= 1e4 and not poor:
+        return None
+    share = result.prior_share
+    if model.prior is not None and model.identification == "consistent":
+        decided = ", ".join(f"{n} {share[PARAMETER_NAMES.index(n)]:.0%}" for n in poor
+                            if n in PARAMETER_NAMES[:10])
+        how = f"the prior decided (share of each estimate): {decided or 'none'}"
+    else:
+        how = ("give a prior (identification='consistent', prior=PayloadPrior(...)) or "
+               "use a richer trajectory (e.g. kind 'fourier' or 'z_rich')")
+    return (f"the data does not excite the payload parameters well (condition number "
+            f"{model.condition_number_:.3g}); not determined by the data (a null direction of "
+            f"the regressor, or standard error > 25% of its group's scale): "
+            f"{', '.join(poor) or 'none'}; {how}")

@@ -1,0 +1,141 @@
+"""How the robot-based compensators (physics, hybrid, arm) are built for training, and the
+options they add to ``ftdrake train``.
+
+On a wrench (6 targets named ``*Fx … *Tz``), physics is the payload model
+(:class:`~.physics.PhysicsPayloadCompensator`) on the robot's chain to the sensor frame; on
+joint torques (any other targets) physics and arm are the whole arm's rigid-body model
+(:class:`~.arm.ArmDynamicsCompensator`). A hybrid is either of those plus a forest on its
+residual. Errors name the ``train`` flag that fixes them.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from ..errors import ConfigError
+from ..physics.robot import ftdrake_arm
+from .arm import ArmDynamicsCompensator
+from .build import BUILTIN_ROBOT, BuildRequest, TrainOption, is_wrench, wrench_only_error
+from .forest import RandomForestCompensator
+from .hybrid import HybridCompensator
+from .physics import PhysicsPayloadCompensator
+
+#: ``train``'s arguments of each (the registry's defaults).
+PHYSICS_DEFAULTS = {"features": "q,qd,qdd", "identification": "consistent"}
+HYBRID_DEFAULTS = {"identification": "consistent"}
+ARM_DEFAULTS = {"identification": "consistent"}
+
+DRIVE_GAINS = TrainOption(
+    "drive_gains", default="fixed", choices=("fixed", "identify"), scope="on joint torques",
+    help="joint-torque targets with --robot: 'identify' when they are only proportional to "
+         "the torques (motor currents, as UR's CB3 driver publishes in effort, or another "
+         "sign convention): a gain per joint is identified with the arm's parameters")
+IDENTIFY_MOUNTING = TrainOption(
+    "identify_mounting", default=False, kind=bool,
+    scope="on a wrench (the sensor's mounting rotation)",
+    help="physics/hybrid on a wrench: also identify the sensor's mounting rotation (the "
+         "wrench is then reported in the model's frame S)")
+WEIGHT_WITHOUT_INERTIA = TrainOption(
+    "weight_without_inertia", default=False, kind=bool,
+    scope="on a wrench (a weight the tool carries without its inertia)",
+    help="physics/hybrid on a wrench, dynamic model: also identify a weight the tool carries "
+         "without its inertia (a hanging cable), 4 parameters")
+#: The options of physics and hybrid (arm takes DRIVE_GAINS only).
+PAYLOAD_OPTIONS = (DRIVE_GAINS, IDENTIFY_MOUNTING, WEIGHT_WITHOUT_INERTIA)
+_PAYLOAD_KINDS = ("physics", "hybrid")
+
+
+def make_physics(request: BuildRequest):
+    """The payload model on a wrench; the arm's model on joint torques."""
+    _refuse_wrench_options_on_torques(request)
+    if not request.on_wrench:
+        return make_arm(request)
+    if not is_wrench(request.target_names):
+        raise wrench_only_error(request.kind, request.target_names)
+    return payload_model(request, request.features or "q,qd,qdd")
+
+
+def make_hybrid(request: BuildRequest):
+    """Physics (the payload model, dynamic; or the arm's model on joint torques) plus a
+    forest on its residual, on `request.features` (default q)."""
+    _refuse_wrench_options_on_torques(request)
+    if not request.on_wrench:
+        physics = make_arm(request)
+    elif not is_wrench(request.target_names):
+        raise wrench_only_error(request.kind, request.target_names)
+    else:
+        physics = payload_model(request, "q,qd,qdd")
+    residual = RandomForestCompensator(features=request.features or "q", min_samples_leaf=5,
+                                       random_state=request.seed)
+    return HybridCompensator(**{**HYBRID_DEFAULTS, "physics": physics, "residual": residual})
+
+
+def make_arm_entry(request: BuildRequest):
+    """The arm's model on joint torques; on other targets, its defaults (it then has no
+    robot, which its fit refuses)."""
+    if not request.on_wrench:
+        return make_arm(request)
+    features = {"features": request.features} if request.features else {}
+    return ArmDynamicsCompensator(**{**ARM_DEFAULTS, **features})
+
+
+def make_arm(request: BuildRequest) -> ArmDynamicsCompensator:
+    """The arm's rigid-body torque model on the robot of `request`."""
+    robot = request.robot
+    if robot.robot is None:
+        raise ConfigError(f"--kind {request.kind} on joint torques needs --robot FILE (the "
+                          f"arm's URDF/SDF), or --robot {BUILTIN_ROBOT} for the simulated arm")
+    options = {**ARM_DEFAULTS, "drive_gains": request.options.get("drive_gains", "fixed")}
+    if robot.is_simulated_arm:
+        description = robot.simulated_arm()
+        return ArmDynamicsCompensator(robot=description.model,
+                                      package_xmls=description.package_xmls, **options)
+    return ArmDynamicsCompensator(robot=robot.robot_file(), base_frame=robot.base_frame,
+                                  **options)
+
+
+def payload_model(request: BuildRequest, features: str) -> PhysicsPayloadCompensator:
+    """The payload model with `features` (q: static, gravity only; q,qd,qdd: dynamic) on the
+    robot of `request`."""
+    robot = request.robot
+    identify_mounting = bool(request.options.get("identify_mounting", False))
+    weight_without_inertia = bool(request.options.get("weight_without_inertia", False))
+    if robot.robot is None:
+        raise ConfigError(f"--kind {request.kind} needs --robot FILE (URDF/SDF) with "
+                          f"--sensor-frame NAME, or --robot {BUILTIN_ROBOT} for the simulated "
+                          f"arm")
+    if features == "q,qd":
+        raise ConfigError("physics takes --features q (static: gravity only) or q,qd,qdd")
+    mode = "static" if features == "q" else "dynamic"
+    if identify_mounting and mode == "static":
+        raise ConfigError("--identify-mounting needs --features q,qd,qdd (the dynamic model); "
+                          "`ftdrake calibrate` identifies it from static poses")
+    if weight_without_inertia and mode == "static":
+        raise ConfigError("--weight-without-inertia needs --features q,qd,qdd (only "
+                          "accelerations tell a weight without inertia from the tool's mass)")
+    settings = {**PHYSICS_DEFAULTS, "features": features, "mode": mode,
+                "identify_mounting": identify_mounting,
+                "weight_without_inertia": weight_without_inertia}
+    if robot.is_simulated_arm:
+        # The arm of the scenario that made the data (a collect dataset stores it), as a
+        # robot description; the shipped default arm is robot=None.
+        description = robot.simulated_arm()
+        if description == ftdrake_arm():
+            return PhysicsPayloadCompensator(**settings)
+        return PhysicsPayloadCompensator(robot=description.model,
+                                         sensor_frame=description.sensor_frame,
+                                         package_xmls=description.package_xmls, **settings)
+    path = robot.robot_file()
+    if not robot.sensor_frame:
+        raise ConfigError(f"--robot {Path(robot.robot)} needs --sensor-frame (the frame of "
+                          "the targets)")
+    return PhysicsPayloadCompensator(robot=path, sensor_frame=robot.sensor_frame,
+                                     base_frame=robot.base_frame, **settings)
+
+
+def _refuse_wrench_options_on_torques(request: BuildRequest) -> None:
+    if request.on_wrench:
+        return
+    for option in (IDENTIFY_MOUNTING, WEIGHT_WITHOUT_INERTIA):
+        if option.given(request.options.get(option.name)):
+            raise option.misuse(_PAYLOAD_KINDS)
