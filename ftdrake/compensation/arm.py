@@ -45,6 +45,7 @@ from ..physics.arm_dynamics import INERTIAL_NAMES, INERTIAL_UNITS, ArmDynamics, 
 from .base import Compensator
 from .consistent_program import IdentificationError, pick_solver, prior_precision
 from .inertial import is_physically_consistent, physical_violations, pseudo_inertia
+from .robot_file import CarriesRobot
 
 IDENTIFICATIONS = ("least_squares", "consistent")
 #: Default weight of the model file's values as a prior (consistent identification): about a
@@ -61,7 +62,7 @@ class ExcitationWarning(UserWarning):
     """The data determine fewer base parameters than the arm has."""
 
 
-class ArmDynamicsCompensator(Compensator):
+class ArmDynamicsCompensator(CarriesRobot, Compensator):
     """Predicts an arm's joint torques (N·m; N for prismatic joints) from ``[q, q̇, q̈]``.
 
     Parameters
@@ -115,7 +116,11 @@ class ArmDynamicsCompensator(Compensator):
         """The arm's model description."""
         if self.robot is None:
             raise ConfigError("ArmDynamicsCompensator needs robot= (the arm's URDF/SDF)")
-        return ArmModel(str(self.robot), self.base_frame, tuple(self.package_xmls))
+        model, package_xmls = self._robot_source()
+        return ArmModel(model, self.base_frame, package_xmls)
+
+    def _build_robot(self) -> None:
+        self.dynamics()
 
     def dynamics(self) -> ArmDynamics:
         """The arm's regressor (built once per model file and gravity)."""
@@ -146,6 +151,7 @@ class ArmDynamicsCompensator(Compensator):
             raise ConfigError(f"prior must be 'model' or None, got {self.prior!r}")
         if getattr(self, "temperature_in_", False):
             raise ValueError("ArmDynamicsCompensator takes no temperature column")
+        self._embed_robot()
         dyn = self.dynamics()
         if dyn.n != self.n_joints_:
             raise RobotModelError(

@@ -33,17 +33,21 @@ from sklearn.base import BaseEstimator
 from sklearn.utils.validation import check_is_fitted
 
 from ..conventions import TEMPERATURE
-from ..errors import ModelFileError
+from ..errors import ModelFileError, RobotModelError
 from ..io import atomic_write_bytes
 from ..version import ftdrake_version
 from .base import Compensator
 from .features import feature_names
 from .registry import trusted_types
+from .robot_file import CarriesRobot
 
 MAGIC = b"FTDRAKE-MODEL\n"
 # 2: the physics model takes a robot description instead of embedding a scenario; the
-# trusted types come from the compensator registry.
-FORMAT_VERSION = 2
+# trusted types come from the compensator registry. 3: a model built on a robot carries the
+# robot's text (compensation.robot_file) and the manifest its SHA-256. Version 2 files still
+# load: their robot is embedded on loading when its path is there.
+FORMAT_VERSION = 3
+READABLE_VERSIONS = (2, 3)
 _DIGEST = 32  # bytes of SHA-256
 
 
@@ -112,6 +116,7 @@ def _manifest(model, target_names, target_units, sensor_frame, extra) -> dict:
             name: [float(lo), float(hi)]
             for name, lo, hi in zip(inputs, model.input_min_, model.input_max_, strict=True)
         },
+        "robot": _robot_manifest(model),
         "extra": extra or {},
     }
     try:
@@ -157,7 +162,39 @@ def load_model(path, *, expect_n_joints: int | None = None, expect_features: str
     except Exception as e:  # whatever skops raises, the file is at fault
         raise ModelFileError(f"{path}: payload could not be rebuilt: {e}") from e
     _check_model(model, manifest, path)
+    _check_robot(model, manifest, path)
     return model
+
+
+def _robot_parts(model) -> list:
+    """The parts of `model` built on a robot (a hybrid's physics part, or the model)."""
+    return [part for part in (model, getattr(model, "physics_", None))
+            if isinstance(part, CarriesRobot)]
+
+
+def _robot_manifest(model) -> dict | None:
+    parts = _robot_parts(model)
+    if not parts:
+        return None
+    part = parts[0]
+    return {"source": None if part.robot is None else str(part.robot),
+            "sha256": part.robot_digest(),
+            "portable": bool(getattr(part, "robot_portable_", True))}
+
+
+def _check_robot(model, manifest: dict, path) -> None:
+    """The robot the model needs can be built here, from what the file carries."""
+    expected = (manifest.get("robot") or {}).get("sha256")
+    for part in _robot_parts(model):
+        if expected is not None and part.robot_digest() != expected:
+            raise ModelFileError(f"{path}: the embedded robot does not match the manifest's "
+                                 "SHA-256")
+        try:
+            notes = part.check_robot()
+        except RobotModelError as e:
+            raise ModelFileError(f"{path}: {e}") from None
+        for note in notes:
+            warnings.warn(f"{path}: {note}", stacklevel=3)
 
 
 def _unpack(data: bytes, path) -> tuple[dict, bytes]:
@@ -174,12 +211,12 @@ def _unpack(data: bytes, path) -> tuple[dict, bytes]:
         raise ModelFileError(f"{path}: checksum mismatch; the file is corrupted or was modified")
     if manifest is None:
         raise ModelFileError(f"{path}: manifest line is not valid JSON")
-    if manifest.get("format_version") != FORMAT_VERSION:
+    if manifest.get("format_version") not in READABLE_VERSIONS:
         version = manifest.get("format_version")
         older = isinstance(version, int) and version < FORMAT_VERSION
         raise ModelFileError(
             f"{path}: model file format version {version!r} is not supported (this ftdrake "
-            f"{ftdrake_version()} reads version {FORMAT_VERSION}); "
+            f"{ftdrake_version()} reads versions {', '.join(map(str, READABLE_VERSIONS))}); "
             + ("it was written by an older ftdrake: train the model again (ftdrake train)"
                if older else "it was written by a newer ftdrake: upgrade ftdrake")
         )

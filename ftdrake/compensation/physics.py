@@ -69,6 +69,7 @@ from .payload_identification import (
     weighted_least_squares,
 )
 from .payload_report import PARAMETER_UNITS, excitation_message, identified_table, summary_text
+from .robot_file import CarriesRobot
 
 __all__ = [  # with the identification's names that callers take from here
     "BIASES", "IDENTIFICATIONS", "PARAMETER_NAMES", "PARAMETER_UNITS", "STATIC_PARAMETERS",
@@ -89,7 +90,7 @@ class ExcitationWarning(UserWarning):
     """The data does not determine some payload parameters well."""
 
 
-class PhysicsPayloadCompensator(Compensator):
+class PhysicsPayloadCompensator(CarriesRobot, Compensator):
     """Rigid-payload model of the internal wrench, identified from data.
 
     Parameters
@@ -213,6 +214,7 @@ class PhysicsPayloadCompensator(Compensator):
             raise ValueError("mode='dynamic' needs features='q,qd,qdd' (it uses q̇ and q̈)")
         Z, temperature = self._split_temperature(Z)
         X = full_layout(Z, self.n_joints_)
+        self._embed_robot()
         self._check_robot_joints()
         A = self.regressor(X)
         self._identify(A, Y, prior, temperature)
@@ -390,8 +392,8 @@ class PhysicsPayloadCompensator(Compensator):
     def _row_kernel_args(self) -> tuple:
         # Looking the chain up through the robot description costs microseconds (building and
         # hashing the description); the row path remembers it per model and per parameters.
-        key = (self.robot, self.sensor_frame, self.base_frame, tuple(self.gravity),
-               tuple(self.package_xmls), self.mode)
+        key = (self.robot, getattr(self, "robot_model_", None), self.sensor_frame,
+               self.base_frame, tuple(self.gravity), tuple(self.package_xmls), self.mode)
         cached = _ROW_ARGS.get(self)
         if cached is None or cached[0] != key:
             kin = self._kinematics()
@@ -428,8 +430,11 @@ class PhysicsPayloadCompensator(Compensator):
         if not self.sensor_frame:
             raise RobotModelError(f"robot {self.robot!r} needs sensor_frame (the frame of the "
                                   "measured wrench)")
-        return RobotDescription(str(self.robot), self.sensor_frame, self.base_frame,
-                                tuple(self.package_xmls))
+        model, package_xmls = self._robot_source()
+        return RobotDescription(model, self.sensor_frame, self.base_frame, package_xmls)
+
+    def _build_robot(self) -> None:
+        self._kinematics()
 
     def _check_robot_joints(self):
         n = self._kinematics().num_joints

@@ -6,6 +6,10 @@ S of the F/T sensor in it. It is all a physics compensator needs: no simulation,
 ``package://ftdrake/...`` resolves offline to ftdrake's shipped models (``models/package.xml``);
 ``package_xmls`` add the user's own packages.
 
+A fitted physics model carries its robot inside its file (:func:`embed_model`): a URDF or SDF
+file's text replaces its path, so the model loads on another computer; the URDF's meshes are
+not needed (a kinematics-only plant registers no geometry).
+
 ftdrake's simulated arm is described by :func:`ftdrake_arm` (the SDA10D-like arm with the
 sensor and tool welded to its flange, as :func:`ftdrake.sim.scene.add_scene` builds it);
 ``physics.scenario_robot.robot_description(config)`` gives the description of any scenario's arm.
@@ -24,14 +28,17 @@ from ..assets import offline_parser
 from ..errors import RobotModelError
 
 DIRECTIVES_PREFIX = "directives:"
+# The opening tag of a robot description held as text, and its format for Drake's parser.
+_INLINE_TAGS = (("<robot", "urdf"), ("<sdf", "sdf"))
+_SHIPPED = "package://ftdrake/"
 
 
 @dc.dataclass(frozen=True)
 class RobotDescription:
     """A robot model and the sensor frame S in it.
 
-    model: a file path or ``package://`` URL (URDF, SDF, ``.dmd.yaml``), or model-directives
-      text starting with ``directives:``.
+    model: a file path or ``package://`` URL (URDF, SDF, ``.dmd.yaml``), model-directives
+      text starting with ``directives:``, or a URDF/SDF's text (see :func:`embed_model`).
     sensor_frame: frame S, as ``"model::frame"`` or a frame name unique in the plant.
     base_frame: a frame to weld to the world (None: the model is already welded or fixed,
       as model directives and most URDFs with a world joint are).
@@ -108,10 +115,66 @@ def ftdrake_arm() -> RobotDescription:
 
 
 def model_label(model: str) -> str:
-    """A short name of a robot model for messages (directives text is not one)."""
+    """A short name of a robot model for messages (text held inline is not one)."""
     if model.lstrip().startswith(DIRECTIVES_PREFIX):
         return "(model directives)"
+    kind = inline_format(model)
+    if kind is not None:
+        return f"(embedded {kind.upper()}, {len(model)} characters)"
     return repr(model)
+
+
+def inline_format(model: str) -> str | None:
+    """``"urdf"`` or ``"sdf"`` when `model` is the description's text itself, else None."""
+    head = model.lstrip()
+    if not head.startswith("<"):
+        return None
+    first = min(((head.find(tag), kind) for tag, kind in _INLINE_TAGS if tag in head),
+                default=None)
+    return first[1] if first else None
+
+
+def embed_model(model: str, package_xmls=()) -> tuple[str, bool]:
+    """`model` as text that loads without the file it came from, and whether it does.
+
+    A URDF/SDF file or ``package://`` URL becomes its text (portable unless an SDF
+    ``<include>``s other files); model directives (text or a ``.dmd.yaml`` file) stay as they
+    are, portable when every model they add is one of ftdrake's (``package://ftdrake/``).
+    Text already inline is returned as it is. RobotModelError names a file that cannot be read.
+    """
+    if inline_format(model) is not None:
+        return model, "<include" not in model
+    if model.lstrip().startswith(DIRECTIVES_PREFIX):
+        return model, _directives_portable(model)
+    path = _resolve(model, package_xmls)
+    if not Path(path).is_file():
+        raise RobotModelError(f"robot model {model!r}: no such file")
+    try:
+        text = Path(path).read_text()
+    except (OSError, UnicodeDecodeError) as e:
+        raise RobotModelError(f"robot model {model!r}: cannot read {path}: {e}") from None
+    if path.endswith((".dmd.yaml", ".yaml")):
+        return text, _directives_portable(text)
+    if inline_format(text) is None:
+        raise RobotModelError(f"robot model {model!r}: {path} is neither URDF nor SDF")
+    return text, "<include" not in text
+
+
+def _resolve(model: str, package_xmls) -> str:
+    """The file behind a path or ``package://`` URL."""
+    if "://" not in model:
+        return model
+    plant = MultibodyPlant(0.0)
+    try:
+        return offline_parser(plant, package_xmls).package_map().ResolveUrl(model)
+    except (FileNotFoundError, RuntimeError) as e:
+        raise RobotModelError(f"robot model {model!r}: {e}") from None
+
+
+def _directives_portable(text: str) -> bool:
+    files = [line.split("file:", 1)[1].strip() for line in text.splitlines()
+             if line.strip().startswith("file:")]
+    return all(f.strip("'\"").startswith(_SHIPPED) for f in files)
 
 
 def add_robot_model(plant, model: str, package_xmls=()) -> None:
@@ -126,6 +189,8 @@ def add_robot_model(plant, model: str, package_xmls=()) -> None:
     try:
         if model.lstrip().startswith(DIRECTIVES_PREFIX):
             parser.AddModelsFromString(model, "dmd.yaml")
+        elif inline_format(model) is not None:
+            parser.AddModelsFromString(model, inline_format(model))
         elif "://" in model:
             parser.AddModels(url=model)
         elif not Path(model).is_file():
