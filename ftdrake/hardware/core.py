@@ -5,7 +5,8 @@ A transport (LCM: :class:`~ftdrake.hardware.station.HardwareStation`; ROS 2:
 samples to :meth:`StationCore.on_joint_sample`, :meth:`~StationCore.on_wrench_sample`,
 :meth:`~StationCore.on_temperature_sample` and :meth:`~StationCore.on_event_signal`, and
 publishes through two hooks it implements, ``_publish_wrench(t)`` and
-``_publish_contact(t, fault)``. Everything between is here, once: the
+``_publish_contact(t, fault)`` (returns whether it published). Everything between is here,
+once: the
 :class:`~ftdrake.hardware.live_inputs.StreamMonitor` checks, one diagram update per
 accepted, fault-free F/T sample, the fault episodes, the counts and the latencies.
 
@@ -145,7 +146,7 @@ class StationCore:
     def _publish_wrench(self, t: float) -> None:
         raise NotImplementedError
 
-    def _publish_contact(self, t: float, fault: bool) -> None:
+    def _publish_contact(self, t: float, fault: bool) -> bool:
         raise NotImplementedError
 
     def output(self, name: str) -> np.ndarray:
@@ -199,8 +200,7 @@ class StationCore:
                 self._publish_wrench(t)
                 self.latencies.append(self.clock() - arrival)
                 self.published += 1
-        self._publish_contact(t, self.monitor.fault)
-        self.contact_published += 1
+        self.contact_published += bool(self._publish_contact(t, self.monitor.fault))
         self._note(t)
 
     def check_timeouts(self) -> None:
@@ -209,8 +209,7 @@ class StationCore:
         now = self.clock()
         if self.monitor.check_timeouts(now) and not was:
             t = self._stream_time(now)
-            self._publish_contact(t, True)
-            self.contact_published += 1
+            self.contact_published += bool(self._publish_contact(t, True))
             self._note(t, now)
 
     def _stream_time(self, now: float | None = None) -> float:

@@ -144,9 +144,10 @@ class HardwareStation(StationCore):
         self.lcm.publish(self.config.external_wrench_channel,
                          encode_wrench(t, self.output("wrench_compensated")))
 
-    def _publish_contact(self, t: float, fault: bool) -> None:
+    def _publish_contact(self, t: float, fault: bool) -> bool:
         self.lcm.publish(self.config.contact_channel,
                          encode_contact_state(self.contact_state(t, fault)))
+        return True
 
     # -- running ------------------------------------------------------------------------------
     def spin_once(self, timeout_ms: int = 1) -> int:
