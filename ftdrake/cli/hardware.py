@@ -26,6 +26,7 @@ import time
 from pathlib import Path
 
 from ..errors import ConfigError, ModelFileError
+from . import ros2
 from .main import existing_file, load_scenario, naming, output_path, positive_float
 
 STATUS_PERIOD_S = 0.5  # status line rate: 2 Hz
@@ -40,6 +41,7 @@ def register(sub) -> None:
                    "detector, sensor settings (default: the shipped one)")
     _add_transport_flags(p)
     p.add_argument("--duration", type=positive_float, help="stop after S seconds (wall clock)")
+    ros2.add_options(p)
     p.set_defaults(run=_serve)
 
     p = sub.add_parser("record", help="record a live robot's joint state and F/T (LCM) into the "
@@ -53,6 +55,7 @@ def register(sub) -> None:
                    help="stop after S seconds (default: on Ctrl-C)")
     p.add_argument("--tolerance", type=positive_float, default=0.002, metavar="S",
                    help="a joint state older than this (s) matches no F/T row, default 0.002")
+    ros2.add_options(p)
     p.set_defaults(run=_record)
 
 
@@ -150,6 +153,8 @@ def _serve(args) -> int:
     from ..compensation.persistence import load_model
     from ..hardware.station import HardwareStation
 
+    if args.ros2:
+        return ros2.serve(args)
     scenario = load_scenario(args)
     hardware = hardware_from_args(args)
     existing_file("--model", args.model, ModelFileError)
@@ -187,6 +192,8 @@ def _serve(args) -> int:
 def _record(args) -> int:
     from ..hardware.recording import read_lcm_log, table_from_messages, write_table
 
+    if args.ros2:
+        return ros2.record(args)
     hardware = hardware_from_args(args)
     output_path("--out", args.out, folder=False)
     if args.from_log is not None:

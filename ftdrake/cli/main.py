@@ -158,6 +158,9 @@ def _add_simulate(sub):
                    "(channels, message types) for --lcm")
     p.add_argument("--realtime", action="store_true", help="pace the simulation to the wall "
                    "clock")
+    from . import ros2
+
+    ros2.add_options(p)
     p.set_defaults(run=_simulate)
 
 
@@ -173,7 +176,11 @@ def _simulate(args):
     station = build_station(config, meshcat=meshcat)
     if meshcat is not None:
         meshcat.StartRecording(set_visualizations_while_recording=False)
-    if args.lcm is not None or args.hardware is not None:
+    if args.ros2:
+        from . import ros2
+
+        result = ros2.simulate(args, station)
+    elif args.lcm is not None or args.hardware is not None:
         from ..sim.lcm_publisher import simulate_on_lcm
         from .hardware import describe_channels, hardware_from_args, open_transport
 

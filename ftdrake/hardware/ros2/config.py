@@ -53,6 +53,12 @@ class Ros2Config:
       a ``diagnostic_msgs/msg/DiagnosticArray`` every `diagnostics_period_s` and at each fault
       change (level OK / WARN out of domain / ERROR fault; keys fault, reason, out_of_domain,
       message rates, counts).
+    `queue_depth`: samples a subscription (and each of ftdrake's writers) keeps while the
+      station lags (1 s at 1 kHz); a lag beyond it loses the oldest.
+    `reorder_window_s`: 0 hands messages to the station as they arrive (lowest latency, as
+      on LCM); > 0 holds them that long and hands them over in publication order, so a joint
+      state retransmitted after a lost datagram still precedes the wrench published after it
+      (DDS keeps each topic in order, not the two topics together); adds that much latency.
     DDS: `domain_id` is ROS_DOMAIN_ID; `dds_config` is ``loopback`` (this machine only),
       ``environment`` (CYCLONEDDS_URI or Cyclone's defaults, as a ROS 2 node has) or a
       Cyclone XML / ``file://`` URL (:mod:`ftdrake.hardware.ros2.dds`).
@@ -72,7 +78,8 @@ class Ros2Config:
     diagnostics_period_s: float = 1.0
     sensor_timeout_s: float = 0.005
     joint_state_timeout_s: float = 0.02
-    queue_depth: int = 100
+    queue_depth: int = 1000
+    reorder_window_s: float = 0.0
     domain_id: int = 0
     dds_config: str = "loopback"
 
@@ -117,6 +124,10 @@ class Ros2Config:
             if not (isinstance(value, (int, float)) and value > 0 and math.isfinite(value)):
                 raise ConfigError(f"{where}.{field}: must be a positive number of seconds, "
                                   f"got {value!r}")
+        if not (isinstance(self.reorder_window_s, (int, float)) and
+                0 <= self.reorder_window_s < 1):
+            raise ConfigError(f"{where}.reorder_window_s: seconds in [0, 1), got "
+                              f"{self.reorder_window_s!r}")
         if not (isinstance(self.queue_depth, int) and self.queue_depth >= 1):
             raise ConfigError(f"{where}.queue_depth: must be a positive integer, got "
                               f"{self.queue_depth!r}")

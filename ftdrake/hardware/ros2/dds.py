@@ -5,7 +5,9 @@ Where traffic goes (`dds_config`, see :func:`open_participant`):
 
 * ``"loopback"`` (the default): ftdrake creates the DDS domain with :data:`LOOPBACK_XML`, a
   Cyclone configuration that binds the loopback interface ``lo`` only, turns multicast off and
-  discovers peers by unicast to 127.0.0.1 (participant indices 0..`MAX_PARTICIPANTS`-1).
+  discovers peers by unicast to 127.0.0.1 (participant indices 0..`MAX_PARTICIPANTS`-1),
+  and asks for 4 MB socket receive buffers (the kernel caps them at ``net.core.rmem_max``),
+  so that a receiver descheduled for a while loses fewer datagrams to retransmit.
   Nothing leaves the machine: tests and benchmarks use it, and so do a driver and ftdrake on
   one computer whose ROS 2 nodes are configured the same way (``CYCLONEDDS_URI`` pointing at
   the same XML: :func:`loopback_xml` writes it).
@@ -24,15 +26,17 @@ type ``sensor_msgs/msg/JointState`` is ``sensor_msgs::msg::dds_::JointState_``
 (reliable, volatile, keep last `depth`), ``sensor_data`` its ``SensorDataQoS`` (best effort,
 keep last 5). Writers use plain CDR (XCDR1), ROS 2's encoding.
 
-:class:`Ros2Node` delivers every message of all its subscriptions in the order they arrived,
-across topics, through one queue: a DDS listener (Cyclone's receive thread) takes the samples
-and stamps their arrival with the node's clock; :meth:`Ros2Node.spin` calls the handlers in the
-caller's thread. So a joint state that arrived before a wrench is handled before it, as on LCM.
+:class:`Ros2Node` delivers the messages of all its subscriptions in the order they were
+published, across topics: :meth:`Ros2Node.spin` waits on a DDS WaitSet (without holding
+Python's GIL), takes every sample of every reader and hands them to the handlers sorted by
+their DDS source timestamps (the writer's clock; one clock for all the topics of one driver
+process), each stamped with the node's clock as it is handled, as LCM's ``handle`` does. So a
+joint state published before a wrench is handled before it when both have arrived; with a
+reorder window also when the joint state was delivered up to that long after the wrench.
 """
 
 from __future__ import annotations
 
-import queue
 import re
 import threading
 import time
@@ -52,6 +56,9 @@ LOOPBACK_XML = f"""<CycloneDDS xmlns="https://cdds.io/config">
       <Interfaces><NetworkInterface name="lo"/></Interfaces>
       <AllowMulticast>false</AllowMulticast>
     </General>
+    <Internal>
+      <SocketReceiveBufferSize min="default" max="4MB"/>
+    </Internal>
     <Discovery>
       <ParticipantIndex>auto</ParticipantIndex>
       <MaxAutoParticipantIndex>{MAX_PARTICIPANTS - 1}</MaxAutoParticipantIndex>
@@ -133,17 +140,27 @@ def qos(profile: str, depth: int = 10, *, writer: bool = False):
 class Ros2Node:
     """A participant with ROS 2 publishers and subscriptions (see the module).
 
-    `clock` stamps arrivals (s, monotonic). Handlers are ``handler(message, arrival)``.
+    `clock` stamps arrivals (s, monotonic) as messages are handled. Handlers are
+    ``handler(message, arrival)``. `reorder_window_s` > 0 holds each message that long before
+    handing it over, so that one published earlier on another topic but delivered later
+    (retransmitted after a lost datagram: DDS orders each writer's messages, not messages of
+    different topics) still goes first; it adds that much latency.
     """
 
     def __init__(self, domain_id: int = 0, dds_config: str = "loopback", *,
-                 clock: Callable[[], float] = time.monotonic, where: str = "ros2.dds_config"):
+                 clock: Callable[[], float] = time.monotonic, reorder_window_s: float = 0.0,
+                 where: str = "ros2.dds_config"):
         self.participant = None
         self.participant = open_participant(domain_id, dds_config, where)
+        from cyclonedds.core import WaitSet  # noqa: PLC0415 (cyclonedds only for ROS 2)
+
         self.clock = clock
-        self._queue: queue.SimpleQueue = queue.SimpleQueue()
+        self.reorder_window_s = float(reorder_window_s)
+        self._pending: list = []
+        self._taken = 0
+        self._waitset = WaitSet(self.participant)
         self._topics: dict[str, object] = {}
-        self._readers, self._writers, self._listeners = [], [], []
+        self._readers, self._writers, self._conditions, self._handlers = [], [], [], []
 
     def _topic(self, name: str, msgtype: str):
         from cyclonedds.topic import Topic  # noqa: PLC0415 (cyclonedds only for ROS 2)
@@ -165,42 +182,68 @@ class Ros2Node:
     def subscribe(self, topic: str, msgtype: str, handler, profile: str = "reliable",
                   depth: int = 100) -> None:
         """Calls ``handler(message, arrival)`` from :meth:`spin` for each message."""
-        from cyclonedds.core import Listener  # noqa: PLC0415 (cyclonedds only for ROS 2)
-        from cyclonedds.sub import DataReader  # noqa: PLC0415 (as above)
+        from cyclonedds.core import (  # noqa: PLC0415 (cyclonedds only for ROS 2)
+            InstanceState,
+            ReadCondition,
+            SampleState,
+            ViewState,
+        )
+        from cyclonedds.sub import DataReader  # noqa: PLC0415 (cyclonedds only for ROS 2)
 
-        kind = ros2_type(msgtype)
-        put, clock = self._queue.put, self.clock
-
-        def on_data_available(reader) -> None:
-            samples = reader.take(N=depth)
-            arrival = clock()
-            for sample in samples:
-                if isinstance(sample, kind):  # not an InvalidSample (a writer went away)
-                    put((handler, sample, arrival))
-
-        listener = Listener(on_data_available=on_data_available)
-        reader = DataReader(self.participant, self._topic(topic, msgtype), qos(profile, depth),
-                            listener)
+        reader = DataReader(self.participant, self._topic(topic, msgtype), qos(profile, depth))
+        condition = ReadCondition(reader, SampleState.Any | ViewState.Any | InstanceState.Any)
+        self._waitset.attach(condition)
         self._readers.append(reader)
-        self._listeners.append(listener)
+        self._conditions.append(condition)
+        self._handlers.append((reader, ros2_type(msgtype), handler, depth))
+
+    def _take(self) -> None:
+        """Moves every sample waiting in a reader to the pending list, as
+        (source timestamp, order taken, handler, message, taken at)."""
+        now = time.monotonic()
+        for reader, kind, handler, depth in self._handlers:
+            while samples := reader.take(N=depth):
+                for sample in samples:
+                    if isinstance(sample, kind):  # not an InvalidSample (a writer went away)
+                        self._taken += 1
+                        self._pending.append((sample.sample_info.source_timestamp,
+                                              self._taken, handler, sample, now))
+
+    def _due(self) -> list:
+        """The pending messages to hand over now, in publication order: those held for the
+        reorder window, and every one published before the newest of them."""
+        if not self._pending:
+            return []
+        if self.reorder_window_s <= 0:
+            due, self._pending = sorted(self._pending), []
+            return due
+        held_until = time.monotonic() - self.reorder_window_s
+        ripe = [item[0] for item in self._pending if item[4] <= held_until]
+        if not ripe:
+            return []
+        newest = max(ripe)
+        due = sorted(item for item in self._pending if item[0] <= newest)
+        self._pending = [item for item in self._pending if item[0] > newest]
+        return due
 
     def spin(self, timeout_ms: float = 0) -> int:
-        """Handles every queued message in arrival order, waiting up to `timeout_ms` for the
-        first one. Returns how many were handled."""
-        handled = 0
-        try:
-            item = self._queue.get(timeout=timeout_ms / 1e3) if timeout_ms > 0 else \
-                self._queue.get_nowait()
-        except queue.Empty:
-            return 0
-        while True:
-            handler, sample, arrival = item
-            handler(sample, arrival)
-            handled += 1
-            try:
-                item = self._queue.get_nowait()
-            except queue.Empty:
-                return handled
+        """Handles the waiting messages in publication order (see the module), waiting up
+        to `timeout_ms` for one. Returns how many were handled."""
+        self._take()
+        due = self._due()
+        if not due and timeout_ms > 0:
+            wait_s = timeout_ms / 1e3
+            if self._pending:  # until the oldest held one is due
+                oldest = min(item[4] for item in self._pending)
+                wait_s = min(wait_s, max(0.0, oldest + self.reorder_window_s
+                                         - time.monotonic()))
+            if wait_s > 0:
+                self._waitset.wait(int(wait_s * 1e9))
+            self._take()
+            due = self._due()
+        for _, _, handler, sample, _ in due:
+            handler(sample, self.clock())
+        return len(due)
 
     def matched(self) -> dict[str, int]:
         """Matched remote endpoints per DDS topic: writers' readers and readers' writers."""
@@ -212,18 +255,30 @@ class Ros2Node:
             counts[name] = counts.get(name, 0) + status.current_count
         return counts
 
+    def wait_for_acks(self, timeout_s: float) -> bool:
+        """Waits up to `timeout_s` until every reliable subscriber acknowledged everything
+        this node's writers wrote; returns whether they all did."""
+        from cyclonedds.core import DDSException  # noqa: PLC0415 (cyclonedds only for ROS 2)
+
+        end = time.monotonic() + timeout_s
+        done = True
+        for writer in self._writers:
+            left = max(0.0, end - time.monotonic())
+            try:
+                done &= bool(writer.wait_for_acks(int(left * 1e9)))
+            except DDSException:  # timed out
+                done = False
+        return done
+
     def close(self) -> None:
-        """Deletes the participant and with it its readers, writers and topics (Cyclone waits
-        for a running listener). Before the Python objects go: a reader outliving its
-        listener's Python callbacks would call freed memory."""
+        """Deletes the participant and with it its readers, writers, topics and wait set."""
         if self.participant is None:
             return
         self.participant.__del__()  # Entity's own deletion (dds_delete); idempotent after
-        self.participant = None
-        self._readers.clear()
-        self._writers.clear()
+        self.participant = self._waitset = None
+        for entities in (self._readers, self._writers, self._conditions, self._handlers):
+            entities.clear()
         self._topics.clear()
-        self._listeners.clear()
 
     def __del__(self) -> None:
         self.close()

@@ -67,13 +67,14 @@ class Ros2Station(StationCore):
                          joint_state_timeout_s=c.joint_state_timeout_s,
                          temperature_timeout_s=c.temperature_timeout_s, events=events,
                          clock=clock, on_event=self._on_fault_change, max_events=max_events)
-        self.node = node if node is not None else Ros2Node(c.domain_id, c.dds_config,
-                                                           clock=clock)
+        self.node = node if node is not None else Ros2Node(
+            c.domain_id, c.dds_config, clock=clock, reorder_window_s=c.reorder_window_s)
         self._index = {name: k for k, name in enumerate(c.joint_names)}
         self._order = (None, None)  # (names of the last message, their permutation)
         self._header = None  # the wrench message being processed
         self._contact_due = False  # its wrench was published: contact and force follow
-        self._writers = {name: self.node.publisher(c.output_topic(name), msgtype)
+        self._writers = {name: self.node.publisher(c.output_topic(name), msgtype,
+                                                   depth=c.queue_depth)
                          for name, msgtype in OUTPUTS.items()
                          if name not in ("bias", "payload") or name in self._out}
         self._diagnostics = self.node.publisher(c.diagnostics_topic,
