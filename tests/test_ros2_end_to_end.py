@@ -70,11 +70,8 @@ def test_simulate_and_serve_over_dds(tmp_path):
     # Timeouts well above a shared 2-core machine's scheduling gaps (20-80 ms seen at load 10
     # between two messages written back to back): this test is about counts and numbers; the
     # timeouts themselves are tested in test_ros2_station.py.
-    # A reorder window: a joint state retransmitted after a lost datagram (seen at load 10)
-    # must still precede the wrench published after it, for the pairing to be the simulation's.
     config = Ros2Config(joint_names=names, domain_id=DOMAIN, queue_depth=5000,
-                        sensor_timeout_s=0.25, joint_state_timeout_s=0.25,
-                        reorder_window_s=0.2).validate()
+                        sensor_timeout_s=0.25, joint_state_timeout_s=0.25).validate()
     save_config(config, tmp_path / "ros2.yaml")
 
     listener = Ros2Node(DOMAIN)

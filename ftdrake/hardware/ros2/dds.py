@@ -209,38 +209,46 @@ class Ros2Node:
                         self._pending.append((sample.sample_info.source_timestamp,
                                               self._taken, handler, sample, now))
 
-    def _due(self) -> list:
-        """The pending messages to hand over now, in publication order: those held for the
-        reorder window, and every one published before the newest of them."""
-        if not self._pending:
+    def _due(self, limit) -> list:
+        """The pending messages to hand over now, in publication order: those published no
+        later than `limit` (source timestamp) and, with a reorder window, no later than the
+        newest one held for the window."""
+        if limit is None:
             return []
-        if self.reorder_window_s <= 0:
-            due, self._pending = sorted(self._pending), []
-            return due
-        held_until = time.monotonic() - self.reorder_window_s
-        ripe = [item[0] for item in self._pending if item[4] <= held_until]
-        if not ripe:
-            return []
-        newest = max(ripe)
-        due = sorted(item for item in self._pending if item[0] <= newest)
-        self._pending = [item for item in self._pending if item[0] > newest]
+        if self.reorder_window_s > 0:
+            held_until = time.monotonic() - self.reorder_window_s
+            ripe = [item[0] for item in self._pending if item[4] <= held_until]
+            if not ripe:
+                return []
+            limit = min(limit, max(ripe))
+        due = sorted(item for item in self._pending if item[0] <= limit)
+        self._pending = [item for item in self._pending if item[0] > limit]
         return due
+
+    def _complete(self):
+        """Takes twice; returns the newest source timestamp up to which every message is in
+        hand (None: nothing pending). Why twice: readers are taken one after the other, so a
+        joint state delivered just before a wrench can be missed by the pass that takes the
+        wrench; a message published before one taken in the first pass was delivered before
+        it (one sender's datagrams arrive in order), so the second pass takes it."""
+        self._take()
+        limit = max((item[0] for item in self._pending), default=None)
+        self._take()
+        return limit
 
     def spin(self, timeout_ms: float = 0) -> int:
         """Handles the waiting messages in publication order (see the module), waiting up
         to `timeout_ms` for one. Returns how many were handled."""
-        self._take()
-        due = self._due()
+        due = self._due(self._complete())
         if not due and timeout_ms > 0:
             wait_s = timeout_ms / 1e3
-            if self._pending:  # until the oldest held one is due
+            if self._pending and self.reorder_window_s > 0:  # until the oldest held is due
                 oldest = min(item[4] for item in self._pending)
                 wait_s = min(wait_s, max(0.0, oldest + self.reorder_window_s
                                          - time.monotonic()))
-            if wait_s > 0:
+            if wait_s > 0 and not (self._pending and self.reorder_window_s <= 0):
                 self._waitset.wait(int(wait_s * 1e9))
-            self._take()
-            due = self._due()
+            due = self._due(self._complete())
         for _, _, handler, sample, _ in due:
             handler(sample, self.clock())
         return len(due)
