@@ -234,3 +234,26 @@ def test_config_errors():
         scenario = ScenarioConfig()
         scenario.bias_tracker.enabled = False
         Rig(scenario, tare_topic="/ft_tare")
+
+
+@pytest.mark.parametrize("window", [0.0, 0.05])
+def test_messages_go_in_publication_order_within_the_reorder_window(window):
+    """A joint state published before a wrench but delivered after it (as after a lost
+    datagram): with a reorder window it is still handed over first; without, as it arrives."""
+    with Ros2Node(DOMAIN, reorder_window_s=window) as node, Ros2Node(DOMAIN) as driver:
+        got = []
+        topics = {"joint": f"/order_{os.getpid()}/joint", "wrench": f"/order_{os.getpid()}/ft"}
+        for kind, topic in topics.items():
+            node.subscribe(topic, "std_msgs/msg/Float64", lambda _m, _a, k=kind: got.append(k))
+        writers = {kind: driver.publisher(topic, "std_msgs/msg/Float64")
+                   for kind, topic in topics.items()}
+        wait_for(lambda: all(driver.matched().values()) and all(node.matched().values()),
+                 "DDS discovery")
+        Float64 = ros2_type("std_msgs/msg/Float64")
+        now_ns = time.time_ns()
+        writers["wrench"].write(Float64(data=1.0), timestamp=now_ns)
+        time.sleep(0.01)
+        node.spin(0)
+        writers["joint"].write(Float64(data=0.0), timestamp=now_ns - 1_000_000)  # earlier
+        wait_for(lambda: (node.spin(10), len(got))[1] == 2, "both messages")
+        assert got == (["joint", "wrench"] if window else ["wrench", "joint"])
