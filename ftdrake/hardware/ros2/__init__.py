@@ -5,7 +5,7 @@ rosbags' copy of ROS 2's definitions), ``dds`` (the participant, loopback config
 topic names and QoS, arrival-ordered delivery), ``config`` (Ros2Config: topics, joint names,
 QoS, timeouts), ``station`` (Ros2Station: the runtime chain on the driver's topics; shares
 :class:`~ftdrake.hardware.core.StationCore` with the LCM station), ``recording`` (live
-messages → the ``collect`` Parquet layout, or a ROS 2 bag). The simulated robot on ROS 2 is
+messages → the ``collect`` Parquet layout). The simulated robot on ROS 2 is
 :mod:`ftdrake.sim.ros2_publisher`. Needs the ``cyclonedds`` package (``ftdrake[ros2]``).
 """
 
