@@ -13,7 +13,9 @@ takes serve's compensated ``WrenchStamped`` back. Two figures:
 * station: arrival → publication, as serve measures it (from the wrench message's handling to
   the return of the write of its compensated wrench; what ``live_latency.py`` reports for LCM),
 * round trip: this process's write of the wrench → its receipt of the compensated wrench
-  (two DDS hops on loopback, serve's wait and work, this process's wake-up).
+  (two DDS hops on loopback, serve's wait and work, this process's wake-up), after
+  `--warmup` s of messages (serve compiles the model's kernels on its first ones; the station
+  figure includes those messages, which are a few among tens of thousands).
 
 Counts are checked: written = received by serve = processed = published = received back.
 The 1-minute load average before and after is printed; on a shared 2-core machine only the
@@ -96,7 +98,8 @@ def run_one(model, scenario, names, q_range, args, folder: Path) -> dict:
         rng = np.random.default_rng(0)
         JointState = ros2_type("sensor_msgs/msg/JointState")
         n, period = len(names), 1.0 / args.rate
-        count = round(args.duration * args.rate)
+        warmup = round(args.warmup * args.rate)  # serve's first messages compile its kernels
+        count = warmup + round(args.duration * args.rate)
         sent = {}
         load_before = os.getloadavg()[0]
         start = time.perf_counter()
@@ -107,10 +110,11 @@ def run_one(model, scenario, names, q_range, args, folder: Path) -> dict:
             q = rng.uniform(*q_range)
             joints.write(JointState(header=header(t), name=names, position=list(q),
                                     velocity=list(rng.normal(scale=0.1, size=n)), effort=[]))
-            sent[round(t * 1e6)] = time.monotonic()
+            if k >= warmup:
+                sent[round(t * 1e6)] = time.monotonic()
             wrenches.write(wrench_stamped(header(t, "ft_sensor"), rng.normal(size=6)))
             node.spin(0)
-        end = time.monotonic() + 5
+        end = time.monotonic() + 30
         while len(back) < count and time.monotonic() < end:
             node.spin(10)
         load_after = os.getloadavg()[0]
@@ -122,7 +126,8 @@ def run_one(model, scenario, names, q_range, args, folder: Path) -> dict:
         node.close()
     summary = json.loads(out.strip().splitlines()[-1])
     trip = np.array([back[key] - sent[key] for key in sent if key in back]) * 1e3
-    return {"written": count, "received_by_serve": summary["received"].get("ft", 0),
+    return {"written": count, "timed": len(sent),
+            "received_by_serve": summary["received"].get("ft", 0),
             "processed": summary["processed"], "published": summary["published_wrench"],
             "received_back": len(back),
             "station_p50_ms": summary["latency_ms"]["p50"],
@@ -136,6 +141,8 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--duration", type=float, default=60.0, help="s per model")
     parser.add_argument("--rate", type=float, default=500.0, help="sensor rate, Hz")
+    parser.add_argument("--warmup", type=float, default=2.0, help="s of messages first, not "
+                        "timed in the round trip (serve compiles on its first messages)")
     parser.add_argument("--train-s", type=float, default=20.0, help="simulated training s")
     parser.add_argument("--models", default="rf,hybrid")
     args = parser.parse_args()
