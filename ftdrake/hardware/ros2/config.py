@@ -45,11 +45,11 @@ class Ros2Config:
     Outputs, under `output_namespace` (see :data:`OUTPUTS`): ``wrench`` the compensated
       contact wrench (measured − predicted − the tracker's bias and payload; the input's
       ``frame_id`` and stamp), only while the inputs are fault-free; ``contact`` (Bool) and
-      ``contact_force`` (Float64, ‖F‖ N while in contact, else 0) per wrench message, also
-      under a fault (then ``contact`` is False until the detector runs again); ``bias``
+      ``contact_force`` (Float64, ‖F‖ N while in contact, else 0), ``bias``
       (WrenchStamped, with the tracker) and ``payload`` (InertiaStamped with ``m`` = Δm kg,
       ``com`` = Δ(m·c)/Δm m in the sensor frame (zero while |Δm| < 1 g), moments zero: not
-      estimated; with ``track_payload``) per processed message; and on `diagnostics_topic`
+      estimated; with ``track_payload``) with each published wrench, so never under a fault
+      (these types carry no fault flag); and on `diagnostics_topic`
       a ``diagnostic_msgs/msg/DiagnosticArray`` every `diagnostics_period_s` and at each fault
       change (level OK / WARN out of domain / ERROR fault; keys fault, reason, out_of_domain,
       message rates, counts).
