@@ -4,7 +4,8 @@ alphabetical order, not the model's) and its sensor's WrenchStamped at the senso
 ``ftdrake serve --ros2`` compensates them. Checked: every message once on every side (the
 simulation's count, serve's summary and a third listener, this test), the published wrench
 equals the in-simulation chain's (``est_external_*``, bias tracker included) to 1e-9 with the
-input's stamp and frame_id, the contact flag its detector's, sample for sample; a NaN wrench
+input's stamp and frame_id, the contact flag and force its detector's and the bias its
+tracker's, sample for sample; a NaN wrench
 and a joint state with an unknown joint injected before the stream are faulted, printed,
 counted, and serve recovers; when the stream stops the timeout is on /diagnostics and serve
 stops cleanly on SIGINT with its summary."""
@@ -75,13 +76,15 @@ def test_simulate_and_serve_over_dds(tmp_path):
     save_config(config, tmp_path / "ros2.yaml")
 
     listener = Ros2Node(DOMAIN)
-    got = {k: [] for k in ("joint", "ft", "wrench", "contact", "contact_force", "diagnostics")}
+    got = {k: [] for k in ("joint", "ft", "wrench", "contact", "contact_force", "bias",
+                           "diagnostics")}
     for key, topic, msgtype in (
             ("joint", config.joint_state_topic, "sensor_msgs/msg/JointState"),
             ("ft", config.wrench_topic, "geometry_msgs/msg/WrenchStamped"),
             ("wrench", config.output_topic("wrench"), "geometry_msgs/msg/WrenchStamped"),
             ("contact", config.output_topic("contact"), "std_msgs/msg/Bool"),
             ("contact_force", config.output_topic("contact_force"), "std_msgs/msg/Float64"),
+            ("bias", config.output_topic("bias"), "geometry_msgs/msg/WrenchStamped"),
             ("diagnostics", config.diagnostics_topic, "diagnostic_msgs/msg/DiagnosticArray")):
         # Its Python takes ~5 kHz of messages: a deep history while it lags on a loaded machine.
         listener.subscribe(topic, msgtype, lambda m, _a, k=key: got[k].append(m), depth=30_000)
@@ -159,6 +162,10 @@ def test_simulate_and_serve_over_dds(tmp_path):
     np.testing.assert_array_equal(detected, log["detected"].to_numpy().astype(bool))
     np.testing.assert_allclose([f.data for f in got["contact_force"]],
                                log["detected_force"].to_numpy(), rtol=0, atol=1e-9)
+    assert scenario.bias_tracker.enabled and len(got["bias"]) == K
+    np.testing.assert_allclose([wrench_of(b) for b in got["bias"]],
+                               log[[f"bias_est_{a}" for a in WRENCH_AXES]].to_numpy(), rtol=0,
+                               atol=1e-9)
 
     # Faults: printed with their cause, recovered, the final timeout on /diagnostics.
     err = serve_err.read_text()

@@ -257,3 +257,16 @@ def test_messages_go_in_publication_order_within_the_reorder_window(window):
         writers["joint"].write(Float64(data=0.0), timestamp=now_ns - 1_000_000)  # earlier
         wait_for(lambda: (node.spin(10), len(got))[1] == 2, "both messages")
         assert got == (["joint", "wrench"] if window else ["wrench", "joint"])
+
+
+def test_cli_errors_name_the_ros2_setting(tmp_path, capsys):
+    from ftdrake.cli.main import main
+
+    assert main(["serve", "--ros2", "--model", str(tmp_path / "m.ftd")]) == 2
+    assert "ros2.joint_names: list the model's joints" in capsys.readouterr().err
+    (tmp_path / "ros2.yaml").write_text("joint_names: [a, b]\nwrench_qos: fast\n")
+    assert main(["record", "--ros2", "--ros2-config", str(tmp_path / "ros2.yaml"), "--out",
+                 str(tmp_path / "r.parquet")]) == 2
+    err = capsys.readouterr().err
+    assert "ros2.wrench_qos: 'fast' is not one of reliable, sensor_data" in err
+    assert "ros2.yaml" in err
