@@ -270,3 +270,37 @@ def test_cli_errors_name_the_ros2_setting(tmp_path, capsys):
     err = capsys.readouterr().err
     assert "ros2.wrench_qos: 'fast' is not one of reliable, sensor_data" in err
     assert "ros2.yaml" in err
+
+
+def test_tare_and_payload_topics_reach_the_tracker_and_its_estimates_are_published():
+    scenario = ScenarioConfig()
+    scenario.bias_tracker.track_payload = True
+    rig = Rig(scenario, tare_topic=f"/tare_{os.getpid()}", payload_topic=f"/grasp_{os.getpid()}")
+    try:
+        outputs = {"bias": [], "payload": []}
+        for name, msgtype in (("bias", "geometry_msgs/msg/WrenchStamped"),
+                              ("payload", "geometry_msgs/msg/InertiaStamped")):
+            rig.listener.subscribe(rig.config.output_topic(name), msgtype,
+                                   lambda m, _a, n=name: outputs[n].append(m))
+        events = {name: rig.driver.publisher(topic, "std_msgs/msg/Empty") for name, topic in
+                  (("tared", rig.config.tare_topic), ("payload_changed", rig.config.payload_topic))}
+        wait_for(lambda: all(rig.driver.matched().values())
+                 and all(rig.listener.matched().values()), "DDS discovery")
+        Empty = ros2_type("std_msgs/msg/Empty")
+        rig.step(0.0)
+        for writer in events.values():
+            writer.write(Empty(structure_needs_at_least_one_member=0))
+        wait_for(lambda: (rig.dut.spin_once(0), rig.dut.summary()["signals"])[1]["tared"]
+                 ["received"] == 1, "the tare")
+        rig.step(0.001)
+        assert rig.dut.summary()["signals"] == {"tared": {"received": 1, "rejected": 0},
+                                                "payload_changed": {"received": 1, "rejected": 0}}
+        wait_for(lambda: (rig.listener.spin(0), len(outputs["payload"]))[1] == 2, "estimates")
+        assert len(outputs["bias"]) == 2
+        np.testing.assert_allclose(wrench_of(outputs["bias"][-1]), rig.dut.output("bias"),
+                                   rtol=0, atol=0)
+        payload = outputs["payload"][-1]
+        assert payload.header.frame_id == "ft_sensor"
+        assert payload.inertia.m == rig.dut.output("payload")[0]
+    finally:
+        rig.close()
