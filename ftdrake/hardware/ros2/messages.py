@@ -70,7 +70,10 @@ def _base(name: str, bound: int):
 
 def _field_type(node):
     from cyclonedds.idl import types  # noqa: PLC0415 (cyclonedds only for ROS 2)
-    from rosbags.interfaces import Nodetype  # noqa: PLC0415 (as above)
+    try:
+        from rosbags.interfaces import Nodetype  # noqa: PLC0415 (as above)
+    except ImportError:  # rosbags < 0.11 kept it with the type system
+        from rosbags.typesys.base import Nodetype  # noqa: PLC0415
 
     kind, detail = node
     if kind == Nodetype.BASE:
