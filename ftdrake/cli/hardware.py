@@ -20,7 +20,6 @@ from __future__ import annotations
 import contextlib
 import json
 import math
-import signal
 import sys
 import time
 
@@ -31,8 +30,8 @@ from ..hardware.recording import read_lcm_log, table_from_messages, write_table
 from ..hardware.station import HardwareStation
 from ..hardware.transport import open_lcm
 from . import args as a
-
-STATUS_PERIOD_S = 0.5  # status line rate: 2 Hz
+from . import ros2
+from .live import Status, stop_on_signals
 
 
 def register(sub) -> None:
@@ -47,6 +46,7 @@ def register(sub) -> None:
     p.add_argument("--duration", type=a.positive_float, metavar="S",
                    help="stop after S seconds, wall clock (default: on Ctrl-C)")
     a.add_quiet(p, "no channel list and no status line (faults and the summary still print)")
+    ros2.add_options(p)
     p.set_defaults(run=run_serve)
 
     p = a.add_command(sub, "record", "record a live robot (LCM) for train/evaluate",
@@ -61,6 +61,7 @@ def register(sub) -> None:
     p.add_argument("--tolerance", type=a.positive_float, default=0.002, metavar="S",
                    help="a joint state older than this (s) matches no F/T row")
     a.add_quiet(p, "no channel line on stderr")
+    ros2.add_options(p)
     p.set_defaults(run=run_record)
 
 
@@ -102,57 +103,13 @@ def describe_channels(hardware) -> str:
             f"{h.contact_channel} (drake_signal: contact, contact_force, fault, out_of_domain)")
 
 
-@contextlib.contextmanager
-def stop_on_signals():
-    """Yields a one-element list that becomes [True] on SIGINT or SIGTERM; restores the
-    previous handlers after."""
-    stop = [False]
-
-    def handler(_signum, _frame):
-        stop[0] = True
-
-    previous = {s: signal.signal(s, handler) for s in (signal.SIGINT, signal.SIGTERM)}
-    try:
-        yield stop
-    finally:
-        for s, h in previous.items():
-            signal.signal(s, h)
 
 
-class _Status:
-    """The throttled status line: message rates per stream, counts, the current state. The
-    rates are measured also when `quiet` (the summary reports the last ones)."""
-
-    def __init__(self, station, stream=sys.stderr, quiet: bool = False):
-        self.station, self.stream, self.quiet = station, stream, quiet
-        self.tty = stream.isatty() and not quiet
-        self.last = time.monotonic()
-        self.last_counts = dict(station.monitor.received)
-        self.rates = {}
-
-    def maybe_print(self, now: float) -> None:
-        if now - self.last < STATUS_PERIOD_S:
-            return
-        received = self.station.monitor.received
-        dt = now - self.last
-        self.rates = {k: (received[k] - self.last_counts.get(k, 0)) / dt
-                      for k in ("joint", "ft")}
-        self.last, self.last_counts = now, dict(received)
-        if self.quiet:
-            return
-        s = self.station
-        m = s.monitor
-        state = f"FAULT {m.reason}" if m.fault else "ok"
-        contact = s._out["contact"].Eval(s.context)[0] > 0.5
-        line = (f"joint {self.rates['joint']:6.0f} Hz  F/T {self.rates['ft']:6.0f} Hz  "
-                f"processed {s.processed}  published {s.published}  "
-                f"rejected {sum(m.rejected.values())}  {state}  "
-                f"contact {'YES' if contact else 'no'}")
-        end = "\r" if self.tty else "\n"
-        print(line.ljust(100), end=end, file=self.stream, flush=True)
 
 
 def run_serve(args) -> int:
+    if args.ros2:
+        return ros2.serve(args)
     scenario = a.load_scenario(args)
     hardware = hardware_from_args(args)
     with a.naming("--model", args.model):
@@ -167,7 +124,7 @@ def run_serve(args) -> int:
         print(f"ftdrake serve: {type(model).__name__} from {args.model}, "
               f"{1 / station.period:g} Hz updates\n{describe_channels(hardware)}",
               file=sys.stderr, flush=True)
-    status = _Status(station, quiet=args.quiet)
+    status = Status(station, quiet=args.quiet)
     start = time.monotonic()
     with stop_on_signals() as stop:
         while not stop[0]:
@@ -188,6 +145,8 @@ def run_serve(args) -> int:
 
 
 def run_record(args) -> int:
+    if args.ros2:
+        return ros2.record(args)
     hardware = hardware_from_args(args)
     if args.from_log is not None:
         with a.naming("--from-log", args.from_log):

@@ -22,6 +22,7 @@ from ..sim.collection import FREE_KINDS, collect
 from ..sim.lcm_publisher import simulate_on_lcm
 from ..sim.simulate import simulate
 from . import args as a
+from . import ros2
 from .hardware import add_transport_flags, describe_channels, hardware_from_args, open_transport
 
 # The old --scenario values, as trajectory kinds.
@@ -48,6 +49,7 @@ def register(sub) -> None:
                         "LCM, on the channels of --hardware (see `ftdrake serve`)")
     p.add_argument("--realtime", action="store_true", help="pace the simulation to the wall "
                    "clock")
+    ros2.add_options(p)
     p.set_defaults(run=run_simulate)
 
     p = a.add_command(sub, "collect", "free-motion runs → one Parquet dataset")
@@ -78,7 +80,9 @@ def run_simulate(args) -> int:
     if meshcat is not None:
         meshcat.StartRecording(set_visualizations_while_recording=False)
     realtime_rate = 1.0 if args.realtime else 0.0
-    if args.lcm is not None or args.hardware is not None:
+    if args.ros2:
+        result = ros2.simulate(args, station)
+    elif args.lcm is not None or args.hardware is not None:
         hardware = hardware_from_args(args)
         if not args.quiet:
             print(f"ftdrake simulate: publishing {describe_channels(hardware).splitlines()[1]}"

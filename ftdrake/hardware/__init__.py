@@ -3,12 +3,14 @@
 Modules: ``config`` (HardwareConfig: channels, message types, timeouts), ``messages``
 (decode joint state and F/T, encode the external wrench and the contact state),
 ``live_inputs`` (StreamMonitor: per-message checks, fault, counters; RobotStatePairer),
-``transport`` (open_lcm: an LCM connection that does not drop queued messages), ``station``
-(HardwareStation: a message-driven loop around the runtime chain; measure_latency),
+``transport`` (open_lcm: an LCM connection that does not drop queued messages), ``core``
+(StationCore: the message-driven loop around the runtime chain, whatever the transport),
+``station`` (HardwareStation: StationCore on LCM; measure_latency),
 ``recording`` (LCM messages or log → the ``collect`` Parquet layout).
 The simulated robot that publishes what a real one does is :mod:`ftdrake.sim.lcm_publisher`
 (this package imports nothing of the simulation). The commands: ``ftdrake serve``,
-``ftdrake record``, ``ftdrake simulate --lcm`` (:mod:`ftdrake.cli.hardware`).
+``ftdrake record``, ``ftdrake simulate --lcm`` (:mod:`ftdrake.cli.hardware`). The same on
+ROS 2 topics over Cyclone DDS: :mod:`ftdrake.hardware.ros2` (``--ros2``).
 """
 
 from .config import JOINT_STATE_TYPES, HardwareConfig

@@ -33,9 +33,10 @@ from .messages import JointSample, WrenchSample
 
 #: Reasons a message is rejected or the inputs are faulted. ``unpaired`` (robot_state only)
 #: counts a position or velocity message that never met its partner; it is not a fault by
-#: itself (nothing stale is used; a silent pair stream faults by timeout).
+#: itself (nothing stale is used; a silent pair stream faults by timeout). ``joint_names``
+#: (joint states by name, ROS 2): a configured joint missing or an unknown one present.
 REASONS = ("sensor_timeout", "joint_timeout", "temperature_timeout", "out_of_order",
-           "duplicate", "not_finite", "joint_count", "malformed", "unpaired")
+           "duplicate", "not_finite", "joint_count", "malformed", "unpaired", "joint_names")
 
 
 class StreamMonitor:
@@ -76,6 +77,12 @@ class StreamMonitor:
         if stream == "joint":
             self._joint_bad = (reason, detail)
         return False
+
+    def reject_joint(self, reason: str, detail: str) -> bool:
+        """A joint-state message the transport could not turn into a sample (e.g. its joint
+        names do not match): counted as received and rejected, faulted like a bad sample."""
+        self.received["joint"] += 1
+        return self._reject("joint", reason, detail)
 
     def count_unpaired(self, detail: str = "") -> None:
         """A joint message that was received but never formed a sample (robot_state)."""

@@ -70,9 +70,23 @@ def table_from_messages(messages, config: HardwareConfig, tolerance_s: float = 0
             malformed += 1
     if pairer is not None:  # halves still waiting at the end
         unpaired += pairer.waiting()
+    extra = {"joint_count": wrong_count} if wrong_count else {}
+    if pairer is not None:
+        extra["unpaired"] = unpaired
+    return table_from_samples(joints, wrenches, n, tolerance_s, source,
+                              (config.ft_channel, config.joint_state_channel),
+                              malformed=malformed, **extra)
+
+
+def table_from_samples(joints, wrenches, n: int, tolerance_s: float = 0.002,
+                       source: str = "messages", names=("F/T", "joint-state"), **counts):
+    """Decoded samples → (table, report): `joints` rows ``[t, q (n), v (n)]``, `wrenches`
+    rows ``[t, wrench (6)]``, in any order; each F/T row takes the latest joint sample at or
+    before its time within `tolerance_s` (see the module). `names` (F/T, joint) name the
+    streams in the error; `counts` are added to the report after its own counts."""
     if not wrenches or not joints:
-        raise LogError(f"{source}: no {config.ft_channel} or {config.joint_state_channel} "
-                       "messages with the configured joint count")
+        raise LogError(f"{source}: no {names[0]} or {names[1]} messages with the configured "
+                       "joint count")
     jcols = [TIME, *joint_columns(Q, n), *joint_columns(QD, n)]
     jt = pd.DataFrame(np.array(joints), columns=jcols).sort_values(TIME, kind="stable")
     jt["_joint_index"] = np.arange(len(jt))
@@ -85,11 +99,7 @@ def table_from_messages(messages, config: HardwareConfig, tolerance_s: float = 0
     used = set(merged.loc[matched, "_joint_index"].astype(int))
     report = {"ft": len(ft), "joint": len(jt), "rows": int(matched.sum()),
               "unmatched_ft": int((~matched).sum()), "unused_joint": len(jt) - len(used),
-              "malformed": malformed}
-    if wrong_count:
-        report["joint_count"] = wrong_count
-    if pairer is not None:
-        report["unpaired"] = unpaired
+              **counts}
     return table.reset_index(drop=True), report
 
 

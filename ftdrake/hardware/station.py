@@ -15,47 +15,35 @@ The diagram is :class:`~ftdrake.runtime.chain.CompensationChain`, the one
 the same numbers as in simulation (``tests/test_live_end_to_end.py`` checks it to 1e-9). This
 module imports nothing of the simulation.
 
-Why a loop and not a Simulator with LcmSubscriberSystems: a realtime Simulator samples the
-subscribers' latest message at its own periodic times, so a message can be processed twice
-(none arrived since the last tick) or skipped (two arrived); it also adds the Simulator's
-sleep granularity to the latency. Here each message reaches a callback; every accepted,
-fault-free F/T message triggers exactly one periodic update of the diagram: the k-th such
-message advances a (non-realtime) Simulator to (k + ½)·period, so exactly the update at
-k·period fires (diagram time is processed-message index × period, not the message's
-timestamp; they agree while no message is rejected).
-
-Published per F/T message: the compensated wrench (``lcmt_force_torque`` on
+The message-driven loop, its checks, fault episodes and counts are
+:class:`~ftdrake.hardware.core.StationCore`'s (shared with the ROS 2 station); this class adds
+the LCM side. Published per F/T message: the compensated wrench (``lcmt_force_torque`` on
 ``external_wrench_channel``) only when the inputs are fault-free — a stale wrench is never
 published as fresh — and the contact state (``lcmt_drake_signal`` on ``contact_channel``)
 always, with its fault flag. Both carry the F/T message's timestamp. When a stream goes
 silent (``spin_once`` checks the timeouts), one contact state with ``fault = 1`` is published
-at once, stamped with the detection time on the stream's clock: the last F/T timestamp plus
-the wall time elapsed since it arrived.
+at once, stamped with the detection time on the stream's clock.
 
-Fault episodes (the fault rising, its reason changing, the fault clearing) are kept in
-``events`` and passed to `on_event` (``serve`` prints them); ``summary()`` counts everything.
+Fault episodes are kept in ``events`` and passed to `on_event` (``serve`` prints them);
+``summary()`` counts everything.
 """
 
 from __future__ import annotations
 
-import collections
-import dataclasses as dc
 import functools
 import struct
 import time
 
 import numpy as np
-from pydrake.systems.analysis import Simulator
 
 from ..config import ScenarioConfig
 from ..errors import ConfigError
-from ..runtime.chain import CompensationChain
 from .config import HardwareConfig
-from .live_inputs import RobotStatePairer, StreamMonitor
+from .core import FaultEvent, StationCore  # noqa: F401 (FaultEvent: its home before core)
+from .live_inputs import RobotStatePairer
 from .messages import (
     PAYLOAD_COORD,
     TARE_COORD,
-    ContactState,
     decode_event,
     decode_joint_state,
     decode_temperature,
@@ -67,39 +55,8 @@ from .messages import (
 from .transport import open_lcm
 
 
-@dc.dataclass
-class _EventSignal:
-    """An event input of the tracker fed by LCM messages (see HardwareConfig)."""
-
-    coord: str
-    fixed: object  # the diagram input's FixedInputPortValue
-    pending: bool = False
-    received: int = 0
-    rejected: int = 0
-
-
-@dc.dataclass(frozen=True)
-class FaultEvent:
-    """A change of the station's fault: ``kind`` "fault" (raised or its reason changed) or
-    "recovered"; ``t`` on the streams' clock (s; for a timeout, the detection time),
-    ``wall`` s since the station started; ``reason`` (see live_inputs.REASONS) and
-    ``detail`` in words."""
-
-    kind: str
-    reason: str
-    t: float
-    wall: float
-    detail: str
-
-    def __str__(self) -> str:
-        if self.kind == "recovered":
-            return f"recovered at t={self.t:.4f} s (wall {self.wall:.3f} s)"
-        return (f"fault {self.reason} at t={self.t:.4f} s (wall {self.wall:.3f} s): "
-                f"{self.detail}")
-
-
-class HardwareStation:
-    """Holds the diagram, its context, the monitor and the LCM subscriptions.
+class HardwareStation(StationCore):
+    """The LCM station: StationCore fed by the LCM subscriptions of `config`.
 
     `scenario` gives the compensator, bias-tracker, detector and sensor settings (the
     sensor's rate sets the update period; the tracker reads its drift). `lcm`: an LCM URL, an
@@ -110,41 +67,15 @@ class HardwareStation:
     def __init__(self, config: HardwareConfig, model, scenario: ScenarioConfig | None = None,
                  lcm=None, *, clock=time.monotonic, on_event=None, max_events: int = 10_000):
         self.config = config.validate()
-        self.scenario = (scenario or ScenarioConfig()).validate()
         self.lcm = open_lcm(lcm if lcm is not None else config.lcm_url)
-        self.period = 1.0 / self.scenario.sensor.spec().rate_hz
-        self._build(model)
-        self.simulator = Simulator(self.diagram)
-        self.context = self.simulator.get_mutable_context()
-        self.chain.initialize(self.context)
-        self.simulator.Initialize()
-        self._wrench_in = self.diagram.GetInputPort("wrench_measured").FixValue(
-            self.context, np.zeros(6))
-        self._state_in = self.diagram.GetInputPort("joint_state").FixValue(
-            self.context, np.zeros(2 * config.n_joints))
-        self._temperature_in = None
-        if self.chain.needs_temperature:
-            self._temperature_in = self.diagram.GetInputPort("temperature").FixValue(
-                self.context, np.full(1, np.nan))
-        # The tracker's event inputs (tared, payload_changed): high for the one update after
-        # a message on their channel.
-        self._signals = {name: _EventSignal(coord, self.diagram.GetInputPort(name).FixValue(
-            self.context, [0.0])) for name, coord, channel in self._event_channels() if channel}
-        self._out = {name: self.diagram.GetOutputPort(name) for name in (
-            "wrench_compensated", "fault", "out_of_domain", "contact", "contact_force")}
-        self.monitor = StreamMonitor(
-            config.n_joints, config.sensor_timeout_s, config.joint_state_timeout_s,
-            config.temperature_timeout_s if self._temperature_in is not None else None)
-        self.clock = clock
-        self.on_event = on_event
-        self.started = clock()
-        self.processed = 0  # F/T messages the diagram was updated with
-        self.published = 0  # external wrenches published
-        self.contact_published = 0
-        self.latencies = collections.deque(maxlen=100_000)  # s, arrival → wrench publication
-        self.events = collections.deque(maxlen=max_events)
-        self.fault_episodes = collections.Counter()  # reason → times the fault rose with it
-        self._state = (True, "no_data")
+        self._coords = {name: coord for name, coord, channel in self._event_channels()
+                        if channel}
+        super().__init__(model, scenario, n_joints=config.n_joints,
+                         sensor_timeout_s=config.sensor_timeout_s,
+                         joint_state_timeout_s=config.joint_state_timeout_s,
+                         temperature_timeout_s=config.temperature_timeout_s,
+                         events=tuple(self._coords), clock=clock, on_event=on_event,
+                         max_events=max_events)
         self._pairer = None
         kind = config.joint_state_type
         if kind == "robot_state":
@@ -156,20 +87,11 @@ class HardwareStation:
         self.lcm.subscribe(config.ft_channel, self._on_wrench)
         if self._temperature_in is not None:
             self.lcm.subscribe(config.temperature_channel, self._on_temperature)
-        for name, _, channel in self._event_channels():
-            if channel:
-                self.lcm.subscribe(channel, functools.partial(self._on_event_signal, name))
+        for name in self._coords:
+            self.lcm.subscribe(getattr(config, _EVENT_FIELDS[name]),
+                               functools.partial(self._on_event_signal, name))
 
-    def _build(self, model) -> None:
-        """The runtime chain, its joint-state gravity on the scenario robot's serial chain
-        (there is no plant on hardware), checked against the hardware channels."""
-        self.diagram = chain = CompensationChain(
-            model, self.scenario, period=self.period, n_joints=self.config.n_joints,
-            gravity="joint_state")
-        chain.set_name("ftdrake_hardware")
-        self.chain = chain
-        self.compensator, self.tracker, self.detector = (chain.compensator, chain.tracker,
-                                                         chain.detector)
+    def _check_sources(self, chain) -> None:
         if self.config.tare_channel and not chain.HasInputPort("tared"):
             raise ConfigError("hardware.tare_channel: a re-tare goes to the bias tracker; "
                               "enable scenario.bias_tracker or leave the channel empty")
@@ -186,29 +108,25 @@ class HardwareStation:
     # -- message callbacks ------------------------------------------------------------------
     def _on_joint(self, data: bytes):
         arrival = self.clock()
-        sample = _decoded(decode_joint_state, self.config.joint_state_type, data)
-        self.monitor.on_joint(sample, arrival)
-        self._note(None)
+        self.on_joint_sample(_decoded(decode_joint_state, self.config.joint_state_type, data),
+                             arrival)
 
     def _on_half(self, half: str, data: bytes):
         arrival = self.clock()
         sample = _decoded(decode_joint_state, "robot_state", data)
         if sample is None:
-            self.monitor.on_joint(None, arrival)
-            self._note(None)
+            self.on_joint_sample(None, arrival)
             return
         joined = self._pairer.add(half, sample)
         for detail in self._pairer.dropped:
             self.monitor.count_unpaired(detail)
         self._pairer.dropped.clear()
         if joined is not None:
-            self.monitor.on_joint(joined, arrival)
-            self._note(None)
+            self.on_joint_sample(joined, arrival)
 
     def _on_temperature(self, data: bytes):
         arrival = self.clock()
-        sample = _decoded(decode_temperature, data)
-        self.monitor.on_temperature(sample, arrival)
+        self.on_temperature_sample(_decoded(decode_temperature, data), arrival)
 
     def _event_channels(self):
         c = self.config
@@ -216,74 +134,20 @@ class HardwareStation:
                 ("payload_changed", PAYLOAD_COORD, c.payload_channel))
 
     def _on_event_signal(self, name: str, data: bytes):
-        signal = self._signals[name]
-        if _decoded(decode_event, data, signal.coord) is None:
-            signal.rejected += 1  # malformed: counted in summary(), not acted on
-            return
-        signal.received += 1
-        signal.pending = True
+        self.on_event_signal(name, _decoded(decode_event, data, self._coords[name]) is not None)
 
     def _on_wrench(self, data: bytes):
         arrival = self.clock()
-        sample = _decoded(decode_wrench, data)
-        fresh = self.monitor.on_wrench(sample, arrival)
-        t = sample.t if sample is not None and np.isfinite(sample.t) else self._stream_time()
-        if fresh:
-            self._wrench_in.GetMutableData().get_mutable_value().SetFromVector(self.monitor.wrench)
-            self._state_in.GetMutableData().get_mutable_value().SetFromVector(self.monitor.joint_state)
-            if self._temperature_in is not None:
-                self._temperature_in.GetMutableData().get_mutable_value().SetFromVector(
-                    [self.monitor.temperature])
-            for signal in self._signals.values():  # high for one update after its message
-                signal.fixed.GetMutableData().get_mutable_value().SetFromVector(
-                    [1.0 if signal.pending else 0.0])
-                signal.pending = False
-            self.simulator.AdvanceTo((self.processed + 0.5) * self.period)
-            self.processed += 1
-            if self._out["fault"].Eval(self.context)[0] <= 0.5:
-                external = self._out["wrench_compensated"].Eval(self.context)
-                self.lcm.publish(self.config.external_wrench_channel,
-                                 encode_wrench(t, external))
-                self.latencies.append(self.clock() - arrival)
-                self.published += 1
-        self._publish_contact(t, self.monitor.fault)
-        self._note(t)
+        self.on_wrench_sample(_decoded(decode_wrench, data), arrival)
 
-    def _publish_contact(self, t: float, fault: bool) -> None:
-        out = self._out
-        state = ContactState(t, out["contact"].Eval(self.context)[0] > 0.5,
-                             float(out["contact_force"].Eval(self.context)[0]), bool(fault),
-                             out["out_of_domain"].Eval(self.context)[0] > 0.5)
-        self.lcm.publish(self.config.contact_channel, encode_contact_state(state))
-        self.contact_published += 1
+    def _publish_wrench(self, t: float) -> None:
+        self.lcm.publish(self.config.external_wrench_channel,
+                         encode_wrench(t, self.output("wrench_compensated")))
 
-    def _stream_time(self, now: float | None = None) -> float:
-        """Now on the streams' clock: the last F/T timestamp + wall time since it arrived."""
-        t, arrival = self.monitor.last_time("ft"), self.monitor.last_arrival("ft")
-        if t is None:
-            return 0.0
-        return t + ((self.clock() if now is None else now) - arrival)
-
-    def _note(self, t: float | None, now: float | None = None) -> None:
-        """Records a fault change (rise, reason change, recovery) as a FaultEvent."""
-        m = self.monitor
-        state = (m.fault, m.reason)
-        if state == self._state:
-            return
-        was_fault = self._state[0]
-        self._state = state
-        if not m.fault and not was_fault:
-            return
-        now = self.clock() if now is None else now
-        t = self._stream_time(now) if t is None else t
-        if m.fault:
-            self.fault_episodes[m.reason] += 1
-            event = FaultEvent("fault", m.reason, t, now - self.started, m.detail)
-        else:
-            event = FaultEvent("recovered", "", t, now - self.started, "")
-        self.events.append(event)
-        if self.on_event is not None:
-            self.on_event(event)
+    def _publish_contact(self, t: float, fault: bool) -> bool:
+        self.lcm.publish(self.config.contact_channel,
+                         encode_contact_state(self.contact_state(t, fault)))
+        return True
 
     # -- running ------------------------------------------------------------------------------
     def spin_once(self, timeout_ms: int = 1) -> int:
@@ -291,37 +155,11 @@ class HardwareStation:
         timeouts, publishing the fault at once when a stream went silent. Returns the number
         of messages handled."""
         handled = self.lcm.handle(timeout_ms)
-        was = self.monitor.fault
-        now = self.clock()
-        if self.monitor.check_timeouts(now) and not was:
-            t = self._stream_time(now)
-            self._publish_contact(t, True)
-            self._note(t, now)
+        self.check_timeouts()
         return handled
 
-    def latency_percentiles(self):
-        """(p50, p99) in s of arrival → publication, over the last 100 000 publications."""
-        lat = np.asarray(self.latencies)
-        if not len(lat):
-            return (np.nan, np.nan)
-        return (float(np.percentile(lat, 50)), float(np.percentile(lat, 99)))
 
-    def summary(self) -> dict:
-        """Counts so far: messages received/accepted per stream, rejected per reason, F/T
-        messages processed, wrenches and contact states published, fault episodes per reason,
-        latency p50/p99 (ms), and the current fault."""
-        m = self.monitor
-        p50, p99 = self.latency_percentiles()
-        return {
-            "received": dict(m.received), "accepted": dict(m.accepted),
-            "rejected": dict(m.rejected), "processed": self.processed,
-            "published_wrench": self.published, "published_contact": self.contact_published,
-            "fault_episodes": dict(self.fault_episodes),
-            "signals": {name: {"received": signal.received, "rejected": signal.rejected}
-                        for name, signal in self._signals.items()},
-            "latency_ms": {"p50": p50 * 1e3, "p99": p99 * 1e3},
-            "fault": bool(m.fault), "reason": m.reason,
-        }
+_EVENT_FIELDS = {"tared": "tare_channel", "payload_changed": "payload_channel"}
 
 
 def _decoded(decode, *args):

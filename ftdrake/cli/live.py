@@ -1,0 +1,62 @@
+"""What `serve` and `record` share on every transport (LCM, ROS 2): stopping on Ctrl-C and the
+throttled status line."""
+
+from __future__ import annotations
+
+import contextlib
+import signal
+import sys
+import time
+
+STATUS_PERIOD_S = 0.5  # status line rate: 2 Hz
+
+
+@contextlib.contextmanager
+def stop_on_signals():
+    """Yields a one-element list that becomes [True] on SIGINT or SIGTERM; restores the
+    previous handlers after."""
+    stop = [False]
+
+    def handler(_signum, _frame):
+        stop[0] = True
+
+    previous = {s: signal.signal(s, handler) for s in (signal.SIGINT, signal.SIGTERM)}
+    try:
+        yield stop
+    finally:
+        for s, h in previous.items():
+            signal.signal(s, h)
+
+
+class Status:
+    """The throttled status line: message rates per stream, counts, the current state. The
+    rates are measured also when `quiet` (the summary reports the last ones)."""
+
+    def __init__(self, station, stream=sys.stderr, quiet: bool = False):
+        self.station, self.stream, self.quiet = station, stream, quiet
+        self.tty = stream.isatty() and not quiet
+        self.last = time.monotonic()
+        self.last_counts = dict(station.monitor.received)
+        self.rates = {}
+
+    def maybe_print(self, now: float) -> None:
+        if now - self.last < STATUS_PERIOD_S:
+            return
+        received = self.station.monitor.received
+        dt = now - self.last
+        self.rates = {k: (received[k] - self.last_counts.get(k, 0)) / dt
+                      for k in ("joint", "ft")}
+        self.last, self.last_counts = now, dict(received)
+        if self.quiet:
+            return
+        s = self.station
+        m = s.monitor
+        state = f"FAULT {m.reason}" if m.fault else "ok"
+        contact = s._out["contact"].Eval(s.context)[0] > 0.5
+        line = (f"joint {self.rates['joint']:6.0f} Hz  F/T {self.rates['ft']:6.0f} Hz  "
+                f"processed {s.processed}  published {s.published}  "
+                f"rejected {sum(m.rejected.values())}  {state}  "
+                f"contact {'YES' if contact else 'no'}")
+        end = "\r" if self.tty else "\n"
+        print(line.ljust(100), end=end, file=self.stream, flush=True)
+

@@ -1,0 +1,148 @@
+"""``--ros2`` for ``ftdrake serve``, ``simulate`` and ``record``: the same commands on ROS 2
+topics (Cyclone DDS, no ROS installation needed).
+
+    ftdrake serve --ros2 --ros2-config ros2.yaml --model m.ftd [--config scenario.yaml]
+    ftdrake simulate --ros2 --ros2-config ros2.yaml --realtime [--scenario free]
+    ftdrake record --ros2 --ros2-config ros2.yaml --out log.parquet [--duration S]
+
+``--ros2-config`` is a :class:`~ftdrake.hardware.ros2.config.Ros2Config` YAML (topics, QoS,
+the model's joint names in its order, timeouts, ``domain_id``, ``dds_config``);
+``--ros2-domain`` overrides its ``domain_id``. serve prints the topics, a status line twice a
+second, each fault and recovery (stderr), and on Ctrl-C or after ``--duration`` a JSON summary
+(stdout), as on LCM.
+
+:func:`add_options` adds the flags to a parser; the commands call :func:`serve`,
+:func:`record` and :func:`simulate` when ``args.ros2`` is set.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import json
+import math
+import sys
+import time
+
+from ..compensation.persistence import load_model
+from ..config import load_config
+from ..errors import ConfigError
+from ..hardware.recording import write_table
+from ..hardware.ros2.config import Ros2Config
+from ..hardware.ros2.recording import Ros2Recorder
+from ..hardware.ros2.station import Ros2Station
+from ..sim.ros2_publisher import arm_joint_names, simulate_on_ros2
+from . import args as a
+from .live import Status, stop_on_signals
+
+
+def add_options(p) -> None:
+    """Adds ``--ros2``, ``--ros2-config FILE`` and ``--ros2-domain N`` to parser `p`."""
+    p.add_argument("--ros2", action="store_true", help="use ROS 2 topics (Cyclone DDS) instead "
+                   "of LCM; see --ros2-config")
+    p.add_argument("--ros2-config", type=a.existing_file, metavar="FILE",
+                   help="Ros2Config YAML: topics, QoS, joint_names in the model's order, "
+                        "timeouts, domain_id, dds_config")
+    p.add_argument("--ros2-domain", type=a.non_negative_int, metavar="N",
+                   help="ROS_DOMAIN_ID (default: the --ros2-config file's domain_id, else 0)")
+
+
+def config_from_args(args):
+    """The Ros2Config of --ros2-config (defaults without it) with --ros2-domain applied."""
+    path = args.ros2_config
+    if path is None:
+        config = Ros2Config()
+    else:
+        with a.naming("--ros2-config", path):
+            config = load_config(path, schema=Ros2Config)
+    if args.ros2_domain is not None:
+        config.domain_id = args.ros2_domain
+    with a.naming("--ros2-config", path) if path else contextlib.nullcontext():
+        return config.validate()
+
+
+def describe_topics(config) -> str:
+    c = config
+    outs = ", ".join(c.output_topic(name) for name in ("wrench", "contact", "contact_force"))
+    return (f"ROS 2 domain {c.domain_id} (DDS: {c.dds_config})\n"
+            f"  in:  {c.joint_state_topic} (JointState, {c.joint_state_qos}); "
+            f"{c.wrench_topic} (WrenchStamped, {c.wrench_qos})\n"
+            f"  out: {outs}; {c.diagnostics_topic} (DiagnosticArray)")
+
+
+def serve(args) -> int:
+    """``ftdrake serve --ros2``."""
+    scenario = a.load_scenario(args)
+    config = config_from_args(args)
+    with a.naming("--model", args.model):
+        model = load_model(args.model, expect_n_joints=config.n_joints)
+
+    def on_event(event) -> None:
+        print(f"ftdrake serve: {event}", file=sys.stderr, flush=True)
+
+    station = Ros2Station(config, model, scenario, on_event=on_event)
+    print(f"ftdrake serve: {type(model).__name__} from {args.model}, "
+          f"{1 / station.period:g} Hz updates\n{describe_topics(config)}",
+          file=sys.stderr, flush=True)
+    status = Status(station, quiet=args.quiet)
+    start = time.monotonic()
+    with stop_on_signals() as stop:
+        while not stop[0]:
+            station.spin_once(timeout_ms=2)
+            now = time.monotonic()
+            status.maybe_print(now)
+            if args.duration is not None and now - start >= args.duration:
+                break
+    station.node.wait_for_acks(1.0)
+    if status.tty:
+        print(file=sys.stderr)
+    summary = station.summary()
+    summary["wall_time_s"] = time.monotonic() - start
+    summary["last_rates_hz"] = status.rates
+    summary["diagnostics_published"] = station.diagnostics_published
+    summary["latency_ms"] = {k: (None if math.isnan(v) else v)
+                             for k, v in summary["latency_ms"].items()}
+    station.close()
+    print(json.dumps(summary))
+    return 0
+
+
+def record(args) -> int:
+    """``ftdrake record --ros2``."""
+    if getattr(args, "from_log", None) is not None:
+        raise ConfigError("--from-log reads an LCM log; a ROS 2 bag needs no conversion: "
+                          "train and evaluate read it directly")
+    config = config_from_args(args)
+    recorder = Ros2Recorder(config)
+    print(f"ftdrake record: {describe_topics(config).splitlines()[1].strip()} → {args.out}",
+          file=sys.stderr, flush=True)
+    start = time.monotonic()
+    with stop_on_signals() as stop:
+        while not stop[0]:
+            recorder.spin(10)
+            if args.duration is not None and time.monotonic() - start >= args.duration:
+                break
+    recorder.spin(0)
+    recorder.close()
+    table, report = recorder.table(args.tolerance)
+    write_table(table, args.out)
+    print(json.dumps({"out": str(args.out), **report}))
+    return 0
+
+
+def simulate(args, station):
+    """``ftdrake simulate --ros2``: the simulated robot on ROS 2; returns the SimResult."""
+    config = config_from_args_for_simulation(args, station, arm_joint_names)
+    print(f"ftdrake simulate: publishing {describe_topics(config).splitlines()[1]}"
+          .replace("  in:  ", ""), file=sys.stderr, flush=True)
+    return simulate_on_ros2(station, config, realtime_rate=1.0 if args.realtime else 0.0,
+                            progress=not args.quiet, wait_for_subscriber_s=2.0)
+
+
+def config_from_args_for_simulation(args, station, arm_joint_names):
+    """As config_from_args; without joint_names in the file, the simulated arm's."""
+    if args.ros2_config is None:
+        config = Ros2Config(joint_names=arm_joint_names(station))
+        if args.ros2_domain is not None:
+            config.domain_id = args.ros2_domain
+        return config.validate()
+    return config_from_args(args)

@@ -1,0 +1,266 @@
+"""StationCore: the runtime chain driven by live messages, whatever carries them.
+
+A transport (LCM: :class:`~ftdrake.hardware.station.HardwareStation`; ROS 2:
+:class:`~ftdrake.hardware.ros2.station.Ros2Station`) decodes its messages and hands the
+samples to :meth:`StationCore.on_joint_sample`, :meth:`~StationCore.on_wrench_sample`,
+:meth:`~StationCore.on_temperature_sample` and :meth:`~StationCore.on_event_signal`, and
+publishes through two hooks it implements, ``_publish_wrench(t)`` and
+``_publish_contact(t, fault)`` (returns whether it published). Everything between is here,
+once: the
+:class:`~ftdrake.hardware.live_inputs.StreamMonitor` checks, one diagram update per
+accepted, fault-free F/T sample, the fault episodes, the counts and the latencies.
+
+Why a loop and not a Simulator with subscriber systems: a realtime Simulator samples the
+subscribers' latest message at its own periodic times, so a message can be processed twice
+(none arrived since the last tick) or skipped (two arrived); it also adds the Simulator's
+sleep granularity to the latency. Here each message reaches a callback; every accepted,
+fault-free F/T message triggers exactly one periodic update of the diagram: the k-th such
+message advances a (non-realtime) Simulator to (k + ½)·period, so exactly the update at
+k·period fires (diagram time is processed-message index × period, not the message's
+timestamp; they agree while no message is rejected).
+
+Per F/T sample the transport publishes the wrench (``_publish_wrench``) only when the inputs
+are fault-free — a stale wrench is never published as fresh — and the contact state
+(``_publish_contact``) always, with its fault flag; both carry the F/T sample's timestamp.
+When a stream goes silent (:meth:`StationCore.check_timeouts`), one contact state with the
+fault is published at once, stamped with the detection time on the stream's clock: the last
+F/T timestamp plus the wall time elapsed since it arrived.
+
+Fault episodes (the fault rising, its reason changing, the fault clearing) are kept in
+``events`` and passed to `on_event`; ``summary()`` counts everything.
+"""
+
+from __future__ import annotations
+
+import collections
+import dataclasses as dc
+import time
+
+import numpy as np
+from pydrake.systems.analysis import Simulator
+
+from ..config import ScenarioConfig
+from ..runtime.chain import CompensationChain
+from .live_inputs import StreamMonitor
+from .messages import ContactState
+
+
+@dc.dataclass
+class EventSignal:
+    """An event input of the tracker (``tared``, ``payload_changed``) fed by messages:
+    high for the one update after a message arrived."""
+
+    fixed: object  # the diagram input's FixedInputPortValue
+    pending: bool = False
+    received: int = 0
+    rejected: int = 0
+
+
+@dc.dataclass(frozen=True)
+class FaultEvent:
+    """A change of the station's fault: ``kind`` "fault" (raised or its reason changed) or
+    "recovered"; ``t`` on the streams' clock (s; for a timeout, the detection time),
+    ``wall`` s since the station started; ``reason`` (see live_inputs.REASONS) and
+    ``detail`` in words."""
+
+    kind: str
+    reason: str
+    t: float
+    wall: float
+    detail: str
+
+    def __str__(self) -> str:
+        if self.kind == "recovered":
+            return f"recovered at t={self.t:.4f} s (wall {self.wall:.3f} s)"
+        return (f"fault {self.reason} at t={self.t:.4f} s (wall {self.wall:.3f} s): "
+                f"{self.detail}")
+
+
+class StationCore:
+    """Holds the diagram, its context, the monitor and the counts (see the module).
+
+    `scenario` gives the compensator, bias-tracker, detector and sensor settings (the
+    sensor's rate sets the update period). `n_joints` and the timeouts (s) configure the
+    StreamMonitor; `temperature_timeout_s` is used only when the model needs the temperature.
+    `events`: the tracker event inputs fed by messages (``"tared"``, ``"payload_changed"``).
+    `clock` gives arrival times in s (monotonic). `on_event(FaultEvent)` is called on every
+    fault change. A subclass implements ``_check_sources(chain)`` (raise ConfigError when the
+    chain needs a stream it has not configured), ``_publish_wrench(t)`` and
+    ``_publish_contact(t, fault)``.
+    """
+
+    def __init__(self, model, scenario: ScenarioConfig | None, *, n_joints: int,
+                 sensor_timeout_s: float, joint_state_timeout_s: float,
+                 temperature_timeout_s: float, events=(), clock=time.monotonic,
+                 on_event=None, max_events: int = 10_000):
+        self.scenario = (scenario or ScenarioConfig()).validate()
+        self.n_joints = int(n_joints)
+        self.period = 1.0 / self.scenario.sensor.spec().rate_hz
+        self._build(model)
+        self.simulator = Simulator(self.diagram)
+        self.context = self.simulator.get_mutable_context()
+        self.chain.initialize(self.context)
+        self.simulator.Initialize()
+        self._wrench_in = self.diagram.GetInputPort("wrench_measured").FixValue(
+            self.context, np.zeros(6))
+        self._state_in = self.diagram.GetInputPort("joint_state").FixValue(
+            self.context, np.zeros(2 * self.n_joints))
+        self._temperature_in = None
+        if self.chain.needs_temperature:
+            self._temperature_in = self.diagram.GetInputPort("temperature").FixValue(
+                self.context, np.full(1, np.nan))
+        self._signals = {name: EventSignal(self.diagram.GetInputPort(name).FixValue(
+            self.context, [0.0])) for name in events}
+        self._out = {name: self.diagram.GetOutputPort(name) for name in (
+            "wrench_compensated", "wrench_contact", "fault", "out_of_domain", "contact",
+            "contact_force", "bias", "payload") if self.diagram.HasOutputPort(name)}
+        self.monitor = StreamMonitor(
+            self.n_joints, sensor_timeout_s, joint_state_timeout_s,
+            temperature_timeout_s if self._temperature_in is not None else None)
+        self.clock = clock
+        self.on_event = on_event
+        self.started = clock()
+        self.processed = 0  # F/T messages the diagram was updated with
+        self.published = 0  # wrenches published
+        self.contact_published = 0
+        self.latencies = collections.deque(maxlen=100_000)  # s, arrival → wrench publication
+        self.events = collections.deque(maxlen=max_events)
+        self.fault_episodes = collections.Counter()  # reason → times the fault rose with it
+        self._state = (True, "no_data")
+
+    def _build(self, model) -> None:
+        """The runtime chain, its joint-state gravity on the scenario robot's serial chain
+        (there is no plant on hardware), checked against the configured streams."""
+        self.diagram = chain = CompensationChain(
+            model, self.scenario, period=self.period, n_joints=self.n_joints,
+            gravity="joint_state")
+        chain.set_name("ftdrake_hardware")
+        self.chain = chain
+        self.compensator, self.tracker, self.detector = (chain.compensator, chain.tracker,
+                                                         chain.detector)
+        self._check_sources(chain)
+
+    def _check_sources(self, chain) -> None:
+        raise NotImplementedError
+
+    def _publish_wrench(self, t: float) -> None:
+        raise NotImplementedError
+
+    def _publish_contact(self, t: float, fault: bool) -> bool:
+        raise NotImplementedError
+
+    def output(self, name: str) -> np.ndarray:
+        """The diagram output `name` now (see CompensationChain's ports)."""
+        return self._out[name].Eval(self.context)
+
+    def contact_state(self, t: float, fault: bool) -> ContactState:
+        """The detector's state now, stamped `t`, with `fault`."""
+        return ContactState(t, self.output("contact")[0] > 0.5,
+                            float(self.output("contact_force")[0]), bool(fault),
+                            self.output("out_of_domain")[0] > 0.5)
+
+    # -- samples ------------------------------------------------------------------------------
+    def on_joint_sample(self, sample, arrival: float) -> None:
+        """A joint-state sample (JointSample, None when it failed to decode)."""
+        self.monitor.on_joint(sample, arrival)
+        self._note(None)
+
+    def on_temperature_sample(self, sample, arrival: float) -> None:
+        """A temperature sample ``(t s, °C)`` (None when it failed to decode)."""
+        self.monitor.on_temperature(sample, arrival)
+
+    def on_event_signal(self, name: str, ok: bool) -> None:
+        """A message on the event input `name`; `ok` False for a malformed one (counted in
+        summary(), not acted on)."""
+        signal = self._signals[name]
+        if not ok:
+            signal.rejected += 1
+            return
+        signal.received += 1
+        signal.pending = True
+
+    def on_wrench_sample(self, sample, arrival: float) -> None:
+        """An F/T sample (WrenchSample, None when it failed to decode): checks, one diagram
+        update when fresh, the wrench published when fault-free, the contact state always."""
+        fresh = self.monitor.on_wrench(sample, arrival)
+        t = sample.t if sample is not None and np.isfinite(sample.t) else self._stream_time()
+        if fresh:
+            self._wrench_in.GetMutableData().get_mutable_value().SetFromVector(self.monitor.wrench)
+            self._state_in.GetMutableData().get_mutable_value().SetFromVector(self.monitor.joint_state)
+            if self._temperature_in is not None:
+                self._temperature_in.GetMutableData().get_mutable_value().SetFromVector(
+                    [self.monitor.temperature])
+            for signal in self._signals.values():  # high for one update after its message
+                signal.fixed.GetMutableData().get_mutable_value().SetFromVector(
+                    [1.0 if signal.pending else 0.0])
+                signal.pending = False
+            self.simulator.AdvanceTo((self.processed + 0.5) * self.period)
+            self.processed += 1
+            if self._out["fault"].Eval(self.context)[0] <= 0.5:
+                self._publish_wrench(t)
+                self.latencies.append(self.clock() - arrival)
+                self.published += 1
+        self.contact_published += bool(self._publish_contact(t, self.monitor.fault))
+        self._note(t)
+
+    def check_timeouts(self) -> None:
+        """Raises the fault when a stream went silent, publishing it at once."""
+        was = self.monitor.fault
+        now = self.clock()
+        if self.monitor.check_timeouts(now) and not was:
+            t = self._stream_time(now)
+            self.contact_published += bool(self._publish_contact(t, True))
+            self._note(t, now)
+
+    def _stream_time(self, now: float | None = None) -> float:
+        """Now on the streams' clock: the last F/T timestamp + wall time since it arrived."""
+        t, arrival = self.monitor.last_time("ft"), self.monitor.last_arrival("ft")
+        if t is None:
+            return 0.0
+        return t + ((self.clock() if now is None else now) - arrival)
+
+    def _note(self, t: float | None, now: float | None = None) -> None:
+        """Records a fault change (rise, reason change, recovery) as a FaultEvent."""
+        m = self.monitor
+        state = (m.fault, m.reason)
+        if state == self._state:
+            return
+        was_fault = self._state[0]
+        self._state = state
+        if not m.fault and not was_fault:
+            return
+        now = self.clock() if now is None else now
+        t = self._stream_time(now) if t is None else t
+        if m.fault:
+            self.fault_episodes[m.reason] += 1
+            event = FaultEvent("fault", m.reason, t, now - self.started, m.detail)
+        else:
+            event = FaultEvent("recovered", "", t, now - self.started, "")
+        self.events.append(event)
+        if self.on_event is not None:
+            self.on_event(event)
+
+    # -- reporting ----------------------------------------------------------------------------
+    def latency_percentiles(self):
+        """(p50, p99) in s of arrival → publication, over the last 100 000 publications."""
+        lat = np.asarray(self.latencies)
+        if not len(lat):
+            return (np.nan, np.nan)
+        return (float(np.percentile(lat, 50)), float(np.percentile(lat, 99)))
+
+    def summary(self) -> dict:
+        """Counts so far: messages received/accepted per stream, rejected per reason, F/T
+        messages processed, wrenches and contact states published, fault episodes per reason,
+        latency p50/p99 (ms), and the current fault."""
+        m = self.monitor
+        p50, p99 = self.latency_percentiles()
+        return {
+            "received": dict(m.received), "accepted": dict(m.accepted),
+            "rejected": dict(m.rejected), "processed": self.processed,
+            "published_wrench": self.published, "published_contact": self.contact_published,
+            "fault_episodes": dict(self.fault_episodes),
+            "signals": {name: {"received": signal.received, "rejected": signal.rejected}
+                        for name, signal in self._signals.items()},
+            "latency_ms": {"p50": p50 * 1e3, "p99": p99 * 1e3},
+            "fault": bool(m.fault), "reason": m.reason,
+        }

@@ -1,0 +1,149 @@
+"""Ros2Config: the ROS 2 topics, QoS, joint names and timeouts of a live robot.
+
+Loadable with ``pydrake.common.yaml.yaml_load_typed(schema=Ros2Config, ...)``
+(``ftdrake serve --ros2 --ros2-config FILE``); call ``validate()`` after loading (errors name
+the field, as ``ros2.<field>: ...``).
+"""
+
+# No `from __future__ import annotations`: yaml_load_typed reads the field types.
+import dataclasses as dc
+import math
+
+from ...errors import ConfigError
+from .dds import QOS_PROFILES, dds_topic
+
+#: Output topics under `output_namespace` and their ROS 2 types.
+OUTPUTS = {
+    "wrench": "geometry_msgs/msg/WrenchStamped",
+    "contact": "std_msgs/msg/Bool",
+    "contact_force": "std_msgs/msg/Float64",
+    "bias": "geometry_msgs/msg/WrenchStamped",
+    "payload": "geometry_msgs/msg/InertiaStamped",
+}
+
+
+@dc.dataclass
+class Ros2Config:
+    """Where a ROS 2 robot's streams are, what ftdrake publishes, how stale inputs may get.
+
+    Inputs (the driver's topics):
+      `joint_state_topic`: ``sensor_msgs/msg/JointState`` (position rad, velocity rad/s, by
+        name). `joint_names` are the model's joints in the model's order: each message is
+        reordered by name into it; a message missing one of them, or naming a joint not in
+        the list (another arm's, a gripper's: publish those on another topic), is faulted as
+        ``joint_count`` with the names in the detail. Velocities are required.
+      `wrench_topic`: ``geometry_msgs/msg/WrenchStamped`` (N, N·m) in the sensor frame, as
+        ``force_torque_sensor_broadcaster`` publishes it; each message runs the chain once.
+      `temperature_topic` (only for a model trained with the sensor temperature):
+        ``sensor_msgs/msg/Temperature`` (°C).
+      `tare_topic`, `payload_topic` (optional, for ``scenario.bias_tracker``):
+        ``std_msgs/msg/Empty``: the sensor was re-zeroed / a payload was grasped or let go.
+      `*_qos`: ``reliable`` (rclcpp's default; what ros2_control's broadcasters offer) or
+        ``sensor_data`` (best effort, keep last 5: matches a best-effort or a reliable
+        publisher, may drop messages).
+      Message stamps (``header.stamp``) are the samples' times: they must increase.
+    Outputs, under `output_namespace` (see :data:`OUTPUTS`): ``wrench`` the compensated
+      contact wrench (measured − predicted − the tracker's bias and payload; the input's
+      ``frame_id`` and stamp), only while the inputs are fault-free; ``contact`` (Bool) and
+      ``contact_force`` (Float64, ‖F‖ N while in contact, else 0), ``bias``
+      (WrenchStamped, with the tracker) and ``payload`` (InertiaStamped with ``m`` = Δm kg,
+      ``com`` = Δ(m·c)/Δm m in the sensor frame (zero while |Δm| < 1 g), moments zero: not
+      estimated; with ``track_payload``) with each published wrench, so never under a fault
+      (these types carry no fault flag); and on `diagnostics_topic`
+      a ``diagnostic_msgs/msg/DiagnosticArray`` every `diagnostics_period_s` and at each fault
+      change (level OK / WARN out of domain / ERROR fault; keys fault, reason, out_of_domain,
+      message rates, counts).
+    `queue_depth`: samples a subscription (and each of ftdrake's writers) keeps while the
+      station lags (1 s at 1 kHz); a lag beyond it loses the oldest.
+    `reorder_window_s`: 0 hands messages to the station as they arrive (lowest latency, as
+      on LCM); > 0 holds them that long and hands them over in publication order, so a joint
+      state retransmitted after a lost datagram still precedes the wrench published after it
+      (DDS keeps each topic in order, not the two topics together); adds that much latency.
+    DDS: `domain_id` is ROS_DOMAIN_ID; `dds_config` is ``loopback`` (this machine only),
+      ``environment`` (CYCLONEDDS_URI or Cyclone's defaults, as a ROS 2 node has) or a
+      Cyclone XML / ``file://`` URL (:mod:`ftdrake.hardware.ros2.dds`).
+    """
+
+    joint_names: list[str] = dc.field(default_factory=list)
+    joint_state_topic: str = "/joint_states"
+    joint_state_qos: str = "reliable"
+    wrench_topic: str = "/force_torque_sensor_broadcaster/wrench"
+    wrench_qos: str = "reliable"
+    temperature_topic: str = ""
+    temperature_timeout_s: float = 1.0
+    tare_topic: str = ""
+    payload_topic: str = ""
+    output_namespace: str = "/ftdrake"
+    diagnostics_topic: str = "/diagnostics"
+    diagnostics_period_s: float = 1.0
+    sensor_timeout_s: float = 0.005
+    joint_state_timeout_s: float = 0.02
+    queue_depth: int = 1000
+    reorder_window_s: float = 0.0
+    domain_id: int = 0
+    dds_config: str = "loopback"
+
+    @property
+    def n_joints(self) -> int:
+        return len(self.joint_names)
+
+    def output_topic(self, name: str) -> str:
+        """The ROS 2 topic of output `name` (a key of :data:`OUTPUTS`)."""
+        return self.output_namespace.rstrip("/") + "/" + name
+
+    def validate(self, where: str = "ros2") -> "Ros2Config":
+        """Checks every field; ConfigError names the first wrong one (`where` is its path)."""
+        self._check_joint_names(where)
+        self._check_topics(where)
+        self._check_numbers(where)
+        if not (isinstance(self.dds_config, str) and self.dds_config):
+            raise ConfigError(f"{where}.dds_config: 'loopback', 'environment', Cyclone XML "
+                              "or a file:// URL")
+        return self
+
+    def _check_joint_names(self, where: str) -> None:
+        names = self.joint_names
+        if not (isinstance(names, list) and names and all(isinstance(n, str) and n
+                                                          for n in names)):
+            raise ConfigError(f"{where}.joint_names: list the model's joints in the model's "
+                              "order, e.g. a UR's [shoulder_pan_joint, shoulder_lift_joint, "
+                              "elbow_joint, wrist_1_joint, wrist_2_joint, wrist_3_joint]")
+        if len(set(names)) != len(names):
+            raise ConfigError(f"{where}.joint_names: {names} names a joint twice")
+
+    def _check_topics(self, where: str) -> None:
+        optional = [f for f in ("temperature_topic", "tare_topic", "payload_topic")
+                    if getattr(self, f)]
+        topics = {field: getattr(self, field) for field in (
+            "joint_state_topic", "wrench_topic", "diagnostics_topic", *optional)}
+        for name in OUTPUTS:
+            topics[f"output_namespace ({name})"] = self.output_topic(name)
+        seen = {}
+        for field, topic in topics.items():
+            dds_topic(topic, f"{where}.{field.split(' ')[0]}")
+            if topic in seen:
+                raise ConfigError(f"{where}.{field}: topic {topic!r} is also {where}."
+                                  f"{seen[topic]}")
+            seen[topic] = field
+        for field in ("joint_state_qos", "wrench_qos"):
+            if getattr(self, field) not in QOS_PROFILES:
+                raise ConfigError(f"{where}.{field}: {getattr(self, field)!r} is not one of "
+                                  f"{', '.join(QOS_PROFILES)}")
+
+    def _check_numbers(self, where: str) -> None:
+        for field in ("sensor_timeout_s", "joint_state_timeout_s", "temperature_timeout_s",
+                      "diagnostics_period_s"):
+            value = getattr(self, field)
+            if not (isinstance(value, (int, float)) and value > 0 and math.isfinite(value)):
+                raise ConfigError(f"{where}.{field}: must be a positive number of seconds, "
+                                  f"got {value!r}")
+        if not (isinstance(self.reorder_window_s, (int, float)) and
+                0 <= self.reorder_window_s < 1):
+            raise ConfigError(f"{where}.reorder_window_s: seconds in [0, 1), got "
+                              f"{self.reorder_window_s!r}")
+        if not (isinstance(self.queue_depth, int) and self.queue_depth >= 1):
+            raise ConfigError(f"{where}.queue_depth: must be a positive integer, got "
+                              f"{self.queue_depth!r}")
+        if not (isinstance(self.domain_id, int) and 0 <= self.domain_id <= 232):
+            raise ConfigError(f"{where}.domain_id: a ROS_DOMAIN_ID in 0..232, got "
+                              f"{self.domain_id!r}")

@@ -1,0 +1,247 @@
+"""Ros2Station: the runtime chain on a ROS 2 robot's topics, over Cyclone DDS.
+
+    /joint_states (JointState) ──► by name, into joint_names' order ──┐
+    …/wrench (WrenchStamped) ───────────────────────────────────────► StationCore
+                                                                        │ (CompensationChain)
+    <ns>/wrench  WrenchStamped   ◄── wrench_contact (input's frame_id and stamp)
+    <ns>/contact Bool, <ns>/contact_force Float64 ◄── contact, contact_force
+    <ns>/bias WrenchStamped, <ns>/payload InertiaStamped ◄── the bias tracker's estimates
+    /diagnostics DiagnosticArray ◄── fault, reason, out-of-domain, rates, counts
+
+The message-driven loop, the checks (:class:`~ftdrake.hardware.live_inputs.StreamMonitor`),
+the fault episodes and the counts are :class:`~ftdrake.hardware.core.StationCore`'s, the same
+as on LCM: each fault-free wrench message updates the diagram once; a silent stream, time going
+back, NaN, or a joint state whose names do not match ``joint_names`` faults the inputs, and
+then no wrench, contact, bias or payload is published (a stale value is never published as
+fresh) while the diagnostics say why, at once. Messages of all topics are handled in the
+order they arrived (:class:`~ftdrake.hardware.ros2.dds.Ros2Node`).
+
+Python entry point::
+
+    station = Ros2Station(Ros2Config(joint_names=[...]), load_model("m.ftd"), scenario)
+    while running:
+        station.spin_once(timeout_ms=2)
+
+``ftdrake serve --ros2`` runs exactly this (:mod:`ftdrake.cli.ros2`). See
+:class:`~ftdrake.hardware.ros2.config.Ros2Config` for the topics and their types.
+"""
+
+from __future__ import annotations
+
+import time
+
+import numpy as np
+
+from ...config import ScenarioConfig
+from ...errors import ConfigError
+from ..core import StationCore
+from ..messages import JointSample, WrenchSample
+from .config import OUTPUTS, Ros2Config
+from .dds import Ros2Node
+from .messages import from_stamp, header, ros2_type, wrench_of, wrench_stamped
+
+#: ``diagnostic_msgs/msg/DiagnosticStatus`` levels.
+OK, WARN, ERROR = 0, 1, 2
+#: The DiagnosticStatus name ftdrake publishes.
+DIAGNOSTIC_NAME = "ftdrake: F/T compensation"
+_MIN_PAYLOAD_KG = 1e-3  # below this the payload's centre of mass is not published (0)
+
+
+class Ros2Station(StationCore):
+    """StationCore fed by ROS 2 topics (see the module and Ros2Config).
+
+    `node`: a :class:`~ftdrake.hardware.ros2.dds.Ros2Node` (default: one on
+    ``config.domain_id`` with ``config.dds_config`` and `clock`). `clock` gives arrival times
+    in s (monotonic); `on_event(FaultEvent)` is called on every fault change.
+    """
+
+    def __init__(self, config: Ros2Config, model, scenario: ScenarioConfig | None = None,
+                 node: Ros2Node | None = None, *, clock=time.monotonic, on_event=None,
+                 max_events: int = 10_000):
+        self.config = c = config.validate()
+        events = tuple(name for name, topic in (("tared", c.tare_topic),
+                                                ("payload_changed", c.payload_topic)) if topic)
+        self._user_on_event = on_event
+        super().__init__(model, scenario, n_joints=c.n_joints,
+                         sensor_timeout_s=c.sensor_timeout_s,
+                         joint_state_timeout_s=c.joint_state_timeout_s,
+                         temperature_timeout_s=c.temperature_timeout_s, events=events,
+                         clock=clock, on_event=self._on_fault_change, max_events=max_events)
+        self.node = node if node is not None else Ros2Node(
+            c.domain_id, c.dds_config, clock=clock, reorder_window_s=c.reorder_window_s)
+        self._index = {name: k for k, name in enumerate(c.joint_names)}
+        self._order = (None, None)  # (names of the last message, their permutation)
+        self._header = None  # the wrench message being processed
+        self._contact_due = False  # its wrench was published: contact and force follow
+        self._writers = {name: self.node.publisher(c.output_topic(name), msgtype,
+                                                   depth=c.queue_depth)
+                         for name, msgtype in OUTPUTS.items()
+                         if name not in ("bias", "payload") or name in self._out}
+        self._diagnostics = self.node.publisher(c.diagnostics_topic,
+                                                "diagnostic_msgs/msg/DiagnosticArray")
+        self._types = {name: ros2_type(msgtype) for name, msgtype in (
+            ("bool", "std_msgs/msg/Bool"), ("float64", "std_msgs/msg/Float64"),
+            ("inertia", "geometry_msgs/msg/Inertia"),
+            ("inertia_stamped", "geometry_msgs/msg/InertiaStamped"),
+            ("vector3", "geometry_msgs/msg/Vector3"),
+            ("array", "diagnostic_msgs/msg/DiagnosticArray"),
+            ("status", "diagnostic_msgs/msg/DiagnosticStatus"),
+            ("key_value", "diagnostic_msgs/msg/KeyValue"))}
+        depth = c.queue_depth
+        self.node.subscribe(c.joint_state_topic, "sensor_msgs/msg/JointState", self._on_joint,
+                            c.joint_state_qos, depth)
+        self.node.subscribe(c.wrench_topic, "geometry_msgs/msg/WrenchStamped", self._on_wrench,
+                            c.wrench_qos, depth)
+        if self._temperature_in is not None:
+            self.node.subscribe(c.temperature_topic, "sensor_msgs/msg/Temperature",
+                                self._on_temperature, c.wrench_qos, depth)
+        for name, topic in (("tared", c.tare_topic), ("payload_changed", c.payload_topic)):
+            if topic:
+                self.node.subscribe(topic, "std_msgs/msg/Empty",
+                                    lambda _msg, _arrival, n=name: self.on_event_signal(n, True),
+                                    "reliable", depth)
+        self.diagnostics_published = 0
+        self._last_diagnostics = self.clock()
+        self._last_received = dict(self.monitor.received)
+        self.rates_hz: dict[str, float] = {}
+
+    def _check_sources(self, chain) -> None:
+        c = self.config
+        if c.tare_topic and not chain.HasInputPort("tared"):
+            raise ConfigError("ros2.tare_topic: a re-tare goes to the bias tracker; enable "
+                              "scenario.bias_tracker or leave the topic empty")
+        if c.payload_topic and not chain.HasInputPort("payload_changed"):
+            raise ConfigError("ros2.payload_topic: a grasp goes to the bias tracker's payload "
+                              "estimate; set scenario.bias_tracker.enabled and track_payload, "
+                              "or leave the topic empty")
+        if chain.needs_temperature and not c.temperature_topic:
+            raise ConfigError("ros2.temperature_topic: the model was trained with the sensor "
+                              "temperature; name the sensor_msgs/msg/Temperature topic (°C)")
+
+    # -- inputs -------------------------------------------------------------------------------
+    def _permutation(self, names: list[str]):
+        """Indices of joint_names in the message's `names`, or a detail saying what is wrong."""
+        if names == self._order[0]:
+            return self._order[1]
+        unknown = [n for n in names if n not in self._index]
+        missing = [n for n in self.config.joint_names if n not in names]
+        if unknown or missing or len(names) != len(set(names)):
+            parts = [f"unknown {unknown}" if unknown else "",
+                     f"missing {missing}" if missing else "",
+                     "a name twice" if len(names) != len(set(names)) else ""]
+            return ("joint state names " + ", ".join(p for p in parts if p)
+                    + f"; ros2.joint_names is {self.config.joint_names}")
+        order = np.array([names.index(n) for n in self.config.joint_names])
+        self._order = (list(names), order)
+        return order
+
+    def _on_joint(self, msg, arrival: float) -> None:
+        names = list(msg.name)
+        order = self._permutation(names)
+        if isinstance(order, str):
+            self.monitor.reject_joint("joint_names", order)
+            self._note(None)
+            return
+        q, v = np.asarray(msg.position, float), np.asarray(msg.velocity, float)
+        if len(q) != len(names) or len(v) not in (0, len(names)):
+            self.monitor.reject_joint("malformed", (
+                f"joint state has {len(names)} names, {len(q)} positions and {len(v)} "
+                "velocities"))
+            self._note(None)
+            return
+        self.on_joint_sample(JointSample(from_stamp(msg.header.stamp), q[order],
+                                         v[order] if len(v) else None, None), arrival)
+
+    def _on_wrench(self, msg, arrival: float) -> None:
+        self._header = msg.header
+        self.on_wrench_sample(WrenchSample(from_stamp(msg.header.stamp),
+                                           np.array(wrench_of(msg), float)), arrival)
+
+    def _on_temperature(self, msg, arrival: float) -> None:
+        self.on_temperature_sample((from_stamp(msg.header.stamp), msg.temperature), arrival)
+
+    # -- outputs ------------------------------------------------------------------------------
+    def _publish_wrench(self, t: float) -> None:
+        h, types, w = self._header, self._types, self._writers
+        del t  # the stamp is the input's header's
+        w["wrench"].write(wrench_stamped(h, self.output("wrench_contact")))
+        self._contact_due = True
+        if "bias" in w:
+            w["bias"].write(wrench_stamped(h, self.output("bias")))
+        if "payload" in w:
+            dm, *mc = (float(x) for x in self.output("payload"))
+            com = [x / dm for x in mc] if abs(dm) >= _MIN_PAYLOAD_KG else [0.0] * 3
+            w["payload"].write(types["inertia_stamped"](header=h, inertia=types["inertia"](
+                m=dm, com=types["vector3"](*com), ixx=0.0, ixy=0.0, ixz=0.0, iyy=0.0, iyz=0.0,
+                izz=0.0)))
+
+    def _publish_contact(self, t: float, fault: bool) -> bool:
+        """Contact and force go out after each published wrench, never stale (a Bool has no
+        fault flag); a fault goes to the diagnostics (_on_fault_change)."""
+        if not self._contact_due or fault:
+            return False
+        self._contact_due = False
+        state = self.contact_state(t, fault)
+        self._writers["contact"].write(self._types["bool"](data=bool(state.contact)))
+        self._writers["contact_force"].write(self._types["float64"](data=float(state.contact_force)))
+        return True
+
+    def _on_fault_change(self, event) -> None:
+        self.publish_diagnostics()
+        if self._user_on_event is not None:
+            self._user_on_event(event)
+
+    def diagnostic_status(self):
+        """The DiagnosticStatus of now (see Ros2Config: level, message, key values)."""
+        m, types = self.monitor, self._types
+        out_of_domain = bool(self.output("out_of_domain")[0] > 0.5)
+        model_fault = bool(self.output("fault")[0] > 0.5) and self.processed > 0
+        if m.fault or model_fault:
+            level = ERROR
+            message = (f"fault {m.reason}: {m.detail}" if m.fault
+                       else "fault: the compensator's inputs hold NaN or inf")
+        elif out_of_domain:
+            level, message = WARN, "joint state outside the model's training range"
+        else:
+            level, message = OK, "ok"
+        p50, p99 = self.latency_percentiles()
+        values = {"fault": m.fault or model_fault, "reason": m.reason,
+                  "out_of_domain": out_of_domain,
+                  "contact": bool(self.output("contact")[0] > 0.5),
+                  **{f"rate_{k}_hz": f"{v:.1f}" for k, v in self.rates_hz.items()},
+                  **{f"received_{k}": v for k, v in m.received.items()},
+                  **{f"rejected_{k}": v for k, v in m.rejected.items()},
+                  "processed": self.processed, "published": self.published,
+                  "latency_p50_ms": f"{p50 * 1e3:.3f}", "latency_p99_ms": f"{p99 * 1e3:.3f}"}
+        return types["status"](
+            level=level, name=DIAGNOSTIC_NAME, message=message,
+            hardware_id=self.config.wrench_topic,
+            values=[types["key_value"](key=k, value=str(v).lower() if isinstance(v, bool)
+                                       else str(v)) for k, v in values.items()])
+
+    def publish_diagnostics(self) -> None:
+        """Publishes the DiagnosticArray now, stamped on the streams' clock."""
+        self._diagnostics.write(self._types["array"](
+            header=header(self._stream_time()), status=[self.diagnostic_status()]))
+        self.diagnostics_published += 1
+
+    # -- running ------------------------------------------------------------------------------
+    def close(self) -> None:
+        """Leaves DDS (deletes the node's participant)."""
+        self.node.close()
+
+    def spin_once(self, timeout_ms: float = 1) -> int:
+        """Handles the messages that arrived (waiting up to `timeout_ms` for one), checks the
+        timeouts (a silent stream's fault is published at once), and publishes the periodic
+        diagnostics. Returns the number of messages handled."""
+        handled = self.node.spin(timeout_ms)
+        self.check_timeouts()
+        now = self.clock()
+        if now - self._last_diagnostics >= self.config.diagnostics_period_s:
+            received = self.monitor.received
+            dt = now - self._last_diagnostics
+            self.rates_hz = {k: (received[k] - self._last_received.get(k, 0)) / dt
+                             for k in ("joint", "ft")}
+            self._last_diagnostics, self._last_received = now, dict(received)
+            self.publish_diagnostics()
+        return handled

@@ -1,0 +1,306 @@
+"""The ROS 2 station over Cyclone DDS on loopback, in one process, with a clock the test
+moves: joint states in another order are reordered (same output), an unknown or a missing
+joint name, NaN, time going back and silence fault it (diagnostics say why, at once; no
+stale wrench, contact or force is published), and it recovers on the next good messages. The
+published wrench is the F/T message's minus the model's prediction for the joints in the
+model's order (bias tracker off), with the input's frame_id and stamp."""
+
+import os
+import time
+
+import numpy as np
+import pytest
+
+pytest.importorskip("cyclonedds")
+
+from ftdrake import ConfigError, RandomForestCompensator, ScenarioConfig
+from ftdrake.hardware.ros2.config import Ros2Config
+from ftdrake.hardware.ros2.dds import Ros2Node
+from ftdrake.hardware.ros2.messages import (
+    from_stamp,
+    header,
+    ros2_type,
+    wrench_of,
+    wrench_stamped,
+)
+from ftdrake.hardware.ros2.station import ERROR, OK, Ros2Station
+
+N = 7
+NAMES = [f"arm_joint_{k + 1}" for k in range(N)]
+DOMAIN = 100 + os.getpid() % 100
+JointState = ros2_type("sensor_msgs/msg/JointState")
+
+
+def wait_for(condition, what, timeout=5.0):
+    end = time.monotonic() + timeout
+    while not condition():
+        if time.monotonic() > end:
+            raise AssertionError(f"timed out waiting for {what}")
+        time.sleep(0.001)
+
+
+class Rig:
+    """A Ros2Station on loopback DDS with a test clock, a driver node writing its inputs and
+    a listener recording what it publishes."""
+
+    def __init__(self, scenario=None, **config):
+        rng = np.random.default_rng(0)
+        X = rng.uniform(-1, 1, size=(200, 3 * N))
+        self.model = RandomForestCompensator(features="q", n_estimators=3).fit(
+            X, np.sin(X[:, :6]))
+        if scenario is None:
+            scenario = ScenarioConfig()
+            scenario.bias_tracker.enabled = False  # published wrench = measured − predicted
+        self.config = Ros2Config(joint_names=list(NAMES), domain_id=DOMAIN,
+                                 output_namespace=f"/ftdrake_{os.getpid()}", **config)
+        self.now = 0.0
+        self.events = []
+        self.dut = Ros2Station(self.config, self.model, scenario, clock=lambda: self.now,
+                               on_event=self.events.append)
+        self.driver = Ros2Node(DOMAIN)
+        self.joints = self.driver.publisher(self.config.joint_state_topic,
+                                            "sensor_msgs/msg/JointState")
+        self.ft = self.driver.publisher(self.config.wrench_topic,
+                                        "geometry_msgs/msg/WrenchStamped")
+        self.listener = Ros2Node(DOMAIN)
+        self.got = {name: [] for name in ("wrench", "contact", "contact_force", "diagnostics")}
+        for name, msgtype in (("wrench", "geometry_msgs/msg/WrenchStamped"),
+                              ("contact", "std_msgs/msg/Bool"),
+                              ("contact_force", "std_msgs/msg/Float64")):
+            self.listener.subscribe(self.config.output_topic(name), msgtype,
+                                    lambda m, _a, n=name: self.got[n].append(m))
+        self.listener.subscribe(self.config.diagnostics_topic,
+                                "diagnostic_msgs/msg/DiagnosticArray",
+                                lambda m, _a: self.got["diagnostics"].append(m))
+        wait_for(lambda: all(self.driver.matched().values())
+                 and len(self.listener.matched()) == 4 and all(self.listener.matched().values()),
+                 "DDS discovery")
+        self.q = np.linspace(-0.5, 0.5, N)
+
+    def joint(self, t, names=NAMES, q=None):
+        q = self.q if q is None else q
+        by_name = dict(zip(NAMES, q, strict=True))
+        self.joints.write(JointState(
+            header=header(t, "base_link"), name=list(names),
+            position=[float(by_name.get(n, 0.0)) for n in names],
+            velocity=[0.0] * len(names), effort=[]))
+
+    def wrench(self, t, w):
+        self.ft.write(wrench_stamped(header(t, "ft_sensor"), np.full(6, w)))
+
+    def step(self, t, w=1.0, names=NAMES, joint=True):
+        """At wall time = t: a joint message (if `joint`), an F/T message, spun through."""
+        self.now = t
+        received = sum(self.dut.monitor.received.values()) + 1 + joint
+        if joint:
+            self.joint(t, names)
+        self.wrench(t, w)
+        wait_for(lambda: (self.dut.spin_once(0), sum(self.dut.monitor.received.values()))[1]
+                 >= received, "the station to receive")
+        self.collect()
+
+    def spin(self):
+        self.dut.spin_once(0)
+        self.collect()
+
+    def collect(self):
+        """Waits until the listener has everything the station published."""
+        def caught_up():
+            self.listener.spin(0)
+            return (len(self.got["wrench"]) == self.dut.published
+                    and len(self.got["contact"]) == self.dut.contact_published
+                    and len(self.got["diagnostics"]) == self.dut.diagnostics_published)
+        wait_for(caught_up, "the listener to catch up")
+
+    def close(self):
+        for node in (self.listener, self.driver, self.dut):
+            node.close()
+
+    def expected(self, w):
+        return np.full(6, w) - self.model.predict(np.r_[self.q, np.zeros(2 * N)][None])[0]
+
+    def last_status(self):
+        (status,) = self.got["diagnostics"][-1].status
+        return status, {kv.key: kv.value for kv in status.values}
+
+
+def published_times(rig):
+    return [round(from_stamp(w.header.stamp) * 1e3) for w in rig.got["wrench"]]
+
+
+@pytest.fixture
+def rig():
+    rig = Rig()
+    for k in range(5):
+        rig.step(0.001 * k)
+    assert len(rig.got["wrench"]) == 5 and not rig.dut.monitor.fault
+    assert [e.kind for e in rig.events] == ["recovered"]  # from "no data yet"
+    rig.events.clear()
+    yield rig
+    rig.close()
+
+
+def test_publishes_the_compensated_wrench_with_the_inputs_header(rig):
+    last = rig.got["wrench"][-1]
+    assert last.header.frame_id == "ft_sensor" and from_stamp(last.header.stamp) == \
+        pytest.approx(0.004, abs=1e-12)
+    np.testing.assert_allclose(wrench_of(last), rig.expected(1.0), rtol=0, atol=1e-12)
+    assert len(rig.got["contact"]) == len(rig.got["contact_force"]) == 5
+    assert rig.got["contact"][-1].data is False and rig.got["contact_force"][-1].data == 0.0
+    status, values = rig.last_status()  # published at the recovery from "no data"
+    assert status.level == OK and values["fault"] == "false"
+
+
+def test_joints_in_another_order_are_reordered(rig):
+    shuffled = [NAMES[k] for k in (3, 0, 6, 2, 5, 1, 4)]
+    rig.step(0.005, w=2.0, names=shuffled)
+    assert not rig.dut.monitor.fault
+    np.testing.assert_array_equal(rig.dut.monitor.joint_state[:N], rig.q)
+    np.testing.assert_allclose(wrench_of(rig.got["wrench"][-1]), rig.expected(2.0), atol=1e-12)
+
+
+@pytest.mark.parametrize(("names", "says"), [
+    ([*NAMES[:6], "gripper_finger_joint"],
+     "unknown ['gripper_finger_joint'], missing ['arm_joint_7']"),
+    (NAMES[:6], "missing ['arm_joint_7']"),
+    ([*NAMES, "gripper_finger_joint"], "unknown ['gripper_finger_joint']"),
+])
+def test_unknown_or_missing_joint_names_fault(rig, names, says):
+    rig.step(0.005, names=names)  # the F/T message is good; the joint state it would use is not
+    assert rig.dut.monitor.fault and rig.dut.monitor.reason == "joint_names"
+    assert says in rig.events[0].detail and "ros2.joint_names is" in rig.events[0].detail
+    status, values = rig.last_status()
+    assert status.level == ERROR and values["reason"] == "joint_names" and says in status.message
+    rig.step(0.006, joint=False)  # still no good joint state: nothing published
+    assert published_times(rig) == [0, 1, 2, 3, 4] and len(rig.got["contact"]) == 5
+    rig.step(0.007, w=4.0)
+    assert not rig.dut.monitor.fault and rig.events[-1].kind == "recovered"
+    assert rig.last_status()[0].level == OK
+    np.testing.assert_allclose(wrench_of(rig.got["wrench"][-1]), rig.expected(4.0), atol=1e-12)
+    assert rig.dut.monitor.rejected == {"joint_names": 1}
+
+
+def test_time_going_back_and_nan(rig):
+    rig.step(0.002, w=9.0, joint=False)  # F/T back in time: 2 ms < 4 ms
+    assert rig.dut.monitor.reason == "out_of_order"
+    assert "went back from 0.004000 s to 0.002000 s" in rig.last_status()[0].message
+    rig.step(0.005, w=np.nan)
+    assert rig.dut.monitor.reason == "not_finite" and "NaN" in rig.last_status()[0].message
+    assert published_times(rig) == [0, 1, 2, 3, 4] and len(rig.got["contact"]) == 5
+    rig.step(0.006, w=3.0)
+    assert not rig.dut.monitor.fault and rig.events[-1].kind == "recovered"
+    np.testing.assert_allclose(wrench_of(rig.got["wrench"][-1]), rig.expected(3.0), atol=1e-12)
+    assert rig.dut.monitor.rejected == {"out_of_order": 1, "not_finite": 1}
+    assert rig.dut.summary()["processed"] == 6
+
+
+def test_silence_is_published_at_once(rig):
+    rig.now = 0.004 + 0.0061  # 6.1 ms of silence
+    rig.spin()
+    assert rig.dut.monitor.reason == "sensor_timeout"
+    status, values = rig.last_status()
+    assert status.level == ERROR and values["reason"] == "sensor_timeout"
+    assert "no F/T message for 6.1 ms (timeout 5 ms)" in status.message
+    assert from_stamp(rig.got["diagnostics"][-1].header.stamp) == pytest.approx(0.0101, abs=1e-9)
+    n = len(rig.got["diagnostics"])
+    rig.spin()  # still silent: published once, not on every spin
+    assert len(rig.got["diagnostics"]) == n and len(rig.got["wrench"]) == 5
+    rig.step(0.011, w=2.0)
+    assert not rig.dut.monitor.fault and published_times(rig) == [0, 1, 2, 3, 4, 11]
+
+
+def test_periodic_diagnostics_carry_rates(rig):
+    n = len(rig.got["diagnostics"])
+    rig.step(1.0)  # the station started at 0: the periodic diagnostics are due
+    assert len(rig.got["diagnostics"]) == n + 1
+    assert rig.last_status()[1]["rate_ft_hz"] == "6.0"  # 6 F/T messages in 1 s
+    rig.step(1.5)
+    assert len(rig.got["diagnostics"]) == n + 1
+    rig.step(2.0)
+    assert len(rig.got["diagnostics"]) == n + 2
+    status, values = rig.last_status()
+    assert status.level == OK and values["rate_ft_hz"] == values["rate_joint_hz"] == "2.0"
+    assert values["processed"] == values["published"] == values["received_ft"] == "8"
+
+
+def test_config_errors():
+    with pytest.raises(ConfigError, match=r"ros2\.joint_names: list the model's joints"):
+        Ros2Config().validate()
+    with pytest.raises(ConfigError, match=r"ros2\.wrench_qos"):
+        Ros2Config(joint_names=NAMES, wrench_qos="fast").validate()
+    with pytest.raises(ConfigError, match=r"ros2\.wrench_topic: topic '/joint_states' is also"):
+        Ros2Config(joint_names=NAMES, wrench_topic="/joint_states").validate()
+    with pytest.raises(ConfigError, match=r"ros2\.tare_topic"):
+        scenario = ScenarioConfig()
+        scenario.bias_tracker.enabled = False
+        Rig(scenario, tare_topic="/ft_tare")
+
+
+@pytest.mark.parametrize("window", [0.0, 0.05])
+def test_messages_go_in_publication_order_within_the_reorder_window(window):
+    """A joint state published before a wrench but delivered after it (as after a lost
+    datagram): with a reorder window it is still handed over first; without, as it arrives."""
+    with Ros2Node(DOMAIN, reorder_window_s=window) as node, Ros2Node(DOMAIN) as driver:
+        got = []
+        topics = {"joint": f"/order_{os.getpid()}/joint", "wrench": f"/order_{os.getpid()}/ft"}
+        for kind, topic in topics.items():
+            node.subscribe(topic, "std_msgs/msg/Float64", lambda _m, _a, k=kind: got.append(k))
+        writers = {kind: driver.publisher(topic, "std_msgs/msg/Float64")
+                   for kind, topic in topics.items()}
+        wait_for(lambda: all(driver.matched().values()) and all(node.matched().values()),
+                 "DDS discovery")
+        Float64 = ros2_type("std_msgs/msg/Float64")
+        now_ns = time.time_ns()
+        writers["wrench"].write(Float64(data=1.0), timestamp=now_ns)
+        time.sleep(0.01)
+        node.spin(0)
+        writers["joint"].write(Float64(data=0.0), timestamp=now_ns - 1_000_000)  # earlier
+        wait_for(lambda: (node.spin(10), len(got))[1] == 2, "both messages")
+        assert got == (["joint", "wrench"] if window else ["wrench", "joint"])
+
+
+def test_cli_errors_name_the_ros2_setting(tmp_path, capsys):
+    from ftdrake.cli.main import main
+
+    assert main(["serve", "--ros2", "--model", str(tmp_path / "m.ftd")]) == 2
+    assert "ros2.joint_names: list the model's joints" in capsys.readouterr().err
+    (tmp_path / "ros2.yaml").write_text("joint_names: [a, b]\nwrench_qos: fast\n")
+    assert main(["record", "--ros2", "--ros2-config", str(tmp_path / "ros2.yaml"), "--out",
+                 str(tmp_path / "r.parquet")]) == 2
+    err = capsys.readouterr().err
+    assert "ros2.wrench_qos: 'fast' is not one of reliable, sensor_data" in err
+    assert "ros2.yaml" in err
+
+
+def test_tare_and_payload_topics_reach_the_tracker_and_its_estimates_are_published():
+    scenario = ScenarioConfig()
+    scenario.bias_tracker.track_payload = True
+    rig = Rig(scenario, tare_topic=f"/tare_{os.getpid()}", payload_topic=f"/grasp_{os.getpid()}")
+    try:
+        outputs = {"bias": [], "payload": []}
+        for name, msgtype in (("bias", "geometry_msgs/msg/WrenchStamped"),
+                              ("payload", "geometry_msgs/msg/InertiaStamped")):
+            rig.listener.subscribe(rig.config.output_topic(name), msgtype,
+                                   lambda m, _a, n=name: outputs[n].append(m))
+        events = {name: rig.driver.publisher(topic, "std_msgs/msg/Empty") for name, topic in
+                  (("tared", rig.config.tare_topic), ("payload_changed", rig.config.payload_topic))}
+        wait_for(lambda: all(rig.driver.matched().values())
+                 and all(rig.listener.matched().values()), "DDS discovery")
+        Empty = ros2_type("std_msgs/msg/Empty")
+        rig.step(0.0)
+        for writer in events.values():
+            writer.write(Empty(structure_needs_at_least_one_member=0))
+        wait_for(lambda: (rig.dut.spin_once(0), rig.dut.summary()["signals"])[1]["tared"]
+                 ["received"] == 1, "the tare")
+        rig.step(0.001)
+        assert rig.dut.summary()["signals"] == {"tared": {"received": 1, "rejected": 0},
+                                                "payload_changed": {"received": 1, "rejected": 0}}
+        wait_for(lambda: (rig.listener.spin(0), len(outputs["payload"]))[1] == 2, "estimates")
+        assert len(outputs["bias"]) == 2
+        np.testing.assert_allclose(wrench_of(outputs["bias"][-1]), rig.dut.output("bias"),
+                                   rtol=0, atol=0)
+        payload = outputs["payload"][-1]
+        assert payload.header.frame_id == "ft_sensor"
+        assert payload.inertia.m == rig.dut.output("payload")[0]
+    finally:
+        rig.close()
