@@ -24,8 +24,8 @@ PACKAGE = Path(__file__).resolve().parents[1] / "ftdrake"
 
 # Top-level module or package of ftdrake → layer (higher may import lower and its own).
 LAYERS = {
-    **dict.fromkeys(("conventions", "errors", "config", "signals", "io", "assets", "version"),
-                    0),
+    **dict.fromkeys(("conventions", "errors", "config", "signals", "io", "assets", "version",
+                     "parallel"), 0),  # parallel: the Dask backend collection and tuning share
     "physics": 1,
     "control": 1,  # ILC's filter and update law: array math like physics'
     "data": 2,
@@ -46,7 +46,8 @@ LAYERS = {
 FORBIDDEN_IN_LAYER = {
     ("hardware", "sim"): (),
     ("sim", "hardware"): ("ftdrake.hardware.messages", "ftdrake.hardware.transport",
-                          "ftdrake.hardware.config"),
+                          "ftdrake.hardware.config", "ftdrake.hardware.ros2.messages",
+                          "ftdrake.hardware.ros2.dds", "ftdrake.hardware.ros2.config"),
 }
 FORBIDDEN_BELOW = {"hardware": ("systems",)}  # the live robot runs no simulation rig
 
@@ -138,9 +139,9 @@ def test_the_rules_themselves(importer, imported, expected):
 
 
 def test_relative_imports_resolve_to_modules():
-    path = PACKAGE / "hardware" / "station.py"
-    imported = {m for _, m in imported_modules("ftdrake.hardware.station", path)}
-    assert {"ftdrake.runtime.chain", "ftdrake.hardware.messages", "ftdrake.errors"} <= imported
+    path = PACKAGE / "hardware" / "core.py"
+    imported = {m for _, m in imported_modules("ftdrake.hardware.core", path)}
+    assert {"ftdrake.runtime.chain", "ftdrake.hardware.messages", "ftdrake.config"} <= imported
     assert all(m in MODULES for m in imported), imported - set(MODULES)
 
 

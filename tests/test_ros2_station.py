@@ -262,6 +262,7 @@ def test_messages_go_in_publication_order_within_the_reorder_window(window):
 def test_cli_errors_name_the_ros2_setting(tmp_path, capsys):
     from ftdrake.cli.main import main
 
+    (tmp_path / "m.ftd").write_bytes(b"")  # the settings are checked before the model is read
     assert main(["serve", "--ros2", "--model", str(tmp_path / "m.ftd")]) == 2
     assert "ros2.joint_names: list the model's joints" in capsys.readouterr().err
     (tmp_path / "ros2.yaml").write_text("joint_names: [a, b]\nwrench_qos: fast\n")
