@@ -55,6 +55,8 @@ from .runtime.chain import CompensationChain
 from .runtime.compensator import CompensatorSystem
 from .runtime.detector import ContactDetector
 from .runtime.joint_gravity import JointStateGravity
+from .runtime.recorder import Recorder, add_recorder
+from .runtime.replay import replay
 from .sim.collection import collect
 from .sim.evaluation import evaluate_detection
 from .sim.scene import Scene, add_scene, make_control_plant
@@ -91,6 +93,7 @@ __all__ = [
     "OnlineBiasTracker",
     "PhysicsPayloadCompensator",
     "RandomForestCompensator",
+    "Recorder",
     "RobotModelError",
     "SVRCompensator",
     "ScenarioConfig",
@@ -102,6 +105,7 @@ __all__ = [
     "TrajectoryConfig",
     "TrajectoryError",
     "__version__",
+    "add_recorder",
     "add_scene",
     "build_station",
     "collect",
@@ -111,6 +115,7 @@ __all__ = [
     "load_dataset",
     "load_model",
     "make_control_plant",
+    "replay",
     "save_config",
     "save_dataset",
     "save_model",

@@ -27,9 +27,10 @@ def main(argv=None) -> int:
     train.register(sub)
     calibrate.register(sub)
     hardware.register(sub)
-    from . import feedforward
+    from . import feedforward, replay
 
     feedforward.register(sub)
+    replay.register(sub)
     return run(parser.parse_args(argv))
 
 

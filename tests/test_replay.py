@@ -1,0 +1,116 @@
+"""Replay: the runtime chain run offline over a log gives the in-loop chain's numbers."""
+
+import json
+
+import numpy as np
+import pandas as pd
+import pytest
+from pydrake.systems.analysis import Simulator
+from pydrake.systems.framework import DiagramBuilder
+from pydrake.systems.primitives import LogVectorOutput, TrajectorySource
+from pydrake.trajectories import PiecewisePolynomial
+from test_hardware_station import fit_forest
+
+import ftdrake
+from ftdrake import LogError, ScenarioConfig, replay, save_model
+from ftdrake.cli.main import main
+from ftdrake.conventions import WRENCH_AXES, WRENCH_UNITS, wrench_columns
+from ftdrake.runtime.delay_line import DelayLine
+from ftdrake.signals import causal_acceleration
+from ftdrake.sim.simulate import simulate
+from ftdrake.sim.station import build_station
+
+CHAIN_COLUMNS = [*wrench_columns("pred"), *wrench_columns("comp_external"),
+                 *wrench_columns("est_external"), *wrench_columns("pred_std"),
+                 *wrench_columns("bias_est"), "out_of_domain", "fault", "detected",
+                 "detected_force"]
+
+
+@pytest.fixture(scope="module")
+def contact_run():
+    """The demo's contact scenario (a 12 mm press on the table after free motion) with a
+    small forest, trained on the first 0.5 s, in the loop: (scenario, model, log)."""
+    scenario = ScenarioConfig()
+    scenario.trajectory.kind = "contact"
+    scenario.validate()
+    model = fit_forest(scenario, duration=0.5)
+    log = simulate(build_station(scenario, model), progress=False).log
+    return scenario, model, log
+
+
+@pytest.mark.slow
+def test_replay_of_a_simulated_log_equals_the_loop(contact_run):
+    scenario, model, log = contact_run
+    assert log["detected"].sum() > 1000 and log["contact"].sum() > 1000  # a real press
+    dut = replay(model, log, scenario, pairing="simulated")
+    assert list(dut.columns) == ["t", *CHAIN_COLUMNS]
+    np.testing.assert_array_equal(dut["t"], log["t"])
+    for name in CHAIN_COLUMNS:
+        np.testing.assert_allclose(dut[name], log[name], rtol=0, atol=1e-12, err_msg=name)
+    # The held view is the aligned one a row later: what the output ports held on arrival.
+    held = replay(model, log, scenario, pairing="simulated", view="held")
+    assert held.iloc[0, 1:].isna().all()
+    np.testing.assert_array_equal(held[CHAIN_COLUMNS].to_numpy()[1:],
+                                  dut[CHAIN_COLUMNS].to_numpy(dtype=float)[:-1])
+    # Each update of the aligned view: the compensator's output is wrench − model(inputs) of
+    # the same update (the previous row's reading in the simulated pairing), computed here
+    # independently with the model's batch predict on the loop's q̈ estimate.
+    row = replay(model, log, scenario)
+    X = np.hstack([ftdrake.joint_state_layout(log, source="plant")[:, :14],
+                   causal_acceleration(
+                       log[[f"qd_{i}" for i in range(7)]].to_numpy(), 1e-3,
+                       scenario.compensator.acceleration_cutoff_hz)])
+    expected = log[wrench_columns("meas")].to_numpy() - model.predict(X)
+    np.testing.assert_allclose(row[wrench_columns("comp_external")], expected, atol=1e-9)
+
+
+@pytest.mark.slow
+def test_replay_command_writes_the_function_s_result(contact_run, tmp_path, capsys):
+    scenario, model, log = contact_run
+    log.iloc[:3000].to_parquet(tmp_path / "log.parquet")
+    save_model(model, tmp_path / "model.ftd", target_names=list(WRENCH_AXES),
+               target_units=list(WRENCH_UNITS))
+    ftdrake.save_config(scenario, tmp_path / "scenario.yaml")
+    assert main(["replay", "--model", str(tmp_path / "model.ftd"), "--log",
+                 str(tmp_path / "log.parquet"), "--out", str(tmp_path / "out.csv"),
+                 "--config", str(tmp_path / "scenario.yaml"), "--pairing", "simulated"]) == 0
+    report = json.loads(capsys.readouterr().out.strip().splitlines()[-1])
+    got = pd.read_csv(tmp_path / "out.csv")
+    expected = log.iloc[:3000]
+    assert report["rows"] == len(got) == 3000
+    np.testing.assert_allclose(got[CHAIN_COLUMNS], expected[CHAIN_COLUMNS], atol=1e-9)
+
+
+def test_replay_names_a_missing_column_and_what_produces_it():
+    rng = np.random.default_rng(0)
+    X = rng.uniform(-1, 1, (100, 21))
+    model = ftdrake.RandomForestCompensator(features="q", n_estimators=2).fit(X, X[:, :6])
+    log = pd.DataFrame({"t": np.arange(20) * 1e-3,
+                        **{f"q_{i}": np.zeros(20) for i in range(7)},
+                        **{c: np.zeros(20) for c in wrench_columns("meas")}})
+    with pytest.raises(LogError, match=r"qd_0.*joint velocities.*add_recorder"):
+        replay(model, log)
+
+
+@pytest.mark.parametrize("delay", [0.0, 1.0, 2.4, 3.75])
+def test_delay_line_outputs_the_input_delay_samples_ago(delay):
+    """Against np.interp of the input's samples (held at the first before it starts)."""
+    period = 1e-3
+    t = np.arange(40) * period
+    u = np.c_[np.sin(40 * t), t**2]
+    builder = DiagramBuilder()
+    source = builder.AddSystem(TrajectorySource(PiecewisePolynomial.ZeroOrderHold(
+        np.r_[t, t[-1] + period], np.c_[u.T, u[-1]])))
+    dut = builder.AddSystem(DelayLine(2, delay, period))
+    builder.Connect(source.get_output_port(), dut.get_input_port())
+    logger = LogVectorOutput(dut.get_output_port(), builder, period)
+    diagram = builder.Build()
+    simulator = Simulator(diagram)
+    # Sample the output just after each update: the logger publishes before the update at
+    # the same time, so read it one period later.
+    simulator.AdvanceTo(t[-1])
+    got = logger.FindLog(simulator.get_context()).data().T
+    expected = np.column_stack([np.interp(t - delay * period, t, u[:, j]) for j in range(2)])
+    # The log at t_k shows the output computed with the input u[k] and the buffer of the
+    # updates before t_k.
+    np.testing.assert_allclose(got, expected, atol=1e-12)
