@@ -114,3 +114,30 @@ def test_delay_line_outputs_the_input_delay_samples_ago(delay):
     # The log at t_k shows the output computed with the input u[k] and the buffer of the
     # updates before t_k.
     np.testing.assert_allclose(got, expected, atol=1e-12)
+
+
+@pytest.mark.slow
+def test_evaluate_detection_takes_a_replay_and_names_what_is_missing(contact_run):
+    scenario, model, log = contact_run
+    noise = scenario.sensor.spec().noise_std
+    truth_only = log.drop(columns=CHAIN_COLUMNS)
+    with pytest.raises(LogError, match=r"'detected' \(the runtime chain's outputs.*replay"):
+        ftdrake.evaluate_detection(truth_only, noise)
+    replayed = replay(model, truth_only, scenario, pairing="simulated")
+    assert ftdrake.evaluate_detection(truth_only, noise, replayed) == \
+        ftdrake.evaluate_detection(log, noise)
+    # Without the simulator's internal wrench, that metric is named as not computed.
+    partial = ftdrake.evaluate_detection(log.drop(columns=wrench_columns("internal")), noise)
+    assert partial["compensation_error_rms"] is None
+    assert "simulate's log" in partial["not_computed"]["compensation_error_rms"]
+    assert partial["detected_contacts"] == ftdrake.evaluate_detection(log, noise)[
+        "detected_contacts"] >= 1
+
+
+def test_joint_state_layout_names_the_source_that_the_log_has():
+    frame = pd.DataFrame({f"{p}_{i}": np.zeros(3) for p in ("q", "qd", "qdd") for i in range(2)})
+    with pytest.raises(LogError, match=r"qd_est_0.*source='plant'"):
+        ftdrake.joint_state_layout(frame)
+    assert ftdrake.joint_state_layout(frame, source="plant").shape == (3, 6)
+    with pytest.raises(LogError, match="add_recorder"):
+        ftdrake.joint_state_layout(frame[["q_0", "q_1"]])
