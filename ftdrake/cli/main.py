@@ -319,6 +319,9 @@ def _add_evaluate_detection(sub):
                    help="false positives per hour the thresholds are set for")
     p.add_argument("--jobs", type=jobs, default=-1, help="local worker processes (-1: all)")
     p.add_argument("--out", type=Path, default=Path("out/detection"))
+    p.add_argument("--in-loop", action="store_true",
+                   help="simulate every run with each model in the loop (default: simulate "
+                        "each run once and replay every model over it; the same numbers)")
     p.add_argument("--quiet", action="store_true")
     p.set_defaults(run=_evaluate_detection)
 
@@ -336,7 +339,7 @@ def _evaluate_detection(args):
     output_path("--out", args.out, folder=True)
     plan = DetectionPlan(free_minutes=args.minutes, false_positives_per_hour=args.budget)
     results = run_detection_evaluation(args.out, models, config, plan, n_jobs=args.jobs,
-                                       progress=not args.quiet)
+                                       progress=not args.quiet, in_loop=args.in_loop)
     print(markdown(results, plan))
     print(f"wrote {args.out}/detection.json, detection.md, detection_rate.png")
     return 0
