@@ -74,7 +74,7 @@ def _replay(args) -> int:
     delay = args.delay
     estimate = None
     if args.align:
-        from ..runtime.stream_delay import estimate_stream_delay
+        from ..data.stream_delay import estimate_stream_delay
 
         estimate = estimate_stream_delay(model, frame)
         delay = estimate.delay_s
