@@ -11,6 +11,7 @@ from ftdrake.conventions import wrench_columns
 from ftdrake.data.stream_delay import estimate_stream_delay, fit_aligned, shift_wrench
 
 PERIOD = 1e-3
+PHYSICS = ["--model", "physics", "--robot", "ftdrake"]
 
 
 @pytest.fixture(scope="module")
@@ -87,3 +88,26 @@ def test_the_chain_applies_a_model_s_delay_like_the_offline_correction(free_log,
                                .to_numpy()[lag:], rtol=0, atol=1e-12)
     assert np.abs(dut[lag:] - replay(loaded, delayed, wrench_delay_s=0.0)[
         wrench_columns("comp_external")].to_numpy()[lag:]).max() > 0.01  # the delay matters
+
+
+@pytest.mark.slow
+def test_train_aligns_the_streams_and_the_model_keeps_the_delay(free_log, tmp_path, capsys):
+    from ftdrake.cli.train import main as train_cli
+    from ftdrake.compensation.persistence import read_manifest
+
+    found = {}
+    for name, injected in (("as_simulated", 0.0), ("delayed", 0.010)):
+        path = tmp_path / f"{name}.parquet"
+        ftdrake.save_dataset(shift_wrench(free_log, -injected) if injected else free_log, path)
+        out = tmp_path / f"{name}.ftd"
+        assert train_cli(["train", "--data", str(path), *PHYSICS, "--align", "--out",
+                          str(out), "--quiet"]) == 0
+        found[name] = read_manifest(out)["extra"]["stream_delay"]
+        assert ftdrake.load_model(out).wrench_delay_s_ == found[name]["delay_s"]
+    recovered = found["delayed"]["delay_s"] - found["as_simulated"]["delay_s"]
+    assert recovered == pytest.approx(0.010, abs=PERIOD)
+    assert found["delayed"]["std_s"] > 0
+    assert train_cli(["train", "--data", str(tmp_path / "delayed.parquet"), *PHYSICS,
+                      "--delay", "0.01", "--out", str(tmp_path / "given.ftd"), "--quiet"]) == 0
+    assert ftdrake.load_model(tmp_path / "given.ftd").wrench_delay_s_ == 0.01
+    capsys.readouterr()

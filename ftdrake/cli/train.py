@@ -131,6 +131,13 @@ def register(subparsers) -> None:
     p.add_argument("--jobs", type=int, default=-1, help="parallel CV fits (-1: all cores)")
     p.add_argument("--dask", metavar="ADDRESS", help="run the grid search on this Dask scheduler")
     p.add_argument("--out", type=Path, required=True, metavar="MODEL")
+    delay = p.add_mutually_exclusive_group()
+    delay.add_argument("--delay", type=float, metavar="S",
+                       help="the wrench stream's delay behind the joint states (s; negative: "
+                            "ahead): corrected in training, kept in the model, applied live")
+    delay.add_argument("--align", action="store_true",
+                       help="estimate that delay (with the model fitted once; best with a "
+                            "physics or hybrid model), report it and correct it")
     p.add_argument("--quiet", action="store_true", help="no progress output")
     p.set_defaults(run=run_train)
 
@@ -398,6 +405,7 @@ def run_train(args) -> int:
     estimator = make_estimator(args.model, features=args.features, seed=args.seed,
                                target_names=data.target_names, robot=robot)
     units = target_units(args.target_units, data.target_names)
+    data, stream_delay = _align_streams(args, data, estimator, say)
     search = None
     if args.preset == "quick" and "quick" in registry.entry(args.model).presets:
         from ..compensation.tuning import segment_groups, tune
@@ -418,12 +426,40 @@ def run_train(args) -> int:
         print(model.summary())
     extra = provenance(args.data, data, model, search, kind=args.model,
                        time_window=(args.t_start, args.t_end), dask=args.dask)
+    if stream_delay is not None:  # the chain applies it live (CompensationChain)
+        model.wrench_delay_s_ = stream_delay["delay_s"]
+        extra["stream_delay"] = stream_delay
     args.out.parent.mkdir(parents=True, exist_ok=True)
     sensor_frame = args.sensor_frame or ("S" if is_wrench(data.target_names) else "joints")
     save_model(model, args.out, target_names=data.target_names, target_units=units,
                sensor_frame=sensor_frame, extra=extra)
     print(f"saved {args.out} ({file_size(args.out.stat().st_size)})")
     return 0
+
+
+def _align_streams(args, data: TrainingData, estimator, say):
+    """--delay / --align: (data with the targets moved the delay earlier, the delay as a
+    dict) or (data, None) without either (:mod:`ftdrake.data.stream_delay`)."""
+    from sklearn.base import clone
+
+    from ..compensation import registry
+    from ..data.stream_delay import align_training_data, estimate_training_delay
+
+    if args.delay is None and not args.align:
+        return data, None
+    if data.static:
+        raise LogError("--delay/--align: a table of static poses has no time axis to align")
+    if args.align:
+        needs_robot = registry.entry(args.model).needs_robot
+        say(f"estimating the wrench stream's delay with {args.model} …")
+        estimate = estimate_training_delay(
+            lambda d: _fit(clone(estimator), d, needs_robot=needs_robot), data)
+        found = estimate.as_dict()
+        say(f"wrench stream delay: {estimate.delay_s * 1e3:.2f} ± {estimate.std_s * 1e3:.2f} ms "
+            f"({estimate.samples:.2f} samples); corrected")
+    else:
+        found = {"delay_s": float(args.delay), "given": True}
+    return align_training_data(data, found["delay_s"]), found
 
 
 def _fit(estimator, data: TrainingData, *, needs_robot: bool):

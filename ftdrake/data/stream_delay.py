@@ -70,36 +70,69 @@ def estimate_stream_delay(model, log: pd.DataFrame, *, wrench: str = col.MEASURE
     resampled `bootstraps` times for the uncertainty.
     """
     t = log[col.TIME].to_numpy(dtype=float)
-    period = float(np.median(np.diff(t)))
     measured = _columns(log, col.wrench_columns(wrench), "the sensor's reading")
-    predicted = model.predict(_model_input(model, log))
+    return delay_between(measured, model.predict(_model_input(model, log)), t,
+                         max_lag_s=max_lag_s, segments=segments, bootstraps=bootstraps,
+                         seed=seed)
+
+
+def delay_between(measured: np.ndarray, predicted: np.ndarray, t: np.ndarray,
+                  groups: np.ndarray | None = None, *, max_lag_s: float = DEFAULT_MAX_LAG_S,
+                  segments: int = 10, bootstraps: int = 200, seed: int = 0) -> DelayEstimate:
+    """:func:`estimate_stream_delay` on arrays: `measured` and `predicted` (N, m) wrenches
+    at times `t` (s); `groups` (N,) numbers separate recordings (a lag never pairs rows of
+    two of them; time may restart in each)."""
+    measured, predicted = np.asarray(measured, float), np.asarray(predicted, float)
+    t = np.asarray(t, float)
+    groups = np.zeros(len(t)) if groups is None else np.asarray(groups)
+    same = groups[1:] == groups[:-1]
+    period = float(np.median(np.diff(t)[same])) if same.any() else float("nan")
+    if not period > 0:
+        raise LogError("estimate_stream_delay: the log needs increasing times")
     max_lag = max(1, round(max_lag_s / period))
-    if len(t) < 4 * max_lag + 2 * segments:
-        raise LogError(f"estimate_stream_delay: {len(t)} rows are too few for lags up to "
-                       f"{max_lag_s} s; record longer or lower max_lag_s")
+    # Rows whose every shifted partner lies in the same recording: the same rows at each lag,
+    # so the misfits compare.
+    index = np.arange(len(t))
+    inside = (index >= max_lag) & (index < len(t) - max_lag)
+    rows = index[inside]
+    rows = rows[(groups[rows - max_lag] == groups[rows]) & (groups[rows + max_lag] == groups[rows])]
+    if len(rows) < max(4 * max_lag, 2 * segments):
+        raise LogError(f"estimate_stream_delay: {len(rows)} usable rows are too few for lags "
+                       f"up to {max_lag_s} s; record longer or lower max_lag_s")
     lags = np.arange(-max_lag, max_lag + 1)
     scale = measured.std(axis=0)
     scale[scale == 0] = 1.0
-    # Rows used at every lag: the same rows for each, so the misfits compare.
-    rows = np.arange(max_lag, len(t) - max_lag)
-    blocks = np.array_split(rows, segments)
+    blocks = np.array_split(np.arange(len(rows)), segments)
     sums = np.empty((len(lags), segments))
     for i, lag in enumerate(lags):
         # The reading at k belongs to the state at k − lag.
         diff = (measured[rows] - predicted[rows - lag]) / scale
         diff -= diff.mean(axis=0)  # a constant offset (bias) is not a delay
         squared = (diff ** 2).sum(axis=1)
-        sums[i] = [squared[block - max_lag].sum() for block in blocks]
-    counts = np.array([len(b) for b in blocks], dtype=float)
-    misfit = sums.sum(axis=1) / counts.sum() / measured.shape[1]
+        sums[i] = [squared[block].sum() for block in blocks]
+    misfit = sums.sum(axis=1) / len(rows) / measured.shape[1]
     delay = _parabolic_minimum(misfit) - max_lag
     rng = np.random.default_rng(seed)
-    draws = []
-    for _ in range(bootstraps):
-        pick = rng.integers(0, segments, segments)
-        draws.append(_parabolic_minimum(sums[:, pick].sum(axis=1)) - max_lag)
+    draws = [_parabolic_minimum(sums[:, rng.integers(0, segments, segments)].sum(axis=1))
+             - max_lag for _ in range(bootstraps)]
     return DelayEstimate(delay_s=float(delay * period), std_s=float(np.std(draws) * period),
                          period_s=period, lags_s=lags * period, misfit=misfit)
+
+
+def shift_rows(Y: np.ndarray, t: np.ndarray, delay_s: float,
+               groups: np.ndarray | None = None) -> np.ndarray:
+    """(values, keep): `Y` (N, m) moved `delay_s` earlier within each group (linear
+    interpolation at t + d), and the mask of the rows whose t + d lies inside their group."""
+    Y, t = np.asarray(Y, float), np.asarray(t, float)
+    groups = np.zeros(len(t)) if groups is None else np.asarray(groups)
+    out, keep = np.empty_like(Y), np.zeros(len(t), dtype=bool)
+    for g in pd.unique(groups):
+        idx = np.flatnonzero(groups == g)
+        tg, target = t[idx], t[idx] + float(delay_s)
+        keep[idx] = (target >= tg[0]) & (target <= tg[-1])
+        for j in range(Y.shape[1]):
+            out[idx, j] = np.interp(target, tg, Y[idx, j])
+    return out, keep
 
 
 def shift_wrench(log: pd.DataFrame, delay_s: float, *, wrench: str = col.MEASURED
@@ -107,14 +140,11 @@ def shift_wrench(log: pd.DataFrame, delay_s: float, *, wrench: str = col.MEASURE
     """`log` with the wrench columns moved `delay_s` earlier (the reading of t + d on the row
     of t, linearly interpolated in time), which corrects a wrench stream that lags by d; rows
     whose t + d lies outside the log are dropped."""
-    t = log[col.TIME].to_numpy(dtype=float)
     names = col.wrench_columns(wrench)
-    values = _columns(log, names, "the sensor's reading")
-    target = t + float(delay_s)
-    keep = (target >= t[0]) & (target <= t[-1])
+    values, keep = shift_rows(_columns(log, names, "the sensor's reading"),
+                              log[col.TIME].to_numpy(dtype=float), delay_s)
     out = log.loc[keep].copy()
-    for j, name in enumerate(names):
-        out[name] = np.interp(target[keep], t, values[:, j])
+    out[names] = values[keep]
     return out.reset_index(drop=True)
 
 
@@ -179,3 +209,26 @@ def fit_aligned(model, log: pd.DataFrame, *, delay_s: float | None = None,
     model.wrench_delay_s_ = float(delay_s)
     model.stream_delay_ = None if estimate is None else estimate.as_dict()
     return model, estimate
+
+
+def align_training_data(data, delay_s: float):
+    """A :class:`~.training.TrainingData` with its targets moved `delay_s` earlier within each
+    recording (:func:`shift_rows`; rows whose t + d lies outside their recording dropped)."""
+    Y, keep = shift_rows(data.Y, data.t, delay_s, data.groups)
+    rows = dict(data.rows, used=int(keep.sum()))
+    return dc.replace(data, X=data.X[keep], Y=Y[keep], t=data.t[keep],
+                      groups=data.groups[keep], rows=rows)
+
+
+def estimate_training_delay(fit, data, *, iterations: int = 2, **options) -> DelayEstimate:
+    """The delay of `data`'s targets behind its joint states (a TrainingData), with the model
+    `fit(data)` returns (fitted on the data as given, then on the data corrected by the
+    estimate so far, `iterations` times; see :func:`fit_aligned`)."""
+    delay, estimate = 0.0, None
+    for _ in range(max(1, int(iterations))):
+        aligned = align_training_data(data, delay) if delay else data
+        model = fit(aligned)
+        estimate = delay_between(aligned.Y, model.predict(aligned.X), aligned.t,
+                                 aligned.groups, **options)
+        delay += estimate.delay_s
+    return dc.replace(estimate, delay_s=float(delay))
