@@ -37,6 +37,7 @@ import functools
 import json
 import re
 import sys
+import time
 from pathlib import Path
 
 import numpy as np
@@ -131,6 +132,9 @@ def register(subparsers) -> None:
     p.add_argument("--jobs", type=int, default=-1, help="parallel CV fits (-1: all cores)")
     p.add_argument("--dask", metavar="ADDRESS", help="run the grid search on this Dask scheduler")
     p.add_argument("--out", type=Path, required=True, metavar="MODEL")
+    p.add_argument("--max-rows", type=int, metavar="N",
+                   help="fit on at most N rows covering the log's states (every k-th row, "
+                        "then farthest-point in the model's inputs); reported in the model")
     delay = p.add_mutually_exclusive_group()
     delay.add_argument("--delay", type=float, metavar="S",
                        help="the wrench stream's delay behind the joint states (s; negative: "
@@ -406,6 +410,7 @@ def run_train(args) -> int:
                                target_names=data.target_names, robot=robot)
     units = target_units(args.target_units, data.target_names)
     data, stream_delay = _align_streams(args, data, estimator, say)
+    data, subsample = _subsample(args, data, estimator, say)
     search = None
     if args.preset == "quick" and "quick" in registry.entry(args.model).presets:
         from ..compensation.tuning import segment_groups, tune
@@ -420,12 +425,16 @@ def run_train(args) -> int:
         say(f"best {search.best_params[0]}, CV MSE {-search.mean_score[0]:.4g}")
     else:
         why = "" if args.preset == "none" else " (no grid: its parameters are fitted from data)"
-        say(f"fitting {args.model}{why} …")
+        say(f"fitting {args.model}{why} on {len(data.X)} rows …")
+        started = time.perf_counter()
         model = _fit(estimator, data, needs_robot=registry.entry(args.model).needs_robot)
+        say(f"fitted in {time.perf_counter() - started:.1f} s")
     if hasattr(model, "summary"):  # physics and hybrid: the identified payload
         print(model.summary())
     extra = provenance(args.data, data, model, search, kind=args.model,
                        time_window=(args.t_start, args.t_end), dask=args.dask)
+    if subsample is not None:
+        extra["subsample"] = subsample
     if stream_delay is not None:  # the chain applies it live (CompensationChain)
         model.wrench_delay_s_ = stream_delay["delay_s"]
         extra["stream_delay"] = stream_delay
@@ -435,6 +444,29 @@ def run_train(args) -> int:
                sensor_frame=sensor_frame, extra=extra)
     print(f"saved {args.out} ({file_size(args.out.stat().st_size)})")
     return 0
+
+
+def _subsample(args, data: TrainingData, estimator, say):
+    """--max-rows: (data cut to the covering rows, what was done) or (data, None)."""
+    from ..compensation.features import check_feature_set
+    from ..data.subsample import OVERSAMPLE, covering_rows
+
+    if args.max_rows is not None and args.max_rows < 1:
+        raise ConfigError(f"--max-rows {args.max_rows}: must be a whole number >= 1")
+    if args.max_rows is None or len(data.X) <= args.max_rows:
+        return data, None
+    features = getattr(estimator, "features", None)
+    columns = check_feature_set(features) * data.n_joints if features else None
+    say(f"choosing {args.max_rows} of {len(data.X)} rows that cover the log's states …")
+    started = time.perf_counter()
+    rows = covering_rows(data.X, args.max_rows, groups=data.groups, columns=columns)
+    elapsed = time.perf_counter() - started
+    say(f"chose {len(rows)} rows in {elapsed:.1f} s")
+    done = {"rows_in": len(data.X), "rows_used": len(rows), "max_rows": args.max_rows,
+            "method": "every k-th row, then farthest-point in the model's scaled inputs",
+            "oversample": OVERSAMPLE, "metric_columns": columns or data.X.shape[1]}
+    return dc.replace(data, X=data.X[rows], Y=data.Y[rows], t=data.t[rows],
+                      groups=data.groups[rows], rows=dict(data.rows, used=len(rows))), done
 
 
 def _align_streams(args, data: TrainingData, estimator, say):
