@@ -141,3 +141,33 @@ def test_joint_state_layout_names_the_source_that_the_log_has():
     assert ftdrake.joint_state_layout(frame, source="plant").shape == (3, 6)
     with pytest.raises(LogError, match="add_recorder"):
         ftdrake.joint_state_layout(frame[["q_0", "q_1"]])
+
+
+def test_replay_command_reads_an_lcm_log(tmp_path, capsys):
+    """An lcm-logger file of joint states and F/T messages: rows paired by timestamp, each
+    row one update; the compensated wrench is reading − model(row)."""
+    lcm = pytest.importorskip("lcm")
+    from ftdrake.hardware import HardwareConfig
+    from ftdrake.hardware.messages import encode_joint_state, encode_wrench
+
+    rng = np.random.default_rng(2)
+    X = rng.uniform(-1, 1, (300, 21))
+    model = ftdrake.RandomForestCompensator(features="q", n_estimators=3, random_state=0)
+    model.fit(X, np.sin(X[:, :6]))
+    save_model(model, tmp_path / "m.ftd", target_names=list(WRENCH_AXES),
+               target_units=list(WRENCH_UNITS))
+    hardware = HardwareConfig()
+    log = lcm.EventLog(str(tmp_path / "run.lcmlog"), "w", overwrite=True)
+    q, w = rng.uniform(-1, 1, (40, 7)), rng.normal(size=(40, 6))
+    for k in range(40):
+        t = (k + 1) * 1e-3
+        log.write_event(int(t * 1e6), hardware.joint_state_channel,
+                        encode_joint_state("iiwa_status", t, q[k], np.zeros(7)))
+        log.write_event(int(t * 1e6) + 1, hardware.ft_channel, encode_wrench(t, w[k]))
+    log.close()
+    assert main(["replay", "--model", str(tmp_path / "m.ftd"), "--log",
+                 str(tmp_path / "run.lcmlog"), "--out", str(tmp_path / "out.parquet")]) == 0
+    got = pd.read_parquet(tmp_path / "out.parquet")
+    expected = w - model.predict(np.c_[q, np.zeros((40, 14))])
+    np.testing.assert_allclose(got[wrench_columns("comp_external")], expected, atol=1e-9)
+    assert json.loads(capsys.readouterr().out)["rows"] == 40

@@ -12,6 +12,7 @@ ROS bag (with --wrench-topic) or an LCM log (read with --hardware's channels).
 from __future__ import annotations
 
 import json
+import sys
 from pathlib import Path
 
 from ..errors import LogError, ModelFileError
@@ -78,6 +79,10 @@ def _replay(args) -> int:
 
         estimate = estimate_stream_delay(model, frame)
         delay = estimate.delay_s
+        if abs(delay) <= 2 * estimate.std_s:
+            print(f"warning: the estimated delay {delay * 1e3:.2f} ms is within two of its "
+                  f"standard errors ({estimate.std_s * 1e3:.2f} ms) of zero; corrected anyway",
+                  file=sys.stderr)
     result = replay(model, frame, config, pairing=args.pairing, view=args.view,
                     wrench_delay_s=delay)
     if args.out.suffix == ".csv":

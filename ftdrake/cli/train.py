@@ -488,7 +488,8 @@ def _align_streams(args, data: TrainingData, estimator, say):
             lambda d: _fit(clone(estimator), d, needs_robot=needs_robot), data)
         found = estimate.as_dict()
         say(f"wrench stream delay: {estimate.delay_s * 1e3:.2f} ± {estimate.std_s * 1e3:.2f} ms "
-            f"({estimate.samples:.2f} samples); corrected")
+            f"({estimate.samples:.2f} samples); corrected"
+            + ("" if found["distinct_from_zero"] else " (within two standard errors of 0)"))
     else:
         found = {"delay_s": float(args.delay), "given": True}
     return align_training_data(data, found["delay_s"]), found

@@ -55,6 +55,7 @@ class DelayEstimate:
         """The estimate as plain numbers (for reports and model summaries)."""
         best = int(np.argmin(self.misfit))
         return {"delay_s": self.delay_s, "std_s": self.std_s, "samples": self.samples,
+                "distinct_from_zero": bool(abs(self.delay_s) > 2 * self.std_s),
                 "period_s": self.period_s, "misfit_at_delay": float(self.misfit[best]),
                 "misfit_at_zero": float(self.misfit[len(self.misfit) // 2])}
 
