@@ -62,6 +62,8 @@ from .runtime.chain import CompensationChain
 from .runtime.compensator import CompensatorSystem
 from .runtime.detector import ContactDetector
 from .runtime.joint_gravity import JointStateGravity
+from .runtime.recorder import Recorder, add_recorder
+from .runtime.replay import replay
 from .sim.collection import collect
 from .sim.evaluation import evaluate_detection
 from .sim.scene import Scene, add_scene, make_control_plant
@@ -101,6 +103,7 @@ __all__ = [
     "PhysicsPayloadCompensator",
     "RandomForestCompensator",
     "ReadOptions",
+    "Recorder",
     "RobotModelError",
     "RobotOptions",
     "SVRCompensator",
@@ -113,6 +116,7 @@ __all__ = [
     "TrajectoryConfig",
     "TrajectoryError",
     "__version__",
+    "add_recorder",
     "add_scene",
     "build_station",
     "calibrate_table",
@@ -126,6 +130,7 @@ __all__ = [
     "load_training_data",
     "make_control_plant",
     "make_estimator",
+    "replay",
     "save_config",
     "save_dataset",
     "save_model",

@@ -9,7 +9,8 @@ from __future__ import annotations
 
 from ..compensation.persistence import load_model
 from ..experiments.demo import print_table, run_demo
-from ..experiments.detection import DetectionPlan, markdown, run_detection_evaluation
+from ..experiments.detection import DetectionPlan, markdown, run_detection_evaluation, run_plan
+from ..experiments.detection_replay import run_plan_by_replay
 from . import args as a
 
 
@@ -43,6 +44,9 @@ def register(sub) -> None:
                    help="false positives per hour the thresholds are set for (default: the "
                         "scenario's detector.false_positives_per_hour)")
     a.add_jobs(p)
+    p.add_argument("--in-loop", action="store_true",
+                   help="simulate every run with each model in the loop (default: simulate "
+                        "each run once and replay every model over it; the same numbers)")
     p.add_argument("--out", type=a.output_folder, default="out/detection", metavar="DIR",
                    help="folder for detection.json, detection.md, detection_rate.png")
     a.add_quiet(p)
@@ -68,7 +72,8 @@ def run_evaluate_detection(args) -> int:
             models[path.stem] = load_model(path, expect_n_joints=len(config.home_q))
     plan = DetectionPlan(free_minutes=args.minutes, false_positives_per_hour=args.budget)
     results = run_detection_evaluation(args.out, models, config, plan, n_jobs=args.jobs,
-                                       progress=not args.quiet)
+                                       progress=not args.quiet,
+                                       run=run_plan if args.in_loop else run_plan_by_replay)
     print(markdown(results, plan))
     print(f"wrote {args.out}/detection.json, detection.md, detection_rate.png")
     return 0

@@ -12,6 +12,7 @@ from . import (
     export,
     feedforward,
     hardware,
+    replay,
     simulation,
     study,
     train,
@@ -19,7 +20,7 @@ from . import (
 from .args import HelpFormatter, run
 
 # In the order ``ftdrake --help`` lists them: the rig, models, a live robot, the experiments.
-COMMAND_MODULES = (simulation, train, export, calibrate, hardware, experiments, study,
+COMMAND_MODULES = (simulation, train, export, replay, calibrate, hardware, experiments, study,
                    feedforward)
 
 DESCRIPTION = """\

@@ -35,17 +35,23 @@ import argparse
 import dataclasses as dc
 import json
 import sys
+import time
 from pathlib import Path
+
+from sklearn.base import clone
 
 from ..compensation import registry
 from ..compensation.build import BUILTIN_ROBOT, RobotOptions, is_wrench
 from ..compensation.calibration import static_table_hint
 from ..compensation.evaluation import evaluate_model, target_ranges
+from ..compensation.features import check_feature_set
 from ..compensation.persistence import load_model, read_manifest, save_model
 from ..compensation.tuning import segment_groups, tune
 from ..conventions import TEMPERATURE, WRENCH_UNITS
 from ..data.bag import is_bag
 from ..data.logs import QDD_ESTIMATES, option_spelling
+from ..data.stream_delay import align_training_data, estimate_training_delay
+from ..data.subsample import OVERSAMPLE, covering_rows
 from ..data.training import ReadOptions, TrainingData, load_training_data
 from ..errors import ConfigError, FtdrakeError, LogError, ModelFileError, RobotModelError
 from ..io import atomic_write_text
@@ -125,6 +131,16 @@ def register(subparsers) -> None:
     a.add_deprecated(p, "--dask", cluster)
     p.add_argument("--out", type=a.output_file, required=True, metavar="MODEL",
                    help="the model file to write (e.g. m.ftd)")
+    p.add_argument("--max-rows", type=a.positive_int, metavar="N",
+                   help="fit on at most N rows covering the log's states (every k-th row, "
+                        "then farthest-point in the model's inputs); reported in the model")
+    delay = p.add_mutually_exclusive_group()
+    delay.add_argument("--delay", type=a.finite_float, metavar="S",
+                       help="the wrench stream's delay behind the joint states (s; negative: "
+                            "ahead): corrected in training, kept in the model, applied live")
+    delay.add_argument("--align", action="store_true",
+                       help="estimate that delay (with the model fitted once; best with a "
+                            "physics or hybrid model), report it and correct it")
     a.add_quiet(p)
     p.set_defaults(run=run_train)
 
@@ -243,6 +259,8 @@ def run_train(args) -> int:
                                         target_names=data.target_names, robot=robot,
                                         options=_model_options(args))
     units = target_units(args.target_units, data.target_names)
+    data, stream_delay = _align_streams(args, data, estimator, say)
+    data, subsample = _subsample(args, data, estimator, say)
     search = None
     if args.preset == "quick" and "quick" in registry.entry(args.kind).presets:
         where = f"Dask scheduler {args.cluster}" if args.cluster else "local processes"
@@ -254,18 +272,64 @@ def run_train(args) -> int:
         say(f"best {search.best_params[0]}, CV MSE {-search.mean_score[0]:.4g}")
     else:
         why = "" if args.preset == "none" else " (no grid: its parameters are fitted from data)"
-        say(f"fitting {args.kind}{why} …")
+        say(f"fitting {args.kind}{why} on {len(data.X)} rows …")
+        started = time.perf_counter()
         model = _fit(estimator, data, needs_robot=registry.entry(args.kind).needs_robot)
+        say(f"fitted in {time.perf_counter() - started:.1f} s")
     if hasattr(model, "summary"):  # physics and hybrid: the identified payload
         print(model.summary())
     extra = provenance(args.data, data, model, search, kind=args.kind,
                        time_window=(args.t_start, args.t_end), dask=args.cluster)
+    if subsample is not None:
+        extra["subsample"] = subsample
+    if stream_delay is not None:  # the chain applies it live (CompensationChain)
+        model.wrench_delay_s_ = stream_delay["delay_s"]
+        extra["stream_delay"] = stream_delay
     args.out.parent.mkdir(parents=True, exist_ok=True)
     sensor_frame = args.sensor_frame or ("S" if is_wrench(data.target_names) else "joints")
     save_model(model, args.out, target_names=data.target_names, target_units=units,
                sensor_frame=sensor_frame, extra=extra)
     print(f"saved {args.out} ({file_size(args.out.stat().st_size)})")
     return 0
+
+
+def _subsample(args, data: TrainingData, estimator, say):
+    """--max-rows: (data cut to the covering rows, what was done) or (data, None)."""
+    if args.max_rows is None or len(data.X) <= args.max_rows:
+        return data, None
+    features = getattr(estimator, "features", None)
+    columns = check_feature_set(features) * data.n_joints if features else None
+    say(f"choosing {args.max_rows} of {len(data.X)} rows that cover the log's states …")
+    started = time.perf_counter()
+    rows = covering_rows(data.X, args.max_rows, groups=data.groups, columns=columns)
+    elapsed = time.perf_counter() - started
+    say(f"chose {len(rows)} rows in {elapsed:.1f} s")
+    done = {"rows_in": len(data.X), "rows_used": len(rows), "max_rows": args.max_rows,
+            "method": "every k-th row, then farthest-point in the model's scaled inputs",
+            "oversample": OVERSAMPLE, "metric_columns": columns or data.X.shape[1]}
+    return dc.replace(data, X=data.X[rows], Y=data.Y[rows], t=data.t[rows],
+                      groups=data.groups[rows], rows=dict(data.rows, used=len(rows))), done
+
+
+def _align_streams(args, data: TrainingData, estimator, say):
+    """--delay / --align: (data with the targets moved the delay earlier, the delay as a
+    dict) or (data, None) without either (:mod:`ftdrake.data.stream_delay`)."""
+    if args.delay is None and not args.align:
+        return data, None
+    if data.static:
+        raise LogError("--delay/--align: a table of static poses has no time axis to align")
+    if args.align:
+        needs_robot = registry.entry(args.kind).needs_robot
+        say(f"estimating the wrench stream's delay with {args.kind} …")
+        estimate = estimate_training_delay(
+            lambda d: _fit(clone(estimator), d, needs_robot=needs_robot), data)
+        found = estimate.as_dict()
+        say(f"wrench stream delay: {estimate.delay_s * 1e3:.2f} ± {estimate.std_s * 1e3:.2f} ms "
+            f"({estimate.samples:.2f} samples); corrected"
+            + ("" if found["distinct_from_zero"] else " (within two standard errors of 0)"))
+    else:
+        found = {"delay_s": float(args.delay), "given": True}
+    return align_training_data(data, found["delay_s"]), found
 
 
 def _fit(estimator, data: TrainingData, *, needs_robot: bool):

@@ -84,8 +84,22 @@ def joint_state_layout(frame: pd.DataFrame, source: str = "est", n: int | None =
     blocks = [col.joint_columns(p, n) for p in (col.Q, qd, qdd)]
     missing = [c for block in blocks for c in block if c not in frame.columns]
     if missing:
-        raise ValueError(f"dataset lacks columns {missing[:6]}{'...' if len(missing) > 6 else ''}")
+        raise LogError(f"dataset lacks columns {missing[:6]}{'...' if len(missing) > 6 else ''}"
+                       f"{_layout_hint(frame, source, n)}")
     return np.hstack([frame[block].to_numpy(dtype=float) for block in blocks])
+
+
+def _layout_hint(frame: pd.DataFrame, source: str, n: int) -> str:
+    """What fixes a missing [q, q̇, q̈] block: the other `source`, or a recorder."""
+    other = "plant" if source == "est" else "est"
+    qd, qdd = (col.QD, col.QDD) if other == "plant" else (col.QD_EST, col.QDD_EST)
+    blocks = [col.joint_columns(p, n) for p in (col.Q, qd, qdd)]
+    if all(c in frame.columns for block in blocks for c in block):
+        return (f"; this log has the {'plant' if other == 'plant' else 'estimated'} joint "
+                f"state instead: pass source={other!r}")
+    return ("; a log in this layout comes from ftdrake.add_recorder (q, qd, and the loop's "
+            "own q̈ estimate qd_est/qdd_est), collect or simulate; a robot log with other "
+            "columns is read with ftdrake.data.load_training_data")
 
 
 def wrench_targets(frame: pd.DataFrame, prefix: str = col.MEASURED) -> np.ndarray:

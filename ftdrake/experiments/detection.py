@@ -18,6 +18,9 @@ For each compensator:
    and without it, against the same run without the event.
 
 The loop runs as ``config`` says: with the bias tracker when ``bias_tracker.enabled``.
+:func:`run_plan` simulates each model in the loop; :mod:`.detection_replay` simulates each
+run once and replays every model's chain over it (the in-loop numbers, as the chain does not
+move the arm; what ``ftdrake evaluate-detection`` does unless ``--in-loop``).
 
 Every run is independent and runs in parallel (joblib); each worker builds its station from
 the config's YAML. Outputs: ``detection.json``, ``detection.md`` (tables) and
@@ -81,19 +84,14 @@ class DetectionPlan:
 
 
 def thresholds_from_held_out(model, config: ScenarioConfig, plan: DetectionPlan,
-                             n_jobs: int = -1) -> DetectorConfig:
+                             n_jobs: int = -1, data: pd.DataFrame | None = None
+                             ) -> DetectorConfig:
     """Detector thresholds for `model` from held-out free motion — the plan's rehearsals and
     runs of each of its kinds, on seeds the evaluation does not use — and the scenario's
     budget, ``config.detector.false_positives_per_hour``. The runs of each kind are there
-    because a budget calibrated on rehearsals alone holds on rehearsal-like motion only."""
-    runs = [collect(config, plan.rehearsals, kind="rehearsal", seed=plan.seed + 900,
-                    n_jobs=n_jobs, progress=False)]
-    for k, kind in enumerate(plan.kinds):
-        if plan.calibration_runs_per_kind:
-            runs.append(collect(config, plan.calibration_runs_per_kind, kind=kind,
-                                seed=plan.seed + 950 + 10 * k, duration=CALIBRATION_RUN_S,
-                                n_jobs=n_jobs, progress=False))
-    data = pd.concat(runs, ignore_index=True)
+    because a budget calibrated on rehearsals alone holds on rehearsal-like motion only.
+    `data`: that motion (:func:`held_out_motion`) when already collected."""
+    data = held_out_motion(config, plan, n_jobs) if data is None else data
     judged = armed(data[col.TIME].to_numpy(), config.detector.arm_after_s)
     residual = wrench_targets(data)[judged] - model.predict(joint_state_layout(data)[judged])
     return thresholds_for_false_positive_rate(
@@ -101,9 +99,25 @@ def thresholds_from_held_out(model, config: ScenarioConfig, plan: DetectionPlan,
         false_positives_per_hour=config.detector.false_positives_per_hour)
 
 
+def held_out_motion(config: ScenarioConfig, plan: DetectionPlan, n_jobs: int = -1
+                    ) -> pd.DataFrame:
+    """The held-out free motion the thresholds come from (no model in it: collect once for
+    every model)."""
+    runs = [collect(config, plan.rehearsals, kind="rehearsal", seed=plan.seed + 900,
+                    n_jobs=n_jobs, progress=False)]
+    for k, kind in enumerate(plan.kinds):
+        if plan.calibration_runs_per_kind:
+            runs.append(collect(config, plan.calibration_runs_per_kind, kind=kind,
+                                seed=plan.seed + 950 + 10 * k, duration=CALIBRATION_RUN_S,
+                                n_jobs=n_jobs, progress=False))
+    return pd.concat(runs, ignore_index=True)
+
+
 def run_plan(models: dict, config: ScenarioConfig, plan: DetectionPlan, *, n_jobs: int = -1,
              progress: bool = True) -> dict:
-    """Runs the plan for each named model; returns thresholds, free-motion and press results."""
+    """Runs the plan for each named model with that model in the loop; returns thresholds,
+    free-motion and press results (:func:`.detection_replay.run_plan_by_replay` gives the
+    same numbers faster: the detector does not move the arm)."""
     results = {}
     for name, model in models.items():
         detector = thresholds_from_held_out(model, config, plan, n_jobs)
@@ -113,13 +127,18 @@ def run_plan(models: dict, config: ScenarioConfig, plan: DetectionPlan, *, n_job
             delayed(_closed_loop_run)(yaml_text, model, meta) for yaml_text, meta in jobs)
         rows = list(tqdm(runs, total=len(jobs), desc=f"detection ({name})", unit="run",
                          disable=not progress))
-        skipped = [r for r in rows if "skipped" in r]
-        rows = [r for r in rows if "skipped" not in r]
-        free = [r for r in rows if r["kind"] != "contact" or not r["true_contacts"]]
-        presses = [r for r in rows if r["kind"] == "contact" and r["true_contacts"]]
-        results[name] = {"detector": dc.asdict(detector), **summarise(free, presses),
-                         "free_runs": free, "presses": presses, "skipped": skipped}
+        results[name] = model_result(detector, rows)
     return results
+
+
+def model_result(detector: DetectorConfig, rows: list[dict]) -> dict:
+    """One model's results from its runs' rows: thresholds, summary, runs, skipped runs."""
+    skipped = [r for r in rows if "skipped" in r]
+    rows = [r for r in rows if "skipped" not in r]
+    free = [r for r in rows if r["kind"] != "contact" or not r["true_contacts"]]
+    presses = [r for r in rows if r["kind"] == "contact" and r["true_contacts"]]
+    return {"detector": dc.asdict(detector), **summarise(free, presses),
+            "free_runs": free, "presses": presses, "skipped": skipped}
 
 
 def summarise(free: list[dict], presses: list[dict]) -> dict:
@@ -181,8 +200,13 @@ def _closed_loop_run(config_yaml: str, model, meta: dict) -> dict:
         station = build_station(config, model)
     except TrajectoryError as e:  # e.g. a press the arm cannot reach within its limits
         return {**meta, "skipped": str(e)}
-    log = simulate(station, progress=False).log
-    metrics = evaluate_detection(log, config.sensor.spec().noise_std)
+    return run_row(simulate(station, progress=False).log, config, meta)
+
+
+def run_row(log: pd.DataFrame, config: ScenarioConfig, meta: dict,
+            replayed: pd.DataFrame | None = None) -> dict:
+    """A run's row from its log (and the chain's outputs `replayed` over it, if given)."""
+    metrics = evaluate_detection(log, config.sensor.spec().noise_std, replayed)
     row = {**meta, "duration_s": float(log[col.TIME].iloc[-1]),
            "false_positives": metrics["false_positives"]}
     if meta["kind"] == "contact":
@@ -263,14 +287,18 @@ def plot_detection_rate(results: dict, path: Path) -> None:
 
 def run_detection_evaluation(out: Path, models: dict, config: ScenarioConfig | None = None,
                              plan: DetectionPlan | None = None, *, n_jobs: int = -1,
-                             progress: bool = True) -> dict:
-    """Runs `plan` for `models` (name → fitted compensator); writes the JSON, tables, plot."""
+                             progress: bool = True, run=None) -> dict:
+    """Runs `plan` for `models` (name → fitted compensator); writes the JSON, tables, plot.
+    `run`: how the plan runs, :func:`run_plan` (each model in the loop; the default) or
+    :func:`.detection_replay.run_plan_by_replay` (each run simulated once, every model
+    replayed over it)."""
     config = config or ScenarioConfig()
     plan = plan or DetectionPlan()
     if plan.false_positives_per_hour is not None:
         config = dc.replace(config, detector=dc.replace(
             config.detector, false_positives_per_hour=plan.false_positives_per_hour))
-    results = run_plan(models, config, plan, n_jobs=n_jobs, progress=progress)
+    run = run or run_plan
+    results = run(models, config, plan, n_jobs=n_jobs, progress=progress)
     events = None
     if plan.events is not None:
         tuned = {name: (model, DetectorConfig(**results[name]["detector"]))

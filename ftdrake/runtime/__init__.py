@@ -3,20 +3,30 @@
 :class:`CompensationChain` (``chain``) wires the :class:`CompensatorSystem` (``compensator``),
 the :class:`OnlineBiasTracker` (``bias_tracker``) and the :class:`ContactDetector`
 (``detector``), with :class:`JointStateGravity` (``joint_gravity``) for the tracker's payload
-estimate on a robot without a plant. ``sim.station`` and ``hardware.station`` both add the
+estimate on a robot without a plant. :func:`replay` (``replay``) runs the chain offline over
+a log, :func:`add_recorder` (``recorder``) logs any diagram in the layout both read, and
+:class:`DelayLine` (``delay_line``) corrects a delay between the joint-state and wrench
+streams. ``sim.station`` and ``hardware.station`` both add the
 chain; nothing here imports the simulation rig (``systems``, ``sim``).
 """
 
 from .bias_tracker import OnlineBiasTracker
 from .chain import CompensationChain
 from .compensator import CompensatorSystem
+from .delay_line import DelayLine
 from .detector import ContactDetector
 from .joint_gravity import JointStateGravity
+from .recorder import Recorder, add_recorder
+from .replay import replay
 
 __all__ = [
     "CompensationChain",
     "CompensatorSystem",
     "ContactDetector",
+    "DelayLine",
     "JointStateGravity",
     "OnlineBiasTracker",
+    "Recorder",
+    "add_recorder",
+    "replay",
 ]

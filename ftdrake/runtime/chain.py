@@ -35,6 +35,7 @@ from ..physics.robot import RobotDescription
 from ..physics.scenario_robot import robot_description
 from .bias_tracker import OnlineBiasTracker
 from .compensator import CompensatorSystem
+from .delay_line import DelayLine
 from .detector import ContactDetector
 from .joint_gravity import JointStateGravity
 
@@ -71,12 +72,17 @@ class CompensationChain(Diagram):
     `model`: a fitted ftdrake compensator (``load_model``). `config`: the scenario (default:
     ``ScenarioConfig()``). `period`: s (default: the sensor's rate). `n_joints`: checked against
     the model. `gravity`: see above. `robot`: the RobotDescription whose chain gives
-    ``gravity_S`` from the joint state (default: the scenario's robot).
+    ``gravity_S`` from the joint state (default: the scenario's robot). `wrench_delay_s`: how
+    long the wrench stream lags the joint states (s; negative: the joint states lag), which a
+    :class:`DelayLine` on the stream that is ahead corrects (its output interpolated between
+    samples); default: the model's ``wrench_delay_s_`` when it has one (set by training with
+    a delay correction), else 0, and with 0 there is no delay line.
     """
 
     def __init__(self, model, config: ScenarioConfig | None = None, *,
                  period: float | None = None, n_joints: int | None = None,
-                 gravity: str = "joint_state", robot: RobotDescription | None = None):
+                 gravity: str = "joint_state", robot: RobotDescription | None = None,
+                 wrench_delay_s: float | None = None):
         super().__init__()
         if gravity not in GRAVITY_SOURCES:
             raise ConfigError(f"CompensationChain: gravity must be one of {GRAVITY_SOURCES}; "
@@ -93,7 +99,7 @@ class CompensationChain(Diagram):
             acceleration_cutoff_hz=config.compensator.acceleration_cutoff_hz))
         self.detector = builder.AddNamedSystem("contact_detector",
                                                ContactDetector(config.detector, period))
-        self.tracker = self.gravity = None
+        self.tracker = self.gravity = self.delay_line = None
         comp = self.compensator
         contact_wrench = comp.get_output_port_wrench_compensated()
         if config.bias_tracker.enabled:
@@ -105,8 +111,9 @@ class CompensationChain(Diagram):
         builder.Connect(comp.get_output_port_wrench_std(),
                         self.detector.get_input_port_wrench_std())
 
-        builder.ExportInput(comp.get_input_port_wrench_measured(), "wrench_measured")
-        joint_state = builder.ExportInput(comp.get_input_port_joint_state(), "joint_state")
+        wrench_in, joint_state_in = self._delayed_inputs(builder, model, wrench_delay_s)
+        builder.ExportInput(wrench_in, "wrench_measured")
+        joint_state = builder.ExportInput(joint_state_in, "joint_state")
         if comp.needs_temperature:
             builder.ExportInput(comp.get_input_port_temperature(), "temperature")
         if self.tracker is not None:
@@ -146,6 +153,27 @@ class CompensationChain(Diagram):
                                   settings.initial_bias, [0.0] * 4,
                                   settled=settings.start_settled)
 
+    def _delayed_inputs(self, builder, model, wrench_delay_s):
+        """The compensator's wrench and joint-state inputs, one behind a DelayLine when the
+        streams are `wrench_delay_s` apart (see the class docstring)."""
+        comp = self.compensator
+        wrench_in, state_in = (comp.get_input_port_wrench_measured(),
+                               comp.get_input_port_joint_state())
+        delay = (float(getattr(model, "wrench_delay_s_", 0.0) or 0.0)
+                 if wrench_delay_s is None else float(wrench_delay_s))
+        self.wrench_delay_s = delay
+        if not math.isfinite(delay):
+            raise ConfigError(f"CompensationChain: wrench_delay_s must be finite; got {delay!r}")
+        if delay == 0.0:
+            return wrench_in, state_in
+        ahead = state_in if delay > 0 else wrench_in  # the stream that is early gets delayed
+        self.delay_line = builder.AddNamedSystem(
+            "joint_state_delay" if delay > 0 else "wrench_delay",
+            DelayLine(ahead.size(), abs(delay) / self.period, self.period))
+        builder.Connect(self.delay_line.get_output_port(), ahead)
+        line_in = self.delay_line.get_input_port()
+        return (wrench_in, line_in) if delay > 0 else (line_in, state_in)
+
     def _wire_tracker(self, builder) -> None:
         comp, tracker = self.compensator, self.tracker
         builder.Connect(comp.get_output_port_wrench_compensated(),
@@ -167,7 +195,11 @@ class CompensationChain(Diagram):
             return
         self.gravity = builder.AddNamedSystem(
             "sensor_gravity", _joint_state_gravity(self.config, robot, model, self.period))
-        builder.ConnectInput(joint_state, self.gravity.get_input_port_joint_state())
+        if self.delay_line is not None and self.wrench_delay_s > 0:  # the delayed joint state
+            builder.Connect(self.delay_line.get_output_port(),
+                            self.gravity.get_input_port_joint_state())
+        else:
+            builder.ConnectInput(joint_state, self.gravity.get_input_port_joint_state())
         builder.Connect(self.gravity.get_output_port_gravity_S(),
                         tracker.get_input_port_gravity_S())
         if motion:

@@ -12,12 +12,22 @@ import numpy as np
 import pandas as pd
 
 from .. import conventions as col
+from ..errors import LogError
 
 STARTUP_SAMPLES = 2  # the sensor chain reads the plant's pre-step zero for this many samples
 TOUCHDOWN_S = 0.02  # s after each contact onset left out of the "after touchdown" error
 
-def evaluate_detection(log: pd.DataFrame, noise_std) -> dict:
+def evaluate_detection(log: pd.DataFrame, noise_std, replayed: pd.DataFrame | None = None
+                       ) -> dict:
     """Detection and compensation quality against the plant's ground truth.
+
+    `log` holds the truth and, from a station with a compensator (or ``add_recorder(chain=)``),
+    the chain's outputs; `replayed` (optional) is :func:`ftdrake.replay`'s result on the same
+    rows, whose columns then replace the log's chain outputs. Columns read (and what makes
+    them): see ``INPUTS``. ``t``, ``contact``, ``detected``, ``out_of_domain`` and ``fault``
+    are required (a LogError names a missing one and its source); the wrench errors need
+    ``est_external_*`` with ``external_*``, the compensation error ``pred_*`` with
+    ``internal_*`` — without them those entries are None and ``not_computed`` says why.
 
     * detection_delay_s: per true contact episode, first detection minus true onset (a
       detection within 0.5 s before the onset counts as early, delay < 0).
@@ -32,6 +42,9 @@ def evaluate_detection(log: pd.DataFrame, noise_std) -> dict:
       plant's first step its sampled outputs read zero, and the compensator, one sample behind
       the sensor, sees that zero as a measurement.
     """
+    log = _with_replay(log, replayed)
+    _require(log, [col.TIME, col.CONTACT, col.DETECTED, col.OUT_OF_DOMAIN, col.FAULT])
+    not_computed = {}
     t = log[col.TIME].to_numpy()
     truth = log[col.CONTACT].to_numpy().astype(bool)
     detected = log[col.DETECTED].to_numpy().astype(bool)
@@ -50,32 +63,89 @@ def evaluate_detection(log: pd.DataFrame, noise_std) -> dict:
     )
     free = ~truth
     free[:STARTUP_SAMPLES] = False
-    pred = log[col.wrench_columns(col.PREDICTED)].to_numpy()
-    internal = log[col.wrench_columns(col.INTERNAL)].to_numpy()
-    comp_rms = np.sqrt(np.mean((pred[free] - internal[free]) ** 2, axis=0))
-    est = log[col.wrench_columns(col.ESTIMATED)].to_numpy()
-    ext = log[col.wrench_columns(col.EXTERNAL)].to_numpy()
-    ext_rms = (np.sqrt(np.mean((est[truth] - ext[truth]) ** 2, axis=0))
-               if truth.any() else np.full(6, np.nan))
-    steady = truth.copy()
-    for a, _ in true_eps:  # the touchdown transient: a spike the compensator sees 1 sample late
-        steady[(t >= t[a]) & (t < t[a] + TOUCHDOWN_S)] = False
-    steady_rms = (np.sqrt(np.mean((est[steady] - ext[steady]) ** 2, axis=0))
-                  if steady.any() else np.full(6, np.nan))
+    comp_rms = ext_rms = steady_rms = None
+    if _available(log, (col.PREDICTED, col.INTERNAL), "compensation_error_rms", not_computed):
+        pred = log[col.wrench_columns(col.PREDICTED)].to_numpy()
+        internal = log[col.wrench_columns(col.INTERNAL)].to_numpy()
+        comp_rms = np.sqrt(np.mean((pred[free] - internal[free]) ** 2, axis=0))
+    if _available(log, (col.ESTIMATED, col.EXTERNAL), "external_wrench_error_rms", not_computed):
+        est = log[col.wrench_columns(col.ESTIMATED)].to_numpy()
+        ext = log[col.wrench_columns(col.EXTERNAL)].to_numpy()
+        ext_rms = (np.sqrt(np.mean((est[truth] - ext[truth]) ** 2, axis=0))
+                   if truth.any() else np.full(6, np.nan))
+        steady = truth.copy()
+        for a, _ in true_eps:  # the touchdown transient: a spike the compensator sees late
+            steady[(t >= t[a]) & (t < t[a] + TOUCHDOWN_S)] = False
+        steady_rms = (np.sqrt(np.mean((est[steady] - ext[steady]) ** 2, axis=0))
+                      if steady.any() else np.full(6, np.nan))
     return {
         "true_contacts": len(true_eps),
         "detected_contacts": len(det_eps),
         "detection_delay_s": delays[0] if len(delays) == 1 else (delays or None),
         "false_positives": int(false_pos),
         "missed_contacts": int(missed),
-        "external_wrench_error_rms": ext_rms.tolist(),
-        "external_wrench_error_rms_after_touchdown": steady_rms.tolist(),
-        "compensation_error_rms": comp_rms.tolist(),
-        "compensation_error_over_noise": (comp_rms / np.asarray(noise_std)).tolist(),
+        "external_wrench_error_rms": _listed(ext_rms),
+        "external_wrench_error_rms_after_touchdown": _listed(steady_rms),
+        "compensation_error_rms": _listed(comp_rms),
+        "compensation_error_over_noise": (None if comp_rms is None
+                                          else (comp_rms / np.asarray(noise_std)).tolist()),
         "out_of_domain_fraction": float(log[col.OUT_OF_DOMAIN].mean()),
         "fault_samples": int(log[col.FAULT].sum()),
         "excluded_startup_samples": STARTUP_SAMPLES,
+        **({"not_computed": not_computed} if not_computed else {}),
     }
+
+
+# What evaluate_detection reads, and what produces it.
+_CHAIN = ("the runtime chain's outputs: a station built with a compensator (simulate's log), "
+          "add_recorder(..., chain=chain), or ftdrake.replay(model, log) passed as `replayed`")
+INPUTS = {
+    col.TIME: "the sample time, s (every log)",
+    col.CONTACT: ("the true contact flag: simulate's log, or add_recorder(..., "
+                  "contact_true=port)"),
+    col.DETECTED: _CHAIN, col.OUT_OF_DOMAIN: _CHAIN, col.FAULT: _CHAIN,
+    col.ESTIMATED: _CHAIN, col.PREDICTED: _CHAIN,
+    col.EXTERNAL: ("the true contact wrench: simulate's log, or add_recorder(..., "
+                   "wrench_contact_true=port)"),
+    col.INTERNAL: ("the true internal wrench (the reading without contact, noise and drift): "
+                   "simulate's log"),
+}
+
+
+def _source(name: str) -> str:
+    return INPUTS.get(name, INPUTS.get(name.rpartition("_")[0], ""))
+
+
+def _require(log: pd.DataFrame, names) -> None:
+    missing = [c for c in names if c not in log.columns]
+    if missing:
+        raise LogError("evaluate_detection: the log lacks " + "; ".join(
+            f"{c!r} ({_source(c)})" for c in missing))
+
+
+def _available(log: pd.DataFrame, prefixes, metric: str, not_computed: dict) -> bool:
+    missing = [c for p in prefixes for c in col.wrench_columns(p) if c not in log.columns]
+    if missing:
+        groups = sorted({c.rpartition("_")[0] for c in missing})
+        not_computed[metric] = "; ".join(f"no {g}_* columns ({_source(g)})" for g in groups)
+    return not missing
+
+
+def _with_replay(log: pd.DataFrame, replayed: pd.DataFrame | None) -> pd.DataFrame:
+    """`log` with `replayed`'s chain outputs in place of its own (same rows)."""
+    if replayed is None:
+        return log
+    if len(replayed) != len(log) or (
+            col.TIME in replayed and not np.allclose(replayed[col.TIME], log[col.TIME])):
+        raise LogError(f"evaluate_detection: `replayed` has {len(replayed)} rows, the log "
+                       f"{len(log)}; replay the same log (ftdrake.replay(model, log))")
+    outputs = [c for c in replayed.columns if c != col.TIME]
+    return pd.concat([log.drop(columns=[c for c in outputs if c in log.columns]),
+                      replayed[outputs].reset_index(drop=True).set_axis(log.index)], axis=1)
+
+
+def _listed(values):
+    return None if values is None else values.tolist()
 
 
 def _episodes(flags: np.ndarray) -> list[tuple[int, int]]:

@@ -1,0 +1,87 @@
+"""The detection evaluation by replay: each run simulated once, every model replayed over it.
+
+The runtime chain does not act on the arm — nothing in the station feeds the compensator's,
+tracker's or detector's outputs back to the controller or the plant — so a run's motion,
+contacts and sensor stream are the same whichever model is in the loop. :func:`run_plan_by_
+replay` therefore simulates each run of a :class:`~.detection.DetectionPlan` once, without a
+compensator, and replays each model's chain over the log
+(:func:`ftdrake.runtime.replay.replay` with the simulated station's pairing), which gives the
+in-loop chain's numbers exactly (tests/test_replay.py, to 1e-12). The held-out motion that
+sets the thresholds is collected once for all models too.
+
+A run goes through the loop (:func:`.detection._closed_loop_run`) instead when its replay
+would not be the loop's numbers (:func:`replay_differs_from_loop`): today only with
+``bias_tracker.track_payload``, whose tracker reads the apparent gravity from the plant's
+kinematics in simulation but from the joint state in a replay. Should the station ever feed
+the chain back (a controller reacting to contact, say), that test is where to say so. The
+results count both kinds of run (``replayed_runs``, ``closed_loop_runs``).
+"""
+
+from __future__ import annotations
+
+import dataclasses as dc
+
+from joblib import Parallel, delayed
+from tqdm.auto import tqdm
+
+from ..config import ScenarioConfig, dump_config, parse_config
+from ..errors import TrajectoryError
+from ..runtime.replay import replay
+from ..sim.simulate import simulate
+from ..sim.station import build_station
+from .detection import (
+    DetectionPlan,
+    _closed_loop_run,
+    _free_jobs,
+    _press_jobs,
+    held_out_motion,
+    model_result,
+    run_row,
+    thresholds_from_held_out,
+)
+
+
+def replay_differs_from_loop(config: ScenarioConfig) -> str | None:
+    """Why a replay of `config`'s simulated run would not give the in-loop chain's numbers
+    (None when it gives them): then the run needs the loop."""
+    if config.bias_tracker.enabled and config.bias_tracker.track_payload:
+        return ("bias_tracker.track_payload: in simulation the tracker's gravity comes from "
+                "the plant's kinematics, in a replay from the joint state")
+    return None
+
+
+def run_plan_by_replay(models: dict, config: ScenarioConfig, plan: DetectionPlan, *,
+                       n_jobs: int = -1, progress: bool = True) -> dict:
+    """:func:`.detection.run_plan`'s results, each run simulated once for all `models`."""
+    data = held_out_motion(config, plan, n_jobs)
+    detectors = {name: thresholds_from_held_out(model, config, plan, n_jobs, data=data)
+                 for name, model in models.items()}
+    jobs = _free_jobs(config, plan) + _press_jobs(config, plan)
+    runs = Parallel(n_jobs=n_jobs, return_as="generator")(
+        delayed(_simulated_once)(yaml_text, models, detectors, meta) for yaml_text, meta in jobs)
+    per_run = list(tqdm(runs, total=len(jobs), desc="detection (replay)", unit="run",
+                        disable=not progress))
+    results = {}
+    for name in models:
+        rows = [run[name] for run in per_run]
+        results[name] = model_result(detectors[name], [r for r, _ in rows])
+        results[name]["replayed_runs"] = sum(1 for _, how in rows if how == "replay")
+        results[name]["closed_loop_runs"] = sum(1 for _, how in rows if how == "loop")
+    return results
+
+
+def _simulated_once(config_yaml: str, models: dict, detectors: dict, meta: dict) -> dict:
+    """{model name: (row, "replay" | "loop")} for one run of the plan."""
+    config = parse_config(config_yaml)
+    tuned = {name: dc.replace(config, detector=detectors[name]) for name in models}
+    if replay_differs_from_loop(config) is not None:
+        return {name: (_closed_loop_run(dump_config(tuned[name]), model, meta), "loop")
+                for name, model in models.items()}
+    try:
+        station = build_station(config)
+    except TrajectoryError as e:  # e.g. a press the arm cannot reach within its limits
+        return {name: ({**meta, "skipped": str(e)}, "replay") for name in models}
+    log = simulate(station, progress=False).log
+    return {name: (run_row(log, tuned[name], meta,
+                           replay(model, log, tuned[name], pairing="simulated")), "replay")
+            for name, model in models.items()}

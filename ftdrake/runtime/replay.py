@@ -1,0 +1,263 @@
+"""The runtime chain run offline over a log: :func:`replay`.
+
+Every row of a log is one sample of the loop: the :class:`~ftdrake.runtime.chain.
+CompensationChain` that the stations add is advanced once per row, exactly as the live
+station advances it once per F/T message (diagram time k·period for the k-th row), with the
+row's wrench and joint state on its inputs. The numbers are therefore the loop's own — the
+acceleration estimate, the bias tracker and the detector's debouncing included — and not a
+batch ``model.predict``.
+
+Which inputs an update reads (`pairing`):
+
+* ``"row"`` (default): the k-th update reads row k's wrench and joint state. What a table
+  recorded from a robot holds (rows paired by timestamp, ``ftdrake record``) and what the
+  live station sees when both messages of a sample arrive before it runs.
+* ``"simulated"``: the k-th update reads row k's joint state with row k−1's wrench (a zero
+  wrench for the first row). What the compensator of a simulated station reads: Drake's
+  plant steps before the chain's update, so in :func:`ftdrake.sim.simulate.simulate`'s log
+  the wrench reaches the chain one sample after the joint state of its row (the simulated
+  robot on LCM publishes the same way, :mod:`ftdrake.sim.lcm_publisher`). Replaying such a
+  log with this pairing reproduces its ``pred_*``, ``comp_external_*``, ``est_external_*``,
+  ``detected`` ... columns.
+
+Which row an output belongs to (`view`):
+
+* ``"aligned"`` (default): row k holds the chain's outputs after the update that read row
+  k's inputs — e.g. ``comp_external`` = wrench − model(joint state) of that same update.
+  This is what the live station publishes for the k-th F/T message, and what
+  :func:`~ftdrake.sim.simulate.simulate` logs in row k.
+* ``"held"``: row k holds what the chain's (state) output ports held when row k's inputs
+  arrived, i.e. the outputs of update k−1 (NaN in the first row). The chain's outputs lag
+  its inputs by one sample; this view shows that lag.
+
+Within the chain the bias tracker reads the compensator's previous output and the detector
+the tracker's, as in the loop; replay runs the same diagram, so those lags are the loop's.
+
+Result columns (one row per log row, ``t`` copied from the log; the names of
+:mod:`ftdrake.sim.simulate`'s compensation columns, so a replay can stand in for them):
+``pred_*`` (``wrench_internal``), ``comp_external_*`` (``wrench_compensated``),
+``est_external_*`` (``wrench_contact``), ``pred_std_*`` (``wrench_std``), ``bias_est_*``
+(``bias``, with the tracker), ``payload_est_dm``, ``payload_est_mcx..mcz`` (``payload``, with
+``track_payload``), ``out_of_domain``, ``fault``, ``detected`` (``contact``) and
+``detected_force`` (``contact_force``).
+
+Log columns read (the layout ``collect``, ``simulate`` and :func:`ftdrake.add_recorder`
+write): ``t`` (s), ``q_i`` (rad), ``qd_i`` (rad/s), the wrench ``meas_Fx..meas_Tz`` (N, N·m),
+``temperature`` (°C; only for a model trained with it), and optionally ``tared`` and
+``payload_changed`` (> 0.5 for the sample of a re-tare / grasp; to the bias tracker).
+"""
+
+from __future__ import annotations
+
+import dataclasses as dc
+import math
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+from pydrake.systems.analysis import Simulator
+
+from .. import conventions as col
+from ..config import ScenarioConfig, parse_config
+from ..errors import LogError
+from .chain import CompensationChain
+
+PAIRINGS = ("row", "simulated")
+VIEWS = ("aligned", "held")
+TARED, PAYLOAD_CHANGED = "tared", "payload_changed"
+
+# Output port of the chain → result column prefix (wrenches) or name (flags); the names of
+# ftdrake.sim.simulate's compensation columns.
+WRENCH_OUTPUTS = {"wrench_internal": "pred", "wrench_compensated": "comp_external",
+                  "wrench_contact": "est_external", "wrench_std": "pred_std",
+                  "bias": "bias_est"}
+PAYLOAD_COLUMNS = ("payload_est_dm", "payload_est_mcx", "payload_est_mcy", "payload_est_mcz")
+FLAG_OUTPUTS = {"out_of_domain": "out_of_domain", "fault": "fault", "contact": "detected",
+                "contact_force": "detected_force"}
+INTEGER_COLUMNS = ("out_of_domain", "fault", "detected")
+
+
+@dc.dataclass
+class ReplayInputs:
+    """The chain's inputs per update, (N, ...) arrays in the units of the chain's ports."""
+
+    t: np.ndarray  # (N,) s, the log's time of each row
+    wrench: np.ndarray  # (N, 6) N, N·m
+    joint_state: np.ndarray  # (N, 2n) rad, rad/s
+    temperature: np.ndarray | None = None  # (N,) °C
+    tared: np.ndarray | None = None  # (N,) > 0.5 for a re-tare's sample
+    payload_changed: np.ndarray | None = None  # (N,) > 0.5 for a grasp's sample
+
+
+def replay(model, log, config: ScenarioConfig | None = None, *, pairing: str = "row",
+           view: str = "aligned", period: float | None = None, wrench: str = col.MEASURED,
+           robot=None, **chain_options) -> pd.DataFrame:
+    """Runs the runtime chain over `log`, one update per row; returns its outputs per row.
+
+    `model`: a fitted compensator (``load_model``). `log`: a DataFrame in the layout of the
+    module docstring, or the path of a CSV/Parquet table or ROS bag (read with
+    :func:`read_replay_log`; an LCM log is read with
+    :func:`ftdrake.hardware.recording.read_lcm_log` first). `config`: the scenario whose
+    ``compensator``, ``bias_tracker`` and ``detector`` sections configure the chain (default:
+    the one a ``collect`` Parquet file carries, else ``ScenarioConfig()``). `pairing`,
+    `view`: see the module docstring. `period`: the chain's sample period in s (default: the
+    scenario sensor's period when the log's median period is within 1 % of it, else the
+    log's median period). `wrench`: the prefix of the wrench columns. `robot`: the
+    RobotDescription for the tracker's payload estimate (``track_payload``; default: the
+    scenario's robot). `chain_options` go to :class:`CompensationChain`.
+
+    Raises LogError naming a missing column and what produces it.
+    """
+    if pairing not in PAIRINGS:
+        raise LogError(f"replay: pairing must be one of {PAIRINGS}, got {pairing!r}")
+    if view not in VIEWS:
+        raise LogError(f"replay: view must be one of {VIEWS}, got {view!r}")
+    frame = log if isinstance(log, pd.DataFrame) else read_replay_log(log)
+    if config is None:
+        scenario = frame.attrs.get("scenario")
+        config = parse_config(scenario, source="the log's metadata") if scenario else None
+    config = (config if config is not None else ScenarioConfig()).validate()
+    n = int(model.n_joints_)
+    inputs = replay_inputs(frame, n, wrench=wrench,
+                           temperature=bool(getattr(model, "temperature_in_", False)))
+    period = period if period is not None else _period(inputs.t, config)
+    if pairing == "simulated":
+        inputs = dc.replace(inputs, wrench=np.vstack([np.zeros((1, 6)), inputs.wrench[:-1]]))
+    chain = CompensationChain(model, config, period=period, n_joints=n, gravity="joint_state",
+                              robot=robot, **chain_options)
+    outputs = run_chain(chain, inputs)
+    if view == "held":
+        outputs = {k: np.vstack([np.full((1, v.shape[1]), np.nan), v[:-1]])
+                   for k, v in outputs.items()}
+    return _frame(inputs.t, outputs)
+
+
+def run_chain(chain: CompensationChain, inputs: ReplayInputs) -> dict[str, np.ndarray]:
+    """Advances `chain` once per row of `inputs` (update k at k·period, as the live station
+    does); returns {output port name: (N, size) array after each update}."""
+    simulator = Simulator(chain)
+    context = simulator.get_mutable_context()
+    chain.initialize(context)
+    simulator.Initialize()
+    fixed = {"wrench_measured": inputs.wrench, "joint_state": inputs.joint_state}
+    optional = {"temperature": inputs.temperature, TARED: inputs.tared,
+                PAYLOAD_CHANGED: inputs.payload_changed}
+    for name, values in optional.items():
+        if chain.HasInputPort(name):
+            if values is None:
+                if name == "temperature":
+                    raise LogError("replay: the model was trained with the sensor temperature; "
+                                   f"the log needs a {col.TEMPERATURE!r} column (°C)")
+                values = np.zeros(len(inputs.t))
+            fixed[name] = np.asarray(values, dtype=float).reshape(len(inputs.t), 1)
+    ports = {name: chain.GetInputPort(name).FixValue(context, values[0])
+             for name, values in fixed.items()}
+    names = [name for name in (*WRENCH_OUTPUTS, "payload", *FLAG_OUTPUTS)
+             if chain.HasOutputPort(name)]
+    outputs = {name: chain.GetOutputPort(name) for name in names}
+    results = {name: np.empty((len(inputs.t), port.size())) for name, port in outputs.items()}
+    period = chain.period
+    values = [(ports[name].GetMutableData().get_mutable_value(), fixed[name]) for name in fixed]
+    for k in range(len(inputs.t)):
+        for value, rows in values:
+            value.SetFromVector(rows[k])
+        simulator.AdvanceTo((k + 0.5) * period)
+        for name, port in outputs.items():
+            results[name][k] = port.Eval(context)
+    return results
+
+
+def replay_inputs(frame: pd.DataFrame, n: int, *, wrench: str = col.MEASURED,
+                  temperature: bool = False) -> ReplayInputs:
+    """The chain's inputs from a log DataFrame (see the module docstring for the columns)."""
+    needed = {col.TIME: "the sample time in s",
+              **{c: "joint positions (rad): the robot's joint-state stream"
+                 for c in col.joint_columns(col.Q, n)},
+              **{c: "joint velocities (rad/s): the robot's joint-state stream (a log without "
+                 "them: read it with ftdrake's readers, which differentiate q)"
+                 for c in col.joint_columns(col.QD, n)},
+              **{c: "the sensor's reading (N, N·m) from the F/T stream"
+                 for c in col.wrench_columns(wrench)}}
+    if temperature:
+        needed[col.TEMPERATURE] = "the sensor's temperature (°C): the model was trained with it"
+    missing = [c for c in needed if c not in frame.columns]
+    if missing:
+        why = sorted({needed[c] for c in missing})
+        raise LogError(f"replay: the log lacks columns {missing[:8]}"
+                       f"{' ...' if len(missing) > 8 else ''} ({'; '.join(why)}); it has "
+                       f"{list(frame.columns)[:20]}; logs in this layout come from "
+                       "ftdrake.add_recorder, collect, simulate or ftdrake record")
+    t = frame[col.TIME].to_numpy(dtype=float)
+    if len(t) < 2 or not np.all(np.diff(t) > 0):
+        raise LogError("replay: the log's time column must increase strictly, with at least "
+                       "two rows (one log at a time: split a dataset by its trajectory column)")
+    state = frame[col.joint_columns(col.Q, n) + col.joint_columns(col.QD, n)]
+    return ReplayInputs(
+        t=t, wrench=frame[col.wrench_columns(wrench)].to_numpy(dtype=float),
+        joint_state=state.to_numpy(dtype=float),
+        temperature=frame[col.TEMPERATURE].to_numpy(dtype=float) if temperature else None,
+        tared=frame[TARED].to_numpy(dtype=float) if TARED in frame else None,
+        payload_changed=(frame[PAYLOAD_CHANGED].to_numpy(dtype=float)
+                         if PAYLOAD_CHANGED in frame else None))
+
+
+def read_replay_log(path, *, wrench_topic: str | None = None,
+                    joint_topic: str = "/joint_states") -> pd.DataFrame:
+    """A CSV/Parquet table (as is; a Parquet file's scenario in ``attrs["scenario"]``) or a
+    ROS bag (JointState rows with the WrenchStamped topic `wrench_topic` put on their
+    times, :func:`ftdrake.data.read_bag`) as a DataFrame in the replay layout."""
+    from ..data.bag import is_bag, read_bag  # noqa: PLC0415 (rosbags only for bags)
+    from ..data.logs import is_table, read_frame  # noqa: PLC0415
+
+    path = Path(path)
+    if not path.exists():
+        raise LogError(f"{path}: no such file or folder")
+    if is_table(path):
+        return read_frame(path)
+    if is_bag(path):
+        if not wrench_topic:
+            raise LogError(f"{path}: a bag needs the F/T sensor's WrenchStamped topic "
+                           "(wrench_topic=...)")
+        return read_bag(path, joint_topic, wrench_topic=wrench_topic, targets="wrench").to_frame()
+    raise LogError(f"{path}: unknown log format; expected .csv, .parquet, a ROS bag, or an "
+                   "LCM log read with ftdrake.hardware.recording.read_lcm_log")
+
+
+def summary(result: pd.DataFrame) -> dict:
+    """Counts of a replay result: rows, samples in contact and contact episodes, samples out
+    of domain and faulted, RMS of the contact wrench (N, N·m) outside contact."""
+    detected = result[FLAG_OUTPUTS["contact"]].fillna(0).to_numpy() > 0.5
+    onsets = int(np.count_nonzero(np.diff(np.r_[0, detected.astype(int)]) == 1))
+    free = result.loc[~detected, col.wrench_columns(WRENCH_OUTPUTS["wrench_contact"])]
+    return {"rows": len(result), "contact_samples": int(detected.sum()),
+            "contact_episodes": onsets,
+            "out_of_domain_samples": int((result["out_of_domain"].fillna(0) > 0.5).sum()),
+            "fault_samples": int((result["fault"].fillna(0) > 0.5).sum()),
+            "free_rms": dict(zip(col.WRENCH_AXES,
+                                 np.sqrt(np.nanmean(free.to_numpy() ** 2, axis=0)).round(6)
+                                 .tolist(), strict=True))}
+
+
+def _period(t: np.ndarray, config: ScenarioConfig) -> float:
+    """The scenario sensor's period when the log's median period is within 1 % of it (so a
+    simulated log replays with the loop's exact period), else the log's median period."""
+    logged = float(np.median(np.diff(t)))
+    nominal = 1.0 / config.sensor.spec().rate_hz
+    if not (logged > 0 and math.isfinite(logged)):
+        raise LogError(f"replay: the log's median sample period is {logged!r} s")
+    return nominal if abs(logged - nominal) <= 0.01 * nominal else logged
+
+
+def _frame(t: np.ndarray, outputs: dict[str, np.ndarray]) -> pd.DataFrame:
+    columns = {col.TIME: t}
+    for port, prefix in WRENCH_OUTPUTS.items():
+        if port in outputs:
+            columns.update(zip(col.wrench_columns(prefix), outputs[port].T, strict=True))
+    if "payload" in outputs:
+        columns.update(zip(PAYLOAD_COLUMNS, outputs["payload"].T, strict=True))
+    for port, name in FLAG_OUTPUTS.items():
+        values = outputs[port][:, 0]
+        if name in INTEGER_COLUMNS and np.isfinite(values).all():
+            values = values.astype(np.int8)
+        columns[name] = values
+    return pd.DataFrame(columns)
