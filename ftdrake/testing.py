@@ -1,4 +1,4 @@
-"""Generators with a known truth, shared by the tests and the benchmarks (as :mod:`numpy.testing`
+"""Generators with a known truth, shared by the tests and the benchmarks (as ``numpy.testing``
 is): the same payload, motions and readings, so a test and the benchmark it is the cheap
 version of measure the same thing.
 
@@ -58,7 +58,8 @@ __all__ = [
 
 # -- A rigid payload and its sensor ----------------------------------------------------------
 SIGMA = np.array([1 / 40, 1 / 40, 1 / 20, 1 / 800, 1 / 800, 1 / 800])  # ati_gamma noise σ
-MASS, COM = 1.5, np.array([0.02, 0.0067, 0.0867])  # kg, m (in S), from ft_sensor_tool.sdf
+MASS = 1.5  # kg, from ft_sensor_tool.sdf
+COM = np.array([0.02, 0.0067, 0.0867])  # m, in S, from ft_sensor_tool.sdf
 _BOX_DIMS = np.array([0.06, 0.08, 0.17])  # a box of the tool's size, m
 # Rotational inertia about the centre of mass [Ixx Ixy Ixz Iyy Iyz Izz], kg·m² (the box's).
 INERTIA_COM = MASS / 12 * np.array([_BOX_DIMS[1] ** 2 + _BOX_DIMS[2] ** 2, 0, 0,
@@ -72,7 +73,8 @@ HOME = np.array([0.0, 0.4, 0.0, -1.2, 0.0, 0.8, 0.0])  # rad
 
 # The payload identification's repeatability goals across sensor-noise seeds (max − min):
 # the mass within 1 % of its mean, each centre-of-mass coordinate within 2 mm.
-MASS_SPREAD_GOAL, COM_SPREAD_GOAL_MM = 0.01, 2.0
+MASS_SPREAD_GOAL = 0.01
+COM_SPREAD_GOAL_MM = 2.0
 
 
 # -- Joint states ----------------------------------------------------------------------------

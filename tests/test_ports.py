@@ -86,6 +86,7 @@ def instances():
         LearnedFeedforward(fit_feedforward_gp(X, np.sin(X[:, :N]), max_points=40,
                                               optimize_points=40), n_joints=N),
         CompensationChain(model, config, gravity="joint_state"),  # JointStateGravity inside
+        CompensationChain(model, config, wrench_delay_s=0.004),  # a DelayLine inside
     ]
     systems = list(all_systems(station.diagram))
     for system in beside:
@@ -104,7 +105,7 @@ def test_the_walk_finds_the_runtime_and_the_rig():
             "JointStateGravity", "ForceTorqueSensor", "NoisyForceTorqueSensor",
             "SensorGravity", "ToolPush", "ContactTruth", "DiscreteInverseDynamicsController",
             "JointFriction", "LearnedFeedforward", "TimeIndexedFeedforward",
-            "WrenchArrows"} <= names
+            "WrenchArrows", "DelayLine"} <= names
 
 
 @pytest.mark.parametrize("cls", SYSTEM_CLASSES, ids=lambda c: c.__name__)

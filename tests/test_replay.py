@@ -102,8 +102,8 @@ def test_delay_line_outputs_the_input_delay_samples_ago(delay):
     source = builder.AddSystem(TrajectorySource(PiecewisePolynomial.ZeroOrderHold(
         np.r_[t, t[-1] + period], np.c_[u.T, u[-1]])))
     dut = builder.AddSystem(DelayLine(2, delay, period))
-    builder.Connect(source.get_output_port(), dut.get_input_port())
-    logger = LogVectorOutput(dut.get_output_port(), builder, period)
+    builder.Connect(source.get_output_port(), dut.get_input_port_signal())
+    logger = LogVectorOutput(dut.get_output_port_delayed(), builder, period)
     diagram = builder.Build()
     simulator = Simulator(diagram)
     # Sample the output just after each update: the logger publishes before the update at

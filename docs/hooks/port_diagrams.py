@@ -83,6 +83,7 @@ def _extra_instances(station, model) -> list:
     from pydrake.geometry import Meshcat, MeshcatParams  # noqa: PLC0415
 
     import ftdrake  # noqa: PLC0415
+    from ftdrake.runtime.delay_line import DelayLine  # noqa: PLC0415
     from ftdrake.systems.learned_feedforward import LearnedFeedforward  # noqa: PLC0415
     from ftdrake.systems.time_indexed_feedforward import TimeIndexedFeedforward  # noqa: PLC0415
     from ftdrake.systems.wrench_arrows import WrenchArrows  # noqa: PLC0415
@@ -99,7 +100,8 @@ def _extra_instances(station, model) -> list:
     meshcat = Meshcat(params)
     return [live, *live.GetSystems(), LearnedFeedforward(torque, n_joints=n),
             TimeIndexedFeedforward(np.zeros((10, n)), config.time_step),
-            WrenchArrows(meshcat, station.plant, station.scene)]
+            WrenchArrows(meshcat, station.plant, station.scene),
+            DelayLine(6, 2.5, config.time_step)]
 
 
 def _is_ftdrake(system) -> bool:

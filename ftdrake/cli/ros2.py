@@ -2,7 +2,7 @@
 topics (Cyclone DDS, no ROS installation needed).
 
     ftdrake serve --ros2 --ros2-config ros2.yaml --model m.ftd [--config scenario.yaml]
-    ftdrake simulate --ros2 --ros2-config ros2.yaml --realtime [--scenario free]
+    ftdrake simulate --ros2 --ros2-config ros2.yaml --realtime [--trajectory fourier]
     ftdrake record --ros2 --ros2-config ros2.yaml --out log.parquet [--duration S]
 
 ``--ros2-config`` is a :class:`~ftdrake.hardware.ros2.config.Ros2Config` YAML (topics, QoS,

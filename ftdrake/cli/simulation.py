@@ -1,4 +1,5 @@
-"""``ftdrake simulate`` and ``ftdrake collect``: the simulated rig, once or many times.
+"""``ftdrake simulate`` and ``ftdrake collect``: the simulated rig, once (with a log, a figure
+and a summary) or many times (a dataset).
 
     ftdrake simulate [--trajectory contact] [--duration S] [--seed N] [--html] [--out DIR]
     ftdrake simulate --trajectory fourier --lcm URL --realtime    # a simulated robot on LCM

@@ -128,7 +128,8 @@ REGISTRY: dict[str, CompensatorEntry] = {e.name: e for e in (
 )}
 #: The model ``train`` fits when none is named: with a robot description, the hybrid
 #: (physics extrapolates where a black box cannot); without one, the random forest.
-DEFAULT_KIND, DEFAULT_KIND_WITH_ROBOT = "rf", "hybrid"
+DEFAULT_KIND = "rf"
+DEFAULT_KIND_WITH_ROBOT = "hybrid"
 
 #: Types a model file may hold beyond the registry's classes and skops's defaults.
 COMMON_TRUSTED_TYPES: tuple[str, ...] = (

@@ -170,8 +170,8 @@ class CompensationChain(Diagram):
         self.delay_line = builder.AddNamedSystem(
             "joint_state_delay" if delay > 0 else "wrench_delay",
             DelayLine(ahead.size(), abs(delay) / self.period, self.period))
-        builder.Connect(self.delay_line.get_output_port(), ahead)
-        line_in = self.delay_line.get_input_port()
+        builder.Connect(self.delay_line.get_output_port_delayed(), ahead)
+        line_in = self.delay_line.get_input_port_signal()
         return (wrench_in, line_in) if delay > 0 else (line_in, state_in)
 
     def _wire_tracker(self, builder) -> None:
@@ -196,7 +196,7 @@ class CompensationChain(Diagram):
         self.gravity = builder.AddNamedSystem(
             "sensor_gravity", _joint_state_gravity(self.config, robot, model, self.period))
         if self.delay_line is not None and self.wrench_delay_s > 0:  # the delayed joint state
-            builder.Connect(self.delay_line.get_output_port(),
+            builder.Connect(self.delay_line.get_output_port_delayed(),
                             self.gravity.get_input_port_joint_state())
         else:
             builder.ConnectInput(joint_state, self.gravity.get_input_port_joint_state())

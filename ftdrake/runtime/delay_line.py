@@ -20,9 +20,9 @@ class DelayLine(LeafSystem):
     """Outputs its input `delay_samples` samples ago, linearly interpolated between samples.
 
     Input ports:
-      input (size): any vector signal sampled every `period` s.
+      signal (size): any vector signal sampled every `period` s.
     Output ports:
-      output (size): ``(1 − f)·u[k − m] + f·u[k − m − 1]`` for the delay m + f (m whole,
+      delayed (size): ``(1 − f)·u[k − m] + f·u[k − m − 1]`` for the delay m + f (m whole,
         0 ≤ f < 1), where u[k] is the input now (direct feedthrough: with m = 0 the current
         sample is used, so the delay adds no sample of lag of its own). Before m + 1 samples
         have been seen the oldest sample seen stands in for the missing ones (the first
@@ -38,19 +38,19 @@ class DelayLine(LeafSystem):
         self.whole = math.floor(delay_samples)
         self.fraction = float(delay_samples - self.whole)
         self._depth = self.whole + 1
-        self._input = self.DeclareVectorInputPort("input", self.size)
+        self._input = self.DeclareVectorInputPort("signal", self.size)
         # Ring of the last `depth` inputs (newest first), then the count seen (capped).
         self._buffer = self.DeclareDiscreteState(self._depth * self.size + 1)
         self.DeclarePeriodicDiscreteUpdateEvent(self.period, 0.0, self._update)
-        self.DeclareVectorOutputPort("output", self.size, self._output,
+        self.DeclareVectorOutputPort("delayed", self.size, self._output,
                                      {self.input_port_ticket(self._input.get_index()),
                                       self.discrete_state_ticket(self._buffer)})
 
-    def get_input_port(self):
-        return self._input
+    def get_input_port_signal(self):
+        return self.GetInputPort("signal")
 
-    def get_output_port(self):
-        return self.GetOutputPort("output")
+    def get_output_port_delayed(self):
+        return self.GetOutputPort("delayed")
 
     def _history(self, context):
         """[u[k], u[k−1], ..., u[k−depth]] (depth + 1 rows), the missing ones filled."""

@@ -30,7 +30,10 @@ from .forest import forest_accumulate_with_std
 from .hybrid import hybrid_row
 
 # Bits of the status a fused update returns.
-FAULT, FAULT_CHANGED, OOD, OOD_CHANGED = 1, 2, 4, 8
+FAULT = 1
+FAULT_CHANGED = 2
+OOD = 4
+OOD_CHANGED = 8
 
 
 @numba.njit(cache=True)
