@@ -30,11 +30,12 @@ def main():
     held_out = rehearsal(seed=1)  # not trained on
     residual = (ftdrake.wrench_targets(held_out)
                 - model.predict(ftdrake.joint_state_layout(held_out)))
-    detector = ftdrake.DetectorConfig.from_residuals(residual)
+    config = ftdrake.ScenarioConfig()  # the contact scenario: press on the table, leave
+    detector = ftdrake.thresholds_for_false_positive_rate(  # the scenario's budget (1 per hour)
+        residual, sample_rate_hz=config.sensor.spec().rate_hz)
     print(f"thresholds from the held-out residual: {detector.force_on:.2f} N, "
           f"{detector.torque_on:.3f} N·m")
 
-    config = ftdrake.ScenarioConfig()  # the contact scenario: press on the table, leave
     config.trajectory.seed = config.sensor.seed = 7  # a seed not seen in training
     config = dc.replace(config, detector=detector)
     result = ftdrake.simulate(ftdrake.build_station(config, model), progress=False)

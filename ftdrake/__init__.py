@@ -64,6 +64,7 @@ from .runtime.detector import ContactDetector
 from .runtime.joint_gravity import JointStateGravity
 from .runtime.recorder import Recorder, add_recorder
 from .runtime.replay import replay
+from .runtime.thresholds import thresholds_for_false_positive_rate
 from .sim.collection import collect
 from .sim.evaluation import evaluate_detection
 from .sim.scene import Scene, add_scene, make_control_plant
@@ -136,5 +137,6 @@ __all__ = [
     "save_model",
     "simulate",
     "target_ranges",
+    "thresholds_for_false_positive_rate",
     "wrench_targets",
 ]

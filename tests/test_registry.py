@@ -141,10 +141,10 @@ def test_register_adds_an_entry_once(monkeypatch):
 
 
 def test_options_a_model_does_not_take_are_refused_naming_those_that_do():
-    with pytest.raises(ConfigError, match="--identify-mounting is for --model physics or "
+    with pytest.raises(ConfigError, match="--identify-mounting is for --kind physics or "
                                           "hybrid on a wrench"):
         make_estimator("rf", options={"identify_mounting": True})
-    with pytest.raises(ConfigError, match="--drive-gains is for --model physics, hybrid or "
+    with pytest.raises(ConfigError, match="--drive-gains is for --kind physics, hybrid or "
                                           "arm on joint torques"):
         make_estimator("svr", options={"drive_gains": "identify"})
     with pytest.raises(ValueError, match=r"unknown train options \['colour'\]"):
@@ -325,7 +325,7 @@ def test_a_robot_based_compensator_trains_with_its_option_from_cli_and_python(
     # The option is refused by models that do not take it, naming the one that does.
     code, _, err = run_cli(capsys, "train", "--data", csv, "--model", "rf", "--fixed-mass",
                            "2", "--out", tmp_path / "rf.ftd")
-    assert code == 2 and "--fixed-mass is for --model pointmass (the point mass" in err
+    assert code == 2 and "--fixed-mass is for --kind pointmass (the point mass" in err
     code, _, err = run_cli(capsys, "train", "--data", csv, "--model", "pointmass",
                            "--out", tmp_path / "none.ftd")
     assert code == 2 and "--model pointmass needs --robot" in err

@@ -63,7 +63,7 @@ def test_static_pose_reads_weight_and_gravity_torque(seed):
     # Independent: mass and CoM from the model's inertias, orientation from kinematics.
     m, p_SoScm_S, _ = tool_inertia(scene.plant, context, scene.sensor_frame, scene.tool_bodies)
     R_WS = scene.sensor_frame.CalcPoseInWorld(context).rotation()
-    weight_S = R_WS.inverse() @ (m * GRAVITY_W)
+    weight_S = R_WS.inverse() @ (m * np.asarray(GRAVITY_W))
     expected = np.concatenate([weight_S, np.cross(p_SoScm_S, weight_S)])
     assert m == pytest.approx(1.5)
     np.testing.assert_allclose(wrench, expected, rtol=0, atol=1e-6 * np.linalg.norm(expected))
@@ -165,7 +165,7 @@ def test_sensor_works_on_any_plant_weld():
     simulator = Simulator(diagram)
     simulator.AdvanceTo(1e-3)
     wrench = dut.get_output_port().Eval(dut.GetMyContextFromRoot(simulator.get_context()))
-    weight_J = X_WJ.rotation().inverse() @ (2.0 * GRAVITY_W)
+    weight_J = X_WJ.rotation().inverse() @ (2.0 * np.asarray(GRAVITY_W))
     np.testing.assert_allclose(wrench[:3], weight_J, atol=1e-9)
     np.testing.assert_allclose(wrench[3:], np.cross([0.1, 0, 0], weight_J), atol=1e-9)
 

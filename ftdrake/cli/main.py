@@ -26,7 +26,8 @@ COMMAND_MODULES = (simulation, train, export, replay, calibrate, hardware, exper
 DESCRIPTION = """\
 Learned compensation of a wrist force/torque sensor on Drake: simulate the rig, collect data,
 train and evaluate compensators, replay the runtime chain over a log, calibrate a sensor, run
-on a live robot over LCM or ROS 2, and repeat the experiments. `ftdrake COMMAND --help` shows a command's flags and their defaults."""
+on a live robot over LCM or ROS 2, and repeat the experiments. `ftdrake COMMAND --help`
+shows a command's flags and their defaults."""
 
 
 def build_parser() -> argparse.ArgumentParser:
