@@ -19,6 +19,7 @@ import numpy as np
 import yaml as pyyaml
 from pydrake.common.yaml import yaml_dump_typed, yaml_load_typed
 
+from .config_transmission import TransmissionConfig
 from .errors import ConfigError
 from .io import atomic_write_text
 
@@ -591,6 +592,7 @@ class ScenarioConfig:
     bias_tracker: BiasTrackerConfig = dc.field(default_factory=BiasTrackerConfig)
     events: EventsConfig = dc.field(default_factory=EventsConfig)
     friction: FrictionConfig = dc.field(default_factory=FrictionConfig)
+    transmission: TransmissionConfig = dc.field(default_factory=TransmissionConfig)
 
     def validate(self) -> "ScenarioConfig":
         _positive(self.time_step, "scenario.time_step")
@@ -621,6 +623,7 @@ class ScenarioConfig:
         self.bias_tracker.validate("scenario.bias_tracker")
         self.events.validate("scenario.events")
         self.friction.validate("scenario.friction")
+        self.transmission.validate("scenario.transmission")
         rate = self.sensor.spec().rate_hz
         ratio = 1.0 / (rate * self.time_step)
         if abs(ratio - round(ratio)) > 1e-6 or round(ratio) < 1:
