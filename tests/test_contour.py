@@ -115,7 +115,7 @@ def test_reference_correction_learns_inside_and_lets_go_outside():
     dut = ReferenceCorrection(fit_feedforward_gp(X, y, max_points=150), trust_ratio=0.5,
                               reject_ratio=0.9)
     inside = X[:50]
-    correction, std, confidence = dut.evaluate(inside)
+    correction, _, confidence = dut.evaluate(inside)
     np.testing.assert_allclose(correction, y[:50], atol=1e-5)
     assert (confidence == 1).all()
     far = np.hstack([np.full((3, n), 3.0), np.zeros((3, 2 * n))])
@@ -124,9 +124,9 @@ def test_reference_correction_learns_inside_and_lets_go_outside():
 
 
 def test_configs_say_which_field_is_wrong():
-    with pytest.raises(ConfigError, match="hole.diameter_m"):
+    with pytest.raises(ConfigError, match=r"hole\.diameter_m"):
         HoleConfig(diameter_m=1.0).validate()
-    with pytest.raises(ConfigError, match="tracker.rate_hz"):
+    with pytest.raises(ConfigError, match=r"tracker\.rate_hz"):
         TrackerConfig(rate_hz=0).validate()
-    with pytest.raises(ConfigError, match="contour_scan.spacing_m"):
+    with pytest.raises(ConfigError, match=r"contour_scan\.spacing_m"):
         ContourScanConfig(spacing_m=-1).validate()

@@ -28,7 +28,11 @@ from pydrake.multibody.tree import JacobianWrtVariable
 from pydrake.trajectories import PiecewisePolynomial
 
 from ..compensation.compiled.gp import CompiledGaussianProcess
-from ..systems.learned_feedforward import check_feedforward_model, prior_std
+from ..systems.learned_feedforward import (
+    _feedforward_one,
+    check_feedforward_model,
+    prior_std,
+)
 
 
 class ReferenceCorrection:
@@ -50,6 +54,8 @@ class ReferenceCorrection:
         self.n = int(model.n_joints_)
         self._gp = CompiledGaussianProcess(model)
         self.prior_std = prior_std(model)
+        self._rule = np.array([self.trust_ratio, self.reject_ratio])
+        self._mean, self._std = np.empty(self.n), np.empty(self.n)
 
     def evaluate(self, X) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """X (N, 3n) desired states → (correction (rad), std (rad), confidence), each (N, n)."""
@@ -59,10 +65,14 @@ class ReferenceCorrection:
                              0.0, 1.0)
         return confidence * mean, std, confidence
 
-    def evaluate_one(self, x) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """One desired state (3n,) → (correction, std, confidence), each (n,)."""
-        c, s, k = self.evaluate(np.asarray(x, dtype=float)[None])
-        return c[0], s[0], k[0]
+    def evaluate_one(self, x, out: np.ndarray | None = None) -> np.ndarray:
+        """One desired state (3n,) → ``[correction, std, confidence]`` (3n,), in one compiled
+        call (part one's: the GP's mean and std and the rule); what a loop evaluating the
+        correction online would run each step."""
+        out = np.empty(3 * self.n) if out is None else out
+        _feedforward_one(np.asarray(x, dtype=float), *self._gp._arrays, self.prior_std,
+                         self._rule, self._mean, self._std, out)
+        return out
 
 
 def desired_states(trajectory: PiecewisePolynomial, t) -> np.ndarray:
