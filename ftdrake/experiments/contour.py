@@ -80,6 +80,11 @@ class ContourPlan:
     trust_ratio: float = 0.5
     reject_ratio: float = 0.9
     ilc_cutoff_hz: float = 5.0
+    # The GP's reference offsets are low-passed (zero-phase) at this cut-off before the
+    # reference is splined: where the confidence rule ramps the correction in or out (the
+    # contour data cover only the hole) the offset would otherwise change in a few ms, and
+    # the controller's feedforward of its second derivative would kick the motors.
+    reference_cutoff_hz: float = 5.0
     seed: int = 0
 
     def validate(self) -> ContourPlan:
@@ -283,8 +288,11 @@ class Learner:
                                              trust_ratio=self.plan.trust_ratio,
                                              reject_ratio=self.plan.reject_ratio)
 
+            cutoff = self.plan.reference_cutoff_hz
+
             def offset(t):
-                return correction.evaluate(desired_states(task.trajectory, t))[0]
+                c = correction.evaluate(desired_states(task.trajectory, t))[0]
+                return q_filter(c, float(t[1] - t[0]), cutoff) if cutoff > 0 else c
             return corrected_reference(task.trajectory, offset)
         return None
 
