@@ -424,44 +424,57 @@ def _summary(table: pd.DataFrame, plan: ContourPlan, first: dict, wall: float) -
 
 
 def write_outputs(out: Path, table, summary, task, contours, new_task, new_contours) -> None:
-    """summary.json, iterations.csv and contour.png (the contours against the ideal circles,
-    radial error magnified), each atomically."""
+    """summary.json, iterations.csv, contours.npz (each method's final contour, in-plane m)
+    and contour.png, each atomically. The figure: per hole, the contours against the ideal
+    circle at true scale and the radial error along the hole; the radial RMS per iteration."""
     out.mkdir(parents=True, exist_ok=True)
     atomic_write_text(out / "summary.json", json.dumps(summary, indent=2) + "\n")
     with atomic_path(out / "iterations.csv") as tmp:
         table.to_csv(tmp, index=False)
+    with atomic_path(out / "contours.npz") as tmp, open(tmp, "wb") as f:
+        np.savez(f, **{f"task_{k}": v for k, v in contours.items()},
+                 **{f"new_{k}": v for k, v in new_contours.items()},
+                 task_radius=task.path.radius, new_radius=new_task.path.radius)
     import matplotlib  # noqa: PLC0415 (only when writing the figure)
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt  # noqa: PLC0415
 
-    fig, axes = plt.subplots(1, 3, figsize=(15, 5))
-    for ax, path, curves, title in ((axes[0], task.path, contours, "learned hole"),
-                                    (axes[1], new_task.path, new_contours,
-                                     "new hole, no relearning")):
-        gain = 100.0
+    fig, axes = plt.subplots(2, 3, figsize=(15, 9))
+    for col_, (path, curves, title) in enumerate(((task.path, contours, "learned hole"),
+                                                  (new_task.path, new_contours,
+                                                   "new hole, no relearning"))):
+        ax, ax_err = axes[0, col_], axes[1, col_]
         theta = np.linspace(0, 2 * np.pi, 400)
         ax.plot(1e3 * path.radius * np.cos(theta), 1e3 * path.radius * np.sin(theta), "k--",
-                lw=1, label="ideal")
+                lw=1.5, label="ideal")
         for name, p in curves.items():
-            r = np.linalg.norm(p, axis=1)
-            magnified = p / r[:, None] * (path.radius + gain * (r - path.radius))[:, None]
-            ax.plot(1e3 * magnified[:, 0], 1e3 * magnified[:, 1], lw=1, label=name)
+            ax.plot(1e3 * p[:, 0], 1e3 * p[:, 1], lw=1, label=name)
+            angle = np.degrees(np.unwrap(np.arctan2(p[:, 1], p[:, 0])))
+            ax_err.semilogy(angle - angle[0],
+                            1e3 * np.abs(np.linalg.norm(p, axis=1) - path.radius), lw=1,
+                            label=name)
         ax.set_aspect("equal")
-        ax.set_title(f"{title}: radial error ×{gain:g}")
+        ax.set_title(f"{title} (Ø {2e3 * path.radius:g} mm), true scale")
         ax.set_xlabel("x (mm)")
         ax.set_ylabel("y (mm)")
         ax.legend(fontsize=8)
-    ax = axes[2]
+        ax_err.set_xlabel("angle along the hole (°)")
+        ax_err.set_ylabel("|radial error| (mm)")
+        ax_err.set_title(f"{title}: radial error")
+        ax_err.legend(fontsize=8)
+    ax = axes[0, 2]
     for method, values in summary["task"].items():
         ax.semilogy(range(len(values["radial_rms_mm"])), values["radial_rms_mm"], "o-",
                     label=method)
     ax.set_xlabel("iteration")
     ax.set_ylabel("radial RMS error (mm)")
+    ax.set_title("learned hole")
     ax.legend()
+    axes[1, 2].axis("off")
     fig.tight_layout()
     with atomic_path(out / "contour.png") as tmp:
-        fig.savefig(tmp, format="png", dpi=110)
+        fig.savefig(tmp, format="png", dpi=100)
     plt.close(fig)
 
 
