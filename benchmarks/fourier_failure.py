@@ -16,7 +16,11 @@ state (the cable's spring and weight are left out of τ*). Columns:
 * scaled: share of desired rows whose correction was scaled down;
 * dist: median distance of desired rows to the nearest training row in the GP's metric.
 
-    python benchmarks/fourier_failure.py [--duration 3] [--iterations 5]
+``--plain-subset`` chooses the GP's data subset the way it was chosen before the subset moved
+to the kernels' metric (farthest points in plain standardised units), to test whether that
+choice was what made the GP fail on this task.
+
+    python benchmarks/fourier_failure.py [--duration 3] [--iterations 5] [--plain-subset]
 """
 
 from __future__ import annotations
@@ -28,6 +32,7 @@ import time
 import numpy as np
 from scipy.spatial import cKDTree
 
+from ftdrake.compensation.gpr import GPRCompensator
 from ftdrake.config import ScenarioConfig
 from ftdrake.experiments.feedforward import FeedforwardPlan, Tracker, task_scenario
 from ftdrake.systems.friction import JointFriction
@@ -55,7 +60,16 @@ def main() -> None:
     parser.add_argument("--duration", type=float, default=3.0)
     parser.add_argument("--iterations", type=int, default=5)
     parser.add_argument("--max-points", type=int, default=200)
+    parser.add_argument("--plain-subset", action="store_true",
+                        help="farthest points in standardised units, not the kernels' metric")
     args = parser.parse_args()
+    if args.plain_subset:
+        choose = GPRCompensator._choose_subset
+
+        def plain(self, Z_metric, rng):  # undo the division by the length scales
+            return choose(self, Z_metric * self.length_scale_.min(axis=0), rng)
+
+        GPRCompensator._choose_subset = plain
     plan = FeedforwardPlan(iterations=args.iterations, trajectory="fourier",
                            duration_s=args.duration, max_points=args.max_points)
     scenario = task_scenario(ScenarioConfig(), plan)
@@ -110,6 +124,7 @@ def main() -> None:
     print(f"final tip RMS {run['tip_rms_mm']:.3f} mm")
     # The perfect feedforward, for scale: τ* fed forward at the desired state.
     print(json.dumps({"benchmark": "fourier_failure", "duration_s": args.duration,
+                      "plain_subset": args.plain_subset,
                       "rows": rows, "final_tip_rms_mm": run["tip_rms_mm"]}))
 
 
