@@ -22,6 +22,10 @@ The sections, one module each:
   :class:`EventsConfig`.
 * :mod:`.runtime` — the product: :class:`CompensatorConfig`, :class:`BiasTrackerConfig`,
   :class:`DetectorConfig`.
+* :mod:`.transmission` — compliant joints (motor, gearbox spring and damper):
+  :class:`TransmissionConfig`, off by default.
+* :mod:`.contour` — the hole-cutting task and its tool-side measurements (the two-part
+  feedforward experiment).
 * :mod:`.scenario` — :class:`ScenarioConfig`, the root.
 * :mod:`.files` — YAML in and out.
 """
@@ -38,6 +42,7 @@ from .runtime import (
 from .scenario import ScenarioConfig
 from .sensor import SENSOR_PRESETS, SensorConfig, SensorSpec
 from .task import TRAJECTORY_KINDS, EventsConfig, TaskConfig, TrajectoryConfig
+from .transmission import TransmissionConfig
 
 __all__ = [
     "PAYLOAD_INERTIA_PRIOR_STD",
@@ -57,6 +62,7 @@ __all__ = [
     "SensorSpec",
     "TaskConfig",
     "TrajectoryConfig",
+    "TransmissionConfig",
     "default_scenario_path",
     "dump_config",
     "load_config",

@@ -10,6 +10,7 @@ from .plant import CableConfig, ControllerConfig, FrictionConfig, ModelsConfig
 from .runtime import BiasTrackerConfig, CompensatorConfig, DetectorConfig
 from .sensor import SensorConfig
 from .task import EventsConfig, TaskConfig, TrajectoryConfig
+from .transmission import TransmissionConfig
 
 
 @dc.dataclass
@@ -33,6 +34,7 @@ class ScenarioConfig:
     bias_tracker: BiasTrackerConfig = dc.field(default_factory=BiasTrackerConfig)
     events: EventsConfig = dc.field(default_factory=EventsConfig)
     friction: FrictionConfig = dc.field(default_factory=FrictionConfig)
+    transmission: TransmissionConfig = dc.field(default_factory=TransmissionConfig)
 
     def validate(self) -> "ScenarioConfig":
         positive(self.time_step, "scenario.time_step")
@@ -63,6 +65,7 @@ class ScenarioConfig:
         self.bias_tracker.validate("scenario.bias_tracker")
         self.events.validate("scenario.events")
         self.friction.validate("scenario.friction")
+        self.transmission.validate("scenario.transmission")
         rate = self.sensor.spec().rate_hz
         ratio = 1.0 / (rate * self.time_step)
         if abs(ratio - round(ratio)) > 1e-6 or round(ratio) < 1:

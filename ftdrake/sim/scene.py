@@ -29,6 +29,7 @@ from pydrake.systems.primitives import ConstantValueSource
 
 from ..config import ConfigError, ScenarioConfig, TaskConfig
 from ..physics.scenario_robot import add_model, make_parser, sensor_weld
+from ..systems.transmission import arm_actuators, configure_plant_transmission
 from .cable import add_cable_spring, cable_weight_forces
 
 
@@ -123,6 +124,8 @@ def add_scene(builder: DiagramBuilder, config: ScenarioConfig) -> Scene:
         add_cable_spring(plant, arm, joint.frame_on_child(), config.cable)
         if config.cable.enabled else None
     )
+    if config.transmission.enabled:  # the links' end of the gearbox springs
+        configure_plant_transmission(plant, arm, config.transmission)
     plant.Finalize()
     _add_cable_weight(builder, plant, joint.frame_on_child(), config)
     if plant.num_positions(arm) != len(config.home_q):
@@ -229,6 +232,13 @@ def make_control_plant(config: ScenarioConfig, scene: Scene) -> MultibodyPlant:
         "nominal_tool", arm, SpatialInertia(mass, p_FoLcm_F, G_FoNominal_F)
     )
     plant.WeldFrames(plant.GetFrameByName(config.models.flange_frame, arm), nominal.body_frame())
+    t = config.transmission
+    if t.enabled and t.controller_knows_rotor_inertia:  # the motors' J_m N² in M̂(q)
+        for index, J_m, N in zip(arm_actuators(plant, arm), t.rotor_inertia,
+                                 t.gear_ratio, strict=True):
+            actuator = plant.get_mutable_joint_actuator(index)
+            actuator.set_default_rotor_inertia(J_m)
+            actuator.set_default_gear_ratio(N)
     plant.Finalize()
     return plant
 

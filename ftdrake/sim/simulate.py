@@ -122,6 +122,14 @@ def set_initial_state(station: Station, root_context) -> None:
     plant.SetVelocities(
         plant_context, station.scene.arm, station.trajectory.derivative(1).value(t0).ravel()
     )
+    if station.transmission is not None:  # motors where they hold the links still
+        motors = station.transmission
+        q0 = plant.GetPositions(plant_context, station.scene.arm)
+        load = plant.GetVelocitiesFromArray(
+            station.scene.arm, plant.CalcGravityGeneralizedForces(plant_context))
+        state = motors.static_motor_state(q0, load)
+        state[motors.n:] = plant.GetVelocities(plant_context, station.scene.arm)
+        motors.set_motor_state(motors.GetMyMutableContextFromRoot(root_context), state)
     if station.compensation is not None:
         station.compensation.chain.initialize(root_context)
 

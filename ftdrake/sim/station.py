@@ -39,6 +39,7 @@ from ..systems.friction import JointFriction, check_explicit_stability
 from ..systems.ft_sensor import ForceTorqueSensor
 from ..systems.noisy_sensor import NoisyForceTorqueSensor
 from ..systems.sensor_gravity import SensorGravity
+from ..systems.transmission import MotorSide
 from ..systems.wrench_arrows import WrenchArrows
 from .events import EventSignals, add_sensor_events
 from .scene import Scene, add_scene, make_control_plant
@@ -125,6 +126,10 @@ class Station:
     # [correction (n), correction_std (n), confidence (n)]; see systems/learned_feedforward.py.
     feedforward: object = None
     feedforward_log: VectorLogSink | None = None
+    # With scenario.transmission.enabled: the motors (systems/transmission.py) and a logger of
+    # their [φ, φ̇] (the motor-side angles the controller reads, rad, rad/s).
+    transmission: MotorSide | None = None
+    motor_state_log: VectorLogSink | None = None
 
     @property
     def plant(self) -> MultibodyPlant:
@@ -163,8 +168,8 @@ def build_station(config: ScenarioConfig, compensator=None, *, meshcat=None,
         "trajectory", TrajectorySource(placeholder, output_derivative_order=1))
     vd_source = builder.AddNamedSystem(
         "trajectory_acceleration", TrajectorySource(placeholder.derivative(2)))
-    controller, friction = _add_control(builder, config, scene, q_source, vd_source,
-                                        feedforward)
+    controller, friction, transmission = _add_control(builder, config, scene, q_source,
+                                                      vd_source, feedforward)
 
     sensor = builder.AddNamedSystem("ft_sensor", ForceTorqueSensor(plant, scene.sensor_joint))
     builder.Connect(plant.get_reaction_forces_output_port(),
@@ -201,6 +206,8 @@ def build_station(config: ScenarioConfig, compensator=None, *, meshcat=None,
     )
     feedforward_log = (log(feedforward.get_output_port_status()) if feedforward is not None
                        else None)
+    motor_state_log = (log(transmission.get_output_port_motor_state())
+                       if transmission is not None else None)
     compensation = arrows = None
     if compensator is not None:
         compensation = _add_compensation(builder, config, compensator, scene, events, period,
@@ -222,13 +229,15 @@ def build_station(config: ScenarioConfig, compensator=None, *, meshcat=None,
     q_source.UpdateTrajectory(trajectory)
     vd_source.UpdateTrajectory(trajectory.derivative(2))
     return Station(config, diagram, scene, trajectory, controller, sensor, noisy, truth,
-                   loggers, compensation, arrows, events, friction, feedforward, feedforward_log)
+                   loggers, compensation, arrows, events, friction, feedforward, feedforward_log,
+                   transmission, motor_state_log)
 
 
 def _add_control(builder, config: ScenarioConfig, scene: Scene, q_source, vd_source,
                  feedforward):
-    """trajectory → controller (→ + feedforward) (→ − joint friction) → the plant's actuation.
-    Returns the controller and the friction system (None unless ``friction.enabled``)."""
+    """trajectory → controller (→ + feedforward) (→ − joint friction) → the plant's actuation,
+    or the motors' with compliant transmissions. Returns the controller, the friction system
+    (None unless ``friction.enabled``) and the motors (None unless ``transmission.enabled``)."""
     plant = scene.plant
     c = config.controller
     controller = builder.AddNamedSystem(
@@ -237,8 +246,19 @@ def _add_control(builder, config: ScenarioConfig, scene: Scene, q_source, vd_sou
             make_control_plant(config, scene), kp=c.kp, ki=c.ki, kd=c.kd, period=config.time_step
         ),
     )
-    builder.Connect(plant.get_state_output_port(scene.arm),
-                    controller.get_input_port_estimated_state())
+    # The controller and friction read the joint angles where the encoders are: the links'
+    # (rigid joints) or the motors' (compliant transmissions).
+    transmission = None
+    encoder_state = plant.get_state_output_port(scene.arm)
+    if config.transmission.enabled:
+        transmission = builder.AddNamedSystem(
+            "transmission", MotorSide(config.transmission, config.time_step))
+        builder.Connect(plant.get_state_output_port(scene.arm),
+                        transmission.get_input_port_link_state())
+        builder.Connect(transmission.get_output_port_motor_state(),
+                        plant.get_desired_state_input_port(scene.arm))
+        encoder_state = transmission.get_output_port_motor_state()
+    builder.Connect(encoder_state, controller.get_input_port_estimated_state())
     builder.Connect(q_source.get_output_port(), controller.get_input_port_desired_state())
     builder.Connect(vd_source.get_output_port(), controller.get_input_port_desired_acceleration())
     actuation = controller.get_output_port_control()
@@ -255,11 +275,13 @@ def _add_control(builder, config: ScenarioConfig, scene: Scene, q_source, vd_sou
             "joint_friction", JointFriction(config.friction, plant.num_velocities(scene.arm)))
         check_explicit_stability(friction, plant, scene.arm, config.home_q, config.time_step)
         builder.Connect(actuation, friction.get_input_port_actuation())
-        builder.Connect(plant.get_state_output_port(scene.arm),
-                        friction.get_input_port_joint_state())
+        builder.Connect(encoder_state, friction.get_input_port_joint_state())
         actuation = friction.get_output_port_actuation()
-    builder.Connect(actuation, plant.get_actuation_input_port(scene.arm))
-    return controller, friction
+    if transmission is not None:  # the motors take the torque; the links get the spring's
+        builder.Connect(actuation, transmission.get_input_port_motor_torque())
+    else:
+        builder.Connect(actuation, plant.get_actuation_input_port(scene.arm))
+    return controller, friction, transmission
 
 
 def _add_arrows(builder, meshcat, scene: Scene, events: EventSignals,
