@@ -22,7 +22,7 @@ import time
 
 import numpy as np
 
-from ftdrake.control.reference_correction import ReferenceCorrection
+from ftdrake.experiments.reference_correction import ReferenceCorrection
 from ftdrake.systems.learned_feedforward import LearnedFeedforward, fit_feedforward_gp
 
 N_JOINTS = 7

@@ -5,9 +5,9 @@ import pytest
 
 from ftdrake.config import ScenarioConfig
 from ftdrake.config.contour import ContourScanConfig, HoleConfig, TrackerConfig
-from ftdrake.control.reference_correction import ReferenceCorrection
 from ftdrake.errors import ConfigError
 from ftdrake.experiments.hole_path import HolePath, hole_trajectory
+from ftdrake.experiments.reference_correction import ReferenceCorrection
 from ftdrake.sim.station import robot_geometry
 from ftdrake.sim.tool_measurement import (
     measure_contour,

@@ -19,8 +19,10 @@ from pydrake.systems.framework import Diagram, InputPort, LeafSystem, OutputPort
 
 import ftdrake
 from ftdrake import CompensationChain, RandomForestCompensator, build_station
+from ftdrake.config import TransmissionConfig
 from ftdrake.systems.learned_feedforward import LearnedFeedforward, fit_feedforward_gp
 from ftdrake.systems.time_indexed_feedforward import TimeIndexedFeedforward
+from ftdrake.systems.transmission import MotorSide
 from ftdrake.testing import push_scenario
 
 N = 7  # the scenario arm's joints
@@ -87,6 +89,7 @@ def instances():
                                               optimize_points=40), n_joints=N),
         CompensationChain(model, config, gravity="joint_state"),  # JointStateGravity inside
         CompensationChain(model, config, wrench_delay_s=0.004),  # a DelayLine inside
+        MotorSide(TransmissionConfig(enabled=True), config.time_step),  # compliant joints
     ]
     systems = list(all_systems(station.diagram))
     for system in beside:
@@ -105,7 +108,7 @@ def test_the_walk_finds_the_runtime_and_the_rig():
             "JointStateGravity", "ForceTorqueSensor", "NoisyForceTorqueSensor",
             "SensorGravity", "ToolPush", "ContactTruth", "DiscreteInverseDynamicsController",
             "JointFriction", "LearnedFeedforward", "TimeIndexedFeedforward",
-            "WrenchArrows", "DelayLine"} <= names
+            "WrenchArrows", "DelayLine", "MotorSide"} <= names
 
 
 @pytest.mark.parametrize("cls", SYSTEM_CLASSES, ids=lambda c: c.__name__)

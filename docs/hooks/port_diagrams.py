@@ -83,9 +83,11 @@ def _extra_instances(station, model) -> list:
     from pydrake.geometry import Meshcat, MeshcatParams  # noqa: PLC0415
 
     import ftdrake  # noqa: PLC0415
+    from ftdrake.config import TransmissionConfig  # noqa: PLC0415
     from ftdrake.runtime.delay_line import DelayLine  # noqa: PLC0415
     from ftdrake.systems.learned_feedforward import LearnedFeedforward  # noqa: PLC0415
     from ftdrake.systems.time_indexed_feedforward import TimeIndexedFeedforward  # noqa: PLC0415
+    from ftdrake.systems.transmission import MotorSide  # noqa: PLC0415
     from ftdrake.systems.wrench_arrows import WrenchArrows  # noqa: PLC0415
 
     config = station.config
@@ -101,7 +103,8 @@ def _extra_instances(station, model) -> list:
     return [live, *live.GetSystems(), LearnedFeedforward(torque, n_joints=n),
             TimeIndexedFeedforward(np.zeros((10, n)), config.time_step),
             WrenchArrows(meshcat, station.plant, station.scene),
-            DelayLine(6, 2.5, config.time_step)]
+            DelayLine(6, 2.5, config.time_step),
+            MotorSide(TransmissionConfig(enabled=True), config.time_step)]
 
 
 def _is_ftdrake(system) -> bool:

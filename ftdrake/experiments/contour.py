@@ -8,7 +8,7 @@ and knows neither the friction nor the true tool), then, from the same first run
 * ``torque``: part one only, the torque feedforward GP on the motor-side tracking
   (:mod:`ftdrake.systems.learned_feedforward`, data from every run so far);
 * ``timed``: two-part, part one plus the reference correction
-  (:mod:`ftdrake.control.reference_correction`) learned from a timed tool measurement;
+  (:mod:`ftdrake.experiments.reference_correction`) learned from a timed tool measurement;
 * ``contour``: two-part with the reference correction learned from an untimed contour scan of
   the hole;
 * ``ilc``: time-indexed ILC of the motor reference from the timed measurement (the paper's
@@ -37,12 +37,6 @@ from .. import conventions as col
 from ..config import ScenarioConfig
 from ..config.contour import ContourScanConfig, HoleConfig, TrackerConfig
 from ..control.ilc import q_filter
-from ..control.reference_correction import (
-    ReferenceCorrection,
-    corrected_reference,
-    desired_states,
-    tip_jacobian_pinv,
-)
 from ..errors import ConfigError
 from ..io import atomic_path, atomic_write_text
 from ..sim.scene import make_control_plant
@@ -51,6 +45,12 @@ from ..sim.station import build_station, robot_geometry
 from ..sim.tool_measurement import measure_contour, measure_timed, normal_deviation, timed_error
 from ..systems.learned_feedforward import LearnedFeedforward, fit_feedforward_gp
 from .hole_path import HolePath, hole_trajectory
+from .reference_correction import (
+    ReferenceCorrection,
+    corrected_reference,
+    desired_states,
+    tip_jacobian_pinv,
+)
 
 logger = logging.getLogger(__name__)
 
