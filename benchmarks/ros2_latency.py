@@ -39,8 +39,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ftdrake import ScenarioConfig, save_model
-from ftdrake.cli.train import RobotOptions, make_estimator
+from ftdrake import RobotOptions, ScenarioConfig, make_estimator, save_model
 from ftdrake.config import save_config
 from ftdrake.conventions import (
     MEASURED,

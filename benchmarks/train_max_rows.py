@@ -22,7 +22,7 @@ from pathlib import Path
 import numpy as np
 
 import ftdrake
-from ftdrake.cli.train import main as train_cli
+from ftdrake.cli.main import main as train_cli
 
 
 def simulated(minutes: float, seed: int, path: Path) -> object:

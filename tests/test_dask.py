@@ -14,7 +14,7 @@ import pandas as pd
 import pytest
 
 from ftdrake import ScenarioConfig
-from ftdrake.cli.train import main as train_cli
+from ftdrake.cli.main import main as train_cli
 from ftdrake.compensation.persistence import load_model, read_manifest
 from ftdrake.data.logs import read_table
 from ftdrake.sim.collection import collect

@@ -17,7 +17,7 @@ import pytest
 pytest.importorskip("cyclonedds")
 from rosbags.rosbag2 import StoragePlugin, Writer
 
-from ftdrake.cli.train import main as train_cli
+from ftdrake.cli.main import main as train_cli
 from ftdrake.config import ScenarioConfig, save_config
 from ftdrake.conventions import MEASURED, QD, Q, joint_columns, wrench_columns
 from ftdrake.hardware.ros2.config import Ros2Config

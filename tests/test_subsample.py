@@ -43,7 +43,7 @@ def test_covering_rows_keeps_recordings_apart_and_short_logs_whole():
 @pytest.mark.slow
 def test_train_max_rows_fits_on_the_cover_and_says_so(tmp_path, capsys):
     import ftdrake
-    from ftdrake.cli.train import main as train_cli
+    from ftdrake.cli.main import main as train_cli
     from ftdrake.compensation.persistence import read_manifest
 
     runs = {}

@@ -17,7 +17,7 @@ import pandas as pd
 import pytest
 from threadpoolctl import threadpool_limits
 
-from ftdrake.cli.train import main as train_cli
+from ftdrake.cli.main import main as train_cli
 from ftdrake.compensation.persistence import read_manifest
 
 UR3 = Path(__file__).parent / "data" / "ur3"

@@ -16,7 +16,7 @@ import numpy as np
 import pytest
 from threadpoolctl import threadpool_limits
 
-from ftdrake.cli.train import main as train_cli
+from ftdrake.cli.main import main as train_cli
 from ftdrake.compensation.gpr import GPRCompensator
 from ftdrake.compensation.metrics import (
     UNCERTAIN_STD_FACTOR,

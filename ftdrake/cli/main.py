@@ -8,6 +8,7 @@ import sys
 from ..version import ftdrake_version
 from . import (
     calibrate,
+    evaluate,
     experiments,
     export,
     feedforward,
@@ -20,8 +21,8 @@ from . import (
 from .args import HelpFormatter, run
 
 # In the order ``ftdrake --help`` lists them: the rig, models, a live robot, the experiments.
-COMMAND_MODULES = (simulation, train, export, replay, calibrate, hardware, experiments, study,
-                   feedforward)
+COMMAND_MODULES = (simulation, train, evaluate, export, replay, calibrate, hardware, experiments,
+                   study, feedforward)
 
 DESCRIPTION = """\
 Learned compensation of a wrist force/torque sensor on Drake: simulate the rig, collect data,

@@ -33,7 +33,6 @@ from __future__ import annotations
 
 import argparse
 import dataclasses as dc
-import json
 import sys
 import time
 from pathlib import Path
@@ -43,24 +42,22 @@ from sklearn.base import clone
 from ..compensation import registry
 from ..compensation.build import BUILTIN_ROBOT, RobotOptions, is_wrench
 from ..compensation.calibration import static_table_hint
-from ..compensation.evaluation import evaluate_model, target_ranges
+from ..compensation.evaluation import target_ranges
 from ..compensation.features import check_feature_set
-from ..compensation.persistence import load_model, read_manifest, save_model
+from ..compensation.persistence import save_model
 from ..compensation.tuning import segment_groups, tune
-from ..conventions import TEMPERATURE, WRENCH_UNITS
-from ..data.bag import is_bag
+from ..conventions import WRENCH_UNITS
 from ..data.logs import QDD_ESTIMATES, option_spelling
 from ..data.stream_delay import align_training_data, estimate_training_delay
 from ..data.subsample import OVERSAMPLE, covering_rows
 from ..data.training import ReadOptions, TrainingData, load_training_data
-from ..errors import ConfigError, FtdrakeError, LogError, ModelFileError, RobotModelError
-from ..io import atomic_write_text
+from ..errors import ConfigError, FtdrakeError, LogError, RobotModelError
 from ..parallel import dask_backend
 from . import args as a
 
 FEATURE_SETS = ("q", "q,qd", "q,qd,qdd")
 
-_COLUMNS_HELP = ("PAT is a glob ('q_*'), a comma-separated list of names, or a regular "
+COLUMNS_HELP = ("PAT is a glob ('q_*'), a comma-separated list of names, or a regular "
                  "expression after 're:'. Times are in s on the log's own axis (a bag's: since "
                  "its first joint state).")
 # ReadOptions field → (metavar, type, help). Every field is a flag of both commands.
@@ -93,18 +90,18 @@ _READ_FLAGS = {
 _CHOICES = {"position_unit": ("rad", "deg"), "qdd_estimate": QDD_ESTIMATES}
 # Options that describe the file (columns, topics): carried to `evaluate` only from the same
 # kind of file. The others (units, derivatives) always are.
-_FILE_OPTIONS = ("positions", "targets", "velocities", "accelerations", "time", "group",
+FILE_OPTIONS = ("positions", "targets", "velocities", "accelerations", "time", "group",
                  "joint_topic", "wrench_topic", "temperature")
 
 
 def register(subparsers) -> None:
-    """Adds ``train`` and ``evaluate`` to an ``argparse`` subparsers object."""
+    """Adds ``train`` to an ``argparse`` subparsers object."""
     models = registry.names()
     p = a.add_command(subparsers, "train", "fit a compensator on a robot log; save it",
-                      description=_COLUMNS_HELP)
+                      description=COLUMNS_HELP)
     p.add_argument("--data", type=a.existing_path, required=True, metavar="FILE",
                    help="CSV/Parquet table, ROS 1 .bag file or ROS 2 bag folder")
-    _add_read_flags(p)
+    add_read_flags(p)
     kind = p.add_argument(
         "--kind", choices=models,
         help=", ".join(f"{n}: {registry.entry(n).summary}" for n in models)
@@ -144,20 +141,6 @@ def register(subparsers) -> None:
     a.add_quiet(p)
     p.set_defaults(run=run_train)
 
-    p = a.add_command(
-        subparsers, "evaluate", "score a saved compensator on a robot log",
-        description=_COLUMNS_HELP + " Read flags not given are those the model was trained "
-        "with (column and topic flags: when the file is of the same kind, table or bag), else "
-        "the defaults.")
-    a.add_model_file(p, required=True)
-    p.add_argument("--data", type=a.existing_path, required=True, metavar="FILE",
-                   help="CSV/Parquet table, ROS 1 .bag file or ROS 2 bag folder")
-    _add_read_flags(p)
-    p.add_argument("--json", type=a.output_file, metavar="OUT",
-                   help="also write the results as JSON")
-    a.add_quiet(p)
-    p.set_defaults(run=run_evaluate)
-
 
 def _add_model_options(p) -> None:
     """The options the registered compensators take (their registry entries' train options)."""
@@ -173,7 +156,7 @@ def _model_options(args) -> dict:
     return {option.name: getattr(args, option.name) for option in registry.train_options()}
 
 
-def _add_read_flags(p) -> None:
+def add_read_flags(p) -> None:
     for name, (metavar, kind, text) in _READ_FLAGS.items():
         p.add_argument(_flag_name(name), metavar=metavar, type=kind, help=text,
                        choices=_CHOICES.get(name))
@@ -203,7 +186,7 @@ def given_read_options(args) -> dict:
     return {f.name: getattr(args, f.name, None) for f in dc.fields(ReadOptions)}
 
 
-def _with_flags(base: ReadOptions, args) -> ReadOptions:
+def with_flags(base: ReadOptions, args) -> ReadOptions:
     """`base` updated with the flags given; an invalid value's error names its flag."""
     try:
         return base.updated(**given_read_options(args))
@@ -215,12 +198,12 @@ def _with_flags(base: ReadOptions, args) -> ReadOptions:
         raise ConfigError(message) from None
 
 
-def _read(args, options: ReadOptions, say, static_poses: bool | None = False) -> TrainingData:
+def read_data(args, options: ReadOptions, say, static_poses: bool | None = False) -> TrainingData:
     say(f"reading {args.data} …")
     with option_spelling(flag_hint):
         try:
             data = load_training_data(args.data, options, t_start=args.t_start,
-                                      t_end=args.t_end, report=_warn,
+                                      t_end=args.t_end, report=warn,
                                       static_poses=static_poses)
         except LogError as e:
             hint = static_table_hint(args.data)
@@ -246,9 +229,9 @@ def target_units(text: str | None, names: list[str]) -> list[str]:
 
 # -- train --------------------------------------------------------------------------------------
 def run_train(args) -> int:
-    say = _reporter(args.quiet)
-    options = _with_flags(ReadOptions(), args)
-    data = _read(args, options, say)
+    say = reporter(args.quiet)
+    options = with_flags(ReadOptions(), args)
+    data = read_data(args, options, say)
     robot = RobotOptions(args.robot, args.sensor_frame, args.base_frame, data.scenario_yaml)
     if args.kind is None:
         args.kind = registry.default_kind(robot)
@@ -399,133 +382,20 @@ def _plain(params: dict) -> dict:
     return out
 
 
-# -- evaluate -----------------------------------------------------------------------------------
-def stored_read_options(manifest: dict, path: Path) -> ReadOptions:
-    """The ReadOptions a model was trained with, for reading `path`: all of them when `path`
-    is of the same kind (table or bag) as the training data, else only those that are not
-    about columns and topics."""
-    trained_on = manifest.get("extra", {}).get("data", {})
-    stored = dict(trained_on.get("options") or {})
-    if trained_on.get("kind") != ("bag" if is_bag(path) else "table"):
-        stored = {k: v for k, v in stored.items() if k not in _FILE_OPTIONS}
-    try:
-        return ReadOptions.from_dict(stored)
-    except ConfigError as e:
-        raise ModelFileError(f"--model: the manifest's read options: {e}") from None
 
 
-def run_evaluate(args) -> int:
-    say = _reporter(args.quiet)
-    with a.naming("--model", args.model):
-        manifest = read_manifest(args.model)
-    options = _with_flags(stored_read_options(manifest, args.data), args)
-    # A table without its time column is a table of static poses (what `calibrate` takes).
-    data = _read(args, options, say, static_poses=None)
-    _check_compatible(manifest, data, args)
-    model = load_model(args.model, expect_n_joints=data.n_joints)
-    _check_temperature(model, data, args)
-
-    names = data.target_names
-    ranges = manifest.get("extra", {}).get("training_range", {}).get("targets")
-    scores = evaluate_model(model, data.X, data.Y, target_names=names, training_ranges=ranges)
-    result = {
-        "model": str(args.model),
-        "model_class": manifest["model_class"].rsplit(".", 1)[-1],
-        "data": str(args.data),
-        "source": data.source,
-        "rows": data.rows,
-        "reader_warnings": data.warnings,
-        **{key: scores[key] for key in ("in_domain_rows", "out_of_domain_rows",
-                                        "out_of_domain_fraction", "out_of_domain_by_input")},
-        "target_units": dict(zip(names, manifest["target_units"], strict=True)),
-        **{key: scores[key] for key in ("std", "metrics", "trust")},
-    }
-    print_evaluation(result)
-    for line in scores["trust"]["warnings"]:
-        _warn(line)
-    if args.json is not None:
-        atomic_write_text(args.json, json.dumps(result, indent=2))
-        say(f"wrote {args.json}")
-    return 0
 
 
-def _check_compatible(manifest: dict, data: TrainingData, args) -> None:
-    trained = manifest.get("extra", {}).get("columns", {})
-    if manifest["n_joints"] != data.n_joints:
-        raise LogError(
-            f"{args.model} was trained on {manifest['n_joints']} joints "
-            f"{trained.get('joints', '')}; {args.data.name} gives {data.n_joints} "
-            f"{data.joint_names}: another robot, or pass --positions"
-        )
-    if manifest["n_outputs"] != len(data.target_names):
-        raise LogError(
-            f"{args.model} predicts {manifest['n_outputs']} targets {manifest['target_names']}; "
-            f"{args.data.name} gives {len(data.target_names)} {data.target_names}: pass --targets"
-        )
-    if manifest["target_names"] != data.target_names:
-        _warn(f"warning: target names differ: model {manifest['target_names']}, "
-              f"data {data.target_names}; compared in this order")
 
 
-def _check_temperature(model, data: TrainingData, args) -> None:
-    """A model trained with the sensor temperature needs it in the data, and the other way
-    round; the error names the column and the flag."""
-    needs = bool(getattr(model, "temperature_in_", False))
-    if needs and not data.has_temperature:
-        raise LogError(
-            f"{args.model} was trained with the sensor temperature (°C) as an input; "
-            f"{args.data.name} was read without one: name its column with --temperature COL "
-            f"(e.g. --temperature {TEMPERATURE})")
-    if data.has_temperature and not needs:
-        raise LogError(
-            f"{args.model} was trained without the sensor temperature; omit --temperature "
-            f"{data.options.temperature}")
 
 
-def print_evaluation(result: dict, file=None) -> None:
-    """The evaluation as a small table: all rows, then variance score in and out of domain."""
-    file = file or sys.stdout
-    m = result["metrics"]
-    print(f"\n{result['model']} ({result['model_class']}) on {result['data']}: "
-          f"{result['rows']['used']} rows, {result['out_of_domain_rows']} "
-          f"({100 * result['out_of_domain_fraction']:.1f} %) outside the training range",
-          file=file)
-    worst = sorted(result["out_of_domain_by_input"].items(), key=lambda kv: -kv[1])[:4]
-    if worst:
-        print("  rows outside, by input: " + ", ".join(f"{k} {v}" for k, v in worst), file=file)
-    print(f"\n  {'target':<10}{'unit':<6}{'mse':>11}{'nmse':>8}{'var.score':>11}"
-          f"{'in-domain':>11}{'out-of-dom.':>12}", file=file)
-    print(f"  {'rows':<16}{result['rows']['used']:>30}{result['in_domain_rows']:>11}"
-          f"{result['out_of_domain_rows']:>12}", file=file)
-    for name, row in m["all"].items():
-        parts = [m[k][name]["variance_score"] if m[k] else None
-                 for k in ("in_domain", "out_of_domain")]
-        print(f"  {name:<10}{result['target_units'][name]:<6}{_num(row['mse'], 11, '.4g')}"
-              f"{_num(row['nmse'], 8, '.3f')}{_num(row['variance_score'], 11, '.3f')}"
-              f"{_num(parts[0], 11, '.3f')}{_num(parts[1], 12, '.3f')}", file=file)
-    print("  (in-domain / out-of-domain columns: variance score on those rows)\n", file=file)
-    if result.get("std"):
-        rows = m["in_domain"] or m["all"]
-        which = "in-domain" if m["in_domain"] else "all"
-        print(f"  coverage of the predictive std ({result['std']}), {which} rows: fraction "
-              "within the central 68 % / 95 % interval", file=file)
-        for name, row in rows.items():
-            print(f"  {name:<10}{_num(row.get('coverage_68'), 8, '.3f')}"
-                  f"{_num(row.get('coverage_95'), 8, '.3f')}", file=file)
-        print(file=file)
-    trust = result.get("trust")
-    if trust:
-        shares = ", ".join(f"{n} {100 * v:.0f} %" for n, v in trust["untrusted_fraction"].items())
-        print(f"  rows flagged as not to be trusted ({', '.join(trust['by_cause'])}): "
-              f"{shares}\n", file=file)
 
 
-def _num(x, width: int, fmt: str) -> str:
-    return f"{'–':>{width}}" if x is None else f"{x:>{width}{fmt}}"
 
 
 # -- output ---------------------------------------------------------------------------------------
-def _reporter(quiet: bool):
+def reporter(quiet: bool):
     def say(message: str) -> None:
         if not quiet:
             print(message, file=sys.stderr, flush=True)
@@ -533,7 +403,7 @@ def _reporter(quiet: bool):
     return say
 
 
-def _warn(message: str) -> None:
+def warn(message: str) -> None:
     print(message, file=sys.stderr, flush=True)
 
 
@@ -547,7 +417,7 @@ def _describe(data: TrainingData) -> str:
 
 
 def main(argv=None) -> int:
-    """Runs train/evaluate alone (``python -m ftdrake.cli.train``), with errors reported as
+    """Runs train alone (``python -m ftdrake.cli.train``), with errors reported as
     the ``ftdrake`` command does: a :class:`~ftdrake.errors.FtdrakeError` is one line and exit
     code 2; any other exception is a bug and keeps its traceback."""
     parser = argparse.ArgumentParser(prog="ftdrake")
