@@ -34,8 +34,11 @@ def number(pattern: str, text: str) -> float:
     return float(found.group(1))
 
 
-def test_every_example_is_run_here():
+def test_every_example_is_run_by_a_test():
+    """Here (by ``run``), or by a test file of its own that names the example's path."""
     tested = set(re.findall(r'run\("(\w+\.py)"', Path(__file__).read_text()))
+    for test in Path(__file__).parent.glob("test_*.py"):
+        tested |= set(re.findall(r'"examples"\s*/\s*"(\w+\.py)"', test.read_text()))
     assert {p.name for p in EXAMPLES.glob("*.py")} == tested
 
 
