@@ -32,6 +32,7 @@ import pandas as pd
 
 from .. import conventions as col
 from ..errors import LogError
+from .dataset import joint_state_layout, wrench_targets
 
 DEFAULT_MAX_LAG_S = 0.1
 
@@ -191,8 +192,6 @@ def fit_aligned(model, log: pd.DataFrame, *, delay_s: float | None = None,
     the runtime chain applies live (a delay line on the joint state), and the estimate as
     ``stream_delay_`` (a dict; None when the delay was given).
     """
-    from .dataset import joint_state_layout, wrench_targets  # noqa: PLC0415
-
     def fit(delay):
         aligned = shift_wrench(log, delay, wrench=wrench) if delay else log
         model.fit(joint_state_layout(aligned, source), wrench_targets(aligned, wrench))

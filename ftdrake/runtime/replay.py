@@ -59,6 +59,8 @@ from pydrake.systems.analysis import Simulator
 
 from .. import conventions as col
 from ..config import ScenarioConfig, parse_config
+from ..data.bag import is_bag, read_bag
+from ..data.logs import is_table, read_frame
 from ..errors import LogError
 from .chain import CompensationChain
 
@@ -206,9 +208,6 @@ def read_replay_log(path, *, wrench_topic: str | None = None,
     """A CSV/Parquet table (as is; a Parquet file's scenario in ``attrs["scenario"]``) or a
     ROS bag (JointState rows with the WrenchStamped topic `wrench_topic` put on their
     times, :func:`ftdrake.data.read_bag`) as a DataFrame in the replay layout."""
-    from ..data.bag import is_bag, read_bag  # noqa: PLC0415 (rosbags only for bags)
-    from ..data.logs import is_table, read_frame  # noqa: PLC0415
-
     path = Path(path)
     if not path.exists():
         raise LogError(f"{path}: no such file or folder")

@@ -73,7 +73,7 @@ def _field_type(node):
     try:
         from rosbags.interfaces import Nodetype  # noqa: PLC0415 (as above)
     except ImportError:  # rosbags < 0.11 kept it with the type system
-        from rosbags.typesys.base import Nodetype  # noqa: PLC0415
+        from rosbags.typesys.base import Nodetype  # noqa: PLC0415 (as above)
 
     kind, detail = node
     if kind == Nodetype.BASE:
