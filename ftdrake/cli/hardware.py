@@ -19,7 +19,6 @@ from __future__ import annotations
 
 import contextlib
 import json
-import math
 import sys
 import time
 
@@ -31,7 +30,7 @@ from ..hardware.station import HardwareStation
 from ..hardware.transport import open_lcm
 from . import args as a
 from . import ros2
-from .live import Status, stop_on_signals
+from .live import serve_until_stopped, stop_on_signals
 
 
 def register(sub) -> None:
@@ -124,22 +123,7 @@ def run_serve(args) -> int:
         print(f"ftdrake serve: {type(model).__name__} from {args.model}, "
               f"{1 / station.period:g} Hz updates\n{describe_channels(hardware)}",
               file=sys.stderr, flush=True)
-    status = Status(station, quiet=args.quiet)
-    start = time.monotonic()
-    with stop_on_signals() as stop:
-        while not stop[0]:
-            station.spin_once(timeout_ms=2)
-            now = time.monotonic()
-            status.maybe_print(now)
-            if args.duration is not None and now - start >= args.duration:
-                break
-    if status.tty:
-        print(file=sys.stderr)
-    summary = station.summary()
-    summary["wall_time_s"] = time.monotonic() - start
-    summary["last_rates_hz"] = status.rates
-    summary["latency_ms"] = {k: (None if math.isnan(v) else v)  # nothing published: null
-                             for k, v in summary["latency_ms"].items()}
+    summary = serve_until_stopped(station, args.duration, args.quiet)
     print(json.dumps(summary))
     return 0
 

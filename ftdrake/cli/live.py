@@ -4,6 +4,7 @@ throttled status line."""
 from __future__ import annotations
 
 import contextlib
+import math
 import signal
 import sys
 import time
@@ -59,4 +60,30 @@ class Status:
                 f"contact {'YES' if contact else 'no'}")
         end = "\r" if self.tty else "\n"
         print(line.ljust(100), end=end, file=self.stream, flush=True)
+
+
+def serve_until_stopped(station, duration_s: float | None, quiet: bool,
+                        before_summary=None) -> dict:
+    """Spins `station` until Ctrl-C (SIGINT/SIGTERM) or `duration_s` of wall time, printing
+    the status line; returns its summary with the wall time, the last message rates and the
+    latencies (None where nothing was published). `before_summary()` runs after the loop."""
+    status = Status(station, quiet=quiet)
+    start = time.monotonic()
+    with stop_on_signals() as stop:
+        while not stop[0]:
+            station.spin_once(timeout_ms=2)
+            now = time.monotonic()
+            status.maybe_print(now)
+            if duration_s is not None and now - start >= duration_s:
+                break
+    if before_summary is not None:
+        before_summary()
+    if status.tty:
+        print(file=sys.stderr)
+    summary = station.summary()
+    summary["wall_time_s"] = time.monotonic() - start
+    summary["last_rates_hz"] = status.rates
+    summary["latency_ms"] = {k: (None if math.isnan(v) else v)  # nothing published: null
+                             for k, v in summary["latency_ms"].items()}
+    return summary
 

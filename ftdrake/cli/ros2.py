@@ -19,7 +19,6 @@ from __future__ import annotations
 
 import contextlib
 import json
-import math
 import sys
 import time
 
@@ -32,7 +31,7 @@ from ..hardware.ros2.recording import Ros2Recorder
 from ..hardware.ros2.station import Ros2Station
 from ..sim.ros2_publisher import arm_joint_names, simulate_on_ros2
 from . import args as a
-from .live import Status, stop_on_signals
+from .live import serve_until_stopped, stop_on_signals
 
 
 def add_options(p) -> None:
@@ -83,24 +82,9 @@ def serve(args) -> int:
     print(f"ftdrake serve: {type(model).__name__} from {args.model}, "
           f"{1 / station.period:g} Hz updates\n{describe_topics(config)}",
           file=sys.stderr, flush=True)
-    status = Status(station, quiet=args.quiet)
-    start = time.monotonic()
-    with stop_on_signals() as stop:
-        while not stop[0]:
-            station.spin_once(timeout_ms=2)
-            now = time.monotonic()
-            status.maybe_print(now)
-            if args.duration is not None and now - start >= args.duration:
-                break
-    station.node.wait_for_acks(1.0)
-    if status.tty:
-        print(file=sys.stderr)
-    summary = station.summary()
-    summary["wall_time_s"] = time.monotonic() - start
-    summary["last_rates_hz"] = status.rates
+    summary = serve_until_stopped(station, args.duration, args.quiet,
+                                  before_summary=lambda: station.node.wait_for_acks(1.0))
     summary["diagnostics_published"] = station.diagnostics_published
-    summary["latency_ms"] = {k: (None if math.isnan(v) else v)
-                             for k, v in summary["latency_ms"].items()}
     station.close()
     print(json.dumps(summary))
     return 0
