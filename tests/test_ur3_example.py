@@ -10,6 +10,7 @@ import subprocess
 import sys
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 EXAMPLE = Path(__file__).resolve().parents[1] / "examples" / "ur3_torque_models.py"
@@ -22,6 +23,16 @@ EXPECTED = """\
 | hybrid (residual on q,qd,qdd) | 0.951 | 0.972 | 0.963 | 0.940 | 0.935 | 0.906 | 0.57–0.76 |"""
 
 
+def table_numbers(lines) -> dict:
+    """{model: [variance score per joint..., coverage low, coverage high]} of a table."""
+    rows = {}
+    for line in lines[2:]:
+        cells = [c.strip() for c in line.strip("|").split("|")]
+        low, high = cells[-1].split("–")
+        rows[cells[0]] = [float(c) for c in cells[1:-1]] + [float(low), float(high)]
+    return rows
+
+
 @pytest.mark.slow
 def test_example_reproduces_the_commands_table(tmp_path):
     result = subprocess.run([sys.executable, str(EXAMPLE), "--out", str(tmp_path / "out")],
@@ -29,6 +40,14 @@ def test_example_reproduces_the_commands_table(tmp_path):
                             check=False)
     assert result.returncode == 0, result.stderr
     assert "750 rows, 95.1 % outside the training range" in result.stdout
-    assert result.stdout.rstrip().endswith(EXPECTED)
+    # Two runs of the same code on the same files differed by up to 0.009 in a variance score
+    # (the hybrid with a residual on q, tau_5: 0.890 and 0.881): the arm's SDP solve and the
+    # forest are not bit-reproducible across machines' thread schedules. The table is compared
+    # number by number to 0.015.
+    got = table_numbers(result.stdout.rstrip().splitlines()[-len(EXPECTED.splitlines()):])
+    want = table_numbers(EXPECTED.splitlines())
+    assert got.keys() == want.keys()
+    for model, numbers in want.items():
+        np.testing.assert_allclose(got[model], numbers, rtol=0, atol=0.015, err_msg=model)
     assert (tmp_path / "out" / "arm_1.ftd").is_file()
     assert (tmp_path / "out" / "hybrid_3.json").is_file()
