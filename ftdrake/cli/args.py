@@ -154,6 +154,18 @@ def add_html(p, *, default: bool):
                           help="write replay.html, a Meshcat replay of the run")
 
 
+def add_stream_delay(p, *, corrected: str, estimated: str) -> None:
+    """``--delay S`` or ``--align``: the wrench stream's delay behind the joint states, given
+    (s; negative: ahead) or estimated from the log. `corrected`/`estimated` say what the
+    command does with it."""
+    delay = p.add_mutually_exclusive_group()
+    delay.add_argument("--delay", type=finite_float, metavar="S",
+                       help="the wrench stream's delay behind the joint states (s; negative: "
+                            f"ahead): {corrected}")
+    delay.add_argument("--align", action="store_true",
+                       help=f"estimate that delay ({estimated}), report it and correct it")
+
+
 def add_quiet(p, help: str = "no progress output"):
     return p.add_argument("--quiet", action="store_true", help=help)
 

@@ -47,13 +47,8 @@ def register(sub) -> None:
     p.add_argument("--view", choices=["aligned", "held"], default="aligned",
                    help="aligned: row k holds the outputs of the update that read row k; "
                         "held: what the output ports held when row k arrived (one row later)")
-    delay = p.add_mutually_exclusive_group()
-    delay.add_argument("--delay", type=a.finite_float, metavar="S",
-                       help="the wrench stream's delay behind the joint states (s, may be "
-                            "negative); corrected by a delay line on the joint state")
-    delay.add_argument("--align", action="store_true",
-                       help="estimate that delay from the log (physics or hybrid model) and "
-                            "correct it")
+    a.add_stream_delay(p, corrected="corrected by a delay line on the joint state",
+                       estimated="from the log, with a physics or hybrid model")
     p.add_argument("--wrench-topic", metavar="TOPIC", help="a ROS bag's WrenchStamped topic")
     add_transport_flags(p, lcm_help="unused by replay (an LCM log is read with --hardware's "
                                     "channels)")

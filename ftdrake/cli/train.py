@@ -131,13 +131,9 @@ def register(subparsers) -> None:
     p.add_argument("--max-rows", type=a.positive_int, metavar="N",
                    help="fit on at most N rows covering the log's states (every k-th row, "
                         "then farthest-point in the model's inputs); reported in the model")
-    delay = p.add_mutually_exclusive_group()
-    delay.add_argument("--delay", type=a.finite_float, metavar="S",
-                       help="the wrench stream's delay behind the joint states (s; negative: "
-                            "ahead): corrected in training, kept in the model, applied live")
-    delay.add_argument("--align", action="store_true",
-                       help="estimate that delay (with the model fitted once; best with a "
-                            "physics or hybrid model), report it and correct it")
+    a.add_stream_delay(p, corrected="corrected in training, kept in the model, applied live",
+                       estimated="with the model fitted once; best with a physics or hybrid "
+                                 "model")
     a.add_quiet(p)
     p.set_defaults(run=run_train)
 
