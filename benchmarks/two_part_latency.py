@@ -24,6 +24,7 @@ import numpy as np
 
 from ftdrake.experiments.reference_correction import ReferenceCorrection
 from ftdrake.systems.learned_feedforward import LearnedFeedforward, fit_feedforward_gp
+from ftdrake.testing import sine_path
 
 N_JOINTS = 7
 RATE_HZ = 1000.0
@@ -31,15 +32,7 @@ RATE_HZ = 1000.0
 
 def trajectory(seconds: float, seed: int) -> np.ndarray:
     """[q, q̇, q̈] (N × 21) of a sum of sines per joint, sampled at 1 kHz."""
-    rng = np.random.default_rng(seed)
-    t = np.arange(0.0, seconds, 1.0 / RATE_HZ)[:, None]
-    w = 2 * np.pi * rng.uniform(0.1, 0.4, (3, N_JOINTS))
-    a = rng.uniform(0.1, 0.5, (3, N_JOINTS))
-    phase = rng.uniform(0, 2 * np.pi, (3, N_JOINTS))
-    q = sum(a[k] * np.sin(w[k] * t + phase[k]) for k in range(3))
-    qd = sum(a[k] * w[k] * np.cos(w[k] * t + phase[k]) for k in range(3))
-    qdd = sum(-a[k] * w[k] ** 2 * np.sin(w[k] * t + phase[k]) for k in range(3))
-    return np.hstack([q, qd, qdd])
+    return sine_path(seconds, seed, RATE_HZ, N_JOINTS)
 
 
 def median_us(f, rows, repeat: int = 3) -> float:

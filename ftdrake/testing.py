@@ -51,6 +51,7 @@ __all__ = [
     "pose_tables",
     "push_scenario",
     "readings",
+    "sine_path",
     "sinusoids",
     "split_by_trajectory",
     "static_poses",
@@ -78,6 +79,20 @@ COM_SPREAD_GOAL_MM = 2.0
 
 
 # -- Joint states ----------------------------------------------------------------------------
+def sine_path(seconds: float, seed: int, rate_hz: float = 1000.0, n_joints: int = 7):
+    """[q, q̇, q̈] (N × 3n) of a sum of three sines per joint (0.1–0.4 Hz, 0.1–0.5 rad), sampled
+    at `rate_hz`: the desired state a feedforward benchmark steps through."""
+    rng = np.random.default_rng(seed)
+    t = np.arange(0.0, seconds, 1.0 / rate_hz)[:, None]
+    w = 2 * np.pi * rng.uniform(0.1, 0.4, (3, n_joints))
+    a = rng.uniform(0.1, 0.5, (3, n_joints))
+    phase = rng.uniform(0, 2 * np.pi, (3, n_joints))
+    q = sum(a[k] * np.sin(w[k] * t + phase[k]) for k in range(3))
+    qd = sum(a[k] * w[k] * np.cos(w[k] * t + phase[k]) for k in range(3))
+    qdd = sum(-a[k] * w[k] ** 2 * np.sin(w[k] * t + phase[k]) for k in range(3))
+    return np.hstack([q, qd, qdd])
+
+
 def sinusoids(rng, joints, n=1500, duration=20.0, amplitude=0.6):
     """[q, q̇, q̈] rows of a sum of three sinusoids on `joints`, the others held at HOME.
 
