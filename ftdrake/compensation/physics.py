@@ -55,7 +55,7 @@ import numpy as np
 from ..conventions import GRAVITY_W
 from ..errors import ConfigError, RobotModelError
 from ..physics.chain import SerialChain
-from ..physics.robot import RobotDescription, ftdrake_arm
+from ..physics.robot import RobotDescription, floating_base_hint, ftdrake_arm
 from .base import Compensator
 from .compiled.payload import pack_payload_row, payload_mean_std, payload_predict
 from .consistent import DEFAULT_PRIOR_WEIGHT, PayloadPrior, is_physically_consistent
@@ -462,8 +462,8 @@ def _kinematics_for(description: RobotDescription, gravity: tuple) -> _Kinematic
     if plant.num_positions() != plant.num_velocities():
         raise RobotModelError(
             f"robot model {description.label} has {plant.num_positions()} positions but "
-            f"{plant.num_velocities()} velocities (a floating body?): the [q, q̇, q̈] rows "
-            "need one coordinate per joint")
+            f"{plant.num_velocities()} velocities ({floating_base_hint(plant)}): the "
+            "[q, q̇, q̈] rows need one coordinate per joint")
     return _Kinematics(SerialChain.from_plant(plant, frame_S), gravity)
 
 

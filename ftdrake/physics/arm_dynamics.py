@@ -34,7 +34,7 @@ from pydrake.multibody.tree import MultibodyForces, PrismaticJoint, RevoluteJoin
 from ..conventions import GRAVITY_W
 from ..errors import RobotModelError
 from .rigid_body import inertia_map, skew
-from .robot import add_robot_model, model_label
+from .robot import add_robot_model, floating_base_hint, model_label
 
 #: Per-body inertial parameter names (suffixed by the body's name in the stacked vector).
 INERTIAL_NAMES = ("m", "mcx", "mcy", "mcz", "Ixx", "Ixy", "Ixz", "Iyy", "Iyz", "Izz")
@@ -86,8 +86,8 @@ class ArmDynamics:
         if plant.num_positions() != plant.num_velocities():
             raise RobotModelError(
                 f"the arm has {plant.num_positions()} positions but {plant.num_velocities()} "
-                "velocities (a floating base?): joint-torque models need one coordinate per "
-                "joint")
+                f"velocities ({floating_base_hint(plant)}): joint-torque models need one "
+                "coordinate per joint")
         self.plant = plant
         self.context = plant.CreateDefaultContext()
         self.gravity = np.asarray(gravity, dtype=float)

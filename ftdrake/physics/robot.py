@@ -199,3 +199,15 @@ def add_robot_model(plant, model: str, package_xmls=()) -> None:
             parser.AddModels(file_name=model)
     except RuntimeError as e:  # Drake's parser reports every problem as RuntimeError
         raise RobotModelError(f"cannot load robot model {label}: {e}") from None
+
+
+def floating_base_hint(plant) -> str:
+    """What to say of a plant with more positions than velocities: which body floats and the
+    flag (``--base-frame``; ``base_frame=`` in Python) that welds it to the world."""
+    floating = [plant.get_joint(j).child_body().name() for j in plant.GetJointIndices()
+                if "floating" in plant.get_joint(j).type_name()]
+    if not floating:
+        return "a floating body?"
+    return (f"{', '.join(repr(b) for b in floating)} floats: weld it to the world with "
+            f"--base-frame {floating[0]} (base_frame='{floating[0]}' in Python)")
+
