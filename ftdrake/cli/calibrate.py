@@ -33,11 +33,12 @@ from ..compensation.persistence import save_model
 from ..compensation.physics import ExcitationWarning
 from ..compensation.registry import make_estimator
 from ..conventions import MEASURED, TEMPERATURE, WRENCH_AXES, WRENCH_UNITS
-from ..data.logs import expand_columns, read_frame
+from ..data.logs import expand_columns, option_spelling, read_frame
 from ..data.training import ReadOptions, load_training_data
 from ..errors import ConfigError, LogError
 from ..io import atomic_write_text
 from . import args as a
+from .train import flag_hint
 
 
 def point(text: str) -> tuple[float, float, float]:
@@ -143,13 +144,14 @@ def run_calibrate(args) -> int:
         return _time_series(args, prior, TEMPERATURE in frame)
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always", ExcitationWarning)
-        cal = calibrate_table(
-            frame, robot=args.robot, sensor_frame=args.sensor_frame,
-            base_frame=args.base_frame, positions=args.positions, targets=args.targets,
-            position_unit=args.position_unit, prior=prior,
-            identification="least_squares" if args.least_squares else "consistent",
-            identify_mounting=not args.no_mounting, correction=args.correction,
-            known_payload=known)
+        with option_spelling(flag_hint):  # errors name calibrate's flags
+            cal = calibrate_table(
+                frame, robot=args.robot, sensor_frame=args.sensor_frame,
+                base_frame=args.base_frame, positions=args.positions, targets=args.targets,
+                position_unit=args.position_unit, prior=prior,
+                identification="least_squares" if args.least_squares else "consistent",
+                identify_mounting=not args.no_mounting, correction=args.correction,
+                known_payload=known)
     say(cal.summary())
     _print_warnings(caught, ExcitationWarning)
     model = cal.model

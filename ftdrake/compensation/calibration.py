@@ -35,7 +35,7 @@ import numpy as np
 import pandas as pd
 
 from ..conventions import GRAVITY_W, MEASURED, TEMPERATURE, WRENCH_AXES
-from ..data.logs import expand_columns
+from ..data.logs import expand_columns, option_hint
 from ..errors import ConfigError, LogError
 from .consistent import PayloadPrior, identify_consistent, identify_least_squares
 from .correction import (
@@ -217,6 +217,12 @@ class StaticCalibration:
         return "\n".join(lines)
 
 
+def _wrench_columns_label() -> str:
+    """How a wrench-column error names the option that picks them (a flag on the command
+    line, a keyword in Python)."""
+    return f"wrench columns (choose them with {option_hint('targets', 'PAT')})"
+
+
 def calibrate_table(frame: pd.DataFrame, *, robot=None, sensor_frame=None, base_frame=None,
                     positions="q_*", targets=f"{MEASURED}_*", position_unit="rad",
                     prior=None, identification="consistent", identify_mounting=True,
@@ -249,7 +255,8 @@ def calibrate_table(frame: pd.DataFrame, *, robot=None, sensor_frame=None, base_
     known = payload is not None
     if not known:
         payload = np.tile(cal.parameters[:4], (len(frame), 1))
-    Y = numeric_columns(frame, expand_columns(targets, list(frame.columns), "wrench columns"))
+    Y = numeric_columns(frame, expand_columns(targets, list(frame.columns),
+                                              _wrench_columns_label()))
     temperature = numeric_columns(frame, [TEMPERATURE])[:, 0] if TEMPERATURE in frame else None
     W_S = true_wrench(cal.gravity_in_sensor(frame), payload)
     # The comparison without correction: the gravity + bias fit above, or, with a known
@@ -267,7 +274,7 @@ def _calibrate(frame, robot, sensor_frame, base_frame, positions, targets, posit
                prior, identification, identify_mounting, gravity) -> StaticCalibration:
     """calibrate_table without the correction."""
     prior = PayloadPrior.coerce(prior)
-    target_cols = expand_columns(targets, list(frame.columns), "wrench columns")
+    target_cols = expand_columns(targets, list(frame.columns), _wrench_columns_label())
     if len(target_cols) != 6:
         raise LogError(f"need 6 wrench columns (Fx..Tz); {targets!r} matches {target_cols}")
     Y = numeric_columns(frame, target_cols)

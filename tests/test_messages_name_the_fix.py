@@ -1,10 +1,13 @@
-"""A robot whose base floats (a URDF without a world joint) is refused with the flag that
-fixes it, by the payload model and by the whole-arm model, and that flag does fix it."""
+"""Messages that name the fix: a robot whose base floats (a URDF without a world joint) is
+refused with the flag that welds it, by the payload and the whole-arm model, and that flag
+fixes it; wrench columns that are not found name the option that chooses them."""
 
 import numpy as np
+import pandas as pd
 import pytest
 
-from ftdrake import PhysicsPayloadCompensator, RobotModelError
+from ftdrake import LogError, PhysicsPayloadCompensator, RobotModelError, calibrate_table
+from ftdrake.cli.main import main
 from ftdrake.compensation.arm import ArmDynamicsCompensator
 from ftdrake.compensation.physics import ExcitationWarning
 
@@ -51,3 +54,21 @@ def test_the_arm_model_names_base_frame(floating_urdf):
     model = ArmDynamicsCompensator(robot=floating_urdf)
     with pytest.raises(RobotModelError, match=r"--base-frame base"):
         model.fit(rows(), np.zeros((30, 1)))
+
+
+def table_without_wrench_columns(tmp_path):
+    """Static poses whose wrench columns are not named meas_* (a user's own table)."""
+    frame = pd.DataFrame({f"q_{i}": np.zeros(4) for i in range(7)})
+    for axis in ("Fx", "Fy", "Fz", "Tx", "Ty", "Tz"):
+        frame[f"force_torque_{axis}"] = 0.0
+    path = tmp_path / "poses.csv"
+    frame.to_csv(path, index=False)
+    return frame, path
+
+
+def test_missing_wrench_columns_name_the_targets_option(tmp_path, capsys):
+    frame, path = table_without_wrench_columns(tmp_path)
+    with pytest.raises(LogError, match=r"wrench columns \(choose them with targets='PAT'\)"):
+        calibrate_table(frame)
+    assert main(["calibrate", "--data", str(path), "--out", str(tmp_path / "cal")]) == 2
+    assert "wrench columns (choose them with --targets PAT)" in capsys.readouterr().err
