@@ -11,15 +11,10 @@ F/T reading lags one sample); a subclass implements ``send_joint(t, q, v)``,
 
 from __future__ import annotations
 
-import time
-
-from pydrake.systems.analysis import Simulator
 from pydrake.systems.framework import EventStatus
-from tqdm.auto import tqdm
 
 from ..errors import ConfigError
-from .events import apply_grasp
-from .simulate import SimResult, assemble_log, set_initial_state
+from .simulate import SimResult, simulate
 
 
 class SampledPublisher:
@@ -97,31 +92,7 @@ def simulate_publishing(station, publisher: SampledPublisher, *, realtime_rate: 
                         duration: float | None = None, progress: bool = True) -> SimResult:
     """Simulates `station` with `publisher` as the monitor. Returns simulate()'s SimResult;
     its ``timing`` also holds ``published`` (messages per stream)."""
-    duration = station.trajectory.end_time() if duration is None else float(duration)
-    simulator = Simulator(station.diagram)
-    simulator.set_target_realtime_rate(realtime_rate)
-    set_initial_state(station, simulator.get_mutable_context())
-    simulator.set_monitor(publisher)
-    simulator.Initialize()
-    grasp_at = station.config.events.grasp_at_s
-    chunk = 0.25
-    start = time.perf_counter()
-    with tqdm(total=round(duration, 3), unit="sim s", disable=not progress,
-              desc="simulating (publishing)", leave=False) as bar:
-        t = 0.0
-        while t < duration - 1e-9:
-            t = min(duration, t + chunk)
-            if grasp_at is not None and simulator.get_context().get_time() < grasp_at <= t:
-                simulator.AdvanceTo(grasp_at)
-                plant = station.scene.plant
-                apply_grasp(station.config.events, station.scene,
-                            plant.GetMyMutableContextFromRoot(simulator.get_mutable_context()))
-            simulator.AdvanceTo(t)
-            bar.update(round(t - bar.n, 3))
-    wall = time.perf_counter() - start
-    context = simulator.get_context()
-    log = assemble_log(station, context)
-    timing = {"duration_s": duration, "wall_time_s": wall,
-              "real_time_factor": duration / wall if wall > 0 else float("inf"),
-              "samples": len(log), "published": dict(publisher.published)}
-    return SimResult(log, timing, context)
+    result = simulate(station, progress=progress, duration=duration,
+                      realtime_rate=realtime_rate, monitor=publisher)
+    result.timing["published"] = dict(publisher.published)
+    return result

@@ -74,12 +74,15 @@ class SimResult:
 
 
 def simulate(station: Station, *, progress: bool = True, duration: float | None = None,
-             realtime_rate: float = 0.0) -> SimResult:
-    """Simulates `station` for its trajectory's duration (or `duration` s)."""
+             realtime_rate: float = 0.0, monitor=None) -> SimResult:
+    """Simulates `station` for its trajectory's duration (or `duration` s). `monitor`: the
+    Simulator's monitor, called after every step (e.g. a publisher of the robot's messages)."""
     duration = station.trajectory.end_time() if duration is None else float(duration)
     simulator = Simulator(station.diagram)
     simulator.set_target_realtime_rate(realtime_rate)
     set_initial_state(station, simulator.get_mutable_context())
+    if monitor is not None:
+        simulator.set_monitor(monitor)
     simulator.Initialize()
     chunk = 0.25  # s between progress updates
     grasp_at = station.config.events.grasp_at_s
