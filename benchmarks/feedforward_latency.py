@@ -22,12 +22,11 @@ from __future__ import annotations
 import json
 import os
 import platform
-import time
 
 import numpy as np
 
 from ftdrake.systems.learned_feedforward import LearnedFeedforward, fit_feedforward_gp
-from ftdrake.testing import sine_path
+from ftdrake.testing import median_us_per_row, sine_path
 
 N_JOINTS = 7
 RATE_HZ = 1000.0
@@ -42,16 +41,6 @@ def torque(X: np.ndarray) -> np.ndarray:
     """A smooth stand-in for a model error: gravity-like, friction-like and inertia-like."""
     q, qd, qdd = np.split(X, 3, axis=1)
     return 2 * np.sin(q) + 0.5 * np.tanh(qd / 0.3) + 0.2 * qdd
-
-
-def median_us(f, rows, repeat: int = 3) -> float:
-    times = []
-    for _ in range(repeat):
-        start = time.perf_counter()
-        for x in rows:
-            f(x)
-        times.append((time.perf_counter() - start) / len(rows) * 1e6)
-    return float(np.median(times))
 
 
 def main() -> None:
@@ -80,9 +69,9 @@ def main() -> None:
             x = x[None, :]
             return model.predict(x), model.predict_std(x)
 
-        ours = median_us(lambda x, ff=ff, out=out: ff.evaluate_one(x, out), rows)
-        comp = median_us(compiled, rows)
-        slow = median_us(sklearn_style, rows[:300], repeat=1)
+        ours = median_us_per_row(lambda x, ff=ff, out=out: ff.evaluate_one(x, out), rows)
+        comp = median_us_per_row(compiled, rows)
+        slow = median_us_per_row(sklearn_style, rows[:300], repeat=1)
         results[m] = {"ours_us": ours, "compiled_numpy_us": comp, "predict_std_us": slow}
         print(f"{m:>5} {ours:>14.1f} {comp:>17.1f} {slow:>12.1f}")
     default = results[200]

@@ -18,13 +18,12 @@ from __future__ import annotations
 import json
 import os
 import platform
-import time
 
 import numpy as np
 
 from ftdrake.experiments.reference_correction import ReferenceCorrection
 from ftdrake.systems.learned_feedforward import LearnedFeedforward, fit_feedforward_gp
-from ftdrake.testing import sine_path
+from ftdrake.testing import median_us_per_row, sine_path
 
 N_JOINTS = 7
 RATE_HZ = 1000.0
@@ -33,16 +32,6 @@ RATE_HZ = 1000.0
 def trajectory(seconds: float, seed: int) -> np.ndarray:
     """[q, q̇, q̈] (N × 21) of a sum of sines per joint, sampled at 1 kHz."""
     return sine_path(seconds, seed, RATE_HZ, N_JOINTS)
-
-
-def median_us(f, rows, repeat: int = 3) -> float:
-    times = []
-    for _ in range(repeat):
-        start = time.perf_counter()
-        for x in rows:
-            f(x)
-        times.append((time.perf_counter() - start) / len(rows) * 1e6)
-    return float(np.median(times))
 
 
 def main() -> None:
@@ -60,14 +49,14 @@ def main() -> None:
     fused = np.array([part_two.evaluate_one(x).copy() for x in rows[:50]])
     assert np.allclose(fused, np.hstack([c, s, k]), rtol=1e-9, atol=1e-12)
     out1, out2 = np.empty(3 * N_JOINTS), np.empty(3 * N_JOINTS)
-    one = median_us(lambda x: part_one.evaluate_one(x, out1), rows)
-    two = median_us(lambda x: part_two.evaluate_one(x, out2), rows)
+    one = median_us_per_row(lambda x: part_one.evaluate_one(x, out1), rows)
+    two = median_us_per_row(lambda x: part_two.evaluate_one(x, out2), rows)
 
     def both(x):
         part_one.evaluate_one(x, out1)
         part_two.evaluate_one(x, out2)
 
-    total = median_us(both, rows)
+    total = median_us_per_row(both, rows)
     print(f"{'part one (torque)':>24} {one:8.1f} µs/step")
     print(f"{'part two (reference)':>24} {two:8.1f} µs/step")
     print(f"{'both':>24} {total:8.1f} µs/step (goal ≤ 50 µs: "

@@ -19,6 +19,7 @@ Everything is deterministic for a given seed or generator. Units: SI throughout;
 
 from __future__ import annotations
 
+import time
 import warnings
 
 import numpy as np
@@ -48,6 +49,7 @@ __all__ = [
     "demo_models",
     "fit_forest",
     "identification_spread",
+    "median_us_per_row",
     "pose_tables",
     "push_scenario",
     "readings",
@@ -91,6 +93,18 @@ def sine_path(seconds: float, seed: int, rate_hz: float = 1000.0, n_joints: int 
     qd = sum(a[k] * w[k] * np.cos(w[k] * t + phase[k]) for k in range(3))
     qdd = sum(-a[k] * w[k] ** 2 * np.sin(w[k] * t + phase[k]) for k in range(3))
     return np.hstack([q, qd, qdd])
+
+
+def median_us_per_row(f, rows, repeat: int = 3) -> float:
+    """The median over `repeat` passes of the mean wall time of ``f(row)`` per row, in µs (a
+    benchmark's figure; timing goals are never asserted in tests)."""
+    times = []
+    for _ in range(repeat):
+        start = time.perf_counter()
+        for x in rows:
+            f(x)
+        times.append((time.perf_counter() - start) / len(rows) * 1e6)
+    return float(np.median(times))
 
 
 def sinusoids(rng, joints, n=1500, duration=20.0, amplitude=0.6):
