@@ -33,6 +33,7 @@ OUT_OF_DOMAIN = "out_of_domain"  # 1 while a joint input is outside the training
 FAULT = "fault"  # 1 while the compensator's inputs held NaN/inf
 DETECTED = "detected"  # the detector's contact flag
 DETECTED_FORCE = "detected_force"  # the detector's ‖F‖ while in contact, N
+PAYLOAD_CHANGE = "payload_change"  # an unsignalled payload change was recognised (0/1)
 
 # -- Wrench column prefixes (six columns each, see wrench_columns) ------------------------------
 MEASURED = "meas"  # what the noisy sensor outputs

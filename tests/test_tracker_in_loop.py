@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 from pydrake.math import RigidTransform
 
-from ftdrake import ScenarioConfig
+from ftdrake import ScenarioConfig, replay
 from ftdrake import conventions as col
 from ftdrake.compensation.physics import PhysicsPayloadCompensator
 from ftdrake.conventions import BIAS_ESTIMATE, ESTIMATED, PAYLOAD_ESTIMATE
@@ -173,3 +173,78 @@ def test_the_station_feeds_the_trackers_motion_input_only_when_asked(trained, mo
     tracker = station.compensation.tracker
     context = tracker.GetMyContextFromRoot(station.diagram.CreateDefaultContext())
     assert tracker.get_input_port_motion_S().HasValue(context) == motion
+
+
+def unsignalled(config, event):
+    """`event`'s run with the payload-change monitor on and no driver signal."""
+    configs = event_configs(config, event, PLAN, seed=0)
+    with_event = configs["with"]
+    tracker = dc.replace(with_event.bias_tracker, track_payload=True, payload_change=dc.replace(
+        with_event.bias_tracker.payload_change, enabled=True))
+    events = dc.replace(with_event.events, grasp_signalled=False)
+    return dc.replace(with_event, bias_tracker=tracker, events=events)
+
+
+def gravity_turn_deg(config, log, since_s):
+    """How far g_S has turned in S since `since_s` (deg), from the logged joint angles and
+    the plant's kinematics (independent of the monitor's input)."""
+    station = build_station(config)
+    plant, frame_S = station.plant, station.scene.sensor_frame
+    context = plant.CreateDefaultContext()
+    q = log[[f"q_{i}" for i in range(plant.num_positions(station.scene.arm))]].to_numpy()
+    t = log[col.TIME].to_numpy()
+    directions = []
+    for row in q[t >= since_s]:
+        plant.SetPositions(context, station.scene.arm, row)
+        # Row 2 of R_WS: the world's z axis in S.
+        directions.append(frame_S.CalcPoseInWorld(context).rotation().matrix()[2].copy())
+    directions = np.array(directions)
+    return t[t >= since_s], np.degrees(np.arccos(np.clip(directions @ directions[0], -1, 1)))
+
+
+def test_an_unsignalled_grasp_is_announced_and_taken_over_by_the_tracker(trained):
+    """0.5 kg grasped at 3 s, no driver signal: the detector first reads contact; the monitor
+    announces a payload change within 2 s of the tool's turning 10° after the grasp, the
+    tracker then identifies the mass (5 %), and the contact ends for good."""
+    model, config = trained
+    config = unsignalled(config, "grasp")
+    log = run(config, model)
+    t = log[col.TIME].to_numpy()
+    grasp = config.events.grasp_at_s
+    announced = t[(log[col.PAYLOAD_CHANGE].to_numpy() > 0) & (t > grasp)]
+    turn_t, turn = gravity_turn_deg(config, log, grasp)
+    turned = turn_t[np.argmax(turn >= 10.0)]
+    print(f"turned 10° at {turned - grasp:.3f} s after the grasp; announced at "
+          f"{announced[0] - grasp:.3f} s")
+    assert len(announced) and announced[0] <= turned + 2.0
+    dm = log["payload_est_dm"].to_numpy()[t > announced[0] + 3.0].mean()
+    assert dm == pytest.approx(config.events.grasp_mass_kg, rel=0.05)
+    detected = log[col.DETECTED].to_numpy()
+    assert not detected[t > announced[0] + 1.0].any()
+    assert not (log[col.PAYLOAD_CHANGE].to_numpy()[t < grasp] > 0).any()
+    # Replayed offline (g_S then from the logged joint state through the robot's chain, not
+    # from the plant): the same announcement, within a monitor period or two.
+    replayed = replay(model, log, config, pairing="simulated")
+    offline = t[(replayed[col.PAYLOAD_CHANGE].to_numpy() > 0) & (t > grasp)]
+    assert len(offline) and abs(offline[0] - announced[0]) <= 0.05
+
+
+@pytest.mark.parametrize("direction", ["x", "45° down", "straight down"])
+def test_a_press_of_the_same_force_is_not_a_payload_change_unless_it_is_a_weight(
+        trained, direction):
+    """A push of 4.9 N (the grasp's weight): along the world's x or 45° down it is contact, not
+    a payload change. Straight down it is announced: to gravity a constant downward force at
+    the tool is a weight at its point of application (the monitor's documented limit)."""
+    model, config = trained
+    force = config.events.grasp_mass_kg * 9.81 * {
+        "x": np.array([1.0, 0.0, 0.0]), "45° down": np.array([1.0, 0.0, -1.0]) / np.sqrt(2),
+        "straight down": np.array([0.0, 0.0, -1.0])}[direction]
+    config = unsignalled(config, "push")
+    config = dc.replace(config, events=dc.replace(config.events, push_force_W=list(force)))
+    log = run(config, model)
+    t = log[col.TIME].to_numpy()
+    announced = t[log[col.PAYLOAD_CHANGE].to_numpy() > 0]
+    print(f"{direction}: contact {log[col.DETECTED].mean():.3f} of the run; announced at "
+          f"{announced[:1]} s")
+    assert log[col.DETECTED].to_numpy().any()
+    assert announced.size > 0 if direction == "straight down" else announced.size == 0

@@ -21,7 +21,7 @@ The sections, one module each:
 * :mod:`.task` — what a run does: :class:`TrajectoryConfig`, :class:`TaskConfig`,
   :class:`EventsConfig`.
 * :mod:`.runtime` — the product: :class:`CompensatorConfig`, :class:`BiasTrackerConfig`,
-  :class:`DetectorConfig`.
+  :class:`DetectorConfig`, :class:`PayloadChangeConfig`.
 * :mod:`.transmission` — compliant joints (motor, gearbox spring and damper):
   :class:`TransmissionConfig`, off by default.
 * :mod:`.contour` — the hole-cutting task and its tool-side measurements (the two-part
@@ -38,6 +38,7 @@ from .runtime import (
     BiasTrackerConfig,
     CompensatorConfig,
     DetectorConfig,
+    PayloadChangeConfig,
 )
 from .scenario import ScenarioConfig
 from .sensor import SENSOR_PRESETS, SensorConfig, SensorSpec
@@ -57,6 +58,7 @@ __all__ = [
     "EventsConfig",
     "FrictionConfig",
     "ModelsConfig",
+    "PayloadChangeConfig",
     "ScenarioConfig",
     "SensorConfig",
     "SensorSpec",

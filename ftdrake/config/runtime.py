@@ -27,6 +27,49 @@ PAYLOAD_INERTIA_PRIOR_STD = 0.05
 
 
 @dc.dataclass
+class PayloadChangeConfig:
+    """Telling an unsignalled payload change from a contact (``PayloadChangeMonitor``; with
+    ``bias_tracker.track_payload``). See :mod:`ftdrake.runtime.payload_change`."""
+
+    # Off: only a driver's ``payload_changed`` signal makes the tracker re-identify the payload.
+    enabled: bool = False
+    # The monitor's sample period (s): it keeps one sample of the contact wrench and g_S per
+    # period while the detector reports contact, over the last `window_s` seconds.
+    sample_period_s: float = 0.02
+    window_s: float = 2.0
+    # The samples' gravity directions must span this angle (deg) before a decision: without
+    # rotation a weight and a steady press look alike.
+    min_rotation_deg: float = 10.0
+    # A payload change when the payload model (Δm·g_S, Δ(m·c) × g_S) leaves at most this share
+    # of the window's weighted sum of squares unexplained ...
+    max_unexplained: float = 0.1
+    # ... and at most this share of what a wrench constant in S (a press that turns with the
+    # tool) leaves.
+    max_ratio_to_constant: float = 0.25
+    # After a decision the monitor waits this long (s) before it collects again (the tracker
+    # re-identifies the payload meanwhile).
+    refractory_s: float = 1.0
+    # How long the published payload_change flag stays high (s).
+    signal_s: float = 0.1
+
+    def validate(self, where: str = "bias_tracker.payload_change") -> "PayloadChangeConfig":
+        for name in ("sample_period_s", "window_s", "signal_s"):
+            positive(getattr(self, name), f"{where}.{name}")
+        non_negative(self.refractory_s, f"{where}.refractory_s")
+        if not 0 < self.min_rotation_deg < 180:
+            raise ConfigError(f"{where}.min_rotation_deg: {self.min_rotation_deg} not in "
+                              f"(0, 180)")
+        for name in ("max_unexplained", "max_ratio_to_constant"):
+            value = getattr(self, name)
+            if not 0 < value < 1:
+                raise ConfigError(f"{where}.{name}: {value} not in (0, 1)")
+        if self.window_s < 5 * self.sample_period_s:
+            raise ConfigError(f"{where}.window_s: {self.window_s} s holds fewer than 5 samples "
+                              f"of sample_period_s {self.sample_period_s} s; make it longer")
+        return self
+
+
+@dc.dataclass
 class BiasTrackerConfig:
     """Online bias and payload tracking (``OnlineBiasTracker``, between the compensator and
     the detector). See :mod:`ftdrake.runtime.bias_tracker` for the estimator and its guards."""
@@ -81,6 +124,9 @@ class BiasTrackerConfig:
         default_factory=lambda: [5.0, 0.5, 0.5, 0.5] + [PAYLOAD_INERTIA_PRIOR_STD] * 6)
     # The bias estimate at start (N, N·m), e.g. the compensator's training bias.
     initial_bias: list[float] = dc.field(default_factory=lambda: [0.0] * 6)
+    # With track_payload: detect a payload change nobody signalled (a grasp the driver does
+    # not announce, a tool swapped) and let the tracker re-identify it.
+    payload_change: PayloadChangeConfig = dc.field(default_factory=PayloadChangeConfig)
 
     def validate(self, where: str = "bias_tracker") -> "BiasTrackerConfig":
         for name in ("time_constant_s", "tare_settle_s", "payload_settle_s", "tare_guard_s"):
@@ -102,6 +148,7 @@ class BiasTrackerConfig:
         for name in ("bias_prior_std", "payload_prior_std"):
             if min(getattr(self, name)) <= 0:
                 raise ConfigError(f"{where}.{name}: entries must be positive")
+        self.payload_change.validate(f"{where}.payload_change")
         return self
 
     def payload_prior(self) -> list[float]:

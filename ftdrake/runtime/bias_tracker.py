@@ -91,6 +91,9 @@ class OnlineBiasTracker(LeafSystem):
         with ``bias_tracker.track_payload_motion``.
       payload_changed (1, optional, with ``track_payload``): > 0.5 when a payload was grasped
         or released.
+      payload_change_detected (1, optional, with ``track_payload``): the same from
+        :class:`~ftdrake.runtime.payload_change.PayloadChangeMonitor` (a change nobody
+        signalled); either input > 0.5 counts.
     Output ports (updated every `period` s):
       wrench_contact (6): input − bias − [F_P; T_P] (the payload's wrench, module
         docstring), N, N·m, S.
@@ -179,6 +182,7 @@ class OnlineBiasTracker(LeafSystem):
             self._gravity_port = self.DeclareVectorInputPort("gravity_S", 3)
             self._motion_port = self.DeclareVectorInputPort("motion_S", 6)
             self._changed_port = self.DeclareVectorInputPort("payload_changed", 1)
+            self._detected_port = self.DeclareVectorInputPort("payload_change_detected", 1)
         self.DeclarePeriodicDiscreteUpdateEvent(self.period, 0.0, self._update)
         self.DeclareStateOutputPort("wrench_contact", self._corrected)
         self.DeclareStateOutputPort("bias", self._bias)
@@ -211,6 +215,9 @@ class OnlineBiasTracker(LeafSystem):
 
     def get_input_port_payload_changed(self):
         return self.GetInputPort("payload_changed")
+
+    def get_input_port_payload_change_detected(self):
+        return self.GetInputPort("payload_change_detected")
 
     def get_output_port_wrench_contact(self):
         return self.GetOutputPort("wrench_contact")
@@ -283,6 +290,8 @@ class OnlineBiasTracker(LeafSystem):
                       else self._no_motion)
             flags[4] = (self._changed_port.Eval(context)[0]
                         if self._changed_port.HasValue(context) else 0.0)
+            if self._detected_port.HasValue(context):  # either announces the change
+                flags[4] = max(flags[4], self._detected_port.Eval(context)[0])
             payload = state.get_mutable_value(self._payload)
             inertia = state.get_mutable_value(self._inertia)
         else:

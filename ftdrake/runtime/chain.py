@@ -38,6 +38,7 @@ from .compensator import CompensatorSystem
 from .delay_line import DelayLine
 from .detector import ContactDetector
 from .joint_gravity import JointStateGravity
+from .payload_change import PayloadChangeMonitor
 
 GRAVITY_SOURCES = ("joint_state", "input")
 
@@ -53,6 +54,7 @@ class CompensationChain(Diagram):
       temperature (1; only when the model was trained with it): the sensor's temperature, °C.
       tared (1; with the bias tracker): > 0.5 for a sample when the sensor was re-tared.
       payload_changed (1; with ``track_payload``): > 0.5 when a payload was grasped or let go.
+        With ``bias_tracker.payload_change.enabled`` a change nobody signals is detected too.
       gravity_S (3), motion_S (6; with ``track_payload`` and ``gravity="input"``; motion_S
         with ``track_payload_motion``): ``g − a_So`` in m/s² and S's ``[ω; α]`` in rad/s,
         rad/s², all in S.
@@ -68,6 +70,9 @@ class CompensationChain(Diagram):
       contact_force (1): ‖F‖ of wrench_contact in N while in contact, else 0.
       bias (6; with the tracker): the tracker's published bias, N, N·m, in S.
       payload (4; with ``track_payload``): ``[Δm; Δ(m·c)]`` in kg, kg·m (S).
+      payload_change (1; with ``bias_tracker.payload_change.enabled``): 1.0 for a while
+        after a payload change nobody signalled was recognised
+        (:class:`~ftdrake.runtime.payload_change.PayloadChangeMonitor`).
 
     `model`: a fitted ftdrake compensator (``load_model``). `config`: the scenario (default:
     ``ScenarioConfig()``). `period`: s (default: the sensor's rate). `n_joints`: checked against
@@ -99,7 +104,7 @@ class CompensationChain(Diagram):
             acceleration_cutoff_hz=config.compensator.acceleration_cutoff_hz))
         self.detector = builder.AddNamedSystem("contact_detector",
                                                ContactDetector(config.detector, period))
-        self.tracker = self.gravity = self.delay_line = None
+        self.tracker = self.gravity = self.delay_line = self.payload_monitor = None
         comp = self.compensator
         contact_wrench = comp.get_output_port_wrench_compensated()
         if config.bias_tracker.enabled:
@@ -117,11 +122,7 @@ class CompensationChain(Diagram):
         if comp.needs_temperature:
             builder.ExportInput(comp.get_input_port_temperature(), "temperature")
         if self.tracker is not None:
-            builder.ExportInput(self.tracker.get_input_port_tared(), "tared")
-            if self.tracker.track_payload:
-                self._wire_gravity(builder, gravity, joint_state, robot, model)
-                builder.ExportInput(self.tracker.get_input_port_payload_changed(),
-                                    "payload_changed")
+            self._export_tracker_inputs(builder, gravity, joint_state, robot, model)
 
         builder.ExportOutput(comp.get_output_port_wrench_internal(), "wrench_internal")
         builder.ExportOutput(comp.get_output_port_wrench_compensated(), "wrench_compensated")
@@ -132,9 +133,7 @@ class CompensationChain(Diagram):
         builder.ExportOutput(self.detector.get_output_port_contact(), "contact")
         builder.ExportOutput(self.detector.get_output_port_contact_force(), "contact_force")
         if self.tracker is not None:
-            builder.ExportOutput(self.tracker.get_output_port_bias(), "bias")
-            if self.tracker.track_payload:
-                builder.ExportOutput(self.tracker.get_output_port_payload(), "payload")
+            self._export_tracker_outputs(builder)
         builder.BuildInto(self)
         self.set_name("compensation_chain")
 
@@ -184,6 +183,43 @@ class CompensationChain(Diagram):
         # The detector's contact is a state output (the previous sample's flag): no algebraic
         # loop through the pair.
         builder.Connect(self.detector.get_output_port_contact(), tracker.get_input_port_contact())
+
+    def _export_tracker_inputs(self, builder, gravity, joint_state, robot, model) -> None:
+        tracker = self.tracker
+        builder.ExportInput(tracker.get_input_port_tared(), "tared")
+        if not tracker.track_payload:
+            return
+        self._wire_gravity(builder, gravity, joint_state, robot, model)
+        builder.ExportInput(tracker.get_input_port_payload_changed(), "payload_changed")
+        if self.config.bias_tracker.payload_change.enabled:
+            self._wire_payload_monitor(builder, gravity)
+
+    def _export_tracker_outputs(self, builder) -> None:
+        builder.ExportOutput(self.tracker.get_output_port_bias(), "bias")
+        if self.tracker.track_payload:
+            builder.ExportOutput(self.tracker.get_output_port_payload(), "payload")
+        if self.payload_monitor is not None:
+            builder.ExportOutput(self.payload_monitor.get_output_port_payload_change(),
+                                 "payload_change")
+
+    def _wire_payload_monitor(self, builder, gravity: str) -> None:
+        """The unsignalled payload change's monitor: it reads what the tracker reads (its
+        contact wrench, g_S, the detector's flag) and announces a change to the tracker."""
+        tracker = self.tracker
+        monitor = self.payload_monitor = builder.AddNamedSystem("payload_change_monitor",
+            PayloadChangeMonitor(self.config.bias_tracker.payload_change, self.config.sensor))
+        builder.Connect(tracker.get_output_port_wrench_contact(),
+                        monitor.get_input_port_wrench_contact())
+        builder.Connect(self.detector.get_output_port_contact(),
+                        monitor.get_input_port_contact())
+        if gravity == "input":
+            builder.ConnectInput("gravity_S", monitor.get_input_port_gravity_S())
+        else:
+            builder.Connect(self.gravity.get_output_port_gravity_S(),
+                            monitor.get_input_port_gravity_S())
+        # Both are state outputs: no algebraic loop through the tracker and the monitor.
+        builder.Connect(monitor.get_output_port_payload_change(),
+                        tracker.get_input_port_payload_change_detected())
 
     def _wire_gravity(self, builder, gravity: str, joint_state, robot, model) -> None:
         tracker = self.tracker
@@ -257,6 +293,9 @@ class CompensationChain(Diagram):
 
     def get_output_port_payload(self):
         return self.GetOutputPort("payload")
+
+    def get_output_port_payload_change(self):
+        return self.GetOutputPort("payload_change")
 
 
 def _joint_state_gravity(config: ScenarioConfig, robot, model, period) -> JointStateGravity:

@@ -38,8 +38,9 @@ Result columns (one row per log row, ``t`` copied from the log; the names of
 ``pred_*`` (``wrench_internal``), ``comp_external_*`` (``wrench_compensated``),
 ``est_external_*`` (``wrench_contact``), ``pred_std_*`` (``wrench_std``), ``bias_est_*``
 (``bias``, with the tracker), ``payload_est_dm``, ``payload_est_mcx..mcz`` (``payload``, with
-``track_payload``), ``out_of_domain``, ``fault``, ``detected`` (``contact``) and
-``detected_force`` (``contact_force``).
+``track_payload``), ``out_of_domain``, ``fault``, ``detected`` (``contact``),
+``detected_force`` (``contact_force``) and ``payload_change`` (with
+``bias_tracker.payload_change.enabled``).
 
 Log columns read (the layout ``collect``, ``simulate`` and :func:`ftdrake.add_recorder`
 write): ``t`` (s), ``q_i`` (rad), ``qd_i`` (rad/s), the wrench ``meas_Fx..meas_Tz`` (N, N·m),
@@ -75,8 +76,8 @@ WRENCH_OUTPUTS = {"wrench_internal": "pred", "wrench_compensated": "comp_externa
                   "bias": "bias_est"}
 PAYLOAD_COLUMNS = ("payload_est_dm", "payload_est_mcx", "payload_est_mcy", "payload_est_mcz")
 FLAG_OUTPUTS = {"out_of_domain": "out_of_domain", "fault": "fault", "contact": "detected",
-                "contact_force": "detected_force"}
-INTEGER_COLUMNS = ("out_of_domain", "fault", "detected")
+                "contact_force": "detected_force", "payload_change": col.PAYLOAD_CHANGE}
+INTEGER_COLUMNS = ("out_of_domain", "fault", "detected", col.PAYLOAD_CHANGE)
 
 
 @dc.dataclass
@@ -255,6 +256,8 @@ def _frame(t: np.ndarray, outputs: dict[str, np.ndarray]) -> pd.DataFrame:
     if "payload" in outputs:
         columns.update(zip(PAYLOAD_COLUMNS, outputs["payload"].T, strict=True))
     for port, name in FLAG_OUTPUTS.items():
+        if port not in outputs:  # payload_change: only with the monitor
+            continue
         values = outputs[port][:, 0]
         if name in INTEGER_COLUMNS and np.isfinite(values).all():
             values = values.astype(np.int8)

@@ -37,6 +37,8 @@ With a compensator in the station, also (same rows):
 ``bias_est_*``      the bias tracker's published bias (with the tracker)
 ``payload_est_*``   its payload estimate ``[dm, mc_x, mc_y, mc_z]`` (kg, kg·m; with
                     ``bias_tracker.track_payload``)
+``payload_change``  1 while an unsignalled payload change is announced (with
+                    ``bias_tracker.payload_change.enabled``)
 ``pred_std_*``      the model's predictive std (0 where it gives none)
 ``out_of_domain``   1 while a used joint input is outside the training range
 ``fault``           1 while the compensator's inputs held NaN/inf
@@ -222,6 +224,8 @@ def _add_compensation_columns(frame: dict, loggers, root_context, t, keep) -> No
         frame.update(zip(col.wrench_columns(col.BIAS_ESTIMATE), values("bias").T, strict=True))
     if loggers.payload is not None:
         frame.update(zip(col.PAYLOAD_ESTIMATE, values("payload").T, strict=True))
+    if loggers.payload_change is not None:
+        frame[col.PAYLOAD_CHANGE] = values("payload_change")[:, 0].astype(np.int8)
     frame[col.OUT_OF_DOMAIN] = values("out_of_domain")[:, 0].astype(np.int8)
     frame[col.FAULT] = values("fault")[:, 0].astype(np.int8)
     frame[col.DETECTED] = values("contact")[:, 0].astype(np.int8)

@@ -67,10 +67,11 @@ class CompensationLoggers:
     """Loggers of the runtime chain's outputs at the sensor rate, one per output port of
     :class:`~ftdrake.runtime.chain.CompensationChain`, named as the port (None where the
     chain has no such port: ``bias`` without the tracker, ``payload`` without
-    ``track_payload``)."""
+    ``track_payload``, ``payload_change`` without ``bias_tracker.payload_change.enabled``)."""
 
     PORTS = ("wrench_internal", "wrench_compensated", "wrench_contact", "wrench_std",
-             "out_of_domain", "fault", "contact", "contact_force", "bias", "payload")
+             "out_of_domain", "fault", "contact", "contact_force", "bias", "payload",
+             "payload_change")
 
     wrench_internal: VectorLogSink
     wrench_compensated: VectorLogSink
@@ -82,6 +83,7 @@ class CompensationLoggers:
     contact_force: VectorLogSink
     bias: VectorLogSink | None = None
     payload: VectorLogSink | None = None
+    payload_change: VectorLogSink | None = None
 
 
 @dc.dataclass

@@ -1,0 +1,168 @@
+"""PayloadChangeMonitor: a payload change nobody signalled, told from a contact by gravity.
+
+A rigid payload picked up (or let go) after the tracker settled adds to the contact wrench,
+in the sensor frame S (``[Fx Fy Fz Tx Ty Tz]``, N, N·m)::
+
+    F = Δm·g_S,      T = Δ(m·c) × g_S = −[g_S]× Δ(m·c)          (g_S = g − a_So, in S)
+
+— the gravity part of the bias tracker's payload model. As the arm rotates, g_S turns in S
+and the payload's wrench turns with it. A press against the environment does not follow
+g_S: its force is fixed by the surface (a wall's normal in the world) or by the tool (a wrench
+constant in S). So while the detector reports contact the monitor keeps the contact wrench y
+and g_S over the last ``window_s`` seconds and compares, in the sensor's noise units (each
+axis divided by its σ), three sums of squares:
+
+* SST — the window's own (the contact wrench it has to explain);
+* SSE_payload — what the best θ = [Δm, Δ(m·c)] (least squares) leaves;
+* SSE_constant — what a wrench constant in S (the window's mean) leaves.
+
+It reports a payload change when the gravity directions span ``min_rotation_deg`` (without
+rotation a weight and a steady press look alike), SSE_payload ≤ ``max_unexplained``·SST and
+SSE_payload ≤ ``max_ratio_to_constant``·SSE_constant. The ``payload_change`` output then
+stays high for ``signal_s``; the chain feeds it to the tracker's ``payload_change_detected``
+input, which re-identifies the payload as after a signalled grasp. The window is cleared when
+the contact ends and after a decision (then nothing is collected for ``refractory_s``).
+
+**What it cannot tell apart.** A force that is constant in the *world* and parallel to
+gravity (pushing straight down on the tool) is, to the gravity part, a weight at its point of
+application: only its lack of inertia differs, which shows at accelerations comparable to g.
+Such a push is reported as a payload change (a press straight up as one let go).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from pydrake.systems.framework import LeafSystem
+
+from ..config import PayloadChangeConfig, SensorConfig
+
+__all__ = ["PayloadChangeMonitor", "payload_change_statistics"]
+
+#: Entries per window sample: the contact wrench (6) and g_S (3).
+_SAMPLE = 9
+
+
+def payload_regressor(gravity_S: np.ndarray) -> np.ndarray:
+    """(N × 6 × 4): the gravity part of the payload's wrench, linear in [Δm, Δ(m·c)], for
+    N apparent gravities g_S (N × 3, m/s²): F = Δm·g_S, T = Δ(m·c) × g_S."""
+    g = np.asarray(gravity_S, dtype=float)
+    A = np.zeros((len(g), 6, 4))
+    A[:, :3, 0] = g
+    gx, gy, gz = g[:, 0], g[:, 1], g[:, 2]
+    # h × g = −[g]× h, with [g]× the cross-product matrix of g.
+    A[:, 3, 2], A[:, 3, 3] = gz, -gy
+    A[:, 4, 1], A[:, 4, 3] = -gz, gx
+    A[:, 5, 1], A[:, 5, 2] = gy, -gx
+    return A
+
+
+def payload_change_statistics(wrench, gravity_S, noise_std) -> dict:
+    """The monitor's decision statistics over a window (module docstring).
+
+    `wrench` (N × 6, N, N·m, S), `gravity_S` (N × 3, m/s², S), `noise_std` (6): the axes'
+    weights. Returns ``sst``, ``sse_payload``, ``sse_constant`` (dimensionless, in σ² units),
+    ``rotation_deg`` (the largest angle between the first row's g_S and any other row's) and
+    ``theta`` ([Δm kg, Δ(m·c) kg·m in S], the least-squares payload)."""
+    y = np.asarray(wrench, dtype=float) / noise_std
+    g = np.asarray(gravity_S, dtype=float)
+    A = payload_regressor(g) / np.asarray(noise_std, dtype=float)[None, :, None]
+    theta, *_ = np.linalg.lstsq(A.reshape(-1, 4), y.ravel(), rcond=None)
+    sse_payload = float(np.sum((y - A @ theta) ** 2))
+    sse_constant = float(np.sum((y - y.mean(axis=0)) ** 2))
+    unit = g / np.maximum(np.linalg.norm(g, axis=1, keepdims=True), 1e-12)
+    cos = np.clip(unit @ unit[0], -1.0, 1.0)
+    return {"sst": float(np.sum(y**2)), "sse_payload": sse_payload,
+            "sse_constant": sse_constant, "rotation_deg": math.degrees(np.arccos(cos.min())),
+            "theta": theta}
+
+
+def is_payload_change(stats: dict, config: PayloadChangeConfig) -> bool:
+    """The decision rule of the module docstring on :func:`payload_change_statistics`."""
+    return (stats["rotation_deg"] >= config.min_rotation_deg
+            and stats["sse_payload"] <= config.max_unexplained * stats["sst"]
+            and stats["sse_payload"] <= config.max_ratio_to_constant * stats["sse_constant"])
+
+
+class PayloadChangeMonitor(LeafSystem):
+    """Reports a payload change that nobody signalled (module docstring: the test and its
+    limits).
+
+    Input ports:
+      wrench_contact (6): the tracker's contact wrench (input − bias − the payload it knows),
+        N, N·m, in S.
+      gravity_S (3): the apparent gravity at So, g − a_So, in S, m/s² (the tracker's).
+      contact (1): the detector's flag (a state output: the previous sample's decision).
+    Output ports (updated every ``config.sample_period_s``):
+      payload_change (1): 1.0 for ``signal_s`` after a payload change was recognised.
+      payload_change_estimate (4): the last recognised change's [Δm (kg), Δ(m·c) (kg·m, about
+        So, in S)] relative to what the tracker knew; 0 before any.
+    State: the window (samples × [wrench (6), g_S (3)]), its fill count and write index, the
+    refractory and signal timers (periods), the outputs.
+    """
+
+    def __init__(self, config: PayloadChangeConfig, sensor: SensorConfig):
+        super().__init__()
+        self.config = config.validate()
+        self.period = float(config.sample_period_s)
+        self.capacity = max(5, round(config.window_s / self.period))
+        spec = sensor.spec()
+        # Floored so an ideal sensor (σ = 0) keeps finite weights (as the tracker's).
+        self.noise_std = np.maximum(np.asarray(spec.noise_std, dtype=float), 1e-6)
+        self._refractory = round(config.refractory_s / self.period)
+        self._signal = max(1, round(config.signal_s / self.period))
+        self._wrench_port = self.DeclareVectorInputPort("wrench_contact", 6)
+        self._gravity_port = self.DeclareVectorInputPort("gravity_S", 3)
+        self._contact_port = self.DeclareVectorInputPort("contact", 1)
+        # [window (capacity × 9), count, next index, refractory left, signal left]
+        self._window = self.DeclareDiscreteState(self.capacity * _SAMPLE + 4)
+        self._flag = self.DeclareDiscreteState(1)
+        self._estimate = self.DeclareDiscreteState(4)
+        self.DeclarePeriodicDiscreteUpdateEvent(self.period, 0.0, self._update)
+        self.DeclareStateOutputPort("payload_change", self._flag)
+        self.DeclareStateOutputPort("payload_change_estimate", self._estimate)
+
+    def get_input_port_wrench_contact(self):
+        return self.GetInputPort("wrench_contact")
+
+    def get_input_port_gravity_S(self):
+        return self.GetInputPort("gravity_S")
+
+    def get_input_port_contact(self):
+        return self.GetInputPort("contact")
+
+    def get_output_port_payload_change(self):
+        return self.GetOutputPort("payload_change")
+
+    def get_output_port_payload_change_estimate(self):
+        return self.GetOutputPort("payload_change_estimate")
+
+    def _update(self, context, state):
+        x = state.get_mutable_value(self._window)
+        n = self.capacity * _SAMPLE
+        count, index, refractory, signal = (int(v) for v in x[n:])
+        signal = max(0, signal - 1)
+        state.get_mutable_value(self._flag)[0] = 1.0 if signal > 0 else 0.0
+        wrench = self._wrench_port.Eval(context)
+        gravity = self._gravity_port.Eval(context)
+        in_contact = self._contact_port.Eval(context)[0] >= 0.5
+        finite = np.all(np.isfinite(wrench)) and np.all(np.isfinite(gravity))
+        if refractory > 0 or not in_contact:
+            # Waiting after a decision, or the contact ended: start the window afresh.
+            x[n:] = (0, 0, max(0, refractory - 1), signal)
+            return
+        if finite:  # a non-finite sample is not evidence; the window keeps what it has
+            x[index * _SAMPLE:(index + 1) * _SAMPLE] = np.concatenate([wrench, gravity])
+            index, count = (index + 1) % self.capacity, min(count + 1, self.capacity)
+        if count >= 5 and self._decide(x[:count * _SAMPLE].reshape(count, _SAMPLE), state):
+            count, index, refractory, signal = 0, 0, self._refractory, self._signal
+            state.get_mutable_value(self._flag)[0] = 1.0
+        x[n:] = (count, index, refractory, signal)
+
+    def _decide(self, samples: np.ndarray, state) -> bool:
+        stats = payload_change_statistics(samples[:, :6], samples[:, 6:], self.noise_std)
+        if not is_payload_change(stats, self.config):
+            return False
+        state.get_mutable_value(self._estimate)[:] = stats["theta"]
+        return True
