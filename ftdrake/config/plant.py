@@ -59,6 +59,10 @@ class ControllerConfig:
     # The controller's estimate of the tool: true mass × (1 + tool_mass_error), CoM shifted.
     tool_mass_error: float = -0.15
     tool_com_error: list[float] = dc.field(default_factory=lambda: [0.01, -0.01, 0.0])  # m, in S
+    # Adaptive computed torque: add the torque that carries the bias tracker's payload estimate
+    # (systems/payload_feedforward.py), so the arm keeps its path after a grasp. Needs
+    # bias_tracker.track_payload and a compensator in the station.
+    adapt_to_payload: bool = False
 
     def validate(self, where: str = "controller") -> None:
         positive(self.kp, f"{where}.kp")

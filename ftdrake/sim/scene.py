@@ -19,6 +19,7 @@ from pydrake.multibody.plant import (
 )
 from pydrake.multibody.tree import (
     BodyIndex,
+    FixedOffsetFrame,
     LinearSpringDamper,
     ModelInstanceIndex,
     SpatialInertia,
@@ -203,8 +204,13 @@ def _filter_robot_self_collisions(plant, scene_graph, instances):
 # ----------------------------------------------------------------------------------------------
 # The controller's model: the arm plus a nominal, imperfect estimate of sensor + tool.
 # ----------------------------------------------------------------------------------------------
+#: The sensor frame S in the controller's plant (:func:`make_control_plant`).
+CONTROL_SENSOR_FRAME = "controller_sensor_S"
+
+
 def make_control_plant(config: ScenarioConfig, scene: Scene) -> MultibodyPlant:
-    """A continuous plant of the arm with one rigid body standing in for sensor + tool.
+    """A continuous plant of the arm with one rigid body standing in for sensor + tool, and the
+    sensor frame S (``CONTROL_SENSOR_FRAME``) on it.
 
     Its mass is the true load's mass × (1 + tool_mass_error) and its centre of mass is shifted
     by tool_com_error (in S): a real controller never knows its tool exactly.
@@ -232,6 +238,9 @@ def make_control_plant(config: ScenarioConfig, scene: Scene) -> MultibodyPlant:
         "nominal_tool", arm, SpatialInertia(mass, p_FoLcm_F, G_FoNominal_F)
     )
     plant.WeldFrames(plant.GetFrameByName(config.models.flange_frame, arm), nominal.body_frame())
+    # S itself, for terms expressed at the sensor (PayloadFeedforward); no dynamics.
+    plant.AddFrame(FixedOffsetFrame(CONTROL_SENSOR_FRAME, nominal.body_frame(),
+                                    scene.sensor_frame.CalcPose(context, flange)))
     t = config.transmission
     if t.enabled and t.controller_knows_rotor_inertia:  # the motors' J_m N² in M̂(q)
         for index, J_m, N in zip(arm_actuators(plant, arm), t.rotor_inertia,
@@ -244,6 +253,7 @@ def make_control_plant(config: ScenarioConfig, scene: Scene) -> MultibodyPlant:
 
 
 __all__ = [
+    "CONTROL_SENSOR_FRAME",
     "Scene",
     "add_scene",
     "bodies_outboard_of",

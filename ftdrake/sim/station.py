@@ -28,21 +28,22 @@ import dataclasses as dc
 import numpy as np
 from pydrake.multibody.plant import MultibodyPlant
 from pydrake.systems.framework import Diagram, DiagramBuilder
-from pydrake.systems.primitives import LogVectorOutput, TrajectorySource, VectorLogSink
+from pydrake.systems.primitives import Adder, LogVectorOutput, TrajectorySource, VectorLogSink
 from pydrake.trajectories import PiecewisePolynomial
 
-from ..config import ScenarioConfig
+from ..config import ConfigError, ScenarioConfig
 from ..runtime.chain import CompensationChain
 from ..systems.contact_truth import ContactTruth
 from ..systems.controller import DiscreteInverseDynamicsController
 from ..systems.friction import JointFriction, check_explicit_stability
 from ..systems.ft_sensor import ForceTorqueSensor
 from ..systems.noisy_sensor import NoisyForceTorqueSensor
+from ..systems.payload_feedforward import PayloadFeedforward
 from ..systems.sensor_gravity import SensorGravity
 from ..systems.transmission import MotorSide
 from ..systems.wrench_arrows import WrenchArrows
 from .events import EventSignals, add_sensor_events
-from .scene import Scene, add_scene, make_control_plant
+from .scene import CONTROL_SENSOR_FRAME, Scene, add_scene, make_control_plant
 from .trajectories import JointLimits, RobotGeometry, make_trajectory
 
 
@@ -132,6 +133,8 @@ class Station:
     # their [φ, φ̇] (the motor-side angles the controller reads, rad, rad/s).
     transmission: MotorSide | None = None
     motor_state_log: VectorLogSink | None = None
+    # With controller.adapt_to_payload: the torque for the tracker's payload estimate.
+    payload_feedforward: PayloadFeedforward | None = None
 
     @property
     def plant(self) -> MultibodyPlant:
@@ -170,8 +173,8 @@ def build_station(config: ScenarioConfig, compensator=None, *, meshcat=None,
         "trajectory", TrajectorySource(placeholder, output_derivative_order=1))
     vd_source = builder.AddNamedSystem(
         "trajectory_acceleration", TrajectorySource(placeholder.derivative(2)))
-    controller, friction, transmission = _add_control(builder, config, scene, q_source,
-                                                      vd_source, feedforward)
+    controller, friction, transmission, payload_ff = _add_control(
+        builder, config, scene, q_source, vd_source, feedforward)
 
     sensor = builder.AddNamedSystem("ft_sensor", ForceTorqueSensor(plant, scene.sensor_joint))
     builder.Connect(plant.get_reaction_forces_output_port(),
@@ -214,6 +217,9 @@ def build_station(config: ScenarioConfig, compensator=None, *, meshcat=None,
     if compensator is not None:
         compensation = _add_compensation(builder, config, compensator, scene, events, period,
                                          log, noisy.get_output_port_temperature())
+        if payload_ff is not None:  # adaptive computed torque: the tracker's payload
+            builder.Connect(compensation.chain.get_output_port_payload(),
+                            payload_ff.get_input_port_payload())
         if meshcat is not None:
             arrows = _add_arrows(builder, meshcat, scene, events, compensation)
     if meshcat is not None:
@@ -232,7 +238,7 @@ def build_station(config: ScenarioConfig, compensator=None, *, meshcat=None,
     vd_source.UpdateTrajectory(trajectory.derivative(2))
     return Station(config, diagram, scene, trajectory, controller, sensor, noisy, truth,
                    loggers, compensation, arrows, events, friction, feedforward, feedforward_log,
-                   transmission, motor_state_log)
+                   transmission, motor_state_log, payload_ff)
 
 
 def _add_control(builder, config: ScenarioConfig, scene: Scene, q_source, vd_source,
@@ -264,6 +270,10 @@ def _add_control(builder, config: ScenarioConfig, scene: Scene, q_source, vd_sou
     builder.Connect(q_source.get_output_port(), controller.get_input_port_desired_state())
     builder.Connect(vd_source.get_output_port(), controller.get_input_port_desired_acceleration())
     actuation = controller.get_output_port_control()
+    payload_ff = None
+    if c.adapt_to_payload:  # controller → + the payload's torque
+        payload_ff, actuation = _add_payload_feedforward(builder, config, scene, encoder_state,
+                                                         vd_source, actuation)
     if feedforward is not None:  # controller → + learned correction → (friction) → plant
         builder.AddNamedSystem("feedforward", feedforward)
         builder.Connect(actuation, feedforward.get_input_port_control())
@@ -283,7 +293,24 @@ def _add_control(builder, config: ScenarioConfig, scene: Scene, q_source, vd_sou
         builder.Connect(actuation, transmission.get_input_port_motor_torque())
     else:
         builder.Connect(actuation, plant.get_actuation_input_port(scene.arm))
-    return controller, friction, transmission
+    return controller, friction, transmission, payload_ff
+
+
+def _add_payload_feedforward(builder, config, scene, encoder_state, vd_source, actuation):
+    """The torque for the bias tracker's payload estimate, added to `actuation` (its payload
+    input is connected once the chain is there). Returns (system, the summed actuation)."""
+    if not config.bias_tracker.track_payload:
+        raise ConfigError("controller.adapt_to_payload: the payload comes from the bias "
+                          "tracker; set bias_tracker.track_payload: true")
+    control_plant = make_control_plant(config, scene)
+    payload_ff = builder.AddNamedSystem("payload_feedforward", PayloadFeedforward(
+        control_plant, control_plant.GetFrameByName(CONTROL_SENSOR_FRAME)))
+    builder.Connect(encoder_state, payload_ff.get_input_port_estimated_state())
+    builder.Connect(vd_source.get_output_port(), payload_ff.get_input_port_desired_acceleration())
+    total = builder.AddNamedSystem("payload_torque", Adder(2, control_plant.num_velocities()))
+    builder.Connect(actuation, total.get_input_port(0))
+    builder.Connect(payload_ff.get_output_port_control(), total.get_input_port(1))
+    return payload_ff, total.get_output_port()
 
 
 def _add_arrows(builder, meshcat, scene: Scene, events: EventSignals,
