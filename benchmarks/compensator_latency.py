@@ -46,6 +46,7 @@ rows (cold paths, the worst case). Medians in µs; on a shared machine only the 
 
 from __future__ import annotations
 
+import copy
 import json
 import os
 import platform
@@ -70,7 +71,9 @@ from ftdrake.compensation.physics import (
     PhysicsPayloadCompensator,
     payload_regressor,
 )
+from ftdrake.config import DetectorConfig
 from ftdrake.physics.rigid_body import sensor_kinematics
+from ftdrake.runtime.detector import chi2_threshold, detect_chi2
 
 N_JOINTS, N_OUTPUTS, N_TREES, TRAIN_ROWS = 7, 6, 100, 3000
 GP_POINTS = 500
@@ -215,6 +218,8 @@ def main() -> None:
         ("physics, predict_row (compiled)", physics["predict_row_us"]),
         ("physics, row_predictor (compiled)", physics["row_predictor_us"]),
         ("hybrid, default residual (50 trees)", physics["hybrid_row_us"]),
+        ("hybrid, default, no support term", physics["hybrid_no_support_row_us"]),
+        ("χ² test of the detector, one sample", physics["chi2_test_us"]),
         ("hybrid as the demo's (mounting, 20 p.)", physics["hybrid_demo_row_us"]),
         ("hybrid, default, kernel into buffers", physics["hybrid_kernel_us"]),
         ("hybrid, default, two calls (before)", physics["hybrid_two_call_row_us"]),
@@ -279,6 +284,10 @@ def physics_latency(X_train, rows) -> dict:
         for per_output in (True, False)
     }
     hybrids["default"] = HybridCompensator().fit(X_train, Y)
+    # The default without its support term (the std's out-of-domain growth): what it costs.
+    hybrids["no_support"] = copy.deepcopy(hybrids["default"])
+    hybrids["no_support"].domain_support_ = None
+    hybrids["no_support"].domain_length_ = np.inf
     # The demo's: mounting rotation (the rotated kernel path) and the weight carried without
     # inertia (20 parameters).
     with warnings.catch_warnings():
@@ -318,13 +327,23 @@ def physics_latency(X_train, rows) -> dict:
                            atol=1e-12 * max(1, np.abs(mean).max()))
         assert np.allclose([s for _, s in got], hybrid.predict_std(rows[:200]), rtol=0,
                            atol=1e-12)
-    assert np.allclose([two_calls(x)[0] for x in rows[:200]], default.predict(rows[:200]),
-                       rtol=0, atol=1e-9)
+    # The two-call row has no support term: equal to the hybrid without it.
+    assert np.allclose([two_calls(x)[0] for x in rows[:200]],
+                       hybrids["no_support"].predict(rows[:200]), rtol=0, atol=1e-9)
+    w, std = np.zeros(6), default.predict_std(rows[:1])[0]
+    constants = np.array([chi2_threshold(DetectorConfig(test="chi2"), 1e-3), 0.6, 3, 25])
+    flag, counter, force = np.zeros(1), np.zeros(1), np.zeros(1)
+
+    def chi2_test(_row):
+        detect_chi2(w, std, constants, flag, counter, force)
+
     return {
         "drake_row_us": median_us(drake_row, rows, 1000),
         "predict_row_us": median_us(physics.predict_row, rows, 20000),
         "row_predictor_us": median_us(row_predictor, rows, 20000),
         "hybrid_row_us": median_us(hybrid_rows["default"], rows, 20000),
+        "hybrid_no_support_row_us": median_us(hybrid_rows["no_support"], rows, 20000),
+        "chi2_test_us": median_us(chi2_test, rows, 20000),
         "hybrid_demo_row_us": median_us(hybrid_rows["demo"], rows, 20000),
         "hybrid_kernel_us": median_us(hybrid_kernel, rows, 20000),
         "hybrid_two_call_row_us": median_us(two_calls, rows, 20000),

@@ -9,10 +9,21 @@ Predictive std: the physics part's parameter uncertainty and the residual's unce
 added as independent variances,
 
     std² = ‖B(x) F‖²  (physics parameters, see PhysicsPayloadCompensator)
-         + the residual's predictive variance of a reading (a GP with ``include_noise``), or,
-           for a residual whose std is not that (a forest: spread across trees, not
-           calibrated), its cross-validated error variance per axis (``residual_noise_var_``:
-           the residual model refitted on alternate blocks of rows and scored on the others)
+         + the residual's predictive variance of a reading (a GP with ``include_noise``: it
+           grows to the GP's prior variance away from its data by itself), or, for a residual
+           whose std is not that (a forest: spread across trees, not calibrated),
+           w · σ²_in + (1 − w) · σ²_far + g² · d, with w the residual's support at the
+           input and d its distance to the training inputs
+
+and the prediction ``physics + w · residual`` (:mod:`.domain`): where the residual has seen
+data (w ≈ 1) its cross-validated error σ²_in (``residual_noise_var_``: the residual refitted
+on alternate blocks of rows and scored on the others); away from it (w → 0) the hybrid falls
+back to its physics part and to that part's own error σ²_far (``domain_far_var_``), which
+grows by g² (``domain_growth_``: g) per unit of d as the model extrapolates. The weight is
+exp(−(d/ℓ)²) of the distance d to the training inputs in the residual's standardised input
+metric (``domain_distance``); ℓ (``domain_length_``) and σ²_in are calibrated on the
+cross-fit (with g = 0), and ℓ and g on held-out runs that leave the training data with
+:meth:`HybridCompensator.calibrate_domain`.
 
 The second term includes the sensor noise; the physics part's own noise term is left out (the
 residual model explains part of what it holds). Independence is an approximation: the
@@ -25,10 +36,12 @@ import numpy as np
 from sklearn.base import clone
 from sklearn.utils.validation import check_is_fitted
 
+from . import domain
 from .base import Compensator
 from .compiled.forest import CompiledForest
 from .compiled.hybrid import CompiledHybrid, hybrid_row
 from .compiled.loop import compensate_with_hybrid
+from .features import check_feature_set
 from .forest import RandomForestCompensator
 from .physics import PhysicsPayloadCompensator
 
@@ -75,28 +88,89 @@ class HybridCompensator(Compensator):
         target = Y - self._physics(Z)
         self.residual_ = clone(residual).fit(Z, target)
         self.residual_noise_var_ = np.full(Y.shape[1], np.nan)
+        self.domain_far_var_ = np.mean(target ** 2, axis=0)
+        self.domain_length_ = np.inf
+        self.domain_growth_ = np.zeros(Y.shape[1])
+        self.domain_support_ = domain.fit_support(self._domain_inputs(Z))
         if not self._residual_std_is_calibrated():
-            self.residual_noise_var_ = self._cross_validated_variance(residual, Z, target)
+            cross_fit = self._cross_fit(residual, Z, target)
+            if cross_fit is None:
+                self.residual_noise_var_ = np.mean(target ** 2, axis=0)
+            else:
+                self.domain_length_, self.residual_noise_var_ = domain.fit_in_domain(
+                    *cross_fit, self.domain_far_var_)
 
     def _residual_std_is_calibrated(self) -> bool:
         part = self.residual_
         return bool(getattr(part, "provides_std", False)
                     and getattr(part, "std_includes_noise", False))
 
-    def _cross_validated_variance(self, residual, Z, target):
-        """Per-axis mean squared error of the residual model on rows it was not fitted on:
-        rows in `CROSS_FIT_BLOCKS` contiguous blocks, fitted on the even ones and scored on
-        the odd ones and the other way round (contiguous: neighbouring samples of a time
-        series are nearly copies of each other)."""
+    def _domain_inputs(self, Z):
+        """The residual's input columns of Z (the leading blocks of [q, q̇, q̈])."""
+        features = getattr(self.residual_, "features", "q")
+        return Z[:, :check_feature_set(features) * self.n_joints_]
+
+    def _cross_fit(self, residual, Z, target):
+        """(distance to the other half's support (N,), target (N, k), the other half's
+        prediction (N, k)) of every row: rows in `CROSS_FIT_BLOCKS` contiguous blocks, the
+        residual fitted on the even ones and scored on the odd ones and the other way round
+        (contiguous: neighbouring samples of a time series are nearly copies of each other).
+        None when there are too few rows."""
         block = (np.arange(len(Z)) * self.CROSS_FIT_BLOCKS) // max(len(Z), 1) % 2 == 0
-        errors = np.empty_like(target)
+        predicted = np.empty_like(target)
+        distance = np.empty(len(Z))
+        inputs = self._domain_inputs(Z)
         for train in (block, ~block):
             if train.sum() < 2 or (~train).sum() < 1:
-                return np.mean(target ** 2, axis=0)
+                return None
             part = clone(residual).fit(Z[train], target[train])
-            errors[~train] = target[~train] - np.asarray(part.predict(Z[~train])).reshape(
-                (~train).sum(), -1)
-        return np.mean(errors ** 2, axis=0)
+            predicted[~train] = np.asarray(part.predict(Z[~train])).reshape((~train).sum(), -1)
+            distance[~train] = domain.distances(inputs[~train],
+                                                domain.fit_support(inputs[train]))
+        return distance, target, predicted
+
+    def domain_distance(self, X) -> np.ndarray:
+        """(N,) distance of each row's residual inputs to the training inputs, in training
+        stds (0 on the data; the residual's weight is exp(−(d/ℓ)²))."""
+        Z = self._validated_features(X)
+        support = getattr(self, "domain_support_", None)
+        if support is None:  # a model file from before the support was kept
+            return np.zeros(len(Z))
+        return domain.distances(self._domain_inputs(Z), support)
+
+    def support_weight(self, X) -> np.ndarray:
+        """(N,) the residual's weight w in [0, 1] at each row (1: where it has data)."""
+        return domain.weight(self.domain_distance(X), self._length())
+
+    def calibrate_domain(self, X, y) -> HybridCompensator:
+        """Re-fits ℓ and g on held-out readings `X`, `y` (contact-free, not trained
+        on) that leave the training data — and come back to it: rows at many distances pin
+        ℓ down (:func:`.domain.calibrate`). σ²_in and σ²_far stay the fit's.
+        Returns self. A hybrid whose residual has a calibrated std of its own (a GP) has no
+        support term to calibrate: ValueError."""
+        check_is_fitted(self)
+        if self._residual_std_is_calibrated() or getattr(self, "domain_support_", None) is None:
+            raise ValueError("calibrate_domain: this hybrid's residual brings its own std (or "
+                             "the model was saved before the support term); refit it with a "
+                             "forest residual")
+        Z = self._validated_features(X)
+        Y = np.asarray(y, dtype=float).reshape(len(Z), -1)
+        target = Y - self._physics(Z)
+        predicted = np.asarray(self.residual_.predict(Z)).reshape(len(Z), -1)
+        parameter_var = self.physics_._variance(self.physics_._select(Z), include_noise=False)
+        self.domain_length_, self.domain_growth_ = domain.calibrate(
+            domain.distances(self._domain_inputs(Z), self.domain_support_), target, predicted,
+            self._noise_var(), self.domain_far_var_, parameter_var)
+        return self
+
+    def _length(self) -> float:
+        return float(getattr(self, "domain_length_", np.inf))
+
+    def _far_var(self):
+        return np.asarray(getattr(self, "domain_far_var_", self._noise_var()), dtype=float)
+
+    def _growth(self):
+        return np.asarray(getattr(self, "domain_growth_", np.zeros(6)), dtype=float)
 
     def identified(self) -> dict:
         """The physics part's identified parameters (``physics_.identified()``)."""
@@ -121,8 +195,20 @@ class HybridCompensator(Compensator):
         residual = getattr(self.residual_, "compiled_predictor", lambda: None)()
         if not isinstance(residual, CompiledForest):
             return None
-        payload = self.physics_.packed_row(noise_var=np.nan_to_num(self._noise_var()))
-        return CompiledHybrid(payload, residual.flat, self.n_joints_)
+        payload = self.physics_.packed_row(noise_var=np.zeros(6))
+        return CompiledHybrid(payload, residual.flat, self.n_joints_, self._domain_arrays())
+
+    def _domain_arrays(self) -> tuple:
+        """The support term's arrays in :func:`~.compiled.hybrid.hybrid_row`'s order."""
+        support = getattr(self, "domain_support_", None)
+        d = self._domain_inputs(np.zeros((1, 3 * self.n_joints_))).shape[1]
+        if support is None:
+            support = {"points": np.zeros((0, d)), "nodes": np.zeros((0, 5), np.int64),
+                       "splits": np.zeros(0), "center": np.zeros(d), "scale": np.ones(d)}
+        var = np.vstack([np.nan_to_num(self._noise_var()), np.nan_to_num(self._far_var()),
+                         self._growth() ** 2])
+        return (support["points"], support["nodes"], support["splits"], support["center"],
+                support["scale"], var, np.array([self._length()]))
 
     def fused_loop_update(self):
         """The compiled hybrid's loop update
@@ -148,14 +234,18 @@ class HybridCompensator(Compensator):
         physics = self.physics_.row_predictor(include_noise=False)
         residual = self.residual_.row_predictor()
         calibrated = self._residual_std_is_calibrated()
-        noise_var = np.nan_to_num(self._noise_var())
+        in_var, far_var = np.nan_to_num(self._noise_var()), np.nan_to_num(self._far_var())
+        growth2 = self._growth() ** 2
 
         def predict(row):
             mean, physics_std = physics(row)
             internal, residual_std = residual(row)
-            var = physics_std * physics_std + (residual_std * residual_std if calibrated
-                                               else noise_var)
-            return mean + internal, np.sqrt(var)
+            if calibrated:
+                return mean + internal, np.sqrt(physics_std ** 2 + residual_std ** 2)
+            d = self.domain_distance(row[None, :])[0]
+            w = domain.weight(d, self._length())
+            var = physics_std ** 2 + w * in_var + (1 - w) * far_var + growth2 * d
+            return mean + w * internal, np.sqrt(var)
 
         return predict
 
@@ -168,16 +258,27 @@ class HybridCompensator(Compensator):
     def _physics(self, Z):
         return np.asarray(self.physics_.predict(Z)).reshape(len(Z), -1)
 
+    def _support(self, Z):
+        """(w, d), each (N, 1): the residual's support weight and distance at rows Z (1 and
+        0 with a calibrated residual std or without a support)."""
+        support = getattr(self, "domain_support_", None)
+        if self._residual_std_is_calibrated() or support is None:
+            return np.ones((len(Z), 1)), np.zeros((len(Z), 1))
+        d = domain.distances(self._domain_inputs(Z), support)
+        return domain.weight(d, self._length())[:, None], d[:, None]
+
     def _predict(self, Z):
         residual = np.asarray(self.residual_.predict(Z)).reshape(len(Z), -1)
-        return self._physics(Z) + residual
+        return self._physics(Z) + self._support(Z)[0] * residual
 
     def _predict_std(self, Z):
         var = self.physics_._variance(self.physics_._select(Z), include_noise=False)
         if self._residual_std_is_calibrated():
             var = var + np.asarray(self.residual_.predict_std(Z)).reshape(len(Z), -1) ** 2
         else:
-            var = var + self._noise_var()
+            w, d = self._support(Z)
+            var = (var + w * np.nan_to_num(self._noise_var())
+                   + (1 - w) * np.nan_to_num(self._far_var()) + self._growth() ** 2 * d)
         return np.sqrt(var)
 
 

@@ -158,14 +158,25 @@ class BiasTrackerConfig:
         return prior + [PAYLOAD_INERTIA_PRIOR_STD] * (10 - len(prior))
 
 
+#: The contact detector's tests (DetectorConfig.test).
+DETECTOR_TESTS = ("norm", "chi2")
+
+
 @dc.dataclass
 class DetectorConfig:
     """Thresholds of the contact detector.
 
-    Contact switches on when ‖F‖ > force_on (N) or ‖T‖ > torque_on (N·m) for `debounce_on`
-    consecutive samples, and off when both are below ``release_ratio`` × those thresholds for
-    `debounce_off` samples (hysteresis). With `std_gain` > 0 the thresholds grow by
-    ``std_gain · ‖std‖`` of the model's predictive standard deviation.
+    ``test: "norm"``: contact switches on when ‖F‖ > force_on (N) or ‖T‖ > torque_on (N·m)
+    for `debounce_on` consecutive samples, and off when both are below ``release_ratio`` ×
+    those thresholds for `debounce_off` samples (hysteresis). With `std_gain` > 0 the
+    thresholds grow by ``std_gain · ‖std‖`` of the model's predictive standard deviation.
+
+    ``test: "chi2"``: the 6-D contact wrench whitened by the model's predictive std,
+    Σ (wᵢ/σᵢ)², against `chi2_on`, or (`chi2_on` 0) the χ² (6 degrees of freedom) quantile at
+    1 − p with p = false_positives_per_hour / (3600 · sample rate): the same budget wherever
+    the arm is, the detectable force rising only where the model is unsure. Same debounce;
+    off below ``release_ratio² · chi2_on``. Needs a model whose std is that of a reading
+    (physics, hybrid, GP).
     """
 
     force_on: float = 2.5
@@ -181,6 +192,10 @@ class DetectorConfig:
     # (ftdrake.runtime.thresholds.thresholds_for_false_positive_rate); the detector itself
     # reads only the thresholds.
     false_positives_per_hour: float = 1.0
+    # "norm" (‖F‖, ‖T‖ against force_on, torque_on) or "chi2" (the whitened wrench, above).
+    test: str = "norm"
+    # The χ² test's threshold on Σ (wᵢ/σᵢ)²; 0: the χ²₆ quantile of the budget.
+    chi2_on: float = 0.0
 
     def validate(self, where: str = "detector") -> "DetectorConfig":
         for name in ("force_on", "torque_on"):
@@ -197,4 +212,9 @@ class DetectorConfig:
         if not self.arm_after_s >= 0:
             raise ConfigError(f"{where}.arm_after_s: must be >= 0, got {self.arm_after_s}")
         positive(self.false_positives_per_hour, f"{where}.false_positives_per_hour")
+        if self.test not in DETECTOR_TESTS:
+            raise ConfigError(f"{where}.test: {self.test!r} is not one of {DETECTOR_TESTS}")
+        if not (self.chi2_on >= 0 and math.isfinite(self.chi2_on)):
+            raise ConfigError(f"{where}.chi2_on: must be >= 0 (0: from the budget), got "
+                              f"{self.chi2_on!r}")
         return self

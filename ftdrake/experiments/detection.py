@@ -5,7 +5,9 @@ For each compensator:
 1. **Thresholds** from the false-positive budget (``detector.false_positives_per_hour``):
    held-out rehearsals of
    the task and held-out runs of each free-motion kind give the residual, and
-   :func:`~ftdrake.runtime.thresholds.thresholds_for_false_positive_rate` the thresholds.
+   :func:`~ftdrake.runtime.thresholds.thresholds_for_false_positive_rate` the thresholds
+   (the norm test's, or with ``detector.test: chi2`` the χ² test's on the residual whitened
+   by the model's std).
 2. **False positives**: long free motion (default 10 simulated minutes) of several trajectory
    kinds, compensator and detector in the loop; every detection is a false positive.
 3. **Misses and delays**: the contact scenario on the table and on the wall, commanded from
@@ -93,10 +95,13 @@ def thresholds_from_held_out(model, config: ScenarioConfig, plan: DetectionPlan,
     `data`: that motion (:func:`held_out_motion`) when already collected."""
     data = held_out_motion(config, plan, n_jobs) if data is None else data
     judged = armed(data[col.TIME].to_numpy(), config.detector.arm_after_s)
-    residual = wrench_targets(data)[judged] - model.predict(joint_state_layout(data)[judged])
+    X = joint_state_layout(data)[judged]
+    residual = wrench_targets(data)[judged] - model.predict(X)
+    test = config.detector.test  # the χ² test whitens by the model's std on the same rows
     return thresholds_for_false_positive_rate(
         residual, sample_rate_hz=config.sensor.spec().rate_hz,
-        false_positives_per_hour=config.detector.false_positives_per_hour)
+        false_positives_per_hour=config.detector.false_positives_per_hour, test=test,
+        std=model.predict_std(X) if test == "chi2" else None)
 
 
 def held_out_motion(config: ScenarioConfig, plan: DetectionPlan, n_jobs: int = -1

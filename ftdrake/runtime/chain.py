@@ -98,6 +98,13 @@ class CompensationChain(Diagram):
             raise ConfigError(f"CompensationChain: period must be a positive number of seconds; "
                               f"got {period!r}")
         self.config, self.period = config, period
+        if config.detector.test == "chi2" and not (
+                getattr(model, "provides_std", False)
+                and getattr(model, "std_includes_noise", False)):
+            raise ConfigError(
+                f"detector.test 'chi2' whitens the wrench by the model's std of a reading; "
+                f"{type(model).__name__} has none (a forest's spread across trees is not "
+                "one): use a physics, hybrid or GP model, or detector.test 'norm'")
         builder = DiagramBuilder()
         self.compensator = builder.AddNamedSystem("compensator", CompensatorSystem(
             model, period, n_joints=n_joints,

@@ -1,4 +1,11 @@
-"""ContactDetector: contact from the external wrench, with hysteresis and debouncing."""
+"""ContactDetector: contact from the external wrench, with hysteresis and debouncing.
+
+Two tests (``DetectorConfig.test``): ``"norm"`` compares ‖F‖ and ‖T‖ with fixed thresholds;
+``"chi2"`` whitens the 6-D wrench by the compensator's predictive std and compares
+Σ (wᵢ/σᵢ)² with the χ²₆ quantile of the false-positive budget (:func:`chi2_threshold`), so
+the budget holds wherever the arm is and the detectable force rises only where the model is
+unsure.
+"""
 
 from __future__ import annotations
 
@@ -7,8 +14,23 @@ import math
 import numba
 import numpy as np
 from pydrake.systems.framework import LeafSystem
+from scipy.stats import chi2
 
 from ..config import DetectorConfig
+from ..errors import ConfigError
+
+#: Degrees of freedom of the χ² test: the six wrench axes.
+CHI2_DOF = 6
+
+
+def chi2_threshold(config: DetectorConfig, period: float) -> float:
+    """The χ² test's threshold on Σ (wᵢ/σᵢ)²: ``config.chi2_on``, or (0) the χ²₆ quantile
+    at 1 − p, p = false_positives_per_hour · period / 3600 the per-sample false-positive
+    probability (`period` in s). Debouncing is not counted as a further reduction."""
+    if config.chi2_on > 0:
+        return float(config.chi2_on)
+    p = config.false_positives_per_hour * float(period) / 3600.0
+    return float(chi2.isf(p, CHI2_DOF))
 
 
 class ContactDetector(LeafSystem):
@@ -16,8 +38,9 @@ class ContactDetector(LeafSystem):
 
     Input ports:
       wrench_contact (6): ``[Fx Fy Fz Tx Ty Tz]`` N, N·m (e.g. CompensatorSystem's output).
-      wrench_std (6, optional): the compensator's predictive std; raises the thresholds by
-        ``std_gain · ‖std‖`` when connected.
+      wrench_std (6; required by ``test: "chi2"``, else optional): the compensator's
+        predictive std, N, N·m; the χ² test whitens by it, the norm test raises its
+        thresholds by ``std_gain · ‖std‖`` when connected.
     Output ports (updated every `period` s):
       contact (1): 1.0 while in contact.
       contact_force (1): ‖F‖ of the external wrench in N while in contact, else 0.
@@ -39,9 +62,15 @@ class ContactDetector(LeafSystem):
         self.DeclareStateOutputPort("contact_force", self._force)
         # The thresholds are read once, here: changing `config` later has no effect.
         c = self.config
-        self._constants = np.array([c.force_on, c.torque_on, c.release_ratio, c.debounce_on,
-                                    c.debounce_off, c.std_gain])
-        self._arm_after_s, self._uses_std = c.arm_after_s, c.std_gain > 0
+        self._chi2 = c.test == "chi2"
+        if self._chi2:
+            self.chi2_on = chi2_threshold(c, self.period)
+            self._constants = np.array([self.chi2_on, c.release_ratio, c.debounce_on,
+                                        c.debounce_off])
+        else:
+            self._constants = np.array([c.force_on, c.torque_on, c.release_ratio,
+                                        c.debounce_on, c.debounce_off, c.std_gain])
+        self._arm_after_s, self._uses_std = c.arm_after_s, c.std_gain > 0 or self._chi2
         self._no_std = np.zeros(6)
 
     def get_input_port_wrench_contact(self):
@@ -63,6 +92,14 @@ class ContactDetector(LeafSystem):
         w = self._wrench_port.Eval(context)
         std = (self._std_port.Eval(context)
                if self._uses_std and self._std_port.HasValue(context) else self._no_std)
+        if self._chi2:
+            if std is self._no_std:
+                raise ConfigError("detector.test 'chi2' whitens by the model's std: connect "
+                                  "the detector's wrench_std input (CompensationChain does)")
+            detect_chi2(w, std, self._constants, state.get_mutable_value(self._flag),
+                        state.get_mutable_value(self._counter),
+                        state.get_mutable_value(self._force))
+            return
         _detect(w, std, self._constants, state.get_mutable_value(self._flag),
                 state.get_mutable_value(self._counter), state.get_mutable_value(self._force))
 
@@ -97,3 +134,44 @@ def _detect(w, std, constants, flag, counter, force_out):
     flag[0] = 1.0 if in_contact else 0.0
     counter[0] = count
     force_out[0] = force if in_contact else 0.0
+
+
+@numba.njit(cache=True)
+def chi2_statistic(w, std) -> float:
+    """Σ (wᵢ/σᵢ)² over the six axes; NaN when a σᵢ is not positive and finite."""
+    total = 0.0
+    for i in range(6):
+        if not (std[i] > 0.0 and np.isfinite(std[i])):
+            return np.nan
+        z = w[i] / std[i]
+        total += z * z
+    return total
+
+
+@numba.njit(cache=True)
+def detect_chi2(w, std, constants, flag, counter, force_out):
+    """One χ²-test sample: hysteresis + debounce on Σ (wᵢ/σᵢ)²; updates the state in place.
+
+    `constants` = [threshold, release_ratio, debounce_on, debounce_off]; contact switches on
+    above the threshold and off below release_ratio² × it (the ratio is one of norms, as in
+    the norm test). A NaN/inf wrench or a std that is not positive changes nothing.
+    """
+    for value in w:
+        if not np.isfinite(value):
+            return
+    statistic = chi2_statistic(w, std)
+    if np.isnan(statistic):
+        return
+    threshold, release, n_on, n_off = constants
+    in_contact, count = flag[0] > 0.5, counter[0]
+    if in_contact:
+        count = count + 1 if statistic < release * release * threshold else 0.0
+        if count >= n_off:
+            in_contact, count = False, 0.0
+    else:
+        count = count + 1 if statistic > threshold else 0.0
+        if count >= n_on:
+            in_contact, count = True, 0.0
+    flag[0] = 1.0 if in_contact else 0.0
+    counter[0] = count
+    force_out[0] = math.sqrt(w[0] * w[0] + w[1] * w[1] + w[2] * w[2]) if in_contact else 0.0

@@ -2,8 +2,11 @@
 
 :func:`thresholds_for_false_positive_rate` sets them for a false-positive budget (a scenario's
 ``detector.false_positives_per_hour``) from a Gaussian model of the residual checked against
-the data; :func:`thresholds_from_quantile` from a quantile of the residual's norms.
-:func:`armed` selects the samples the detector judges, the only ones thresholds may come from.
+the data (the norm test, or with ``test="chi2"`` the χ² test's threshold on the residual
+whitened by the model's std); :func:`thresholds_from_quantile` from a quantile of the
+residual's norms. :func:`armed` selects the samples the detector judges, the only ones
+thresholds may come from. :func:`detectable_force` is the force a detector's test needs at a
+sample, given the model's std there.
 """
 
 from __future__ import annotations
@@ -12,6 +15,7 @@ import numpy as np
 from scipy.stats import chi2
 
 from ..config import DetectorConfig
+from .detector import chi2_threshold
 
 
 def armed(times, arm_after_s: float = DetectorConfig.arm_after_s) -> np.ndarray:
@@ -27,7 +31,7 @@ def armed(times, arm_after_s: float = DetectorConfig.arm_after_s) -> np.ndarray:
 def thresholds_for_false_positive_rate(
         residual, *, sample_rate_hz: float,
         false_positives_per_hour: float = DetectorConfig.false_positives_per_hour,
-        **overrides) -> DetectorConfig:
+        std=None, test: str = "norm", **overrides) -> DetectorConfig:
     """Detector thresholds for a target false-positive rate, from held-out free motion.
 
     `residual` (N × 6) is measured − predicted wrench on contact-free data the model was not
@@ -49,6 +53,10 @@ def thresholds_for_false_positive_rate(
     moment; ``ftdrake.sim.evaluation`` measures it. The budget is a scenario's
     ``detector.false_positives_per_hour``; the returned config records it. `overrides` set
     the other fields.
+
+    ``test="chi2"`` (with `std`, N × 6, the model's predictive std on those rows): the χ²
+    test's threshold instead, :func:`chi2_on_for_false_positive_rate`; force_on and
+    torque_on are then the norm test's, kept for a switch back.
     """
     r = np.asarray(residual, dtype=float)
     if r.ndim != 2 or r.shape[1] != 6 or len(r) < 100:
@@ -57,6 +65,12 @@ def thresholds_for_false_positive_rate(
         raise ValueError("residual holds NaN or infinity; drop those rows first")
     if not (false_positives_per_hour > 0 and sample_rate_hz > 0):
         raise ValueError("false_positives_per_hour and sample_rate_hz must be positive")
+    if test == "chi2":
+        overrides = {**overrides, "test": "chi2", "chi2_on": chi2_on_for_false_positive_rate(
+            r, std, sample_rate_hz=sample_rate_hz,
+            false_positives_per_hour=false_positives_per_hour)}
+    elif test != "norm":
+        raise ValueError(f"test must be 'norm' or 'chi2'; got {test!r}")
     p = false_positives_per_hour / (3600.0 * sample_rate_hz) / 2.0
     k = float(np.sqrt(chi2.isf(p, 3)))
     rms = np.sqrt(np.mean(r**2, axis=0))
@@ -68,6 +82,38 @@ def thresholds_for_false_positive_rate(
     return DetectorConfig(force_on=thresholds[0], torque_on=thresholds[1],
                           false_positives_per_hour=false_positives_per_hour,
                           **overrides).validate()
+
+
+def chi2_on_for_false_positive_rate(residual, std, *, sample_rate_hz: float,
+                                    false_positives_per_hour: float) -> float:
+    """The χ² test's threshold from held-out free motion: max(the χ²₆ quantile at 1 − p,
+    1.05 × the largest Σ (rᵢ/σᵢ)² seen on it), p = false_positives_per_hour /
+    (3600 · sample_rate_hz) (one test: the budget is not split). `residual`, `std`: N × 6,
+    measured − predicted and the model's predictive std on the same rows. The second term, as
+    in the norm test, keeps the rows where the std did not grow enough (the model is unsure
+    there and does not say so) from firing on the very data that set the threshold."""
+    r = np.asarray(residual, dtype=float)
+    s = None if std is None else np.asarray(std, dtype=float)
+    if s is None or s.shape != r.shape:
+        raise ValueError("the χ² test needs the model's std on the residual's rows (N × 6, "
+                         f"std=...); got {None if s is None else s.shape} for {r.shape}")
+    if not (np.isfinite(s).all() and (s > 0).all()):
+        raise ValueError("std holds values that are not positive and finite: the χ² test "
+                         "needs a model with a predictive std (physics, hybrid, GP)")
+    quantile = chi2_threshold(DetectorConfig(
+        false_positives_per_hour=false_positives_per_hour), 1.0 / sample_rate_hz)
+    return float(max(quantile, 1.05 * np.max(np.sum((r / s) ** 2, axis=1))))
+
+
+def detectable_force(detector: DetectorConfig, std, period: float) -> np.ndarray:
+    """(N,) the smallest contact force (N) the detector's test reports at each sample, given
+    the model's std there (`std` N × 6, N, N·m; `period` the sample period, s): along the
+    least favourable force axis, on a zero residual. χ² test: √chi2_on · max(σ_Fx, σ_Fy,
+    σ_Fz); norm test: force_on + std_gain · ‖σ_F‖."""
+    s = np.atleast_2d(np.asarray(std, dtype=float))
+    if detector.test == "chi2":
+        return np.sqrt(chi2_threshold(detector, period)) * s[:, :3].max(axis=1)
+    return detector.force_on + detector.std_gain * np.linalg.norm(s[:, :3], axis=1)
 
 
 def thresholds_from_quantile(residual, margin: float = 1.5, quantile: float = 0.999,

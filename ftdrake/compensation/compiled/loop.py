@@ -112,15 +112,16 @@ def compensate_with_forest(wrench, x, accel, measured, estimator, lo, hi, consta
 
 @numba.njit(cache=True)
 def compensate_with_hybrid(wrench, x, accel, measured, estimator, lo, hi, constants, to_S,
-                           reals, ints, nodes, leaf_values, trees, n_trees, internal, external,
-                           std):
+                           reals, ints, nodes, leaf_values, trees, n_trees, points, kd_nodes,
+                           splits, center, scale, var, length, internal, external, std):
     """prepare_row, then the hybrid's payload model and residual forest
     (:func:`~ftdrake.compensation.compiled.hybrid.hybrid_row`) into `internal` and `std`,
     and the external wrench (:func:`external_wrench`)."""
     row = np.empty(3 * len(accel))
     status = prepare_row(wrench, x, accel, measured, estimator, row, lo, hi, constants)
     if not status & FAULT:
-        hybrid_row(row, reals, ints, nodes, leaf_values, trees, n_trees, internal, std)
+        hybrid_row(row, reals, ints, nodes, leaf_values, trees, n_trees, points, kd_nodes,
+                   splits, center, scale, var, length, internal, std)
         external_wrench(wrench, internal, to_S, external)
     return status
 

@@ -1,0 +1,143 @@
+"""Where a learned residual has seen data: its support, and an uncertainty that grows without it.
+
+A residual learned on some configurations knows nothing about others: a forest keeps
+predicting its boundary leaves' values there, however far the arm goes. The hybrid therefore
+weighs its residual by its *support* at the input,
+
+    d = min over training rows ‖(z − zᵢ) / s‖      (z: the residual's inputs, s: their std)
+    w = exp(−(d / ℓ)²)                             (1 on the data, → 0 far from it)
+
+and predicts ``physics + w · residual`` with the per-axis variance
+
+    σ² = ‖B F‖² + w · σ²_in + (1 − w) · σ²_far + g² · d
+
+(σ²_in: the residual's error where it has data; σ²_far: the physics part's own error, what is
+left when the residual is switched off; ‖B F‖²: the physics parameters'; g² · d: the error the
+model makes as it extrapolates — a rigid model fitted on a few configurations absorbs part of
+the unmodelled effects into its parameters, and that part is wrong elsewhere. Its variance
+grows linearly with the distance, as a random walk's: an error that decorrelates with distance
+(a linear variogram) rather than one that grows like a trend, which is what held-out runs
+show: on the coverage test's sub-region model the Fx error's variance is ~3σ² per unit of d
+from d = 0.3 to 6).
+The distance runs on a k-d tree of at most :data:`SUPPORT_POINTS` training rows
+(:mod:`.compiled.kdtree`).
+
+ℓ and σ²_in are calibrated when the hybrid is fitted, on its cross-fit (the residual refitted
+on alternate blocks of rows and scored on the others, whose rows lie at many distances from
+the other half), with g = 0; :func:`calibrate` re-fits ℓ and g on held-out runs that
+leave the training data (``HybridCompensator.calibrate_domain``). Both choose ℓ by the
+Gaussian likelihood of the held-out errors over a grid; for each ℓ the variance terms are a
+(weighted, non-negative) least-squares fit of the squared errors, which they are linear in.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from scipy.optimize import nnls
+
+from .compiled.kdtree import build_kdtree, nearest_distances
+
+#: The most training rows the support's k-d tree keeps (every k-th row: neighbouring samples
+#: of a trajectory are nearly copies). Its query costs ~1 µs at this size.
+SUPPORT_POINTS = 4000
+#: Smallest std of an input column in the metric (rad, rad/s, rad/s²): a joint that never
+#: moved in training is out of domain as soon as it moves.
+MIN_SCALE = 1e-2
+#: ℓ is searched over this many values, log-spaced around the calibration rows' median d.
+LENGTH_GRID = 41
+#: Re-weighted least-squares passes of :func:`calibrate` (weights 1/σ⁴ of the last pass).
+REWEIGHTING_PASSES = 4
+#: Rows the calibration uses at most (every k-th).
+CALIBRATION_ROWS = 20000
+
+
+def fit_support(Zd: np.ndarray, max_points: int = SUPPORT_POINTS) -> dict:
+    """The support of training inputs `Zd` (N, d): ``center``, ``scale`` (d,) and the k-d
+    tree's ``points``, ``nodes``, ``splits`` (standardised rows, :mod:`.compiled.kdtree`)."""
+    Zd = np.asarray(Zd, dtype=float)
+    center = Zd.mean(axis=0)
+    scale = np.maximum(Zd.std(axis=0), MIN_SCALE)
+    stride = max(1, int(np.ceil(len(Zd) / max_points)))
+    points, nodes, splits = build_kdtree((Zd[::stride] - center) / scale)
+    return {"center": center, "scale": scale, "points": points, "nodes": nodes,
+            "splits": splits}
+
+
+def distances(Zd: np.ndarray, support: dict) -> np.ndarray:
+    """d (N,) of rows `Zd` (N, d) to `support` (:func:`fit_support`), in training stds."""
+    Z = np.ascontiguousarray((np.asarray(Zd, dtype=float) - support["center"])
+                             / support["scale"])
+    out = np.empty(len(Z))
+    nearest_distances(Z, support["points"], support["nodes"], support["splits"], out)
+    return out
+
+
+def weight(d: np.ndarray, length: float) -> np.ndarray:
+    """The residual's weight exp(−(d/ℓ)²); 1 everywhere when ℓ is ∞ (no support term)."""
+    d = np.asarray(d, dtype=float)
+    if not np.isfinite(length):
+        return np.ones_like(d)
+    return np.exp(-(d / length) ** 2)
+
+
+def _rows(*arrays):
+    stride = max(1, int(np.ceil(len(arrays[0]) / CALIBRATION_ROWS)))
+    return [np.asarray(a, dtype=float)[::stride] for a in arrays]
+
+
+def _lengths(d: np.ndarray) -> np.ndarray:
+    centre = np.median(d[d > 0]) if (d > 0).any() else 1.0
+    return np.concatenate([centre * np.geomspace(0.03, 30.0, LENGTH_GRID), [np.inf]])
+
+
+def _nll(error, var):
+    return float(np.sum(np.log(var) + error ** 2 / var))
+
+
+def fit_in_domain(d, target, predicted, far_var) -> tuple[float, np.ndarray]:
+    """(ℓ, σ²_in (k,)) from cross-fit rows: their distances `d` (N,) to the half the residual
+    was fitted on, the residual's `target` and its `predicted` value there (N, k), and σ²_far
+    (k,). For each ℓ, σ²_in solves E[e²] = w σ²_in + (1 − w) σ²_far in least squares (within
+    [10⁻⁶, 1] · σ²_far); the ℓ of the highest likelihood wins."""
+    d, target, predicted = _rows(d, target, predicted)
+    far_var = np.maximum(np.asarray(far_var, dtype=float), 1e-300)
+    best = (np.inf, np.inf, np.mean((target - predicted) ** 2, axis=0))
+    for length in _lengths(d):
+        w = weight(d, length)[:, None]
+        error = target - w * predicted
+        numerator = np.sum(w * (error ** 2 - (1 - w) * far_var), axis=0)
+        in_var = np.clip(numerator / max(float(np.sum(w ** 2)), 1e-300), 1e-6 * far_var,
+                         far_var)
+        score = _nll(error, w * in_var + (1 - w) * far_var)
+        if score < best[0]:
+            best = (score, length, in_var)
+    return float(best[1]), best[2]
+
+
+def calibrate(d, target, predicted, in_var, far_var, parameter_var) -> tuple[float, np.ndarray]:
+    """(ℓ, g (k,)) from held-out rows that leave the training data: their distances `d` (N,),
+    the physics part's error `target` (N, k), the residual's `predicted` value (N, k) and the
+    physics parameters' variance (N, k); σ²_in and σ²_far (k,) are kept (σ²_far, the physics
+    part's training error, is the fallback: fitting it too would let (1 − w) σ²_far with a
+    long ℓ mimic a growth ∝ d² that extrapolates badly). For each ℓ of the grid, per axis,
+    g² is the non-negative least-squares fit of e² − (‖B F‖² + w σ²_in + (1 − w) σ²_far) on d
+    (re-weighted by 1/σ⁴, the variance of e² for a Gaussian e); the ℓ of the highest
+    likelihood wins."""
+    d, target, predicted, parameter_var = _rows(d, target, predicted, parameter_var)
+    in_var, far_var = np.asarray(in_var, dtype=float), np.asarray(far_var, dtype=float)
+    best = (np.inf, np.inf, np.zeros_like(far_var))
+    for length in _lengths(d):
+        w = weight(d, length)
+        error = target - w[:, None] * predicted
+        growth2, score = np.empty_like(far_var), 0.0
+        for a in range(error.shape[1]):
+            known = parameter_var[:, a] + w * in_var[a] + (1 - w) * far_var[a]
+            var = np.full(len(d), max(float(np.mean(error[:, a] ** 2)), 1e-300))
+            for _ in range(REWEIGHTING_PASSES):
+                (growth2[a],), _ = nnls(d[:, None] / var[:, None],
+                                        (error[:, a] ** 2 - known) / var)
+                var = np.maximum(known + growth2[a] * d, 1e-300)
+            score += _nll(error[:, a], var)
+        if score < best[0]:
+            best = (score, length, np.sqrt(growth2))
+    return float(best[1]), best[2]

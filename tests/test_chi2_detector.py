@@ -1,0 +1,121 @@
+"""The detector's χ² test (DetectorConfig.test = "chi2"): the whitened 6-D wrench against the
+χ²₆ quantile of the false-positive budget."""
+
+import dataclasses as dc
+
+import numpy as np
+import pytest
+from pydrake.systems.analysis import Simulator
+from pydrake.systems.framework import DiagramBuilder
+from pydrake.systems.primitives import ConstantVectorSource
+from scipy.stats import chi2
+
+from ftdrake.config import DetectorConfig, parse_config
+from ftdrake.errors import ConfigError
+from ftdrake.runtime.detector import ContactDetector, chi2_threshold, detect_chi2
+from ftdrake.runtime.thresholds import (
+    chi2_on_for_false_positive_rate,
+    detectable_force,
+    thresholds_for_false_positive_rate,
+)
+
+RATE_HZ = 1000.0
+# 3600 per hour at 1 kHz: p = 1e-3 per sample, 1000 expected in 10⁶ samples (Poisson σ 32).
+BUDGET = 3600.0
+ONE_SAMPLE = {"debounce_on": 1, "debounce_off": 1, "release_ratio": 1.0}
+
+
+def flagged_fraction(w, std, config):
+    """The share of samples the compiled χ²-test kernel flags, with no debounce and no
+    hysteresis (each sample judged alone)."""
+    constants = np.array([chi2_threshold(config, 1.0 / RATE_HZ), config.release_ratio,
+                          config.debounce_on, config.debounce_off])
+    flag, counter, force = np.zeros(1), np.zeros(1), np.zeros(1)
+    hits = 0
+    for i in range(len(w)):
+        detect_chi2(w[i], std[i], constants, flag, counter, force)
+        hits += flag[0] > 0.5
+    return hits / len(w)
+
+
+def test_false_positive_rate_on_gaussian_data_is_the_budgets():
+    rng = np.random.default_rng(0)
+    n = 1_000_000
+    # A std that changes from sample to sample and axis to axis (in and out of domain): the
+    # whitened test holds the same rate everywhere.
+    std = np.array([0.03, 0.03, 0.05, 0.002, 0.002, 0.002]) * rng.uniform(0.5, 20.0, (n, 1))
+    std *= rng.uniform(0.8, 1.2, (n, 6))
+    w = rng.normal(size=(n, 6)) * std
+    config = DetectorConfig(test="chi2", false_positives_per_hour=BUDGET, **ONE_SAMPLE)
+    p = BUDGET / 3600 / RATE_HZ
+    assert chi2_threshold(config, 1 / RATE_HZ) == pytest.approx(chi2.isf(p, 6), rel=1e-12)
+    got = flagged_fraction(w, std, config)
+    print("false-positive fraction", got, "expected", p)
+    # Within 4 Poisson σ of 1000 (measured 0.00100). A wrong tail fails: χ²₃'s quantile
+    # would give 0.012, 1 − p/2 0.0005, the norm's p/2 split 0.0005.
+    assert abs(got - p) < 4 * np.sqrt(p / n)
+    high = chi2.isf(p / 2, 6)
+    assert abs(np.mean(np.sum((w / std) ** 2, axis=1) > high) - p) > 4 * np.sqrt(p / n)
+
+
+def test_detector_in_a_diagram_fires_on_a_whitened_excess_and_keeps_debounce():
+    def run(wrench, std, seconds=0.2):
+        config = DetectorConfig(test="chi2", debounce_on=3, arm_after_s=0.0)
+        builder = DiagramBuilder()
+        dut = builder.AddSystem(ContactDetector(config, 0.001))
+        w = builder.AddSystem(ConstantVectorSource(np.asarray(wrench, float)))
+        s = builder.AddSystem(ConstantVectorSource(np.asarray(std, float)))
+        builder.Connect(w.get_output_port(), dut.get_input_port_wrench_contact())
+        builder.Connect(s.get_output_port(), dut.get_input_port_wrench_std())
+        diagram = builder.Build()
+        simulator = Simulator(diagram)
+        simulator.AdvanceTo(seconds)
+        context = dut.GetMyContextFromRoot(simulator.get_context())
+        return dut, dut.get_output_port_contact().Eval(context)[0]
+
+    dut, _ = run(np.zeros(6), np.ones(6))
+    k = np.sqrt(dut.chi2_on)  # ≈ 6.5 σ at 1 per hour and 1 kHz
+    sigma = np.array([0.1, 0.1, 0.1, 0.01, 0.01, 0.01])
+    assert run([1.1 * k * 0.1, 0, 0, 0, 0, 0], sigma)[1] == 1.0
+    assert run([0.9 * k * 0.1, 0, 0, 0, 0, 0], sigma)[1] == 0.0
+    # The same force out of domain, where the model's std is 3× larger: no contact.
+    assert run([1.1 * k * 0.1, 0, 0, 0, 0, 0], 3 * sigma)[1] == 0.0
+
+
+def test_thresholds_for_the_chi2_test_from_held_out_data():
+    rng = np.random.default_rng(1)
+    std = np.array([0.03, 0.03, 0.05, 0.002, 0.002, 0.002]) * rng.uniform(1, 5, (5000, 1))
+    residual = rng.normal(size=(5000, 6)) * std
+    dut = thresholds_for_false_positive_rate(residual, sample_rate_hz=RATE_HZ, std=std,
+                                             test="chi2")
+    assert dut.test == "chi2"
+    assert dut.chi2_on == pytest.approx(chi2.isf(1 / 3600 / RATE_HZ, 6), rel=1e-12)
+    residual[100] = 40 * std[100]  # where the model is unsure and does not say so
+    burst = chi2_on_for_false_positive_rate(residual, std, sample_rate_hz=RATE_HZ,
+                                            false_positives_per_hour=1.0)
+    assert burst == pytest.approx(1.05 * 6 * 40 ** 2)
+    with pytest.raises(ValueError, match="std"):
+        thresholds_for_false_positive_rate(residual, sample_rate_hz=RATE_HZ, test="chi2")
+    # The detectable force grows with the std (χ²) and does not (norm).
+    forces = detectable_force(dut, np.vstack([std[0], 4 * std[0]]), 1 / RATE_HZ)
+    assert forces[1] == pytest.approx(4 * forces[0])
+    assert np.ptp(detectable_force(DetectorConfig(), np.vstack([std[0], 4 * std[0]]),
+                                   1e-3)) == 0
+
+
+def test_config_names_bad_tests_and_the_chain_refuses_a_model_without_std():
+    with pytest.raises(ConfigError, match=r"detector\.test"):
+        parse_config("detector: {test: chi3}")
+    with pytest.raises(ConfigError, match=r"detector\.chi2_on"):
+        parse_config("detector: {chi2_on: -1.0}")
+    assert parse_config("detector: {test: chi2}").detector.test == "chi2"
+    from ftdrake.compensation.forest import RandomForestCompensator
+    from ftdrake.config import ScenarioConfig
+    from ftdrake.runtime.chain import CompensationChain
+
+    X = np.random.default_rng(2).uniform(-1, 1, (200, 21))
+    forest = RandomForestCompensator(features="q", n_estimators=2).fit(X, np.zeros((200, 6)))
+    scenario = ScenarioConfig()
+    scenario = dc.replace(scenario, detector=dc.replace(scenario.detector, test="chi2"))
+    with pytest.raises(ConfigError, match="forest's spread"):
+        CompensationChain(forest, scenario)
