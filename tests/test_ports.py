@@ -80,6 +80,7 @@ def instances():
     config.bias_tracker.track_payload = True  # gravity_S, motion_S, payload_changed, payload
     config.bias_tracker.track_payload_motion = True  # ... and SensorGravity's motion_S
     config.bias_tracker.payload_change.enabled = True  # the PayloadChangeMonitor inside
+    config.controller.adapt_to_payload = True  # PayloadFeedforward
     model = temperature_forest()
     feedforward = TimeIndexedFeedforward(np.zeros((10, N)), 0.01)
     station = build_station(config, model, meshcat=Meshcat(), feedforward=feedforward)
