@@ -119,6 +119,13 @@ def register(subparsers) -> None:
                         "simulated arm (physics, hybrid)")
     p.add_argument("--sensor-frame", metavar="NAME", help="frame S of the targets in --robot")
     p.add_argument("--base-frame", metavar="NAME", help="frame of --robot welded to the world")
+    p.add_argument("--joints", metavar="NAME,NAME,..",
+                   help="the joints of --robot the log's position columns hold, in their order "
+                        "(when --robot has more: a torso, a head, fingers); default: all of "
+                        "them, in the model's order")
+    p.add_argument("--fixed-joints", metavar="NAME=V,..|FILE",
+                   help="where the joints of --robot not in --joints stand (rad, or m for "
+                        "prismatic), or a YAML file mapping name to value; default 0")
     _add_model_options(p)
     p.add_argument("--target-units", metavar="U,U,..",
                    help="unit per target (default: N/N*m for wrench axes, else N*m)")
@@ -228,7 +235,8 @@ def run_train(args) -> int:
     say = reporter(args.quiet)
     options = with_flags(ReadOptions(), args)
     data = read_data(args, options, say)
-    robot = RobotOptions(args.robot, args.sensor_frame, args.base_frame, data.scenario_yaml)
+    robot = RobotOptions(args.robot, args.sensor_frame, args.base_frame, data.scenario_yaml,
+                         joints=args.joints, fixed_joints=args.fixed_joints)
     if args.kind is None:
         args.kind = registry.default_kind(robot)
         say(f"--kind not given: {args.kind} "

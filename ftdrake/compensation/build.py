@@ -19,7 +19,7 @@ from typing import Any
 from ..config import parse_config
 from ..conventions import WRENCH_AXES
 from ..errors import ConfigError, RobotModelError
-from ..physics.robot import RobotDescription, ftdrake_arm
+from ..physics.robot import RobotDescription, fixed_joint_values, ftdrake_arm
 from ..physics.scenario_robot import robot_description
 
 BUILTIN_ROBOT = "ftdrake"  # RobotOptions.robot naming ftdrake's simulated arm
@@ -34,12 +34,31 @@ class RobotOptions:
     sensor_frame: frame S of the targets in `robot`.
     base_frame: frame of `robot` welded to the world (default: its root).
     scenario_yaml: the scenario a ``collect`` dataset was simulated with (its YAML text).
+    joints: the joints of `robot` the log's position columns hold, in their order (names or
+      one comma-separated string; ``--joints``); None: every joint of `robot`, in its order.
+    fixed_joints: where `robot`'s other joints stand (``--fixed-joints``): a mapping name →
+      rad or m, ``"a=0.2,b=0.01"`` or a YAML file of such a mapping; unnamed joints stand at 0.
     """
 
     robot: str | None = None
     sensor_frame: str | None = None
     base_frame: str | None = None
     scenario_yaml: str | None = None
+    joints: str | tuple[str, ...] | None = None
+    fixed_joints: object = None
+
+    def joint_mapping(self) -> dict:
+        """The payload model's ``joints``/``fixed_joints`` parameters (empty when none are
+        given): the fixed positions read now (a YAML file too), so the model keeps them."""
+        if self.joints is None and self.fixed_joints is None:
+            return {}
+        joints = self.joints.split(",") if isinstance(self.joints, str) else self.joints
+        fixed = dict(fixed_joint_values(self.fixed_joints))
+        if joints is None:
+            raise ConfigError("--fixed-joints needs --joints (the joints the log holds, in the "
+                              "order of its position columns)")
+        return {"joints": tuple(j.strip() for j in joints if j.strip()),
+                "fixed_joints": fixed or None}
 
     @property
     def is_simulated_arm(self) -> bool:

@@ -21,6 +21,7 @@ import dataclasses as dc
 from pathlib import Path
 
 import numpy as np
+import yaml
 from pydrake.math import RigidTransform
 from pydrake.multibody.plant import MultibodyPlant
 
@@ -43,12 +44,19 @@ class RobotDescription:
     base_frame: a frame to weld to the world (None: the model is already welded or fixed,
       as model directives and most URDFs with a world joint are).
     package_xmls: extra package.xml files for the model's ``package://`` URLs.
+    joints: the joints a log's position columns hold, in their order (a log of 8 joints on
+      a description of 24: torso, arm, head, fingers); () when the rows hold every joint of
+      the model in its own order.
+    fixed_joints: ``((name, value), …)``, where the joints not in `joints` stand (rad for
+      revolute, m for prismatic); a joint given in neither stands at 0.
     """
 
     model: str
     sensor_frame: str
     base_frame: str | None = None
     package_xmls: tuple[str, ...] = ()
+    joints: tuple[str, ...] = ()
+    fixed_joints: tuple[tuple[str, float], ...] = ()
 
     def build_plant(self) -> tuple[MultibodyPlant, object]:
         """A finalized kinematics-only plant of the robot and its frame S.
@@ -211,3 +219,88 @@ def floating_base_hint(plant) -> str:
     return (f"{', '.join(repr(b) for b in floating)} floats: weld it to the world with "
             f"--base-frame {floating[0]} (base_frame='{floating[0]}' in Python)")
 
+
+
+def movable_joint_names(plant) -> list[str]:
+    """The names of the joints of finalized `plant` that have coordinates, in the order of
+    the plant's q."""
+    joints = [plant.get_joint(j) for j in plant.GetJointIndices()]
+    moving = [j for j in joints if j.num_positions() > 0]
+    return [j.name() for j in sorted(moving, key=lambda j: j.position_start())]
+
+
+def check_joint_names(plant, description: RobotDescription) -> None:
+    """Raises RobotModelError when `description.joints` or its fixed joints name a joint the
+    model does not have (or a joint twice); the message lists the model's joints."""
+    known = movable_joint_names(plant)
+    listed = f"the model's joints: {', '.join(known)}"
+    unknown = [n for n in description.joints if n not in known]
+    if unknown:
+        raise RobotModelError(
+            f"--joints names {unknown} that robot model {description.label} does not have "
+            f"(joints= in Python); {listed}")
+    repeated = sorted({n for n in description.joints if description.joints.count(n) > 1})
+    if repeated:
+        raise RobotModelError(f"--joints names {repeated} more than once (joints= in Python)")
+    fixed = [name for name, _ in description.fixed_joints]
+    unknown = [n for n in fixed if n not in known]
+    if unknown:
+        raise RobotModelError(
+            f"--fixed-joints names {unknown} that robot model {description.label} does not "
+            f"have (fixed_joints= in Python); {listed}")
+    both = [n for n in fixed if n in description.joints]
+    if both:
+        raise RobotModelError(
+            f"{both}: both a log's joint (--joints) and fixed (--fixed-joints); keep one")
+
+
+def joint_count_message(plant, n_data: int, label: str) -> str:
+    """What to say when the rows hold `n_data` joints and the model has others: the model's
+    joint names, and the flags that name the log's joints and fix the others."""
+    known = movable_joint_names(plant)
+    return (f"the data has {n_data} joints; the robot model has {len(known)} "
+            f"({', '.join(known)}; {label}): name the log's joints in the order of its position "
+            f"columns with --joints NAME,NAME,... and fix the others with --fixed-joints "
+            f"NAME=VALUE,... (default 0; joints= and fixed_joints= in Python)")
+
+
+def fixed_joint_values(spec) -> tuple[tuple[str, float], ...]:
+    """Fixed joint positions as ``((name, value), …)`` from a mapping, a sequence of pairs,
+    ``"torso=0.2,finger_l=0.01"`` or the path of a YAML file holding a mapping name → value
+    (rad for revolute joints, m for prismatic). Raises RobotModelError naming a bad entry."""
+    if spec is None or spec == "":
+        return ()
+    if isinstance(spec, str):
+        spec = _fixed_joints_text(spec)
+    items = spec.items() if hasattr(spec, "items") else spec
+    out = []
+    for entry in items:
+        try:
+            name, value = entry
+            value = float(value)
+        except (TypeError, ValueError):
+            raise RobotModelError(f"fixed joints: {entry!r} is not NAME=VALUE (a number: rad "
+                                  "for revolute, m for prismatic)") from None
+        if not np.isfinite(value):
+            raise RobotModelError(f"fixed joints: {name}={value} is not a finite number")
+        out.append((str(name), value))
+    return tuple(out)
+
+
+def _fixed_joints_text(text: str):
+    """``"a=1,b=2"`` → pairs; a YAML file's mapping → its items."""
+    if "=" not in text and Path(text).is_file():
+        try:
+            data = yaml.safe_load(Path(text).read_text())
+        except yaml.YAMLError as e:
+            raise RobotModelError(f"fixed joints: {text} is not YAML: {e}") from None
+        if not isinstance(data, dict):
+            raise RobotModelError(f"fixed joints: {text} must hold a mapping joint name → "
+                                  "value (rad or m)")
+        return data
+    pairs = [p.strip() for p in text.split(",") if p.strip()]
+    bad = [p for p in pairs if p.count("=") != 1]
+    if bad:
+        raise RobotModelError(f"fixed joints: {bad[0]!r} is not NAME=VALUE (or a YAML file "
+                              "holding a mapping)")
+    return [tuple(s.strip() for s in p.split("=")) for p in pairs]
