@@ -54,6 +54,7 @@ from ..data.training import ReadOptions, TrainingData, load_training_data
 from ..errors import ConfigError, FtdrakeError, LogError, RobotModelError
 from ..parallel import dask_backend
 from . import args as a
+from .args import flag_hint
 
 FEATURE_SETS = ("q", "q,qd", "q,qd,qdd")
 
@@ -65,8 +66,10 @@ _READ_FLAGS = {
     "positions": ("PAT", str, "joint position columns (rad), default 'q_*'; bags: joint names"),
     "targets": ("PAT", str, ("target columns, default 'meas_*'; bags: effort, wrench or a "
                             "pattern")),
-    "velocities": ("PAT", str, "velocity columns (rad/s); default: Savitzky–Golay of q"),
-    "accelerations": ("PAT", str, "acceleration columns (rad/s²); default: see --qdd-estimate"),
+    "velocities": ("PAT", str, ("velocity columns (rad/s); default (or 'derive'): "
+                               "Savitzky–Golay of q")),
+    "accelerations": ("PAT", str, ("acceleration columns (rad/s²); default (or 'derive'): see "
+                                   "--qdd-estimate")),
     "time": ("COL", str, "time column (s), default 't'"),
     "group": ("COL", str, ("trajectory id column: reads a file joining several recordings "
                           "as separate trajectories; default 'trajectory' if there is one")),
@@ -175,15 +178,6 @@ def _flag_name(option: str) -> str:
     return "--" + option.replace("_", "-")
 
 
-def flag_hint(option: str, value) -> str:
-    """How an error tells a command-line user to set reader option `option` to `value`."""
-    if option == "check_units":
-        return "--no-check-units" if value is False else "omit --no-check-units"
-    if value is None:
-        return f"omit {_flag_name(option)}"
-    return f"{_flag_name(option)} {value}"
-
-
 def given_read_options(args) -> dict:
     """The ReadOptions fields set on the command line (the others are None)."""
     return {f.name: getattr(args, f.name, None) for f in dc.fields(ReadOptions)}
@@ -209,7 +203,7 @@ def read_data(args, options: ReadOptions, say, static_poses: bool | None = False
                                       t_end=args.t_end, report=warn,
                                       static_poses=static_poses)
         except LogError as e:
-            hint = static_table_hint(args.data)
+            hint = static_table_hint(args.data, options.time, options.positions)
             if hint is None:
                 raise
             raise LogError(f"{e}; {hint}") from None

@@ -152,6 +152,13 @@ def is_wrench(names) -> bool:
     return all(s.endswith(alias) for s, alias in zip(squashed, aliases, strict=True))
 
 
+def same_targets(model_names, data_names) -> bool:
+    """Whether a model's targets and a log's are the same outputs: equal names, or both a
+    wrench in the same axis order (``Fx … Tz`` as ``calibrate`` names them, ``meas_Fx …``)."""
+    model_names, data_names = list(model_names), list(data_names)
+    return model_names == data_names or (is_wrench(model_names) and is_wrench(data_names))
+
+
 def join_or(names) -> str:
     """``["a"]`` → ``"a"``; ``["a", "b", "c"]`` → ``"a, b or c"``."""
     names = list(names)

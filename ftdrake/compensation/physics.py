@@ -53,7 +53,7 @@ import weakref
 import numpy as np
 
 from ..conventions import GRAVITY_W
-from ..errors import ConfigError, RobotModelError
+from ..errors import ConfigError, RobotModelError, spelled
 from ..physics.chain import SerialChain
 from ..physics.robot import (
     RobotDescription,
@@ -91,6 +91,16 @@ WEIGHT_PARAMETERS = [16, 17, 18, 19]
 #: How the parameters are identified: plain weighted least squares, or constrained to a
 #: physically possible body (pseudo-inertia ⪰ 0, m > 0; :mod:`.consistent`) with a prior.
 IDENTIFICATIONS = ("least_squares", "consistent")
+
+
+#: The excitation warning's advice (:func:`~.payload_report.excitation_message`) and what it
+#: becomes for a command-line user.
+_PYTHON_ADVICE = ("give a prior (identification='consistent', prior=PayloadPrior(...)) or "
+                  "use a richer trajectory (e.g. kind 'fourier' or 'z_rich')")
+_CLI_ADVICE = ("record a log in which every joint moves, faster and through more of its "
+               "range, so that the tool turns through more orientations; or identify the "
+               "mass and centre of mass from static poses with `ftdrake calibrate` (a prior "
+               "with --prior-mass/--prior-com)")
 
 
 class ExcitationWarning(UserWarning):
@@ -436,6 +446,8 @@ class PhysicsPayloadCompensator(CarriesRobot, Compensator):
     def _warn_if_poorly_excited(self):
         message = excitation_message(self)
         if message is not None:
+            # The command line has no prior and no simulator kinds: it gets its own advice.
+            message = message.replace(_PYTHON_ADVICE, spelled(_PYTHON_ADVICE, _CLI_ADVICE))
             warnings.warn(message, ExcitationWarning, stacklevel=4)
 
     # -- kinematics -------------------------------------------------------------------------

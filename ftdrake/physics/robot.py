@@ -17,7 +17,12 @@ sensor and tool welded to its flange, as :func:`ftdrake.sim.scene.add_scene` bui
 
 from __future__ import annotations
 
+import contextlib
+import contextvars
 import dataclasses as dc
+import hashlib
+import logging
+import warnings
 from pathlib import Path
 
 import numpy as np
@@ -26,7 +31,7 @@ from pydrake.math import RigidTransform
 from pydrake.multibody.plant import MultibodyPlant
 
 from ..assets import offline_parser
-from ..errors import RobotModelError
+from ..errors import RobotModelError, spelled
 
 DIRECTIVES_PREFIX = "directives:"
 # The opening tag of a robot description held as text, and its format for Drake's parser.
@@ -194,6 +199,11 @@ def add_robot_model(plant, model: str, package_xmls=()) -> None:
         parser = offline_parser(plant, package_xmls)
     except FileNotFoundError as e:
         raise RobotModelError(f"robot {label}: {e}") from None
+    with _parser_warnings_summarised(model, label):
+        _parse(parser, model, label)
+
+
+def _parse(parser, model: str, label: str) -> None:
     try:
         if model.lstrip().startswith(DIRECTIVES_PREFIX):
             parser.AddModelsFromString(model, "dmd.yaml")
@@ -207,6 +217,79 @@ def add_robot_model(plant, model: str, package_xmls=()) -> None:
             parser.AddModels(file_name=model)
     except RuntimeError as e:  # Drake's parser reports every problem as RuntimeError
         raise RobotModelError(f"cannot load robot model {label}: {e}") from None
+
+
+class RobotDescriptionWarning(UserWarning):
+    """Drake's parser warned about a robot description (tags it ignores, joint friction …):
+    summarised once per description and process."""
+
+
+#: The logger Drake's parser warnings go to after their summary (INFO; ``--verbose`` shows it).
+PARSER_LOGGER = "ftdrake.robot_parser"
+_SHOW_PARSER_WARNINGS: contextvars.ContextVar[bool] = contextvars.ContextVar(
+    "ftdrake_show_parser_warnings", default=False)
+_SUMMARISED: set[str] = set()  # descriptions whose parser warnings were summarised
+
+
+@contextlib.contextmanager
+def show_parser_warnings(show: bool = True):
+    """Within the block (``ftdrake --verbose``), every parser warning of a robot description
+    prints on stderr after its summary."""
+    token = _SHOW_PARSER_WARNINGS.set(bool(show))
+    try:
+        yield
+    finally:
+        _SHOW_PARSER_WARNINGS.reset(token)
+
+
+class _Collect(logging.Handler):
+    def __init__(self):
+        super().__init__(logging.WARNING)
+        self.messages: list[str] = []
+
+    def emit(self, record):
+        self.messages.append(record.getMessage())
+
+
+@contextlib.contextmanager
+def _parser_warnings_summarised(model: str, label: str):
+    """Drake's parser warnings (Python logger ``drake``) while parsing `model`, held back and
+    summarised in one :class:`RobotDescriptionWarning` the first time the process parses
+    this description; each is logged at INFO on :data:`PARSER_LOGGER`."""
+    drake = logging.getLogger("drake")
+    collect, propagate = _Collect(), drake.propagate
+    drake.addHandler(collect)
+    drake.propagate = False
+    try:
+        yield
+    finally:
+        drake.removeHandler(collect)
+        drake.propagate = propagate
+    if not collect.messages:
+        return
+    key = hashlib.sha256(model.encode()).hexdigest()
+    if key in _SUMMARISED:
+        return
+    _SUMMARISED.add(key)
+    messages = [m.split(" warning: ", 1)[-1] for m in collect.messages]
+    how = spelled(f"logging.getLogger({PARSER_LOGGER!r}) at INFO shows them",
+                  "--verbose shows them")
+    warnings.warn(RobotDescriptionWarning(
+        f"the robot description {label} gave {len(messages)} parser warning(s) (e.g. "
+        f"{messages[0]}); ftdrake does not need what they are about; {how}"), stacklevel=4)
+    log = logging.getLogger(PARSER_LOGGER)
+    show = _SHOW_PARSER_WARNINGS.get()
+    handler = logging.StreamHandler() if show else None
+    if handler is not None:
+        handler.setFormatter(logging.Formatter("drake parser: %(message)s"))
+        log.addHandler(handler)
+        log.setLevel(logging.INFO)
+    try:
+        for message in collect.messages:
+            log.info(message)
+    finally:
+        if handler is not None:
+            log.removeHandler(handler)
 
 
 def floating_base_hint(plant) -> str:
