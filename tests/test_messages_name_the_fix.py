@@ -300,3 +300,22 @@ def test_save_model_defaults_a_wrench_and_evaluate_takes_meas_columns_for_it(tmp
     two = RandomForestCompensator(n_estimators=5).fit(np.zeros((10, 3)), np.zeros((10, 2)))
     with pytest.raises(ConfigError, match=r"needs target_names=\[one name per output\]"):
         save_model(two, tmp_path / "two.ftd")
+
+
+def test_replay_takes_the_same_column_syntax(tmp_path, capsys):
+    frame = motion(n=120)
+    model = str(tmp_path / "m.ftd")
+    assert main(["train", "--data", csv(frame, tmp_path), "--out", model, *rf()]) == 0
+    assert main(["replay", "--model", model, "--log", csv(frame, tmp_path),
+                 "--out", str(tmp_path / "a.csv"), "--quiet"]) == 0
+    theirs = frame.rename(columns={"t": "time", "q_0": "pos_a", "q_1": "pos_b", "qd_0": "vel_a",
+                                   "qd_1": "vel_b", **{f"meas_{a}": f"ft_{a}" for a in AXES}})
+    log = csv(theirs, tmp_path, "theirs.csv")
+    assert main(["replay", "--model", model, "--log", log, "--out", str(tmp_path / "b.csv"),
+                 "--quiet"]) == 2
+    assert "--positions, --velocities, --targets and --time" in capsys.readouterr().err
+    assert main(["replay", "--model", model, "--log", log, "--out", str(tmp_path / "b.csv"),
+                 "--time", "time", "--positions", "pos_a,pos_b", "--velocities", "re:vel_.",
+                 "--targets", "ft_*", "--quiet"]) == 0
+    a, b = pd.read_csv(tmp_path / "a.csv"), pd.read_csv(tmp_path / "b.csv")
+    pd.testing.assert_frame_equal(a, b)
