@@ -146,6 +146,13 @@ def test_train_names_the_joints_on_the_command_line(log, tmp_path, capsys):
     model = load_model(tmp_path / "m.ftd")
     assert model.fixed_joints == {"torso": 0.2, "head_pan": 0.7}
     assert model.parameters_[0] == pytest.approx(MASS, abs=0.01)
+    mapping = tmp_path / "joints.yaml"  # the same in one file
+    mapping.write_text("joints: [j1, j2, j3]\nfixed_joints: {torso: 0.2}\n")
+    assert main([*common, "--joints", str(mapping)]) == 0
+    assert load_model(tmp_path / "m.ftd").parameters_[0] == pytest.approx(MASS, abs=0.01)
+    mapping.write_text("joint: [j1, j2, j3]\n")
+    assert main([*common, "--joints", str(mapping)]) == 2
+    assert "must hold 'joints: [NAME, ...]'" in capsys.readouterr().err
 
 
 def test_fixed_joint_values_are_read_from_text_and_refused_when_malformed():

@@ -19,7 +19,12 @@ from typing import Any
 from ..config import parse_config
 from ..conventions import WRENCH_AXES
 from ..errors import ConfigError, RobotModelError
-from ..physics.robot import RobotDescription, fixed_joint_values, ftdrake_arm
+from ..physics.robot import (
+    RobotDescription,
+    fixed_joint_values,
+    ftdrake_arm,
+    joint_mapping_file,
+)
 from ..physics.scenario_robot import robot_description
 
 BUILTIN_ROBOT = "ftdrake"  # RobotOptions.robot naming ftdrake's simulated arm
@@ -34,8 +39,9 @@ class RobotOptions:
     sensor_frame: frame S of the targets in `robot`.
     base_frame: frame of `robot` welded to the world (default: its root).
     scenario_yaml: the scenario a ``collect`` dataset was simulated with (its YAML text).
-    joints: the joints of `robot` the log's position columns hold, in their order (names or
-      one comma-separated string; ``--joints``); None: every joint of `robot`, in its order.
+    joints: the joints of `robot` the log's position columns hold, in their order (names, one
+      comma-separated string, or a YAML file of ``joints: [...]`` and optionally
+      ``fixed_joints: {...}``; ``--joints``); None: every joint of `robot`, in its order.
     fixed_joints: where `robot`'s other joints stand (``--fixed-joints``): a mapping name →
       rad or m, ``"a=0.2,b=0.01"`` or a YAML file of such a mapping; unnamed joints stand at 0.
     """
@@ -52,8 +58,12 @@ class RobotOptions:
         given): the fixed positions read now (a YAML file too), so the model keeps them."""
         if self.joints is None and self.fixed_joints is None:
             return {}
-        joints = self.joints.split(",") if isinstance(self.joints, str) else self.joints
-        fixed = dict(fixed_joint_values(self.fixed_joints))
+        joints, fixed = self.joints, dict(fixed_joint_values(self.fixed_joints))
+        if isinstance(joints, str) and joints.endswith((".yaml", ".yml")):
+            joints, in_file = joint_mapping_file(joints)
+            fixed = {**dict(in_file), **fixed}  # --fixed-joints overrides the file's
+        elif isinstance(joints, str):
+            joints = joints.split(",")
         if joints is None:
             raise ConfigError("--fixed-joints needs --joints (the joints the log holds, in the "
                               "order of its position columns)")

@@ -370,6 +370,26 @@ def fixed_joint_values(spec) -> tuple[tuple[str, float], ...]:
     return tuple(out)
 
 
+def joint_mapping_file(path) -> tuple[tuple[str, ...], tuple[tuple[str, float], ...]]:
+    """(joints, fixed joints) from a YAML file holding ``joints: [NAME, …]`` (the log's
+    joints, in the order of its position columns) and optionally ``fixed_joints: {NAME:
+    VALUE, …}`` (rad, or m for prismatic joints). Raises RobotModelError naming what is wrong."""
+    try:
+        data = yaml.safe_load(Path(path).read_text())
+    except (OSError, yaml.YAMLError) as e:
+        raise RobotModelError(f"--joints {path}: cannot read it as YAML: {e}") from None
+    joints = data.get("joints") if isinstance(data, dict) else None
+    if not (isinstance(joints, list) and joints and all(isinstance(j, str) for j in joints)):
+        raise RobotModelError(f"--joints {path}: must hold 'joints: [NAME, ...]' (the log's "
+                              "joints, in the order of its position columns) and optionally "
+                              "'fixed_joints: {NAME: VALUE}'")
+    unknown = sorted(set(data) - {"joints", "fixed_joints"})
+    if unknown:
+        raise RobotModelError(f"--joints {path}: unknown keys {unknown}; it holds joints and "
+                              "fixed_joints")
+    return tuple(joints), fixed_joint_values(data.get("fixed_joints") or {})
+
+
 def _fixed_joints_text(text: str):
     """``"a=1,b=2"`` → pairs; a YAML file's mapping → its items."""
     if "=" not in text and Path(text).is_file():
