@@ -4,9 +4,36 @@ Every one derives from :class:`FtdrakeError`; the command line catches that clas
 bug in ftdrake (any other exception) shows its traceback instead of passing for a user error.
 Each also derives from ``ValueError`` where it did before, so existing ``except ValueError``
 code keeps working.
+
+Advice in a message or warning speaks the user's language: :func:`spelled` gives its Python
+form (keywords, classes) by default and its command-line form (flags) inside
+:func:`command_line_front_end`, which the ``ftdrake`` command enters.
 """
 
 from __future__ import annotations
+
+import contextlib
+import contextvars
+from collections.abc import Iterator
+
+_COMMAND_LINE: contextvars.ContextVar[bool] = contextvars.ContextVar(
+    "ftdrake_command_line", default=False)
+
+
+def spelled(python: str, command_line: str) -> str:
+    """`python` (advice naming keywords and classes), or `command_line` (naming flags) when
+    the ``ftdrake`` command runs."""
+    return command_line if _COMMAND_LINE.get() else python
+
+
+@contextlib.contextmanager
+def command_line_front_end() -> Iterator[None]:
+    """Within the block, :func:`spelled` advice names the command line's flags."""
+    token = _COMMAND_LINE.set(True)
+    try:
+        yield
+    finally:
+        _COMMAND_LINE.reset(token)
 
 
 class FtdrakeError(Exception):

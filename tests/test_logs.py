@@ -234,7 +234,8 @@ def test_pattern_matching_nothing_names_it_and_lists_columns():
         read_table(sine_frame(), positions="q_*", targets="wrench_*")
     with pytest.raises(LogError, match=r"column\(s\) \['q_7'\] not found; available"):
         read_table(sine_frame(), positions=["q_0", "q_7"])
-    with pytest.raises(LogError, match=r"time: column\(s\) \['time'\] not found"):
+    with pytest.raises(LogError, match=r"no time column 'time'; the table has \['t'\]: "
+                                        r"choose it with time='t'"):
         read_table(sine_frame(), time="time")
 
 

@@ -2,14 +2,25 @@
 refused with the flag that welds it, by the payload and the whole-arm model, and that flag
 fixes it; wrench columns that are not found name the option that chooses them."""
 
+import warnings
+
 import numpy as np
 import pandas as pd
 import pytest
+import yaml
+from pydrake.multibody.plant import MultibodyPlant
 
 from ftdrake import LogError, PhysicsPayloadCompensator, RobotModelError, calibrate_table
+from ftdrake.cli.args import flag_hint
 from ftdrake.cli.main import main
 from ftdrake.compensation.arm import ArmDynamicsCompensator
+from ftdrake.compensation.forest import RandomForestCompensator
+from ftdrake.compensation.persistence import read_manifest, save_model
 from ftdrake.compensation.physics import ExcitationWarning
+from ftdrake.data.logs import LogWarning, option_spelling, read_table
+from ftdrake.data.training import load_training_data
+from ftdrake.errors import ConfigError
+from ftdrake.physics.robot import RobotDescriptionWarning, add_robot_model, show_parser_warnings
 
 ARM = """<?xml version="1.0"?>
 <robot name="little_arm">
@@ -72,3 +83,239 @@ def test_missing_wrench_columns_name_the_targets_option(tmp_path, capsys):
         calibrate_table(frame)
     assert main(["calibrate", "--data", str(path), "--out", str(tmp_path / "cal")]) == 2
     assert "wrench columns (choose them with --targets PAT)" in capsys.readouterr().err
+
+
+# -- the column syntax, the time column, derivatives --------------------------------------------
+AXES = ("Fx", "Fy", "Fz", "Tx", "Ty", "Tz")
+
+
+def motion(n=200, dt=0.01, time="t", derivatives=True):
+    """Two joints moving smoothly (q = sin), their exact derivatives and a wrench."""
+    t = np.arange(n) * dt
+    frame = pd.DataFrame({time: t})
+    for i in range(2):
+        frame[f"q_{i}"] = np.sin(t + i)
+    if derivatives:
+        for i in range(2):
+            frame[f"qd_{i}"] = np.cos(t + i)
+        for i in range(2):
+            frame[f"qdd_{i}"] = -np.sin(t + i)
+    for k, axis in enumerate(AXES):
+        frame[f"meas_{axis}"] = np.cos(t * (k + 1))
+    return frame
+
+
+def csv(frame, tmp_path, name="log.csv"):
+    path = tmp_path / name
+    frame.to_csv(path, index=False)
+    return str(path)
+
+
+def rf(*extra):
+    return ["--kind", "rf", "--preset", "none", "--quiet", *extra]
+
+
+def test_read_table_takes_the_column_syntax_of_the_command_line():
+    log = read_table(motion(), positions=r"re:q_\d+", velocities="qd_0, qd_1",
+                     accelerations="qdd_*")
+    assert log.joint_names == ["q_0", "q_1"] and log.derived == []
+    np.testing.assert_array_equal(log.qd[:, 1], motion()["qd_1"])
+
+
+def test_a_pattern_matching_several_kinds_of_columns_warns_with_the_fix(tmp_path, capsys):
+    with pytest.warns(LogWarning, match=r"positions: pattern 'q\*' matches 3 kinds of columns "
+                                        r"\(q_0..q_1, qd_0..qd_1, qdd_0..qdd_1\).*narrow it: "
+                                        r"positions='q_\*'"):
+        read_table(motion(), positions="q*", check_units=False)
+    path = csv(motion(), tmp_path)
+    main(["train", "--data", path, "--positions", "q*", "--no-check-units",
+          "--out", str(tmp_path / "m.ftd"), *rf()])
+    assert "narrow it: --positions 'q_*' or --positions 're:q_\\d+'" in capsys.readouterr().err
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", LogWarning)  # one kind: nothing to say
+        read_table(motion(), positions="q_*")
+
+
+def static_poses(n=40):
+    """Gravity in S per pose and the reading of a 1.2 kg tool (CoM 5 cm along z) there."""
+    g = np.random.default_rng(1).normal(size=(n, 3))
+    g = 9.81 * g / np.linalg.norm(g, axis=1, keepdims=True)
+    F = 1.2 * g
+    T = np.cross([0.0, 0.0, 0.05], F)
+    frame = pd.DataFrame(g, columns=["gx", "gy", "gz"])
+    for k, axis in enumerate(AXES):
+        frame[f"force_torque_{axis}"] = np.hstack([F, T])[:, k]
+    return frame
+
+
+@pytest.mark.parametrize("targets", [r"re:force_torque_.*",
+                                     ",".join(f"force_torque_{a}" for a in AXES)])
+def test_calibrate_takes_regexes_and_comma_lists(tmp_path, capsys, targets):
+    path = csv(static_poses(), tmp_path)
+    assert main(["calibrate", "--data", path, "--targets", targets,
+                 "--out", str(tmp_path / "cal")]) == 0
+    found = yaml.safe_load((tmp_path / "cal" / "calibration.yaml").read_text())
+    assert found["calibration"]["parameters"]["m"]["value"] == pytest.approx(1.2)
+
+
+def test_a_time_column_named_time_is_named_not_taken_for_static_poses(tmp_path, capsys):
+    path = csv(motion(time="time"), tmp_path)
+    out = str(tmp_path / "m.ftd")
+    assert main(["train", "--data", path, "--out", out, *rf()]) == 2
+    err = capsys.readouterr().err
+    assert "no time column 't'; the table has ['time']: choose it with --time time" in err
+    assert "static poses" not in err
+    assert main(["train", "--data", path, "--time", "time", "--out", out, *rf()]) == 0
+    # Poses one after another without a time column: the calibrate hint stays.
+    poses = pd.DataFrame(np.random.default_rng(2).uniform(-2, 2, (30, 2)), columns=["q_0", "q_1"])
+    for axis in AXES:
+        poses[f"meas_{axis}"] = 0.0
+    assert main(["train", "--data", csv(poses, tmp_path, "poses.csv"), "--out", out, *rf()]) == 2
+    assert "looks like a table of static poses" in capsys.readouterr().err
+
+
+def with_gap(frame, start=100, length=40):
+    """`frame` without rows start..start+length (a gap in time)."""
+    return frame.drop(index=range(start, start + length)).reset_index(drop=True)
+
+
+def test_no_gap_warning_when_the_derivatives_are_given():
+    frame = with_gap(motion())
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        read_table(frame, velocities="qd_*", accelerations="qdd_*")
+    assert not [w for w in caught if "gap" in str(w.message)]
+    with pytest.warns(LogWarning, match="derivatives are computed separately between gaps"):
+        read_table(frame)  # computed from q: the gap matters
+
+
+def quadratic(n=60, dt=0.01, c=1.5):
+    """q = 0.2 + 0.4 t + c t² on one joint: every Savitzky–Golay order ≥ 2 is exact."""
+    t = np.arange(n) * dt
+    frame = pd.DataFrame({"t": t, "q_0": 0.2 + 0.4 * t + c * t**2})
+    for axis in AXES:
+        frame[f"meas_{axis}"] = 0.0
+    return frame
+
+
+def test_a_short_segment_adapts_its_order_and_names_the_one_that_fits_all():
+    frame = with_gap(quadratic(), start=3, length=20)  # 3 rows, a gap, then the rest
+    with pytest.warns(LogWarning, match=r"1 of 2 segment\(s\) between gaps are too short for a "
+                                        r"Savitzky–Golay fit of order 4 \(shortest: 3 rows.*"
+                                        r"sg_polyorder=2 fits every segment"):
+        log = read_table(frame)
+    np.testing.assert_allclose(log.qdd[:, 0], 3.0, atol=1e-8)  # 2c, the short segment too
+    np.testing.assert_allclose(log.qd[:3, 0], 0.4 + 3.0 * log.t[:3], atol=1e-8)
+    with option_spelling(flag_hint), pytest.warns(LogWarning, match="--sg-polyorder 2 fits"):
+        read_table(frame)
+
+
+def test_a_short_trajectory_does_not_stop_training(tmp_path):
+    frame = pd.concat([quadratic(50).assign(trajectory=0), quadratic(9).assign(trajectory=1)])
+    data = load_training_data(csv(frame, tmp_path))
+    assert data.rows["used"] == 59
+    np.testing.assert_allclose(data.X[:, 2], 3.0, atol=1e-8)
+
+
+def test_evaluate_goes_back_to_estimating_accelerations(tmp_path, capsys):
+    model = str(tmp_path / "m.ftd")
+    assert main(["train", "--data", csv(motion(), tmp_path), "--velocities", "qd_*",
+                 "--accelerations", "qdd_*", "--out", model, *rf()]) == 0
+    bare = csv(motion(derivatives=False), tmp_path, "bare.csv")
+    assert main(["evaluate", "--model", model, "--data", bare, "--quiet"]) == 2
+    assert "compute them from q (--velocities derive)" in capsys.readouterr().err
+    assert main(["evaluate", "--model", model, "--data", bare, "--velocities", "derive",
+                 "--accelerations", "derive", "--quiet"]) == 0
+
+
+# -- warnings on the command line ---------------------------------------------------------------
+def test_the_excitation_warning_is_one_line_with_command_line_advice(floating_urdf, tmp_path,
+                                                                     capsys):
+    frame = pd.DataFrame({"t": np.arange(30) * 0.01, "q_0": rows()[:, 0]})
+    for axis in AXES:
+        frame[f"meas_{axis}"] = 0.0
+    assert main(["train", "--data", csv(frame, tmp_path), "--kind", "physics", "--features", "q",
+                 "--robot", floating_urdf, "--sensor-frame", "sensor", "--base-frame", "base",
+                 "--preset", "none", "--no-check-units", "--out", str(tmp_path / "m.ftd"),
+                 "--quiet"]) == 0
+    lines = [x for x in capsys.readouterr().err.splitlines() if "excite" in x]
+    assert len(lines) == 1 and lines[0].startswith("warning: the data does not excite")
+    assert "ftdrake calibrate" in lines[0] and "--prior-mass" in lines[0]
+    assert "PayloadPrior" not in lines[0] and "fourier" not in lines[0] and ".py" not in lines[0]
+    model = PhysicsPayloadCompensator(mode="static", features="q", robot=floating_urdf,
+                                      sensor_frame="sensor", base_frame="base")
+    with pytest.warns(ExcitationWarning, match=r"prior=PayloadPrior"):  # Python keeps its terms
+        model.fit(rows(), np.zeros((30, 6)))
+
+
+def test_drake_parser_warnings_are_summarised_once(tmp_path, capsys, caplog):
+    text = ARM.replace('<axis xyz="0 0 1"/>', '<axis xyz="0 0 1"/><dynamics friction="0.5"/>'
+                       '<safety_controller k_velocity="1"/>')
+    text = text.replace('<robot name="little_arm">', '<robot name="little_arm">\n'
+                        '<link name="world"/><joint name="w" type="fixed"><parent link="world"/>'
+                        '<child link="base"/></joint>')
+    path = tmp_path / "vendor.urdf"
+    path.write_text(text)
+    model = PhysicsPayloadCompensator(mode="static", features="q", robot=str(path),
+                                      sensor_frame="sensor")
+    with pytest.warns(RobotDescriptionWarning, match=r"gave 2 parser warning\(s\) \(e\.g\. .*"
+                                                     r"logging.getLogger"):
+        model._kinematics()
+    assert not [r for r in caplog.records if r.name == "drake"]
+    assert "WARNING:drake" not in capsys.readouterr().err
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", RobotDescriptionWarning)
+        add_robot_model(MultibodyPlant(0.0), str(path))  # once per process and description
+    path = tmp_path / "other.urdf"  # another description
+    path.write_text(text)
+    with show_parser_warnings(), pytest.warns(RobotDescriptionWarning):
+        add_robot_model(MultibodyPlant(0.0), str(path))
+    err = capsys.readouterr().err
+    assert "drake parser:" in err and "safety_controller" in err and "friction" in err
+
+
+def test_a_description_that_warns_prints_one_line_on_the_command_line(tmp_path, capsys):
+    text = ARM.replace('<axis xyz="0 0 1"/>', '<axis xyz="0 0 1"/><dynamics friction="0.4"/>')
+    path = tmp_path / "cli.urdf"
+    path.write_text(text)
+    main(["train", "--data", csv(motion(), tmp_path), "--kind", "physics", "--robot", str(path),
+          "--sensor-frame", "sensor", "--out", str(tmp_path / "m.ftd"), "--quiet"])
+    err = capsys.readouterr().err
+    assert "gave 1 parser warning(s)" in err and "--verbose shows them" in err
+    assert "WARNING:drake" not in err
+
+
+# -- model files' targets -----------------------------------------------------------------------
+def test_save_model_defaults_a_wrench_and_evaluate_takes_meas_columns_for_it(tmp_path, capsys):
+    frame = motion()
+    model = RandomForestCompensator(n_estimators=5).fit(
+        frame[["q_0", "q_1", "qd_0", "qd_1", "qdd_0", "qdd_1"]].to_numpy(),
+        frame[[f"meas_{a}" for a in AXES]].to_numpy())
+    path = save_model(model, tmp_path / "m.ftd")
+    manifest = read_manifest(path)
+    assert manifest["target_names"] == list(AXES)
+    assert manifest["target_units"] == ["N", "N", "N", "N*m", "N*m", "N*m"]
+    assert main(["evaluate", "--model", str(path), "--data", csv(frame, tmp_path), "--quiet"]) == 0
+    assert "names differ" not in capsys.readouterr().err
+    two = RandomForestCompensator(n_estimators=5).fit(np.zeros((10, 3)), np.zeros((10, 2)))
+    with pytest.raises(ConfigError, match=r"needs target_names=\[one name per output\]"):
+        save_model(two, tmp_path / "two.ftd")
+
+
+def test_replay_takes_the_same_column_syntax(tmp_path, capsys):
+    frame = motion(n=120)
+    model = str(tmp_path / "m.ftd")
+    assert main(["train", "--data", csv(frame, tmp_path), "--out", model, *rf()]) == 0
+    assert main(["replay", "--model", model, "--log", csv(frame, tmp_path),
+                 "--out", str(tmp_path / "a.csv"), "--quiet"]) == 0
+    theirs = frame.rename(columns={"t": "time", "q_0": "pos_a", "q_1": "pos_b", "qd_0": "vel_a",
+                                   "qd_1": "vel_b", **{f"meas_{a}": f"ft_{a}" for a in AXES}})
+    log = csv(theirs, tmp_path, "theirs.csv")
+    assert main(["replay", "--model", model, "--log", log, "--out", str(tmp_path / "b.csv"),
+                 "--quiet"]) == 2
+    assert "--positions, --velocities, --targets and --time" in capsys.readouterr().err
+    assert main(["replay", "--model", model, "--log", log, "--out", str(tmp_path / "b.csv"),
+                 "--time", "time", "--positions", "pos_a,pos_b", "--velocities", "re:vel_.",
+                 "--targets", "ft_*", "--quiet"]) == 0
+    a, b = pd.read_csv(tmp_path / "a.csv"), pd.read_csv(tmp_path / "b.csv")
+    pd.testing.assert_frame_equal(a, b)

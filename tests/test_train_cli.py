@@ -352,7 +352,7 @@ def test_messages_name_the_flag_that_fixes_them(ftdrake, id1, tmp_path, capsys):
         "degrees": (id1.assign(**{f"q_{i}": np.degrees(id1[f"q_{i}"]) for i in range(6)}),
                     TORQUES, ["--position-unit deg", "--no-check-units"]),
         "deg_per_s": (id1.assign(**{f"qd_{i}": np.degrees(id1[f"qd_{i}"]) for i in range(6)}),
-                      TORQUES, ["57.3 ×", "omit --velocities", "--no-check-units"]),
+                      TORQUES, ["57.3 ×", "--velocities derive", "--no-check-units"]),
         "joined": (pd.concat([id1, id2]), TORQUES,
                    ["time goes backwards", "pass --group COLUMN to read each apart"]),
         "no_torques": (id1, ["--targets", "torque_*"], ["not found", "--targets PATTERN"]),

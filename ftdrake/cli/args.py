@@ -34,11 +34,15 @@ import argparse
 import contextlib
 import math
 import re
+import shlex
 import sys
+import warnings
 from pathlib import Path
 
 from ..config import TRAJECTORY_KINDS, ScenarioConfig, load_config
-from ..errors import ConfigError, FtdrakeError
+from ..data.logs import option_spelling
+from ..errors import ConfigError, FtdrakeError, command_line_front_end
+from ..physics.robot import show_parser_warnings
 
 
 # -- argument types -----------------------------------------------------------------------------
@@ -274,11 +278,48 @@ def run(args) -> int:
     """Runs a parsed command. A :class:`FtdrakeError` (a problem the user can fix: its message
     names the flag or field) prints as ``ftdrake CMD: error: MESSAGE`` and exits with 2, like
     argparse's own errors. Any other exception is a bug in ftdrake and keeps its traceback."""
+    with (command_line_front_end(), option_spelling(flag_hint), one_line_warnings(),
+          show_parser_warnings(getattr(args, "verbose", False))):
+        try:
+            return args.run(args) or 0
+        except FtdrakeError as e:
+            print(f"ftdrake {args.command}: error: {_naming_the_flag(e, args)}",
+                  file=sys.stderr)
+            return 2
+
+
+def flag_hint(option: str, value) -> str:
+    """How a message tells a command-line user to set reader option `option` (a
+    :class:`~ftdrake.data.training.ReadOptions` field, ``sg_polyorder``) to `value`: the
+    flag (``--sg-polyorder 3``), quoted for the shell where needed (``--positions 'q_*'``)."""
+    flag = "--" + option.replace("_", "-")
+    if option == "check_units":
+        return "--no-check-units" if value is False else "omit --no-check-units"
+    if value is None and option in ("velocities", "accelerations"):
+        return f"{flag} derive"  # computed from q; also overrides a model's manifest
+    if value is None:
+        return f"omit {flag}"
+    return f"{flag} {shlex.quote(str(value))}"
+
+
+@contextlib.contextmanager
+def one_line_warnings():
+    """Within the block, a warning of ftdrake's prints as one line on stderr,
+    ``warning: MESSAGE``, without the Python source line a user cannot act on; other
+    packages' warnings print as Python prints them."""
+    original = warnings.showwarning
+
+    def show(message, category, filename, lineno, file=None, line=None):
+        if category.__module__.split(".")[0] == "ftdrake":
+            print(f"warning: {message}", file=sys.stderr, flush=True)
+        else:
+            original(message, category, filename, lineno, file, line)
+
+    warnings.showwarning = show
     try:
-        return args.run(args) or 0
-    except FtdrakeError as e:
-        print(f"ftdrake {args.command}: error: {_naming_the_flag(e, args)}", file=sys.stderr)
-        return 2
+        yield
+    finally:
+        warnings.showwarning = original
 
 
 # Scenario fields that a command's flag sets (`--duration` overrides the file's duration_s).

@@ -12,6 +12,7 @@ import json
 import sys
 from pathlib import Path
 
+from ..compensation.build import same_targets
 from ..compensation.evaluation import evaluate_model
 from ..compensation.persistence import load_model, read_manifest
 from ..conventions import TEMPERATURE
@@ -110,7 +111,7 @@ def _check_compatible(manifest: dict, data: TrainingData, args) -> None:
             f"{args.model} predicts {manifest['n_outputs']} targets {manifest['target_names']}; "
             f"{args.data.name} gives {len(data.target_names)} {data.target_names}: pass --targets"
         )
-    if manifest["target_names"] != data.target_names:
+    if not same_targets(manifest["target_names"], data.target_names):
         warn(f"warning: target names differ: model {manifest['target_names']}, "
               f"data {data.target_names}; compared in this order")
 

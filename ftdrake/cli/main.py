@@ -36,6 +36,9 @@ def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="ftdrake", description=DESCRIPTION,
                                      formatter_class=HelpFormatter)
     parser.add_argument("--version", action="version", version=f"ftdrake {ftdrake_version()}")
+    parser.add_argument("--verbose", action="store_true",
+                        help="print every warning Drake's parser gives about a robot "
+                             "description (by default one line sums them up)")
     sub = parser.add_subparsers(dest="command", required=True, title="commands",
                                 metavar="COMMAND")
     for module in COMMAND_MODULES:

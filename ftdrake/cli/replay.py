@@ -22,7 +22,7 @@ from ..data.stream_delay import estimate_stream_delay
 from ..errors import LogError
 from ..hardware.recording import read_lcm_log
 from ..io import atomic_path
-from ..runtime.replay import read_replay_log, replay, summary
+from ..runtime.replay import read_replay_log, replay, summary, to_replay_layout
 from . import args as a
 from .hardware import add_transport_flags, hardware_from_args
 
@@ -50,6 +50,12 @@ def register(sub) -> None:
     a.add_stream_delay(p, corrected="corrected by a delay line on the joint state",
                        estimated="from the log, with a physics or hybrid model")
     p.add_argument("--wrench-topic", metavar="TOPIC", help="a ROS bag's WrenchStamped topic")
+    for flag, default, what in (("--positions", "q_*", "joint position columns (rad)"),
+                                ("--velocities", "qd_*", "joint velocity columns (rad/s)"),
+                                ("--targets", "meas_*", "the sensor's wrench columns (N, N·m)")):
+        p.add_argument(flag, metavar="PAT", help=f"tables: {what}, default '{default}'; a glob, "
+                       "a comma-separated list or a regular expression after 're:'")
+    p.add_argument("--time", metavar="COL", help="tables: the time column (s), default 't'")
     add_transport_flags(p, lcm_help="unused by replay (an LCM log is read with --hardware's "
                                     "channels)")
     a.add_quiet(p, "no warnings on stderr; the JSON summary still prints")
@@ -92,7 +98,11 @@ def run_replay(args) -> int:
 
 
 def _read_log(args):
-    if is_table(args.log) or is_bag(args.log):
+    if is_table(args.log):
+        return to_replay_layout(read_replay_log(args.log), positions=args.positions,
+                                velocities=args.velocities, targets=args.targets,
+                                time=args.time)
+    if is_bag(args.log):
         return read_replay_log(args.log, wrench_topic=args.wrench_topic)
     table, _ = read_lcm_log(args.log, hardware_from_args(args))
     return table

@@ -54,6 +54,7 @@ from ..data.training import ReadOptions, TrainingData, load_training_data
 from ..errors import ConfigError, FtdrakeError, LogError, RobotModelError
 from ..parallel import dask_backend
 from . import args as a
+from .args import flag_hint
 
 FEATURE_SETS = ("q", "q,qd", "q,qd,qdd")
 
@@ -65,8 +66,10 @@ _READ_FLAGS = {
     "positions": ("PAT", str, "joint position columns (rad), default 'q_*'; bags: joint names"),
     "targets": ("PAT", str, ("target columns, default 'meas_*'; bags: effort, wrench or a "
                             "pattern")),
-    "velocities": ("PAT", str, "velocity columns (rad/s); default: Savitzky–Golay of q"),
-    "accelerations": ("PAT", str, "acceleration columns (rad/s²); default: see --qdd-estimate"),
+    "velocities": ("PAT", str, ("velocity columns (rad/s); default (or 'derive'): "
+                               "Savitzky–Golay of q")),
+    "accelerations": ("PAT", str, ("acceleration columns (rad/s²); default (or 'derive'): see "
+                                   "--qdd-estimate")),
     "time": ("COL", str, "time column (s), default 't'"),
     "group": ("COL", str, ("trajectory id column: reads a file joining several recordings "
                           "as separate trajectories; default 'trajectory' if there is one")),
@@ -119,6 +122,14 @@ def register(subparsers) -> None:
                         "simulated arm (physics, hybrid)")
     p.add_argument("--sensor-frame", metavar="NAME", help="frame S of the targets in --robot")
     p.add_argument("--base-frame", metavar="NAME", help="frame of --robot welded to the world")
+    p.add_argument("--joints", metavar="NAME,NAME,..|FILE",
+                   help="the joints of --robot the log's position columns hold, in their order "
+                        "(when --robot has more: a torso, a head, fingers), or a YAML file of "
+                        "'joints: [...]' and 'fixed_joints: {NAME: VALUE}'; default: all of "
+                        "them, in the model's order")
+    p.add_argument("--fixed-joints", metavar="NAME=V,..|FILE",
+                   help="where the joints of --robot not in --joints stand (rad, or m for "
+                        "prismatic), or a YAML file mapping name to value; default 0")
     _add_model_options(p)
     p.add_argument("--target-units", metavar="U,U,..",
                    help="unit per target (default: N/N*m for wrench axes, else N*m)")
@@ -168,15 +179,6 @@ def _flag_name(option: str) -> str:
     return "--" + option.replace("_", "-")
 
 
-def flag_hint(option: str, value) -> str:
-    """How an error tells a command-line user to set reader option `option` to `value`."""
-    if option == "check_units":
-        return "--no-check-units" if value is False else "omit --no-check-units"
-    if value is None:
-        return f"omit {_flag_name(option)}"
-    return f"{_flag_name(option)} {value}"
-
-
 def given_read_options(args) -> dict:
     """The ReadOptions fields set on the command line (the others are None)."""
     return {f.name: getattr(args, f.name, None) for f in dc.fields(ReadOptions)}
@@ -202,7 +204,7 @@ def read_data(args, options: ReadOptions, say, static_poses: bool | None = False
                                       t_end=args.t_end, report=warn,
                                       static_poses=static_poses)
         except LogError as e:
-            hint = static_table_hint(args.data)
+            hint = static_table_hint(args.data, options.time, options.positions)
             if hint is None:
                 raise
             raise LogError(f"{e}; {hint}") from None
@@ -228,7 +230,8 @@ def run_train(args) -> int:
     say = reporter(args.quiet)
     options = with_flags(ReadOptions(), args)
     data = read_data(args, options, say)
-    robot = RobotOptions(args.robot, args.sensor_frame, args.base_frame, data.scenario_yaml)
+    robot = RobotOptions(args.robot, args.sensor_frame, args.base_frame, data.scenario_yaml,
+                         joints=args.joints, fixed_joints=args.fixed_joints)
     if args.kind is None:
         args.kind = registry.default_kind(robot)
         say(f"--kind not given: {args.kind} "

@@ -19,7 +19,12 @@ from typing import Any
 from ..config import parse_config
 from ..conventions import WRENCH_AXES
 from ..errors import ConfigError, RobotModelError
-from ..physics.robot import RobotDescription, ftdrake_arm
+from ..physics.robot import (
+    RobotDescription,
+    fixed_joint_values,
+    ftdrake_arm,
+    joint_mapping_file,
+)
 from ..physics.scenario_robot import robot_description
 
 BUILTIN_ROBOT = "ftdrake"  # RobotOptions.robot naming ftdrake's simulated arm
@@ -34,12 +39,36 @@ class RobotOptions:
     sensor_frame: frame S of the targets in `robot`.
     base_frame: frame of `robot` welded to the world (default: its root).
     scenario_yaml: the scenario a ``collect`` dataset was simulated with (its YAML text).
+    joints: the joints of `robot` the log's position columns hold, in their order (names, one
+      comma-separated string, or a YAML file of ``joints: [...]`` and optionally
+      ``fixed_joints: {...}``; ``--joints``); None: every joint of `robot`, in its order.
+    fixed_joints: where `robot`'s other joints stand (``--fixed-joints``): a mapping name →
+      rad or m, ``"a=0.2,b=0.01"`` or a YAML file of such a mapping; unnamed joints stand at 0.
     """
 
     robot: str | None = None
     sensor_frame: str | None = None
     base_frame: str | None = None
     scenario_yaml: str | None = None
+    joints: str | tuple[str, ...] | None = None
+    fixed_joints: object = None
+
+    def joint_mapping(self) -> dict:
+        """The payload model's ``joints``/``fixed_joints`` parameters (empty when none are
+        given): the fixed positions read now (a YAML file too), so the model keeps them."""
+        if self.joints is None and self.fixed_joints is None:
+            return {}
+        joints, fixed = self.joints, dict(fixed_joint_values(self.fixed_joints))
+        if isinstance(joints, str) and joints.endswith((".yaml", ".yml")):
+            joints, in_file = joint_mapping_file(joints)
+            fixed = {**dict(in_file), **fixed}  # --fixed-joints overrides the file's
+        elif isinstance(joints, str):
+            joints = joints.split(",")
+        if joints is None:
+            raise ConfigError("--fixed-joints needs --joints (the joints the log holds, in the "
+                              "order of its position columns)")
+        return {"joints": tuple(j.strip() for j in joints if j.strip()),
+                "fixed_joints": fixed or None}
 
     @property
     def is_simulated_arm(self) -> bool:
@@ -131,6 +160,13 @@ def is_wrench(names) -> bool:
     aliases = [(a.lower(), ("force" if a[0] == "F" else "torque") + a[1]) for a in WRENCH_AXES]
     squashed = [re.sub(r"[^a-z]", "", n.lower()) for n in names]
     return all(s.endswith(alias) for s, alias in zip(squashed, aliases, strict=True))
+
+
+def same_targets(model_names, data_names) -> bool:
+    """Whether a model's targets and a log's are the same outputs: equal names, or both a
+    wrench in the same axis order (``Fx … Tz`` as ``calibrate`` names them, ``meas_Fx …``)."""
+    model_names, data_names = list(model_names), list(data_names)
+    return model_names == data_names or (is_wrench(model_names) and is_wrench(data_names))
 
 
 def join_or(names) -> str:

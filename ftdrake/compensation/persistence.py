@@ -32,11 +32,12 @@ import skops.io as sio
 from sklearn.base import BaseEstimator
 from sklearn.utils.validation import check_is_fitted
 
-from ..conventions import TEMPERATURE
-from ..errors import ModelFileError, RobotModelError
+from ..conventions import TEMPERATURE, WRENCH_AXES, WRENCH_UNITS
+from ..errors import ConfigError, ModelFileError, RobotModelError
 from ..io import atomic_write_bytes
 from ..version import ftdrake_version
 from .base import Compensator
+from .build import is_wrench
 from .features import feature_names
 from .registry import trusted_types
 from .robot_file import CarriesRobot
@@ -57,17 +58,20 @@ def save_model(
     model: Compensator,
     path,
     *,
-    target_names,
-    target_units,
+    target_names=None,
+    target_units=None,
     sensor_frame: str = "S",
     extra: dict | None = None,
 ) -> Path:
     """Writes fitted `model` to `path` atomically; returns the path.
 
-    `target_names`/`target_units` give one name and unit per output column (e.g.
-    ``columns.WRENCH_AXES`` and ``columns.WRENCH_UNITS``); `sensor_frame` names the frame the
-    targets are expressed in; `extra` is any JSON-serialisable dict kept in the manifest.
+    `target_names`/`target_units` give one name and unit per output column. For a model of
+    6 outputs they default to a wrench, ``Fx … Tz`` in N and N·m
+    (``conventions.WRENCH_AXES``/``WRENCH_UNITS``); given wrench names (``meas_Fx`` …) take
+    those units by default too. Any other model needs both. `sensor_frame` names the frame
+    the targets are expressed in; `extra` is any JSON-serialisable dict kept in the manifest.
     """
+    target_names, target_units = _default_targets(model, target_names, target_units)
     manifest = _manifest(model, target_names, target_units, sensor_frame, extra)
     payload = sio.dumps(model, compression=zipfile.ZIP_DEFLATED)
     # Refuse to write a file that load_model would refuse to read.
@@ -82,6 +86,22 @@ def save_model(
     path = Path(path)
     atomic_write_bytes(path, _pack(manifest, payload))
     return path
+
+
+def _default_targets(model, target_names, target_units) -> tuple[list, list]:
+    """The names and units a model is saved with (see :func:`save_model`)."""
+    n = getattr(model, "n_outputs_", None)
+    if target_names is None and n == len(WRENCH_AXES):
+        target_names = list(WRENCH_AXES)
+    if target_names is None:
+        raise ConfigError(f"save_model: a model of {n} outputs (not a wrench) needs "
+                          "target_names=[one name per output] and target_units=[...]")
+    if target_units is None and is_wrench(list(target_names)):
+        target_units = list(WRENCH_UNITS)
+    if target_units is None:
+        raise ConfigError(f"save_model: target_units=[one unit per output] is needed for "
+                          f"targets {list(target_names)} (a wrench's default to N and N*m)")
+    return list(target_names), list(target_units)
 
 
 def _manifest(model, target_names, target_units, sensor_frame, extra) -> dict:

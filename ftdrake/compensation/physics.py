@@ -53,9 +53,16 @@ import weakref
 import numpy as np
 
 from ..conventions import GRAVITY_W
-from ..errors import ConfigError, RobotModelError
+from ..errors import ConfigError, RobotModelError, spelled
 from ..physics.chain import SerialChain
-from ..physics.robot import RobotDescription, floating_base_hint, ftdrake_arm
+from ..physics.robot import (
+    RobotDescription,
+    check_joint_names,
+    fixed_joint_values,
+    floating_base_hint,
+    ftdrake_arm,
+    joint_count_message,
+)
 from .base import Compensator
 from .compiled.payload import pack_payload_row, payload_mean_std, payload_predict
 from .consistent import DEFAULT_PRIOR_WEIGHT, PayloadPrior, is_physically_consistent
@@ -86,8 +93,22 @@ WEIGHT_PARAMETERS = [16, 17, 18, 19]
 IDENTIFICATIONS = ("least_squares", "consistent")
 
 
+#: The excitation warning's advice (:func:`~.payload_report.excitation_message`) and what it
+#: becomes for a command-line user.
+_PYTHON_ADVICE = ("give a prior (identification='consistent', prior=PayloadPrior(...)) or "
+                  "use a richer trajectory (e.g. kind 'fourier' or 'z_rich')")
+_CLI_ADVICE = ("record a log in which every joint moves, faster and through more of its "
+               "range, so that the tool turns through more orientations; or identify the "
+               "mass and centre of mass from static poses with `ftdrake calibrate` (a prior "
+               "with --prior-mass/--prior-com)")
+
+
 class ExcitationWarning(UserWarning):
     """The data does not determine some payload parameters well."""
+
+
+class FixedJointsWarning(UserWarning):
+    """Joints between the world and the sensor that the log does not hold were fixed at 0."""
 
 
 class PhysicsPayloadCompensator(CarriesRobot, Compensator):
@@ -105,6 +126,13 @@ class PhysicsPayloadCompensator(CarriesRobot, Compensator):
     sensor_frame : frame S in `robot` (``"model::frame"`` or a unique name); None with
         ``robot=None`` (the sensor weld's child frame).
     base_frame : frame of `robot` welded to the world, if the model does not weld it.
+    joints : the joints of `robot` that X's position columns hold, in their order (names,
+        or one comma-separated string), when the robot model has other joints (a torso, a
+        head, fingers); None: X holds every joint of the model, in the model's order.
+    fixed_joints : where the joints not in `joints` stand: a mapping name → value (rad for
+        revolute, m for prismatic), ``"torso=0.2,finger=0.01"`` or a YAML file of such a
+        mapping. A joint between the world and S given in neither stands at 0 (a
+        :class:`FixedJointsWarning` names it). The model file keeps both.
     gravity : gravity in the world (base) frame, m/s².
     package_xmls : extra package.xml files for `robot`'s package:// URLs.
     identification : "least_squares" (weighted least squares, any 10 numbers) or "consistent"
@@ -162,7 +190,7 @@ class PhysicsPayloadCompensator(CarriesRobot, Compensator):
                  base_frame=None, gravity=GRAVITY_W, package_xmls=(),
                  identification="least_squares", prior=None,
                  prior_weight=DEFAULT_PRIOR_WEIGHT, identify_mounting=False,
-                 weight_without_inertia=False):
+                 weight_without_inertia=False, joints=None, fixed_joints=None):
         super().__init__(features=features)
         self.mode = mode
         self.robot = robot
@@ -175,6 +203,8 @@ class PhysicsPayloadCompensator(CarriesRobot, Compensator):
         self.prior_weight = prior_weight
         self.identify_mounting = identify_mounting
         self.weight_without_inertia = weight_without_inertia
+        self.joints = joints
+        self.fixed_joints = fixed_joints
 
     @property
     def n_parameters(self) -> int:
@@ -393,7 +423,8 @@ class PhysicsPayloadCompensator(CarriesRobot, Compensator):
         # Looking the chain up through the robot description costs microseconds (building and
         # hashing the description); the row path remembers it per model and per parameters.
         key = (self.robot, getattr(self, "robot_model_", None), self.sensor_frame,
-               self.base_frame, tuple(self.gravity), tuple(self.package_xmls), self.mode)
+               self.base_frame, tuple(self.gravity), tuple(self.package_xmls), self.mode,
+               self._joint_columns(), fixed_joint_values(self.fixed_joints))
         cached = _ROW_ARGS.get(self)
         if cached is None or cached[0] != key:
             kin = self._kinematics()
@@ -415,6 +446,8 @@ class PhysicsPayloadCompensator(CarriesRobot, Compensator):
     def _warn_if_poorly_excited(self):
         message = excitation_message(self)
         if message is not None:
+            # The command line has no prior and no simulator kinds: it gets its own advice.
+            message = message.replace(_PYTHON_ADVICE, spelled(_PYTHON_ADVICE, _CLI_ADVICE))
             warnings.warn(message, ExcitationWarning, stacklevel=4)
 
     # -- kinematics -------------------------------------------------------------------------
@@ -431,15 +464,35 @@ class PhysicsPayloadCompensator(CarriesRobot, Compensator):
             raise RobotModelError(f"robot {self.robot!r} needs sensor_frame (the frame of the "
                                   "measured wrench)")
         model, package_xmls = self._robot_source()
-        return RobotDescription(model, self.sensor_frame, self.base_frame, package_xmls)
+        return RobotDescription(model, self.sensor_frame, self.base_frame, package_xmls,
+                                self._joint_columns(), fixed_joint_values(self.fixed_joints))
+
+    def _joint_columns(self) -> tuple[str, ...]:
+        joints = getattr(self, "joints", None)  # models saved before the option: None
+        if joints is None:
+            return ()
+        if isinstance(joints, str):
+            joints = joints.split(",")
+        return tuple(str(j).strip() for j in joints if str(j).strip())
 
     def _build_robot(self) -> None:
         self._kinematics()
 
     def _check_robot_joints(self):
-        n = self._kinematics().num_joints
-        if n != self.n_joints_:
-            raise ValueError(f"the data has {self.n_joints_} joints; the robot model has {n}")
+        kinematics = self._kinematics()
+        if kinematics.num_joints != self.n_joints_:
+            if self._joint_columns():
+                raise RobotModelError(
+                    f"the data has {self.n_joints_} joints but --joints names "
+                    f"{kinematics.num_joints} ({', '.join(self._joint_columns())}; joints= in "
+                    "Python): name one joint per position column, in their order")
+            raise RobotModelError(kinematics.count_message(self.n_joints_))
+        if kinematics.defaulted:
+            warnings.warn(
+                f"joints {', '.join(kinematics.defaulted)} between the world and the sensor "
+                "frame are not in the log: fixed at 0 (give their positions with "
+                "--fixed-joints NAME=VALUE,...; fixed_joints= in Python)",
+                FixedJointsWarning, stacklevel=4)
 
 
 # ----------------------------------------------------------------------------------------------
@@ -447,10 +500,18 @@ class _Kinematics:
     """The robot's serial chain to S and gravity; never stored on the estimator (the model
     file holds only the description)."""
 
-    def __init__(self, chain: SerialChain, gravity):
+    def __init__(self, chain: SerialChain, gravity, defaulted=(), count_message=None):
         self.chain = chain
         self.num_joints = self.n_joints = chain.num_positions
         self.gravity = np.asarray(gravity, dtype=float)
+        self.defaulted = list(defaulted)  # joints on the path fixed at 0 by default
+        self._count_message = count_message
+
+    def count_message(self, n_data: int) -> str:
+        """The error for rows of `n_data` joints (the model's joint names and the flags)."""
+        if self._count_message is None:
+            return f"the data has {n_data} joints; the robot model has {self.num_joints}"
+        return self._count_message(n_data)
 
     def evaluate(self, q, v, vdot):
         return self.chain.evaluate(q, v, vdot, self.gravity)
@@ -459,12 +520,19 @@ class _Kinematics:
 @functools.lru_cache(maxsize=8)
 def _kinematics_for(description: RobotDescription, gravity: tuple) -> _Kinematics:
     plant, frame_S = description.build_plant()
+    if description.joints:  # the log holds some joints; the others are welded where they stand
+        check_joint_names(plant, description)
+        chain, defaulted = SerialChain.from_plant(plant, frame_S).with_joint_columns(
+            description.joints, dict(description.fixed_joints))
+        return _Kinematics(chain, gravity, defaulted)
     if plant.num_positions() != plant.num_velocities():
         raise RobotModelError(
             f"robot model {description.label} has {plant.num_positions()} positions but "
             f"{plant.num_velocities()} velocities ({floating_base_hint(plant)}): the "
             "[q, q̇, q̈] rows need one coordinate per joint")
-    return _Kinematics(SerialChain.from_plant(plant, frame_S), gravity)
+    label = description.label
+    return _Kinematics(SerialChain.from_plant(plant, frame_S), gravity,
+                       count_message=functools.partial(joint_count_message, plant, label=label))
 
 
 #: Row-kernel arguments per model (weak: a model's cache goes with it, never into its file).

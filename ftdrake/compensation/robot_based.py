@@ -85,6 +85,10 @@ def make_arm(request: BuildRequest) -> ArmDynamicsCompensator:
     if robot.robot is None:
         raise ConfigError(f"--kind {request.kind} on joint torques needs --robot FILE (the "
                           f"arm's URDF/SDF), or --robot {BUILTIN_ROBOT} for the simulated arm")
+    if robot.joint_mapping():
+        raise ConfigError("--joints/--fixed-joints are for the payload model (a wrench); the "
+                          "whole arm's torque model needs a robot description of the log's "
+                          "joints alone")
     options = {**ARM_DEFAULTS, "drive_gains": request.options.get("drive_gains", "fixed")}
     if robot.is_simulated_arm:
         description = robot.simulated_arm()
@@ -116,6 +120,9 @@ def payload_model(request: BuildRequest, features: str) -> PhysicsPayloadCompens
     settings = {**PHYSICS_DEFAULTS, "features": features, "mode": mode,
                 "identify_mounting": identify_mounting,
                 "weight_without_inertia": weight_without_inertia}
+    if robot.is_simulated_arm and robot.joint_mapping():
+        raise ConfigError(f"--joints/--fixed-joints need --robot FILE (the simulated arm's "
+                          f"data holds its joints: --robot {BUILTIN_ROBOT} takes them as they are)")
     if robot.is_simulated_arm:
         # The arm of the scenario that made the data (a collect dataset stores it), as a
         # robot description; the shipped default arm is robot=None.
@@ -130,7 +137,8 @@ def payload_model(request: BuildRequest, features: str) -> PhysicsPayloadCompens
         raise ConfigError(f"--robot {Path(robot.robot)} needs --sensor-frame (the frame of "
                           "the targets)")
     return PhysicsPayloadCompensator(robot=path, sensor_frame=robot.sensor_frame,
-                                     base_frame=robot.base_frame, **settings)
+                                     base_frame=robot.base_frame, **robot.joint_mapping(),
+                                     **settings)
 
 
 def _refuse_wrench_options_on_torques(request: BuildRequest) -> None:

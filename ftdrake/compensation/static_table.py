@@ -24,7 +24,7 @@ import pandas as pd
 from pydrake.math import RollPitchYaw
 
 from ..conventions import GRAVITY_W
-from ..data.logs import expand_columns, is_table, read_frame
+from ..data.logs import expand_columns, is_table, read_frame, time_columns
 from ..errors import ConfigError, LogError
 from .consistent import PayloadPrior
 
@@ -77,20 +77,40 @@ def gravity_in_sensor(frame: pd.DataFrame, kind: str, gravity=GRAVITY_W) -> np.n
     return np.einsum("nji,j->ni", R, g_W)  # g_S = R_WSᵀ g_W
 
 
-def static_table_hint(path) -> str | None:
+def static_table_hint(path, time: str | None = None, positions=None) -> str | None:
     """For ``train``: a sentence pointing to ``ftdrake calibrate`` when `path` is a table of
-    static poses (orientation columns, or no time column), else None."""
+    static poses, else None. Static poses: orientation columns, or no time column (neither
+    `time`, default ``t``, nor a column named like one, e.g. ``time``) and joint columns
+    (`positions`, default ``q_*``) that jump from pose to pose rather than move smoothly."""
     if not is_table(path):
         return None
     try:
-        columns = list(read_frame(path).columns)
+        frame = read_frame(path)
     except (LogError, OSError):
         return None
-    if orientation_kind(columns) is None and "t" in columns:
-        return None
-    return (f"{Path(path).name} looks like a table of static poses (orientation columns or "
-            f"no time column): identify payload and biases with `ftdrake calibrate --data "
-            f"{path}` (add --robot/--sensor-frame for joint angles)")
+    columns = [str(c) for c in frame.columns]
+    if orientation_kind(columns) is None:
+        if (time or "t") in columns or time_columns(columns):
+            return None  # a time series: its own error names --time
+        joints = joint_columns(frame, positions or "q_*")
+        if joints and _moves_smoothly(frame[joints].to_numpy(dtype=float)):
+            return None
+    return (f"{Path(path).name} looks like a table of static poses (orientation columns, or "
+            f"joints that jump from pose to pose and no time column): identify payload and "
+            f"biases with `ftdrake calibrate --data {path}` (add --robot/--sensor-frame for "
+            f"joint angles)")
+
+
+def _moves_smoothly(q: np.ndarray) -> bool:
+    """Whether joint rows look like samples of a motion (steps small next to the range
+    covered) rather than poses one after another."""
+    if len(q) < 3 or not np.isfinite(q).all():
+        return False
+    span = float(np.ptp(q, axis=0).max())
+    if span == 0.0:
+        return False  # one pose held: static
+    step = float(np.median(np.abs(np.diff(q, axis=0)).max(axis=1)))
+    return step < 0.02 * span
 
 
 def known_payload_rows(frame, known) -> tuple[np.ndarray | None, int]:

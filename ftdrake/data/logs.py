@@ -36,9 +36,24 @@ from .robot_log import (
 )
 
 __all__ = [
-    "MIN_ROWS", "QDD_ESTIMATES", "LogError", "LogWarning", "RobotLog", "assemble_log",
-    "expand_columns", "is_table", "natural_key", "option_hint", "option_spelling",
-    "read_frame", "read_static_table", "read_table", "warn_log",
+    "MIN_ROWS",
+    "QDD_ESTIMATES",
+    "LogError",
+    "LogWarning",
+    "RobotLog",
+    "assemble_log",
+    "column_spec",
+    "expand_columns",
+    "is_table",
+    "missing_time_message",
+    "natural_key",
+    "option_hint",
+    "option_spelling",
+    "read_frame",
+    "read_static_table",
+    "read_table",
+    "time_columns",
+    "warn_log",
 ]
 
 _TIME_UNITS = {"s": 1.0, "ms": 1e-3, "us": 1e-6, "ns": 1e-9}
@@ -56,15 +71,37 @@ def natural_key(name: str) -> list:
     return [int(s) if s.isdigit() else s for s in re.split(r"(\d+)", name)]
 
 
-def expand_columns(spec: Columns, available: Sequence[str], what: str = "columns") -> list[str]:
-    """Column names selected by `spec`.
+def column_spec(spec: Columns | None) -> Columns | None:
+    """A column option as :func:`expand_columns` matches it: ``"re:PATTERN"`` → a compiled
+    regex, ``"a,b"`` → the list of names, anything else as it is (a glob, a name, a list,
+    a compiled regex, None)."""
+    if not isinstance(spec, str):
+        return spec
+    if spec.startswith("re:"):
+        try:
+            return re.compile(spec[3:])
+        except re.error as e:
+            raise LogError(f"{spec!r}: not a regular expression: {e}") from None
+    if "," in spec:
+        return [s.strip() for s in spec.split(",") if s.strip()]
+    return spec
 
-    `spec` is a glob (``"q_*"``, any of ``* ? [``), a compiled regex (``re.compile(r"q_\\d+")``,
-    full match), an exact column name, or a list of exact names (kept in the given order).
-    Pattern matches are returned in natural order. Raises LogError, naming `what` and listing
-    the available columns, when nothing matches or a listed name is missing.
+
+def expand_columns(spec: Columns, available: Sequence[str], what: str = "columns",
+                   option: str | None = None) -> list[str]:
+    """Column names selected by `spec`: the one column syntax of every reader and command.
+
+    `spec` is a glob (``"q_*"``, any of ``* ? [``), a regular expression (``"re:q_\\d+"`` or
+    ``re.compile(r"q_\\d+")``, full match), a comma-separated list of names (``"a,b"``), an
+    exact column name, or a list of exact names (kept in the given order). Pattern matches
+    are returned in natural order. Raises LogError, naming `what` and listing the available
+    columns, when nothing matches or a listed name is missing. A pattern that matches more
+    than one kind of indexed column (``q*`` matching ``q_0..``, ``qd_0..`` and ``qdd_0..``)
+    issues a :class:`LogWarning` naming them and a narrower pattern for `option` (the reader
+    keyword, e.g. ``"positions"``; see :func:`option_hint`).
     """
     available = list(available)
+    spec = column_spec(spec)
     if isinstance(spec, re.Pattern):
         found = sorted((c for c in available if spec.fullmatch(c)), key=natural_key)
         label = f"regex {spec.pattern!r}"
@@ -78,7 +115,55 @@ def expand_columns(spec: Columns, available: Sequence[str], what: str = "columns
         label = f"column(s) {missing}"
     if not found:
         raise LogError(f"{what}: {label} not found; available columns: {available}")
+    if label.startswith(("regex", "pattern")):
+        _warn_if_mixed_kinds(found, what, label, option)
     return found
+
+
+def _warn_if_mixed_kinds(found: list[str], what: str, label: str, option: str | None) -> None:
+    """A LogWarning when `found` holds several kinds of indexed columns (q_0.., qd_0..)."""
+    kinds: dict[str, list[str]] = {}
+    for name in found:
+        indexed = re.fullmatch(r"(.*?[^\d])(\d+)", name)
+        kinds.setdefault(indexed.group(1) if indexed else name, []).append(name)
+    several = {k: v for k, v in kinds.items() if len(v) > 1}
+    if len(several) < 2:
+        return
+    groups = ", ".join(f"{v[0]}..{v[-1]}" for v in several.values())
+    first = next(iter(several))
+    fix = f"'{first}*'"
+    if option is not None:
+        regex = "re:" + re.escape(first) + r"\d+"
+        fix = f"{option_hint(option, first + '*')} or {option_hint(option, regex)}"
+    warn_log(f"{what}: {label} matches {len(several)} kinds of columns ({groups}), "
+             f"{len(found)} columns in all; if only one kind is meant, narrow it: {fix}",
+             depth=1)
+
+
+_TIME_NAMES = ("t", "time", "times", "timestamp", "timestamps", "stamp", "time_s", "sec",
+               "secs", "seconds", "elapsed")
+
+
+def time_columns(columns: Sequence[str]) -> list[str]:
+    """The columns whose name says they hold time (``t``, ``time``, ``timestamp``,
+    ``header.stamp``, ``time_ns`` …), in table order."""
+    def is_time(name: str) -> bool:
+        low = re.sub(r"[^a-z0-9]+", "_", str(name).lower()).strip("_")
+        parts = low.split("_")
+        return low in _TIME_NAMES or any(p in ("time", "timestamp", "stamp") for p in parts)
+
+    return [str(c) for c in columns if is_time(c)]
+
+
+def missing_time_message(label: str, time: str, columns: Sequence[str]) -> str:
+    """The error for a table without the time column `time`: the time-like columns it has
+    and the option (``--time``; ``time=`` in Python) that names one."""
+    found = time_columns(columns)
+    if found:
+        return (f"{label}: no time column {time!r}; the table has {found}: choose it with "
+                f"{option_hint('time', found[0])}")
+    return (f"{label}: no time column {time!r}; available columns: {list(columns)}; choose "
+            f"it with {option_hint('time', 'COLUMN')}")
 
 
 # --- Tables ------------------------------------------------------------------------------------
@@ -155,6 +240,7 @@ def read_table(
     acceleration_cutoff_hz: float = 25.0,
     temperature: str | None = None,
     label: str | None = None,
+    min_rows: int = MIN_ROWS,
 ) -> RobotLog:
     """Reads a CSV or Parquet log (or a DataFrame) with named columns.
 
@@ -179,6 +265,8 @@ def read_table(
         (a model then takes it as X's last column); None: not read.
       label: the name errors and warnings give the source (default: the file name, or
         ``"DataFrame"``).
+      min_rows: fewer usable rows raise LogError (one trajectory of a file of several may
+        be short: its derivatives adapt, see :func:`~.robot_log.assemble_log`).
     """
     frame, label, cols, selected = _select_columns(
         source, label, positions, velocities, accelerations, targets, temperature)
@@ -194,10 +282,8 @@ def read_table(
             raise LogError(f"{label}: without a time column, pass rate_hz")
         t = np.arange(len(frame)) / rate_hz
     else:
-        try:
-            expand_columns([time], cols, f"{label} time")
-        except LogError as e:
-            raise LogError(f"{e}; choose it with {option_hint('time', 'COLUMN')}") from None
+        if time not in cols:
+            raise LogError(missing_time_message(label, time, cols))
         if time_unit not in _TIME_UNITS:
             raise LogError(f"time_unit must be one of {list(_TIME_UNITS)}, got {time_unit!r}")
         col = frame[time]
@@ -213,7 +299,7 @@ def read_table(
         sort=False, t0=t0, position_unit=position_unit, sg_window=sg_window,
         sg_polyorder=sg_polyorder, gap_factor=gap_factor, check_units=check_units,
         qdd_estimate=qdd_estimate, acceleration_cutoff_hz=acceleration_cutoff_hz,
-        temperature=arrays.get("temperature"),
+        temperature=arrays.get("temperature"), min_rows=min_rows,
     )
 
 
@@ -273,9 +359,12 @@ def _select_columns(source, label, positions, velocities, accelerations, targets
                        ("accelerations", accelerations), ("targets", targets)]:
         if spec is not None:
             try:
-                selected[what] = expand_columns(spec, cols, f"{label} {what}")
+                selected[what] = expand_columns(spec, cols, f"{label} {what}", option=what)
             except LogError as e:
-                raise LogError(f"{e}; choose them with {option_hint(what, 'PATTERN')}") from None
+                derive = (f", or compute them from q ({option_hint(what, None)})"
+                          if what in ("velocities", "accelerations") else "")
+                raise LogError(f"{e}; choose them with {option_hint(what, 'PATTERN')}{derive}"
+                               ) from None
     if temperature is not None:
         if temperature not in cols:
             raise LogError(f"{label}: no temperature column {temperature!r} (the sensor's "

@@ -160,23 +160,35 @@ class RobotLog:
 # --- Differentiation -------------------------------------------------------------------------
 
 
-def _piecewise_derivative(x, t, breaks, deriv, window_s, polyorder):
-    """Savitzky–Golay derivative computed separately on each segment between gaps."""
-    dt = float(np.median(np.diff(t)))
-    pieces = np.split(np.arange(len(t)), breaks)
-    for i in pieces:
-        if len(i) <= polyorder:
-            raise LogError(
-                f"the {len(i)} samples between gaps at t = {t[i[0]]:.6g}..{t[i[-1]]:.6g} s are "
-                f"too few for a Savitzky–Golay fit of order {polyorder}; drop them or pass "
-                f"{option_hint('sg_polyorder', polyorder - 1)}"
-            )
-    try:
-        return np.concatenate(
-            [savgol_derivative(x[i], dt, deriv, window_s, polyorder) for i in pieces]
-        )
-    except ValueError as e:  # too few samples for the fit
-        raise LogError(f"{e}; pass a lower {option_hint('sg_polyorder', polyorder - 1)}") from None
+def _piecewise_derivative(x, t, breaks, deriv, window_s, polyorder, short=None):
+    """Savitzky–Golay derivative computed separately on each segment between gaps.
+
+    A segment too short for order `polyorder` (an odd window of at most its length must
+    exceed the order) is fitted with the highest order its length allows; one shorter than
+    the derivative's order needs (fewer than 3 rows for q̈, 1 row for q̇) gets 0 there.
+    Each such segment is appended to `short` as (rows, order used, start time).
+    """
+    dt = float(np.median(np.diff(t))) if len(t) > 1 else 1.0
+    out = np.zeros_like(x, dtype=float)
+    for i in np.split(np.arange(len(t)), breaks):
+        order = min(polyorder, len(i) - 1 + len(i) % 2 - 1)  # the largest odd window − 1
+        if order < polyorder and short is not None:
+            short.append((len(i), max(order, 0), float(t[i[0]])))
+        if order >= deriv:
+            out[i] = savgol_derivative(x[i], dt, deriv, window_s, order)
+    return out
+
+
+def _short_segments_message(source, short, n_segments, polyorder) -> str:
+    """One line for every segment fitted with a lower Savitzky–Golay order."""
+    rows, _, start = min(short)
+    lowest = min(o for _, o, _ in short)
+    zero = sum(1 for _, o, _ in short if o < 2)
+    return (f"{source}: {len(short)} of {n_segments} segment(s) between gaps are too short "
+            f"for a Savitzky–Golay fit of order {polyorder} (shortest: {rows} rows at t = "
+            f"{start:.6g} s): fitted there with the order their length allows (down to "
+            f"{lowest}" + (f"; q̈ = 0 on {zero} with fewer than 3 rows" if zero else "") +
+            f"); {option_hint('sg_polyorder', lowest)} fits every segment with that order")
 
 
 def _piecewise_causal(qd, t, breaks, cutoff_hz):
@@ -203,11 +215,12 @@ def _take(t, blocks, rows):
 def assemble_log(
     t, q, qd, qdd, targets, target_names, joint_names, source, *,
     sort, t0, position_unit, sg_window, sg_polyorder, gap_factor, check_units,
-    qdd_estimate="savgol", acceleration_cutoff_hz=25.0, temperature=None,
+    qdd_estimate="savgol", acceleration_cutoff_hz=25.0, temperature=None, min_rows=MIN_ROWS,
 ) -> RobotLog:
     """Cleans rows, checks units and fills missing derivatives; see the module docstring.
 
     `temperature` (N,), °C, if given, is cleaned with the rows and kept in the log.
+    `min_rows`: fewer usable rows raise (one trajectory of several may be shorter).
     """
     if position_unit not in ANGLE_UNITS:
         raise LogError(f"position_unit must be one of {list(ANGLE_UNITS)}, got {position_unit!r}")
@@ -216,19 +229,25 @@ def assemble_log(
     t, blocks = _blocks_in_si(t, q, qd, qdd, targets, temperature, ANGLE_UNITS[position_unit])
     t, blocks = _drop_non_finite_rows(t, blocks, source)
     t, blocks = _order_rows(t, blocks, source, sort)
-    if len(t) < MIN_ROWS:
-        raise LogError(f"{source}: only {len(t)} usable rows; need at least {MIN_ROWS}")
-    breaks = _gaps(t, gap_factor, source)
+    if len(t) < max(min_rows, 1):
+        raise LogError(f"{source}: only {len(t)} usable rows; need at least {max(min_rows, 1)}")
+    derived = [k for k in ("qd", "qdd") if blocks[k] is None]
+    breaks = _gaps(t, gap_factor, source, report=bool(derived))
 
     q = blocks["q"]
-    derived = [k for k in ("qd", "qdd") if blocks[k] is None]
-    deriv = {k: _piecewise_derivative(q, t, breaks, d, sg_window, sg_polyorder)
-             for d, k in ((1, "qd"), (2, "qdd"))}
+    short = []  # segments too short for the Savitzky–Golay order (reported once)
+    deriv = {"qd": _piecewise_derivative(q, t, breaks, 1, sg_window, sg_polyorder,
+                                         short if "qd" in derived else None)}
     if check_units:
         check_joint_units(q, blocks["qd"], deriv["qd"], joint_names, source)
     qd = deriv["qd"] if blocks["qd"] is None else blocks["qd"]
     if blocks["qdd"] is None and qdd_estimate == "causal":
         deriv["qdd"] = _piecewise_causal(qd, t, breaks, acceleration_cutoff_hz)
+    elif blocks["qdd"] is None:
+        deriv["qdd"] = _piecewise_derivative(q, t, breaks, 2, sg_window, sg_polyorder,
+                                             [] if short else short)
+    if short:
+        warn_log(_short_segments_message(source, short, len(breaks) + 1, sg_polyorder))
     return RobotLog(
         t=t, q=q, qd=qd,
         qdd=deriv["qdd"] if blocks["qdd"] is None else blocks["qdd"],
@@ -283,12 +302,15 @@ def _order_rows(t, blocks, source, sort: bool):
     return t, blocks
 
 
-def _gaps(t, gap_factor: float, source) -> np.ndarray:
-    """Indices where a gap longer than `gap_factor` × the median period ends (reported)."""
+def _gaps(t, gap_factor: float, source, report: bool = True) -> np.ndarray:
+    """Indices where a gap longer than `gap_factor` × the median period ends (reported when
+    `report`: derivatives are computed from q; a log that gives them has nothing to say)."""
+    if len(t) < 2:
+        return np.array([], dtype=np.int64)
     dt = np.diff(t)
     median_dt = float(np.median(dt))
     breaks = np.flatnonzero(dt > gap_factor * median_dt) + 1
-    if len(breaks):
+    if len(breaks) and report:
         i = int(np.argmax(dt))
         warn_log(f"{source}: {len(breaks)} gap(s) longer than {gap_factor:g} × the median period "
                  f"{median_dt * 1e3:.3g} ms; longest {dt[i]:.4g} s at t = {t[i]:.6g} s; "

@@ -23,7 +23,6 @@ static poses without a time column (what ``ftdrake calibrate`` takes) is read wi
 from __future__ import annotations
 
 import dataclasses as dc
-import re
 import warnings
 from collections.abc import Callable, Mapping
 from pathlib import Path
@@ -36,9 +35,11 @@ from ..conventions import MEASURED, QD, QD_EST, QDD, QDD_EST, TIME, TRAJECTORY, 
 from ..errors import ConfigError, LogError
 from .bag import is_bag, message_count, read_bag
 from .logs import (
+    MIN_ROWS,
     QDD_ESTIMATES,
     LogWarning,
     RobotLog,
+    column_spec,
     expand_columns,
     is_table,
     option_hint,
@@ -65,8 +66,10 @@ class ReadOptions:
     Attributes:
       positions: joint position columns (rad); default ``q_*``.
       targets: target columns; default ``meas_*``.
-      velocities: velocity columns (rad/s); None: Savitzky–Golay derivative of q.
-      accelerations: acceleration columns (rad/s²); None: computed, see `qdd_estimate`.
+      velocities: velocity columns (rad/s); None or ``"derive"``: Savitzky–Golay derivative
+        of q (``"derive"`` also overrides columns a model's manifest names).
+      accelerations: acceleration columns (rad/s²); None or ``"derive"``: computed, see
+        `qdd_estimate`.
       time: time column (s); default ``t``.
       group: trajectory id column; default ``trajectory`` when the table has one.
       joint_topic: a bag's JointState topic; default ``/joint_states``.
@@ -245,16 +248,13 @@ def load_training_data(
     return _time_window(data, t_start, t_end)
 
 
-def column_spec(text: str | None):
-    """A column option (``"q_*"``, ``"a,b"``, ``"re:q_\\d+"``) → what
-    :func:`~.logs.expand_columns` takes."""
-    if text is None:
-        return None
-    if text.startswith("re:"):
-        return re.compile(text[3:])
-    if "," in text:
-        return [s.strip() for s in text.split(",") if s.strip()]
-    return text
+#: A velocities/accelerations option that computes them from q (``--accelerations derive``),
+#: e.g. for `evaluate` on a log without the columns the model was trained with.
+DERIVED = "derive"
+
+
+def _columns_or_derived(value: str | None) -> str | None:
+    return None if value == DERIVED else value
 
 
 def _cutoff(options: ReadOptions, scenario_yaml: str | None, label: str) -> float:
@@ -288,8 +288,8 @@ def _read_table(path: Path, options: ReadOptions, static_poses: bool | None = Fa
     kwargs = {
         "positions": column_spec(options.positions or TABLE_DEFAULTS["positions"]),
         "targets": column_spec(options.targets or TABLE_DEFAULTS["targets"]),
-        "velocities": column_spec(options.velocities),
-        "accelerations": column_spec(options.accelerations),
+        "velocities": column_spec(_columns_or_derived(options.velocities)),
+        "accelerations": column_spec(_columns_or_derived(options.accelerations)),
         "time": time,
         "temperature": options.temperature,
         **_reader_keywords(options, cutoff),
@@ -305,8 +305,15 @@ def _read_table(path: Path, options: ReadOptions, static_poses: bool | None = Fa
                            f"{list(frame.columns)}; choose it with "
                            f"{option_hint('group', 'COLUMN')}")
         ids = list(pd.unique(frame[group]))
+        # One short trajectory does not stop the others: its derivatives adapt to its length
+        # (a warning counts them); only the whole file must have MIN_ROWS.
         logs = [read_table(frame[frame[group] == i].reset_index(drop=True),
-                           label=f"{path.name} [{group}={i}]", **kwargs) for i in ids]
+                           label=f"{path.name} [{group}={i}]", min_rows=2, **kwargs)
+                for i in ids]
+        rows = sum(len(log) for log in logs)
+        if rows < MIN_ROWS:
+            raise LogError(f"{path.name}: only {rows} usable rows in {len(ids)} trajectories; "
+                           f"need at least {MIN_ROWS}")
     data = _stack(logs, ids, path.name)
     data.rows["in_file"] = len(frame)
     data.scenario_yaml = scenario

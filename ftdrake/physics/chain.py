@@ -135,6 +135,32 @@ class SerialChain:
                    np.asarray(axes, dtype=float).reshape(-1, 3),
                    np.asarray(qi, dtype=np.int64), np.asarray(vi, dtype=np.int64), n_q, n_v)
 
+    def with_joint_columns(self, names, fixed=None) -> tuple[SerialChain, list[str]]:
+        """This chain with rows that hold the joints `names` in that order (a log's position
+        columns) and every other joint on the path held still.
+
+        A moving joint of the path not in `names` becomes a weld at its value in `fixed`
+        (a mapping name → rad for revolute, m for prismatic), 0 when `fixed` has none; the
+        second value returned lists those held at 0 that way. Names in `names` that are not
+        on the path (a head or finger joint) take a column and move nothing. Rows then have
+        ``len(names)`` positions and as many velocities.
+        """
+        names, fixed = list(names), dict(fixed or {})
+        joints, defaulted = [], []
+        for joint in self.joints:
+            if joint.type == WELD:
+                joints.append(joint)
+            elif joint.name in names:
+                i = names.index(joint.name)
+                joints.append(dc.replace(joint, q_index=i, v_index=i))
+            else:
+                if joint.name not in fixed:
+                    defaulted.append(joint.name)
+                X_FM = joint_pose(joint.type, joint.axis_F, float(fixed.get(joint.name, 0.0)))
+                joints.append(ChainJoint(joint.name, WELD, joint.X_PF, joint.X_CM, X_FM, None,
+                                         -1, -1))
+        return self._compile(tuple(joints), self.X_BS, len(names), len(names)), defaulted
+
     @property
     def num_moving_joints(self) -> int:
         return len(self.kinds)
@@ -159,6 +185,19 @@ class SerialChain:
                                 *self.kernel_args(), R, out)
         return SensorKinematics(R, out[:, 0].copy(), out[:, 1].copy(), out[:, 2].copy(),
                                 out[:, 3].copy())
+
+
+def joint_pose(kind: str, axis, value: float) -> np.ndarray:
+    """(4, 4) pose X_FM of a revolute (`value` in rad about `axis`) or prismatic (`value` in m
+    along `axis`) joint's frame M in its frame F, as Drake defines them."""
+    axis = np.asarray(axis, dtype=float)
+    X = np.eye(4)
+    if kind == PRISMATIC:
+        X[:3, 3] = axis * value
+        return X
+    K = np.array([[0, -axis[2], axis[1]], [axis[2], 0, -axis[0]], [-axis[1], axis[0], 0]])
+    X[:3, :3] = np.eye(3) + np.sin(value) * K + (1 - np.cos(value)) * K @ K  # Rodrigues
+    return X
 
 
 def _path_from_world(plant, body) -> list:

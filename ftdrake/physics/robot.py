@@ -17,15 +17,21 @@ sensor and tool welded to its flange, as :func:`ftdrake.sim.scene.add_scene` bui
 
 from __future__ import annotations
 
+import contextlib
+import contextvars
 import dataclasses as dc
+import hashlib
+import logging
+import warnings
 from pathlib import Path
 
 import numpy as np
+import yaml
 from pydrake.math import RigidTransform
 from pydrake.multibody.plant import MultibodyPlant
 
 from ..assets import offline_parser
-from ..errors import RobotModelError
+from ..errors import RobotModelError, spelled
 
 DIRECTIVES_PREFIX = "directives:"
 # The opening tag of a robot description held as text, and its format for Drake's parser.
@@ -43,12 +49,19 @@ class RobotDescription:
     base_frame: a frame to weld to the world (None: the model is already welded or fixed,
       as model directives and most URDFs with a world joint are).
     package_xmls: extra package.xml files for the model's ``package://`` URLs.
+    joints: the joints a log's position columns hold, in their order (a log of 8 joints on
+      a description of 24: torso, arm, head, fingers); () when the rows hold every joint of
+      the model in its own order.
+    fixed_joints: ``((name, value), …)``, where the joints not in `joints` stand (rad for
+      revolute, m for prismatic); a joint given in neither stands at 0.
     """
 
     model: str
     sensor_frame: str
     base_frame: str | None = None
     package_xmls: tuple[str, ...] = ()
+    joints: tuple[str, ...] = ()
+    fixed_joints: tuple[tuple[str, float], ...] = ()
 
     def build_plant(self) -> tuple[MultibodyPlant, object]:
         """A finalized kinematics-only plant of the robot and its frame S.
@@ -186,6 +199,11 @@ def add_robot_model(plant, model: str, package_xmls=()) -> None:
         parser = offline_parser(plant, package_xmls)
     except FileNotFoundError as e:
         raise RobotModelError(f"robot {label}: {e}") from None
+    with _parser_warnings_summarised(model, label):
+        _parse(parser, model, label)
+
+
+def _parse(parser, model: str, label: str) -> None:
     try:
         if model.lstrip().startswith(DIRECTIVES_PREFIX):
             parser.AddModelsFromString(model, "dmd.yaml")
@@ -201,6 +219,79 @@ def add_robot_model(plant, model: str, package_xmls=()) -> None:
         raise RobotModelError(f"cannot load robot model {label}: {e}") from None
 
 
+class RobotDescriptionWarning(UserWarning):
+    """Drake's parser warned about a robot description (tags it ignores, joint friction …):
+    summarised once per description and process."""
+
+
+#: The logger Drake's parser warnings go to after their summary (INFO; ``--verbose`` shows it).
+PARSER_LOGGER = "ftdrake.robot_parser"
+_SHOW_PARSER_WARNINGS: contextvars.ContextVar[bool] = contextvars.ContextVar(
+    "ftdrake_show_parser_warnings", default=False)
+_SUMMARISED: set[str] = set()  # descriptions whose parser warnings were summarised
+
+
+@contextlib.contextmanager
+def show_parser_warnings(show: bool = True):
+    """Within the block (``ftdrake --verbose``), every parser warning of a robot description
+    prints on stderr after its summary."""
+    token = _SHOW_PARSER_WARNINGS.set(bool(show))
+    try:
+        yield
+    finally:
+        _SHOW_PARSER_WARNINGS.reset(token)
+
+
+class _Collect(logging.Handler):
+    def __init__(self):
+        super().__init__(logging.WARNING)
+        self.messages: list[str] = []
+
+    def emit(self, record):
+        self.messages.append(record.getMessage())
+
+
+@contextlib.contextmanager
+def _parser_warnings_summarised(model: str, label: str):
+    """Drake's parser warnings (Python logger ``drake``) while parsing `model`, held back and
+    summarised in one :class:`RobotDescriptionWarning` the first time the process parses
+    this description; each is logged at INFO on :data:`PARSER_LOGGER`."""
+    drake = logging.getLogger("drake")
+    collect, propagate = _Collect(), drake.propagate
+    drake.addHandler(collect)
+    drake.propagate = False
+    try:
+        yield
+    finally:
+        drake.removeHandler(collect)
+        drake.propagate = propagate
+    if not collect.messages:
+        return
+    key = hashlib.sha256(model.encode()).hexdigest()
+    if key in _SUMMARISED:
+        return
+    _SUMMARISED.add(key)
+    messages = [m.split(" warning: ", 1)[-1] for m in collect.messages]
+    how = spelled(f"logging.getLogger({PARSER_LOGGER!r}) at INFO shows them",
+                  "--verbose shows them")
+    warnings.warn(RobotDescriptionWarning(
+        f"the robot description {label} gave {len(messages)} parser warning(s) (e.g. "
+        f"{messages[0]}); ftdrake does not need what they are about; {how}"), stacklevel=4)
+    log = logging.getLogger(PARSER_LOGGER)
+    show = _SHOW_PARSER_WARNINGS.get()
+    handler = logging.StreamHandler() if show else None
+    if handler is not None:
+        handler.setFormatter(logging.Formatter("drake parser: %(message)s"))
+        log.addHandler(handler)
+        log.setLevel(logging.INFO)
+    try:
+        for message in collect.messages:
+            log.info(message)
+    finally:
+        if handler is not None:
+            log.removeHandler(handler)
+
+
 def floating_base_hint(plant) -> str:
     """What to say of a plant with more positions than velocities: which body floats and the
     flag (``--base-frame``; ``base_frame=`` in Python) that welds it to the world."""
@@ -211,3 +302,108 @@ def floating_base_hint(plant) -> str:
     return (f"{', '.join(repr(b) for b in floating)} floats: weld it to the world with "
             f"--base-frame {floating[0]} (base_frame='{floating[0]}' in Python)")
 
+
+
+def movable_joint_names(plant) -> list[str]:
+    """The names of the joints of finalized `plant` that have coordinates, in the order of
+    the plant's q."""
+    joints = [plant.get_joint(j) for j in plant.GetJointIndices()]
+    moving = [j for j in joints if j.num_positions() > 0]
+    return [j.name() for j in sorted(moving, key=lambda j: j.position_start())]
+
+
+def check_joint_names(plant, description: RobotDescription) -> None:
+    """Raises RobotModelError when `description.joints` or its fixed joints name a joint the
+    model does not have (or a joint twice); the message lists the model's joints."""
+    known = movable_joint_names(plant)
+    listed = f"the model's joints: {', '.join(known)}"
+    unknown = [n for n in description.joints if n not in known]
+    if unknown:
+        raise RobotModelError(
+            f"--joints names {unknown} that robot model {description.label} does not have "
+            f"(joints= in Python); {listed}")
+    repeated = sorted({n for n in description.joints if description.joints.count(n) > 1})
+    if repeated:
+        raise RobotModelError(f"--joints names {repeated} more than once (joints= in Python)")
+    fixed = [name for name, _ in description.fixed_joints]
+    unknown = [n for n in fixed if n not in known]
+    if unknown:
+        raise RobotModelError(
+            f"--fixed-joints names {unknown} that robot model {description.label} does not "
+            f"have (fixed_joints= in Python); {listed}")
+    both = [n for n in fixed if n in description.joints]
+    if both:
+        raise RobotModelError(
+            f"{both}: both a log's joint (--joints) and fixed (--fixed-joints); keep one")
+
+
+def joint_count_message(plant, n_data: int, label: str) -> str:
+    """What to say when the rows hold `n_data` joints and the model has others: the model's
+    joint names, and the flags that name the log's joints and fix the others."""
+    known = movable_joint_names(plant)
+    return (f"the data has {n_data} joints; the robot model has {len(known)} "
+            f"({', '.join(known)}; {label}): name the log's joints in the order of its position "
+            f"columns with --joints NAME,NAME,... and fix the others with --fixed-joints "
+            f"NAME=VALUE,... (default 0; joints= and fixed_joints= in Python)")
+
+
+def fixed_joint_values(spec) -> tuple[tuple[str, float], ...]:
+    """Fixed joint positions as ``((name, value), …)`` from a mapping, a sequence of pairs,
+    ``"torso=0.2,finger_l=0.01"`` or the path of a YAML file holding a mapping name → value
+    (rad for revolute joints, m for prismatic). Raises RobotModelError naming a bad entry."""
+    if spec is None or spec == "":
+        return ()
+    if isinstance(spec, str):
+        spec = _fixed_joints_text(spec)
+    items = spec.items() if hasattr(spec, "items") else spec
+    out = []
+    for entry in items:
+        try:
+            name, value = entry
+            value = float(value)
+        except (TypeError, ValueError):
+            raise RobotModelError(f"fixed joints: {entry!r} is not NAME=VALUE (a number: rad "
+                                  "for revolute, m for prismatic)") from None
+        if not np.isfinite(value):
+            raise RobotModelError(f"fixed joints: {name}={value} is not a finite number")
+        out.append((str(name), value))
+    return tuple(out)
+
+
+def joint_mapping_file(path) -> tuple[tuple[str, ...], tuple[tuple[str, float], ...]]:
+    """(joints, fixed joints) from a YAML file holding ``joints: [NAME, …]`` (the log's
+    joints, in the order of its position columns) and optionally ``fixed_joints: {NAME:
+    VALUE, …}`` (rad, or m for prismatic joints). Raises RobotModelError naming what is wrong."""
+    try:
+        data = yaml.safe_load(Path(path).read_text())
+    except (OSError, yaml.YAMLError) as e:
+        raise RobotModelError(f"--joints {path}: cannot read it as YAML: {e}") from None
+    joints = data.get("joints") if isinstance(data, dict) else None
+    if not (isinstance(joints, list) and joints and all(isinstance(j, str) for j in joints)):
+        raise RobotModelError(f"--joints {path}: must hold 'joints: [NAME, ...]' (the log's "
+                              "joints, in the order of its position columns) and optionally "
+                              "'fixed_joints: {NAME: VALUE}'")
+    unknown = sorted(set(data) - {"joints", "fixed_joints"})
+    if unknown:
+        raise RobotModelError(f"--joints {path}: unknown keys {unknown}; it holds joints and "
+                              "fixed_joints")
+    return tuple(joints), fixed_joint_values(data.get("fixed_joints") or {})
+
+
+def _fixed_joints_text(text: str):
+    """``"a=1,b=2"`` → pairs; a YAML file's mapping → its items."""
+    if "=" not in text and Path(text).is_file():
+        try:
+            data = yaml.safe_load(Path(text).read_text())
+        except yaml.YAMLError as e:
+            raise RobotModelError(f"fixed joints: {text} is not YAML: {e}") from None
+        if not isinstance(data, dict):
+            raise RobotModelError(f"fixed joints: {text} must hold a mapping joint name → "
+                                  "value (rad or m)")
+        return data
+    pairs = [p.strip() for p in text.split(",") if p.strip()]
+    bad = [p for p in pairs if p.count("=") != 1]
+    if bad:
+        raise RobotModelError(f"fixed joints: {bad[0]!r} is not NAME=VALUE (or a YAML file "
+                              "holding a mapping)")
+    return [tuple(s.strip() for s in p.split("=")) for p in pairs]

@@ -311,6 +311,8 @@ def _joint_state_gravity(config: ScenarioConfig, robot, model, period) -> JointS
     description = robot if robot is not None else robot_description(config)
     plant, frame_S = description.build_plant()
     chain = SerialChain.from_plant(plant, frame_S)
+    if description.joints:  # a log's joints in a bigger description; the others held still
+        chain, _ = chain.with_joint_columns(description.joints, dict(description.fixed_joints))
     if chain.num_positions != int(model.n_joints_):
         raise ConfigError(f"bias_tracker.track_payload: the robot has {chain.num_positions} "
                           f"joints, the model {int(model.n_joints_)}; pass the robot the model "

@@ -61,8 +61,14 @@ from pydrake.systems.analysis import Simulator
 from .. import conventions as col
 from ..config import ScenarioConfig, parse_config
 from ..data.bag import is_bag, read_bag
-from ..data.logs import is_table, read_frame
-from ..errors import LogError
+from ..data.logs import (
+    expand_columns,
+    is_table,
+    missing_time_message,
+    option_hint,
+    read_frame,
+)
+from ..errors import LogError, spelled
 from .chain import CompensationChain
 
 PAIRINGS = ("row", "simulated")
@@ -189,7 +195,10 @@ def replay_inputs(frame: pd.DataFrame, n: int, *, wrench: str = col.MEASURED,
         raise LogError(f"replay: the log lacks columns {missing[:8]}"
                        f"{' ...' if len(missing) > 8 else ''} ({'; '.join(why)}); it has "
                        f"{list(frame.columns)[:20]}; logs in this layout come from "
-                       "ftdrake.add_recorder, collect, simulate or ftdrake record")
+                       "ftdrake.add_recorder, collect, simulate or ftdrake record; choose "
+                       "another table's columns with " + spelled(
+                           "to_replay_layout(frame, positions=, velocities=, targets=, time=)",
+                           "--positions, --velocities, --targets and --time"))
     t = frame[col.TIME].to_numpy(dtype=float)
     if len(t) < 2 or not np.all(np.diff(t) > 0):
         raise LogError("replay: the log's time column must increase strictly, with at least "
@@ -202,6 +211,46 @@ def replay_inputs(frame: pd.DataFrame, n: int, *, wrench: str = col.MEASURED,
         tared=frame[TARED].to_numpy(dtype=float) if TARED in frame else None,
         payload_changed=(frame[PAYLOAD_CHANGED].to_numpy(dtype=float)
                          if PAYLOAD_CHANGED in frame else None))
+
+
+def to_replay_layout(frame: pd.DataFrame, *, positions=None, velocities=None, targets=None,
+                     time: str | None = None) -> pd.DataFrame:
+    """`frame` with the columns chosen as every reader chooses them (globs, comma lists,
+    ``re:`` patterns; :func:`~ftdrake.data.logs.expand_columns`) renamed into the replay
+    layout: ``t``, ``q_i``, ``qd_i``, ``meas_Fx … meas_Tz``; other columns are kept. The
+    defaults are that layout's own (``t``, ``q_*``, ``qd_*``, ``meas_*``); with none given
+    `frame` is returned as it is. Errors name the option (``--positions`` …) that fixes them."""
+    if positions is None and velocities is None and targets is None and time is None:
+        return frame
+    columns = [str(c) for c in frame.columns]
+    time = time or col.TIME
+    if time not in columns:
+        raise LogError("replay: " + missing_time_message("the log", time, columns))
+    chosen = {}
+    for what, spec, default in (("positions", positions, f"{col.Q}_*"),
+                                ("velocities", velocities, rf"re:{col.QD}_\d+"),
+                                ("targets", targets, f"{col.MEASURED}_*")):
+        try:
+            chosen[what] = expand_columns(spec or default, columns, f"replay {what}",
+                                          option=what)
+        except LogError as e:
+            raise LogError(f"{e}; choose them with {option_hint(what, 'PATTERN')}") from None
+    n = len(chosen["positions"])
+    if len(chosen["velocities"]) != n or len(chosen["targets"]) != 6:
+        raise LogError(f"replay: {n} positions {chosen['positions']} need as many velocities "
+                       f"(got {chosen['velocities']}) and 6 wrench columns (got "
+                       f"{chosen['targets']}); choose them with {option_hint('velocities', 'PAT')}"
+                       f" and {option_hint('targets', 'PAT')}")
+    renamed = {time: col.TIME,
+               **dict(zip(chosen["positions"], col.joint_columns(col.Q, n), strict=True)),
+               **dict(zip(chosen["velocities"], col.joint_columns(col.QD, n), strict=True)),
+               **dict(zip(chosen["targets"], col.wrench_columns(col.MEASURED), strict=True))}
+    others = [c for c in columns if c not in renamed and c not in renamed.values()]
+    out = pd.DataFrame({new: frame[old].to_numpy() for old, new in renamed.items()})
+    for c in others:
+        out[c] = frame[c].to_numpy()
+    out.attrs = dict(frame.attrs)
+    return out
 
 
 def read_replay_log(path, *, wrench_topic: str | None = None,
