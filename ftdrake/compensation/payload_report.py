@@ -67,6 +67,7 @@ def identified_table(model) -> dict:
             "values": {PARAMETER_NAMES[i]: float(result.theta_least_squares[i])
                        for i in cols},
             "physically_consistent": bool(result.least_squares_consistent)}
+    if result is not None:
         table["active_constraints"] = list(result.active_constraints)
     return table
 
@@ -105,6 +106,10 @@ def summary_text(model) -> str:
                  + ("" if "least_squares" not in t else
                     f" (plain least squares: "
                     f"{'yes' if t['least_squares']['physically_consistent'] else 'no'})"))
+    if "weight_without_inertia >= 0" in t.get("active_constraints", ()):
+        lines.append("  mw is on its bound 0: a weight carried without inertia cannot be "
+                     "negative, and the data pull it below (no hanging weight; or an upward "
+                     "pull the model does not have)")
     lines.append(f"  not determined by the data: {', '.join(t['not_determined']) or 'none'}")
     return "\n".join(lines)
 
