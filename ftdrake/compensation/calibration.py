@@ -48,6 +48,7 @@ from .correction import (
 )
 from .payload_identification import project_out
 from .physics import ExcitationWarning, PhysicsPayloadCompensator, payload_regressor
+from .regression import correlated_variance_ratio
 from .static_table import (
     KNOWN_COM,
     KNOWN_MASS,
@@ -371,7 +372,11 @@ def _calibrate(frame, robot, sensor_frame, base_frame, positions, targets, posit
     else:
         result = identify_least_squares(A_fit[:, :, cols], Y_fit, static=True)
     theta = result.theta[cols]
-    cov = result.covariance[np.ix_(cols, cols)]
+    # Rows that are a time series of held poses are not independent: widen the errors.
+    ratio, _ = correlated_variance_ratio(A_fit[:, :, cols] * result.weights[None, :, None],
+                                         (Y_fit - A_fit[:, :, cols] @ theta) * result.weights)
+    factor = np.sqrt(ratio)
+    cov = result.covariance[np.ix_(cols, cols)] * np.outer(factor, factor)
     residual = Y - A[:, :, cols] @ theta
     k = se_k = None
     if d is not None:
@@ -380,7 +385,8 @@ def _calibrate(frame, robot, sensor_frame, base_frame, positions, targets, posit
         se_k = np.sqrt(np.mean(residual ** 2, axis=0)) / np.sqrt(d @ d)
     com, com_se = _com(theta, cov)
     return StaticCalibration(
-        source=kind, parameters=theta, standard_errors=result.standard_errors[cols], com=com,
+        source=kind, parameters=theta, standard_errors=result.standard_errors[cols] * factor,
+        com=com,
         covariance=cov,
         com_std_error=com_se, residual_rms=np.sqrt(np.mean(residual ** 2, axis=0)),
         condition_number=float(result.condition_number), rows=len(frame),
