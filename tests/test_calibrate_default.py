@@ -108,6 +108,13 @@ def test_quaternion_calibration_writes_a_model_evaluate_and_replay_use(tables, t
                  str(tmp_path / "held.csv"), "--json", str(tmp_path / "ev.json")]) == 0
     scores = json.loads((tmp_path / "ev.json").read_text())["metrics"]["all"]
     assert max(row["nmse"] for row in scores.values()) < 0.01
+    capsys.readouterr()
+    assert main(["evaluate", "--model", str(tmp_path / "cal" / "model.ftd"), "--data",
+                 str(tmp_path / "held.csv"), "--noise-std", "0.01"]) == 0
+    assert "rms/σ" in capsys.readouterr().out
+    assert main(["evaluate", "--model", str(tmp_path / "cal" / "model.ftd"), "--data",
+                 str(tmp_path / "held.csv"), "--noise-std", "0.01,0.02"]) == 2
+    assert "give one, or one per target" in capsys.readouterr().err
     # The model's own prediction equals the calibration's (same correction, same payload).
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", ExcitationWarning)
