@@ -48,7 +48,7 @@ class OrientationPayloadCompensator(Compensator):
     orientation : a key of :data:`~.static_table.ORIENTATIONS`.
     gravity : gravity in the world frame, m/s².
 
-    Fitted attributes (set by :meth:`from_calibration`, or by :meth:`fit` through a static
+    Fitted attributes (set by :meth:`from_calibration`, or by ``fit`` through a static
     calibration of its rows): ``parameters_`` (10: m kg, m·c kg·m, biases N and N·m),
     ``covariance_`` (10 × 10), ``residual_rms_`` (6), ``sensor_matrix_`` (6 × 6 or None),
     ``correction_bias_`` (6), ``correction_payload_`` ([m, m·c]), ``temperature_reference_``
