@@ -145,7 +145,7 @@ def test_cli_prints_and_writes_the_correction_and_names_bad_input(tmp_path, caps
                  "--out", str(tmp_path / "cal")])
     out, err = capsys.readouterr()
     assert code == 0, err
-    assert "gain/cross-talk correction C" in out and "± ∞" in out
+    assert "gain/cross-talk correction C" in out and "± ∞" not in out and " free " in out
     assert re.search(r"Fx: \+0\.99\d+ ± \d\.\de-0[45]", out), out  # a finite std error
     assert "warning: the poses do not determine the whole gain/cross-talk correction" in err
     saved = yaml.safe_load((tmp_path / "cal" / "calibration.yaml").read_text())

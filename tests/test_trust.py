@@ -27,10 +27,16 @@ def test_rows_are_flagged_per_target_and_cause_as_counted_by_hand():
         "std_above_factor_x_residual": {"a": 0.2, "b": 0.2},
         "prediction_outside_target_range": {"a": 0.4, "b": 0.0},
     }
-    assert dut["untrusted_fraction"] == {"a": 0.8, "b": 0.4}  # a: rows 0-3; b: rows 0, 2
+    # With a calibrated std the inputs flag nothing on their own (row 0's inputs are
+    # outside, but each target's std is within 2× its residual there): a: rows 1-3; b: row 2.
+    assert dut["untrusted_fraction"] == {"a": 0.6, "b": 0.2}
+    assert dut["flagging_causes"] == ["std_above_factor_x_residual",
+                                      "prediction_outside_target_range"]
+    assert "flag nothing on their own" in dut["explanation"]
     assert dut["residual_rms"] == {"a": 0.2, "b": 1.0}
     assert dut["warnings"] == [
-        "warning: inputs outside the training range on 20 % of rows",
+        ("warning: inputs outside the training range on 20 % of rows; each target's "
+         "predictive std decides whether its predictions there are trusted"),
         ("warning: predictive std > 2× the training residual (the model lacks data there) on "
          "a 20 %, b 20 % of rows"),
         "warning: predictions beyond the training range of the target (±10 %) on a 40 % of rows",
@@ -47,3 +53,7 @@ def test_without_a_calibrated_std_or_target_ranges_only_the_inputs_count():
     assert list(dut["by_cause"]) == ["inputs_outside_range"]
     assert dut["untrusted_fraction"] == {"a": 0.0} and dut["warnings"] == []
     assert dut["uncertain_std_factor"] is None
+    # Without a calibrated std, a row with an input outside flags every target.
+    dut = assess_trust(["a", "b"], np.zeros((4, 2)), None, np.array([True, False, False, False]))
+    assert dut["untrusted_fraction"] == {"a": 0.25, "b": 0.25}
+    assert dut["flagging_causes"] == ["inputs_outside_range"]

@@ -27,8 +27,9 @@ import numpy as np
 import yaml
 
 from ..compensation.build import RobotOptions
-from ..compensation.calibration import calibrate_table, orientation_kind
+from ..compensation.calibration import ORIENTATIONS, calibrate_table, orientation_kind
 from ..compensation.consistent import PayloadPrior
+from ..compensation.orientation_model import OrientationPayloadCompensator
 from ..compensation.persistence import save_model
 from ..compensation.physics import ExcitationWarning
 from ..compensation.registry import make_estimator
@@ -81,11 +82,13 @@ def register(subparsers) -> None:
                    help="do not identify the sensor's mounting rotation (joint-angle input)")
     p.add_argument("--time-series", action="store_true",
                    help="the log is a motion (time column): fit the dynamic physics model")
-    p.add_argument("--correction", choices=("block", "full"),
-                   help="also identify the sensor's gain/cross-talk correction matrix C "
+    p.add_argument("--correction", choices=("auto", "none", "block", "full"), default="auto",
+                   help="the sensor's gain/cross-talk correction matrix C "
                         "(wrench = C·(reading − bias)): block = force and torque 3×3 blocks, "
                         "full = 6×6 (needs 3 known loads to be fully determined; with one "
-                        "load it is the general linear model of that load). Static poses only")
+                        "load it is the general linear model of that load); none = gravity + "
+                        "bias only; auto = the one that lowers the cross-validated error over "
+                        "the poses, else none. Static poses only")
     p.add_argument("--known-mass", type=a.positive_float, metavar="KG",
                    help="the tool's known mass (weighed), for --correction: fixes the force "
                         "gain the mass would otherwise absorb")
@@ -114,7 +117,7 @@ def _known_payload(args):
         if args.known_com is not None:
             raise ConfigError("--known-com needs --known-mass")
         return None
-    if args.correction is None:
+    if args.correction not in ("block", "full"):
         raise ConfigError("--known-mass is for the gain/cross-talk correction: add "
                           "--correction block|full")
     return {"mass": args.known_mass, "com": args.known_com or (0.0, 0.0, 0.0)}
@@ -138,7 +141,7 @@ def run_calibrate(args) -> int:
     known = _known_payload(args)
     if args.time_series or (orientation_kind(frame.columns) is None and "t" in frame
                             and _moving(frame, args.positions)):
-        if args.correction is not None:
+        if args.correction in ("block", "full"):
             raise ConfigError("--correction needs a table of static poses (gravity known at "
                               "each); this log is a motion")
         return _time_series(args, prior, TEMPERATURE in frame)
@@ -150,12 +153,15 @@ def run_calibrate(args) -> int:
                 base_frame=args.base_frame, positions=args.positions, targets=args.targets,
                 position_unit=args.position_unit, prior=prior,
                 identification="least_squares" if args.least_squares else "consistent",
-                identify_mounting=not args.no_mounting, correction=args.correction,
+                identify_mounting=not args.no_mounting,
+                correction=None if args.correction == "none" else args.correction,
                 known_payload=known)
     say(cal.summary())
     _print_warnings(caught, ExcitationWarning)
-    model = cal.model
-    if cal.correction is not None and model is not None:
+    model, options = cal.model, None
+    if model is None:  # the orientation given directly: its columns are the model's input
+        model, options = orientation_model(cal, frame, args)
+    elif cal.correction is not None:
         if cal.correction.payload is not None:
             model = model.with_correction(cal.correction)
             say("model.ftd predicts readings through the correction: M·W_S + b (M = C⁻¹)")
@@ -165,14 +171,33 @@ def run_calibrate(args) -> int:
                 "to readings: wrench = C·(reading − bias))")
     written = _write_yaml(args.out / "calibration.yaml", {"calibration": cal.to_dict(),
                                                          "data": str(args.data)})
-    if model is not None:
+    if options is None:
         options = _read_options(args, model.temperature_in_)
-        written.append(_save(model, args, model.n_joints_, options))
     else:
-        say("no model file: the orientation was given directly, so a model that maps joint "
-            "states to it needs a robot (give joint-angle columns with --robot)")
+        say(f"model.ftd takes the orientation columns {options.positions} as its inputs "
+            "(evaluate reads them from a table like this one; replay and serve take them as "
+            "q_0.. with zero velocities)")
+    written.append(_save(model, args, model.n_joints_, options))
     print("wrote " + ", ".join(str(p) for p in written))
     return 0
+
+
+def orientation_model(cal, frame, args):
+    """(the calibration as a compensator on the orientation columns, the read options
+    that give `evaluate` those columns as its inputs)."""
+    names = list(ORIENTATIONS[cal.source])
+    o = frame[names].to_numpy(dtype=float)
+    X = np.hstack([o, np.zeros_like(o), np.zeros_like(o)])
+    temperature = cal.temperature_reference is not None
+    if temperature:
+        X = np.column_stack([X, frame[TEMPERATURE].to_numpy(dtype=float)])
+    Y = frame[expand_columns(args.targets, list(frame.columns))].to_numpy(dtype=float)
+    model = OrientationPayloadCompensator.from_calibration(cal, X, Y)
+    # Gravity columns are in m/s² (not angles): no degree check on them.
+    options = _read_options(args, temperature).updated(positions=",".join(names),
+                                                       position_unit="rad",
+                                                       check_units=False)
+    return model, options
 
 
 def _printer(quiet: bool):

@@ -8,7 +8,9 @@ outside it, with the trust flags of :mod:`ftdrake.compensation.trust`.
 
 from __future__ import annotations
 
+import argparse
 import json
+import math
 import sys
 from pathlib import Path
 
@@ -43,10 +45,26 @@ def register(subparsers) -> None:
     p.add_argument("--data", type=a.existing_path, required=True, metavar="FILE",
                    help="CSV/Parquet table, ROS 1 .bag file or ROS 2 bag folder")
     add_read_flags(p)
+    p.add_argument("--noise-std", type=noise_values, metavar="S[,S...]",
+                   help="the sensor's noise std, one value or one per target (the targets' "
+                        "units): errors are also given in σ units (≈1 at the noise floor); "
+                        "without it, estimated from resting rows when the log has them")
     p.add_argument("--json", type=a.output_file, metavar="OUT",
                    help="also write the results as JSON")
     a.add_quiet(p)
     p.set_defaults(run=run_evaluate)
+
+
+def noise_values(text: str) -> list[float]:
+    """An argument type: positive numbers ``S`` or ``S,S,...`` (noise std per target)."""
+    try:
+        values = [float(v) for v in text.split(",")]
+    except ValueError:
+        values = []
+    if not values or not all(math.isfinite(v) and v > 0 for v in values):
+        raise argparse.ArgumentTypeError(f"expected positive numbers S or S,S,...; got "
+                                         f"{text!r}")
+    return values
 
 
 def stored_read_options(manifest: dict, path: Path) -> ReadOptions:
@@ -76,7 +94,12 @@ def run_evaluate(args) -> int:
 
     names = data.target_names
     ranges = manifest.get("extra", {}).get("training_range", {}).get("targets")
-    scores = evaluate_model(model, data.X, data.Y, target_names=names, training_ranges=ranges)
+    noise = args.noise_std
+    if noise is not None and len(noise) not in (1, len(names)):
+        raise ConfigError(f"--noise-std gives {len(noise)} values for {len(names)} targets "
+                          f"{names}: give one, or one per target")
+    scores = evaluate_model(model, data.X, data.Y, target_names=names, training_ranges=ranges,
+                            noise_std=noise)
     result = {
         "model": str(args.model),
         "model_class": manifest["model_class"].rsplit(".", 1)[-1],
@@ -87,7 +110,8 @@ def run_evaluate(args) -> int:
         **{key: scores[key] for key in ("in_domain_rows", "out_of_domain_rows",
                                         "out_of_domain_fraction", "out_of_domain_by_input")},
         "target_units": dict(zip(names, manifest["target_units"], strict=True)),
-        **{key: scores[key] for key in ("std", "metrics", "trust")},
+        **{key: scores[key] for key in ("std", "metrics", "min_subset_rows", "noise",
+                                        "trust")},
     }
     print_evaluation(result)
     for line in scores["trust"]["warnings"]:
@@ -142,17 +166,28 @@ def print_evaluation(result: dict, file=None) -> None:
     worst = sorted(result["out_of_domain_by_input"].items(), key=lambda kv: -kv[1])[:4]
     if worst:
         print("  rows outside, by input: " + ", ".join(f"{k} {v}" for k, v in worst), file=file)
-    print(f"\n  {'target':<10}{'unit':<6}{'mse':>11}{'nmse':>8}{'var.score':>11}"
-          f"{'in-domain':>11}{'out-of-dom.':>12}", file=file)
-    print(f"  {'rows':<16}{result['rows']['used']:>30}{result['in_domain_rows']:>11}"
-          f"{result['out_of_domain_rows']:>12}", file=file)
+    sigma = result.get("noise") is not None
+    print(f"\n  {'target':<10}{'unit':<6}{'mse':>11}{'nmse':>8}"
+          + (f"{'rms/σ':>8}" if sigma else "")
+          + f"{'var.score':>11}{'in-domain':>11}{'out-of-dom.':>12}", file=file)
+    print(f"  {'rows':<16}{result['rows']['used']:>{30 + 8 * sigma}}"
+          f"{result['in_domain_rows']:>11}{result['out_of_domain_rows']:>12}", file=file)
     for name, row in m["all"].items():
         parts = [m[k][name]["variance_score"] if m[k] else None
                  for k in ("in_domain", "out_of_domain")]
         print(f"  {name:<10}{result['target_units'][name]:<6}{_num(row['mse'], 11, '.4g')}"
-              f"{_num(row['nmse'], 8, '.3f')}{_num(row['variance_score'], 11, '.3f')}"
+              f"{_num(row['nmse'], 8, '.3f')}"
+              + (_num(row.get("rms_over_sigma"), 8, ".2f") if sigma else "")
+              + f"{_num(row['variance_score'], 11, '.3f')}"
               f"{_num(parts[0], 11, '.3f')}{_num(parts[1], 12, '.3f')}", file=file)
-    print("  (in-domain / out-of-domain columns: variance score on those rows)\n", file=file)
+    print("  (in-domain / out-of-domain columns: variance score on those rows; not given on "
+          f"fewer than {result.get('min_subset_rows', 2)} rows)", file=file)
+    if sigma:
+        noise = result["noise"]
+        print("  rms/σ: RMS error in units of the sensor's noise std σ (≈1 at the noise "
+              f"floor); σ {', '.join(f'{v:.3g}' for v in noise['std'])} from "
+              f"{noise['source']}", file=file)
+    print(file=file)
     if result.get("std"):
         rows = m["in_domain"] or m["all"]
         which = "in-domain" if m["in_domain"] else "all"
@@ -164,9 +199,22 @@ def print_evaluation(result: dict, file=None) -> None:
         print(file=file)
     trust = result.get("trust")
     if trust:
-        shares = ", ".join(f"{n} {100 * v:.0f} %" for n, v in trust["untrusted_fraction"].items())
-        print(f"  rows flagged as not to be trusted ({', '.join(trust['by_cause'])}): "
-              f"{shares}\n", file=file)
+        _print_trust(trust, file)
+
+
+def _print_trust(trust: dict, file) -> None:
+    """Per target: the share of rows flagged, and by which cause; then the rule."""
+    causes = trust.get("flagging_causes", list(trust["by_cause"]))
+    short = {"inputs_outside_range": "inputs", "std_above_factor_x_residual": "std",
+             "prediction_outside_target_range": "range"}
+    print(f"  rows flagged as not to be trusted, per target ({', '.join(short[c] for c in causes)}"
+          "):", file=file)
+    for name, share in trust["untrusted_fraction"].items():
+        detail = ", ".join(f"{short[c]} {100 * trust['by_cause'][c][name]:.0f} %" for c in causes)
+        print(f"  {name:<10}{100 * share:5.0f} %  ({detail})", file=file)
+    if "explanation" in trust:
+        print(f"  ({trust['explanation']})", file=file)
+    print(file=file)
 
 
 def _num(x, width: int, fmt: str) -> str:

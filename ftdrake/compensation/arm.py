@@ -44,7 +44,12 @@ from ..errors import ConfigError, RobotModelError
 from ..physics.arm_dynamics import INERTIAL_NAMES, INERTIAL_UNITS, ArmDynamics, ArmModel
 from .base import Compensator
 from .consistent_program import IdentificationError, pick_solver, prior_precision
-from .inertial import is_physically_consistent, physical_violations, pseudo_inertia
+from .inertial import (
+    from_pseudo_inertia,
+    is_physically_consistent,
+    physical_violations,
+    pseudo_inertia,
+)
 from .robot_file import CarriesRobot
 
 IDENTIFICATIONS = ("least_squares", "consistent")
@@ -56,10 +61,24 @@ DEFAULT_PRIOR_WEIGHT = 1.0
 NULL_TOL = 1e-7
 #: Alternations between the parameters (gains fixed) and the gains (parameters fixed).
 GAIN_ITERATIONS = 4
+#: A parameter whose unit vector has a component above this along a null direction of the
+#: (column-normalised) regressor is not determined by the data on its own.
+IDENTIFIABLE_TOL = 1e-4
+#: Drive gains outside [1/PLAUSIBLE_GAIN, PLAUSIBLE_GAIN] are checked against fixed unit
+#: gains: when those fit as well, the targets are joint torques and the gains mean nothing
+#: (a joint whose rigid-body torque is small trades its gain off against its friction).
+PLAUSIBLE_GAIN = 1.5
+#: "As well": the fixed-gain fit's residual RMS within this factor of the identified one's.
+SAME_FIT = 1.05
 
 
 class ExcitationWarning(UserWarning):
     """The data determine fewer base parameters than the arm has."""
+
+
+class DriveGainWarning(ExcitationWarning):
+    """Identified drive gains far from 1 that unit gains explain as well (the data do not
+    determine them: the targets are joint torques)."""
 
 
 class ArmDynamicsCompensator(CarriesRobot, Compensator):
@@ -191,6 +210,8 @@ class ArmDynamicsCompensator(CarriesRobot, Compensator):
         self.physically_consistent_ = all(
             is_physically_consistent(theta[10 * k:10 * k + 10], tol=1e-7)
             for k in range(len(dyn.bodies)))
+        if self.drive_gains == "identify":
+            self._check_gains(A, Y, prior, dyn)
         if self.base_parameters_ < _expected_base(dyn, A.shape[2] - p_rb):
             warnings.warn(
                 f"the data determine {self.base_parameters_} of the arm's parameter "
@@ -213,6 +234,12 @@ class ArmDynamicsCompensator(CarriesRobot, Compensator):
         keep = s > NULL_TOL * s[0]
         self.base_parameters_ = int(keep.sum())
         self.condition_number_ = float(s[0] / s[keep][-1])
+        # A parameter the data determine on its own lies in the regressor's row space: its
+        # unit vector has no component along a null direction. With one it is determined
+        # only in a combination with others (or not at all: component 1).
+        self.null_component_ = np.linalg.norm(Vt[~keep], axis=0)
+        self.identifiable_ = self.null_component_ < IDENTIFIABLE_TOL
+        self._null_directions = Vt[~keep]
         if self.identification == "least_squares":
             x0 = prior * scale
             x = x0 + (Vt[keep].T / s[keep]) @ (U[:, keep].T @ (yw - (Aw / scale) @ x0))
@@ -224,9 +251,40 @@ class ArmDynamicsCompensator(CarriesRobot, Compensator):
         sigma2 = residual @ residual / dof
         # Covariance in the identified directions only (the others are the prior's): Σ = F Fᵀ.
         self.covariance_factor_ = (Vt[keep].T / s[keep]) / scale[:, None] * np.sqrt(sigma2)
-        self.standard_errors_ = np.sqrt(np.sum(self.covariance_factor_ ** 2, axis=1))
+        # ∞ for a parameter the data do not determine alone: the identified directions' part
+        # of its error is only the part the data see (it would print as ± 0.000).
+        self.standard_errors_ = np.where(
+            self.identifiable_, np.sqrt(np.sum(self.covariance_factor_ ** 2, axis=1)), np.inf)
         self.parameters_ = theta
         return theta
+
+    def _check_gains(self, A, Y, prior, dyn):
+        """Warns when identified gains are far from 1 although unit gains fit as well: the
+        targets are then joint torques (an arm that measures them has no drive gain), and a
+        gain of 0.05 only trades off against a joint's friction and offset."""
+        far = np.flatnonzero((np.abs(self.gains_) > PLAUSIBLE_GAIN)
+                             | (np.abs(self.gains_) < 1.0 / PLAUSIBLE_GAIN))
+        if not len(far):
+            return
+        fitted = {k: v for k, v in vars(self).items() if k.endswith("_")}
+        fitted["_null_directions"] = self._null_directions
+        try:
+            unit_rms = np.sqrt(np.mean((Y - A @ self._identify(A, Y, prior, dyn)) ** 2,
+                                       axis=0))
+        finally:
+            vars(self).update(fitted)  # the identified-gain fit stays the model
+        if np.all(unit_rms[far] <= SAME_FIT * self.residual_rms_[far] + 1e-12):
+            self.gain_warning_ = (
+                "implausible drive gains " + ", ".join(
+                    f"{self.gains_[j]:.3g} ({dyn.joint_names[j]})" for j in far)
+                + ": with every gain fixed at 1 the torques fit as well (residual RMS "
+                + ", ".join(f"{unit_rms[j]:.3g}" for j in far) + " against "
+                + ", ".join(f"{self.residual_rms_[j]:.3g}" for j in far)
+                + " N·m), so the targets are joint torques: an arm that measures joint torque "
+                "has no drive gain to identify (a gain that far from 1 only trades off "
+                "against the joint's friction and offset). Drop --drive-gains identify "
+                "(drive_gains='fixed' in Python)")
+            warnings.warn(self.gain_warning_, DriveGainWarning, stacklevel=4)
 
     def _initial_gains(self, A, Y, prior, p_rb):
         """Each joint's gain by least squares of its target on the prior's rigid-body torque,
@@ -292,7 +350,7 @@ class ArmDynamicsCompensator(CarriesRobot, Compensator):
                 f"returned {result.get_solution_result().name}; try "
                 "identification='least_squares' or check the data for outliers")
         self.solver_ = name
-        return result.GetSolution(x) / scale
+        return _onto_bodies(result.GetSolution(x) / scale, prior, nb)
 
     # -- prediction -------------------------------------------------------------------------
     def _predict(self, Z):
@@ -329,38 +387,92 @@ class ArmDynamicsCompensator(CarriesRobot, Compensator):
                                              units, strict=True)}
 
     def summary(self) -> str:
-        """Masses, friction and offsets per joint, and what the data determined, in words."""
+        """Masses, friction and offsets per joint, and what the data determined, in words.
+
+        A parameter the data do not determine on its own (:attr:`identifiable_` False) is
+        printed as such, with where its value comes from, never with a standard error; the
+        physical-consistency verdict is one line, naming each violation once.
+        """
         dyn = self.dynamics()
-        lines = [f"arm model {self.arm_model().label}: {len(dyn.bodies)} moving bodies, "
-                 f"{dyn.n} joints; "
-                 f"the data determine {self.base_parameters_} of {len(self.parameters_)} "
-                 f"parameter combinations (condition number {self.condition_number_:.3g}); "
-                 f"{self.identification.replace('_', ' ')}"
-                 + (", physically consistent" if self.physically_consistent_ else
-                    ", NOT physically consistent")]
+        how = {"consistent": "least squares constrained to bodies that exist (SDP)",
+               "least_squares": "weighted least squares"}[self.identification]
+        lines = [(f"arm model {self.arm_model().label}: {len(dyn.bodies)} moving bodies, "
+                  f"{dyn.n} joints; {how}; the data determine {self.base_parameters_} of "
+                  f"{len(self.parameters_)} parameter combinations (condition number "
+                  f"{self.condition_number_:.3g})")]
+        identifiable = self._identifiable()
+        source = self._undetermined_source()
         for k, body in enumerate(dyn.bodies):
             phi = self.parameters_[10 * k:10 * k + 10]
             m = phi[0]
             com = phi[1:4] / m if abs(m) > 1e-9 else np.full(3, np.nan)
-            se = self.standard_errors_[10 * k]
-            how = f"± {se:.3f} kg" if se > 0 else "(not determined by the data)"
-            line = (f"  {body.name()}: m = {m:.3f} {how} "
-                    f"(file {self.model_parameters_[10 * k]:.3f}), c = "
-                    f"({', '.join(f'{1e3 * c:.1f}' for c in com)}) mm")
-            problems = physical_violations(phi, tol=1e-7)
-            lines.append(line + (f"  [{'; '.join(problems)}]" if problems else ""))
-        extra = self.parameters_[10 * len(dyn.bodies):]
-        se = self.standard_errors_[10 * len(dyn.bodies):]
-        names = self.parameter_names_[10 * len(dyn.bodies):]
-        for name, v, e in zip(names, extra, se, strict=True):
-            lines.append(f"  {name} = {v:.4g} ± {e:.2g}")
+            lines.append(f"  {body.name()}: m = {m:.3f} "
+                         f"{self._how_known(10 * k, identifiable, 'kg', '.3f')} "
+                         f"(file {self.model_parameters_[10 * k]:.3f}), c = "
+                         f"({', '.join(f'{1e3 * c:.1f}' for c in com)}) mm")
+        p_rb = 10 * len(dyn.bodies)
+        for i, name in enumerate(self.parameter_names_[p_rb:], start=p_rb):
+            lines.append(f"  {name} = {self.parameters_[i]:.4g} "
+                         f"{self._how_known(i, identifiable, '', '.2g')}")
         if self.drive_gains == "identify":
             lines.append("  drive gains (target per N·m): " + ", ".join(
                 f"{g:.4g} ± {e:.2g}" for g, e in zip(self.gains_, self.gain_std_errors_,
                                                     strict=True)))
+            if getattr(self, "gain_warning_", None):
+                lines.append(f"  warning: {self.gain_warning_}")
+        lines.append("  " + self._verdict(dyn))
         lines.append("  residual RMS per joint: "
                      + ", ".join(f"{r:.3g}" for r in self.residual_rms_))
+        undetermined = int(np.sum(~identifiable))
+        if undetermined:
+            lines.append(f"  {undetermined} of {len(identifiable)} parameters are not "
+                         f"identifiable from this data on their own ({source}); the data "
+                         "determine only their combinations (base parameters)")
         return "\n".join(lines)
+
+    def _identifiable(self) -> np.ndarray:
+        # Models saved before identifiability was recorded: every finite error counts.
+        return getattr(self, "identifiable_", np.isfinite(self.standard_errors_)
+                       & (self.standard_errors_ > 0))
+
+    def _undetermined_source(self) -> str:
+        if self.identification == "consistent" and self.prior == "model":
+            return "their values: the prior (model file) and the physical constraints"
+        if self.prior == "model":
+            return "kept at the model file's values where the data are silent"
+        return "least squares' minimum norm where the data are silent"
+
+    def _how_known(self, i, identifiable, unit, fmt) -> str:
+        if identifiable[i]:
+            return f"± {format(self.standard_errors_[i], fmt)}{' ' + unit if unit else ''}"
+        null = getattr(self, "null_component_", np.ones(len(identifiable)))[i]
+        if null > 0.999:
+            return "(not identifiable from this data)"
+        return ("(not identifiable from this data on its own: only in a combination with "
+                f"{', '.join(self._partners(i))})")
+
+    def _partners(self, i, count=3) -> list[str]:
+        """The parameters whose values trade off against parameter i along the data's null
+        directions (the largest components of the null projection of its unit vector)."""
+        null = getattr(self, "_null_directions", None)
+        if null is None or not len(null):
+            return ["others"]
+        along = null.T @ null[:, i]
+        along[i] = 0.0
+        order = np.argsort(-np.abs(along))[:count]
+        return [self.parameter_names_[j] for j in order if abs(along[j]) > IDENTIFIABLE_TOL]
+
+    def _verdict(self, dyn) -> str:
+        """One line: whether every body is physically possible, each violation named once."""
+        problems = []
+        for k, body in enumerate(dyn.bodies):
+            for problem in physical_violations(self.parameters_[10 * k:10 * k + 10], tol=1e-7):
+                problems.append(f"{body.name()}: {problem}")
+        if not problems:
+            return "every body physically possible: yes"
+        hint = ("" if self.identification == "consistent" else
+                " (identification='consistent', the default, constrains them)")
+        return "physically possible bodies: NO — " + "; ".join(problems) + hint
 
     def _names(self, dyn):
         names = list(dyn.parameter_names())
@@ -384,6 +496,21 @@ class ArmDynamicsCompensator(CarriesRobot, Compensator):
 @functools.lru_cache(maxsize=8)
 def _dynamics_for(model: ArmModel, gravity: tuple) -> ArmDynamics:
     return ArmDynamics(model.build_plant(), gravity)
+
+
+def _onto_bodies(theta, prior, nb):
+    """Removes the solver's last rounding (~1e-8) across J ⪰ 0: each group's negative
+    eigenvalues of its scaled pseudo-inertia (the program's scaling) clipped to 0, so that
+    a consistent fit passes :func:`is_physically_consistent` and says so."""
+    theta = theta.copy()
+    for k in range(nb):
+        D = np.diag([10.0, 10.0, 10.0, 1.0]) / np.sqrt(max(prior[10 * k], 0.1))
+        lam, V = np.linalg.eigh(D @ pseudo_inertia(theta[10 * k:10 * k + 10]) @ D)
+        if lam[0] < 0:
+            Dinv = np.linalg.inv(D)
+            J = Dinv @ ((V * np.maximum(lam, 0.0)) @ V.T) @ Dinv
+            theta[10 * k:10 * k + 10] = from_pseudo_inertia(0.5 * (J + J.T))
+    return theta
 
 
 def _gains_given(tau, Y):

@@ -48,6 +48,7 @@ from .correction import (
 )
 from .payload_identification import project_out
 from .physics import ExcitationWarning, PhysicsPayloadCompensator, payload_regressor
+from .regression import correlated_variance_ratio
 from .static_table import (
     KNOWN_COM,
     KNOWN_MASS,
@@ -106,6 +107,10 @@ class StaticCalibration:
     positions: tuple = ()
     position_unit: str = "rad"
     correction: CalibrationCorrection | None = None
+    covariance: np.ndarray | None = None  # (10, 10) of `parameters`
+    #: How the default (``correction="auto"``) chose: {candidate: per-axis cross-validated
+    #: RMS}, the choice and why, or None when a correction was asked for by name.
+    choice: dict | None = None
 
     def gravity_in_sensor(self, frame: pd.DataFrame) -> np.ndarray:
         """(N, 3) gravity in S (m/s²) at the poses of `frame`, from the same kind of columns
@@ -175,6 +180,8 @@ class StaticCalibration:
                                              strict=True))}
         if self.correction is not None:
             table["correction"] = self.correction.to_dict()
+        if self.choice is not None:
+            table["correction_choice"] = self.choice
         if self.mounting_rpy_deg is not None:
             table["mounting_rpy_deg"] = {
                 "value": self.mounting_rpy_deg.tolist(),
@@ -211,6 +218,8 @@ class StaticCalibration:
                                                       strict=True)))
         lines.append("  residual RMS (Fx..Tz): "
                      + ", ".join(f"{r:.3g}" for r in self.residual_rms))
+        if self.choice is not None:
+            lines.extend(_choice_lines(self.choice))
         if self.correction is not None:
             lines.extend(self.correction.summary())
         lines.append(f"  note: {NOT_IDENTIFIABLE}")
@@ -241,14 +250,16 @@ def calibrate_table(frame: pd.DataFrame, *, robot=None, sensor_frame=None, base_
     columns, one payload per row) or, without one, of the payload identified here.
     Raises LogError/ConfigError/RobotModelError naming the column, field or frame at fault.
     """
-    if correction is not None and correction not in CORRECTIONS:
-        raise ConfigError(f"correction must be one of {list(CORRECTIONS)} or None, got "
+    if correction is not None and correction not in (*CORRECTIONS, "auto"):
+        raise ConfigError(f"correction must be one of {[*CORRECTIONS, 'auto']} or None, got "
                           f"{correction!r}")
-    if correction is None and known_payload is not None:
+    if correction in (None, "auto") and known_payload is not None:
         raise ConfigError("known_payload is used by the gain/cross-talk correction: give "
                           "correction='block' or 'full'")
     cal = _calibrate(frame, robot, sensor_frame, base_frame, positions, targets,
                      position_unit, prior, identification, identify_mounting, gravity)
+    if correction == "auto":
+        correction, cal.choice = choose_correction(cal, frame, targets)
     if correction is None:
         return cal
     payload, loads = known_payload_rows(frame, known_payload)
@@ -268,6 +279,66 @@ def calibrate_table(frame: pd.DataFrame, *, robot=None, sensor_frame=None, base_
         # poses. Known payloads from the table's columns are read from each table.
         payload=None if known and KNOWN_MASS in frame else payload[0])
     return cal
+
+
+#: ``correction="auto"`` needs this many poses per parameter of a corrected axis (7 for the
+#: full 6 × 6: six entries and a bias) to compare the candidates by cross-validation.
+AUTO_ROWS_PER_PARAMETER = 4
+#: Folds of the cross-validation that chooses the correction.
+AUTO_FOLDS = 5
+#: A richer candidate is chosen only when its cross-validated error (geometric mean over
+#: the axes of the per-axis MSE) is below this fraction of the simpler one's.
+AUTO_GAIN = 0.9
+
+
+def choose_correction(cal: StaticCalibration, frame, targets) -> tuple[str | None, dict]:
+    """The correction the data support, by 5-fold cross-validation over the poses: gravity +
+    bias (None), ``"block"`` or ``"full"``, each refitted on the other folds (payload by
+    least squares, then the correction against its wrench) and scored on the held-out poses.
+    The richest candidate whose error (geometric mean of the per-axis MSE) is below
+    :data:`AUTO_GAIN` × the simpler choice's wins. Returns (choice, {"cv_rms": {candidate:
+    per-axis RMS}, "choice", "why"}). Several known loads per row, a temperature column or
+    too few poses keep gravity + bias (said in "why")."""
+    if KNOWN_MASS in frame:
+        return None, {"choice": "none", "why": "the table holds known loads: name the "
+                      "correction (block or full) to use them"}
+    if TEMPERATURE in frame:
+        return None, {"choice": "none", "why": "the table has a temperature column: name "
+                      "the correction (block or full) to fit it with the drift"}
+    if len(frame) < AUTO_ROWS_PER_PARAMETER * 7 * AUTO_FOLDS / (AUTO_FOLDS - 1):
+        return None, {"choice": "none", "why": f"{len(frame)} poses are too few to tell a "
+                      "correction from noise by cross-validation"}
+    Y = numeric_columns(frame, expand_columns(targets, list(frame.columns),
+                                              _wrench_columns_label()))
+    g_S = cal.gravity_in_sensor(frame)
+    A = _static_regressor(g_S)[:, :, [0, 1, 2, 3, 10, 11, 12, 13, 14, 15]]
+    folds = np.arange(len(Y)) % AUTO_FOLDS
+    np.random.default_rng(0).shuffle(folds)
+    errors = {name: np.zeros_like(Y) for name in ("none", "block", "full")}
+    for k in range(AUTO_FOLDS):
+        train, test = folds != k, folds == k
+        payload = identify_least_squares(A[train], Y[train], static=True).theta[
+            [0, 1, 2, 3, 10, 11, 12, 13, 14, 15]]
+        errors["none"][test] = Y[test] - A[test] @ payload
+        W_train, W_test = (true_wrench(g_S[rows], payload[:4]) for rows in (train, test))
+        for name in ("block", "full"):
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore", ExcitationWarning)  # free directions: fine
+                fitted = identify_correction(W_train, Y[train], name)
+            errors[name][test] = Y[test] - fitted.reading(W_test)
+    rms = {name: np.sqrt(np.mean(e ** 2, axis=0)) for name, e in errors.items()}
+    score = {name: float(np.exp(np.mean(np.log(np.maximum(r, 1e-300) ** 2))))
+             for name, r in rms.items()}
+    choice = "none"
+    for name in ("block", "full"):
+        if score[name] < AUTO_GAIN * score[choice]:
+            choice = name
+    why = (f"cross-validated ({AUTO_FOLDS} folds) error of {choice} is the lowest"
+           if choice != "none" else "no correction lowers the cross-validated error by "
+           f"{100 * (1 - AUTO_GAIN):.0f} %")
+    return (None if choice == "none" else choice), {
+        "cv_rms": {name: r.tolist() for name, r in rms.items()}, "choice": choice,
+        "why": why}
 
 
 def _calibrate(frame, robot, sensor_frame, base_frame, positions, targets, position_unit,
@@ -301,7 +372,11 @@ def _calibrate(frame, robot, sensor_frame, base_frame, positions, targets, posit
     else:
         result = identify_least_squares(A_fit[:, :, cols], Y_fit, static=True)
     theta = result.theta[cols]
-    cov = result.covariance[np.ix_(cols, cols)]
+    # Rows that are a time series of held poses are not independent: widen the errors.
+    ratio, _ = correlated_variance_ratio(A_fit[:, :, cols] * result.weights[None, :, None],
+                                         (Y_fit - A_fit[:, :, cols] @ theta) * result.weights)
+    factor = np.sqrt(ratio)
+    cov = result.covariance[np.ix_(cols, cols)] * np.outer(factor, factor)
     residual = Y - A[:, :, cols] @ theta
     k = se_k = None
     if d is not None:
@@ -310,7 +385,9 @@ def _calibrate(frame, robot, sensor_frame, base_frame, positions, targets, posit
         se_k = np.sqrt(np.mean(residual ** 2, axis=0)) / np.sqrt(d @ d)
     com, com_se = _com(theta, cov)
     return StaticCalibration(
-        source=kind, parameters=theta, standard_errors=result.standard_errors[cols], com=com,
+        source=kind, parameters=theta, standard_errors=result.standard_errors[cols] * factor,
+        com=com,
+        covariance=cov,
         com_std_error=com_se, residual_rms=np.sqrt(np.mean(residual ** 2, axis=0)),
         condition_number=float(result.condition_number), rows=len(frame),
         temperature_reference=reference, temperature_coefficients=k,
@@ -346,6 +423,7 @@ def _calibrate_joint_angles(frame, joint_cols, Y, temperature, robot, sensor_fra
     has_t = model.temperature_reference_ is not None
     return StaticCalibration(
         source="joint_angles", parameters=theta, standard_errors=model.standard_errors_[cols],
+        covariance=cov,
         com=com, com_std_error=com_se, residual_rms=model.residual_rms_,
         condition_number=model.condition_number_, rows=len(frame),
         temperature_reference=model.temperature_reference_ if has_t else None,
@@ -360,6 +438,15 @@ def _calibrate_joint_angles(frame, joint_cols, Y, temperature, robot, sensor_fra
 
 
 # -- helpers -------------------------------------------------------------------------------
+
+
+def _choice_lines(choice: dict) -> list[str]:
+    """How the default chose the correction, as lines a user reads."""
+    lines = [f"  correction chosen from the data: {choice['choice']} ({choice['why']})"]
+    for name, rms in choice.get("cv_rms", {}).items():
+        lines.append(f"    cross-validated RMS (Fx..Tz), {name:5s}: "
+                     + ", ".join(f"{r:.3g}" for r in rms))
+    return lines
 
 
 def _static_regressor(g_S):

@@ -32,9 +32,11 @@ from __future__ import annotations
 import dataclasses as dc
 
 import numpy as np
+from scipy.optimize import lsq_linear
 
 from ..errors import ConfigError
 from .consistent_program import (
+    WEIGHT_MASS,
     IdentificationError,
     active_constraints,
     check_prior,
@@ -57,7 +59,7 @@ __all__ = [  # the names model code and files use from here, wherever they are d
     "DEFAULT_MIN_MASS", "DEFAULT_PRIOR_WEIGHT", "PARAMETER_NAMES", "STATIC_PARAMETERS",
     "ConsistentIdentification", "IdentificationError", "PayloadPrior", "as_phi", "axis_weights",
     "from_pseudo_inertia", "identify_consistent", "identify_least_squares", "inertia_matrix",
-    "is_physically_consistent", "physical_violations", "pseudo_inertia",
+    "is_physically_consistent", "is_possible", "physical_violations", "pseudo_inertia",
 ]
 
 #: θ's entries: payload φ (10), biases (6) and, with a weight carried without inertia, its
@@ -349,8 +351,7 @@ def identify_consistent(A, Y, *, weights=None, static=False, prior=None,
         poorly_determined=poor,
         relative_errors=full(rel, np.nan),
         theta_least_squares=theta_ls16,
-        least_squares_consistent=is_physically_consistent(theta_ls16[:10]) if not static
-        else bool(theta_ls16[0] > 0),
+        least_squares_consistent=is_possible(theta_ls16, static),
         weights=weights,
         residual_rms=np.sqrt(np.mean((Y - A16 @ theta16) ** 2, axis=0)),
         solver=solver_name,
@@ -382,6 +383,15 @@ def identify_least_squares(A, Y, *, weights=None, static=False,
     scale = np.where(zero_columns, 1.0, scale)
     R, z = reduce_rows(Aw / scale, yw)
     theta = np.linalg.lstsq(R, z, rcond=None)[0] / scale
+    active = ()
+    if width > WEIGHT_MASS and theta[WEIGHT_MASS] < 0:
+        # A weight without inertia cannot be negative: bounded least squares (the same
+        # problem with m_w ≥ 0), which puts it on the bound.
+        lower = np.full(p, -np.inf)
+        lower[WEIGHT_MASS] = 0.0
+        theta = lsq_linear(R, z, bounds=(lower, np.inf), method="bvls").x / scale
+        theta[WEIGHT_MASS] = max(theta[WEIGHT_MASS], 0.0)
+        active = ("weight_without_inertia >= 0",)
     singular = np.linalg.svd(R, compute_uv=False)
     condition = float(singular[0] / singular[-1]) if singular[-1] > 0 else float("inf")
     residual = yw - Aw @ theta
@@ -400,15 +410,22 @@ def identify_least_squares(A, Y, *, weights=None, static=False,
     cov16[np.ix_(cols, cols)] = cov
     theta16 = full(theta, 0.0)
     A16 = A if A.shape[-1] == width else _embed(A, cols)
-    consistent = (is_physically_consistent(theta16[:10]) if not static
-                  else bool(theta16[0] > 0))
+    consistent = is_possible(theta16, static)
     return ConsistentIdentification(
         theta=theta16, standard_errors=full(se, np.nan), covariance=cov16,
-        condition_number=condition, active_constraints=(), prior_share=full(np.zeros(p), np.nan),
+        condition_number=condition, active_constraints=active,
+        prior_share=full(np.zeros(p), np.nan),
         poorly_determined=poor, relative_errors=full(rel, np.nan), theta_least_squares=theta16,
         least_squares_consistent=consistent, weights=weights,
         residual_rms=np.sqrt(np.mean((Y - A16 @ theta16) ** 2, axis=0)), solver="lstsq",
         status="kSolutionFound", solve_time=0.0, static=bool(static))
+
+
+def is_possible(theta, static=False) -> bool:
+    """Whether θ describes a payload that exists: a physically possible body (a positive
+    mass for a static fit) and, with a weight carried without inertia, ``m_w ≥ 0``."""
+    body = is_physically_consistent(theta[:10]) if not static else bool(theta[0] > 0)
+    return body and (len(theta) <= WEIGHT_MASS or bool(theta[WEIGHT_MASS] >= 0))
 
 
 # -- input checks --------------------------------------------------------------------------

@@ -22,6 +22,8 @@ from .regression import NULL_DIRECTION_TOL
 # A prior's second moments about its centre of mass are floored at m0·(1 mm)² so that the
 # metric the prior uses exists for a point mass, a rod or a plate.
 _PRIOR_MIN_SPREAD = 1e-3
+#: θ's index of the mass of a weight carried without inertia (when θ has 20 entries).
+WEIGHT_MASS = 16
 
 
 class IdentificationError(FtdrakeError, RuntimeError):
@@ -51,6 +53,8 @@ def solve_program(R, z, scale, static, prior_precision, x0, min_mass, m_ref, len
         prog = MathematicalProgram()
         x = prog.NewContinuousVariables(p, "x")
         prog.AddBoundingBoxConstraint(min_mass * scale[0], np.inf, x[0])
+        if p > WEIGHT_MASS:  # a weight carried without inertia weighs something or nothing
+            prog.AddBoundingBoxConstraint(0.0, np.inf, x[WEIGHT_MASS])
         if not static:
             # J ⪰ 0 written for D·J·D, D = diag(1/L, 1/L, 1/L, 1)/√m_ref (a congruence: the
             # same cone), so that its entries are of order one whatever the body's size.
@@ -111,6 +115,8 @@ def onto_constraints(theta, static, min_mass, m_ref, length):
             Dinv = np.linalg.inv(D)
             theta[:10] = from_pseudo_inertia(Dinv @ ((V * np.maximum(lam, 0.0)) @ V.T) @ Dinv)
     theta[0] = max(theta[0], min_mass)
+    if len(theta) > WEIGHT_MASS:
+        theta[WEIGHT_MASS] = max(theta[WEIGHT_MASS], 0.0)
     return theta
 
 
@@ -136,6 +142,8 @@ def active_constraints(theta, static, min_mass, m_ref, length, tol=1e-6):
     active = []
     if theta[0] <= min_mass * (1 + tol):
         active.append("min_mass")
+    if len(theta) > WEIGHT_MASS and theta[WEIGHT_MASS] <= tol * max(abs(theta[0]), 1e-12):
+        active.append("weight_without_inertia >= 0")
     if not static:
         # The smallest eigenvalue of D·J·D (the scaled J of the program, entries of order
         # one): zero = a degenerate body (plate, rod, point), on the boundary of J ⪰ 0.

@@ -38,6 +38,9 @@ from .physics import ExcitationWarning
 CORRECTIONS = ("block", "full")
 #: A singular value below this fraction of the largest is a direction the data do not span.
 _RANK_TOL = 1e-6
+#: What determines the entries one load leaves free.
+MORE_LOADS = ("poses with other known loads (columns known_mass, known_com_x/y/z; centres of "
+              "mass not on one line for the full 6 × 6) determine them")
 SEVERAL_LOADS = ("the table holds {} loads: the payload and biases above are one gravity + bias "
                  "fit over all of them (not a payload); the correction uses the known ones")
 
@@ -77,6 +80,11 @@ class CalibrationCorrection:
     temperature_coefficients: np.ndarray | None = None
     temperature_std_errors: np.ndarray | None = None
     free_directions: np.ndarray = dc.field(default_factory=lambda: np.zeros((0, 6)))
+    #: (6, 3) what one load's poses do determine when C is not: the reading per unit gravity
+    #: in S, ``K = M·[m·I; [h]×]`` (N per m/s², N·m per m/s²), and its standard errors; None
+    #: with several loads or a payload per row.
+    gravity_matrix: np.ndarray | None = None
+    gravity_matrix_std_errors: np.ndarray | None = None
 
     def reading(self, W_S: np.ndarray, temperature=None) -> np.ndarray:
         """(N, 6) readings for true wrenches `W_S` (N, 6) in S: ``M·W + b (+ k·ΔT)``."""
@@ -85,6 +93,11 @@ class CalibrationCorrection:
             out = out + np.outer(np.asarray(temperature) - self.temperature_reference,
                                  self.temperature_coefficients)
         return out
+
+    def free_entries(self) -> np.ndarray:
+        """(6, 6) bool: the entries of C these poses do not determine (a change of the
+        sensor matrix along a direction the loads' wrenches do not span moves them)."""
+        return ~np.isfinite(self.std_errors)
 
     def to_dict(self) -> dict:
         table = {
@@ -108,6 +121,9 @@ class CalibrationCorrection:
                         "identified from these poses: the mean force gain is absorbed in the "
                         "mass, the torque gain in the centre of mass"),
             "not_determined": list(self.undetermined) or "none",
+            "not_determined_entries": ([f"C[{WRENCH_AXES[a]},{WRENCH_AXES[b]}]"
+                                        for a, b in zip(*np.nonzero(self.free_entries()),
+                                                        strict=True)] or "none"),
         }
         if self.loads > 1:
             table["note"] = SEVERAL_LOADS.format(self.loads)
@@ -124,13 +140,28 @@ class CalibrationCorrection:
         lines = [(f"  gain/cross-talk correction C ({how}; {self.loads} load(s), {payload}; "
                   f"condition number {self.condition_number:.3g}):"),
                  ("    wrench in S = C·(reading − bias), rows/columns Fx..Tz; entry ± std "
-                  "error (· fixed at 0 by the structure)")]
+                  "error (· fixed at 0 by the structure; 'free': not determined by these "
+                  "poses, the least-change value)")]
         fixed = (self.sensor_std_errors == 0) & (self.sensor_matrix == 0)
+        free = self.free_entries()
         for i, axis in enumerate(WRENCH_AXES):
             lines.append(f"    {axis}: " + "  ".join(
-                f"{'·':^18s}" if fixed[i, j] else f"{v:+.5f} ± {_se(e):7s}"
+                f"{'·':^18s}" if fixed[i, j] else
+                f"{v:+.5f} {'free':7s}  " if free[i, j] else f"{v:+.5f} ± {_se(e):7s}"
                 for j, (v, e) in enumerate(zip(self.matrix[i], self.std_errors[i],
                                                strict=True))))
+        if free.any():
+            lines.append(f"    not determined by these poses ({int(free.sum())} of "
+                         f"{int((~fixed).sum())} entries): {name_entries(free)}; "
+                         f"{MORE_LOADS}")
+            if self.gravity_matrix is not None:
+                lines.append("    what these poses determine: the reading per unit gravity "
+                             "in S, K = M·[m·I; [h]×] (columns gx, gy, gz):")
+                for i, axis in enumerate(WRENCH_AXES):
+                    lines.append(f"    {axis}: " + "  ".join(
+                        f"{v:+.5g} ± {_se(e):7s}" for v, e in zip(
+                            self.gravity_matrix[i], self.gravity_matrix_std_errors[i],
+                            strict=True)))
         lines.append("    residual RMS (Fx..Tz): " + ", ".join(
             f"{r:.3g}" for r in self.residual_rms) + "; gravity + bias only: " + ", ".join(
             f"{r:.3g}" for r in self.rigid_residual_rms))
@@ -199,6 +230,9 @@ def identify_correction(W_S, Y, structure="block", temperature=None,
                     free_directions.append(direction)
     C = np.linalg.inv(M)
     C_se = _inverse_std_errors(C, per_row)
+    K = K_se = None
+    if free_directions and payload is not None and np.ndim(payload) == 1:
+        K, K_se = _gravity_matrix(M, per_row, payload)
     if undetermined:
         warnings.warn(
             "the poses do not determine the whole gain/cross-talk correction: "
@@ -217,7 +251,21 @@ def identify_correction(W_S, Y, structure="block", temperature=None,
         temperature_reference=reference if d is not None else None,
         temperature_coefficients=k if d is not None else None,
         temperature_std_errors=k_se if d is not None else None,
-        free_directions=np.array(free_directions).reshape(-1, 6))
+        free_directions=np.array(free_directions).reshape(-1, 6),
+        gravity_matrix=K, gravity_matrix_std_errors=K_se)
+
+
+def _gravity_matrix(M, per_row, payload):
+    """(K, its standard errors), K = M·L with W_S = L·g_S, L = [m·I; [h]×]: determined
+    even where M is not (M's free part is orthogonal to L's columns, the wrenches' span)."""
+    m, h = payload[0], np.asarray(payload[1:4], float)
+    L = np.vstack([m * np.eye(3), np.array([[0, -h[2], h[1]], [h[2], 0, -h[0]],
+                                             [-h[1], h[0], 0]])])
+    K, K_se = M @ L, np.zeros((6, 3))
+    for i, (cols, cov, _) in per_row.items():
+        Li = L[cols]
+        K_se[i] = np.sqrt(np.maximum(np.diag(Li.T @ cov @ Li), 0.0))
+    return K, K_se
 
 
 def uncorrected_rms(residual, temperature) -> np.ndarray:
@@ -274,6 +322,23 @@ def true_wrench(g_S: np.ndarray, payload: np.ndarray) -> np.ndarray:
     """
     payload = np.broadcast_to(np.asarray(payload, float), (len(g_S), 4))
     return np.hstack([payload[:, :1] * g_S, np.cross(payload[:, 1:], g_S)])
+
+
+def name_entries(free: np.ndarray) -> str:
+    """The free entries of C in words: whole columns by name (a wrench axis no pose loads
+    independently), the rest as C[row,column]."""
+    parts = []
+    for b, axis in enumerate(WRENCH_AXES):
+        rows = np.flatnonzero(free[:, b])
+        if not len(rows):
+            continue
+        if len(rows) >= 3 and (set(rows) >= {0, 1, 2} or set(rows) >= {3, 4, 5}):
+            which = ("all rows" if len(rows) == 6 else
+                     "rows " + "..".join((WRENCH_AXES[rows[0]], WRENCH_AXES[rows[-1]])))
+            parts.append(f"column {axis} ({which})")
+        else:
+            parts.extend(f"C[{WRENCH_AXES[a]},{axis}]" for a in rows)
+    return ", ".join(parts)
 
 
 def _se(e: float) -> str:

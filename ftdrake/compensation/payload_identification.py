@@ -16,6 +16,7 @@ from scipy.spatial.transform import Rotation
 
 from ..physics.rigid_body import inertia_map, skew
 from .consistent import STATIC_PARAMETERS, identify_consistent, identify_least_squares
+from .regression import correlated_variance_ratio
 
 #: The columns that are a wrench in S (rotated into Sm by a mounting); the biases are in Sm.
 BIASES = slice(10, 16)
@@ -56,8 +57,18 @@ def identify_payload(A, Y, *, static: bool, identification: str, prior, prior_we
             prior=None if prior is None else prior.phi(), prior_weight=prior_weight)
     else:
         result = identify_least_squares(A_fit[:, :, cols], Y_fit, static=static)
+    # Rows of a time series are not independent samples: widen the standard errors by how
+    # much the residual's correlation widens them (1 for independent rows).
+    factor = np.ones(p)
+    ratio, window = correlated_variance_ratio(
+        A_fit[:, :, cols] * result.weights[None, :, None],
+        (Y_fit - A_fit[:, :, cols] @ result.theta[cols]) * result.weights)
+    factor[cols] = np.sqrt(ratio)
+    fitted.update(standard_error_factor_=factor, correlation_window_=window)
+    rotation_std_deg = rotation_std_deg * float(np.median(factor[cols]))
+    fitted.update(mounting_std_deg_=rotation_std_deg)
     theta = result.theta.copy()
-    cov = result.covariance.copy()
+    cov = result.covariance * np.outer(factor, factor)
     # Biases were identified in S; the sensor adds them in Sm.
     theta[BIASES] = block.T @ theta[BIASES]
     to_Sm = np.eye(p)
@@ -65,7 +76,7 @@ def identify_payload(A, Y, *, static: bool, identification: str, prior, prior_we
     finite = np.isfinite(cov)
     cov = to_Sm @ np.where(finite, cov, 0.0) @ to_Sm.T
     cov[~finite] = np.nan  # parameters not identified (a static fit's inertia) stay NaN
-    standard_errors = result.standard_errors.copy()
+    standard_errors = result.standard_errors * factor
     standard_errors[BIASES] = np.sqrt(np.maximum(np.diag(cov[BIASES, BIASES]), 0.0))
     coefficients, coefficient_errors = np.zeros(6), np.full(6, np.nan)
     if d is not None:

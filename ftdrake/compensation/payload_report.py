@@ -57,6 +57,15 @@ def identified_table(model) -> dict:
             "std_error": model.temperature_std_errors_.tolist(),
             "unit": "N/K (forces), N*m/K (torques)",
             "reference_c": model.temperature_reference_}
+    factor = getattr(model, "standard_error_factor_", None)
+    if factor is not None:
+        finite = factor[np.isfinite(factor)]
+        table["correlated_rows"] = {
+            "window_rows": int(model.correlation_window_),
+            "standard_error_factor": float(np.median(finite)) if finite.size else 1.0,
+            "meaning": ("standard errors widened by this factor (median over the parameters) "
+                        "because the rows of a time series are not independent: overlapping "
+                        "batch means over windows of window_rows rows")}
     table["condition_number"] = model.condition_number_
     table["identification"] = getattr(model, "identification", "least_squares")
     table["physically_consistent"] = bool(getattr(model, "physically_consistent_", True))
@@ -67,6 +76,7 @@ def identified_table(model) -> dict:
             "values": {PARAMETER_NAMES[i]: float(result.theta_least_squares[i])
                        for i in cols},
             "physically_consistent": bool(result.least_squares_consistent)}
+    if result is not None:
         table["active_constraints"] = list(result.active_constraints)
     return table
 
@@ -101,10 +111,20 @@ def summary_text(model) -> str:
                      + ", ".join(
             f"{v:.4g} ± {e:.2g}" for v, e in zip(k["coefficients"], k["std_error"],
                                                   strict=True)))
+    if t.get("correlated_rows", {}).get("standard_error_factor", 1.0) > 1.05:
+        c = t["correlated_rows"]
+        lines.append(f"  standard errors ×{c['standard_error_factor']:.2g} (median) for "
+                     f"correlated rows: the residual stays correlated over ~"
+                     f"{max(1, c['window_rows'] // 3)} rows, so the rows count as fewer "
+                     "independent samples")
     lines.append(f"  physically possible body: {'yes' if t['physically_consistent'] else 'NO'}"
                  + ("" if "least_squares" not in t else
                     f" (plain least squares: "
                     f"{'yes' if t['least_squares']['physically_consistent'] else 'no'})"))
+    if "weight_without_inertia >= 0" in t.get("active_constraints", ()):
+        lines.append("  mw is on its bound 0: a weight carried without inertia cannot be "
+                     "negative, and the data pull it below (no hanging weight; or an upward "
+                     "pull the model does not have)")
     lines.append(f"  not determined by the data: {', '.join(t['not_determined']) or 'none'}")
     return "\n".join(lines)
 

@@ -65,7 +65,7 @@ from ..physics.robot import (
 )
 from .base import Compensator
 from .compiled.payload import pack_payload_row, payload_mean_std, payload_predict
-from .consistent import DEFAULT_PRIOR_WEIGHT, PayloadPrior, is_physically_consistent
+from .consistent import DEFAULT_PRIOR_WEIGHT, PayloadPrior, is_possible
 from .consistent import PARAMETER_NAMES as CONSISTENT_NAMES
 from .consistent import STATIC_PARAMETERS as CONSISTENT_STATIC
 from .payload_identification import (
@@ -264,8 +264,9 @@ class PhysicsPayloadCompensator(CarriesRobot, Compensator):
             temperature=temperature))
         self.residual_rms_ = np.sqrt(np.mean((Y - self._predict_from(A, temperature)) ** 2,
                                              axis=0))
-        self.physically_consistent_ = (is_physically_consistent(self.parameters_[:10])
-                                       if not static else bool(self.parameters_[0] > 0))
+        # A possible payload: a body (a positive mass, static) and a weight without inertia
+        # that weighs something or nothing.
+        self.physically_consistent_ = is_possible(self.parameters_, static)
         self._warn_if_poorly_excited()
 
     def _predict_from(self, A, temperature=None):

@@ -134,6 +134,8 @@ DEFAULT_KIND_WITH_ROBOT = "hybrid"
 #: Types a model file may hold beyond the registry's classes and skops's defaults.
 COMMON_TRUSTED_TYPES: tuple[str, ...] = (
     "ftdrake.compensation.tuning.PerOutputCompensator",  # what per-axis tuning returns
+    # calibrate's model of a table whose orientation is given directly (no robot).
+    "ftdrake.compensation.orientation_model.OrientationPayloadCompensator",
     # scikit-learn's tree node storage. sklearn follows its node indices without bounds
     # checks, so every loaded tree is checked before the model is returned.
     "sklearn.tree._tree.Tree",

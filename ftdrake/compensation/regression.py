@@ -82,3 +82,51 @@ def poorly_determined(R, data_cov, theta, cols, relative_se_limit):
         rel[idx] = se[idx] / group_scale
         names.update(i for i in idx if rel[i] > relative_se_limit)
     return rel, tuple(int(cols[i]) for i in sorted(names)), unseen
+
+
+#: The residual's correlation length is the first lag whose autocorrelation falls below this.
+CORRELATION_FLOOR = 0.05
+#: The window of the overlapping-batch-means estimate, in correlation lengths (a Bartlett
+#: window of this width keeps ~90 % of an AR(1) residual's long-run variance).
+WINDOW_LENGTHS = 3
+
+
+def correlation_length(residual) -> int:
+    """Rows until the (N, k) residual's autocorrelation, averaged over its columns, first
+    falls below :data:`CORRELATION_FLOOR` (1 for white noise), by FFT."""
+    e = residual - residual.mean(axis=0)
+    n = len(e)
+    f = np.fft.rfft(e, n=2 * n, axis=0)
+    acov = np.fft.irfft(f * np.conj(f), axis=0)[:n].sum(axis=1)
+    if acov[0] <= 0:
+        return 1
+    below = np.flatnonzero(acov / acov[0] < CORRELATION_FLOOR)
+    return int(below[0]) if len(below) else n
+
+
+def correlated_variance_ratio(Aw, ew):
+    """(per-parameter variance ratio, window in rows): how much larger each parameter's
+    variance is when the rows are a time series whose errors are correlated than the
+    independent-rows formula ``σ²·(AᵀA)⁻¹`` says.
+
+    Aw: (N, k, p) weighted regressor, one time step a row; ew: (N, k) weighted residual.
+    The scores ``s_t = A_tᵀ e_t`` (p) are summed over overlapping windows of ``b`` rows
+    (:data:`WINDOW_LENGTHS` × :func:`correlation_length`, at most N/5): the
+    overlapping-batch-means (Bartlett-kernel, Newey–West) estimate of their long-run
+    covariance S gives the sandwich ``H⁺ S H⁺`` (H = AᵀA), compared with the independent
+    formula; ratios are floored at 1 (independent rows are the least one can claim).
+    ``rows``: the number of time steps (N).
+    """
+    n, _, p = Aw.shape
+    b = int(min(max(1, WINDOW_LENGTHS * correlation_length(ew)), max(1, n // 5)))
+    scores = np.einsum("nkp,nk->np", Aw, ew)
+    flat = Aw.reshape(-1, p)
+    H_inv = np.linalg.pinv(flat.T @ flat, hermitian=True)
+    sigma2 = float(np.sum(ew ** 2) / max(1, ew.size - p))
+    iid = sigma2 * np.diag(H_inv)
+    csum = np.vstack([np.zeros((1, p)), np.cumsum(scores, axis=0)])
+    windows = csum[b:] - csum[:-b]  # (N − b + 1, p) sums over b consecutive rows
+    S = n * (windows.T @ windows) / (b * len(windows))
+    sandwich = np.diag(H_inv @ S @ H_inv)
+    ratio = np.where(iid > 0, sandwich / np.where(iid > 0, iid, 1.0), 1.0)
+    return np.maximum(ratio, 1.0), b
