@@ -166,6 +166,11 @@ def test_a_time_column_named_time_is_named_not_taken_for_static_poses(tmp_path, 
     assert "no time column 't'; the table has ['time']: choose it with --time time" in err
     assert "static poses" not in err
     assert main(["train", "--data", path, "--time", "time", "--out", out, *rf()]) == 0
+    # calibrate takes a moving log with any time-like column as a motion, and names --time.
+    assert main(["calibrate", "--data", path, "--robot", "ftdrake",
+                 "--out", str(tmp_path / "cal")]) == 2
+    err = capsys.readouterr().err
+    assert "choose it with --time time" in err and "static poses" not in err
     # Poses one after another without a time column: the calibrate hint stays.
     poses = pd.DataFrame(np.random.default_rng(2).uniform(-2, 2, (30, 2)), columns=["q_0", "q_1"])
     for axis in AXES:

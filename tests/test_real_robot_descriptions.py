@@ -155,6 +155,27 @@ def test_train_names_the_joints_on_the_command_line(log, tmp_path, capsys):
     assert "must hold 'joints: [NAME, ...]'" in capsys.readouterr().err
 
 
+def test_calibrate_names_the_joints_on_the_command_line(log, tmp_path, capsys):
+    """The same static poses (no time column): calibrate takes --joints/--fixed-joints too."""
+    import pandas as pd
+    import yaml
+
+    urdf, q, Y = log
+    frame = pd.DataFrame(q, columns=["q_0", "q_1", "q_2"])
+    for i, axis in enumerate(("Fx", "Fy", "Fz", "Tx", "Ty", "Tz")):
+        frame[f"meas_{axis}"] = Y[:, i]
+    data = tmp_path / "poses.csv"
+    frame.to_csv(data, index=False)
+    common = ["calibrate", "--data", str(data), "--robot", urdf, "--sensor-frame", "gripper",
+              "--base-frame", "base", "--correction", "none", "--quiet",
+              "--out", str(tmp_path / "cal")]
+    assert main(common) == 2
+    assert "--joints NAME,NAME" in capsys.readouterr().err
+    assert main([*common, "--joints", "j1,j2,j3", "--fixed-joints", "torso=0.2"]) == 0
+    found = yaml.safe_load((tmp_path / "cal" / "calibration.yaml").read_text())
+    assert found["calibration"]["parameters"]["m"]["value"] == pytest.approx(MASS, abs=0.01)
+
+
 def test_fixed_joint_values_are_read_from_text_and_refused_when_malformed():
     assert fixed_joint_values("torso=0.2, finger_l=0.01") == (("torso", 0.2), ("finger_l", 0.01))
     with pytest.raises(RobotModelError, match="'torso' is not NAME=VALUE"):

@@ -170,6 +170,18 @@ def add_stream_delay(p, *, corrected: str, estimated: str) -> None:
                        help=f"estimate that delay ({estimated}), report it and correct it")
 
 
+def add_joint_mapping(p) -> None:
+    """--joints and --fixed-joints: a robot description with more joints than the log."""
+    p.add_argument("--joints", metavar="NAME,NAME,..|FILE",
+                   help="the joints of --robot the log's position columns hold, in their order "
+                        "(when --robot has more: a torso, a head, fingers), or a YAML file of "
+                        "'joints: [...]' and 'fixed_joints: {NAME: VALUE}'; default: all of "
+                        "them, in the model's order")
+    p.add_argument("--fixed-joints", metavar="NAME=V,..|FILE",
+                   help="where the joints of --robot not in --joints stand (rad, or m for "
+                        "prismatic), or a YAML file mapping name to value; default 0")
+
+
 def add_quiet(p, help: str = "no progress output"):
     return p.add_argument("--quiet", action="store_true", help=help)
 

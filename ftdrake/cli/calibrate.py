@@ -33,8 +33,8 @@ from ..compensation.orientation_model import OrientationPayloadCompensator
 from ..compensation.persistence import save_model
 from ..compensation.physics import ExcitationWarning
 from ..compensation.registry import make_estimator
-from ..conventions import MEASURED, TEMPERATURE, WRENCH_AXES, WRENCH_UNITS
-from ..data.logs import expand_columns, option_spelling, read_frame
+from ..conventions import MEASURED, TEMPERATURE, TIME, WRENCH_AXES, WRENCH_UNITS
+from ..data.logs import expand_columns, option_spelling, read_frame, time_columns
 from ..data.training import ReadOptions, load_training_data
 from ..errors import ConfigError, LogError
 from ..io import atomic_write_text
@@ -67,7 +67,11 @@ def register(subparsers) -> None:
                    "'ftdrake' for the simulated arm (with joint-angle columns)")
     p.add_argument("--sensor-frame", metavar="NAME", help="frame S of the wrench in --robot")
     p.add_argument("--base-frame", metavar="NAME", help="frame of --robot welded to the world")
+    a.add_joint_mapping(p)
     p.add_argument("--positions", default="q_*", metavar="PAT", help="joint angle columns")
+    p.add_argument("--time", default=TIME, metavar="COL",
+                   help="a motion log's time column (s); a table with a time column whose "
+                        "joints move is calibrated as a motion")
     p.add_argument("--targets", default=f"{MEASURED}_*", metavar="PAT",
                    help="wrench columns Fx..Tz")
     p.add_argument("--position-unit", choices=("rad", "deg"), default="rad",
@@ -139,7 +143,10 @@ def run_calibrate(args) -> int:
         raise LogError(f"--robot {args.robot}: no such file")
     frame = read_frame(args.data)
     known = _known_payload(args)
-    if args.time_series or (orientation_kind(frame.columns) is None and "t" in frame
+    # Any time-like column (t, time, stamp …) with moving joints is a motion; reading it then
+    # names --time if the column is not the one given.
+    timed = args.time in frame or bool(time_columns(frame.columns))
+    if args.time_series or (orientation_kind(frame.columns) is None and timed
                             and _moving(frame, args.positions)):
         if args.correction in ("block", "full"):
             raise ConfigError("--correction needs a table of static poses (gravity known at "
@@ -155,7 +162,7 @@ def run_calibrate(args) -> int:
                 identification="least_squares" if args.least_squares else "consistent",
                 identify_mounting=not args.no_mounting,
                 correction=None if args.correction == "none" else args.correction,
-                known_payload=known)
+                known_payload=known, joints=args.joints, fixed_joints=args.fixed_joints)
     say(cal.summary())
     _print_warnings(caught, ExcitationWarning)
     model, options = cal.model, None
@@ -217,7 +224,7 @@ def _moving(frame, positions) -> bool:
 def _read_options(args, temperature: bool):
     """How `evaluate` reads data for the model file (kept in its manifest)."""
     return ReadOptions().updated(positions=args.positions, targets=args.targets,
-                                 position_unit=args.position_unit,
+                                 position_unit=args.position_unit, time=args.time,
                                  temperature=TEMPERATURE if temperature else None)
 
 
@@ -225,7 +232,8 @@ def _time_series(args, prior, temperature: bool) -> int:
     """A motion log: read as `train` reads it, fitted by the dynamic physics model (with the
     temperature column, if the log has one)."""
     data = load_training_data(args.data, _read_options(args, temperature))
-    robot = RobotOptions(args.robot, args.sensor_frame, args.base_frame, data.scenario_yaml)
+    robot = RobotOptions(args.robot, args.sensor_frame, args.base_frame, data.scenario_yaml,
+                         joints=args.joints, fixed_joints=args.fixed_joints)
     # The dynamic payload model train builds on a wrench (calibrate's targets are Fx..Tz).
     model = make_estimator("physics", features="q,qd,qdd", target_names=WRENCH_AXES,
                            robot=robot)

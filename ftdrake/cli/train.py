@@ -122,14 +122,7 @@ def register(subparsers) -> None:
                         "simulated arm (physics, hybrid)")
     p.add_argument("--sensor-frame", metavar="NAME", help="frame S of the targets in --robot")
     p.add_argument("--base-frame", metavar="NAME", help="frame of --robot welded to the world")
-    p.add_argument("--joints", metavar="NAME,NAME,..|FILE",
-                   help="the joints of --robot the log's position columns hold, in their order "
-                        "(when --robot has more: a torso, a head, fingers), or a YAML file of "
-                        "'joints: [...]' and 'fixed_joints: {NAME: VALUE}'; default: all of "
-                        "them, in the model's order")
-    p.add_argument("--fixed-joints", metavar="NAME=V,..|FILE",
-                   help="where the joints of --robot not in --joints stand (rad, or m for "
-                        "prismatic), or a YAML file mapping name to value; default 0")
+    a.add_joint_mapping(p)
     _add_model_options(p)
     p.add_argument("--target-units", metavar="U,U,..",
                    help="unit per target (default: N/N*m for wrench axes, else N*m)")

@@ -236,7 +236,7 @@ def calibrate_table(frame: pd.DataFrame, *, robot=None, sensor_frame=None, base_
                     positions="q_*", targets=f"{MEASURED}_*", position_unit="rad",
                     prior=None, identification="consistent", identify_mounting=True,
                     gravity=GRAVITY_W, correction=None,
-                    known_payload=None) -> StaticCalibration:
+                    known_payload=None, joints=None, fixed_joints=None) -> StaticCalibration:
     """Identifies payload, biases (and mounting, temperature coefficients) from static poses.
 
     `frame`: one row per pose; 6 wrench columns (`targets`) and either joint angles
@@ -248,6 +248,8 @@ def calibrate_table(frame: pd.DataFrame, *, robot=None, sensor_frame=None, base_
     correction (module docstring) against the wrench of a `known_payload` (mapping with
     ``mass`` kg and ``com`` m, in S; or the table's ``known_mass``, ``known_com_x/y/z``
     columns, one payload per row) or, without one, of the payload identified here.
+    `joints`, `fixed_joints`: which joints of `robot` the position columns hold and where the
+    others stand (as :class:`~ftdrake.compensation.physics.PhysicsPayloadCompensator`'s).
     Raises LogError/ConfigError/RobotModelError naming the column, field or frame at fault.
     """
     if correction is not None and correction not in (*CORRECTIONS, "auto"):
@@ -257,7 +259,8 @@ def calibrate_table(frame: pd.DataFrame, *, robot=None, sensor_frame=None, base_
         raise ConfigError("known_payload is used by the gain/cross-talk correction: give "
                           "correction='block' or 'full'")
     cal = _calibrate(frame, robot, sensor_frame, base_frame, positions, targets,
-                     position_unit, prior, identification, identify_mounting, gravity)
+                     position_unit, prior, identification, identify_mounting, gravity,
+                     (joints, fixed_joints))
     if correction == "auto":
         correction, cal.choice = choose_correction(cal, frame, targets)
     if correction is None:
@@ -342,7 +345,8 @@ def choose_correction(cal: StaticCalibration, frame, targets) -> tuple[str | Non
 
 
 def _calibrate(frame, robot, sensor_frame, base_frame, positions, targets, position_unit,
-               prior, identification, identify_mounting, gravity) -> StaticCalibration:
+               prior, identification, identify_mounting, gravity,
+               mapping=(None, None)) -> StaticCalibration:
     """calibrate_table without the correction."""
     prior = PayloadPrior.coerce(prior)
     target_cols = expand_columns(targets, list(frame.columns), _wrench_columns_label())
@@ -355,7 +359,7 @@ def _calibrate(frame, robot, sensor_frame, base_frame, positions, targets, posit
     if joint_cols and (robot is not None or kind is None):
         return _calibrate_joint_angles(frame, joint_cols, Y, temperature, robot, sensor_frame,
                                        base_frame, position_unit, prior, identification,
-                                       identify_mounting, gravity)
+                                       identify_mounting, gravity, mapping)
     if kind is None:
         raise LogError("no orientation in the table: give joint angles (columns "
                        f"{positions!r}) with --robot and --sensor-frame, or one of the column "
@@ -396,7 +400,7 @@ def _calibrate(frame, robot, sensor_frame, base_frame, positions, targets, posit
 
 def _calibrate_joint_angles(frame, joint_cols, Y, temperature, robot, sensor_frame,
                             base_frame, position_unit, prior, identification,
-                            identify_mounting, gravity):
+                            identify_mounting, gravity, mapping=(None, None)):
     if robot in (None, "ftdrake"):
         robot = sensor_frame = None
     elif not sensor_frame:
@@ -407,7 +411,8 @@ def _calibrate_joint_angles(frame, joint_cols, Y, temperature, robot, sensor_fra
     model = PhysicsPayloadCompensator(
         features="q", mode="static", robot=robot, sensor_frame=sensor_frame,
         base_frame=base_frame, gravity=tuple(gravity), identification=identification,
-        prior=prior, identify_mounting=identify_mounting)
+        prior=prior, identify_mounting=identify_mounting, joints=mapping[0],
+        fixed_joints=mapping[1])
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", ExcitationWarning)  # the inertia: said in the note
         try:
