@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 from pydrake.multibody.tree import MultibodyForces
 
-from ftdrake import ScenarioConfig
+from ftdrake import RandomForestCompensator, ScenarioConfig
 from ftdrake.config import ConfigError
 from ftdrake.sim.events import apply_grasp
 from ftdrake.sim.scene import CONTROL_SENSOR_FRAME, make_control_plant
@@ -64,3 +64,11 @@ def test_adapting_needs_the_tracker_s_payload():
     config = dc.replace(config, controller=dc.replace(config.controller, adapt_to_payload=True))
     with pytest.raises(ConfigError, match=r"bias_tracker\.track_payload: true"):
         build_station(config)
+    # The tracker's payload asked for but the tracker itself off: said, not silently unadapted.
+    rng = np.random.default_rng(0)
+    model = RandomForestCompensator(features="q", n_estimators=2).fit(
+        rng.uniform(-1, 1, (50, 21)), rng.normal(size=(50, 6)))
+    config = dc.replace(config, bias_tracker=dc.replace(config.bias_tracker, enabled=False,
+                                                        track_payload=True))
+    with pytest.raises(ConfigError, match=r"bias_tracker\.enabled: true"):
+        build_station(config, model)

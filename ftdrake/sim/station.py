@@ -218,6 +218,9 @@ def build_station(config: ScenarioConfig, compensator=None, *, meshcat=None,
         compensation = _add_compensation(builder, config, compensator, scene, events, period,
                                          log, noisy.get_output_port_temperature())
         if payload_ff is not None:  # adaptive computed torque: the tracker's payload
+            if not compensation.chain.HasOutputPort("payload"):
+                raise ConfigError("controller.adapt_to_payload: the payload comes from the "
+                                  "bias tracker; set bias_tracker.enabled: true")
             builder.Connect(compensation.chain.get_output_port_payload(),
                             payload_ff.get_input_port_payload())
         if meshcat is not None:
