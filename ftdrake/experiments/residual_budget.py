@@ -25,8 +25,12 @@ prediction: its residual forest is piecewise constant in q, and a filter would b
 with smoothing the forest's steps). All four are fitted together (whole-sample lags refined
 to a fraction of a sample, f_c on a log grid refined between neighbours, "no filter"
 included): a first-order filter at f_c delays slow motion by 1/(2π f_c), so fitted one after
-the other the delay would take the filter's share. What :func:`decompose` reports per axis,
-as shares of the in-motion mean square of r (they add up to 1):
+the other the delay would take the filter's share. With a filter the delay is at least −1
+sample: a filter's attenuation combined with a lead of the wrench would otherwise stand in
+for a gain error of the model's prediction in motion; and a filter is kept only when it
+explains more than ``FILTER_MIN_GAIN`` of the misfit a delay alone leaves. What
+:func:`decompose` reports per axis, as shares of the in-motion mean square of r (they add up
+to 1):
 
 * ``offset``, ``drift``: what removing a, then b·(t − t̄), removes;
 * ``delay``, ``filter``: what correcting the fitted delay and filter removes after the drift,
@@ -60,6 +64,10 @@ from ..runtime.replay import read_replay_log, replay
 SHARES = ("offset", "drift", "delay", "filter", "remainder")
 #: Joint speed (rad/s) at or below which every joint counts as at rest.
 REST_SPEED = 0.01
+#: A filter is fitted only when it lowers the best delay-alone misfit by more than this
+#: fraction: slow motion cannot tell a filter from a delay (its group delay) and a gain
+#: error of the model (its attenuation), and the simpler explanation is reported.
+FILTER_MIN_GAIN = 0.05
 #: Rows at rest needed to measure the resting noise from the log itself.
 MIN_REST_ROWS = 200
 
@@ -222,9 +230,12 @@ def _fit_delay_and_filter(m, P, T, A, rows, max_lag, cutoffs_hz, period, weight)
         """(misfit, d in s) at `fc`: lags every `step` samples, then every sample around the
         best (the misfit is smooth in the lag)."""
         model = _filtered(P, fc, period) @ T.T
-        coarse = lags[::step]
+        # With a filter, no lead of the wrench stream (d ≥ −1 sample): a filter's attenuation
+        # with a lead would stand in for a gain error of the model's prediction.
+        usable = lags if not np.isfinite(fc) else lags[lags >= -1]
+        coarse = usable[::step]
         i = int(np.argmin([misfit_at(model, lag) for lag in coarse]))
-        fine = lags[(lags >= coarse[i] - step) & (lags <= coarse[i] + step)]
+        fine = usable[(usable >= coarse[i] - step) & (usable <= coarse[i] + step)]
         misfit = np.array([misfit_at(model, lag) for lag in fine])
         i = int(np.argmin(misfit))
         offset, value = _vertex(misfit, i)
@@ -242,7 +253,7 @@ def _fit_delay_and_filter(m, P, T, A, rows, max_lag, cutoffs_hz, period, weight)
         if refined[0] < best[0]:
             best = (*refined, float(np.exp(found.x)))
     none = best_lag(np.inf)
-    if none[0] <= best[0]:
+    if best[0] > (1.0 - FILTER_MIN_GAIN) * none[0]:
         best = (*none, np.inf)
     return best[1], best[2]
 
