@@ -162,3 +162,22 @@ def test_replay_budget_prints_the_functions_budget(delayed_replay, tmp_path, cap
     report = json.loads(capsys.readouterr().out.strip().splitlines()[-1])
     expected = residual_budget(model, log).as_dict()
     assert report["residual_budget"] == json.loads(json.dumps(expected))
+
+
+def test_the_resting_noise_is_measured_on_each_still_stretch_about_its_own_mean():
+    from ftdrake.experiments.residual_budget import _resting_noise
+    rng = np.random.default_rng(3)
+    n = 3000
+    still = np.zeros(n, bool)
+    still[200:1200] = still[1800:2800] = True  # two stops at different poses
+    reading = np.where(still[:, None], 0.0, 5.0) + rng.standard_normal((n, 6)) * NOISE
+    reading[1800:2800] += [2.0, -1.0, 4.0, 0.1, 0.2, -0.1]  # the second pose's load
+    frame = pd.DataFrame(reading, columns=[f"meas_{a}" for a in ftdrake.WRENCH_AXES])
+    noise, source = _resting_noise(frame, still, None, None)
+    assert source == "rest rows"
+    np.testing.assert_allclose(noise, NOISE, rtol=0.05)
+    few = np.zeros(n, bool)
+    few[:50] = True  # too few rows at rest: the configured sensor's σ
+    noise, source = _resting_noise(frame, few, None, ftdrake.ScenarioConfig())
+    assert source == "sensor config" and noise[2] == pytest.approx(np.hypot(1 / 20, 1 / 20
+                                                                             / np.sqrt(12)))
