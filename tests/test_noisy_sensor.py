@@ -170,3 +170,16 @@ def test_runs_sharing_one_sensor_each_get_the_draws_of_their_own_samples():
         k = np.arange(len(log) - 1)  # row i holds sample i - 1 (logged before the update lands)
         # The filter starts at the first input, so with a constant input only noise remains.
         np.testing.assert_allclose(log[1:], W + sigma * draws[k, :6], rtol=1e-12, atol=1e-12)
+
+
+def test_a_stream_delay_publishes_each_reading_whole_samples_late():
+    quiet = dict(noise_std=ZERO6, resolution=ZERO6, drift_std=ZERO6, seed=1, **ALIGNED)
+    ramp = PiecewisePolynomial.FirstOrderHold([0.0, 1.0], np.column_stack([np.zeros(6), W]))
+    _, on_time, _, _ = run_sensor(SensorConfig(**quiet), TrajectorySource(ramp), 0.2)
+    _, late, _, dut = run_sensor(SensorConfig(stream_delay_s=0.0071, **quiet),
+                                 TrajectorySource(ramp), 0.2)
+    assert dut.delay_samples == 7  # 7.1 ms at 1 kHz, rounded
+    np.testing.assert_array_equal(late[7:], on_time[:-7])
+    np.testing.assert_array_equal(late[:8], np.tile(on_time[0], (8, 1)))  # first one held
+    with pytest.raises(ConfigError, match="stream_delay_s"):
+        SensorConfig(stream_delay_s=-0.01).validate()

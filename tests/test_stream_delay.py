@@ -111,3 +111,21 @@ def test_train_aligns_the_streams_and_the_model_keeps_the_delay(free_log, tmp_pa
                       "--delay", "0.01", "--out", str(tmp_path / "given.ftd"), "--quiet"]) == 0
     assert ftdrake.load_model(tmp_path / "given.ftd").wrench_delay_s_ == 0.01
     capsys.readouterr()
+
+
+def test_a_hybrid_finds_the_delay_its_forest_learnt_on_the_training_rows(free_log):
+    """A hybrid's residual forest fitted on the delayed rows reproduces their reading (it
+    learnt the delay along the trajectory, so the whole hybrid's prediction shows none); the
+    delay is read from its physics part, and fit_aligned finds what it finds with a physics
+    model alone."""
+    log = shift_wrench(free_log, -0.02)
+    forest = ftdrake.RandomForestCompensator(features="q", per_output=False, n_estimators=10,
+                                             min_samples_leaf=5, random_state=0)
+    hybrid = ftdrake.HybridCompensator(physics=ftdrake.PhysicsPayloadCompensator(),
+                                       residual=forest)
+    alone = fit_aligned(ftdrake.PhysicsPayloadCompensator(features="q,qd,qdd"), log,
+                        source="plant")[1].delay_s
+    assert abs(alone) > 5 * PERIOD  # the delay is there to find
+    model, found = fit_aligned(hybrid, log, source="plant")
+    assert found.delay_s == pytest.approx(alone, abs=PERIOD)
+    assert model.wrench_delay_s_ == found.delay_s

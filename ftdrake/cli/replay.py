@@ -1,12 +1,14 @@
 """`ftdrake replay`: the runtime chain run offline over a logged stream, one update per row.
 
     ftdrake replay --model FILE --log FILE --out FILE [--config YAML] [--pairing row|simulated]
-                   [--view aligned|held] [--delay S | --align]
+                   [--view aligned|held] [--delay S | --align] [--budget]
 
 Writes the chain's outputs per row (:func:`ftdrake.runtime.replay.replay`: compensated and
 contact wrench, std, bias, out-of-domain, fault and contact flags, contact force) as CSV or
 Parquet (by the suffix of --out) and prints a JSON summary. --log is a CSV/Parquet table, a
-ROS bag (with --wrench-topic) or an LCM log (read with --hardware's channels).
+ROS bag (with --wrench-topic) or an LCM log (read with --hardware's channels). --budget adds
+what the in-motion residual is made of (offset, drift, stream delay, the sensor's filter,
+remainder: :func:`ftdrake.experiments.residual_budget.residual_budget`) to the summary.
 """
 
 from __future__ import annotations
@@ -20,6 +22,7 @@ from ..data.bag import is_bag
 from ..data.logs import is_table
 from ..data.stream_delay import estimate_stream_delay
 from ..errors import LogError
+from ..experiments.residual_budget import residual_budget
 from ..hardware.recording import read_lcm_log
 from ..io import atomic_path
 from ..runtime.replay import read_replay_log, replay, summary, to_replay_layout
@@ -49,6 +52,9 @@ def register(sub) -> None:
                         "held: what the output ports held when row k arrived (one row later)")
     a.add_stream_delay(p, corrected="corrected by a delay line on the joint state",
                        estimated="from the log, with a physics or hybrid model")
+    p.add_argument("--budget", action="store_true",
+                   help="also split the in-motion residual into offset, drift, stream delay, "
+                        "the sensor's filter and what is left, in units of the resting noise")
     p.add_argument("--wrench-topic", metavar="TOPIC", help="a ROS bag's WrenchStamped topic")
     for flag, default, what in (("--positions", "q_*", "joint position columns (rad)"),
                                 ("--velocities", "qd_*", "joint velocity columns (rad/s)"),
@@ -93,6 +99,8 @@ def run_replay(args) -> int:
         report["wrench_delay_s"] = delay
     if estimate is not None:
         report["delay_estimate"] = estimate.as_dict()
+    if args.budget:
+        report["residual_budget"] = residual_budget(model, frame, config, result=result).as_dict()
     print(json.dumps(report))
     return 0
 

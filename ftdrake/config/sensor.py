@@ -97,6 +97,11 @@ class SensorConfig:
     temperature_coefficients: list[float] = dc.field(
         default_factory=lambda: [0.039, -0.026, 0.12, 0.003, -0.0025, 0.002]
     )
+    # How long the wrench stream lags the joint states (s, ≥ 0; rounded to whole samples):
+    # a real robot's F/T driver and joint-state driver have different latencies, so a log
+    # pairs each reading with a later joint state (ftdrake.data.stream_delay's convention,
+    # d > 0: the wrench lags). 0: no delay (the simulation's streams are in step).
+    stream_delay_s: float = 0.0
     # Set False to get an ideal sensor (no noise, bias, drift, cross-talk, quantization, filter,
     # saturation); the sample rate still applies.
     imperfections: bool = True
@@ -150,5 +155,9 @@ class SensorConfig:
         finite([self.temperature_ambient_c, self.temperature_rise_c],
                 f"{where}.temperature_ambient_c/temperature_rise_c")
         positive(self.temperature_time_constant_s, f"{where}.temperature_time_constant_s")
+        non_negative(self.stream_delay_s, f"{where}.stream_delay_s")
+        if self.stream_delay_s > 1.0:
+            raise ConfigError(f"{where}.stream_delay_s: {self.stream_delay_s} s is not a "
+                              "driver's latency (at most 1 s)")
         six(self.temperature_coefficients, f"{where}.temperature_coefficients")
 

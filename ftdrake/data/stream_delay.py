@@ -9,12 +9,13 @@ Convention: ``delay_s`` = d > 0 means the **wrench stream lags** the joint state
 stamped t is the sensor's load at the robot's state of t − d (d < 0: the joint states lag).
 
 * :func:`estimate_stream_delay`: the d that best aligns a model's prediction from the joint
-  state with the measured wrench — a physics or hybrid model, whose prediction follows the
-  robot's motion (a model fitted on the misaligned log is good enough: a delay is not in the
-  span of its regressors). The misfit is computed at whole-sample lags, each axis scaled by
-  its spread and its mean offset removed; the minimum is refined by a parabola through it and
-  its neighbours (sub-sample), and its uncertainty is the spread of that minimum over a
-  bootstrap of contiguous segments of the log.
+  state with the measured wrench — a physics model, or a hybrid's physics part
+  (:func:`motion_model`), whose prediction follows the robot's motion (a model fitted on
+  the misaligned log is good enough: a delay is not in the span of its regressors). The
+  misfit is computed at whole-sample lags, each axis scaled by its spread and its mean
+  offset removed; the minimum is refined by a parabola through it and its neighbours
+  (sub-sample), and its uncertainty is the spread of that minimum over a bootstrap of
+  contiguous segments of the log.
 * :func:`shift_wrench`: a table corrected offline: the wrench columns moved d earlier
   (linearly interpolated), so each row pairs the joint state of t with the reading of t + d.
 * Live (and in :func:`ftdrake.replay`), the runtime chain cannot look ahead: it delays the
@@ -73,7 +74,7 @@ def estimate_stream_delay(model, log: pd.DataFrame, *, wrench: str = col.MEASURE
     """
     t = log[col.TIME].to_numpy(dtype=float)
     measured = _columns(log, col.wrench_columns(wrench), "the sensor's reading")
-    return delay_between(measured, model.predict(_model_input(model, log)), t,
+    return delay_between(measured, motion_model(model).predict(_model_input(model, log)), t,
                          max_lag_s=max_lag_s, segments=segments, bootstraps=bootstraps,
                          seed=seed)
 
@@ -148,6 +149,14 @@ def shift_wrench(log: pd.DataFrame, delay_s: float, *, wrench: str = col.MEASURE
     out = log.loc[keep].copy()
     out[names] = values[keep]
     return out.reset_index(drop=True)
+
+
+def motion_model(model):
+    """The part of `model` whose prediction follows the motion: a hybrid's physics part (its
+    residual forest, fitted on the same rows, learnt their delayed reading along the
+    trajectory, so the whole hybrid's prediction of its training rows shows no delay), else
+    `model` itself."""
+    return getattr(model, "physics_", model)
 
 
 def _parabolic_minimum(values: np.ndarray) -> float:
@@ -228,7 +237,7 @@ def estimate_training_delay(fit, data, *, iterations: int = 2, **options) -> Del
     for _ in range(max(1, int(iterations))):
         aligned = align_training_data(data, delay) if delay else data
         model = fit(aligned)
-        estimate = delay_between(aligned.Y, model.predict(aligned.X), aligned.t,
+        estimate = delay_between(aligned.Y, motion_model(model).predict(aligned.X), aligned.t,
                                  aligned.groups, **options)
         delay += estimate.delay_s
     return dc.replace(estimate, delay_s=float(delay))

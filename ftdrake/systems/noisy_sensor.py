@@ -3,7 +3,8 @@
 Same frames, units and signs as :mod:`ftdrake.systems.ft_sensor` (wrench ``[F; T]`` in N and
 N·m about So, expressed in S, the load the tool side applies to the sensor). What it adds, each
 set by :class:`~ftdrake.config.SensorConfig`: sampling and a hold, noise, bias drift,
-temperature drift, gain and cross-talk, a mounting rotation, saturation and a low-pass.
+temperature drift, gain and cross-talk, a mounting rotation, saturation and a low-pass; and
+a delay of the wrench stream behind the joint states (``stream_delay_s``).
 """
 
 from __future__ import annotations
@@ -29,13 +30,18 @@ class NoisyForceTorqueSensor(LeafSystem):
       saturated (1): 1.0 while any axis is at its range limit.
       temperature (1): the sensor's temperature, °C, held between samples.
     State (discrete, updated every 1/rate_hz s): low-pass filter and drift (12) with the
-      sample count (1); the held reading (6); the saturation flag (1); the temperature (1).
+      sample count (1); the held reading (6); the saturation flag (1); the temperature (1);
+      with a stream delay of k samples, the k readings not yet published (6k).
 
     Per sample, in this order: the mounting rotation ``w_Sm = [R_SmS f; R_SmS τ]`` (about So)
     and the calibration error ``G·C·w_Sm`` (cross-talk C, per-axis gain error G);
     first-order low-pass at ``bandwidth_hz``; + constant bias + thermal zero drift
     ``k·(T − T_ambient)`` + random-walk drift + white noise; saturation at ``±range``;
-    quantization to ``resolution``. The temperature is
+    quantization to ``resolution``; then, with ``stream_delay_s`` = k samples, the reading
+    is published k samples late (the wrench stream lags the joint states by k/rate_hz s, as
+    a real F/T driver's latency does; the first reading is repeated until the delayed ones
+    arrive; applied with ``imperfections`` off too, it is the stream's, not the sensor's).
+    The temperature is
     ``T(t) = T_ambient + ΔT·(1 − exp(−t/τ))`` (the wrist warming up from t = 0). Noise is a
     pure function of (seed, sample index), so a run is reproducible from its seed and
     contexts can be cloned freely.
@@ -77,6 +83,10 @@ class NoisyForceTorqueSensor(LeafSystem):
         self._reading = self.DeclareDiscreteState(6)
         self._saturated = self.DeclareDiscreteState(1)
         self._temperature_state = self.DeclareDiscreteState([self._temperature[0]])
+        #: Samples the reading is published late (SensorConfig.stream_delay_s, rounded).
+        self.delay_samples = round(float(config.stream_delay_s) * spec.rate_hz)
+        self._delayed = (self.DeclareDiscreteState(6 * self.delay_samples)
+                         if self.delay_samples else None)
         self.DeclarePeriodicDiscreteUpdateEvent(self.period, 0.0, self._sample)
         self.DeclareStateOutputPort("wrench_measured", self._reading)
         self.DeclareStateOutputPort("saturated", self._saturated)
@@ -133,16 +143,21 @@ class NoisyForceTorqueSensor(LeafSystem):
         saturated = discrete_state.get_mutable_value(self._saturated)
         temperature = discrete_state.get_mutable_value(self._temperature_state)
         w = self._input.Eval(context)
+        first = internal[12] == 0
         temperature[0] = _temperature_at(internal[12], self._constants[13])
         if not self._on:
             _ideal_sample(internal, w, reading, saturated)
-            return
-        block, noise = self._noise
-        if not _imperfect_sample(internal, w, self._constants, block, noise, reading, saturated):
-            # This sample's draws are in another block (every 4096 samples, or a new run).
-            block = int(internal[12]) // self._BLOCK
-            self._noise = (block, _noise_block(self.config.seed, block, self._BLOCK))
-            _imperfect_sample(internal, w, self._constants, *self._noise, reading, saturated)
+        else:
+            block, noise = self._noise
+            if not _imperfect_sample(internal, w, self._constants, block, noise, reading,
+                                     saturated):
+                # This sample's draws are in another block (every 4096 samples, or a new run).
+                block = int(internal[12]) // self._BLOCK
+                self._noise = (block, _noise_block(self.config.seed, block, self._BLOCK))
+                _imperfect_sample(internal, w, self._constants, *self._noise, reading,
+                                  saturated)
+        if self._delayed is not None:
+            _delay(discrete_state.get_mutable_value(self._delayed), reading, first)
 
 
 @numba.njit(cache=True)
@@ -182,6 +197,22 @@ def _imperfect_sample(internal, w, constants, block, noise_block, reading, satur
         internal[i], internal[6 + i], reading[i] = filtered, drift, value
     internal[12] += 1
     return True
+
+
+@numba.njit(cache=True)
+def _delay(queue, reading, first):
+    """A FIFO of k readings (`queue`, 6k, oldest first): `reading` (6) goes in, the oldest
+    comes out into `reading`; on the `first` sample the queue is filled with it."""
+    n = queue.shape[0]
+    if first:
+        for i in range(n):
+            queue[i] = reading[i % 6]
+    for i in range(6):
+        fresh = reading[i]
+        reading[i] = queue[i]
+        for j in range(i, n - 6, 6):
+            queue[j] = queue[j + 6]
+        queue[n - 6 + i] = fresh
 
 
 @numba.njit(cache=True)
