@@ -84,7 +84,11 @@ def _extra_instances(station, model) -> list:
 
     import ftdrake  # noqa: PLC0415
     from ftdrake.config import TransmissionConfig  # noqa: PLC0415
+    from ftdrake.config import PayloadChangeConfig  # noqa: PLC0415
     from ftdrake.runtime.delay_line import DelayLine  # noqa: PLC0415
+    from ftdrake.runtime.payload_change import PayloadChangeMonitor  # noqa: PLC0415
+    from ftdrake.sim.scene import CONTROL_SENSOR_FRAME, make_control_plant  # noqa: PLC0415
+    from ftdrake.systems.payload_feedforward import PayloadFeedforward  # noqa: PLC0415
     from ftdrake.systems.learned_feedforward import LearnedFeedforward  # noqa: PLC0415
     from ftdrake.systems.time_indexed_feedforward import TimeIndexedFeedforward  # noqa: PLC0415
     from ftdrake.systems.transmission import MotorSide  # noqa: PLC0415
@@ -97,6 +101,7 @@ def _extra_instances(station, model) -> list:
     X = rng.uniform(-1, 1, (40, 3 * n))
     torque = ftdrake.GPRCompensator(features="q,qd,qdd", max_points=20).fit(
         X, rng.normal(size=(40, n)))
+    control_plant = make_control_plant(config, station.scene)
     params = MeshcatParams()
     params.host, params.port = "localhost", 0  # loopback; any free port
     meshcat = Meshcat(params)
@@ -104,7 +109,9 @@ def _extra_instances(station, model) -> list:
             TimeIndexedFeedforward(np.zeros((10, n)), config.time_step),
             WrenchArrows(meshcat, station.plant, station.scene),
             DelayLine(6, 2.5, config.time_step),
-            MotorSide(TransmissionConfig(enabled=True), config.time_step)]
+            MotorSide(TransmissionConfig(enabled=True), config.time_step),
+            PayloadChangeMonitor(PayloadChangeConfig(enabled=True), config.sensor),
+            PayloadFeedforward(control_plant, control_plant.GetFrameByName(CONTROL_SENSOR_FRAME))]
 
 
 def _is_ftdrake(system) -> bool:
