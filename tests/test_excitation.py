@@ -114,3 +114,22 @@ def test_condition_number_agrees_with_the_identifications_regressor(scene):
 def test_too_short_a_task_covering_run_is_refused(scene):
     with pytest.raises(TrajectoryError, match="too short for a task_covering"):
         _plan(scene, "task_covering", 0, duration=3.0)
+
+
+def test_collect_and_the_scenario_yaml_select_it(tmp_path):
+    """`collect --trajectory task_covering` (and the old `--kind`) and `trajectory.kind` in a
+    scenario file choose the kind; a collected run of it is free motion (no contact)."""
+    from ftdrake import conventions as col
+    from ftdrake.cli.main import build_parser
+    from ftdrake.config import load_config
+    from ftdrake.sim.collection import collect
+
+    for flag in ("--trajectory", "--kind"):
+        args = build_parser().parse_args(["collect", flag, "task_covering"])
+        assert args.trajectory == "task_covering"
+    path = tmp_path / "scenario.yaml"
+    path.write_text("trajectory:\n  kind: task_covering\n  duration_s: 6.0\n")
+    config = load_config(path)
+    assert config.trajectory.kind == "task_covering"
+    data = collect(config, 1, n_jobs=1, progress=False)
+    assert len(data) > 5000 and not data[col.CONTACT].any()
