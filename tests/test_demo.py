@@ -6,7 +6,13 @@ import json
 import pytest
 
 from ftdrake.config import ScenarioConfig
-from ftdrake.experiments.demo import OTHER_KINDS, better_model, print_table, run_demo
+from ftdrake.experiments.demo import (
+    OTHER_KINDS,
+    TASK_COVERING_RUNS,
+    better_model,
+    print_table,
+    run_demo,
+)
 
 
 @pytest.mark.slow
@@ -33,7 +39,8 @@ def test_demo_compares_forest_and_hybrid_on_the_same_held_out_contact(tmp_path, 
     # off by up to ~1.4 deg on this short run (2.28, -3.36, ...), so: within 1.5 deg.
     injected = ScenarioConfig().sensor.mounting_rpy_deg
     assert hybrid["model"]["mounting_rpy_deg"] == pytest.approx(injected, abs=1.5)
-    assert summary["training_trajectories"] == 1 + 2 + len(OTHER_KINDS) - 1  # one held out
+    assert summary["training_trajectories"] == (1 + 2 + len(OTHER_KINDS) + TASK_COVERING_RUNS
+                                                - 1)  # one held out
     assert json.loads((out / "summary.json").read_text())["better"] == summary["better"]
     assert (out / "contact.png").stat().st_size > 10_000
     print_table(summary)

@@ -120,7 +120,7 @@ def test_trajectory_outside_limits_names_joint_and_time(geometry):
 
 def test_every_kind_is_tested():
     assert set(TRAJECTORY_KINDS) == {"random", "fourier", "reference", "z_rich", "contact",
-                                     "rehearsal", "study"}
+                                     "rehearsal", "study", "task_covering"}
 
 
 @pytest.mark.parametrize("kind", TRAJECTORY_KINDS)

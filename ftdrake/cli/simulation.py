@@ -62,7 +62,8 @@ def register(sub) -> None:
     trajectory = a.add_trajectory(
         p, default="fourier", kinds=FREE_KINDS,
         help="free motion of each run; rehearsal: the contact motion stopping 3 cm above the "
-             "surface")
+             "surface; task_covering: motion planned to cover the task's approaches to every "
+             "surface and to excite the payload")
     a.add_deprecated(p, "--kind", trajectory)
     a.add_seed(p, 0, "seed of the first run (run i: seed + i)")
     a.add_jobs(p)

@@ -8,7 +8,8 @@ from typing import Optional
 from ..errors import ConfigError
 from .checks import non_negative, positive, six, vector
 
-TRAJECTORY_KINDS = ("random", "fourier", "reference", "z_rich", "contact", "rehearsal", "study")
+TRAJECTORY_KINDS = ("random", "fourier", "reference", "z_rich", "contact", "rehearsal", "study",
+                    "task_covering")
 
 
 @dc.dataclass

@@ -25,7 +25,7 @@ from .station import build_station
 
 # Contact-free kinds; `rehearsal` is the contact motion stopping trajectory.rehearsal_height_m
 # above the surface.
-FREE_KINDS = ("random", "fourier", "reference", "z_rich", "rehearsal", "study")
+FREE_KINDS = ("random", "fourier", "reference", "z_rich", "rehearsal", "study", "task_covering")
 
 
 def trajectory_config(base: ScenarioConfig, index: int, seed: int) -> ScenarioConfig:

@@ -22,6 +22,9 @@ Kinds (``TrajectoryConfig.kind``):
                 compensator). Its approach, the contact kind's, still passes 5 mm above.
 * ``study``     the study's own motion, from its Table 1: every joint sweeps the study's range
                 with the study's mean, slowly (see :func:`study_motion`).
+* ``task_covering`` training motion planned for the task: waypoints around the configurations
+                the contact scenario passes through on its way to every surface of the task,
+                chosen to excite the payload's parameters (:mod:`ftdrake.sim.excitation`).
 
 The contact kinds read the task's geometry from the plant (:class:`RobotGeometry`): the
 surface's frame (origin: where to press, z: outward normal) and the tool-tip frame, both named
@@ -109,6 +112,15 @@ def make_trajectory(config: TrajectoryConfig, home_q, limits: JointLimits, robot
             raise TrajectoryError(f"the {config.kind} kind needs the robot's geometry for IK")
         depth = config.press_depth_m if config.kind == "contact" else -config.rehearsal_height_m
         traj = _contact(config, depth, home_q, robot)
+    elif config.kind == "task_covering":
+        # Imported here: the planner builds on this module's helpers and geometry.
+        from .excitation import task_covering  # noqa: PLC0415
+
+        traj = task_covering(config, home_q, limits, robot)
+        if not (_within_limits(traj, limits, config.speed_fraction)
+                and robot.clear_of_environment(traj)):
+            raise TrajectoryError("the task_covering plan leaves the speed limits or the "
+                                  "clearance between its samples; lower trajectory.speed_fraction")
     else:
         traj = _free_motion(config, home_q, limits, robot)
     check_limits(traj, limits)
@@ -339,6 +351,23 @@ class RobotGeometry:
         """The arm's model instance in `plant`."""
         return self._scene.arm
 
+    @property
+    def sensor_frame(self):
+        """Frame S, the sensor's, in `plant`."""
+        return self._scene.sensor_frame
+
+    def surfaces(self) -> list[str]:
+        """The task's surface names (``task.surfaces``' keys), in their order."""
+        return list(self._scene.task.surfaces)
+
+    def clear_at(self, q, margin: float = 0.02) -> bool:
+        """True if the robot at arm configuration `q` is `margin` m away from the
+        environment."""
+        self._plant.SetPositions(self._plant_context, self._scene.arm, np.asarray(q, float))
+        query = self._query_port.Eval(self._sg_context)
+        return all(pair.distance >= margin
+                   for pair in query.ComputeSignedDistancePairwiseClosestPoints(margin))
+
     def tip_and_axis(self, q) -> tuple[np.ndarray, np.ndarray]:
         """Tool tip position (m) and tool axis (the tip frame's z), both in W, at arm
         configuration q."""
@@ -349,13 +378,7 @@ class RobotGeometry:
 
     def clear_of_environment(self, traj, dt: float = 0.05, margin: float = 0.02) -> bool:
         """True if the robot stays `margin` m away from the environment along `traj`."""
-        for t in _times(traj, dt):
-            self._plant.SetPositions(self._plant_context, self._scene.arm, traj.value(t).ravel())
-            query = self._query_port.Eval(self._sg_context)
-            for pair in query.ComputeSignedDistancePairwiseClosestPoints(margin):
-                if pair.distance < margin:
-                    return False
-        return True
+        return all(self.clear_at(traj.value(t).ravel(), margin) for t in _times(traj, dt))
 
     def press_poses(self, target: str, depth: float, home_q):
         """Configurations with the tool tip 5 cm and 5 mm off surface `target`, and `depth`
