@@ -25,7 +25,10 @@ The distance runs on a k-d tree of at most :data:`SUPPORT_POINTS` training rows
 ℓ and σ²_in are calibrated when the hybrid is fitted, on its cross-fit (the residual refitted
 on alternate blocks of rows and scored on the others, whose rows lie at many distances from
 the other half), with g = 0; :func:`calibrate` re-fits ℓ and g on held-out runs that
-leave the training data (``HybridCompensator.calibrate_domain``). Both choose ℓ by the
+leave the training data (``HybridCompensator.calibrate_domain``). Which runs: another log of
+the task's motion, or those of the training data that :func:`farthest_groups` picks — the
+runs (or, in a log of one run, the time blocks) whose inputs lie farthest from the others'
+(``HybridCompensator.fit_calibrated``). Both choose ℓ by the
 Gaussian likelihood of the held-out errors over a grid; for each ℓ the variance terms are a
 (weighted, non-negative) least-squares fit of the squared errors, which they are linear in.
 """
@@ -49,6 +52,17 @@ LENGTH_GRID = 41
 REWEIGHTING_PASSES = 4
 #: Rows the calibration uses at most (every k-th).
 CALIBRATION_ROWS = 20000
+#: The share of the training rows :func:`farthest_groups` holds out by default.
+HOLDOUT_SHARE = 0.2
+#: A log of fewer runs than :data:`MIN_GROUPS` is cut into this many contiguous time blocks,
+#: the groups of :func:`farthest_groups` (one run alone has nothing to leave).
+TIME_BLOCKS = 10
+MIN_GROUPS = 3
+#: Rows of a group whose distances :func:`farthest_groups` ranks it by (every k-th).
+GROUP_ROWS = 500
+#: Distance bins (training stds) that reports split rows by: in domain (within one std of a
+#: training row), its edge, out of domain.
+DISTANCE_BINS = {"in_domain": (0.0, 1.0), "edge": (1.0, 2.0), "out_of_domain": (2.0, np.inf)}
 
 
 def fit_support(Zd: np.ndarray, max_points: int = SUPPORT_POINTS) -> dict:
@@ -141,3 +155,49 @@ def calibrate(d, target, predicted, in_var, far_var, parameter_var) -> tuple[flo
         if score < best[0]:
             best = (score, length, np.sqrt(growth2))
     return float(best[1]), best[2]
+
+
+def farthest_groups(inputs, groups=None, share: float = HOLDOUT_SHARE
+                    ) -> tuple[np.ndarray, list]:
+    """(held-out rows (N,) bool, their group labels): whole groups of rows `inputs` (N, d)
+    — `groups` (N,) a run or trajectory label per row; None or fewer than
+    :data:`MIN_GROUPS` distinct labels: the rows cut into :data:`TIME_BLOCKS` contiguous time
+    blocks instead (rows in time order) — held out for :func:`calibrate`, those farthest from the
+    other groups first, until `share` of the rows is held out (at least one group; never so
+    many that less than half the rows are left to train on).
+
+    A group's distance is the median over its rows of the distance to the support
+    (:func:`fit_support`) of all the other groups: a run that goes where no other run went
+    ranks high, a repeat of another run low. Held-out runs that leave the training data —
+    and, being whole runs, come back to it — give the rows at many distances that pin ℓ and g
+    down; a random share of rows would all lie next to a training row."""
+    inputs = np.asarray(inputs, dtype=float)
+    if not 0 < share < 0.5:
+        raise ValueError(f"share must be in (0, 0.5): the share of rows held out; got {share!r}")
+    n = len(inputs)
+    if n < 2 * TIME_BLOCKS:
+        raise ValueError(f"farthest_groups: {n} rows are too few to hold some out (need "
+                         f"{2 * TIME_BLOCKS})")
+    labels = None if groups is None else np.asarray(groups).ravel()
+    if labels is not None and len(labels) != n:
+        raise ValueError(f"groups has {len(labels)} labels for {n} rows")
+    if labels is None or len(np.unique(labels)) < MIN_GROUPS:
+        labels = (np.arange(n) * TIME_BLOCKS) // n
+    names, index = np.unique(labels, return_inverse=True)
+    score = np.empty(len(names))
+    for g in range(len(names)):
+        own = np.flatnonzero(index == g)
+        rows = own[::max(1, len(own) // GROUP_ROWS)]
+        score[g] = np.median(distances(inputs[rows], fit_support(inputs[index != g])))
+    held = np.zeros(n, dtype=bool)
+    chosen = []
+    for g in np.argsort(-score, kind="stable"):
+        if held.sum() >= share * n:
+            break
+        grown = held | (index == g)
+        if grown.sum() <= n / 2:  # a group too big to leave half the rows is passed over
+            held, chosen = grown, [*chosen, names[g]]
+    if not chosen:
+        raise ValueError("farthest_groups: every group holds more than half the rows; pass "
+                         "groups=None to cut the rows into time blocks")
+    return held, [v.item() if hasattr(v, "item") else v for v in chosen]
