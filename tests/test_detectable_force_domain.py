@@ -82,6 +82,9 @@ def test_replayed_evaluation_reports_both_tests_and_the_force_out_of_domain(tmp_
         DetectorConfig(**chi2), PERIOD)) * 0.9 * np.sqrt(hybrid._noise_var()[:3].max())
     text = markdown(results, plan)
     assert "Detectable force in free motion" in text and "χ² >" in text
+    # Both results carry the same entry; the table shows it once, under the model's name.
+    assert "| hybrid | chi2 |" in text and "| hybrid | norm |" in text
+    assert "| hybrid (chi2) | chi2 |" not in text
     for name in ("detection.json", "detection.md", "detectable_force_vs_domain.png"):
         assert (tmp_path / "det" / name).is_file()
 

@@ -84,12 +84,36 @@ def detectable_force_vs_domain(samples: list[dict], detectors: dict[str, Detecto
     return out
 
 
+def distinct(results: dict) -> dict:
+    """{name: entry} of the results with a ``detectable_force_vs_domain`` entry, each entry
+    once: a model evaluated with both tests (``--compare-tests``) has the same entry twice,
+    named after the model alone."""
+    out = {}
+    for name, r in results.items():
+        entry = r.get("detectable_force_vs_domain")
+        if not entry:
+            continue
+        twin = next((k for k, v in out.items() if v == entry), None)
+        if twin is None:
+            out[name] = entry
+        else:
+            out = {(_model_name(k) if k == twin else k): v for k, v in out.items()}
+    return out
+
+
+def _model_name(name: str) -> str:
+    """"hybrid (chi2)" → "hybrid": the model of a result named "model (test)"."""
+    for test in TESTS:
+        if name.endswith(f" ({test})"):
+            return name[:-len(test) - 3]
+    return name
+
+
 def plot_detectable_force_vs_domain(results: dict, path: Path) -> bool:
     """The detectable force against d, a line (median) and band (5–95 %) per model and test,
     from the ``detectable_force_vs_domain`` entries of `results` (model name → result);
     False (nothing drawn) when no model has one."""
-    entries = {name: r["detectable_force_vs_domain"] for name, r in results.items()
-               if r.get("detectable_force_vs_domain")}
+    entries = distinct(results)
     if not entries:
         return False
     fig, ax = plt.subplots(figsize=(7, 4))
@@ -123,10 +147,7 @@ def plot_detectable_force_vs_domain(results: dict, path: Path) -> bool:
 def markdown(results: dict) -> str:
     """The table of the detectable force per distance bin (empty without any)."""
     lines = []
-    for name, r in results.items():
-        entry = r.get("detectable_force_vs_domain")
-        if not entry:
-            continue
+    for name, entry in distinct(results).items():
         if not lines:
             heads = " | ".join(f"{b.replace('_', ' ')} ({_range(lo, hi)})"
                                for b, (lo, hi) in DISTANCE_BINS.items())
