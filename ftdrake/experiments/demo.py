@@ -335,6 +335,17 @@ def print_table(summary: dict) -> None:
             for r in results)
         print(f"  {axis:<6}{cells}")
     print()
+    bins = summary["models"].get("hybrid", {}).get("domain_coverage")
+    if bins:
+        print("  hybrid's std, 95 % coverage per axis (Fx … Tz) on the held-out runs, by "
+              "distance d to its training inputs:")
+        for name, b in bins.items():
+            lo, hi = b["distance"]
+            where = f"{lo:g} ≤ d" + (f" < {hi:g}" if hi is not None else "")
+            cells = ("–" if not b["rows"]
+                     else " ".join(f"{c:.3f}" for c in b["coverage_95"]) + f"  ({b['rows']} rows)")
+            print(f"  {name.replace('_', ' '):<15}{where:<12}{cells}")
+        print()
 
 
 def _fmt(value, scale):
