@@ -75,3 +75,28 @@ def test_fit_calibrated_covers_held_out_poses_in_and_out_of_the_training_region(
         refitted.domain_calibration_["length"] or np.inf)
     np.testing.assert_allclose(refitted.domain_growth_, refitted.domain_calibration_["growth"])
     assert refitted.domain_distance(X[groups == 9]).max() < 1e-9  # on its data now
+
+
+def test_a_shared_growth_scales_with_each_axis_training_error():
+    rng = np.random.default_rng(2)
+    X, groups = runs(rng, [(-0.8, 0.0)] * 8 + [(-0.8, 1.0)] * 2, n=200)
+    Y = static_readings(X, rng)
+    physics = PhysicsPayloadCompensator(mode="static", features="q")
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        model = HybridCompensator(physics=physics, identification="consistent")
+        model.fit_calibrated(X, Y, groups, refit=False, shared_growth=True)
+        per_axis = domain.calibrate(*calibration_rows(model, X[groups >= 8], Y[groups >= 8]))
+    ratio = model.domain_growth_ ** 2 / model.domain_far_var_
+    assert ratio.min() > 0 and np.ptp(ratio) < 1e-9 * ratio.max()  # one κ for all axes
+    assert model.domain_calibration_["shared_growth"]
+    # Per axis (the default) the growths are not in that proportion.
+    assert np.ptp(per_axis[1] ** 2 / model.domain_far_var_) > 0.1 * ratio.max()
+
+
+def calibration_rows(model, X, Y):
+    """domain.calibrate's arguments for held-out rows X, Y of a fitted hybrid."""
+    Z = model._validated_features(X)
+    parameter_var = model.physics_._variance(model.physics_._select(Z), include_noise=False)
+    return (model.domain_distance(X), Y - model._physics(Z), model.residual_.predict(Z),
+            model._noise_var(), model.domain_far_var_, parameter_var)

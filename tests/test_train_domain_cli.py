@@ -58,16 +58,23 @@ def test_calibration_on_another_log_and_the_refusals(ftdrake, logs, tmp_path):
     path = tmp_path / "c.ftd"
     manifest = train(ftdrake, logs / "runs.parquet", path, "--kind", "hybrid", "--robot",
                      "ftdrake", "--preset", "none", "--domain-calibration",
-                     logs / "other.parquet", "--max-rows", "1200")
+                     logs / "other.parquet", "--max-rows", "1200", "--domain-shared-growth")
     record = manifest["extra"]["domain_calibration"]
     assert record["rows"] == 1000 and record["file"].endswith("other.parquet")
-    np.testing.assert_allclose(model_of(path).domain_growth_, record["growth"])
+    model = model_of(path)
+    np.testing.assert_allclose(model.domain_growth_, record["growth"])
+    ratio = model.domain_growth_ ** 2 / model.domain_far_var_  # one growth for all axes
+    assert record["shared_growth"] and np.ptp(ratio) <= 1e-9 * ratio.max()
     # The calibration makes the std cover the other run no worse than before, on every axis.
     assert np.all(np.array(record["coverage_95_after"])
                   >= np.array(record["coverage_95_before"]) - 0.02), record
     line = failure(ftdrake, "train", "--data", logs / "runs.parquet", "--kind", "physics",
                    "--robot", "ftdrake", "--domain-holdout", "0.2", "--out", tmp_path / "p.ftd")
     assert "--domain-holdout is for --kind hybrid" in line
+    line = failure(ftdrake, "train", "--data", logs / "runs.parquet", "--kind", "hybrid",
+                   "--robot", "ftdrake", "--domain-shared-growth", "--max-rows", "300",
+                   "--out", tmp_path / "s.ftd")
+    assert "--domain-shared-growth needs --domain-holdout or --domain-calibration" in line
 
 
 

@@ -159,6 +159,11 @@ def _add_domain_flags(p) -> None:
         help="hybrid: calibrate how its std grows out of domain on this contact-free log "
              "(read with the same flags, not trained on): motion that leaves the training "
              "data, e.g. runs over other configurations")
+    p.add_argument(
+        "--domain-shared-growth", action="store_true",
+        help="with --domain-holdout/--domain-calibration: one growth of the std for all axes, "
+             "in units of each axis' training error (for a few calibration runs; default: "
+             "one per axis)")
 
 
 def _add_model_options(p) -> None:
@@ -249,6 +254,10 @@ def target_units(text: str | None, names: list[str]) -> list[str]:
 # -- train --------------------------------------------------------------------------------------
 def run_train(args) -> int:
     say = reporter(args.quiet)
+    if args.domain_shared_growth and args.domain_holdout is None and (
+            args.domain_calibration is None):
+        raise ConfigError("--domain-shared-growth needs --domain-holdout or "
+                          "--domain-calibration")
     options = with_flags(ReadOptions(), args)
     data = read_data(args, options, say)
     robot = RobotOptions(args.robot, args.sensor_frame, args.base_frame, data.scenario_yaml)
@@ -277,7 +286,7 @@ def run_train(args) -> int:
         say(f"fitting {args.kind}{why} on {len(data.X)} rows …")
         started = time.perf_counter()
         model = _fit(estimator, data, needs_robot=registry.entry(args.kind).needs_robot,
-                     holdout=args.domain_holdout)
+                     holdout=args.domain_holdout, shared_growth=args.domain_shared_growth)
         say(f"fitted in {time.perf_counter() - started:.1f} s")
     domain = _calibrate_domain(args, options, model, data, say)
     if hasattr(model, "summary"):  # physics and hybrid: the identified payload
@@ -338,7 +347,8 @@ def _align_streams(args, data: TrainingData, estimator, say):
     return align_training_data(data, found["delay_s"]), found
 
 
-def _fit(estimator, data: TrainingData, *, needs_robot: bool, holdout: float | None = None):
+def _fit(estimator, data: TrainingData, *, needs_robot: bool, holdout: float | None = None,
+         shared_growth: bool = False):
     """Fits `estimator` (with `holdout`, a hybrid's :meth:`fit_calibrated` on that share of
     the runs). A robot-based model's ValueErrors are about the robot description (joint
     count, frames); they name the flags that choose it."""
@@ -346,7 +356,8 @@ def _fit(estimator, data: TrainingData, *, needs_robot: bool, holdout: float | N
         if holdout is None:
             return estimator.fit(data.X, data.Y)
         runs = data.groups if len(np.unique(data.groups)) >= MIN_GROUPS else None
-        return estimator.fit_calibrated(data.X, data.Y, groups=runs, share=holdout)
+        return estimator.fit_calibrated(data.X, data.Y, groups=runs, share=holdout,
+                                        shared_growth=shared_growth)
 
     if holdout is not None:
         _needs_hybrid(estimator, "--domain-holdout")
@@ -383,11 +394,12 @@ def _calibrate_domain(args, options: ReadOptions, model, data: TrainingData, say
                            f"({log.target_names}) are not the training data's "
                            f"({data.target_names}); give a log of the same robot and sensor")
         before = coverage(log.Y, model.predict(log.X), model.predict_std(log.X))
-        model.calibrate_domain(log.X, log.Y)
+        model.calibrate_domain(log.X, log.Y, shared_growth=args.domain_shared_growth)
         found = {"file": str(args.domain_calibration), "rows": len(log.X),
                  "length": (float(model.domain_length_) if np.isfinite(model.domain_length_)
                             else None),  # None: ∞
                  "growth": model.domain_growth_.tolist(),
+                 "shared_growth": bool(args.domain_shared_growth),
                  "coverage_95_before": before.tolist(),
                  "coverage_95_after": coverage(log.Y, model.predict(log.X),
                                                model.predict_std(log.X)).tolist()}

@@ -144,10 +144,11 @@ class HybridCompensator(Compensator):
         """(N,) the residual's weight w in [0, 1] at each row (1: where it has data)."""
         return domain.weight(self.domain_distance(X), self._length())
 
-    def calibrate_domain(self, X, y) -> HybridCompensator:
+    def calibrate_domain(self, X, y, shared_growth: bool = False) -> HybridCompensator:
         """Re-fits ℓ and g on held-out readings `X`, `y` (contact-free, not trained
         on) that leave the training data — and come back to it: rows at many distances pin
-        ℓ down (:func:`.domain.calibrate`). σ²_in and σ²_far stay the fit's.
+        ℓ down (:func:`.domain.calibrate`; `shared_growth`: one growth for all axes in units
+        of their σ²_far, for a few held-out runs). σ²_in and σ²_far stay the fit's.
         Returns self. A hybrid whose residual has a calibrated std of its own (a GP) has no
         support term to calibrate: ValueError."""
         check_is_fitted(self)
@@ -162,17 +163,18 @@ class HybridCompensator(Compensator):
         parameter_var = self.physics_._variance(self.physics_._select(Z), include_noise=False)
         self.domain_length_, self.domain_growth_ = domain.calibrate(
             domain.distances(self._domain_inputs(Z), self.domain_support_), target, predicted,
-            self._noise_var(), self.domain_far_var_, parameter_var)
+            self._noise_var(), self.domain_far_var_, parameter_var, shared=shared_growth)
         return self
 
     def fit_calibrated(self, X, y, groups=None, share: float = domain.HOLDOUT_SHARE,
-                       refit: bool = True) -> HybridCompensator:
+                       refit: bool = True, shared_growth: bool = False) -> HybridCompensator:
         """Fits, with the support term calibrated on runs of `X`, `y` held out from it.
 
         The runs whose inputs lie farthest from the others (:func:`.domain.farthest_groups`:
         `groups` a run label per row, or None for contiguous time blocks) are held out until
         `share` of the rows is; the hybrid is fitted on the rest and
-        :meth:`calibrate_domain` on them. With `refit` it is then fitted again on all rows
+        :meth:`calibrate_domain` on them (with `shared_growth`). With `refit` it is then
+        fitted again on all rows
         and keeps the calibrated ℓ and g (a distance-based term: what the model does at a
         given distance from its data carries over to the larger support); without it the
         model stays the one fitted on the rest. ``domain_calibration_`` records the held-out
@@ -188,13 +190,14 @@ class HybridCompensator(Compensator):
         held, chosen = domain.farthest_groups(inputs, groups, share)
         self.fit(X[~held], Y[~held])
         before = coverage(Y[held], self.predict(X[held]), self.predict_std(X[held]))
-        self.calibrate_domain(X[held], Y[held])
+        self.calibrate_domain(X[held], Y[held], shared_growth=shared_growth)
         length, growth = self.domain_length_, self.domain_growth_
         record = {
             "held_out_groups": chosen, "held_out_rows": int(held.sum()),
             "training_rows": int((~held).sum()),
             "length": float(length) if np.isfinite(length) else None,  # None: ℓ = ∞
-            "growth": growth.tolist(), "refit": bool(refit),
+            "growth": growth.tolist(), "shared_growth": bool(shared_growth),
+            "refit": bool(refit),
             "coverage_95_before": before.tolist(),
             "coverage_95_after": coverage(Y[held], self.predict(X[held]),
                                           self.predict_std(X[held])).tolist(),
