@@ -23,7 +23,8 @@ grows by g² (``domain_growth_``: g) per unit of d as the model extrapolates. Th
 exp(−(d/ℓ)²) of the distance d to the training inputs in the residual's standardised input
 metric (``domain_distance``); ℓ (``domain_length_``) and σ²_in are calibrated on the
 cross-fit (with g = 0), and ℓ and g on held-out runs that leave the training data with
-:meth:`HybridCompensator.calibrate_domain`.
+:meth:`HybridCompensator.calibrate_domain` — or, with the runs of the training data farthest
+from the others held out for it, :meth:`HybridCompensator.fit_calibrated`.
 
 The second term includes the sensor noise; the physics part's own noise term is left out (the
 residual model explains part of what it holds). Independence is an approximation: the
@@ -174,13 +175,13 @@ class HybridCompensator(Compensator):
         `groups` a run label per row, or None for contiguous time blocks) are held out until
         `share` of the rows is; the hybrid is fitted on the rest and
         :meth:`calibrate_domain` on them (with `shared_growth`). With `refit` it is then
-        fitted again on all rows
-        and keeps the calibrated ℓ and g (a distance-based term: what the model does at a
-        given distance from its data carries over to the larger support); without it the
-        model stays the one fitted on the rest. ``domain_calibration_`` records the held-out
-        groups, their rows, ℓ (None: ∞, the residual weighted 1 everywhere), g and the 95 %
-        coverage per axis on the held-out rows before
-        and after the calibration (of the model not fitted on them). Returns self."""
+        fitted again on all rows and keeps the calibrated ℓ and g (a distance-based term:
+        what the model does at a given distance from its data carries over to the larger
+        support); without it the model stays the one fitted on the rest.
+        ``domain_calibration_`` records the held-out groups, their rows, ℓ (None: ∞, the
+        residual weighted 1 everywhere), g and the 95 % coverage per axis on the held-out
+        rows before and after the calibration (of the model not fitted on them). Costs a
+        second fit. Returns self."""
         X = np.asarray(X, dtype=float)
         Y = np.asarray(y, dtype=float).reshape(len(X), -1)
         columns = X.shape[1] - X.shape[1] % 3  # [q, q̇, q̈]; a temperature column after them
