@@ -41,6 +41,16 @@ def test_demo_compares_forest_and_hybrid_on_the_same_held_out_contact(tmp_path, 
     assert hybrid["model"]["mounting_rpy_deg"] == pytest.approx(injected, abs=1.5)
     assert summary["training_trajectories"] == (1 + 2 + len(OTHER_KINDS) + TASK_COVERING_RUNS
                                                 - 1)  # one held out
+    # The hybrid's out-of-domain std was calibrated on a training run held out for it (then
+    # refitted on all), and its coverage is reported per distance bin on the held-out runs.
+    calibration = hybrid["model"]["domain_calibration"]
+    assert calibration["refit"] and len(calibration["held_out_groups"]) >= 1
+    # One growth shared by the axes (0 on this short run: the held-out run's error did not
+    # grow with d beyond what the fit's variance already holds).
+    assert calibration["shared_growth"] and min(calibration["growth"]) >= 0
+    bins = hybrid["domain_coverage"]
+    assert sum(b["rows"] for b in bins.values()) > 1000
+    assert all(len(b["coverage_95"]) == 6 for b in bins.values() if b["rows"])
     assert json.loads((out / "summary.json").read_text())["better"] == summary["better"]
     assert (out / "contact.png").stat().st_size > 10_000
     print_table(summary)

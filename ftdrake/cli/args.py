@@ -68,6 +68,8 @@ positive_int = number(int, lambda v: v >= 1, "must be a whole number >= 1")
 non_negative_int = number(int, lambda v: v >= 0, "must be a whole number >= 0")
 positive_float = number(float, lambda v: 0 < v < math.inf, "must be a positive number")
 finite_float = number(float, math.isfinite, "must be a finite number")
+holdout_share = number(float, lambda v: 0 < v < 0.5,
+                       "must be a share of the rows in (0, 0.5), e.g. 0.2")
 seed = number(int, lambda v: 0 <= v < 2**32, "must be a whole number in [0, 2**32)")
 jobs = number(int, lambda v: v >= 1 or v == -1,
               "must be a number of processes >= 1, or -1 for all cores")

@@ -38,11 +38,18 @@ def register(sub) -> None:
     a.add_model_file(p, action="append", required=True,
                      help="a model file (repeat to compare models; named by file stem)")
     a.add_config(p)
-    p.add_argument("--minutes", type=a.positive_float, default=10.0, metavar="MIN",
-                   help="simulated minutes of free motion, split over the trajectory kinds")
+    p.add_argument("--minutes", type=a.positive_float, default=None, metavar="MIN",
+                   help="simulated minutes of free motion, split over the trajectory kinds "
+                        "(default 10)")
     p.add_argument("--budget", type=a.positive_float, default=None, metavar="PER_HOUR",
                    help="false positives per hour the thresholds are set for (default: the "
                         "scenario's detector.false_positives_per_hour)")
+    p.add_argument("--quick", action="store_true",
+                   help="a short plan: --minutes of free motion (default 2 with --quick), "
+                        "five presses per surface, no tracker events")
+    p.add_argument("--compare-tests", action="store_true",
+                   help="evaluate each model with the norm and the χ² test (each with its "
+                        "thresholds for the budget), on the same runs")
     a.add_jobs(p)
     p.add_argument("--in-loop", action="store_true",
                    help="simulate every run with each model in the loop (default: simulate "
@@ -70,10 +77,15 @@ def run_evaluate_detection(args) -> int:
     for path in args.model:
         with a.naming("--model", path):
             models[path.stem] = load_model(path, expect_n_joints=len(config.home_q))
-    plan = DetectionPlan(free_minutes=args.minutes, false_positives_per_hour=args.budget)
+    changes = {"false_positives_per_hour": args.budget,
+               "tests": ("norm", "chi2") if args.compare_tests else None}
+    plan = (DetectionPlan.quick(args.minutes or 2.0, **changes) if args.quick
+            else DetectionPlan(free_minutes=args.minutes or 10.0, **changes))
     results = run_detection_evaluation(args.out, models, config, plan, n_jobs=args.jobs,
                                        progress=not args.quiet,
                                        run=run_plan if args.in_loop else run_plan_by_replay)
     print(markdown(results, plan))
-    print(f"wrote {args.out}/detection.json, detection.md, detection_rate.png")
+    plot = (", detectable_force_vs_domain.png"
+            if (args.out / "detectable_force_vs_domain.png").is_file() else "")
+    print(f"wrote {args.out}/detection.json, detection.md, detection_rate.png{plot}")
     return 0

@@ -37,13 +37,17 @@ import sys
 import time
 from pathlib import Path
 
+import numpy as np
 from sklearn.base import clone
 
 from ..compensation import registry
 from ..compensation.build import BUILTIN_ROBOT, RobotOptions, is_wrench
 from ..compensation.calibration import static_table_hint
+from ..compensation.domain import MIN_GROUPS
 from ..compensation.evaluation import target_ranges
 from ..compensation.features import check_feature_set
+from ..compensation.hybrid import HybridCompensator
+from ..compensation.metrics import coverage
 from ..compensation.persistence import save_model
 from ..compensation.tuning import segment_groups, tune
 from ..conventions import WRENCH_UNITS
@@ -132,6 +136,7 @@ def register(subparsers) -> None:
     a.add_deprecated(p, "--dask", cluster)
     p.add_argument("--out", type=a.output_file, required=True, metavar="MODEL",
                    help="the model file to write (e.g. m.ftd)")
+    _add_domain_flags(p)
     p.add_argument("--max-rows", type=a.positive_int, metavar="N",
                    help="fit on at most N rows covering the log's states (every k-th row, "
                         "then farthest-point in the model's inputs); reported in the model")
@@ -140,6 +145,29 @@ def register(subparsers) -> None:
                                  "model")
     a.add_quiet(p)
     p.set_defaults(run=run_train)
+
+
+def _add_domain_flags(p) -> None:
+    """--domain-holdout / --domain-calibration: where the hybrid's out-of-domain std is
+    calibrated (:meth:`~ftdrake.compensation.hybrid.HybridCompensator.fit_calibrated`,
+    :meth:`~ftdrake.compensation.hybrid.HybridCompensator.calibrate_domain`)."""
+    group = p.add_mutually_exclusive_group()
+    group.add_argument(
+        "--domain-holdout", type=a.holdout_share, metavar="SHARE",
+        help="hybrid: calibrate how its std grows out of domain on this share of the rows, "
+             "held out: whole runs (the --group column's), those farthest from the others "
+             "(in a log of fewer than 3 runs: contiguous time blocks), then refit on all "
+             "rows; e.g. 0.2")
+    group.add_argument(
+        "--domain-calibration", type=a.existing_path, metavar="LOG",
+        help="hybrid: calibrate how its std grows out of domain on this contact-free log "
+             "(read with the same flags, not trained on): motion that leaves the training "
+             "data, e.g. runs over other configurations")
+    p.add_argument(
+        "--domain-shared-growth", action="store_true",
+        help="with --domain-holdout/--domain-calibration: one growth of the std for all axes, "
+             "in units of each axis' training error (for a few calibration runs; default: "
+             "one per axis)")
 
 
 def _add_model_options(p) -> None:
@@ -221,6 +249,10 @@ def target_units(text: str | None, names: list[str]) -> list[str]:
 # -- train --------------------------------------------------------------------------------------
 def run_train(args) -> int:
     say = reporter(args.quiet)
+    if args.domain_shared_growth and args.domain_holdout is None and (
+            args.domain_calibration is None):
+        raise ConfigError("--domain-shared-growth needs --domain-holdout or "
+                          "--domain-calibration")
     options = with_flags(ReadOptions(), args)
     data = read_data(args, options, say)
     robot = RobotOptions(args.robot, args.sensor_frame, args.base_frame, data.scenario_yaml,
@@ -249,14 +281,18 @@ def run_train(args) -> int:
         why = "" if args.preset == "none" else " (no grid: its parameters are fitted from data)"
         say(f"fitting {args.kind}{why} on {len(data.X)} rows …")
         started = time.perf_counter()
-        model = _fit(estimator, data, needs_robot=registry.entry(args.kind).needs_robot)
+        model = _fit(estimator, data, needs_robot=registry.entry(args.kind).needs_robot,
+                     holdout=args.domain_holdout, shared_growth=args.domain_shared_growth)
         say(f"fitted in {time.perf_counter() - started:.1f} s")
+    domain = _calibrate_domain(args, options, model, data, say)
     if hasattr(model, "summary"):  # physics and hybrid: the identified payload
         print(model.summary())
     extra = provenance(args.data, data, model, search, kind=args.kind,
                        time_window=(args.t_start, args.t_end), dask=args.cluster)
     if subsample is not None:
         extra["subsample"] = subsample
+    if domain is not None:
+        extra["domain_calibration"] = domain
     if stream_delay is not None:  # the chain applies it live (CompensationChain)
         model.wrench_delay_s_ = stream_delay["delay_s"]
         extra["stream_delay"] = stream_delay
@@ -307,18 +343,73 @@ def _align_streams(args, data: TrainingData, estimator, say):
     return align_training_data(data, found["delay_s"]), found
 
 
-def _fit(estimator, data: TrainingData, *, needs_robot: bool):
-    """Fits `estimator`. A robot-based model's ValueErrors are about the robot description
-    (joint count, frames); they name the flags that choose it."""
+def _fit(estimator, data: TrainingData, *, needs_robot: bool, holdout: float | None = None,
+         shared_growth: bool = False):
+    """Fits `estimator` (with `holdout`, a hybrid's :meth:`fit_calibrated` on that share of
+    the runs). A robot-based model's ValueErrors are about the robot description (joint
+    count, frames); they name the flags that choose it."""
+    def fit():
+        if holdout is None:
+            return estimator.fit(data.X, data.Y)
+        runs = data.groups if len(np.unique(data.groups)) >= MIN_GROUPS else None
+        return estimator.fit_calibrated(data.X, data.Y, groups=runs, share=holdout,
+                                        shared_growth=shared_growth)
+
+    if holdout is not None:
+        _needs_hybrid(estimator, "--domain-holdout")
     if not needs_robot:
-        return estimator.fit(data.X, data.Y)
+        return fit()
     try:
-        return estimator.fit(data.X, data.Y)
+        return fit()
     except FtdrakeError:
         raise
     except ValueError as e:
         raise RobotModelError(f"{e} (check --robot, --sensor-frame, --base-frame and "
                               f"--positions)") from e
+
+
+def _needs_hybrid(model, flag: str) -> None:
+    residual = getattr(model, "residual", None)
+    own_std = getattr(residual, "provides_std", False) and getattr(
+        residual, "std_includes_noise", False)  # a GP residual: no support term
+    if not isinstance(model, HybridCompensator) or own_std:
+        raise ConfigError(f"{flag} is for --kind hybrid with its forest residual (the "
+                          "support term of its std); omit it")
+
+
+def _calibrate_domain(args, options: ReadOptions, model, data: TrainingData, say):
+    """--domain-calibration: calibrates `model`'s support term on that log; returns what
+    the manifest keeps about the calibration (or None without either domain flag)."""
+    if args.domain_calibration is not None:
+        _needs_hybrid(model, "--domain-calibration")
+        say(f"reading {args.domain_calibration} (out-of-domain calibration) …")
+        with option_spelling(flag_hint):
+            log = load_training_data(args.domain_calibration, options, report=warn)
+        if log.target_names != data.target_names or log.X.shape[1] != data.X.shape[1]:
+            raise LogError(f"--domain-calibration {args.domain_calibration}: its columns "
+                           f"({log.target_names}) are not the training data's "
+                           f"({data.target_names}); give a log of the same robot and sensor")
+        before = coverage(log.Y, model.predict(log.X), model.predict_std(log.X))
+        model.calibrate_domain(log.X, log.Y, shared_growth=args.domain_shared_growth)
+        found = {"file": str(args.domain_calibration), "rows": len(log.X),
+                 "length": (float(model.domain_length_) if np.isfinite(model.domain_length_)
+                            else None),  # None: ∞
+                 "growth": model.domain_growth_.tolist(),
+                 "shared_growth": bool(args.domain_shared_growth),
+                 "coverage_95_before": before.tolist(),
+                 "coverage_95_after": coverage(log.Y, model.predict(log.X),
+                                               model.predict_std(log.X)).tolist()}
+    elif args.domain_holdout is not None:
+        found = dict(model.domain_calibration_)
+    else:
+        return None
+    length = "∞" if found["length"] is None else f"{found['length']:.3g}"
+    say(f"out-of-domain std: ℓ = {length}, g = "
+        + ", ".join(f"{g:.3g}" for g in found["growth"])
+        + "; 95 % coverage on the calibration rows "
+        + ", ".join(f"{c:.2f}" for c in found["coverage_95_after"])
+        + " (before: " + ", ".join(f"{c:.2f}" for c in found["coverage_95_before"]) + ")")
+    return found
 
 
 def file_size(n_bytes: int) -> str:

@@ -25,7 +25,10 @@ The distance runs on a k-d tree of at most :data:`SUPPORT_POINTS` training rows
 ℓ and σ²_in are calibrated when the hybrid is fitted, on its cross-fit (the residual refitted
 on alternate blocks of rows and scored on the others, whose rows lie at many distances from
 the other half), with g = 0; :func:`calibrate` re-fits ℓ and g on held-out runs that
-leave the training data (``HybridCompensator.calibrate_domain``). Both choose ℓ by the
+leave the training data (``HybridCompensator.calibrate_domain``). Which runs: another log of
+the task's motion, or those of the training data that :func:`farthest_groups` picks — the
+runs (or, in a log of one run, the time blocks) whose inputs lie farthest from the others'
+(``HybridCompensator.fit_calibrated``). Both choose ℓ by the
 Gaussian likelihood of the held-out errors over a grid; for each ℓ the variance terms are a
 (weighted, non-negative) least-squares fit of the squared errors, which they are linear in.
 """
@@ -49,6 +52,17 @@ LENGTH_GRID = 41
 REWEIGHTING_PASSES = 4
 #: Rows the calibration uses at most (every k-th).
 CALIBRATION_ROWS = 20000
+#: The share of the training rows :func:`farthest_groups` holds out by default.
+HOLDOUT_SHARE = 0.2
+#: A log of fewer runs than :data:`MIN_GROUPS` is cut into this many contiguous time blocks,
+#: the groups of :func:`farthest_groups` (one run alone has nothing to leave).
+TIME_BLOCKS = 10
+MIN_GROUPS = 3
+#: Rows of a group whose distances :func:`farthest_groups` ranks it by (every k-th).
+GROUP_ROWS = 500
+#: Distance bins (training stds) that reports split rows by: in domain (within one std of a
+#: training row), its edge, out of domain.
+DISTANCE_BINS = {"in_domain": (0.0, 1.0), "edge": (1.0, 2.0), "out_of_domain": (2.0, np.inf)}
 
 
 def fit_support(Zd: np.ndarray, max_points: int = SUPPORT_POINTS) -> dict:
@@ -114,30 +128,88 @@ def fit_in_domain(d, target, predicted, far_var) -> tuple[float, np.ndarray]:
     return float(best[1]), best[2]
 
 
-def calibrate(d, target, predicted, in_var, far_var, parameter_var) -> tuple[float, np.ndarray]:
+def calibrate(d, target, predicted, in_var, far_var, parameter_var, *,
+              shared: bool = False) -> tuple[float, np.ndarray]:
     """(ℓ, g (k,)) from held-out rows that leave the training data: their distances `d` (N,),
     the physics part's error `target` (N, k), the residual's `predicted` value (N, k) and the
     physics parameters' variance (N, k); σ²_in and σ²_far (k,) are kept (σ²_far, the physics
     part's training error, is the fallback: fitting it too would let (1 − w) σ²_far with a
-    long ℓ mimic a growth ∝ d² that extrapolates badly). For each ℓ of the grid, per axis,
-    g² is the non-negative least-squares fit of e² − (‖B F‖² + w σ²_in + (1 − w) σ²_far) on d
+    long ℓ mimic a growth ∝ d² that extrapolates badly). For each ℓ of the grid, g² is the
+    non-negative least-squares fit of e² − (‖B F‖² + w σ²_in + (1 − w) σ²_far) on d
     (re-weighted by 1/σ⁴, the variance of e² for a Gaussian e); the ℓ of the highest
-    likelihood wins."""
+    likelihood wins.
+
+    Default: g² per axis. `shared`: one growth for all axes in units of each axis' σ²_far,
+    g²ₐ = κ · σ²_far,ₐ (an axis whose physics part errs more in training errs more away from
+    it). Per axis suits many independent held-out poses (``tests/test_domain_uncertainty``:
+    the synthetic error's growth differs per axis; shared leaves Fx at 0.66 coverage out of
+    domain); shared suits a few held-out runs, a few excursions whose errors on one axis say
+    little about that axis elsewhere (on the demo's data 95 % coverage out of domain down to
+    0.71 per axis, 0.95 shared; docs/guide/calibration.md)."""
     d, target, predicted, parameter_var = _rows(d, target, predicted, parameter_var)
     in_var, far_var = np.asarray(in_var, dtype=float), np.asarray(far_var, dtype=float)
+    unit = np.maximum(far_var, 1e-300)  # g² = κ · σ²_far per block of axes
+    blocks = [np.arange(len(far_var))] if shared else [[a] for a in range(len(far_var))]
     best = (np.inf, np.inf, np.zeros_like(far_var))
     for length in _lengths(d):
-        w = weight(d, length)
-        error = target - w[:, None] * predicted
+        w = weight(d, length)[:, None]
+        error = target - w * predicted
         growth2, score = np.empty_like(far_var), 0.0
-        for a in range(error.shape[1]):
-            known = parameter_var[:, a] + w * in_var[a] + (1 - w) * far_var[a]
-            var = np.full(len(d), max(float(np.mean(error[:, a] ** 2)), 1e-300))
+        for axes in blocks:
+            known = parameter_var[:, axes] + w * in_var[axes] + (1 - w) * far_var[axes]
+            var = np.maximum(np.mean(error[:, axes] ** 2, axis=0), 1e-300) * np.ones_like(known)
             for _ in range(REWEIGHTING_PASSES):
-                (growth2[a],), _ = nnls(d[:, None] / var[:, None],
-                                        (error[:, a] ** 2 - known) / var)
-                var = np.maximum(known + growth2[a] * d, 1e-300)
-            score += _nll(error[:, a], var)
+                (kappa,), _ = nnls((d[:, None] * unit[axes] / var).reshape(-1, 1),
+                                   ((error[:, axes] ** 2 - known) / var).ravel())
+                var = np.maximum(known + kappa * unit[axes] * d[:, None], 1e-300)
+            growth2[axes] = kappa * unit[axes]
+            score += _nll(error[:, axes], var)
         if score < best[0]:
             best = (score, length, np.sqrt(growth2))
     return float(best[1]), best[2]
+
+
+def farthest_groups(inputs, groups=None, share: float = HOLDOUT_SHARE
+                    ) -> tuple[np.ndarray, list]:
+    """(held-out rows (N,) bool, their group labels): whole groups of rows `inputs` (N, d)
+    — `groups` (N,) a run or trajectory label per row; None or fewer than
+    :data:`MIN_GROUPS` distinct labels: the rows cut into :data:`TIME_BLOCKS` contiguous time
+    blocks instead (rows in time order) — held out for :func:`calibrate`, those farthest from the
+    other groups first, until `share` of the rows is held out (at least one group; never so
+    many that less than half the rows are left to train on).
+
+    A group's distance is the median over its rows of the distance to the support
+    (:func:`fit_support`) of all the other groups: a run that goes where no other run went
+    ranks high, a repeat of another run low. Held-out runs that leave the training data —
+    and, being whole runs, come back to it — give the rows at many distances that pin ℓ and g
+    down; a random share of rows would all lie next to a training row."""
+    inputs = np.asarray(inputs, dtype=float)
+    if not 0 < share < 0.5:
+        raise ValueError(f"share must be in (0, 0.5): the share of rows held out; got {share!r}")
+    n = len(inputs)
+    if n < 2 * TIME_BLOCKS:
+        raise ValueError(f"farthest_groups: {n} rows are too few to hold some out (need "
+                         f"{2 * TIME_BLOCKS})")
+    labels = None if groups is None else np.asarray(groups).ravel()
+    if labels is not None and len(labels) != n:
+        raise ValueError(f"groups has {len(labels)} labels for {n} rows")
+    if labels is None or len(np.unique(labels)) < MIN_GROUPS:
+        labels = (np.arange(n) * TIME_BLOCKS) // n
+    names, index = np.unique(labels, return_inverse=True)
+    score = np.empty(len(names))
+    for g in range(len(names)):
+        own = np.flatnonzero(index == g)
+        rows = own[::max(1, len(own) // GROUP_ROWS)]
+        score[g] = np.median(distances(inputs[rows], fit_support(inputs[index != g])))
+    held = np.zeros(n, dtype=bool)
+    chosen = []
+    for g in np.argsort(-score, kind="stable"):
+        if held.sum() >= share * n:
+            break
+        grown = held | (index == g)
+        if grown.sum() <= n / 2:  # a group too big to leave half the rows is passed over
+            held, chosen = grown, [*chosen, names[g]]
+    if not chosen:
+        raise ValueError("farthest_groups: every group holds more than half the rows; pass "
+                         "groups=None to cut the rows into time blocks")
+    return held, [v.item() if hasattr(v, "item") else v for v in chosen]

@@ -23,7 +23,8 @@ grows by g² (``domain_growth_``: g) per unit of d as the model extrapolates. Th
 exp(−(d/ℓ)²) of the distance d to the training inputs in the residual's standardised input
 metric (``domain_distance``); ℓ (``domain_length_``) and σ²_in are calibrated on the
 cross-fit (with g = 0), and ℓ and g on held-out runs that leave the training data with
-:meth:`HybridCompensator.calibrate_domain`.
+:meth:`HybridCompensator.calibrate_domain` — or, with the runs of the training data farthest
+from the others held out for it, :meth:`HybridCompensator.fit_calibrated`.
 
 The second term includes the sensor noise; the physics part's own noise term is left out (the
 residual model explains part of what it holds). Independence is an approximation: the
@@ -43,6 +44,7 @@ from .compiled.hybrid import CompiledHybrid, hybrid_row
 from .compiled.loop import compensate_with_hybrid
 from .features import check_feature_set
 from .forest import RandomForestCompensator
+from .metrics import coverage
 from .physics import PhysicsPayloadCompensator
 
 
@@ -92,6 +94,7 @@ class HybridCompensator(Compensator):
         self.domain_length_ = np.inf
         self.domain_growth_ = np.zeros(Y.shape[1])
         self.domain_support_ = domain.fit_support(self._domain_inputs(Z))
+        self.domain_calibration_ = None  # fit_calibrated's record
         if not self._residual_std_is_calibrated():
             cross_fit = self._cross_fit(residual, Z, target)
             if cross_fit is None:
@@ -142,10 +145,11 @@ class HybridCompensator(Compensator):
         """(N,) the residual's weight w in [0, 1] at each row (1: where it has data)."""
         return domain.weight(self.domain_distance(X), self._length())
 
-    def calibrate_domain(self, X, y) -> HybridCompensator:
+    def calibrate_domain(self, X, y, shared_growth: bool = False) -> HybridCompensator:
         """Re-fits ℓ and g on held-out readings `X`, `y` (contact-free, not trained
         on) that leave the training data — and come back to it: rows at many distances pin
-        ℓ down (:func:`.domain.calibrate`). σ²_in and σ²_far stay the fit's.
+        ℓ down (:func:`.domain.calibrate`; `shared_growth`: one growth for all axes in units
+        of their σ²_far, for a few held-out runs). σ²_in and σ²_far stay the fit's.
         Returns self. A hybrid whose residual has a calibrated std of its own (a GP) has no
         support term to calibrate: ValueError."""
         check_is_fitted(self)
@@ -160,7 +164,50 @@ class HybridCompensator(Compensator):
         parameter_var = self.physics_._variance(self.physics_._select(Z), include_noise=False)
         self.domain_length_, self.domain_growth_ = domain.calibrate(
             domain.distances(self._domain_inputs(Z), self.domain_support_), target, predicted,
-            self._noise_var(), self.domain_far_var_, parameter_var)
+            self._noise_var(), self.domain_far_var_, parameter_var, shared=shared_growth)
+        return self
+
+    def fit_calibrated(self, X, y, groups=None, share: float = domain.HOLDOUT_SHARE,
+                       refit: bool = True, shared_growth: bool = False) -> HybridCompensator:
+        """Fits, with the support term calibrated on runs of `X`, `y` held out from it.
+
+        The runs whose inputs lie farthest from the others (:func:`.domain.farthest_groups`:
+        `groups` a run label per row, or None for contiguous time blocks) are held out until
+        `share` of the rows is; the hybrid is fitted on the rest and
+        :meth:`calibrate_domain` on them (with `shared_growth`). With `refit` it is then
+        fitted again on all rows and keeps the calibrated ℓ and g (a distance-based term:
+        what the model does at a given distance from its data carries over to the larger
+        support); without it the model stays the one fitted on the rest.
+        ``domain_calibration_`` records the held-out groups, their rows, ℓ (None: ∞, the
+        residual weighted 1 everywhere), g and the 95 % coverage per axis on the held-out
+        rows before and after the calibration (of the model not fitted on them). Costs a
+        second fit. Returns self."""
+        X = np.asarray(X, dtype=float)
+        Y = np.asarray(y, dtype=float).reshape(len(X), -1)
+        columns = X.shape[1] - X.shape[1] % 3  # [q, q̇, q̈]; a temperature column after them
+        features = getattr(self.residual if self.residual is not None else default_residual(),
+                           "features", "q")
+        inputs = X[:, :check_feature_set(features) * (columns // 3)]
+        held, chosen = domain.farthest_groups(inputs, groups, share)
+        self.fit(X[~held], Y[~held])
+        before = coverage(Y[held], self.predict(X[held]), self.predict_std(X[held]))
+        self.calibrate_domain(X[held], Y[held], shared_growth=shared_growth)
+        length, growth = self.domain_length_, self.domain_growth_
+        record = {
+            "held_out_groups": chosen, "held_out_rows": int(held.sum()),
+            "training_rows": int((~held).sum()),
+            "length": float(length) if np.isfinite(length) else None,  # None: ℓ = ∞
+            "growth": growth.tolist(), "shared_growth": bool(shared_growth),
+            "refit": bool(refit),
+            "coverage_95_before": before.tolist(),
+            "coverage_95_after": coverage(Y[held], self.predict(X[held]),
+                                          self.predict_std(X[held])).tolist(),
+            "median_distance_held_out": float(np.median(self.domain_distance(X[held]))),
+        }
+        if refit:
+            self.fit(X, Y)
+            self.domain_length_, self.domain_growth_ = length, growth
+        self.domain_calibration_ = record
         return self
 
     def _length(self) -> float:

@@ -26,7 +26,9 @@ move the arm; what ``ftdrake evaluate-detection`` does unless ``--in-loop``).
 
 Every run is independent and runs in parallel (joblib); each worker builds its station from
 the config's YAML. Outputs: ``detection.json``, ``detection.md`` (tables) and
-``detection_rate.png`` (detection rate against contact force per model, like an ROC).
+``detection_rate.png`` (detection rate against contact force per model, like an ROC); with
+the replay and a model that has a support (the hybrid) also
+``detectable_force_vs_domain.png`` (:mod:`.detection_domain`).
 """
 
 from __future__ import annotations
@@ -53,6 +55,8 @@ from ..sim.evaluation import TOUCHDOWN_S, evaluate_detection
 from ..sim.simulate import simulate
 from ..sim.station import build_station
 from . import tracking
+from .detection_domain import markdown as domain_markdown
+from .detection_domain import plot_detectable_force_vs_domain
 
 FREE_KINDS = ("fourier", "random", "z_rich", "reference")
 # Commanded depth into the surface (mm). The controller's model of the tool is 15 % too light,
@@ -83,6 +87,43 @@ class DetectionPlan:
     seed: int = SEED
     # The tracker's events (re-tare, grasp, slow push); None skips them.
     events: tracking.EventPlan | None = dc.field(default_factory=tracking.EventPlan)
+    # The detector tests each model is evaluated with, e.g. ("norm", "chi2"): one result per
+    # model and test, named "model (test)"; None: the scenario's detector.test alone.
+    tests: tuple[str, ...] | None = None
+
+    @classmethod
+    def quick(cls, free_minutes: float = 2.0, **changes) -> DetectionPlan:
+        """A short plan: `free_minutes` of free motion, five presses per surface (from a
+        light touch to 20 mm), one held-out rehearsal and run per kind for the thresholds,
+        no tracker events; a few minutes on two cores instead of the full plan's hour."""
+        return cls(free_minutes=free_minutes, depths_mm=(-0.6, 0.0, 1.0, 6.0, 20.0),
+                   rehearsals=1, events=None, **changes)
+
+
+def with_tests(models: dict, plan: DetectionPlan) -> dict:
+    """{result name: (model, test or None)}: each model once (the scenario's test), or with
+    `plan.tests` once per test, named "model (test)" — the χ² test only for models whose
+    std is that of a reading (a forest's is not: the chain refuses it)."""
+    if not plan.tests:
+        return {name: (model, None) for name, model in models.items()}
+    for test in plan.tests:
+        if test not in ("norm", "chi2"):
+            raise ValueError(f"DetectionPlan.tests: {test!r} is not 'norm' or 'chi2'")
+    return {f"{name} ({test})": (model, test) for name, model in models.items()
+            for test in plan.tests if test != "chi2" or has_reading_std(model)}
+
+
+def has_reading_std(model) -> bool:
+    """Whether `model`'s predictive std is that of a reading (the χ² test needs one)."""
+    return bool(getattr(model, "provides_std", False)
+                and getattr(model, "std_includes_noise", False))
+
+
+def with_test(config: ScenarioConfig, test: str | None) -> ScenarioConfig:
+    """`config` with its detector's test set to `test` (None: as it is)."""
+    if test is None:
+        return config
+    return dc.replace(config, detector=dc.replace(config.detector, test=test))
 
 
 def thresholds_from_held_out(model, config: ScenarioConfig, plan: DetectionPlan,
@@ -124,8 +165,8 @@ def run_plan(models: dict, config: ScenarioConfig, plan: DetectionPlan, *, n_job
     free-motion and press results (:func:`.detection_replay.run_plan_by_replay` gives the
     same numbers faster: the detector does not move the arm)."""
     results = {}
-    for name, model in models.items():
-        detector = thresholds_from_held_out(model, config, plan, n_jobs)
+    for name, (model, test) in with_tests(models, plan).items():
+        detector = thresholds_from_held_out(model, with_test(config, test), plan, n_jobs)
         base = dc.replace(config, detector=detector)
         jobs = _free_jobs(base, plan) + _press_jobs(base, plan)
         runs = Parallel(n_jobs=n_jobs, return_as="generator")(
@@ -245,8 +286,10 @@ def markdown(results: dict, plan: DetectionPlan) -> str:
         d = r["detector"]
         delay = r["max_delay_s_presses_from_5n"]
         smallest = r["smallest_reliably_detected_force_n"]
+        thresholds = (f"χ² > {d['chi2_on']:.1f}" if d.get("test") == "chi2"
+                      else f"{d['force_on']:.2f} N, {d['torque_on']:.3f} N·m")
         lines.append(
-            f"| {name} | {d['force_on']:.2f} N, {d['torque_on']:.3f} N·m "
+            f"| {name} | {thresholds} "
             f"| {r['free_motion_s'] / 60:.1f} min | {r['false_positives']} "
             f"| {r['missed']} of {r['press_count']} "
             f"| {'–' if smallest is None else f'{smallest:.2f} N'} "
@@ -263,7 +306,7 @@ def markdown(results: dict, plan: DetectionPlan) -> str:
             lines.append(f"| {name} | {p['surface']} | {p['depth_mm']:g} mm "
                          f"| {p['force_n']:.2f} N | {'yes' if p['detected'] else '**no**'} "
                          f"| {delay} |")
-    return "\n".join(lines) + "\n"
+    return "\n".join(lines) + "\n" + domain_markdown(results)
 
 
 def plot_detection_rate(results: dict, path: Path) -> None:
@@ -307,7 +350,7 @@ def run_detection_evaluation(out: Path, models: dict, config: ScenarioConfig | N
     events = None
     if plan.events is not None:
         tuned = {name: (model, DetectorConfig(**results[name]["detector"]))
-                 for name, model in models.items()}
+                 for name, (model, _) in with_tests(models, plan).items()}
         events = tracking.run_events(tuned, config, plan.events, seed=plan.seed + 2000,
                                      n_jobs=n_jobs, progress=progress)
     with staged_outputs(out) as staging:
@@ -319,4 +362,5 @@ def run_detection_evaluation(out: Path, models: dict, config: ScenarioConfig | N
             text += "\n" + tracking.markdown(events, plan.events)
         (staging / "detection.md").write_text(text)
         plot_detection_rate(results, staging / "detection_rate.png")
+        plot_detectable_force_vs_domain(results, staging / "detectable_force_vs_domain.png")
     return results
