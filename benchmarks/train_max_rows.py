@@ -50,7 +50,7 @@ def main():
         for way, extra in (("all rows", []), ("max rows", ["--max-rows", str(args.max_rows)])):
             out = folder / f"{kind}_{way.replace(' ', '_')}.ftd"
             start = time.perf_counter()
-            code = train_cli(["train", "--data", str(folder / "train.parquet"), "--model", kind,
+            code = train_cli(["train", "--data", str(folder / "train.parquet"), "--kind", kind,
                               "--robot", "ftdrake", "--preset", "none", "--out", str(out),
                               "--quiet", *extra])
             wall = time.perf_counter() - start
