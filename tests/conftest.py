@@ -1,9 +1,11 @@
-"""Shared, session-scoped simulated datasets (small: a few seconds per trajectory)."""
+"""Shared fixtures: session-scoped simulated datasets (small: a few seconds per trajectory)
+and the command line run in-process."""
 
 import numpy as np
 import pytest
 
 from ftdrake import ScenarioConfig
+from ftdrake.cli.main import main as cli_main
 from ftdrake.sim.collection import collect
 
 
@@ -31,3 +33,15 @@ def realistic_dataset():
 @pytest.fixture
 def rng():
     return np.random.default_rng(0)
+
+
+@pytest.fixture
+def ftdrake(capsys):
+    """Runs an `ftdrake` command in-process; returns (exit code, stdout, stderr)."""
+
+    def run(*argv):
+        code = cli_main([str(a) for a in argv])
+        out, err = capsys.readouterr()
+        return code, out, err
+
+    return run

@@ -26,18 +26,6 @@ TORQUES = ["--targets", "tau_*", "--velocities", "qd_*"]
 TARGETS = [f"tau_{i}" for i in range(6)]
 
 
-@pytest.fixture
-def ftdrake(capsys):
-    """Runs `ftdrake train|evaluate` in-process; returns (exit code, stdout, stderr)."""
-
-    def run(*argv):
-        code = train_cli([str(a) for a in argv])
-        out, err = capsys.readouterr()
-        return code, out, err
-
-    return run
-
-
 def train(ftdrake, data, out, *options):
     code, _, err = ftdrake("train", "--data", data, "--out", out, *options)
     assert code == 0, err

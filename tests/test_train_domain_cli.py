@@ -5,18 +5,7 @@ import numpy as np
 import pytest
 from test_train_cli import failure, refused, train
 
-from ftdrake.cli.main import main as train_cli
 from ftdrake.compensation.persistence import load_model
-
-
-@pytest.fixture
-def ftdrake(capsys):
-    def run(*argv):
-        code = train_cli([str(a) for a in argv])
-        out, err = capsys.readouterr()
-        return code, out, err
-
-    return run
 
 
 @pytest.fixture(scope="module")
