@@ -9,6 +9,7 @@ import pytest
 from ftdrake import ConfigError, RandomForestCompensator, ScenarioConfig
 from ftdrake.hardware import HardwareConfig, HardwareStation
 from ftdrake.hardware.messages import (
+    ContactState,
     decode_contact_state,
     decode_wrench,
     encode_joint_state,
@@ -302,3 +303,61 @@ def test_a_re_tare_message_resets_the_tracked_bias_and_nothing_reads_as_contact(
     scenario.bias_tracker.enabled = False
     with pytest.raises(ConfigError, match=r"hardware\.tare_channel"):
         HardwareStation(config, model, scenario, "memq://")
+
+
+def test_an_unsignalled_grasp_on_hardware_is_announced_on_the_contact_channel():
+    """The same five poses and 0.5 kg payload as above, but nobody announces the grasp: with
+    ``bias_tracker.payload_change`` the chain recognises it from how its wrench follows
+    gravity across the poses, says so in the contact state (``payload_change``), and the
+    tracker identifies it; a reader of the earlier four-value message still decodes."""
+    from ftdrake.hardware.messages import CONTACT_COORDS_V1
+    from ftdrake.physics.scenario_robot import robot_description
+
+    scenario = ScenarioConfig()
+    scenario.bias_tracker.track_payload = True
+    scenario.bias_tracker.payload_change.enabled = True
+    model = RandomForestCompensator(features="q", n_estimators=2).fit(
+        np.random.default_rng(0).uniform(-2, 2, (50, 3 * N)), np.zeros((50, 6)))
+    config = HardwareConfig(lcm_url="memq://", sensor_timeout_s=10.0,
+                            joint_state_timeout_s=10.0)
+    dut = HardwareStation(config, model, scenario, "memq://")
+    contact = []
+    dut.lcm.subscribe(config.contact_channel, lambda d: contact.append(decode_contact_state(d)))
+    plant, frame_S = robot_description(scenario).build_plant()
+    context = plant.CreateDefaultContext()
+    mass, com = 0.5, np.array([0.0, 0.02, 0.12])
+    poses = np.array(scenario.home_q) + np.array(
+        [[0, 0, 0, 0, 0, 0, 0], [0.6, 0.3, 0, -0.4, 0.8, 0.5, 0],
+         [-0.5, 0, 0.4, 0.3, -0.9, -0.4, 1.0], [0.2, -0.3, -0.5, 0.2, 1.3, 0.2, -0.7]])
+    k = 0
+    for pose in poses:
+        plant.SetPositions(context, pose)
+        g_S = frame_S.CalcPoseInWorld(context).rotation().inverse() @ np.array([0, 0, -9.81])
+        payload = np.r_[mass * g_S, np.cross(com, mass * g_S)]
+        for _ in range(1200):
+            t = 0.001 * (k + 1)
+            dut.lcm.publish(config.joint_state_channel,
+                            encode_joint_state("iiwa_status", t, pose, np.zeros(N)))
+            dut.lcm.publish(config.ft_channel,
+                            encode_wrench(t, payload if k >= 500 else np.zeros(6)))
+            dut.spin_once(0)
+            dut.lcm.handle(0)
+            k += 1
+    t = np.array([c.t for c in contact])
+    announced = t[[c.payload_change for c in contact]]
+    print(f"announced from {announced[:1]} s; contact until "
+          f"{t[[c.contact for c in contact]].max():.3f} s")
+    # The weight reads as contact from 0.5 s; the first pose change (at 1.2 s) turns g_S.
+    assert len(announced) and 1.2 < announced[0] < 1.2 + 2.0
+    assert not any(c.payload_change for c in contact if c.t < 0.5)
+    dm, *mc = dut.output("payload")
+    assert dm == pytest.approx(mass, rel=0.02)
+    np.testing.assert_allclose(np.array(mc) / dm, com, atol=0.005)
+    assert not any(c.contact for c in contact if c.t > announced[0] + 1.0)
+    # The earlier message's four values decode too (payload_change then False).
+    from drake import lcmt_drake_signal
+
+    old = lcmt_drake_signal()
+    old.timestamp, old.dim, old.coord, old.val = 5000, 4, list(CONTACT_COORDS_V1), [1, 2.5, 0, 1]
+    assert decode_contact_state(old.encode()) == ContactState(5000 * 1e-6, True, 2.5, False,
+                                                              True, False)

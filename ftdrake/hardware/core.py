@@ -113,7 +113,8 @@ class StationCore:
             self.context, [0.0])) for name in events}
         self._out = {name: self.diagram.GetOutputPort(name) for name in (
             "wrench_compensated", "wrench_contact", "fault", "out_of_domain", "contact",
-            "contact_force", "bias", "payload") if self.diagram.HasOutputPort(name)}
+            "contact_force", "bias", "payload", "payload_change")
+            if self.diagram.HasOutputPort(name)}
         self.monitor = StreamMonitor(
             self.n_joints, sensor_timeout_s, joint_state_timeout_s,
             temperature_timeout_s if self._temperature_in is not None else None)
@@ -155,9 +156,10 @@ class StationCore:
 
     def contact_state(self, t: float, fault: bool) -> ContactState:
         """The detector's state now, stamped `t`, with `fault`."""
+        changed = "payload_change" in self._out and self.output("payload_change")[0] > 0.5
         return ContactState(t, self.output("contact")[0] > 0.5,
                             float(self.output("contact_force")[0]), bool(fault),
-                            self.output("out_of_domain")[0] > 0.5)
+                            self.output("out_of_domain")[0] > 0.5, bool(changed))
 
     # -- samples ------------------------------------------------------------------------------
     def on_joint_sample(self, sample, arrival: float) -> None:

@@ -44,8 +44,11 @@ TEMPERATURE_COORD = "temperature_c"
 TARE_COORD = "tared"
 PAYLOAD_COORD = "payload_changed"
 
-#: Names of the values in the contact-state message, in order.
-CONTACT_COORDS = ("contact", "contact_force", "fault", "out_of_domain")
+#: Names of the values in the contact-state message, in order. ``payload_change``: 1 while
+#: the chain announces a payload change nobody signalled (``bias_tracker.payload_change``).
+CONTACT_COORDS = ("contact", "contact_force", "fault", "out_of_domain", "payload_change")
+#: The message before it carried ``payload_change``; still decoded (the flag then False).
+CONTACT_COORDS_V1 = CONTACT_COORDS[:4]
 
 _JOINT_CLASSES = {
     "iiwa_status": lcmt_iiwa_status,
@@ -71,11 +74,15 @@ class WrenchSample(NamedTuple):
 
 
 class ContactState(NamedTuple):
+    """t (s); the detector's flag and ‖F‖ (N); the fault and out-of-domain flags; the flag of
+    a payload change nobody signalled (False without the chain's payload-change monitor)."""
+
     t: float
     contact: bool
     contact_force: float
     fault: bool
     out_of_domain: bool = False
+    payload_change: bool = False
 
 
 def message_class(joint_state_type: str):
@@ -129,22 +136,26 @@ def encode_wrench(t: float, wrench) -> bytes:
 
 
 def encode_contact_state(state: ContactState) -> bytes:
-    """``lcmt_drake_signal`` bytes: val = [contact 0/1, ‖F‖ N, fault 0/1, out_of_domain 0/1]."""
+    """``lcmt_drake_signal`` bytes: val = [contact 0/1, ‖F‖ N, fault 0/1, out_of_domain 0/1,
+    payload_change 0/1] (``CONTACT_COORDS``)."""
     msg = lcmt_drake_signal()
     msg.timestamp = _utime(state.t)
     msg.dim = len(CONTACT_COORDS)
     msg.coord = list(CONTACT_COORDS)
     msg.val = [float(bool(state.contact)), float(state.contact_force),
-               float(bool(state.fault)), float(bool(state.out_of_domain))]
+               float(bool(state.fault)), float(bool(state.out_of_domain)),
+               float(bool(state.payload_change))]
     return msg.encode()
 
 
 def decode_contact_state(data: bytes) -> ContactState:
+    """The contact state of ``encode_contact_state`` (or of the earlier 4-value message)."""
     msg = lcmt_drake_signal.decode(data)
-    if tuple(msg.coord) != CONTACT_COORDS:
+    if tuple(msg.coord) not in (CONTACT_COORDS, CONTACT_COORDS_V1):
         raise ValueError(f"not a contact-state signal: coord {list(msg.coord)}")
-    c, f, fault, ood = msg.val
-    return ContactState(msg.timestamp * 1e-6, c > 0.5, f, fault > 0.5, ood > 0.5)
+    c, f, fault, ood, *changed = msg.val
+    return ContactState(msg.timestamp * 1e-6, c > 0.5, f, fault > 0.5, ood > 0.5,
+                        bool(changed) and changed[0] > 0.5)
 
 
 def encode_temperature(t: float, celsius: float) -> bytes:

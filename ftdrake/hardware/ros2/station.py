@@ -208,6 +208,7 @@ class Ros2Station(StationCore):
         values = {"fault": m.fault or model_fault, "reason": m.reason,
                   "out_of_domain": out_of_domain,
                   "contact": bool(self.output("contact")[0] > 0.5),
+                  "payload_change": self.contact_state(0.0, False).payload_change,
                   **{f"rate_{k}_hz": f"{v:.1f}" for k, v in self.rates_hz.items()},
                   **{f"received_{k}": v for k, v in m.received.items()},
                   **{f"rejected_{k}": v for k, v in m.rejected.items()},
