@@ -16,8 +16,7 @@ from ..errors import ConfigError
 from ..physics.robot import ftdrake_arm
 from .arm import ArmDynamicsCompensator
 from .build import BUILTIN_ROBOT, BuildRequest, TrainOption, is_wrench, wrench_only_error
-from .forest import RandomForestCompensator
-from .hybrid import HybridCompensator
+from .hybrid import HybridCompensator, default_residual
 from .physics import PhysicsPayloadCompensator
 
 #: ``train``'s arguments of each (the registry's defaults).
@@ -65,8 +64,9 @@ def make_hybrid(request: BuildRequest):
         raise wrench_only_error(request.kind, request.target_names)
     else:
         physics = payload_model(request, "q,qd,qdd")
-    residual = RandomForestCompensator(features=request.features or "q", min_samples_leaf=5,
-                                       random_state=request.seed)
+    # The library's default residual (one source for `train` and Python), on the features asked.
+    residual = default_residual().set_params(features=request.features or "q",
+                                             random_state=request.seed)
     return HybridCompensator(**{**HYBRID_DEFAULTS, "physics": physics, "residual": residual})
 
 
