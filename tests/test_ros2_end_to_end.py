@@ -12,6 +12,7 @@ stops cleanly on SIGINT with its summary."""
 
 import json
 import os
+import re
 import signal
 import subprocess
 import sys
@@ -171,7 +172,10 @@ def test_simulate_and_serve_over_dds(tmp_path):
     err = serve_err.read_text()
     assert "fault not_finite" in err and "fault joint_names" in err and "recovered" in err
     assert "unknown ['gripper_joint']" in err
-    assert "fault sensor_timeout" in err
+    # Both streams stop together at the end: which silence is noticed first depends on the
+    # order the last samples were delivered in (seen both ways), so either cause counts.
+    assert "fault sensor_timeout" in err or "fault joint_timeout" in err
     (last,) = got["diagnostics"][-1].status
-    assert last.level == 2 and "no F/T message for" in last.message
-    assert summary["fault_episodes"].get("sensor_timeout", 0) >= 1
+    assert last.level == 2 and re.search(r"no (F/T|joint-state) message for", last.message)
+    episodes = summary["fault_episodes"]
+    assert episodes.get("sensor_timeout", 0) + episodes.get("joint_timeout", 0) >= 1
