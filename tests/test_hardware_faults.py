@@ -153,15 +153,50 @@ def test_robot_state_pairs_positions_with_velocities():
     np.testing.assert_allclose(rig.dut.monitor.joint_state[:N], q32, rtol=0, atol=0)
 
 
+GRASP_MASS, GRASP_COM = 0.5, np.array([0.0, 0.02, 0.12])  # kg; m from So, in S
+GRASP_POSES = np.array([[0, 0, 0, 0, 0, 0, 0], [0.6, 0.3, 0, -0.4, 0.8, 0.5, 0],
+                        [-0.5, 0, 0.4, 0.3, -0.9, -0.4, 1.0],
+                        [0.2, -0.3, -0.5, 0.2, 1.3, 0.2, -0.7],
+                        [0, 0.2, 0.6, -0.2, -0.3, 0.7, 0.4]])
+
+
+def hold_poses_and_grasp(dut, config, scenario, n_poses, announce: bool):
+    """Drives `dut` (memq://) through the first `n_poses` of GRASP_POSES (offsets from home),
+    1.2 s each at 1 kHz; from sample 500 (0.5 s) the readings carry a 0.5 kg payload's
+    gravity wrench (m·g_S, c × m·g_S; g_S from Drake's own kinematics), announced on the
+    payload channel at that sample when `announce`. Returns the contact states published."""
+    from ftdrake.hardware.messages import PAYLOAD_COORD, encode_event
+    from ftdrake.physics.scenario_robot import robot_description
+
+    contact = []
+    dut.lcm.subscribe(config.contact_channel, lambda d: contact.append(decode_contact_state(d)))
+    plant, frame_S = robot_description(scenario).build_plant()
+    context = plant.CreateDefaultContext()
+    k = 0
+    for pose in np.array(scenario.home_q) + GRASP_POSES[:n_poses]:
+        plant.SetPositions(context, pose)
+        g_S = frame_S.CalcPoseInWorld(context).rotation().inverse() @ np.array([0, 0, -9.81])
+        payload = np.r_[GRASP_MASS * g_S, np.cross(GRASP_COM, GRASP_MASS * g_S)]
+        for _ in range(1200):
+            t = 0.001 * (k + 1)
+            if announce and k == 500:
+                dut.lcm.publish(config.payload_channel, encode_event(t, PAYLOAD_COORD))
+            dut.lcm.publish(config.joint_state_channel,
+                            encode_joint_state("iiwa_status", t, pose, np.zeros(N)))
+            dut.lcm.publish(config.ft_channel,
+                            encode_wrench(t, payload if k >= 500 else np.zeros(6)))
+            dut.spin_once(0)
+            dut.lcm.handle(0)
+            k += 1
+    return contact
+
+
 def test_a_grasp_on_hardware_is_identified_from_the_joint_state():
     """Payload tracking on hardware: gravity at the sensor comes from the joint state through
     the scenario robot's chain. The arm holds five poses, 1.2 s each; at 0.5 s a 0.5 kg payload
     at c = (0, 20, 120) mm in S is grasped and announced on the payload channel. The readings
     carry its gravity wrench (m·g_S, c × m·g_S) with g_S from Drake's own kinematics. The
     tracker must find m and m·c, and nothing may read as contact after the settle window."""
-    from ftdrake.hardware.messages import PAYLOAD_COORD, encode_event
-    from ftdrake.physics.scenario_robot import robot_description
-
     scenario = ScenarioConfig()
     scenario.bias_tracker.track_payload = True
     model = RandomForestCompensator(features="q", n_estimators=2).fit(
@@ -173,32 +208,8 @@ def test_a_grasp_on_hardware_is_identified_from_the_joint_state():
     config = HardwareConfig(lcm_url="memq://", payload_channel="GRASP", sensor_timeout_s=10.0,
                             joint_state_timeout_s=10.0)
     dut = HardwareStation(config, model, scenario, "memq://")
-    contact = []
-    dut.lcm.subscribe(config.contact_channel, lambda d: contact.append(decode_contact_state(d)))
-
-    plant, frame_S = robot_description(scenario).build_plant()
-    context = plant.CreateDefaultContext()
-    mass, com = 0.5, np.array([0.0, 0.02, 0.12])
-    poses = np.array(scenario.home_q) + np.array(
-        [[0, 0, 0, 0, 0, 0, 0], [0.6, 0.3, 0, -0.4, 0.8, 0.5, 0],
-         [-0.5, 0, 0.4, 0.3, -0.9, -0.4, 1.0], [0.2, -0.3, -0.5, 0.2, 1.3, 0.2, -0.7],
-         [0, 0.2, 0.6, -0.2, -0.3, 0.7, 0.4]])
-    k = 0
-    for pose in poses:
-        plant.SetPositions(context, pose)
-        g_S = frame_S.CalcPoseInWorld(context).rotation().inverse() @ np.array([0, 0, -9.81])
-        payload = np.r_[mass * g_S, np.cross(com, mass * g_S)]
-        for _ in range(1200):
-            t = 0.001 * (k + 1)
-            if k == 500:
-                dut.lcm.publish(config.payload_channel, encode_event(t, PAYLOAD_COORD))
-            dut.lcm.publish(config.joint_state_channel,
-                            encode_joint_state("iiwa_status", t, pose, np.zeros(N)))
-            dut.lcm.publish(config.ft_channel,
-                            encode_wrench(t, payload if k >= 500 else np.zeros(6)))
-            dut.spin_once(0)
-            dut.lcm.handle(0)
-            k += 1
+    contact = hold_poses_and_grasp(dut, config, scenario, 5, announce=True)
+    mass, com = GRASP_MASS, GRASP_COM
 
     estimate = dut.tracker.get_output_port_payload().Eval(
         dut.tracker.GetMyContextFromRoot(dut.context))
@@ -311,7 +322,6 @@ def test_an_unsignalled_grasp_on_hardware_is_announced_on_the_contact_channel():
     gravity across the poses, says so in the contact state (``payload_change``), and the
     tracker identifies it; a reader of the earlier four-value message still decodes."""
     from ftdrake.hardware.messages import CONTACT_COORDS_V1
-    from ftdrake.physics.scenario_robot import robot_description
 
     scenario = ScenarioConfig()
     scenario.bias_tracker.track_payload = True
@@ -321,28 +331,8 @@ def test_an_unsignalled_grasp_on_hardware_is_announced_on_the_contact_channel():
     config = HardwareConfig(lcm_url="memq://", sensor_timeout_s=10.0,
                             joint_state_timeout_s=10.0)
     dut = HardwareStation(config, model, scenario, "memq://")
-    contact = []
-    dut.lcm.subscribe(config.contact_channel, lambda d: contact.append(decode_contact_state(d)))
-    plant, frame_S = robot_description(scenario).build_plant()
-    context = plant.CreateDefaultContext()
-    mass, com = 0.5, np.array([0.0, 0.02, 0.12])
-    poses = np.array(scenario.home_q) + np.array(
-        [[0, 0, 0, 0, 0, 0, 0], [0.6, 0.3, 0, -0.4, 0.8, 0.5, 0],
-         [-0.5, 0, 0.4, 0.3, -0.9, -0.4, 1.0], [0.2, -0.3, -0.5, 0.2, 1.3, 0.2, -0.7]])
-    k = 0
-    for pose in poses:
-        plant.SetPositions(context, pose)
-        g_S = frame_S.CalcPoseInWorld(context).rotation().inverse() @ np.array([0, 0, -9.81])
-        payload = np.r_[mass * g_S, np.cross(com, mass * g_S)]
-        for _ in range(1200):
-            t = 0.001 * (k + 1)
-            dut.lcm.publish(config.joint_state_channel,
-                            encode_joint_state("iiwa_status", t, pose, np.zeros(N)))
-            dut.lcm.publish(config.ft_channel,
-                            encode_wrench(t, payload if k >= 500 else np.zeros(6)))
-            dut.spin_once(0)
-            dut.lcm.handle(0)
-            k += 1
+    contact = hold_poses_and_grasp(dut, config, scenario, 4, announce=False)
+    mass, com = GRASP_MASS, GRASP_COM
     t = np.array([c.t for c in contact])
     announced = t[[c.payload_change for c in contact]]
     print(f"announced from {announced[:1]} s; contact until "
