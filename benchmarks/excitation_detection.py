@@ -45,6 +45,7 @@ from ftdrake.experiments.detection import (
     thresholds_from_held_out,
 )
 from ftdrake.runtime.replay import replay
+from ftdrake.runtime.thresholds import threshold_text
 from ftdrake.sim.collection import collect
 from ftdrake.sim.simulate import simulate
 from ftdrake.sim.station import build_station
@@ -141,13 +142,13 @@ def main() -> None:
         for row in rows:
             counts[place(row)] = counts.get(place(row), 0) + row["false_positives"]
         d, smallest = detectors[owner], result["smallest_reliably_detected_force_n"]
-        print(f"| {name} | {owner} | {d.force_on:.2f} N, {d.torque_on:.3f} N·m "
+        print(f"| {name} | {owner} | {threshold_text(dc.asdict(d))} "
               f"| {counts.get('free motion', 0)} in {result['free_motion_s'] / 60:.1f} min "
               f"| {counts.get('table', 0)} | {counts.get('wall', 0)} "
               f"| {result['missed']} of {result['press_count']} "
               f"| {'–' if smallest is None else f'{smallest:.2f} N'} |")
         summary[f"{name} / thresholds of {owner}"] = {
-            "false_positives": counts, "force_on": d.force_on, "torque_on": d.torque_on,
+            "false_positives": counts, "detector": dc.asdict(d),
             "missed": result["missed"], "press_count": result["press_count"],
             "smallest_reliably_detected_force_n": smallest}
     print(json.dumps({"plan_minutes": args.minutes, "depths_mm": DEPTHS_MM, "fits": fits,

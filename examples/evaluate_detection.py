@@ -28,13 +28,17 @@ def main():
         ftdrake.joint_state_layout(train), ftdrake.wrench_targets(train))
 
     held_out = rehearsal(seed=1)  # not trained on
-    residual = (ftdrake.wrench_targets(held_out)
-                - model.predict(ftdrake.joint_state_layout(held_out)))
+    X_held = ftdrake.joint_state_layout(held_out)
+    residual = ftdrake.wrench_targets(held_out) - model.predict(X_held)
     config = ftdrake.ScenarioConfig()  # the contact scenario: press on the table, leave
+    # detector.test "auto", calibrated: the χ² test for a model with a std of a reading.
+    test = config.detector.for_model(model, calibrating=True).test
     detector = ftdrake.thresholds_for_false_positive_rate(  # the scenario's budget (1 per hour)
-        residual, sample_rate_hz=config.sensor.spec().rate_hz)
-    print(f"thresholds from the held-out residual: {detector.force_on:.2f} N, "
-          f"{detector.torque_on:.3f} N·m")
+        residual, sample_rate_hz=config.sensor.spec().rate_hz, test=test,
+        std=model.predict_std(X_held) if test == "chi2" else None)
+    threshold = (f"χ² > {detector.chi2_on:.1f}" if detector.test == "chi2"
+                 else f"{detector.force_on:.2f} N, {detector.torque_on:.3f} N·m")
+    print(f"{detector.test} test, threshold from the held-out residual: {threshold}")
 
     config.trajectory.seed = config.sensor.seed = 7  # a seed not seen in training
     config = dc.replace(config, detector=detector)

@@ -81,7 +81,7 @@ def wire_by_hand(builder, config, model, sources) -> dict:
     comp = builder.AddSystem(CompensatorSystem(
         model, PERIOD, n_joints=N,
         acceleration_cutoff_hz=config.compensator.acceleration_cutoff_hz))
-    detector = builder.AddSystem(ContactDetector(config.detector, PERIOD))
+    detector = builder.AddSystem(ContactDetector(config.detector.for_model(model), PERIOD))
     builder.Connect(sources["wrench_measured"], comp.get_input_port_wrench_measured())
     builder.Connect(sources["joint_state"], comp.get_input_port_joint_state())
     if comp.needs_temperature:

@@ -2,6 +2,7 @@
 χ²₆ quantile of the false-positive budget."""
 
 import dataclasses as dc
+import warnings
 
 import numpy as np
 import pytest
@@ -10,7 +11,7 @@ from pydrake.systems.framework import DiagramBuilder
 from pydrake.systems.primitives import ConstantVectorSource
 from scipy.stats import chi2
 
-from ftdrake.config import DetectorConfig, parse_config
+from ftdrake.config import DetectorConfig, default_scenario_path, load_config, parse_config
 from ftdrake.errors import ConfigError
 from ftdrake.runtime.detector import ContactDetector, chi2_threshold, detect_chi2
 from ftdrake.runtime.thresholds import (
@@ -99,8 +100,15 @@ def test_thresholds_for_the_chi2_test_from_held_out_data():
     # The detectable force grows with the std (χ²) and does not (norm).
     forces = detectable_force(dut, np.vstack([std[0], 4 * std[0]]), 1 / RATE_HZ)
     assert forces[1] == pytest.approx(4 * forces[0])
-    assert np.ptp(detectable_force(DetectorConfig(), np.vstack([std[0], 4 * std[0]]),
-                                   1e-3)) == 0
+    assert np.ptp(detectable_force(DetectorConfig(test="norm"),
+                                   np.vstack([std[0], 4 * std[0]]), 1e-3)) == 0
+    with pytest.raises(ConfigError, match="for_model"):
+        detectable_force(DetectorConfig(chi2_on=45.0), std[:2], 1e-3)
+    # "auto" on held-out data: the χ² test when the model's std is given, else the norm test.
+    assert thresholds_for_false_positive_rate(residual, sample_rate_hz=RATE_HZ, std=std,
+                                              test="auto").test == "chi2"
+    assert thresholds_for_false_positive_rate(residual, sample_rate_hz=RATE_HZ,
+                                              test="auto").test == "norm"
 
 
 def test_config_names_bad_tests_and_the_chain_refuses_a_model_without_std():
@@ -119,3 +127,53 @@ def test_config_names_bad_tests_and_the_chain_refuses_a_model_without_std():
     scenario = dc.replace(scenario, detector=dc.replace(scenario.detector, test="chi2"))
     with pytest.raises(ConfigError, match="forest's spread"):
         CompensationChain(forest, scenario)
+
+
+def fitted_physics():
+    """A physics model of the scenario's arm on generated rows (only its kind matters)."""
+    from ftdrake.compensation.physics import PhysicsPayloadCompensator
+    rng = np.random.default_rng(3)
+    X = np.hstack([rng.uniform(-1, 1, (300, 7)), rng.normal(0, 0.3, (300, 14))])
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # generated rows do not excite the payload
+        return PhysicsPayloadCompensator().fit(X, rng.normal(0, 0.05, (300, 6)))
+
+
+def test_auto_is_the_calibrated_chi2_test_for_a_model_with_a_reading_std_else_norm():
+    from ftdrake.compensation.forest import RandomForestCompensator
+    from ftdrake.config import ScenarioConfig
+    from ftdrake.runtime.chain import CompensationChain
+
+    assert DetectorConfig().test == "auto"
+    assert load_config(default_scenario_path()).detector.test == "auto"  # the shipped YAML
+    physics = fitted_physics()
+    X = np.random.default_rng(2).uniform(-1, 1, (200, 21))
+    forest = RandomForestCompensator(features="q", n_estimators=2).fit(X, np.zeros((200, 6)))
+    # Thresholds about to be set from held-out motion: χ² for a std of a reading only.
+    assert DetectorConfig().for_model(physics, calibrating=True).test == "chi2"
+    assert DetectorConfig().for_model(forest, calibrating=True).test == "norm"
+    # In a chain: a χ² threshold given makes it the χ² test, for a model that can run it.
+    given = dc.replace(ScenarioConfig(), detector=DetectorConfig(chi2_on=45.0))
+    chain = CompensationChain(physics, given)
+    assert chain.config.detector.test == "chi2" and chain.detector.config.test == "chi2"
+    assert chain.detector.chi2_on == 45.0
+    assert CompensationChain(forest, given).detector.config.test == "norm"
+    # Uncalibrated (the budget's quantile would trust a std never checked on held-out
+    # motion): the norm test's defaults.
+    assert CompensationChain(physics, ScenarioConfig()).detector.config.test == "norm"
+    # Norm thresholds set by hand are meant to be used.
+    hand = DetectorConfig(force_on=4.0, chi2_on=45.0)
+    assert hand.for_model(physics).test == hand.for_model(physics, calibrating=True).test \
+        == "norm"
+    assert DetectorConfig(std_gain=2.0).for_model(physics, calibrating=True).test == "norm"
+    # A concrete test is kept, whatever the model.
+    assert DetectorConfig(test="norm").for_model(physics, calibrating=True).test == "norm"
+    assert DetectorConfig(test="chi2").for_model(physics).test == "chi2"
+
+
+def test_a_detector_built_alone_resolves_auto_without_a_model_where_it_can():
+    assert ContactDetector(DetectorConfig(), 0.001).config.test == "norm"
+    assert ContactDetector(DetectorConfig(force_on=3.0), 0.001).config.test == "norm"
+    assert ContactDetector(DetectorConfig(test="chi2"), 0.001).config.test == "chi2"
+    with pytest.raises(ConfigError, match=r"for_model\(model\)"):
+        ContactDetector(DetectorConfig(chi2_on=45.0), 0.001)

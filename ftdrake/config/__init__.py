@@ -39,6 +39,7 @@ from .runtime import (
     CompensatorConfig,
     DetectorConfig,
     PayloadChangeConfig,
+    model_has_reading_std,
 )
 from .scenario import ScenarioConfig
 from .sensor import SENSOR_PRESETS, SensorConfig, SensorSpec
@@ -68,6 +69,7 @@ __all__ = [
     "default_scenario_path",
     "dump_config",
     "load_config",
+    "model_has_reading_std",
     "parse_config",
     "save_config",
 ]

@@ -158,8 +158,8 @@ class BiasTrackerConfig:
         return prior + [PAYLOAD_INERTIA_PRIOR_STD] * (10 - len(prior))
 
 
-#: The contact detector's tests (DetectorConfig.test).
-DETECTOR_TESTS = ("norm", "chi2")
+#: The contact detector's tests (DetectorConfig.test); "auto" picks one per model.
+DETECTOR_TESTS = ("auto", "norm", "chi2")
 
 
 @dc.dataclass
@@ -177,6 +177,15 @@ class DetectorConfig:
     the arm is, the detectable force rising only where the model is unsure. Same debounce;
     off below ``release_ratio² · chi2_on``. Needs a model whose std is that of a reading
     (physics, hybrid, GP).
+
+    ``test: "auto"`` (the default): the χ² test for a model whose std is that of a reading
+    *when its threshold is calibrated* — set from held-out free motion (``evaluate-detection``,
+    the demo, ``thresholds_for_false_positive_rate(test="auto")``, all of which then record
+    the test they chose) or given as `chi2_on` — and the norm test otherwise: for any other
+    model (a forest), for an uncalibrated detector (the budget's χ² quantile trusts a std that
+    was never checked on held-out motion; the norm defaults are the safer start), and whenever
+    `force_on`, `torque_on` or `std_gain` differ from their defaults, since thresholds set by
+    hand are meant to be used. The chain resolves it for its model (:meth:`for_model`).
     """
 
     force_on: float = 2.5
@@ -192,8 +201,9 @@ class DetectorConfig:
     # (ftdrake.runtime.thresholds.thresholds_for_false_positive_rate); the detector itself
     # reads only the thresholds.
     false_positives_per_hour: float = 1.0
+    # "auto" (chi2 for a model with a std of a reading once calibrated, else norm; above),
     # "norm" (‖F‖, ‖T‖ against force_on, torque_on) or "chi2" (the whitened wrench, above).
-    test: str = "norm"
+    test: str = "auto"
     # The χ² test's threshold on Σ (wᵢ/σᵢ)²; 0: the χ²₆ quantile of the budget.
     chi2_on: float = 0.0
 
@@ -218,3 +228,42 @@ class DetectorConfig:
             raise ConfigError(f"{where}.chi2_on: must be >= 0 (0: from the budget), got "
                               f"{self.chi2_on!r}")
         return self
+
+    def sets_norm_thresholds(self) -> bool:
+        """Whether force_on, torque_on or std_gain differ from their defaults (the norm
+        test's thresholds were set, by hand or by a calibration)."""
+        default = DetectorConfig()
+        return any(getattr(self, name) != getattr(default, name)
+                   for name in ("force_on", "torque_on", "std_gain"))
+
+    def for_model(self, model, *, calibrating: bool = False) -> "DetectorConfig":
+        """This config with ``test: "auto"`` resolved for `model` (see the class docstring);
+        `calibrating`: the thresholds are about to be set from held-out free motion
+        (:func:`~ftdrake.runtime.thresholds.thresholds_for_false_positive_rate`). A concrete
+        test is returned as it is."""
+        if self.test != "auto":
+            return self
+        chi2 = (model_has_reading_std(model) and not self.sets_norm_thresholds()
+                and (calibrating or self.chi2_on > 0))
+        return dc.replace(self, test="chi2" if chi2 else "norm")
+
+    def without_model(self) -> "DetectorConfig":
+        """This config's test where no model is known (a detector built alone): ``"auto"``
+        without a χ² threshold given is the norm test, as for every model; with `chi2_on`
+        set it depends on the model, and a ConfigError names :meth:`for_model`."""
+        if self.test != "auto":
+            return self
+        if self.sets_norm_thresholds() or self.chi2_on == 0:
+            return dc.replace(self, test="norm")
+        raise ConfigError(
+            "detector.test 'auto' with chi2_on set picks the test from the compensator's "
+            "model: use config.for_model(model), or set detector.test to 'norm' or 'chi2' "
+            "(CompensationChain resolves it itself)")
+
+
+def model_has_reading_std(model) -> bool:
+    """Whether `model`'s predictive std is that of a reading — model error and sensor noise,
+    as physics, hybrid and GP models give and the χ² test needs (a forest's spread across
+    its trees is not one)."""
+    return bool(getattr(model, "provides_std", False)
+                and getattr(model, "std_includes_noise", False))

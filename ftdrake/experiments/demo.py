@@ -50,7 +50,7 @@ from ..config import ScenarioConfig
 from ..data.dataset import joint_state_layout, wrench_targets
 from ..io import atomic_path, staged_outputs
 from ..plots import plot_contact_comparison
-from ..runtime.thresholds import armed, thresholds_for_false_positive_rate
+from ..runtime.thresholds import armed, threshold_text, thresholds_for_false_positive_rate
 from ..sim.collection import collect
 from ..sim.evaluation import evaluate_detection
 from ..sim.simulate import simulate
@@ -220,15 +220,18 @@ def held_out_rows(config, *frames):
 
 def _calibrate_detectors(models, config, validation, held_out) -> dict:
     """Each model's thresholds from its residual on the judged samples of the validation
-    rehearsal and the held-out runs, for the scenario's false-positive budget."""
+    rehearsal and the held-out runs, for the scenario's false-positive budget and the test
+    ``detector.test`` gives that model (``auto``: χ² for the hybrid, norm for the forest)."""
     X_cal, Y_cal = held_out_rows(config, validation, held_out)
     rate_hz = config.sensor.spec().rate_hz
-    return {
-        name: thresholds_for_false_positive_rate(
+    detectors = {}
+    for name, model in models.items():
+        test = config.detector.for_model(model, calibrating=True).test
+        detectors[name] = thresholds_for_false_positive_rate(
             Y_cal - model.predict(X_cal), sample_rate_hz=rate_hz,
-            false_positives_per_hour=config.detector.false_positives_per_hour)
-        for name, model in models.items()
-    }
+            false_positives_per_hour=config.detector.false_positives_per_hour, test=test,
+            std=model.predict_std(X_cal) if test == "chi2" else None)
+    return detectors
 
 
 def _contact_runs(models, detectors, scenario, config, validation, meshcat_html, progress):
@@ -331,9 +334,7 @@ def print_table(summary: dict) -> None:
         ("detection delay", [f"{_fmt(r['detection_delay_s'], 1000)} ms" for r in results]),
         ("false positives (free motion)", [str(r["false_positives"]) for r in results]),
         ("missed contacts", [str(r["missed_contacts"]) for r in results]),
-        ("threshold force / torque",
-         [f"{r['detector']['force_on']:.2f} N, {r['detector']['torque_on']:.3f} N·m"
-          for r in results]),
+        ("detector threshold", [threshold_text(r["detector"]) for r in results]),
         ("real-time factor (in the loop)", [f"{r['real_time_factor']:.1f}×" for r in results]),
     ]
     print(f"\n  {'':<34}{head}")

@@ -44,12 +44,18 @@ from joblib import Parallel, delayed
 from tqdm.auto import tqdm
 
 from .. import conventions as col
-from ..config import DetectorConfig, ScenarioConfig, dump_config, parse_config
+from ..config import (
+    DetectorConfig,
+    ScenarioConfig,
+    dump_config,
+    model_has_reading_std,
+    parse_config,
+)
 from ..data.dataset import joint_state_layout, wrench_targets
 from ..errors import TrajectoryError
 from ..io import atomic_path, staged_outputs
 from ..plots import plt
-from ..runtime.thresholds import armed, thresholds_for_false_positive_rate
+from ..runtime.thresholds import armed, threshold_text, thresholds_for_false_positive_rate
 from ..sim.collection import collect
 from ..sim.evaluation import TOUCHDOWN_S, evaluate_detection
 from ..sim.simulate import simulate
@@ -110,13 +116,7 @@ def with_tests(models: dict, plan: DetectionPlan) -> dict:
         if test not in ("norm", "chi2"):
             raise ValueError(f"DetectionPlan.tests: {test!r} is not 'norm' or 'chi2'")
     return {f"{name} ({test})": (model, test) for name, model in models.items()
-            for test in plan.tests if test != "chi2" or has_reading_std(model)}
-
-
-def has_reading_std(model) -> bool:
-    """Whether `model`'s predictive std is that of a reading (the χ² test needs one)."""
-    return bool(getattr(model, "provides_std", False)
-                and getattr(model, "std_includes_noise", False))
+            for test in plan.tests if test != "chi2" or model_has_reading_std(model)}
 
 
 def with_test(config: ScenarioConfig, test: str | None) -> ScenarioConfig:
@@ -138,7 +138,8 @@ def thresholds_from_held_out(model, config: ScenarioConfig, plan: DetectionPlan,
     judged = armed(data[col.TIME].to_numpy(), config.detector.arm_after_s)
     X = joint_state_layout(data)[judged]
     residual = wrench_targets(data)[judged] - model.predict(X)
-    test = config.detector.test  # the χ² test whitens by the model's std on the same rows
+    # "auto" resolved for this model; the χ² test whitens by its std on the same rows.
+    test = config.detector.for_model(model, calibrating=True).test
     return thresholds_for_false_positive_rate(
         residual, sample_rate_hz=config.sensor.spec().rate_hz,
         false_positives_per_hour=config.detector.false_positives_per_hour, test=test,
@@ -286,10 +287,8 @@ def markdown(results: dict, plan: DetectionPlan) -> str:
         d = r["detector"]
         delay = r["max_delay_s_presses_from_5n"]
         smallest = r["smallest_reliably_detected_force_n"]
-        thresholds = (f"χ² > {d['chi2_on']:.1f}" if d.get("test") == "chi2"
-                      else f"{d['force_on']:.2f} N, {d['torque_on']:.3f} N·m")
         lines.append(
-            f"| {name} | {thresholds} "
+            f"| {name} | {threshold_text(d)} "
             f"| {r['free_motion_s'] / 60:.1f} min | {r['false_positives']} "
             f"| {r['missed']} of {r['press_count']} "
             f"| {'–' if smallest is None else f'{smallest:.2f} N'} "

@@ -24,11 +24,12 @@ Adding it to a diagram (frames, units and signs as in :mod:`ftdrake.conventions`
 
 from __future__ import annotations
 
+import dataclasses as dc
 import math
 
 from pydrake.systems.framework import Diagram, DiagramBuilder
 
-from ..config import ScenarioConfig
+from ..config import ScenarioConfig, model_has_reading_std
 from ..errors import ConfigError
 from ..physics.chain import SerialChain
 from ..physics.robot import RobotDescription
@@ -75,10 +76,13 @@ class CompensationChain(Diagram):
         (:class:`~ftdrake.runtime.payload_change.PayloadChangeMonitor`).
 
     `model`: a fitted ftdrake compensator (``load_model``). `config`: the scenario (default:
-    ``ScenarioConfig()``). `period`: s (default: the sensor's rate). `n_joints`: checked against
-    the model. `gravity`: see above. `robot`: the RobotDescription whose chain gives
-    ``gravity_S`` from the joint state (default: the scenario's robot). `wrench_delay_s`: how
-    long the wrench stream lags the joint states (s; negative: the joint states lag), which a
+    ``ScenarioConfig()``); its ``detector.test: auto`` becomes the χ² test for a model with
+    a std of a reading when ``chi2_on`` is given and the norm test otherwise
+    (:meth:`~ftdrake.config.DetectorConfig.for_model`; ``self.config`` holds the resolved one).
+    `period`: s (default: the sensor's rate). `n_joints`: checked against the model.
+    `gravity`: see above. `robot`: the RobotDescription whose chain gives ``gravity_S`` from
+    the joint state (default: the scenario's robot). `wrench_delay_s`: how long the wrench
+    stream lags the joint states (s; negative: the joint states lag), which a
     :class:`DelayLine` on the stream that is ahead corrects (its output interpolated between
     samples); default: the model's ``wrench_delay_s_`` when it has one (set by training with
     a delay correction), else 0, and with 0 there is no delay line.
@@ -97,10 +101,10 @@ class CompensationChain(Diagram):
         if not (period > 0 and math.isfinite(period)):
             raise ConfigError(f"CompensationChain: period must be a positive number of seconds; "
                               f"got {period!r}")
+        # "auto" becomes the test this model supports (χ² with a std of a reading).
+        config = dc.replace(config, detector=config.detector.for_model(model))
         self.config, self.period = config, period
-        if config.detector.test == "chi2" and not (
-                getattr(model, "provides_std", False)
-                and getattr(model, "std_includes_noise", False)):
+        if config.detector.test == "chi2" and not model_has_reading_std(model):
             raise ConfigError(
                 f"detector.test 'chi2' whitens the wrench by the model's std of a reading; "
                 f"{type(model).__name__} has none (a forest's spread across trees is not "

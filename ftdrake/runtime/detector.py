@@ -4,7 +4,8 @@ Two tests (``DetectorConfig.test``): ``"norm"`` compares ‖F‖ and ‖T‖ wit
 ``"chi2"`` whitens the 6-D wrench by the compensator's predictive std and compares
 Σ (wᵢ/σᵢ)² with the χ²₆ quantile of the false-positive budget (:func:`chi2_threshold`), so
 the budget holds wherever the arm is and the detectable force rises only where the model is
-unsure.
+unsure. ``"auto"`` (the default) is resolved per model by the chain
+(:meth:`DetectorConfig.for_model`).
 """
 
 from __future__ import annotations
@@ -46,11 +47,15 @@ class ContactDetector(LeafSystem):
       contact_force (1): ‖F‖ of the external wrench in N while in contact, else 0.
     State: contact flag, contact force, consecutive-sample counter. Disarmed (no contact)
     for the first ``arm_after_s`` seconds.
+
+    `config.test` "auto" is resolved for the model by the chain
+    (:meth:`DetectorConfig.for_model`); built alone it is the norm test, unless `chi2_on` is
+    given (then the model decides, and it is an error).
     """
 
     def __init__(self, config: DetectorConfig, period: float):
         super().__init__()
-        self.config = config.validate()  # built on its own too, from a DetectorConfig alone
+        self.config = config = config.validate().without_model()
         self.period = float(period)
         self._wrench_port = self.DeclareVectorInputPort("wrench_contact", 6)
         self._std_port = self.DeclareVectorInputPort("wrench_std", 6)

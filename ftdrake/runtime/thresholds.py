@@ -56,7 +56,8 @@ def thresholds_for_false_positive_rate(
 
     ``test="chi2"`` (with `std`, N × 6, the model's predictive std on those rows): the χ²
     test's threshold instead, :func:`chi2_on_for_false_positive_rate`; force_on and
-    torque_on are then the norm test's, kept for a switch back.
+    torque_on are then the norm test's, kept for a switch back. ``test="auto"``: the χ²
+    test when `std` is given, else the norm test; the returned config names the test used.
     """
     r = np.asarray(residual, dtype=float)
     if r.ndim != 2 or r.shape[1] != 6 or len(r) < 100:
@@ -65,12 +66,16 @@ def thresholds_for_false_positive_rate(
         raise ValueError("residual holds NaN or infinity; drop those rows first")
     if not (false_positives_per_hour > 0 and sample_rate_hz > 0):
         raise ValueError("false_positives_per_hour and sample_rate_hz must be positive")
+    if test == "auto":  # as the chain resolves it: χ² when there is a std of a reading
+        test = "chi2" if std is not None else "norm"
     if test == "chi2":
         overrides = {**overrides, "test": "chi2", "chi2_on": chi2_on_for_false_positive_rate(
             r, std, sample_rate_hz=sample_rate_hz,
             false_positives_per_hour=false_positives_per_hour)}
-    elif test != "norm":
-        raise ValueError(f"test must be 'norm' or 'chi2'; got {test!r}")
+    elif test == "norm":
+        overrides = {**overrides, "test": "norm"}
+    else:
+        raise ValueError(f"test must be 'auto', 'norm' or 'chi2'; got {test!r}")
     p = false_positives_per_hour / (3600.0 * sample_rate_hz) / 2.0
     k = float(np.sqrt(chi2.isf(p, 3)))
     rms = np.sqrt(np.mean(r**2, axis=0))
@@ -110,6 +115,7 @@ def detectable_force(detector: DetectorConfig, std, period: float) -> np.ndarray
     the model's std there (`std` N × 6, N, N·m; `period` the sample period, s): along the
     least favourable force axis, on a zero residual. χ² test: √chi2_on · max(σ_Fx, σ_Fy,
     σ_Fz); norm test: force_on + std_gain · ‖σ_F‖."""
+    detector = detector.without_model()
     s = np.atleast_2d(np.asarray(std, dtype=float))
     if detector.test == "chi2":
         return np.sqrt(chi2_threshold(detector, period)) * s[:, :3].max(axis=1)
@@ -128,4 +134,13 @@ def thresholds_from_quantile(residual, margin: float = 1.5, quantile: float = 0.
     force = np.quantile(np.linalg.norm(r[:, :3], axis=1), quantile)
     torque = np.quantile(np.linalg.norm(r[:, 3:], axis=1), quantile)
     return DetectorConfig(force_on=max(0.5, margin * force),
-                          torque_on=max(0.02, margin * torque), **overrides).validate()
+                          torque_on=max(0.02, margin * torque),
+                          **{"test": "norm", **overrides}).validate()
+
+
+def threshold_text(detector: dict) -> str:
+    """A detector record's threshold in words: the χ² test's on the whitened wrench, or the
+    norm test's force and torque."""
+    if detector.get("test") == "chi2":
+        return f"χ² > {detector['chi2_on']:.1f}"
+    return f"{detector['force_on']:.2f} N, {detector['torque_on']:.3f} N·m"
