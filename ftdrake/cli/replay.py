@@ -2,6 +2,7 @@
 
     ftdrake replay --model FILE --log FILE --out FILE [--config YAML] [--pairing row|simulated]
                    [--view aligned|held] [--delay S | --align] [--budget]
+                   [--calibrate-detector YAML]
 
 Writes the chain's outputs per row (:func:`ftdrake.runtime.replay.replay`: compensated and
 contact wrench, std, bias, out-of-domain, fault and contact flags, contact force) as CSV or
@@ -9,15 +10,20 @@ Parquet (by the suffix of --out) and prints a JSON summary. --log is a CSV/Parqu
 ROS bag (with --wrench-topic) or an LCM log (read with --hardware's channels). --budget adds
 what the in-motion residual is made of (offset, drift, stream delay, the sensor's filter,
 remainder: :func:`ftdrake.experiments.residual_budget.residual_budget`) to the summary.
+--calibrate-detector writes the scenario with its detector's thresholds set for its budget
+from the log, which must be contact-free motion the model was not trained on
+(:func:`ftdrake.runtime.replay.calibrated_detector`); ``serve`` and ``replay`` take it as
+--config.
 """
 
 from __future__ import annotations
 
+import dataclasses as dc
 import json
 import sys
 
 from ..compensation.persistence import load_model
-from ..config import load_config
+from ..config import load_config, save_config
 from ..data.bag import is_bag
 from ..data.logs import is_table
 from ..data.stream_delay import estimate_stream_delay
@@ -25,7 +31,14 @@ from ..errors import LogError
 from ..experiments.residual_budget import residual_budget
 from ..hardware.recording import read_lcm_log
 from ..io import atomic_path
-from ..runtime.replay import read_replay_log, replay, summary, to_replay_layout
+from ..runtime.replay import (
+    calibrated_detector,
+    read_replay_log,
+    replay,
+    scenario_of,
+    summary,
+    to_replay_layout,
+)
 from . import args as a
 from .hardware import add_transport_flags, hardware_from_args
 
@@ -55,6 +68,11 @@ def register(sub) -> None:
     p.add_argument("--budget", action="store_true",
                    help="also split the in-motion residual into offset, drift, stream delay, "
                         "the sensor's filter and what is left, in units of the resting noise")
+    p.add_argument("--calibrate-detector", type=a.output_file, metavar="YAML",
+                   help="also write the scenario (--config or the shipped one) with the "
+                        "detector's thresholds set for its false-positive budget from this "
+                        "log, which must be contact-free motion the model was not trained on "
+                        "(detector.test auto: the χ² test for a physics, hybrid or GP model)")
     p.add_argument("--wrench-topic", metavar="TOPIC", help="a ROS bag's WrenchStamped topic")
     for flag, default, what in (("--positions", "q_*", "joint position columns (rad)"),
                                 ("--velocities", "qd_*", "joint velocity columns (rad/s)"),
@@ -101,8 +119,18 @@ def run_replay(args) -> int:
         report["delay_estimate"] = estimate.as_dict()
     if args.budget:
         report["residual_budget"] = residual_budget(model, frame, config, result=result).as_dict()
+    if args.calibrate_detector is not None:
+        report["detector"] = _write_calibrated(args.calibrate_detector, result, model,
+                                               scenario_of(frame, config))
     print(json.dumps(report))
     return 0
+
+
+def _write_calibrated(path, result, model, scenario) -> dict:
+    """Writes `scenario` with the detector calibrated on `result`; returns the detector."""
+    detector = calibrated_detector(result, model, scenario)
+    save_config(dc.replace(scenario, detector=detector), path)
+    return {"file": str(path), **dc.asdict(detector)}
 
 
 def _read_log(args):

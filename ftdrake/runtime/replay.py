@@ -59,7 +59,7 @@ import pandas as pd
 from pydrake.systems.analysis import Simulator
 
 from .. import conventions as col
-from ..config import ScenarioConfig, parse_config
+from ..config import DetectorConfig, ScenarioConfig, parse_config
 from ..data.bag import is_bag, read_bag
 from ..data.logs import (
     expand_columns,
@@ -70,6 +70,7 @@ from ..data.logs import (
 )
 from ..errors import LogError, spelled
 from .chain import CompensationChain
+from .thresholds import armed, thresholds_for_false_positive_rate
 
 PAIRINGS = ("row", "simulated")
 VIEWS = ("aligned", "held")
@@ -122,10 +123,7 @@ def replay(model, log, config: ScenarioConfig | None = None, *, pairing: str = "
     if view not in VIEWS:
         raise LogError(f"replay: view must be one of {VIEWS}, got {view!r}")
     frame = log if isinstance(log, pd.DataFrame) else read_replay_log(log)
-    if config is None:
-        scenario = frame.attrs.get("scenario")
-        config = parse_config(scenario, source="the log's metadata") if scenario else None
-    config = (config if config is not None else ScenarioConfig()).validate()
+    config = scenario_of(frame, config)
     n = int(model.n_joints_)
     inputs = replay_inputs(frame, n, wrench=wrench,
                            temperature=bool(getattr(model, "temperature_in_", False)))
@@ -270,6 +268,39 @@ def read_replay_log(path, *, wrench_topic: str | None = None,
         return read_bag(path, joint_topic, wrench_topic=wrench_topic, targets="wrench").to_frame()
     raise LogError(f"{path}: unknown log format; expected .csv, .parquet, a ROS bag, or an "
                    "LCM log read with ftdrake.hardware.recording.read_lcm_log")
+
+
+def scenario_of(frame: pd.DataFrame, config: ScenarioConfig | None = None) -> ScenarioConfig:
+    """The scenario a replay of `frame` runs: `config`, else the one a ``collect`` Parquet
+    file carries in its metadata, else ``ScenarioConfig()``; validated."""
+    if config is None:
+        scenario = frame.attrs.get("scenario")
+        config = parse_config(scenario, source="the log's metadata") if scenario else None
+    return (config if config is not None else ScenarioConfig()).validate()
+
+
+def calibrated_detector(result: pd.DataFrame, model, config: ScenarioConfig) -> DetectorConfig:
+    """``config.detector`` with its thresholds set for its false-positive budget from a
+    replay `result` (:func:`replay`'s output) of contact-free motion the model was not
+    trained on: the contact wrench the detector judges, and with the χ² test the model's
+    std, on the rows it judges (``arm_after_s`` from the log's start), at the log's median
+    sample rate (:func:`~ftdrake.runtime.thresholds.thresholds_for_false_positive_rate`).
+    The test is the one ``detector.test`` gives `model` when calibrating (``auto``: χ² for
+    a model with a std of a reading); debounce, hysteresis and arming are kept."""
+    t = result[col.TIME].to_numpy(float)
+    if len(t) < 2 or not np.all(np.diff(t) > 0):
+        raise LogError("calibrating the detector needs a replay with increasing times")
+    judged = armed(t - t[0], config.detector.arm_after_s)
+    test = config.detector.for_model(model, calibrating=True).test
+    std = (result[col.wrench_columns(WRENCH_OUTPUTS["wrench_std"])].to_numpy()[judged]
+           if test == "chi2" else None)
+    kept = {name: getattr(config.detector, name)
+            for name in ("release_ratio", "debounce_on", "debounce_off", "arm_after_s")}
+    return thresholds_for_false_positive_rate(
+        result[col.wrench_columns(WRENCH_OUTPUTS["wrench_contact"])].to_numpy()[judged],
+        sample_rate_hz=1.0 / float(np.median(np.diff(t))),
+        false_positives_per_hour=config.detector.false_positives_per_hour, test=test,
+        std=std, **kept)
 
 
 def summary(result: pd.DataFrame) -> dict:
