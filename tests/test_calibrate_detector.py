@@ -78,6 +78,21 @@ def test_hand_set_norm_thresholds_are_recalibrated_as_the_norm_test(physics_and_
     tuned = ftdrake.load_config(folder / "norm.yaml").detector
     out = pd.read_parquet(folder / "out.parquet")
     judged = (out["t"] - out["t"].iloc[0]).to_numpy() >= tuned.arm_after_s
-    forces = np.linalg.norm(out[wrench_columns("est_external")].to_numpy()[judged, :3], axis=1)
+    r = out[wrench_columns("est_external")].to_numpy()[judged]
     assert tuned.test == "norm"
-    assert tuned.force_on >= 1.05 * forces.max() - 1e-12  # the held-out guard term
+    # Independent: per block, max(the largest axis RMS · √(χ²₃ quantile at 1 − p/2), 1.05 ×
+    # the largest norm on the log), p = 1 per hour at 1 kHz.
+    k = np.sqrt(chi2.isf(1.0 / 3600.0 / RATE_HZ / 2.0, 3))
+    rms = np.sqrt(np.mean(r**2, axis=0))
+    for block, value in ((slice(0, 3), tuned.force_on), (slice(3, 6), tuned.torque_on)):
+        expected = max(k * rms[block].max(), 1.05 * np.linalg.norm(r[:, block], axis=1).max())
+        assert value == pytest.approx(expected, rel=1e-9)
+
+
+def test_a_delay_corrected_only_in_the_replay_is_refused_naming_the_fix(physics_and_free_log,
+                                                                         capsys):
+    folder = physics_and_free_log
+    assert replay_cli(folder, "--delay", "0.01",
+                      "--calibrate-detector", str(folder / "delayed.yaml")) != 0
+    assert "train with --delay/--align" in capsys.readouterr().err
+    assert not (folder / "delayed.yaml").exists()

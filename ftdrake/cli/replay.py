@@ -27,7 +27,7 @@ from ..config import load_config, save_config
 from ..data.bag import is_bag
 from ..data.logs import is_table
 from ..data.stream_delay import estimate_stream_delay
-from ..errors import LogError
+from ..errors import ConfigError, LogError
 from ..experiments.residual_budget import residual_budget
 from ..hardware.recording import read_lcm_log
 from ..io import atomic_path
@@ -87,8 +87,7 @@ def register(sub) -> None:
 
 
 def run_replay(args) -> int:
-    if args.out.suffix not in (".csv", ".parquet"):
-        raise LogError(f"--out {args.out}: give a .csv or .parquet file name")
+    _check_flags(args)
     with a.naming("--model", args.model):
         model = load_model(args.model)
     with a.naming("--log", args.log):
@@ -124,6 +123,15 @@ def run_replay(args) -> int:
                                                scenario_of(frame, config))
     print(json.dumps(report))
     return 0
+
+
+def _check_flags(args) -> None:
+    if args.out.suffix not in (".csv", ".parquet"):
+        raise LogError(f"--out {args.out}: give a .csv or .parquet file name")
+    if args.calibrate_detector is not None and (args.delay is not None or args.align):
+        raise ConfigError("--calibrate-detector with --delay/--align: serve corrects only the "
+                          "delay the model was trained with, so thresholds set on a corrected "
+                          "replay would not hold there; train with --delay/--align instead")
 
 
 def _write_calibrated(path, result, model, scenario) -> dict:

@@ -55,7 +55,7 @@ class ContactDetector(LeafSystem):
 
     def __init__(self, config: DetectorConfig, period: float):
         super().__init__()
-        self.config = config = config.validate().without_model()
+        self.config = config.validate().without_model()
         self.period = float(period)
         self._wrench_port = self.DeclareVectorInputPort("wrench_contact", 6)
         self._std_port = self.DeclareVectorInputPort("wrench_std", 6)
