@@ -2,6 +2,7 @@
 model trained on a sub-region of the configuration space, its support term calibrated on
 held-out runs that leave it, covers held-out readings in and out of that region."""
 
+import copy
 import warnings
 
 import numpy as np
@@ -35,11 +36,12 @@ def sub_region():
     physics = PhysicsPayloadCompensator(mode="static", features="q")
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")  # excitation warnings are tested elsewhere
-        model = HybridCompensator(physics=physics, identification="consistent").fit(
-            X, static_readings(X, rng))
+        Y = static_readings(X, rng)
+        model = HybridCompensator(physics=physics, identification="consistent").fit(X, Y)
     sets = {"in": poses(rng, 1000, -0.8, 0.0), "out": poses(rng, 1000, 0.2, 1.0),
             "calibration": poses(rng, 1500, -0.8, 1.0)}
     readings = {k: static_readings(v, rng) for k, v in sets.items()}
+    sets["training"], readings["training"] = X, Y
     before = {k: coverage(readings[k], model.predict(sets[k]), model.predict_std(sets[k]))
               for k in ("in", "out")}
     model.calibrate_domain(sets["calibration"], readings["calibration"])
@@ -81,11 +83,53 @@ def test_without_growth_out_of_domain_is_not_covered(sub_region):
     assert c95.min() < 0.6, c95  # measured 0.13 (Fx)
 
 
-def test_loop_rows_and_saved_model_carry_the_support_term(sub_region, tmp_path):
-    model, sets, _, _ = sub_region
+def test_the_default_calibration_keeps_the_fits_in_domain_level(sub_region):
+    model, sets, readings, _ = sub_region
+    # in_domain="cross_fit": σ²_in is the fit's cross-fit, c = 1; only ℓ and g were fitted.
+    fitted = HybridCompensator(physics=model.physics, identification="consistent")
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        fitted.fit(sets["training"], readings["training"])
+    np.testing.assert_allclose(model.residual_noise_var_, fitted.residual_noise_var_)
+    assert model.domain_parameter_scale_ == 1.0
+
+
+@pytest.fixture(scope="module")
+def held_out_level(sub_region):
+    """The sub-region model calibrated with in_domain="held_out" (σ²_in and c fitted too)."""
+    model, sets, readings, _ = sub_region
+    tight = copy.deepcopy(model)
+    tight.calibrate_domain(sets["calibration"], readings["calibration"], in_domain="held_out")
+    return tight
+
+
+def test_a_held_out_in_domain_level_still_covers_both(sub_region, held_out_level):
+    _, sets, readings, _ = sub_region
+    model = held_out_level
+    c95 = {k: coverage(readings[k], model.predict(sets[k]), model.predict_std(sets[k]))
+           for k in ("in", "out")}
+    print("coverage_95, in_domain=held_out", {k: v.round(3) for k, v in c95.items()})
+    assert np.all((c95["in"] >= 0.90) & (c95["in"] <= 0.985)), c95["in"]
+    assert np.all((c95["out"] >= 0.88) & (c95["out"] <= 0.995)), c95["out"]
+    # σ²_in at least the residual's error on its training rows.
+    assert np.all(model.residual_noise_var_ >= model.residual_training_var_)
+
+
+def test_loop_rows_and_saved_model_carry_the_support_term(held_out_level, sub_region,
+                                                          tmp_path):
+    model, sets = held_out_level, sub_region[1]
     X = np.vstack([sets["in"][:10], sets["out"][:10]])
     mean, std = model.predict(X), model.predict_std(X)
     assert np.ptp(model.support_weight(X)) > 0.1 or np.any(model.domain_growth_ > 0)
+    # The calibrated terms, as the module docstring writes the variance (c, the parameters'
+    # scale, fitted away from 1; σ²_in at least the residual's error on its training rows).
+    c = model.domain_parameter_scale_
+    assert abs(c - 1) > 0.05
+    assert np.all(model.residual_noise_var_ >= model.residual_training_var_)
+    d, w = model.domain_distance(X)[:, None], model.support_weight(X)[:, None]
+    expected = (c * model.physics_.parameter_std(X) ** 2 + w * model.residual_noise_var_
+                + (1 - w) * model.domain_far_var_ + model.domain_growth_ ** 2 * d)
+    np.testing.assert_allclose(std ** 2, expected, rtol=1e-12)
     row = model.row_predictor()  # the compiled payload + forest + k-d tree kernel
     for x, m, s in zip(X, mean, std, strict=True):
         got_mean, got_std = row(x)

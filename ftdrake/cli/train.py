@@ -166,8 +166,7 @@ def _add_domain_flags(p) -> None:
     p.add_argument(
         "--domain-shared-growth", action="store_true",
         help="with --domain-holdout/--domain-calibration: one growth of the std for all axes, "
-             "in units of each axis' training error (for a few calibration runs; default: "
-             "one per axis)")
+             "in units of each axis' training error (default: one per axis)")
 
 
 def _add_model_options(p) -> None:
@@ -396,6 +395,8 @@ def _calibrate_domain(args, options: ReadOptions, model, data: TrainingData, say
                             else None),  # None: ∞
                  "growth": model.domain_growth_.tolist(),
                  "shared_growth": bool(args.domain_shared_growth),
+                 "in_domain_std": np.sqrt(model.residual_noise_var_).tolist(),
+                 "parameter_variance_scale": float(model.domain_parameter_scale_),
                  "coverage_95_before": before.tolist(),
                  "coverage_95_after": coverage(log.Y, model.predict(log.X),
                                                model.predict_std(log.X)).tolist()}

@@ -9,10 +9,11 @@ weighs its residual by its *support* at the input,
 
 and predicts ``physics + w · residual`` with the per-axis variance
 
-    σ² = ‖B F‖² + w · σ²_in + (1 − w) · σ²_far + g² · d
+    σ² = c · ‖B F‖² + w · σ²_in + (1 − w) · σ²_far + g² · d
 
 (σ²_in: the residual's error where it has data; σ²_far: the physics part's own error, what is
-left when the residual is switched off; ‖B F‖²: the physics parameters'; g² · d: the error the
+left when the residual is switched off; ‖B F‖²: the physics parameters', c its calibrated
+scale (1 until calibrated); g² · d: the error the
 model makes as it extrapolates — a rigid model fitted on a few configurations absorbs part of
 the unmodelled effects into its parameters, and that part is wrong elsewhere. Its variance
 grows linearly with the distance, as a random walk's: an error that decorrelates with distance
@@ -24,12 +25,12 @@ The distance runs on a k-d tree of at most :data:`SUPPORT_POINTS` training rows
 
 ℓ and σ²_in are calibrated when the hybrid is fitted, on its cross-fit (the residual refitted
 on alternate blocks of rows and scored on the others, whose rows lie at many distances from
-the other half), with g = 0; :func:`calibrate` re-fits ℓ and g on held-out runs that
-leave the training data (``HybridCompensator.calibrate_domain``). Which runs: another log of
-the task's motion, or those of the training data that :func:`farthest_groups` picks — the
-runs (or, in a log of one run, the time blocks) whose inputs lie farthest from the others'
-(``HybridCompensator.fit_calibrated``). Both choose ℓ by the
-Gaussian likelihood of the held-out errors over a grid; for each ℓ the variance terms are a
+the other half), with g = 0; :func:`calibrate` re-fits ℓ and g (and, optionally, σ²_in and
+c) on held-out runs that leave the training data (``HybridCompensator.calibrate_domain``).
+Which runs: another log of the task's motion, or those of the training data that
+:func:`farthest_groups` picks — the runs (or, in a log of one run, the time blocks) whose
+inputs lie farthest from the others' (``HybridCompensator.fit_calibrated``). Both choose ℓ by
+the Gaussian likelihood of the held-out errors over a grid; for each ℓ the variance terms are a
 (weighted, non-negative) least-squares fit of the squared errors, which they are linear in.
 """
 
@@ -128,45 +129,90 @@ def fit_in_domain(d, target, predicted, far_var) -> tuple[float, np.ndarray]:
     return float(best[1]), best[2]
 
 
-def calibrate(d, target, predicted, in_var, far_var, parameter_var, *,
-              shared: bool = False) -> tuple[float, np.ndarray]:
-    """(ℓ, g (k,)) from held-out rows that leave the training data: their distances `d` (N,),
-    the physics part's error `target` (N, k), the residual's `predicted` value (N, k) and the
-    physics parameters' variance (N, k); σ²_in and σ²_far (k,) are kept (σ²_far, the physics
-    part's training error, is the fallback: fitting it too would let (1 − w) σ²_far with a
-    long ℓ mimic a growth ∝ d² that extrapolates badly). For each ℓ of the grid, g² is the
-    non-negative least-squares fit of e² − (‖B F‖² + w σ²_in + (1 − w) σ²_far) on d
-    (re-weighted by 1/σ⁴, the variance of e² for a Gaussian e); the ℓ of the highest
-    likelihood wins.
+#: Where the hybrid's in-domain level (σ²_in, and the parameters' scale c) comes from when it is
+#: calibrated: ``"cross_fit"`` keeps the fit's (c = 1), ``"held_out"`` fits them on the
+#: held-out runs with g (:func:`calibrate`).
+IN_DOMAIN_SOURCES = ("cross_fit", "held_out")
 
-    Default: g² per axis. `shared`: one growth for all axes in units of each axis' σ²_far,
-    g²ₐ = κ · σ²_far,ₐ (an axis whose physics part errs more in training errs more away from
-    it). Per axis suits many independent held-out poses (``tests/test_domain_uncertainty``:
+
+def calibrate(d, target, predicted, in_var, far_var, parameter_var, *,
+              shared: bool = False, in_domain: str = "cross_fit"
+              ) -> tuple[float, np.ndarray, np.ndarray, float]:
+    """(ℓ, σ²_in (k,), g (k,), c) from held-out rows that leave the training data: their
+    distances `d` (N,), the physics part's error `target` (N, k), the residual's `predicted`
+    value (N, k) and the physics parameters' variance ‖B F‖² (N, k). σ²_far (k,) is kept
+    (the physics part's training error is the fallback: fitting it too would let
+    (1 − w) σ²_far with a long ℓ mimic a growth ∝ d² that extrapolates badly).
+
+    The variance is c ‖B F‖² + w σ²_in + (1 − w) σ²_far + g² d. For each ℓ of the grid, the
+    free terms are the non-negative least-squares fit of the squared errors (re-weighted by
+    1/σ⁴, the variance of e² for a Gaussian e); the ℓ of the highest likelihood wins.
+
+    `in_domain`: ``"cross_fit"`` (default): `in_var` is σ²_in (the fit's cross-fit) and c = 1;
+    only g is fitted with ℓ. ``"held_out"``: `in_var` is the residual's error on its own
+    training rows, the floor of σ²_in = `in_var` + a; a and c are fitted with g (one c for all
+    axes: one covariance). Why one might: the cross-fit's residual learned from half the runs,
+    so its error is that of rows about a run away, not of rows next to the training data, and
+    the parameters' covariance treats the physics part's training error as white noise, most
+    of which the residual explains. Why it is not the default: the tighter std raised a false
+    contact in free motion and after a re-tare where the cross-fit's did not
+    (docs/guide/calibration.md has both, measured on the same runs).
+
+    `shared`: one growth for all axes in units of each axis' σ²_far, g²ₐ = κ · σ²_far,ₐ (an
+    axis whose physics part errs more in training errs more away from it); default one per
+    axis. Per axis suits many independent held-out poses (``tests/test_domain_uncertainty``:
     the synthetic error's growth differs per axis; shared leaves Fx at 0.66 coverage out of
-    domain); shared suits a few held-out runs, a few excursions whose errors on one axis say
-    little about that axis elsewhere (on the demo's data 95 % coverage out of domain down to
-    0.71 per axis, 0.95 shared; docs/guide/calibration.md)."""
+    domain); with σ²_in from the cross-fit, the shared growth carried over better on the
+    demo's few held-out runs (the guide)."""
+    if in_domain not in IN_DOMAIN_SOURCES:
+        raise ValueError(f"in_domain must be one of {IN_DOMAIN_SOURCES}; got {in_domain!r}")
+    fit_level = in_domain == "held_out"
     d, target, predicted, parameter_var = _rows(d, target, predicted, parameter_var)
-    in_var, far_var = np.asarray(in_var, dtype=float), np.asarray(far_var, dtype=float)
-    unit = np.maximum(far_var, 1e-300)  # g² = κ · σ²_far per block of axes
-    blocks = [np.arange(len(far_var))] if shared else [[a] for a in range(len(far_var))]
-    best = (np.inf, np.inf, np.zeros_like(far_var))
+    in_var = np.maximum(np.asarray(in_var, dtype=float), 0.0)
+    far_var = np.asarray(far_var, dtype=float)
+    unit = np.maximum(far_var, 1e-300)  # g² = κ · σ²_far when shared
+    best = (np.inf, np.inf, in_var, np.zeros(len(far_var)), 1.0)
     for length in _lengths(d):
-        w = weight(d, length)[:, None]
-        error = target - w * predicted
-        growth2, score = np.empty_like(far_var), 0.0
-        for axes in blocks:
-            known = parameter_var[:, axes] + w * in_var[axes] + (1 - w) * far_var[axes]
-            var = np.maximum(np.mean(error[:, axes] ** 2, axis=0), 1e-300) * np.ones_like(known)
-            for _ in range(REWEIGHTING_PASSES):
-                (kappa,), _ = nnls((d[:, None] * unit[axes] / var).reshape(-1, 1),
-                                   ((error[:, axes] ** 2 - known) / var).ravel())
-                var = np.maximum(known + kappa * unit[axes] * d[:, None], 1e-300)
-            growth2[axes] = kappa * unit[axes]
-            score += _nll(error[:, axes], var)
+        w = weight(d, length)
+        error = target - w[:, None] * predicted
+        known = w[:, None] * in_var + (1 - w[:, None]) * far_var
+        if not fit_level:
+            known = known + parameter_var
+        scale, excess, growth2 = _fit_variance_terms(error, known, parameter_var, w, d, unit,
+                                                     shared, fit_level)
+        var = np.maximum(known + (scale * parameter_var if fit_level else 0.0)
+                         + w[:, None] * excess + growth2 * d[:, None], 1e-300)
+        score = _nll(error, var)
         if score < best[0]:
-            best = (score, length, np.sqrt(growth2))
-    return float(best[1]), best[2]
+            best = (score, length, in_var + excess, np.sqrt(growth2), scale)
+    return float(best[1]), best[2], best[3], float(best[4])
+
+
+def _fit_variance_terms(error, known, parameter_var, w, d, unit, shared, fit_level):
+    """(c, a (k,), g² (k,)), all ≥ 0: the re-weighted non-negative least-squares fit of
+    E[e²] = known + c · parameter_var + w · a + g² · d over all axes at once (one c), with
+    g² = κ · `unit` (one κ) when `shared`; without `fit_level` only g² (c = 1, a = 0:
+    `known` holds the rest)."""
+    n, k = error.shape
+    var = np.maximum(np.mean(error ** 2, axis=0), 1e-300) * np.ones_like(known)
+    level_columns = 1 + k if fit_level else 0
+    scale, excess, growth2 = 1.0, np.zeros(k), np.zeros(k)
+    for _ in range(REWEIGHTING_PASSES):
+        design = np.zeros((n * k, level_columns + (1 if shared else k)))
+        for a in range(k):
+            rows = slice(a * n, (a + 1) * n)
+            if fit_level:
+                design[rows, 0] = parameter_var[:, a] / var[:, a]
+                design[rows, 1 + a] = w / var[:, a]
+            growth_unit = unit[a] if shared else 1.0
+            design[rows, level_columns + (0 if shared else a)] = d * growth_unit / var[:, a]
+        x, _ = nnls(design, ((error ** 2 - known) / var).T.ravel())
+        if fit_level:
+            scale, excess = float(x[0]), x[1:1 + k]
+        growth2 = x[level_columns] * unit if shared else x[level_columns:]
+        var = np.maximum(known + (scale * parameter_var if fit_level else 0.0)
+                         + w[:, None] * excess + growth2 * d[:, None], 1e-300)
+    return scale, excess, growth2
 
 
 def farthest_groups(inputs, groups=None, share: float = HOLDOUT_SHARE

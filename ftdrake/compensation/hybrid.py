@@ -8,7 +8,8 @@ black box learning the whole wrench.
 Predictive std: the physics part's parameter uncertainty and the residual's uncertainty,
 added as independent variances,
 
-    std² = ‖B(x) F‖²  (physics parameters, see PhysicsPayloadCompensator)
+    std² = c ‖B(x) F‖²  (physics parameters, see PhysicsPayloadCompensator; c = 1 until
+           calibrated on held-out runs, ``domain_parameter_scale_``)
          + the residual's predictive variance of a reading (a GP with ``include_noise``: it
            grows to the GP's prior variance away from its data by itself), or, for a residual
            whose std is not that (a forest: spread across trees, not calibrated),
@@ -16,15 +17,17 @@ added as independent variances,
            input and d its distance to the training inputs
 
 and the prediction ``physics + w · residual`` (:mod:`.domain`): where the residual has seen
-data (w ≈ 1) its cross-validated error σ²_in (``residual_noise_var_``: the residual refitted
-on alternate blocks of rows and scored on the others); away from it (w → 0) the hybrid falls
+data (w ≈ 1) its error σ²_in (``residual_noise_var_``); away from it (w → 0) the hybrid falls
 back to its physics part and to that part's own error σ²_far (``domain_far_var_``), which
 grows by g² (``domain_growth_``: g) per unit of d as the model extrapolates. The weight is
 exp(−(d/ℓ)²) of the distance d to the training inputs in the residual's standardised input
-metric (``domain_distance``); ℓ (``domain_length_``) and σ²_in are calibrated on the
-cross-fit (with g = 0), and ℓ and g on held-out runs that leave the training data with
-:meth:`HybridCompensator.calibrate_domain` — or, with the runs of the training data farthest
-from the others held out for it, :meth:`HybridCompensator.fit_calibrated`.
+metric (``domain_distance``). Fitted alone, ℓ (``domain_length_``) and σ²_in come from the
+cross-fit (the residual refitted on alternate blocks of rows and scored on the others, with
+g = 0); calibrated on held-out runs that leave the training data
+(:meth:`HybridCompensator.calibrate_domain` — or, with the runs of the training data
+farthest from the others held out for it, :meth:`HybridCompensator.fit_calibrated`), ℓ and
+g are fitted on them — and with ``in_domain="held_out"`` σ²_in (at least the residual's error
+on its training rows) and c too.
 
 The second term includes the sensor noise; the physics part's own noise term is left out (the
 residual model explains part of what it holds). Independence is an approximation: the
@@ -61,8 +64,10 @@ class HybridCompensator(Compensator):
         reaches it.
 
     Fitted attributes: ``physics_``, ``residual_`` (fitted clones), ``residual_noise_var_``
-    (6,) the residual's cross-validated error variance per axis (NaN when the residual's own
-    std is used).
+    (6,) σ²_in, the residual's error variance per axis where it has data: cross-validated,
+    or calibrated on held-out runs by :meth:`calibrate_domain` (NaN when the residual's own
+    std is used); ``residual_training_var_`` (6,) its error on its own training rows, the
+    least σ²_in a calibration gives.
     """
 
     provides_std = True
@@ -89,10 +94,14 @@ class HybridCompensator(Compensator):
         self.physics_ = clone(physics).fit(Z, Y)
         target = Y - self._physics(Z)
         self.residual_ = clone(residual).fit(Z, target)
+        self.residual_training_var_ = np.mean(
+            (target - np.asarray(self.residual_.predict(Z)).reshape(target.shape)) ** 2, axis=0)
         self.residual_noise_var_ = np.full(Y.shape[1], np.nan)
         self.domain_far_var_ = np.mean(target ** 2, axis=0)
         self.domain_length_ = np.inf
         self.domain_growth_ = np.zeros(Y.shape[1])
+        self.domain_excess_var_ = np.zeros(Y.shape[1])
+        self.domain_parameter_scale_ = 1.0
         self.domain_support_ = domain.fit_support(self._domain_inputs(Z))
         self.domain_calibration_ = None  # fit_calibrated's record
         if not self._residual_std_is_calibrated():
@@ -145,13 +154,18 @@ class HybridCompensator(Compensator):
         """(N,) the residual's weight w in [0, 1] at each row (1: where it has data)."""
         return domain.weight(self.domain_distance(X), self._length())
 
-    def calibrate_domain(self, X, y, shared_growth: bool = False) -> HybridCompensator:
-        """Re-fits ℓ and g on held-out readings `X`, `y` (contact-free, not trained
-        on) that leave the training data — and come back to it: rows at many distances pin
-        ℓ down (:func:`.domain.calibrate`; `shared_growth`: one growth for all axes in units
-        of their σ²_far, for a few held-out runs). σ²_in and σ²_far stay the fit's.
-        Returns self. A hybrid whose residual has a calibrated std of its own (a GP) has no
-        support term to calibrate: ValueError."""
+    def calibrate_domain(self, X, y, shared_growth: bool = False,
+                         in_domain: str = "cross_fit") -> HybridCompensator:
+        """Re-fits ℓ and g on held-out readings `X`, `y` (contact-free, not trained on) that
+        leave the training data — and come back to it: rows at many distances pin ℓ down
+        (:func:`.domain.calibrate`; `shared_growth`: one growth for all axes in units of
+        their σ²_far). `in_domain`: ``"cross_fit"`` keeps the fit's σ²_in (and c = 1);
+        ``"held_out"`` fits σ²_in — at least the residual's error on its training rows
+        (``residual_training_var_``), plus ``domain_excess_var_`` — and the parameters'
+        scale c (``domain_parameter_scale_``) on those rows too: a tighter std next to the
+        data, see :func:`.domain.calibrate` for the trade. σ²_far stays the fit's. Returns
+        self. A hybrid whose residual has a calibrated std of its own (a GP) has no support
+        term to calibrate: ValueError."""
         check_is_fitted(self)
         if self._residual_std_is_calibrated() or getattr(self, "domain_support_", None) is None:
             raise ValueError("calibrate_domain: this hybrid's residual brings its own std (or "
@@ -162,24 +176,38 @@ class HybridCompensator(Compensator):
         target = Y - self._physics(Z)
         predicted = np.asarray(self.residual_.predict(Z)).reshape(len(Z), -1)
         parameter_var = self.physics_._variance(self.physics_._select(Z), include_noise=False)
-        self.domain_length_, self.domain_growth_ = domain.calibrate(
-            domain.distances(self._domain_inputs(Z), self.domain_support_), target, predicted,
-            self._noise_var(), self.domain_far_var_, parameter_var, shared=shared_growth)
+        floor = (self._training_var() if in_domain == "held_out"
+                 else np.nan_to_num(self._noise_var()))
+        self.domain_length_, in_var, self.domain_growth_, self.domain_parameter_scale_ = (
+            domain.calibrate(
+                domain.distances(self._domain_inputs(Z), self.domain_support_), target,
+                predicted, floor, self.domain_far_var_, parameter_var, shared=shared_growth,
+                in_domain=in_domain))
+        self.domain_excess_var_ = in_var - floor
+        self.residual_noise_var_ = in_var
         return self
 
+    def _training_var(self):
+        """The residual's error variance on its own training rows (k,); zeros for a model
+        file from before it was kept."""
+        var = getattr(self, "residual_training_var_", None)
+        return np.zeros(self.n_outputs_) if var is None else np.asarray(var, dtype=float)
+
     def fit_calibrated(self, X, y, groups=None, share: float = domain.HOLDOUT_SHARE,
-                       refit: bool = True, shared_growth: bool = False) -> HybridCompensator:
+                       refit: bool = True, shared_growth: bool = False,
+                       in_domain: str = "cross_fit") -> HybridCompensator:
         """Fits, with the support term calibrated on runs of `X`, `y` held out from it.
 
         The runs whose inputs lie farthest from the others (:func:`.domain.farthest_groups`:
         `groups` a run label per row, or None for contiguous time blocks) are held out until
         `share` of the rows is; the hybrid is fitted on the rest and
-        :meth:`calibrate_domain` on them (with `shared_growth`). With `refit` it is then
-        fitted again on all rows and keeps the calibrated ℓ and g (a distance-based term:
-        what the model does at a given distance from its data carries over to the larger
-        support); without it the model stays the one fitted on the rest.
+        :meth:`calibrate_domain` on them (with `shared_growth` and `in_domain`). With `refit`
+        it is then fitted again on all rows and keeps the calibrated ℓ and g, and with
+        ``in_domain="held_out"`` c and σ²_in's excess over the training error (what the
+        model does at a given distance from its data carries over to the larger support);
+        without it the model stays the one fitted on the rest.
         ``domain_calibration_`` records the held-out groups, their rows, ℓ (None: ∞, the
-        residual weighted 1 everywhere), g and the 95 % coverage per axis on the held-out
+        residual weighted 1 everywhere), g, c, σ_in and the 95 % coverage per axis on the held-out
         rows before and after the calibration (of the model not fitted on them). Costs a
         second fit. Returns self."""
         X = np.asarray(X, dtype=float)
@@ -191,13 +219,17 @@ class HybridCompensator(Compensator):
         held, chosen = domain.farthest_groups(inputs, groups, share)
         self.fit(X[~held], Y[~held])
         before = coverage(Y[held], self.predict(X[held]), self.predict_std(X[held]))
-        self.calibrate_domain(X[held], Y[held], shared_growth=shared_growth)
-        length, growth = self.domain_length_, self.domain_growth_
+        self.calibrate_domain(X[held], Y[held], shared_growth=shared_growth,
+                              in_domain=in_domain)
+        length, growth, excess = self.domain_length_, self.domain_growth_, self.domain_excess_var_
+        scale = self.domain_parameter_scale_
         record = {
             "held_out_groups": chosen, "held_out_rows": int(held.sum()),
             "training_rows": int((~held).sum()),
             "length": float(length) if np.isfinite(length) else None,  # None: ℓ = ∞
             "growth": growth.tolist(), "shared_growth": bool(shared_growth),
+            "in_domain": in_domain,
+            "parameter_variance_scale": float(scale),
             "refit": bool(refit),
             "coverage_95_before": before.tolist(),
             "coverage_95_after": coverage(Y[held], self.predict(X[held]),
@@ -207,6 +239,11 @@ class HybridCompensator(Compensator):
         if refit:
             self.fit(X, Y)
             self.domain_length_, self.domain_growth_ = length, growth
+            self.domain_parameter_scale_ = scale
+            if in_domain == "held_out":  # else the refit's own cross-fit σ²_in
+                self.domain_excess_var_ = excess
+                self.residual_noise_var_ = self._training_var() + excess
+        record["in_domain_std"] = np.sqrt(np.nan_to_num(self._noise_var())).tolist()
         self.domain_calibration_ = record
         return self
 
@@ -215,6 +252,10 @@ class HybridCompensator(Compensator):
 
     def _far_var(self):
         return np.asarray(getattr(self, "domain_far_var_", self._noise_var()), dtype=float)
+
+    def _parameter_scale(self) -> float:
+        """c, the calibrated scale of the physics parameters' variance (1 until calibrated)."""
+        return float(getattr(self, "domain_parameter_scale_", 1.0))
 
     def _growth(self):
         return np.asarray(getattr(self, "domain_growth_", np.zeros(6)), dtype=float)
@@ -242,7 +283,8 @@ class HybridCompensator(Compensator):
         residual = getattr(self.residual_, "compiled_predictor", lambda: None)()
         if not isinstance(residual, CompiledForest):
             return None
-        payload = self.physics_.packed_row(noise_var=np.zeros(6))
+        payload = self.physics_.packed_row(noise_var=np.zeros(6),
+                                           factor_scale=np.sqrt(self._parameter_scale()))
         return CompiledHybrid(payload, residual.flat, self.n_joints_, self._domain_arrays())
 
     def _domain_arrays(self) -> tuple:
@@ -282,7 +324,7 @@ class HybridCompensator(Compensator):
         residual = self.residual_.row_predictor()
         calibrated = self._residual_std_is_calibrated()
         in_var, far_var = np.nan_to_num(self._noise_var()), np.nan_to_num(self._far_var())
-        growth2 = self._growth() ** 2
+        growth2, scale = self._growth() ** 2, self._parameter_scale()
 
         def predict(row):
             mean, physics_std = physics(row)
@@ -291,7 +333,7 @@ class HybridCompensator(Compensator):
                 return mean + internal, np.sqrt(physics_std ** 2 + residual_std ** 2)
             d = self.domain_distance(row[None, :])[0]
             w = domain.weight(d, self._length())
-            var = physics_std ** 2 + w * in_var + (1 - w) * far_var + growth2 * d
+            var = scale * physics_std ** 2 + w * in_var + (1 - w) * far_var + growth2 * d
             return mean + w * internal, np.sqrt(var)
 
         return predict
@@ -319,7 +361,8 @@ class HybridCompensator(Compensator):
         return self._physics(Z) + self._support(Z)[0] * residual
 
     def _predict_std(self, Z):
-        var = self.physics_._variance(self.physics_._select(Z), include_noise=False)
+        var = self._parameter_scale() * self.physics_._variance(self.physics_._select(Z),
+                                                                include_noise=False)
         if self._residual_std_is_calibrated():
             var = var + np.asarray(self.residual_.predict_std(Z)).reshape(len(Z), -1) ** 2
         else:

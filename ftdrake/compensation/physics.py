@@ -408,16 +408,19 @@ class PhysicsPayloadCompensator(CarriesRobot, Compensator):
 
         return predict_with_temperature
 
-    def packed_row(self, noise_var=None) -> tuple[np.ndarray, np.ndarray]:
+    def packed_row(self, noise_var=None, factor_scale: float = 1.0
+                   ) -> tuple[np.ndarray, np.ndarray]:
         """This model's row kernel data, packed for
         :func:`~ftdrake.compensation.compiled.payload.payload_mean_var` (a copy: refitting
         the model afterwards does not change it): the chain, gravity, the mounting rotation,
         the current parameters, the covariance factor and the variance σ² added per axis
-        (default: the residual RMS², the model's own noise term). No temperature term."""
+        (default: the residual RMS², the model's own noise term); `factor_scale` multiplies the
+        covariance factor (a hybrid's calibrated scale of the parameters' std). No
+        temperature term."""
         n, gravity, X_pre, kinds, axes, q_index, v_index, static = self._row_kernel_args()
         factor, own_noise_var, block_T = self._std_terms()
         return pack_payload_row((X_pre, kinds, axes, q_index, v_index), n, gravity, static,
-                                block_T, self.parameters_, factor,
+                                block_T, self.parameters_, factor * factor_scale,
                                 own_noise_var if noise_var is None else noise_var)
 
     def _row_kernel_args(self) -> tuple:
