@@ -176,12 +176,8 @@ def calibrate(d, target, predicted, in_var, far_var, parameter_var, *,
         w = weight(d, length)
         error = target - w[:, None] * predicted
         known = w[:, None] * in_var + (1 - w[:, None]) * far_var
-        if not fit_level:
-            known = known + parameter_var
-        scale, excess, growth2 = _fit_variance_terms(error, known, parameter_var, w, d, unit,
-                                                     shared, fit_level)
-        var = np.maximum(known + (scale * parameter_var if fit_level else 0.0)
-                         + w[:, None] * excess + growth2 * d[:, None], 1e-300)
+        scale, excess, growth2, var = _fit_variance_terms(error, known, parameter_var, w, d,
+                                                          unit, shared, fit_level)
         score = _nll(error, var)
         if score < best[0]:
             best = (score, length, in_var + excess, np.sqrt(growth2), scale)
@@ -189,14 +185,14 @@ def calibrate(d, target, predicted, in_var, far_var, parameter_var, *,
 
 
 def _fit_variance_terms(error, known, parameter_var, w, d, unit, shared, fit_level):
-    """(c, a (k,), g² (k,)), all ≥ 0: the re-weighted non-negative least-squares fit of
-    E[e²] = known + c · parameter_var + w · a + g² · d over all axes at once (one c), with
-    g² = κ · `unit` (one κ) when `shared`; without `fit_level` only g² (c = 1, a = 0:
-    `known` holds the rest)."""
+    """(c, a (k,), g² (k,), the variance (N, k)), all ≥ 0: the re-weighted non-negative
+    least-squares fit of E[e²] = known + c · parameter_var + w · a + g² · d over all axes at
+    once (one c), with g² = κ · `unit` (one κ) when `shared`; without `fit_level` only g²
+    (c = 1, a = 0)."""
     n, k = error.shape
     var = np.maximum(np.mean(error ** 2, axis=0), 1e-300) * np.ones_like(known)
     level_columns = 1 + k if fit_level else 0
-    scale, excess, growth2 = 1.0, np.zeros(k), np.zeros(k)
+    scale, excess = 1.0, np.zeros(k)
     for _ in range(REWEIGHTING_PASSES):
         design = np.zeros((n * k, level_columns + (1 if shared else k)))
         for a in range(k):
@@ -206,13 +202,14 @@ def _fit_variance_terms(error, known, parameter_var, w, d, unit, shared, fit_lev
                 design[rows, 1 + a] = w / var[:, a]
             growth_unit = unit[a] if shared else 1.0
             design[rows, level_columns + (0 if shared else a)] = d * growth_unit / var[:, a]
-        x, _ = nnls(design, ((error ** 2 - known) / var).T.ravel())
+        fixed = known + (0.0 if fit_level else parameter_var)
+        x, _ = nnls(design, ((error ** 2 - fixed) / var).T.ravel())
         if fit_level:
             scale, excess = float(x[0]), x[1:1 + k]
         growth2 = x[level_columns] * unit if shared else x[level_columns:]
-        var = np.maximum(known + (scale * parameter_var if fit_level else 0.0)
-                         + w[:, None] * excess + growth2 * d[:, None], 1e-300)
-    return scale, excess, growth2
+        var = np.maximum(known + scale * parameter_var + w[:, None] * excess
+                         + growth2 * d[:, None], 1e-300)
+    return scale, excess, growth2, var
 
 
 def farthest_groups(inputs, groups=None, share: float = HOLDOUT_SHARE
