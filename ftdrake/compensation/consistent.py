@@ -63,9 +63,11 @@ __all__ = [  # the names model code and files use from here, wherever they are d
 ]
 
 #: θ's entries: payload φ (10), biases (6) and, with a weight carried without inertia, its
-#: mass and first moment (4; :mod:`ftdrake.compensation.physics`).
+#: mass and first moment (4; :mod:`ftdrake.compensation.physics`), then a tether's stiffness
+#: and stiffness × rest length (2; :mod:`ftdrake.compensation.tether`).
 PARAMETER_NAMES = ("m", "mcx", "mcy", "mcz", "Ixx", "Ixy", "Ixz", "Iyy", "Iyz", "Izz",
-                   "bFx", "bFy", "bFz", "bTx", "bTy", "bTz", "mw", "mwcx", "mwcy", "mwcz")
+                   "bFx", "bFy", "bFz", "bTx", "bTy", "bTz", "mw", "mwcx", "mwcy", "mwcz",
+                   "k", "kl0")
 #: θ's entries a static (gravity-only) model identifies: mass, first moment, biases.
 STATIC_PARAMETERS = (0, 1, 2, 3, 10, 11, 12, 13, 14, 15)
 
@@ -302,7 +304,8 @@ def identify_consistent(A, Y, *, weights=None, static=False, prior=None,
     m_ref, length = reference_scale(phi0, theta_ls, min_mass)
     typical = np.array([m_ref, m_ref * length, m_ref * length, m_ref * length]
                        + [m_ref * length ** 2] * 6 + [1.0] * 6
-                       + [m_ref, m_ref * length, m_ref * length, m_ref * length])[cols]
+                       + [m_ref, m_ref * length, m_ref * length, m_ref * length]
+                       + [10.0, 1.0])[cols]  # a tether: N/m, N
     scale = np.where(zero_columns, 1.0 / typical, scale)
     R_x = R * np.where(zero_columns, 0.0, 1.0)  # zero columns stay zero in R
 
@@ -434,7 +437,7 @@ def is_possible(theta, static=False) -> bool:
 def _check_data(A, Y, static):
     A = np.asarray(A, dtype=float)
     Y = np.asarray(Y, dtype=float)
-    widths = (16, 10) if static else (16, 20)
+    widths = (16, 10) if static else (16, 20, 22)
     if A.ndim != 3 or A.shape[1] != 6 or A.shape[2] not in widths:
         raise ValueError(f"A must have shape (N, 6, {' or '.join(map(str, widths))}), "
                          f"got {A.shape}")

@@ -14,7 +14,7 @@ from .consistent import PARAMETER_NAMES, STATIC_PARAMETERS
 
 #: The unit of each entry of θ (:data:`~.consistent.PARAMETER_NAMES`).
 PARAMETER_UNITS = (["kg", "kg*m", "kg*m", "kg*m"] + ["kg*m^2"] * 6 + ["N"] * 3 + ["N*m"] * 3
-                   + ["kg", "kg*m", "kg*m", "kg*m"])
+                   + ["kg", "kg*m", "kg*m", "kg*m"] + ["N/m", "N"])
 
 
 def identified_table(model) -> dict:
@@ -57,6 +57,18 @@ def identified_table(model) -> dict:
             "std_error": model.temperature_std_errors_.tolist(),
             "unit": "N/K (forces), N*m/K (torques)",
             "reference_c": model.temperature_reference_}
+    if getattr(model, "tether_frame_", None) is not None:
+        k, k_rest = p[20], p[21]
+        table["tether"] = {
+            "frame": model.tether_frame_,
+            "anchor": {"value": model.tether_anchor_.tolist(), "unit": "m",
+                       "frame": "the child frame M of joint `frame` (or the world)"},
+            "attach": {"value": model.tether_attach_.tolist(), "unit": "m", "frame": "S"},
+            "rest_length": {"value": float(k_rest / k) if k else None, "unit": "m"},
+            "residual_share_by_frame": dict(model.tether_search_),
+            "meaning": ("tension k·(length − rest_length) from the attach point towards the "
+                        "anchor; residual_share_by_frame: the weighted residual sum of squares "
+                        "left with the tether's far end in each frame tried, against none")}
     factor = getattr(model, "standard_error_factor_", None)
     if factor is not None:
         finite = factor[np.isfinite(factor)]
@@ -111,6 +123,17 @@ def summary_text(model) -> str:
                      + ", ".join(
             f"{v:.4g} ± {e:.2g}" for v, e in zip(k["coefficients"], k["std_error"],
                                                   strict=True)))
+    if "tether" in t:
+        tether, share = t["tether"], t["tether"]["residual_share_by_frame"]
+        rest = tether["rest_length"]["value"]
+        lines.append(
+            f"  tether from Q = ({', '.join(f'{1e3 * v:.1f}' for v in tether['attach']['value'])}"
+            f") mm in S to P = ({', '.join(f'{1e3 * v:.1f}' for v in tether['anchor']['value'])}"
+            f") mm after {tether['frame']}, rest length "
+            + ("?" if rest is None else f"{1e3 * rest:.0f} mm")
+            + "; residual left by frame: "
+            + ", ".join(f"{name} {v:.3f}" for name, v in sorted(share.items(),
+                                                                 key=lambda item: item[1])))
     if t.get("correlated_rows", {}).get("standard_error_factor", 1.0) > 1.05:
         c = t["correlated_rows"]
         lines.append(f"  standard errors ×{c['standard_error_factor']:.2g} (median) for "

@@ -38,6 +38,11 @@ other end, held elsewhere, does not accelerate with it. A rigid model takes such
 tool mass and multiplies it by the tool's accelerations. Only motion separates the two: in
 static poses the columns are those of m and m·c (refused with ``mode="static"``).
 
+A cable tethered to the tool, optional (``tether``, 2 parameters more after the weight's,
+which it needs: ``[k, k·ℓ0]``): the configuration-dependent pull of an elastic tether from a
+point on the tool to a point on a link or the world, whose geometry is identified first
+(nonlinear, :mod:`ftdrake.compensation.tether`) and then held fixed.
+
 Two more effects of a real sensor, optional: the rotation of the frame the sensor measures in
 (``identify_mounting``) and a linear zero drift with the sensor's temperature (a temperature
 column in X).
@@ -54,7 +59,7 @@ import numpy as np
 
 from ..conventions import GRAVITY_W
 from ..errors import ConfigError, RobotModelError, spelled
-from ..physics.chain import SerialChain
+from ..physics.chain import SerialChain, joint_frames_in_sensor_batch
 from ..physics.robot import (
     RobotDescription,
     check_joint_names,
@@ -77,6 +82,7 @@ from .payload_identification import (
 )
 from .payload_report import PARAMETER_UNITS, excitation_message, identified_table, summary_text
 from .robot_file import CarriesRobot
+from .tether import WORLD, fit_tether_geometry, tether_columns
 
 __all__ = [  # with the identification's names that callers take from here
     "BIASES", "IDENTIFICATIONS", "PARAMETER_NAMES", "PARAMETER_UNITS", "STATIC_PARAMETERS",
@@ -88,6 +94,8 @@ PARAMETER_NAMES = list(CONSISTENT_NAMES)
 STATIC_PARAMETERS = list(CONSISTENT_STATIC)
 #: The weight carried without inertia (``weight_without_inertia``): θ[16:20].
 WEIGHT_PARAMETERS = [16, 17, 18, 19]
+#: A tether's stiffness and stiffness × rest length (``tether``): θ[20:22].
+TETHER_PARAMETER_INDICES = [20, 21]
 #: How the parameters are identified: plain weighted least squares, or constrained to a
 #: physically possible body (pseudo-inertia ⪰ 0, m > 0; :mod:`.consistent`) with a prior.
 IDENTIFICATIONS = ("least_squares", "consistent")
@@ -150,12 +158,20 @@ class PhysicsPayloadCompensator(CarriesRobot, Compensator):
         measures in (a mounting error; the biases are then in Sm): nonlinear least squares
         (``scipy.optimize.least_squares``, soft-L1 robust loss) over the rotation, payload and
         biases, then the linear (or consistent) fit with that rotation fixed.
+    tether : also identify a cable tethered to the tool (:mod:`.tether`): ``"auto"`` finds
+        the frame its other end is fixed in among every moving joint's frame and the world,
+        a joint name (or ``"world"``) takes that frame; None (default): no tether. Needs
+        ``weight_without_inertia`` (a cable's hanging weight) and ``mode="dynamic"``; θ then
+        has 22 entries. Fitted: ``tether_frame_``, ``tether_anchor_`` (P in that frame, m),
+        ``tether_attach_`` (Q in S, m) and ``tether_search_`` (per frame tried, the share of
+        the weighted residual sum of squares left, against no tether).
 
     The sensor temperature (°C), given as X's last column (``[q, q̇, q̈, T]``), adds a linear
     zero drift per axis, ``k·(T − T_ref)`` (``temperature_coefficients_``, N/K and N·m/K in
     Sm; ``temperature_reference_`` the training mean, at which the biases hold).
 
-    Fitted attributes: ``parameters_`` (16, or 20 with ``weight_without_inertia``),
+    Fitted attributes: ``parameters_`` (16, 20 with ``weight_without_inertia``, 22 with a
+    ``tether``),
     ``standard_errors_`` (same; ∞ where nothing determines a parameter), ``covariance_``,
     ``condition_number_``,
     ``residual_rms_`` (6), ``physically_consistent_``, ``identification_`` (the full
@@ -183,14 +199,15 @@ class PhysicsPayloadCompensator(CarriesRobot, Compensator):
     #: The std of a new reading (noise included), not just of the prediction.
     provides_std = True
     std_includes_noise = True
-    #: Models saved before the option existed have no such attribute.
+    #: Models saved before the options existed have no such attributes.
     weight_without_inertia = False
+    tether = None
 
     def __init__(self, features="q,qd,qdd", mode="dynamic", robot=None, sensor_frame=None,
                  base_frame=None, gravity=GRAVITY_W, package_xmls=(),
                  identification="least_squares", prior=None,
                  prior_weight=DEFAULT_PRIOR_WEIGHT, identify_mounting=False,
-                 weight_without_inertia=False, joints=None, fixed_joints=None):
+                 weight_without_inertia=False, joints=None, fixed_joints=None, tether=None):
         super().__init__(features=features)
         self.mode = mode
         self.robot = robot
@@ -205,10 +222,14 @@ class PhysicsPayloadCompensator(CarriesRobot, Compensator):
         self.weight_without_inertia = weight_without_inertia
         self.joints = joints
         self.fixed_joints = fixed_joints
+        self.tether = tether
 
     @property
     def n_parameters(self) -> int:
-        """16 (payload and biases), or 20 with the weight carried without inertia."""
+        """16 (payload and biases), 20 with the weight carried without inertia, 22 with a
+        tether."""
+        if self.tether:
+            return 22
         return 20 if self.weight_without_inertia else 16
 
     # -- the regressor ----------------------------------------------------------------------
@@ -221,8 +242,28 @@ class PhysicsPayloadCompensator(CarriesRobot, Compensator):
         if self.mode == "static":
             kin = kin.__class__(kin.R_WS, 0 * kin.w_WS_S, 0 * kin.alpha_WS_S,
                                 0 * kin.a_WSo_S, kin.g_S)
-        return payload_regressor(kin.w_WS_S, kin.alpha_WS_S, kin.a_WSo_S - kin.g_S,
-                                 kin.g_S if self.weight_without_inertia else None)
+        A = payload_regressor(kin.w_WS_S, kin.alpha_WS_S, kin.a_WSo_S - kin.g_S,
+                              kin.g_S if self.weight_without_inertia else None)
+        if getattr(self, "tether_frame_", None) is None:
+            return A
+        index = self.tether_frame_names().index(self.tether_frame_)
+        C = tether_columns(self._frames_in_sensor(X)[:, index], self.tether_anchor_,
+                           self.tether_attach_)
+        return np.concatenate([A, C], axis=2)
+
+    def tether_frame_names(self) -> list[str]:
+        """The frames a tether's far end may be fixed in: each moving joint's child frame M
+        (by the joint's name), from the base outwards, then ``"world"``."""
+        return [j.name for j in self._kinematics().chain.joints if j.type != "weld"] + [WORLD]
+
+    def _frames_in_sensor(self, X) -> np.ndarray:
+        """(N, K, 3, 4): the poses in S of :meth:`tether_frame_names`' frames."""
+        chain = self._kinematics().chain
+        q = np.ascontiguousarray(np.asarray(X, dtype=float)[:, :chain.num_positions])
+        out = np.empty((len(q), chain.num_moving_joints + 1, 3, 4))
+        joint_frames_in_sensor_batch(q, chain.X_pre, chain.kinds, chain.axes, chain.q_index,
+                                     out)
+        return out
 
     def _fit(self, Z, Y):
         if self.mode not in ("dynamic", "static"):
@@ -242,12 +283,55 @@ class PhysicsPayloadCompensator(CarriesRobot, Compensator):
                               "columns (only accelerations separate them)")
         if self.mode == "dynamic" and self.features != "q,qd,qdd":
             raise ValueError("mode='dynamic' needs features='q,qd,qdd' (it uses q̇ and q̈)")
+        if self.tether and not (self.weight_without_inertia and self.mode == "dynamic"):
+            raise ConfigError("tether needs weight_without_inertia=True and mode='dynamic': "
+                              "a cable's hanging weight is the weight carried without "
+                              "inertia, which only motion separates from the tool's mass")
         Z, temperature = self._split_temperature(Z)
         X = full_layout(Z, self.n_joints_)
         self._embed_robot()
         self._check_robot_joints()
+        self.tether_frame_ = None
+        if self.tether:
+            frames = self._tether_candidates()
+            with warnings.catch_warnings():  # the fit with the tether warns, if it must
+                warnings.simplefilter("ignore", ExcitationWarning)
+                self._identify(self.regressor(X), Y, prior, temperature)
+            self._fit_tether_geometry(X, Y, temperature, frames)
+        self._identify(self.regressor(X), Y, prior, temperature)
+
+    def _tether_candidates(self) -> list[str]:
+        names = self.tether_frame_names()
+        if self.tether == "auto":
+            return names
+        if self.tether not in names:
+            raise ConfigError(
+                f"tether: {self.tether!r} is no frame a tether can be fixed in; give 'auto', "
+                f"'{WORLD}' or one of the moving joints {', '.join(names[:-1])}")
+        return [self.tether]
+
+    def _fit_tether_geometry(self, X, Y, temperature, frames) -> None:
+        """The tether's geometry from the fit without it (module :mod:`.tether`): readings
+        and the model's columns in S, weighted by that fit's residual per axis."""
         A = self.regressor(X)
-        self._identify(A, Y, prior, temperature)
+        block_S = np.linalg.inv(self.reading_matrix())
+        reference = getattr(self, "temperature_reference_", None)
+        if temperature is not None and reference is not None:
+            Y = Y - np.outer(temperature - reference, self.temperature_coefficients_)
+        Y_S = Y @ block_S.T
+        A_S = A.copy()
+        A_S[:, :, BIASES] = np.einsum("ij,njk->nik", block_S, A[:, :, BIASES])
+        residual = Y - self._predict_from(A, temperature)
+        weights = 1.0 / np.maximum(np.sqrt(np.mean(residual ** 2, axis=0)),
+                                   1e-9 * (1 + np.abs(Y).max()))
+        all_frames = self._frames_in_sensor(X)
+        names = self.tether_frame_names()
+        search = fit_tether_geometry(all_frames[:, [names.index(f) for f in frames]], frames,
+                                     A_S, Y_S, weights)
+        self.tether_frame_ = search.geometry.frame
+        self.tether_anchor_ = np.array(search.geometry.p_FP)
+        self.tether_attach_ = np.array(search.geometry.p_SQ)
+        self.tether_search_ = {name: float(c) for name, c in search.relative_cost.items()}
 
     def _split_temperature(self, Z):
         if getattr(self, "temperature_in_", False):
@@ -272,7 +356,7 @@ class PhysicsPayloadCompensator(CarriesRobot, Compensator):
     def _predict_from(self, A, temperature=None):
         """Readings in Sm: ``R_SmS ⊗ (A_φ φ [+ A_w w]) + b + k·(T − T_ref)``."""
         wrench_S = A[:, :, :10] @ self.parameters_[:10]
-        if A.shape[-1] == 20:
+        if A.shape[-1] > 16:  # a weight carried without inertia and a tether: in S
             wrench_S = wrench_S + A[:, :, 16:] @ self.parameters_[16:]
         out = wrench_S @ self.reading_matrix().T
         out = out + self.parameters_[BIASES]
@@ -354,6 +438,10 @@ class PhysicsPayloadCompensator(CarriesRobot, Compensator):
         if correction.payload is None:
             raise ConfigError("the correction was fitted with a known payload per row: no "
                               "single payload to predict with")
+        if getattr(self, "tether_frame_", None) is not None:
+            raise ConfigError("this model has a tether, which the correction's static fit did "
+                              "not model (its payload took the tether's pull in those poses): "
+                              "fit the model without a tether to use the correction")
         model = copy.deepcopy(self)
         model.parameters_ = self.parameters_.copy()
         model.parameters_[:4] = correction.payload
@@ -373,7 +461,7 @@ class PhysicsPayloadCompensator(CarriesRobot, Compensator):
         one compiled kernel (kinematics, regressor row, product with the parameters)."""
         x = np.asarray(x, dtype=float)
         if getattr(self, "temperature_in_", False) or not np.array_equal(
-                self.reading_matrix(), np.eye(6)):
+                self.reading_matrix(), np.eye(6)) or len(self.parameters_) == 22:
             return self.row_predictor()(x)[0]
         out = np.empty(6)
         payload_predict(x, *self._row_kernel_args(), self.parameters_, out)
@@ -419,9 +507,13 @@ class PhysicsPayloadCompensator(CarriesRobot, Compensator):
         temperature term."""
         n, gravity, X_pre, kinds, axes, q_index, v_index, static = self._row_kernel_args()
         factor, own_noise_var, block_T = self._std_terms()
+        tether = None
+        if getattr(self, "tether_frame_", None) is not None:
+            tether = (self.tether_frame_names().index(self.tether_frame_),
+                      self.tether_anchor_, self.tether_attach_)
         return pack_payload_row((X_pre, kinds, axes, q_index, v_index), n, gravity, static,
                                 block_T, self.parameters_, factor * factor_scale,
-                                own_noise_var if noise_var is None else noise_var)
+                                own_noise_var if noise_var is None else noise_var, tether)
 
     def _row_kernel_args(self) -> tuple:
         # Looking the chain up through the robot description costs microseconds (building and

@@ -39,8 +39,15 @@ WEIGHT_WITHOUT_INERTIA = TrainOption(
     scope="on a wrench (a weight the tool carries without its inertia)",
     help="physics/hybrid on a wrench, dynamic model: also identify a weight the tool carries "
          "without its inertia (a hanging cable), 4 parameters")
+TETHER = TrainOption(
+    "tether", default=None, metavar="auto|world|JOINT",
+    scope="on a wrench (a cable tethered to the tool)",
+    help="physics/hybrid on a wrench, dynamic model, with --weight-without-inertia: also "
+         "identify a cable tethered to the tool, its other end fixed after joint JOINT or on "
+         "the world ('auto': the frame that explains the data best), 2 parameters and its "
+         "geometry")
 #: The options of physics and hybrid (arm takes DRIVE_GAINS only).
-PAYLOAD_OPTIONS = (DRIVE_GAINS, IDENTIFY_MOUNTING, WEIGHT_WITHOUT_INERTIA)
+PAYLOAD_OPTIONS = (DRIVE_GAINS, IDENTIFY_MOUNTING, WEIGHT_WITHOUT_INERTIA, TETHER)
 _PAYLOAD_KINDS = ("physics", "hybrid")
 
 
@@ -104,6 +111,7 @@ def payload_model(request: BuildRequest, features: str) -> PhysicsPayloadCompens
     robot = request.robot
     identify_mounting = bool(request.options.get("identify_mounting", False))
     weight_without_inertia = bool(request.options.get("weight_without_inertia", False))
+    tether = request.options.get("tether") or None
     if robot.robot is None:
         raise ConfigError(f"--kind {request.kind} needs --robot FILE (URDF/SDF) with "
                           f"--sensor-frame NAME, or --robot {BUILTIN_ROBOT} for the simulated "
@@ -117,9 +125,13 @@ def payload_model(request: BuildRequest, features: str) -> PhysicsPayloadCompens
     if weight_without_inertia and mode == "static":
         raise ConfigError("--weight-without-inertia needs --features q,qd,qdd (only "
                           "accelerations tell a weight without inertia from the tool's mass)")
+    if tether and not (weight_without_inertia and mode == "dynamic"):
+        raise ConfigError("--tether needs --weight-without-inertia and --features q,qd,qdd (a "
+                          "cable's hanging weight is a weight without inertia, which only "
+                          "accelerations tell from the tool's mass)")
     settings = {**PHYSICS_DEFAULTS, "features": features, "mode": mode,
                 "identify_mounting": identify_mounting,
-                "weight_without_inertia": weight_without_inertia}
+                "weight_without_inertia": weight_without_inertia, "tether": tether}
     if robot.is_simulated_arm and robot.joint_mapping():
         raise ConfigError(f"--joints/--fixed-joints need --robot FILE (the simulated arm's "
                           f"data holds its joints: --robot {BUILTIN_ROBOT} takes them as they are)")

@@ -181,10 +181,12 @@ def _train(train, progress):
         # with the payload (default_residual on what is left).
         # A cable's hanging weight is not tool mass: its own 4 parameters
         # (weight_without_inertia), so the payload's inertia is not inflated by it.
+        # Its pull depends on the configuration, which a residual on q learns only where
+        # the data went: a tether, its far end found among the arm's frames.
         # Its std grows out of domain: the support term calibrated on the training runs
         # farthest from the others, held out, then the hybrid refitted on every run.
         hybrid = HybridCompensator(physics=PhysicsPayloadCompensator(
-            identify_mounting=True, weight_without_inertia=True))
+            identify_mounting=True, weight_without_inertia=True, tether="auto"))
         started = time.perf_counter()
         # One growth for all axes (in units of their training error): calibrated on two
         # or three runs, a growth per axis did not carry over to other runs (the guide).
@@ -276,8 +278,9 @@ def _describe_models(results: dict, models: dict, search) -> None:
                                    "best_cv_mse": -search.mean_score[0]}
     results["hybrid"]["model"] = {
         "class": "HybridCompensator",
-        "physics": ("dynamic payload + biases + weight without inertia (20 parameters) "
-                    "+ mounting rotation"),
+        "physics": ("dynamic payload + biases + weight without inertia + tether (22 "
+                    "parameters) + mounting rotation"),
+        "tether": hybrid.physics_.identified()["tether"],
         "weight_without_inertia": {
             "mass_kg": round(float(hybrid.physics_.parameters_[16]), 4),
             "first_moment_kgm": np.round(hybrid.physics_.parameters_[17:20], 5).tolist()},

@@ -350,3 +350,48 @@ def sensor_kinematics_batch(q, v, vdot, gravity_W, X_pre, kinds, axes, q_index, 
     for n in range(q.shape[0]):
         sensor_kinematics_row(q[n], v[n], vdot[n], gravity_W, X_pre, kinds, axes, q_index,
                               v_index, R_WS[n], out[n])
+
+
+@numba.njit(cache=True)
+def joint_frames_in_sensor_row(q, X_pre, kinds, axes, q_index, out):
+    """One row: out (m + 1, 3, 4) = ``X_SMk`` ([R | p], the pose in S of each moving joint's
+    frame M_k, k < m) and ``X_SW`` (the world's, k = m); only q moves the frames."""
+    m = len(kinds)
+    R = np.zeros((3, 3))
+    R[0, 0] = R[1, 1] = R[2, 2] = 1.0
+    work = np.zeros((12, 3))
+    p, w, al, vel, acc = work[0], work[1], work[2], work[3], work[4]
+    r, t1, t2, u = work[5], work[6], work[7], work[8]
+    Rj = work[9:12]
+    X_WM = np.empty((m, 3, 4))
+    for k in range(m):
+        _shift(R, p, w, al, vel, acc, X_pre[k], r, t1, t2)
+        for i in range(3):
+            u[i] = R[i, 0] * axes[k, 0] + R[i, 1] * axes[k, 1] + R[i, 2] * axes[k, 2]
+        if kinds[k] == 0:
+            _revolute(R, w, al, u, axes[k], q[q_index[k]], 0.0, 0.0, Rj, t1, t2)
+        else:
+            _prismatic(p, w, al, vel, acc, u, q[q_index[k]], 0.0, 0.0, r, t1, t2)
+        X_WM[k, :, :3] = R
+        X_WM[k, :, 3] = p
+    _shift(R, p, w, al, vel, acc, X_pre[m], r, t1, t2)
+    for k in range(m + 1):  # X_SMk = X_WSᵀ X_WMk; X_SW = X_WS⁻¹
+        for i in range(3):
+            for j in range(3):
+                if k < m:
+                    out[k, i, j] = (R[0, i] * X_WM[k, 0, j] + R[1, i] * X_WM[k, 1, j]
+                                    + R[2, i] * X_WM[k, 2, j])
+                else:
+                    out[k, i, j] = R[j, i]
+            if k < m:
+                d0, d1, d2 = X_WM[k, 0, 3] - p[0], X_WM[k, 1, 3] - p[1], X_WM[k, 2, 3] - p[2]
+            else:
+                d0, d1, d2 = -p[0], -p[1], -p[2]
+            out[k, i, 3] = R[0, i] * d0 + R[1, i] * d1 + R[2, i] * d2
+
+
+@numba.njit(cache=True)
+def joint_frames_in_sensor_batch(q, X_pre, kinds, axes, q_index, out):
+    """N rows of :func:`joint_frames_in_sensor_row`: out (N, m + 1, 3, 4)."""
+    for n in range(q.shape[0]):
+        joint_frames_in_sensor_row(q[n], X_pre, kinds, axes, q_index, out[n])

@@ -1,6 +1,6 @@
 """The physics payload model's row, compiled: S's kinematics on the serial chain, the 6 × p
-regressor row (p = 16, or 20 with the weight carried without inertia), the reading's mean
-and the parameters' variance, from two packed arrays.
+regressor row (p = 16, 20 with the weight carried without inertia, 22 with a tether too), the
+reading's mean and the parameters' variance, from two packed arrays.
 
 A numba call pays for unboxing each array argument before it does any work; with the chain,
 the parameters and the covariance factor as eleven arrays that would cost more than this
@@ -12,13 +12,15 @@ once; :func:`payload_mean_var` unpacks views of them inside the kernel.
 Packed layout (m moving joints, n joints in the row, r columns of the covariance factor)::
 
     reals (float64): g_W (3) | X_pre ((m + 1)·12) | axes (3m) | block_T (36) | θ (p)
-                     | Fᵀ (r·p) | σ² (6)
+                     | Fᵀ (r·p) | σ² (6) [| p_FP (3) | p_SQ (3)]
     ints (int64):    n, m, r, static, rotated, p | kinds (m) | q_index (m) | v_index (m)
+                     [| the tether's frame (0 … m − 1 a moving joint's M, m the world)]
 
 with X_pre, kinds, axes, q_index, v_index :class:`~ftdrake.physics.chain.SerialChain`'s kernel
 arrays, block_T (6 × 6) rotating a wrench from S into the measuring frame Sm, θ = [φ; b],
 F Fᵀ the parameters' covariance and σ² a variance added per axis; ``rotated`` is 0 when
-block_T is the identity (no mounting rotation: the kernel skips the product).
+block_T is the identity (no mounting rotation: the kernel skips the product). The bracketed
+entries are there when p = 22: the tether's geometry (:mod:`~ftdrake.compensation.tether`).
 """
 
 from __future__ import annotations
@@ -26,23 +28,28 @@ from __future__ import annotations
 import numba
 import numpy as np
 
-from ...physics.chain import sensor_kinematics_row
+from ...physics.chain import joint_frames_in_sensor_row, sensor_kinematics_row
 
 
 def pack_payload_row(chain_args, n_joints: int, gravity_W, static: bool, block_T, parameters,
-                     factor, noise_var) -> tuple[np.ndarray, np.ndarray]:
+                     factor, noise_var, tether=None) -> tuple[np.ndarray, np.ndarray]:
     """(reals, ints) for :func:`payload_mean_var` (layout in the module docstring).
 
     chain_args: ``SerialChain.kernel_args()`` (X_pre, kinds, axes, q_index, v_index);
-    block_T (6, 6); parameters (p,) with p = 16 or 20; factor (p, r ≤ p); noise_var (6,).
+    block_T (6, 6); parameters (p,) with p = 16, 20 or 22; factor (p, r ≤ p); noise_var (6,);
+    tether (p = 22 only): (frame index, p_FP, p_SQ), the index as in the module docstring.
     """
     X_pre, kinds, axes, q_index, v_index = chain_args
     factor = np.asarray(factor, dtype=float)
     p = len(np.asarray(parameters).reshape(-1))
-    if p not in (16, 20) or np.shape(parameters) != (p,) or factor.ndim != 2 or \
+    if p not in (16, 20, 22) or np.shape(parameters) != (p,) or factor.ndim != 2 or \
             factor.shape[0] != p or factor.shape[1] > p or np.shape(block_T) != (6, 6):
-        raise ValueError("expected 16 or 20 parameters, a p × r factor (r <= p) and a 6 × 6 "
-                         "rotation")
+        raise ValueError("expected 16, 20 or 22 parameters, a p × r factor (r <= p) and a "
+                         "6 × 6 rotation")
+    if (p == 22) != (tether is not None) or (
+            tether is not None and not 0 <= int(tether[0]) <= len(kinds)):
+        raise ValueError("22 parameters need a tether (frame index 0 … m, p_FP, p_SQ); 16 or "
+                         "20 none")
     # Zero columns (directions with no uncertainty, e.g. a static model's inertia) add
     # exact zeros to the variance: dropped.
     used = np.flatnonzero(np.any(factor != 0.0, axis=0))
@@ -52,18 +59,22 @@ def pack_payload_row(chain_args, n_joints: int, gravity_W, static: bool, block_T
         np.asarray(gravity_W, dtype=float).reshape(3), np.asarray(X_pre, float).reshape(-1),
         np.asarray(axes, float).reshape(-1), np.asarray(block_T, float).reshape(-1),
         np.asarray(parameters, float), factor.T.reshape(-1),
-        np.asarray(noise_var, float).reshape(6)])
+        np.asarray(noise_var, float).reshape(6),
+        *([] if tether is None else [np.asarray(tether[1], float).reshape(3),
+                                     np.asarray(tether[2], float).reshape(3)])])
     rotated = int(not np.array_equal(block_T, np.eye(6)))
     ints = np.concatenate([[n_joints, m, r, int(bool(static)), rotated, p], kinds, q_index,
-                           v_index]).astype(np.int64)
+                           v_index, [] if tether is None else [int(tether[0])]]
+                          ).astype(np.int64)
     return np.ascontiguousarray(reals), np.ascontiguousarray(ints)
 
 
 @numba.njit(cache=True, nogil=True)
 def payload_mean_var(x, reals, ints, mean, var):
     """One full-layout row x [q, q̇, q̈] (3n) → mean (6) = B·θ and var (6) = ‖B_i F‖² + σ_i²,
-    with B = [block_T · A_φ | I | block_T · A_w] the regressor row rotated into Sm (A_w: the
-    weight carried without inertia, when θ has 20 entries)."""
+    with B = [block_T · A_φ | I | block_T · A_w | block_T · A_t] the regressor row rotated
+    into Sm (A_w: the weight carried without inertia, when θ has 20 or 22 entries; A_t: the
+    tether, when it has 22)."""
     n, m, r, static, rotated, p = ints[0], ints[1], ints[2], ints[3], ints[4], ints[5]
     kinds, q_index, v_index = ints[6:6 + m], ints[6 + m:6 + 2 * m], ints[6 + 2 * m:6 + 3 * m]
     k = 3
@@ -79,6 +90,7 @@ def payload_mean_var(x, reals, ints, mean, var):
     factor_T = reals[k:k + p * r].reshape((r, p))
     k += p * r
     noise_var = reals[k:k + 6]
+    k += 6
     work = np.zeros((2, 6, p))  # A and B in one allocation
     A, B = work[0], work[1]
     kin = np.empty((7, 3))  # ω, α, a of S and g, in S; then R_WS
@@ -86,8 +98,12 @@ def payload_mean_var(x, reals, ints, mean, var):
                           q_index, v_index, kin[4:], kin[:4])
     if static:
         kin[:3, :] = 0.0
-    if p == 20:
+    if p >= 20:
         weight_columns(kin[3], A)  # before g is overwritten
+    if p == 22:
+        frames = np.empty((m + 1, 3, 4))
+        joint_frames_in_sensor_row(x[:n], X_pre, kinds, axes, q_index, frames)
+        tether_columns_row(frames[ints[6 + 3 * m]], reals[k:k + 3], reals[k + 3:k + 6], A)
     for c in range(3):
         kin[3, c] = kin[2, c] - kin[3, c]  # a − g
     regressor_row(kin[0], kin[1], kin[3], A)
@@ -195,3 +211,23 @@ def weight_columns(g, A):
     A[3, 17], A[3, 18], A[3, 19] = 0.0, g[2], -g[1]
     A[4, 17], A[4, 18], A[4, 19] = -g[2], 0.0, g[0]
     A[5, 17], A[5, 18], A[5, 19] = g[1], -g[0], 0.0
+
+
+@numba.njit(cache=True, nogil=True)
+def tether_columns_row(X_SF, p_FP, p_SQ, A):
+    """Columns 20–21 of the regressor: a tether of unit k and unit k·ℓ0 from Q (p_SQ, in S) to
+    P (p_FP in the frame F posed by X_SF (3 × 4) in S): ``[d; Q×d]`` and ``[−u; −Q×u]``,
+    d = p_SP − p_SQ, u = d / |d| (:func:`ftdrake.compensation.tether.tether_columns`)."""
+    d = np.empty(3)
+    for i in range(3):
+        d[i] = (X_SF[i, 0] * p_FP[0] + X_SF[i, 1] * p_FP[1] + X_SF[i, 2] * p_FP[2]
+                + X_SF[i, 3] - p_SQ[i])
+    length = max(np.sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2]), 1e-9)
+    for i in range(3):
+        A[i, 20] = d[i]
+        A[i, 21] = -d[i] / length
+    A[3, 20] = p_SQ[1] * d[2] - p_SQ[2] * d[1]
+    A[4, 20] = p_SQ[2] * d[0] - p_SQ[0] * d[2]
+    A[5, 20] = p_SQ[0] * d[1] - p_SQ[1] * d[0]
+    for i in range(3):
+        A[3 + i, 21] = -A[3 + i, 20] / length
