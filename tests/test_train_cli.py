@@ -228,6 +228,17 @@ def test_physics_extrapolates_where_a_forest_cannot(ftdrake, tmp_path):
                    "--robot", "ftdrake", "--features", "q", "--weight-without-inertia",
                    "--out", tmp_path / "static.ftd")
     assert "--weight-without-inertia needs --features q,qd,qdd" in line
+    # --tether reaches the model (22 parameters, a frame found); without the weight, refused.
+    path = tmp_path / "tether.ftd"
+    train(ftdrake, tmp_path / "run0.parquet", path, "--kind", "physics", "--robot", "ftdrake",
+          "--preset", "none", "--weight-without-inertia", "--tether", "auto")
+    loaded = load_model(path)
+    tethered = loaded[0] if isinstance(loaded, tuple) else loaded
+    assert len(tethered.parameters_) == 22 and tethered.tether_frame_ in \
+        tethered.tether_frame_names()
+    line = failure(ftdrake, "train", "--data", tmp_path / "run0.parquet", "--kind", "physics",
+                   "--robot", "ftdrake", "--tether", "auto", "--out", tmp_path / "t.ftd")
+    assert "--tether needs --weight-without-inertia" in line
 
 
 # -- refusals -----------------------------------------------------------------------------------
