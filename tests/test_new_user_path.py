@@ -29,7 +29,7 @@ from pydrake.systems.primitives import TrajectorySource
 from pydrake.trajectories import PiecewisePolynomial
 
 import ftdrake
-from ftdrake.compensation.physics import _kinematics_for
+from ftdrake.compensation.payload_kinematics import kinematics_for
 
 URDF = Path(__file__).resolve().parent / "data" / "three_link_arm.urdf"
 PERIOD = 1e-3  # s: the sensor's rate
@@ -150,7 +150,7 @@ def test_record_train_ship_load_detect_replay(recorded, tmp_path, monkeypatch):
                               target_units=ftdrake.WRENCH_UNITS)
     shutil.rmtree(mine)
     # The robot's computer is another process: nothing of the training's robot is cached.
-    _kinematics_for.cache_clear()
+    kinematics_for.cache_clear()
     elsewhere = tmp_path / "robot_computer"
     elsewhere.mkdir()
     monkeypatch.chdir(elsewhere)

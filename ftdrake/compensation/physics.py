@@ -51,7 +51,6 @@ column in X).
 from __future__ import annotations
 
 import copy
-import functools
 import warnings
 import weakref
 
@@ -59,15 +58,7 @@ import numpy as np
 
 from ..conventions import GRAVITY_W
 from ..errors import ConfigError, RobotModelError, spelled
-from ..physics.chain import SerialChain, joint_frames_in_sensor_batch
-from ..physics.robot import (
-    RobotDescription,
-    check_joint_names,
-    fixed_joint_values,
-    floating_base_hint,
-    ftdrake_arm,
-    joint_count_message,
-)
+from ..physics.robot import RobotDescription, fixed_joint_values, ftdrake_arm
 from .base import Compensator
 from .compiled.payload import pack_payload_row, payload_mean_std, payload_predict
 from .consistent import DEFAULT_PRIOR_WEIGHT, PayloadPrior, is_possible
@@ -80,9 +71,10 @@ from .payload_identification import (
     payload_regressor,
     weighted_least_squares,
 )
+from .payload_kinematics import kinematics_for
 from .payload_report import PARAMETER_UNITS, excitation_message, identified_table, summary_text
 from .robot_file import CarriesRobot
-from .tether import WORLD, fit_tether_geometry, tether_columns
+from .tether import candidate_frames, fit_tether_geometry, tether_columns
 
 __all__ = [  # with the identification's names that callers take from here
     "BIASES", "IDENTIFICATIONS", "PARAMETER_NAMES", "PARAMETER_UNITS", "STATIC_PARAMETERS",
@@ -234,8 +226,9 @@ class PhysicsPayloadCompensator(CarriesRobot, Compensator):
 
     # -- the regressor ----------------------------------------------------------------------
     def regressor(self, X) -> np.ndarray:
-        """The (N, 6, 16) regressor A with reading = A·[φ; b] (N, 6, 20 and θ = [φ; b; w] with
-        ``weight_without_inertia``)."""
+        """The (N, 6, p) regressor A with reading = A·θ: p = 16, θ = [φ; b]; p = 20 with
+        ``weight_without_inertia`` (θ = [φ; b; w]); p = 22 with a fitted tether (θ = [φ; b;
+        w; k, k·ℓ0])."""
         X = np.asarray(X, dtype=float)
         n = X.shape[1] // 3
         kin = self._kinematics().evaluate(X[:, :n], X[:, n:2 * n], X[:, 2 * n:])
@@ -247,23 +240,14 @@ class PhysicsPayloadCompensator(CarriesRobot, Compensator):
         if getattr(self, "tether_frame_", None) is None:
             return A
         index = self.tether_frame_names().index(self.tether_frame_)
-        C = tether_columns(self._frames_in_sensor(X)[:, index], self.tether_anchor_,
-                           self.tether_attach_)
+        X_SF = self._kinematics().anchor_frames_in_sensor(X)[:, index]
+        C = tether_columns(X_SF, self.tether_anchor_, self.tether_attach_)
         return np.concatenate([A, C], axis=2)
 
     def tether_frame_names(self) -> list[str]:
         """The frames a tether's far end may be fixed in: each moving joint's child frame M
         (by the joint's name), from the base outwards, then ``"world"``."""
-        return [j.name for j in self._kinematics().chain.joints if j.type != "weld"] + [WORLD]
-
-    def _frames_in_sensor(self, X) -> np.ndarray:
-        """(N, K, 3, 4): the poses in S of :meth:`tether_frame_names`' frames."""
-        chain = self._kinematics().chain
-        q = np.ascontiguousarray(np.asarray(X, dtype=float)[:, :chain.num_positions])
-        out = np.empty((len(q), chain.num_moving_joints + 1, 3, 4))
-        joint_frames_in_sensor_batch(q, chain.X_pre, chain.kinds, chain.axes, chain.q_index,
-                                     out)
-        return out
+        return self._kinematics().anchor_frame_names()
 
     def _fit(self, Z, Y):
         if self.mode not in ("dynamic", "static"):
@@ -293,22 +277,12 @@ class PhysicsPayloadCompensator(CarriesRobot, Compensator):
         self._check_robot_joints()
         self.tether_frame_ = None
         if self.tether:
-            frames = self._tether_candidates()
+            frames = candidate_frames(self.tether, self.tether_frame_names())
             with warnings.catch_warnings():  # the fit with the tether warns, if it must
                 warnings.simplefilter("ignore", ExcitationWarning)
                 self._identify(self.regressor(X), Y, prior, temperature)
             self._fit_tether_geometry(X, Y, temperature, frames)
         self._identify(self.regressor(X), Y, prior, temperature)
-
-    def _tether_candidates(self) -> list[str]:
-        names = self.tether_frame_names()
-        if self.tether == "auto":
-            return names
-        if self.tether not in names:
-            raise ConfigError(
-                f"tether: {self.tether!r} is no frame a tether can be fixed in; give 'auto', "
-                f"'{WORLD}' or one of the moving joints {', '.join(names[:-1])}")
-        return [self.tether]
 
     def _fit_tether_geometry(self, X, Y, temperature, frames) -> None:
         """The tether's geometry from the fit without it (module :mod:`.tether`): readings
@@ -324,7 +298,7 @@ class PhysicsPayloadCompensator(CarriesRobot, Compensator):
         residual = Y - self._predict_from(A, temperature)
         weights = 1.0 / np.maximum(np.sqrt(np.mean(residual ** 2, axis=0)),
                                    1e-9 * (1 + np.abs(Y).max()))
-        all_frames = self._frames_in_sensor(X)
+        all_frames = self._kinematics().anchor_frames_in_sensor(X)
         names = self.tether_frame_names()
         search = fit_tether_geometry(all_frames[:, [names.index(f) for f in frames]], frames,
                                      A_S, Y_S, weights)
@@ -548,7 +522,7 @@ class PhysicsPayloadCompensator(CarriesRobot, Compensator):
 
     # -- kinematics -------------------------------------------------------------------------
     def _kinematics(self):
-        return _kinematics_for(self.robot_description(), tuple(self.gravity))
+        return kinematics_for(self.robot_description(), tuple(self.gravity))
 
     def robot_description(self) -> RobotDescription:
         """The robot this model identifies its payload on."""
@@ -589,46 +563,6 @@ class PhysicsPayloadCompensator(CarriesRobot, Compensator):
                 "frame are not in the log: fixed at 0 (give their positions with "
                 "--fixed-joints NAME=VALUE,...; fixed_joints= in Python)",
                 FixedJointsWarning, stacklevel=4)
-
-
-# ----------------------------------------------------------------------------------------------
-class _Kinematics:
-    """The robot's serial chain to S and gravity; never stored on the estimator (the model
-    file holds only the description)."""
-
-    def __init__(self, chain: SerialChain, gravity, defaulted=(), count_message=None):
-        self.chain = chain
-        self.num_joints = self.n_joints = chain.num_positions
-        self.gravity = np.asarray(gravity, dtype=float)
-        self.defaulted = list(defaulted)  # joints on the path fixed at 0 by default
-        self._count_message = count_message
-
-    def count_message(self, n_data: int) -> str:
-        """The error for rows of `n_data` joints (the model's joint names and the flags)."""
-        if self._count_message is None:
-            return f"the data has {n_data} joints; the robot model has {self.num_joints}"
-        return self._count_message(n_data)
-
-    def evaluate(self, q, v, vdot):
-        return self.chain.evaluate(q, v, vdot, self.gravity)
-
-
-@functools.lru_cache(maxsize=8)
-def _kinematics_for(description: RobotDescription, gravity: tuple) -> _Kinematics:
-    plant, frame_S = description.build_plant()
-    if description.joints:  # the log holds some joints; the others are welded where they stand
-        check_joint_names(plant, description)
-        chain, defaulted = SerialChain.from_plant(plant, frame_S).with_joint_columns(
-            description.joints, dict(description.fixed_joints))
-        return _Kinematics(chain, gravity, defaulted)
-    if plant.num_positions() != plant.num_velocities():
-        raise RobotModelError(
-            f"robot model {description.label} has {plant.num_positions()} positions but "
-            f"{plant.num_velocities()} velocities ({floating_base_hint(plant)}): the "
-            "[q, q̇, q̈] rows need one coordinate per joint")
-    label = description.label
-    return _Kinematics(SerialChain.from_plant(plant, frame_S), gravity,
-                       count_message=functools.partial(joint_count_message, plant, label=label))
 
 
 #: Row-kernel arguments per model (weak: a model's cache goes with it, never into its file).

@@ -30,6 +30,8 @@ import dataclasses as dc
 import numpy as np
 from scipy.optimize import least_squares
 
+from ..errors import ConfigError
+
 #: The tether's linear parameters, as the payload model's θ holds them last.
 TETHER_PARAMETERS = ("k", "k·l0")
 TETHER_UNITS = ("N/m", "N")
@@ -42,6 +44,18 @@ SEARCH_ROWS = 3000
 REFINED_FRAMES = 3
 _STARTS_M = np.array([[0.0, 0.0, 0.0], [0.15, 0.0, 0.0], [0.0, 0.15, 0.0], [0.0, 0.0, 0.15],
                       [-0.15, 0.0, 0.0], [0.0, -0.15, 0.0], [0.0, 0.0, -0.15]])
+
+
+def candidate_frames(option: str, names: list[str]) -> list[str]:
+    """The frames to search for the option ``tether`` (``"auto"``: all of `names`; else the
+    one frame it names); a name not among `names` is refused with the names it may take."""
+    if option == "auto":
+        return list(names)
+    if option not in names:
+        raise ConfigError(
+            f"tether: {option!r} is no frame a tether can be fixed in; give 'auto', "
+            f"'{WORLD}' or one of the moving joints {', '.join(n for n in names if n != WORLD)}")
+    return [option]
 
 
 @dc.dataclass(frozen=True)
