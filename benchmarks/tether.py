@@ -7,13 +7,13 @@ Two simulated cables (sim/cable.py: a spring from a point on a link to a point o
 * ``B``: one the model was not designed on (on the upper arm link_u, 60 N/m, 0.35 m, 2.0 N).
 
 For each: 6 × 20 s Fourier runs to fit on (every 4th row), 2 held-out Fourier runs and 2
-held-out rehearsals (the contact task's motion, stopping above the surface). Four models:
-the payload model of the demo (mounting, weight without inertia) with and without
-``tether="auto"``, and the hybrid on each. Printed per axis (Fx … Tz): the held-out RMS of
-prediction − ``internal_*`` (what the sensor reads without contact, noise and drift; each
-run's mean removed, as the bias tracker removes it) over the sensor's noise σ. Then the
-same fit on the plant's own reaction at the weld (``ideal_*``: no sensor imperfections), with
-the identified geometry against the injected one.
+held-out rehearsals (the contact task's motion, stopping above the surface). Six models:
+the payload model of the demo (mounting, weight without inertia) without a tether, with
+``tether="auto"``, and with the tether and ``identify_crosstalk``; and the hybrid on each.
+Printed per axis (Fx … Tz): the held-out RMS of prediction − ``internal_*`` (what the sensor
+reads without contact, noise and drift; each run's mean removed, as the bias tracker removes
+it) over the sensor's noise σ. Then the same fit on the plant's own reaction at the weld
+(``ideal_*``: no sensor imperfections), with the identified geometry against the injected one.
 
     python benchmarks/tether.py [--json OUT]
 """
@@ -32,6 +32,7 @@ from ftdrake import ScenarioConfig
 from ftdrake.compensation.hybrid import HybridCompensator
 from ftdrake.compensation.physics import ExcitationWarning, PhysicsPayloadCompensator
 from ftdrake.data.dataset import joint_state_layout, wrench_targets
+from ftdrake.io import atomic_write_text
 from ftdrake.sim.collection import collect
 
 CABLES = {
@@ -53,11 +54,12 @@ def _data(cable):
 
 def _models(X, Y):
     out, times = {}, {}
-    for tether in (None, "auto"):
-        name = "tether" if tether else "no tether"
+    for tether, crosstalk in ((None, False), ("auto", False), ("auto", True)):
+        name = ("tether" if tether else "no tether") + (" + cross-talk" if crosstalk else "")
         for kind in ("physics", "hybrid"):
             physics = PhysicsPayloadCompensator(identify_mounting=True,
-                                                weight_without_inertia=True, tether=tether)
+                                                weight_without_inertia=True, tether=tether,
+                                                identify_crosstalk=crosstalk)
             model = physics if kind == "physics" else HybridCompensator(physics=physics)
             started = time.perf_counter()
             out[f"{kind}, {name}"] = model.fit(X, Y)
@@ -108,18 +110,20 @@ def main(argv=None):
                 for kind, frame in held_out.items()},
             "fit_time_s": times,
             "identified_from_measured": _geometry(models["physics, tether"], config),
+            "identified_from_measured_with_crosstalk": _geometry(
+                models["physics, tether + cross-talk"], config),
             "identified_from_plant_reaction": _geometry(ideal, config),
         }
         print(f"cable {name}: held-out RMS / noise σ (Fx Fy Fz Tx Ty Tz)")
         for kind, rows in results[name]["held_out_error_over_noise"].items():
             for label, row in rows.items():
                 print(f"  {kind:9s} {label:20s} " + " ".join(f"{v:6.2f}" for v in row))
-        for source in ("identified_from_measured", "identified_from_plant_reaction"):
+        for source in ("identified_from_measured", "identified_from_measured_with_crosstalk",
+                       "identified_from_plant_reaction"):
             print(f"  {source}: {json.dumps(results[name][source])}")
         print(f"  fit times (s): {times}", flush=True)
     if args.json:
-        with open(args.json, "w") as f:
-            json.dump(results, f, indent=1)
+        atomic_write_text(args.json, json.dumps(results, indent=1))
     print(json.dumps(results))
 
 

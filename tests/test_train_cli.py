@@ -229,13 +229,22 @@ def test_physics_extrapolates_where_a_forest_cannot(ftdrake, tmp_path):
                    "--out", tmp_path / "static.ftd")
     assert "--weight-without-inertia needs --features q,qd,qdd" in line
     # --tether reaches the model (22 parameters, a frame found); without the weight, refused.
+    # --identify-crosstalk too (a reading matrix with off-diagonal entries); static: refused.
     path = tmp_path / "tether.ftd"
     train(ftdrake, tmp_path / "run0.parquet", path, "--kind", "physics", "--robot", "ftdrake",
-          "--preset", "none", "--weight-without-inertia", "--tether", "auto")
+          "--preset", "none", "--weight-without-inertia", "--tether", "auto",
+          "--identify-crosstalk")
     loaded = load_model(path)
     tethered = loaded[0] if isinstance(loaded, tuple) else loaded
     assert len(tethered.parameters_) == 22 and tethered.tether_frame_ in \
         tethered.tether_frame_names()
+    off_diagonal = tethered.reading_matrix() - np.diag(np.diag(tethered.reading_matrix()))
+    assert tethered.identify_crosstalk and np.abs(off_diagonal).max() > 0
+    assert "crosstalk" in tethered.identified()
+    line = failure(ftdrake, "train", "--data", tmp_path / "run0.parquet", "--kind", "physics",
+                   "--robot", "ftdrake", "--features", "q", "--identify-crosstalk",
+                   "--out", tmp_path / "static.ftd")
+    assert "--identify-crosstalk needs --features q,qd,qdd" in line
     line = failure(ftdrake, "train", "--data", tmp_path / "run0.parquet", "--kind", "physics",
                    "--robot", "ftdrake", "--tether", "auto", "--out", tmp_path / "t.ftd")
     assert "--tether needs --weight-without-inertia" in line

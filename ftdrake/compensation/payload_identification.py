@@ -16,14 +16,24 @@ from scipy.spatial.transform import Rotation
 
 from ..physics.rigid_body import inertia_map, skew
 from .consistent import STATIC_PARAMETERS, identify_consistent, identify_least_squares
-from .regression import correlated_variance_ratio
+from .regression import correlated_variance_ratio, correlation_length
 
 #: The columns that are a wrench in S (rotated into Sm by a mounting); the biases are in Sm.
 BIASES = slice(10, 16)
+#: The cross-talk's prior: each off-diagonal entry of E is ~ N(0, CROSSTALK_PRIOR²), relative;
+#: between a force and a torque axis scaled by a length, the sensor's radius
+#: (CROSSTALK_LENGTH_M: N per N·m ÷ L, N·m per N × L). It holds at zero what the data
+#: cannot separate (in free motion the tool's torque is nearly a multiple of its weight, so
+#: the force rows' torque entries are barely observable) and barely moves what it can.
+CROSSTALK_PRIOR = 0.02
+CROSSTALK_LENGTH_M = 0.05
+#: Alternations of E and the linear fit (E is small: each round changes it less).
+CROSSTALK_ROUNDS = 5
 
 
 def identify_payload(A, Y, *, static: bool, identification: str, prior, prior_weight: float,
-                     identify_mounting: bool, temperature=None) -> dict:
+                     identify_mounting: bool, temperature=None, identify_crosstalk=False
+                     ) -> dict:
     """The payload model's fitted attributes from the (N, 6, p) regressor and the readings
     (:class:`~.physics.PhysicsPayloadCompensator`'s, by name, but ``residual_rms_`` and
     ``physically_consistent_``, which need the model's prediction).
@@ -33,7 +43,11 @@ def identify_payload(A, Y, *, static: bool, identification: str, prior, prior_we
     consistent fit see the payload and biases only; the coefficients follow from the
     residual. With `identify_mounting` the rotation comes first (nonlinear,
     :func:`fit_mounting`), the readings are rotated back into S, and the linear fit runs
-    there. `prior`: a :class:`~.consistent.PayloadPrior` or None.
+    there. With `identify_crosstalk` the reading matrix becomes ``M = (I + E)·R`` (E: the
+    calibration's cross-talk, :func:`fit_crosstalk`), identified by alternating E and the
+    linear fit (``CROSSTALK_ROUNDS``); the standard errors are those of the linear fit given
+    M (M's own uncertainty is not propagated). `prior`: a :class:`~.consistent.PayloadPrior`
+    or None.
     """
     p = 16 if static else A.shape[-1]
     cols = list(STATIC_PARAMETERS) if static else list(range(p))
@@ -48,15 +62,29 @@ def identify_payload(A, Y, *, static: bool, identification: str, prior, prior_we
     if identify_mounting:
         rotation, rotation_std_deg = fit_mounting(A, Y, d, cols)
     fitted.update(mounting_rotation_=rotation, mounting_std_deg_=rotation_std_deg)
-    block = np.kron(np.eye(2), rotation)  # y_S = block · y_Sm
-    Y_S = Y @ block.T
-    A_fit, Y_fit = (A, Y_S) if d is None else (project_out(A, d), project_out(Y_S, d))
-    if identification == "consistent":
-        result = identify_consistent(
-            A_fit[:, :, cols], Y_fit, static=static,
-            prior=None if prior is None else prior.phi(), prior_weight=prior_weight)
-    else:
-        result = identify_least_squares(A_fit[:, :, cols], Y_fit, static=static)
+    M_mount = np.kron(np.eye(2), rotation).T  # reading = M·W_S + b
+    A_fit = A if d is None else project_out(A, d)
+
+    def linear_fit(M):
+        Y_S = Y @ np.linalg.inv(M).T
+        Y_fit = Y_S if d is None else project_out(Y_S, d)
+        if identification == "consistent":
+            return Y_S, Y_fit, identify_consistent(
+                A_fit[:, :, cols], Y_fit, static=static,
+                prior=None if prior is None else prior.phi(), prior_weight=prior_weight)
+        return Y_S, Y_fit, identify_least_squares(A_fit[:, :, cols], Y_fit, static=static)
+
+    M, crosstalk = M_mount, None
+    Y_S, Y_fit, result = linear_fit(M)
+    if identify_crosstalk:
+        wrench = [c for c in cols if not 10 <= c < 16]
+        Y_centred = Y if d is None else project_out(Y, d)
+        for _ in range(CROSSTALK_ROUNDS):
+            V = (A_fit[:, :, wrench] @ result.theta[wrench]) @ M_mount.T
+            crosstalk = fit_crosstalk(V, Y_centred)
+            M = (np.eye(6) + crosstalk) @ M_mount
+            Y_S, Y_fit, result = linear_fit(M)
+    fitted.update(crosstalk_=crosstalk, reading_matrix_=None if crosstalk is None else M)
     # Rows of a time series are not independent samples: widen the standard errors by how
     # much the residual's correlation widens them (1 for independent rows).
     factor = np.ones(p)
@@ -70,26 +98,54 @@ def identify_payload(A, Y, *, static: bool, identification: str, prior, prior_we
     theta = result.theta.copy()
     cov = result.covariance * np.outer(factor, factor)
     # Biases were identified in S; the sensor adds them in Sm.
-    theta[BIASES] = block.T @ theta[BIASES]
+    theta[BIASES] = M @ theta[BIASES]
     to_Sm = np.eye(p)
-    to_Sm[BIASES, BIASES] = block.T  # θ with the biases in Sm = to_Sm · θ in S
+    to_Sm[BIASES, BIASES] = M  # θ with the biases in Sm = to_Sm · θ in S
     finite = np.isfinite(cov)
     cov = to_Sm @ np.where(finite, cov, 0.0) @ to_Sm.T
     cov[~finite] = np.nan  # parameters not identified (a static fit's inertia) stay NaN
     standard_errors = result.standard_errors * factor
     standard_errors[BIASES] = np.sqrt(np.maximum(np.diag(cov[BIASES, BIASES]), 0.0))
-    coefficients, coefficient_errors = np.zeros(6), np.full(6, np.nan)
-    if d is not None:
-        residual_S = Y_S - A @ result.theta
-        k_S = residual_S.T @ d / (d @ d)
-        coefficients = block.T @ k_S
-        rms = np.sqrt(np.mean((residual_S - np.outer(d, k_S)) ** 2, axis=0))
-        coefficient_errors = np.abs(block.T @ (rms / np.sqrt(d @ d)))
+    coefficients, coefficient_errors = _temperature_coefficients(Y_S - A @ result.theta, d, M)
     fitted.update(identification_=result, parameters_=theta, covariance_=cov,
                   standard_errors_=standard_errors, temperature_coefficients_=coefficients,
                   temperature_std_errors_=coefficient_errors,
                   condition_number_=float(result.condition_number))
     return fitted
+
+
+def _temperature_coefficients(residual_S, d, M):
+    """Per axis, the zero drift per kelvin in the reading's frame and its standard error,
+    from the residual in S of the fit without it (zeros and NaN without a temperature)."""
+    if d is None:
+        return np.zeros(6), np.full(6, np.nan)
+    k_S = residual_S.T @ d / (d @ d)
+    rms = np.sqrt(np.mean((residual_S - np.outer(d, k_S)) ** 2, axis=0))
+    return M @ k_S, np.abs(M @ (rms / np.sqrt(d @ d)))
+
+
+def fit_crosstalk(V, Y) -> np.ndarray:
+    """E (6 × 6, zero diagonal: the gains stay those of the sensor's calibration, as the
+    payload's mass would absorb them) with ``Y ≈ (I + E)·V + b``: V (N, 6) the predicted
+    wrench in the reading's frame without the biases, Y (N, 6) the readings. Per axis i, a
+    ridge regression of ``Y_i − V_i`` on the other axes' V (each centred: b is free), with
+    the prior ``CROSSTALK_PRIOR`` weighed against the axis's residual variance per
+    independent sample (the variance × the residual's correlation length in rows)."""
+    prior = np.full((6, 6), CROSSTALK_PRIOR)
+    prior[:3, 3:] /= CROSSTALK_LENGTH_M
+    prior[3:, :3] *= CROSSTALK_LENGTH_M
+    V = V - V.mean(axis=0)
+    R = Y - Y.mean(axis=0) - V
+    E = np.zeros((6, 6))
+    for i in range(6):
+        others = [j for j in range(6) if j != i]
+        G = V[:, others]
+        # The residual before E (an upper bound on the noise), per independent sample: a
+        # model's error is correlated over many rows, which count as one.
+        variance = float(np.mean(R[:, i] ** 2)) * correlation_length(R[:, i:i + 1])
+        normal = G.T @ G + np.diag(variance / prior[i, others] ** 2)
+        E[i, others] = np.linalg.solve(normal, G.T @ R[:, i])
+    return E
 
 
 def project_out(M, d):

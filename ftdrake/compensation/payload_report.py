@@ -51,6 +51,14 @@ def identified_table(model) -> dict:
             "value": np.degrees(RollPitchYaw(RotationMatrix(rotation)).vector()).tolist(),
             "std_error": model.mounting_std_deg_.tolist(), "unit": "deg",
             "frame": "R_SSm: the frame the sensor measures in, in S (roll, pitch, yaw)"}
+    crosstalk = getattr(model, "crosstalk_", None)
+    if crosstalk is not None:
+        table["crosstalk"] = {
+            "value": crosstalk.tolist(), "unit": "1 (forces from forces, torques from torques), "
+            "N/(N*m) (forces from torques), m (torques from forces)",
+            "meaning": ("E in the reading matrix M = (I + E)·R_SmS: reading = M·W_S + b; "
+                        "free motion determines only some combinations of E's entries, the "
+                        "prior (±2 %) keeps the others near zero")}
     if getattr(model, "temperature_reference_", None) is not None:
         table["temperature"] = {
             "coefficients": model.temperature_coefficients_.tolist(),
@@ -117,6 +125,13 @@ def summary_text(model) -> str:
         lines.append("  sensor mounting R_SSm roll, pitch, yaw: " + ", ".join(
             f"{v:.3f} ± {e:.3f}" for v, e in zip(m["value"], m["std_error"], strict=True))
             + " deg")
+    if "crosstalk" in t:
+        E = np.asarray(t["crosstalk"]["value"])
+        lines.append(f"  cross-talk E (reading = (I + E)·R_SmS·W_S + b), largest: forces from "
+                     f"forces {np.abs(E[:3, :3]).max():.4f}, torques from torques "
+                     f"{np.abs(E[3:, 3:]).max():.4f}, forces from torques "
+                     f"{np.abs(E[:3, 3:]).max():.3f} N/(N·m), torques from forces "
+                     f"{1e3 * np.abs(E[3:, :3]).max():.2f} mm")
     if "temperature" in t:
         k = t["temperature"]
         lines.append(f"  zero drift per K (Fx..Tz, about {k['reference_c']:.2f} °C): "

@@ -150,6 +150,14 @@ class PhysicsPayloadCompensator(CarriesRobot, Compensator):
         measures in (a mounting error; the biases are then in Sm): nonlinear least squares
         (``scipy.optimize.least_squares``, soft-L1 robust loss) over the rotation, payload and
         biases, then the linear (or consistent) fit with that rotation fixed.
+    identify_crosstalk : also identify the sensor calibration's cross-talk: the reading
+        matrix becomes ``M = (I + E)·R_SmS`` with E off-diagonal (the gains are the
+        calibration's: the payload absorbs a common scale), each entry given a prior of ±2 %
+        (relative; ±0.4 N per N·m and ±1 mm, i.e. N·m per N, between force and torque axes),
+        alternated with the linear fit (:func:`~.payload_identification.fit_crosstalk`).
+        Fitted: ``crosstalk_`` (E) and ``reading_matrix_`` (M), which the prediction and
+        :meth:`reading_to_model_frame` use. Needs ``mode="dynamic"`` (static poses leave
+        most of E unobservable).
     tether : also identify a cable tethered to the tool (:mod:`.tether`): ``"auto"`` finds
         the frame its other end is fixed in among every moving joint's frame and the world,
         a joint name (or ``"world"``) takes that frame; None (default): no tether. Needs
@@ -194,12 +202,14 @@ class PhysicsPayloadCompensator(CarriesRobot, Compensator):
     #: Models saved before the options existed have no such attributes.
     weight_without_inertia = False
     tether = None
+    identify_crosstalk = False
 
     def __init__(self, features="q,qd,qdd", mode="dynamic", robot=None, sensor_frame=None,
                  base_frame=None, gravity=GRAVITY_W, package_xmls=(),
                  identification="least_squares", prior=None,
                  prior_weight=DEFAULT_PRIOR_WEIGHT, identify_mounting=False,
-                 weight_without_inertia=False, joints=None, fixed_joints=None, tether=None):
+                 weight_without_inertia=False, joints=None, fixed_joints=None, tether=None,
+                 identify_crosstalk=False):
         super().__init__(features=features)
         self.mode = mode
         self.robot = robot
@@ -215,6 +225,7 @@ class PhysicsPayloadCompensator(CarriesRobot, Compensator):
         self.joints = joints
         self.fixed_joints = fixed_joints
         self.tether = tether
+        self.identify_crosstalk = identify_crosstalk
 
     @property
     def n_parameters(self) -> int:
@@ -267,6 +278,11 @@ class PhysicsPayloadCompensator(CarriesRobot, Compensator):
                               "columns (only accelerations separate them)")
         if self.mode == "dynamic" and self.features != "q,qd,qdd":
             raise ValueError("mode='dynamic' needs features='q,qd,qdd' (it uses q̇ and q̈)")
+        if self.identify_crosstalk and self.mode != "dynamic":
+            raise ConfigError("identify_crosstalk needs mode='dynamic': in static poses the "
+                              "tool's wrench spans too few directions to separate the "
+                              "cross-talk from the payload (calibrate the sensor with "
+                              "`ftdrake calibrate --correction` instead)")
         if self.tether and not (self.weight_without_inertia and self.mode == "dynamic"):
             raise ConfigError("tether needs weight_without_inertia=True and mode='dynamic': "
                               "a cable's hanging weight is the weight carried without "
@@ -280,7 +296,8 @@ class PhysicsPayloadCompensator(CarriesRobot, Compensator):
             frames = candidate_frames(self.tether, self.tether_frame_names())
             with warnings.catch_warnings():  # the fit with the tether warns, if it must
                 warnings.simplefilter("ignore", ExcitationWarning)
-                self._identify(self.regressor(X), Y, prior, temperature)
+                # Without the cross-talk: E would take the cable's pull it does not model.
+                self._identify(self.regressor(X), Y, prior, temperature, crosstalk=False)
             self._fit_tether_geometry(X, Y, temperature, frames)
         self._identify(self.regressor(X), Y, prior, temperature)
 
@@ -301,7 +318,9 @@ class PhysicsPayloadCompensator(CarriesRobot, Compensator):
         all_frames = self._kinematics().anchor_frames_in_sensor(X)
         names = self.tether_frame_names()
         search = fit_tether_geometry(all_frames[:, [names.index(f) for f in frames]], frames,
-                                     A_S, Y_S, weights)
+                                     A_S, Y_S, weights,
+                                     refine_rotation=self.identify_mounting
+                                     or self.identify_crosstalk)
         self.tether_frame_ = search.geometry.frame
         self.tether_anchor_ = np.array(search.geometry.p_FP)
         self.tether_attach_ = np.array(search.geometry.p_SQ)
@@ -312,14 +331,16 @@ class PhysicsPayloadCompensator(CarriesRobot, Compensator):
             return Z[:, :-1], Z[:, -1]
         return Z, None
 
-    def _identify(self, A, Y, prior, temperature=None):
+    def _identify(self, A, Y, prior, temperature=None, crosstalk=None):
         """Sets the fitted attributes from the (N, 6, p) regressor and the readings
-        (:func:`~.payload_identification.identify_payload`)."""
+        (:func:`~.payload_identification.identify_payload`); `crosstalk`: whether to
+        identify it (default: ``identify_crosstalk``)."""
         static = self.mode == "static"
         vars(self).update(identify_payload(
             A, Y, static=static, identification=self.identification, prior=prior,
             prior_weight=self.prior_weight, identify_mounting=self.identify_mounting,
-            temperature=temperature))
+            temperature=temperature,
+            identify_crosstalk=self.identify_crosstalk if crosstalk is None else crosstalk))
         self.residual_rms_ = np.sqrt(np.mean((Y - self._predict_from(A, temperature)) ** 2,
                                              axis=0))
         # A possible payload: a body (a positive mass, static) and a weight without inertia

@@ -34,6 +34,11 @@ IDENTIFY_MOUNTING = TrainOption(
     scope="on a wrench (the sensor's mounting rotation)",
     help="physics/hybrid on a wrench: also identify the sensor's mounting rotation (the "
          "wrench is then reported in the model's frame S)")
+IDENTIFY_CROSSTALK = TrainOption(
+    "identify_crosstalk", default=False, kind=bool,
+    scope="on a wrench (the sensor calibration's cross-talk)",
+    help="physics/hybrid on a wrench, dynamic model: also identify the sensor calibration's "
+         "cross-talk (the reading matrix's off-diagonal entries, each with a prior of ±2 %%)")
 WEIGHT_WITHOUT_INERTIA = TrainOption(
     "weight_without_inertia", default=False, kind=bool,
     scope="on a wrench (a weight the tool carries without its inertia)",
@@ -47,7 +52,8 @@ TETHER = TrainOption(
          "the world ('auto': the frame that explains the data best), 2 parameters and its "
          "geometry")
 #: The options of physics and hybrid (arm takes DRIVE_GAINS only).
-PAYLOAD_OPTIONS = (DRIVE_GAINS, IDENTIFY_MOUNTING, WEIGHT_WITHOUT_INERTIA, TETHER)
+PAYLOAD_OPTIONS = (DRIVE_GAINS, IDENTIFY_MOUNTING, IDENTIFY_CROSSTALK, WEIGHT_WITHOUT_INERTIA,
+                   TETHER)
 _PAYLOAD_KINDS = ("physics", "hybrid")
 
 
@@ -111,6 +117,7 @@ def payload_model(request: BuildRequest, features: str) -> PhysicsPayloadCompens
     robot = request.robot
     identify_mounting = bool(request.options.get("identify_mounting", False))
     weight_without_inertia = bool(request.options.get("weight_without_inertia", False))
+    identify_crosstalk = bool(request.options.get("identify_crosstalk", False))
     tether = request.options.get("tether") or None
     if robot.robot is None:
         raise ConfigError(f"--kind {request.kind} needs --robot FILE (URDF/SDF) with "
@@ -119,18 +126,13 @@ def payload_model(request: BuildRequest, features: str) -> PhysicsPayloadCompens
     if features == "q,qd":
         raise ConfigError("physics takes --features q (static: gravity only) or q,qd,qdd")
     mode = "static" if features == "q" else "dynamic"
-    if identify_mounting and mode == "static":
-        raise ConfigError("--identify-mounting needs --features q,qd,qdd (the dynamic model); "
-                          "`ftdrake calibrate` identifies it from static poses")
-    if weight_without_inertia and mode == "static":
-        raise ConfigError("--weight-without-inertia needs --features q,qd,qdd (only "
-                          "accelerations tell a weight without inertia from the tool's mass)")
+    _refuse_dynamic_options_when_static(mode, request.options)
     if tether and not (weight_without_inertia and mode == "dynamic"):
         raise ConfigError("--tether needs --weight-without-inertia and --features q,qd,qdd (a "
                           "cable's hanging weight is a weight without inertia, which only "
                           "accelerations tell from the tool's mass)")
     settings = {**PHYSICS_DEFAULTS, "features": features, "mode": mode,
-                "identify_mounting": identify_mounting,
+                "identify_mounting": identify_mounting, "identify_crosstalk": identify_crosstalk,
                 "weight_without_inertia": weight_without_inertia, "tether": tether}
     if robot.is_simulated_arm and robot.joint_mapping():
         raise ConfigError(f"--joints/--fixed-joints need --robot FILE (the simulated arm's "
@@ -153,9 +155,28 @@ def payload_model(request: BuildRequest, features: str) -> PhysicsPayloadCompens
                                      **settings)
 
 
+#: Options of the dynamic payload model only, and what a static model's user can do instead.
+_DYNAMIC_ONLY = {
+    "identify_mounting": "--identify-mounting needs --features q,qd,qdd (the dynamic model); "
+                         "`ftdrake calibrate` identifies it from static poses",
+    "identify_crosstalk": "--identify-crosstalk needs --features q,qd,qdd (the dynamic "
+                          "model); `ftdrake calibrate --correction full` identifies it from "
+                          "static poses with known loads",
+    "weight_without_inertia": "--weight-without-inertia needs --features q,qd,qdd (only "
+                              "accelerations tell a weight without inertia from the tool's "
+                              "mass)",
+}
+
+
+def _refuse_dynamic_options_when_static(mode: str, options) -> None:
+    for name, message in _DYNAMIC_ONLY.items():
+        if mode == "static" and options.get(name, False):
+            raise ConfigError(message)
+
+
 def _refuse_wrench_options_on_torques(request: BuildRequest) -> None:
     if request.on_wrench:
         return
-    for option in (IDENTIFY_MOUNTING, WEIGHT_WITHOUT_INERTIA):
+    for option in (IDENTIFY_MOUNTING, IDENTIFY_CROSSTALK, WEIGHT_WITHOUT_INERTIA):
         if option.given(request.options.get(option.name)):
             raise option.misuse(_PAYLOAD_KINDS)

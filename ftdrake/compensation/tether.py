@@ -29,6 +29,7 @@ import dataclasses as dc
 
 import numpy as np
 from scipy.optimize import least_squares
+from scipy.spatial.transform import Rotation
 
 from ..errors import ConfigError
 
@@ -91,26 +92,32 @@ class TetherSearch:
     relative_cost: dict
 
 
-def fit_tether_geometry(frames_S, frame_names, A, Y, weights, *, rows: int = SEARCH_ROWS
-                        ) -> TetherSearch:
+def fit_tether_geometry(frames_S, frame_names, A, Y, weights, *, rows: int = SEARCH_ROWS,
+                        refine_rotation: bool = False) -> TetherSearch:
     """The tether geometry that best explains the readings with the linear model.
 
     frames_S : (N, K, 3, 4) poses in S of the candidate frames (``frame_names``, K).
     A : (N, 6, p) the other columns (payload, biases, ...), in the frame of Y.
     Y : (N, 6) readings, in S; weights (6,): per axis, 1 / the residual's scale.
+    refine_rotation : also refine, with the geometry, a rotation of the readings (3 more
+        unknowns, a rotation vector): for readings rotated into S by a mounting rotation that
+        was fitted without the tether, whose pull it took in part.
     """
     N = len(Y)
     take = np.unique(np.linspace(0, N - 1, min(rows, N)).astype(int))
-    w = np.asarray(weights, dtype=float)
-    projection = _Complement(A[take], Y[take], w)
+    projection = _Complement(A[take], Y[take], np.asarray(weights, dtype=float))
     F_s = frames_S[take]
-    base_cost = float(projection.y @ projection.y)
+    y = projection.projected(np.zeros(3))
+    base_cost = float(y @ y)
+    n_rotation = 3 if refine_rotation else 0
+    x_scale = np.concatenate([np.full(6, 0.1), np.full(n_rotation, 0.02)])
     fits = {}
 
     def search(k, starts):
         for start in starts:
             fit = least_squares(lambda x: projection.residual(F_s[:, k], x),
-                                np.concatenate([start, np.zeros(3)]), x_scale=0.1, max_nfev=200)
+                                np.concatenate([start, np.zeros(3 + n_rotation)]),
+                                x_scale=x_scale, max_nfev=300 if refine_rotation else 200)
             cost = float(fit.fun @ fit.fun)
             if cost < fits.get(k, (np.inf,))[0]:
                 fits[k] = (cost, fit.x)
@@ -124,7 +131,7 @@ def fit_tether_geometry(frames_S, frame_names, A, Y, weights, *, rows: int = SEA
     best = min(fits, key=lambda k: fits[k][0])
     x = fits[best][1]
     geometry = TetherGeometry(frame_names[best], tuple(map(float, x[:3])),
-                              tuple(map(float, x[3:])))
+                              tuple(map(float, x[3:6])))
     return TetherSearch(geometry, {frame_names[k]: c / base_cost for k, (c, _) in fits.items()})
 
 
@@ -139,12 +146,26 @@ class _Complement:
         Q, R = np.linalg.qr(Aw)
         keep = np.abs(np.diag(R)) > 1e-10 * np.abs(np.diag(R)).max()
         self.Q = np.ascontiguousarray(Q[:, keep])  # an orthonormal basis of the span
-        yw = (Y * w).reshape(-1)
-        self.y = yw - self.Q @ (self.Q.T @ yw)
+        self.Y = Y
+        self._unrotated = self._project(Y)
+
+    def _project(self, Y) -> np.ndarray:
+        yw = (Y * self.w).reshape(-1)
+        return yw - self.Q @ (self.Q.T @ yw)
+
+    def projected(self, rotation_vector) -> np.ndarray:
+        """The weighted readings, rotated by the rotation vector (forces and torques alike),
+        off the other columns' span."""
+        if not np.any(rotation_vector):
+            return self._unrotated
+        R = Rotation.from_rotvec(rotation_vector).as_matrix()
+        return self._project(self.Y @ np.kron(np.eye(2), R).T)
 
     def residual(self, X_SF, x) -> np.ndarray:
-        """The weighted residual with the tether of geometry x = [p_FP, p_SQ] added."""
-        C = (tether_columns(X_SF, x[:3], x[3:]) * self.w[None, :, None]).reshape(-1, 2)
+        """The weighted residual with the tether of geometry x = [p_FP, p_SQ] added (and
+        the readings rotated by x[6:9], when given)."""
+        y = self.projected(x[6:9]) if len(x) > 6 else self._unrotated
+        C = (tether_columns(X_SF, x[:3], x[3:6]) * self.w[None, :, None]).reshape(-1, 2)
         C = C - self.Q @ (self.Q.T @ C)
-        t = np.linalg.lstsq(C, self.y, rcond=None)[0]
-        return self.y - C @ t
+        t = np.linalg.lstsq(C, y, rcond=None)[0]
+        return y - C @ t
