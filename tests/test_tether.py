@@ -153,7 +153,8 @@ def test_tether_with_the_sensors_mounting_and_crosstalk(cable_b_runs):
     first without the tether, whose pull it took in part) with the geometry, and the final fit
     identifies the cross-talk; then the geometry, the stiffness and the tool's mass are found
     as from the plant's reaction, and the held-out readings are predicted to within 1.3 noise
-    σ on every axis (the noise alone gives 1)."""
+    σ on every axis (the noise alone gives 1). Contacts are still mapped into S by the
+    mounting rotation alone."""
     train, held_out = cable_b_runs
     rng = np.random.default_rng(5)
     train = train.copy()
@@ -167,6 +168,10 @@ def test_tether_with_the_sensors_mounting_and_crosstalk(cable_b_runs):
     error = model.predict(joint_state_layout(held_out)) - _through_a_sensor(held_out, rng)
     assert np.all(np.sqrt(np.mean(error ** 2, axis=0)) < 1.3 * NOISE_STD)
     assert "cross-talk E" in model.summary()
+    # A contact is mapped into S by the mounting rotation alone, not by the free-motion E.
+    rotation = np.kron(np.eye(2), model.mounting_rotation_).T
+    np.testing.assert_allclose(model.reading_to_model_frame(), np.linalg.inv(rotation))
+    assert not np.allclose(model.reading_matrix(), rotation)
 
 
 def test_crosstalk_from_generated_wrenches(rng):

@@ -100,6 +100,19 @@ def test_grasp_mass_and_position_identified_in_motion(trained):
     assert not detected[t > 4.0].any()
 
 
+def test_grasp_runs_adapt_the_controller_with_the_tracker():
+    """The grasp's runs: the controller carries the tracker's payload with the tracker on
+    (the event and the reference alike), and not without it (it would have none)."""
+    configs = event_configs(ScenarioConfig(), "grasp", PLAN, seed=0)
+    assert configs["with"].controller.adapt_to_payload
+    assert configs["reference"].controller.adapt_to_payload
+    assert not configs["untracked"].controller.adapt_to_payload
+    for config in configs.values():
+        build_station(config)  # each is a valid station (adaptation needs the tracker)
+    off = event_configs(ScenarioConfig(), "grasp", dc.replace(PLAN, adapt_controller=False), 0)
+    assert not any(c.controller.adapt_to_payload for c in off.values())
+
+
 def test_slow_push_is_detected_and_not_absorbed(trained):
     model, config = trained
     configs = event_configs(config, "push", PLAN, seed=0)
@@ -266,7 +279,7 @@ def test_adapting_to_the_grasp_keeps_the_arm_on_its_path(trained):
     estimate is carried, and from 2 s after the grasp the arm tracks as well as without a
     grasp (within 20 %), and the contact wrench stays quiet."""
     model, config = trained
-    configs = event_configs(config, "grasp", PLAN, seed=0)
+    configs = event_configs(config, "grasp", dc.replace(PLAN, adapt_controller=False), seed=0)
     adapting = dc.replace(configs["with"], controller=dc.replace(
         configs["with"].controller, adapt_to_payload=True))
     after = {}

@@ -155,9 +155,9 @@ class PhysicsPayloadCompensator(CarriesRobot, Compensator):
         calibration's: the payload absorbs a common scale), each entry given a prior of ±2 %
         (relative; ±0.4 N per N·m and ±1 mm, i.e. N·m per N, between force and torque axes),
         alternated with the linear fit (:func:`~.payload_identification.fit_crosstalk`).
-        Fitted: ``crosstalk_`` (E) and ``reading_matrix_`` (M), which the prediction and
-        :meth:`reading_to_model_frame` use. Needs ``mode="dynamic"`` (static poses leave
-        most of E unobservable).
+        Fitted: ``crosstalk_`` (E) and ``reading_matrix_`` (M), with which the model predicts
+        the reading. A contact is still mapped into S by the mounting rotation alone
+        (:meth:`reading_to_model_frame`). Needs ``mode="dynamic"``.
     tether : also identify a cable tethered to the tool (:mod:`.tether`): ``"auto"`` finds
         the frame its other end is fixed in among every moving joint's frame and the world,
         a joint name (or ``"world"``) takes that frame; None (default): no tether. Needs
@@ -416,8 +416,16 @@ class PhysicsPayloadCompensator(CarriesRobot, Compensator):
         """T = M⁻¹ (M: :meth:`reading_matrix`), so that ``T·(measured − predicted)`` is the
         external wrench in S; None when M is the identity (no mounting rotation and no
         correction identified). The predicted reading is ``M·W_S + b``, so the difference
-        is ``M·W_ext,S`` (plus noise)."""
+        is ``M·W_ext,S`` (plus noise).
+
+        A cross-talk identified in free motion (``identify_crosstalk``) predicts the reading
+        but does not map a contact: T is then the mounting rotation's inverse alone. Free
+        motion determines E only in the combinations of axes it excites, and E takes up
+        what the model misses there; it is no calibration against known loads (``calibrate
+        --correction``, :meth:`with_correction`, whose M maps contacts)."""
         matrix = self.reading_matrix()
+        if getattr(self, "crosstalk_", None) is not None:
+            matrix = np.kron(np.eye(2), self.mounting_rotation_).T
         if np.array_equal(matrix, np.eye(6)):
             return None
         return np.linalg.inv(matrix)
@@ -443,6 +451,7 @@ class PhysicsPayloadCompensator(CarriesRobot, Compensator):
         model.parameters_[BIASES] = correction.bias
         model.parameters_[16:] = 0.0
         model.mounting_rotation_ = np.eye(3)  # M holds the mounting too
+        model.crosstalk_ = None  # the correction's M replaces a free-motion cross-talk
         model.reading_matrix_ = np.asarray(correction.sensor_matrix, dtype=float).copy()
         if correction.temperature_coefficients is not None:
             model.temperature_coefficients_ = np.asarray(correction.temperature_coefficients)

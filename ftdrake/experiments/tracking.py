@@ -39,6 +39,9 @@ class EventPlan:
     seeds: tuple[int, ...] = (0,)  # trajectory and noise seeds (offset by the plan's seed)
     retare_offset: tuple[float, ...] = (2.9, -2.9, 2.9, 0.116, -0.116, 0.116)  # 5 N, 0.2 N·m
     grasp_mass_kg: float = 0.5
+    # After the grasp the station's controller carries the tracker's payload estimate
+    # (controller.adapt_to_payload), as a robot whose controller is told the payload would.
+    adapt_controller: bool = True
     push_force_n: float = 5.0
     push_ramp_s: float = 5.0
     tolerance_sigmas: float = 2.0
@@ -63,12 +66,17 @@ def event_configs(base: ScenarioConfig, event: str, plan: EventPlan, seed: int) 
                             retare_offset=list(plan.retare_offset))
     elif event == "grasp":
         events = dc.replace(reference.events, grasp_at_s=t, grasp_mass_kg=plan.grasp_mass_kg)
+        # The reference adapts too (to its estimate of no payload): the same controller.
+        reference = dc.replace(reference, controller=dc.replace(
+            reference.controller, adapt_to_payload=plan.adapt_controller))
     else:
         events = dc.replace(reference.events, push_at_s=t, push_ramp_s=plan.push_ramp_s,
                             push_force_W=[0.0, 0.0, -plan.push_force_n],
                             push_hold_s=max(0.0, plan.duration_s - t - plan.push_ramp_s))
     with_event = dc.replace(reference, events=events)
-    untracked = dc.replace(with_event, bias_tracker=dc.replace(tracker, enabled=False))
+    untracked = dc.replace(with_event, bias_tracker=dc.replace(tracker, enabled=False),
+                           controller=dc.replace(with_event.controller,
+                                                 adapt_to_payload=False))
     return {"with": with_event, "untracked": untracked, "reference": reference}
 
 
