@@ -27,9 +27,10 @@ through
   ``compiled/hybrid.py``), with HybridCompensator's default residual
   (``hybrid.default_residual``: one multi-output forest of 50 trees on q), with a
   multi-output residual of 100 trees and with per-axis forests (6 × 100 trees, the study's
-  layout); for the default residual also the fused kernel writing into preallocated buffers
-  (what ``CompensatorSystem`` does) and the two-call row it replaced (the payload row, the
-  forest row, combined in numpy),
+  layout), and as the demo's (mounting rotation and weight without inertia, 20 parameters;
+  with a tether, 22); for the default residual also the fused kernel writing into preallocated
+  buffers (what ``CompensatorSystem`` does) and the two-call row it replaced (the payload row,
+  the forest row, combined in numpy),
 
 beside the compiled forests of the first part (the per-axis one is RandomForestCompensator's
 default, the demo's forest). The residual here is the noise of the synthetic readings, so its

@@ -266,6 +266,11 @@ def test_physics_needs_a_wrench_and_a_robot(ftdrake, tmp_path):
     line = failure(ftdrake, "train", "--data", csv, *TORQUES, "--kind", "rf",
                    "--weight-without-inertia", "--out", tmp_path / "m.ftd")
     assert "--weight-without-inertia is for --kind physics or hybrid on a wrench" in line
+    # On joint torques the payload's options are refused, not dropped.
+    for option in (("--identify-crosstalk",), ("--tether", "auto")):
+        line = failure(ftdrake, "train", "--data", csv, *TORQUES, "--kind", "physics",
+                       "--robot", "ftdrake", *option, "--out", tmp_path / "m.ftd")
+        assert f"{option[0]} is for --kind physics or hybrid on a wrench" in line
 
     # Torques relabelled as a wrench: the names pass, but no robot is given ...
     wrench = pd.read_csv(csv).rename(columns={f"tau_{i}": f"meas_{a}" for i, a in

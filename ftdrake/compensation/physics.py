@@ -86,8 +86,6 @@ PARAMETER_NAMES = list(CONSISTENT_NAMES)
 STATIC_PARAMETERS = list(CONSISTENT_STATIC)
 #: The weight carried without inertia (``weight_without_inertia``): θ[16:20].
 WEIGHT_PARAMETERS = [16, 17, 18, 19]
-#: A tether's stiffness and stiffness × rest length (``tether``): θ[20:22].
-TETHER_PARAMETER_INDICES = [20, 21]
 #: How the parameters are identified: plain weighted least squares, or constrained to a
 #: physically possible body (pseudo-inertia ⪰ 0, m > 0; :mod:`.consistent`) with a prior.
 IDENTIFICATIONS = ("least_squares", "consistent")
@@ -250,10 +248,13 @@ class PhysicsPayloadCompensator(CarriesRobot, Compensator):
                               kin.g_S if self.weight_without_inertia else None)
         if getattr(self, "tether_frame_", None) is None:
             return A
+        return np.concatenate([A, self._tether_columns(X)], axis=2)
+
+    def _tether_columns(self, X) -> np.ndarray:
+        """(N, 6, 2): the fitted tether's columns for the full-layout rows X."""
         index = self.tether_frame_names().index(self.tether_frame_)
         X_SF = self._kinematics().anchor_frames_in_sensor(X)[:, index]
-        C = tether_columns(X_SF, self.tether_anchor_, self.tether_attach_)
-        return np.concatenate([A, C], axis=2)
+        return tether_columns(X_SF, self.tether_anchor_, self.tether_attach_)
 
     def tether_frame_names(self) -> list[str]:
         """The frames a tether's far end may be fixed in: each moving joint's child frame M
@@ -292,19 +293,21 @@ class PhysicsPayloadCompensator(CarriesRobot, Compensator):
         self._embed_robot()
         self._check_robot_joints()
         self.tether_frame_ = None
+        A = self.regressor(X)
         if self.tether:
             frames = candidate_frames(self.tether, self.tether_frame_names())
             with warnings.catch_warnings():  # the fit with the tether warns, if it must
                 warnings.simplefilter("ignore", ExcitationWarning)
                 # Without the cross-talk: E would take the cable's pull it does not model.
-                self._identify(self.regressor(X), Y, prior, temperature, crosstalk=False)
-            self._fit_tether_geometry(X, Y, temperature, frames)
-        self._identify(self.regressor(X), Y, prior, temperature)
+                self._identify(A, Y, prior, temperature, crosstalk=False)
+            self._fit_tether_geometry(A, X, Y, temperature, frames)
+            A = np.concatenate([A, self._tether_columns(X)], axis=2)
+        self._identify(A, Y, prior, temperature)
 
-    def _fit_tether_geometry(self, X, Y, temperature, frames) -> None:
-        """The tether's geometry from the fit without it (module :mod:`.tether`): readings
-        and the model's columns in S, weighted by that fit's residual per axis."""
-        A = self.regressor(X)
+    def _fit_tether_geometry(self, A, X, Y, temperature, frames) -> None:
+        """The tether's geometry from the fit without it (module :mod:`.tether`; A its
+        regressor): readings and the model's columns in S, weighted by that fit's residual
+        per axis."""
         block_S = np.linalg.inv(self.reading_matrix())
         reference = getattr(self, "temperature_reference_", None)
         if temperature is not None and reference is not None:

@@ -177,6 +177,6 @@ def _refuse_dynamic_options_when_static(mode: str, options) -> None:
 def _refuse_wrench_options_on_torques(request: BuildRequest) -> None:
     if request.on_wrench:
         return
-    for option in (IDENTIFY_MOUNTING, IDENTIFY_CROSSTALK, WEIGHT_WITHOUT_INERTIA):
+    for option in (IDENTIFY_MOUNTING, IDENTIFY_CROSSTALK, WEIGHT_WITHOUT_INERTIA, TETHER):
         if option.given(request.options.get(option.name)):
             raise option.misuse(_PAYLOAD_KINDS)

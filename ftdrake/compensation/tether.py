@@ -33,9 +33,6 @@ from scipy.spatial.transform import Rotation
 
 from ..errors import ConfigError
 
-#: The tether's linear parameters, as the payload model's θ holds them last.
-TETHER_PARAMETERS = ("k", "k·l0")
-TETHER_UNITS = ("N/m", "N")
 #: The frame name of an anchor on the world (a cable to a cabinet or a boom).
 WORLD = "world"
 #: Rows the geometry search uses (evenly spaced over the data): the search solves the
