@@ -93,10 +93,9 @@ class BiasTrackerConfig:
     track_payload: bool = False
     # With track_payload: also feed the tracker S's angular velocity and acceleration
     # (motion_S), so the payload's offset and rotational-inertia terms are modelled (10
-    # parameters). Off: gravity only (Δm, Δ(m·c) from g − a; the inertia stays at 0). Exact
-    # when the compensator is; in the loop a grasp changes the motion, and the compensator's
-    # error on that motion is then fitted too.
-    track_payload_motion: bool = False
+    # parameters). Off: gravity only (Δm, Δ(m·c) from g − a; the inertia stays at 0), which
+    # leaves the payload's offset and inertia terms to bias its centre of mass in motion.
+    track_payload_motion: bool = True
     # Samples (from the signal on) whose update re-initialises the bias (tared) or payload
     # (payload_changed) block; covers the pipeline's one-sample lag.
     hold_samples: int = 3

@@ -124,10 +124,18 @@ def _all_finite(y, g, motion):
 def _may_update(flags, counters):
     """Free of contact, or in a hold or settle window (after tared / payload_changed: they
     update through contact, since a re-initialised estimate that froze at the first false
-    contact would never recover); never while out of domain or at fault."""
-    holding = counters[0] > 0 or counters[2] > 0 or counters[1] > 0 or counters[3] > 0
+    contact would never recover); never at fault, and never out of domain except in the
+    payload's hold: a held sample re-initialises the payload from itself alone, so the
+    compensator's error there lasts that sample, while a grasp's jolt (q̈ out of the
+    domain for a few ms) would otherwise freeze a half-risen payload into the detector's
+    input."""
+    if flags[2] >= 0.5:
+        return False
+    if counters[2] > 0:
+        return True
+    holding = counters[0] > 0 or counters[1] > 0 or counters[3] > 0
     free = flags[0] < 0.5
-    return flags[1] < 0.5 and flags[2] < 0.5 and (holding or free)
+    return flags[1] < 0.5 and (holding or free)
 
 
 @numba.njit(cache=True)

@@ -33,8 +33,10 @@ same force and torque rates), except in the settle windows below.
 
 **When it updates.** Only while ``contact``, ``out_of_domain`` and ``fault`` are < 0.5 and
 the inputs are finite (a NaN flag counts as set); otherwise the estimator's state is held
-and the outputs are computed from the held estimate. A non-finite wrench, g_S or motion
-holds every output.
+and the outputs are computed from the held estimate. One exception: in the payload's hold
+(below) ``out_of_domain`` does not hold it, since a held sample re-initialises the payload
+from itself alone and a grasp's jolt takes q̈ out of the domain for a few ms. A non-finite
+wrench, g_S or motion holds every output.
 
 **Signals.** ``tared`` (re-tare) and ``payload_changed`` (grasp or release) cannot be told
 from contact by the wrench, so they are inputs:

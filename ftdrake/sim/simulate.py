@@ -7,8 +7,11 @@ Log columns (one row per sensor sample; units SI; wrenches in S about So):
 ``q_i``             joint i position, rad (plant state)
 ``qd_i``            joint i velocity, rad/s (plant state)
 ``qdd_i``           joint i acceleration, rad/s² (the plant's step)
-``qd_est_i``        velocity as a real robot gets it: central difference of sampled q
-``qdd_est_i``       acceleration likewise, from ``qd_est``
+``qd_est_i``        the velocity the loop uses: the joint state's own ``qd_i``
+``qdd_est_i``       the loop's own q̈ estimate: :func:`ftdrake.signals.causal_acceleration`
+                    of ``qd`` at ``compensator.acceleration_cutoff_hz``, row by row, as
+                    the :class:`~ftdrake.runtime.compensator.CompensatorSystem` computes it
+                    (the hardware recorder's columns, :mod:`ftdrake.runtime.recorder`)
 ``ideal_*``         ideal sensor wrench (rigid-body reaction at the weld)
 ``meas_*``          noisy sensor reading
 ``internal_*``      true internal wrench: what the sensor would read without contact, with
@@ -61,7 +64,7 @@ from pydrake.systems.analysis import Simulator
 from tqdm.auto import tqdm
 
 from .. import conventions as col
-from ..signals import differentiate
+from ..signals import causal_acceleration
 from .events import apply_grasp
 from .station import Station
 
@@ -146,7 +149,8 @@ def assemble_log(station: Station, root_context) -> pd.DataFrame:
     keep = t > 0.5 * station.config.time_step  # see module docstring: drop the t = 0 row
     series = _sampled_with_state(station.loggers, root_context, t)
     frame = {col.TIME: t[keep]}
-    _add_joint_columns(frame, t[keep], x[keep], series["acceleration"][keep], n)
+    _add_joint_columns(frame, t[keep], x[keep], series["acceleration"][keep], n,
+                       station.config.compensator.acceleration_cutoff_hz)
     _add_sensor_columns(frame, station, root_context, t, keep, series)
     if station.compensation is not None:
         _add_compensation_columns(frame, station.compensation.loggers, root_context, t, keep)
@@ -170,10 +174,15 @@ def _sampled_with_state(loggers, root_context, t) -> dict:
     return series
 
 
-def _add_joint_columns(frame: dict, t, x, acceleration, n: int) -> None:
-    """q, q̇, q̈ from the plant, and q̇, q̈ as a real robot would get them from sampled q."""
+def _add_joint_columns(frame: dict, t, x, acceleration, n: int, cutoff_hz: float) -> None:
+    """q, q̇, q̈ from the plant, and q̇, q̈ as the loop's compensator gets them: the joint
+    state's q̇ and its causal q̈ estimate. A model trained on central differences instead
+    (zero lag) meets the estimate's lag (≈ 1 / (2π·cutoff)) only in the loop, where it errs
+    wherever q̈ changes fast."""
     q, qd = x[:, :n], x[:, n:]
-    qd_est, qdd_est = differentiate(t, q)
+    qd_est = qd
+    period = float(np.median(np.diff(t))) if len(t) > 1 else 1.0
+    qdd_est = causal_acceleration(qd, period, cutoff_hz)
     for prefix, values in (
         (col.Q, q), (col.QD, qd), (col.QDD, acceleration),
         (col.QD_EST, qd_est), (col.QDD_EST, qdd_est),
