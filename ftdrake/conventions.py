@@ -51,8 +51,9 @@ BIAS_ESTIMATE = "bias_est"  # the bias tracker's published bias
 PAYLOAD_ESTIMATE = ("payload_est_dm", "payload_est_mcx", "payload_est_mcy", "payload_est_mcz")
 
 # -- Joint-state prefixes (one column per joint, see joint_columns) -----------------------------
-# `q`, `qd`, `qdd` are what the plant knows; the `_est` versions are what a real robot would
-# have: velocities and accelerations differentiated numerically from sampled joint positions.
+# `q`, `qd`, `qdd` are what the plant knows; the `_est` versions are what the loop's
+# compensator gets: the joint state's velocity and its causal q̈ estimate
+# (signals.causal_acceleration; the simulator's logs and the hardware recorder alike).
 Q, QD, QDD = "q", "qd", "qdd"
 QD_EST, QDD_EST = "qd_est", "qdd_est"
 TORQUE = "tau"  # joint efforts read from a robot's JointState topic, N·m

@@ -75,8 +75,8 @@ def column_units(columns) -> dict[str, str]:
 
 
 def joint_state_layout(frame: pd.DataFrame, source: str = "est", n: int | None = None):
-    """``X = [q, q̇, q̈]`` from a dataset: `source` "est" (numerically differentiated, as a
-    real robot has) or "plant" (the simulator's exact values)."""
+    """``X = [q, q̇, q̈]`` from a dataset: `source` "est" (q̇ and the causal q̈ estimate, as
+    the loop's compensator gets them) or "plant" (the simulator's exact values)."""
     if source not in ("est", "plant"):
         raise ValueError(f"source must be 'est' or 'plant', got {source!r}")
     n = n or sum(1 for c in frame.columns if c.startswith("q_") and c[2:].isdigit())

@@ -128,7 +128,7 @@ class ReadOptions:
     @classmethod
     def dataset(cls, source: str = "est", **overrides) -> ReadOptions:
         """Options that read a ``collect`` dataset as :func:`~.dataset.joint_state_layout`
-        (`source` ``"est"``: central differences; ``"plant"``: the simulator's values) and
+        (`source` ``"est"``: the loop's q̇ and causal q̈; ``"plant"``: the simulator's values) and
         :func:`~.dataset.wrench_targets` do."""
         if source not in ("est", "plant"):
             raise ConfigError(f"source must be 'est' or 'plant', got {source!r}")
