@@ -24,6 +24,7 @@ from ..physics.robot import (
     fixed_joint_values,
     ftdrake_arm,
     joint_mapping_file,
+    joint_names,
 )
 from ..physics.scenario_robot import robot_description
 
@@ -62,13 +63,10 @@ class RobotOptions:
         if isinstance(joints, str) and joints.endswith((".yaml", ".yml")):
             joints, in_file = joint_mapping_file(joints)
             fixed = {**dict(in_file), **fixed}  # --fixed-joints overrides the file's
-        elif isinstance(joints, str):
-            joints = joints.split(",")
         if joints is None:
             raise ConfigError("--fixed-joints needs --joints (the joints the log holds, in the "
                               "order of its position columns)")
-        return {"joints": tuple(j.strip() for j in joints if j.strip()),
-                "fixed_joints": fixed or None}
+        return {"joints": joint_names(joints), "fixed_joints": fixed or None}
 
     @property
     def is_simulated_arm(self) -> bool:

@@ -58,7 +58,7 @@ import numpy as np
 
 from ..conventions import GRAVITY_W
 from ..errors import ConfigError, RobotModelError, spelled
-from ..physics.robot import RobotDescription, fixed_joint_values, ftdrake_arm
+from ..physics.robot import RobotDescription, fixed_joint_values, ftdrake_arm, joint_names
 from .base import Compensator
 from .compiled.payload import pack_payload_row, payload_mean_std, payload_predict
 from .consistent import DEFAULT_PRIOR_WEIGHT, PayloadPrior, is_possible
@@ -571,12 +571,7 @@ class PhysicsPayloadCompensator(CarriesRobot, Compensator):
                                 self._joint_columns(), fixed_joint_values(self.fixed_joints))
 
     def _joint_columns(self) -> tuple[str, ...]:
-        joints = getattr(self, "joints", None)  # models saved before the option: None
-        if joints is None:
-            return ()
-        if isinstance(joints, str):
-            joints = joints.split(",")
-        return tuple(str(j).strip() for j in joints if str(j).strip())
+        return joint_names(getattr(self, "joints", None))  # None in models saved before it
 
     def _build_robot(self) -> None:
         self._kinematics()

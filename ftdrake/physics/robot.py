@@ -347,6 +347,15 @@ def joint_count_message(plant, n_data: int, label: str) -> str:
             f"NAME=VALUE,... (default 0; joints= and fixed_joints= in Python)")
 
 
+def joint_names(spec) -> tuple[str, ...]:
+    """Joint names from ``"joint_s,joint_l"`` or a sequence, blanks dropped; () for None."""
+    if spec is None:
+        return ()
+    if isinstance(spec, str):
+        spec = spec.split(",")
+    return tuple(str(j).strip() for j in spec if str(j).strip())
+
+
 def fixed_joint_values(spec) -> tuple[tuple[str, float], ...]:
     """Fixed joint positions as ``((name, value), …)`` from a mapping, a sequence of pairs,
     ``"torso=0.2,finger_l=0.01"`` or the path of a YAML file holding a mapping name → value
