@@ -1,9 +1,7 @@
 """Derivatives of sampled joint positions and velocities, shared by training and the loop.
 
-Three estimates, from the least to the most like what a controller has at run time:
+Two estimates, the first for offline logs, the second what a controller has at run time:
 
-* :func:`differentiate` – central differences of q (as the study did: "the joints
-  velocities and accelerations have been numerically differentiated"); non-causal.
 * :func:`savgol_derivative` – Savitzky–Golay derivative of q, for noisy real logs; non-causal.
 * :func:`causal_acceleration` – the estimate ``CompensatorSystem`` makes in the loop: a
   backward difference of q̇ low-passed by a first-order filter. Training on it gives a
@@ -17,14 +15,6 @@ import math
 import numba
 import numpy as np
 from scipy.signal import savgol_filter
-
-
-def differentiate(t: np.ndarray, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Velocity and acceleration from sampled positions by central differences."""
-    if len(t) < 3:
-        return np.zeros_like(q), np.zeros_like(q)
-    qd = np.gradient(q, t, axis=0)
-    return qd, np.gradient(qd, t, axis=0)
 
 
 def savgol_derivative(

@@ -149,7 +149,7 @@ def assemble_log(station: Station, root_context) -> pd.DataFrame:
     keep = t > 0.5 * station.config.time_step  # see module docstring: drop the t = 0 row
     series = _sampled_with_state(station.loggers, root_context, t)
     frame = {col.TIME: t[keep]}
-    _add_joint_columns(frame, t[keep], x[keep], series["acceleration"][keep], n,
+    _add_joint_columns(frame, x[keep], series["acceleration"][keep], n, station.period,
                        station.config.compensator.acceleration_cutoff_hz)
     _add_sensor_columns(frame, station, root_context, t, keep, series)
     if station.compensation is not None:
@@ -174,15 +174,14 @@ def _sampled_with_state(loggers, root_context, t) -> dict:
     return series
 
 
-def _add_joint_columns(frame: dict, t, x, acceleration, n: int, cutoff_hz: float) -> None:
+def _add_joint_columns(frame: dict, x, acceleration, n: int, period: float,
+                       cutoff_hz: float) -> None:
     """q, q̇, q̈ from the plant, and q̇, q̈ as the loop's compensator gets them: the joint
     state's q̇ and its causal q̈ estimate. A model trained on central differences instead
     (zero lag) meets the estimate's lag (≈ 1 / (2π·cutoff)) only in the loop, where it errs
     wherever q̈ changes fast."""
     q, qd = x[:, :n], x[:, n:]
-    qd_est = qd
-    period = float(np.median(np.diff(t))) if len(t) > 1 else 1.0
-    qdd_est = causal_acceleration(qd, period, cutoff_hz)
+    qd_est, qdd_est = qd, causal_acceleration(qd, period, cutoff_hz)
     for prefix, values in (
         (col.Q, q), (col.QD, qd), (col.QDD, acceleration),
         (col.QD_EST, qd_est), (col.QDD_EST, qdd_est),
