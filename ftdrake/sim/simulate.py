@@ -57,6 +57,7 @@ from __future__ import annotations
 
 import dataclasses as dc
 import time
+import warnings
 
 import numpy as np
 import pandas as pd
@@ -121,25 +122,85 @@ def _grasp(station: Station, root_context) -> None:
 
 
 def set_initial_state(station: Station, root_context) -> None:
-    """Puts the arm at the trajectory's start, moving with its start velocity, and starts the
-    bias tracker as ``bias_tracker.start_settled`` says."""
-    plant = station.scene.plant
-    plant_context = plant.GetMyMutableContextFromRoot(root_context)
+    """Puts the arm where the controller holds it at the trajectory's start, moving with its
+    start velocity (:func:`controller_equilibrium`), and starts the bias tracker as
+    ``bias_tracker.start_settled`` says."""
     t0 = station.trajectory.start_time()
-    plant.SetPositions(plant_context, station.scene.arm, station.trajectory.value(t0).ravel())
-    plant.SetVelocities(
-        plant_context, station.scene.arm, station.trajectory.derivative(1).value(t0).ravel()
-    )
-    if station.transmission is not None:  # motors where they hold the links still
-        motors = station.transmission
-        q0 = plant.GetPositions(plant_context, station.scene.arm)
-        load = plant.GetVelocitiesFromArray(
-            station.scene.arm, plant.CalcGravityGeneralizedForces(plant_context))
-        state = motors.static_motor_state(q0, load)
-        state[motors.n:] = plant.GetVelocities(plant_context, station.scene.arm)
-        motors.set_motor_state(motors.GetMyMutableContextFromRoot(root_context), state)
+    q_d = station.trajectory.value(t0).ravel()
+    v_d = station.trajectory.derivative(1).value(t0).ravel()
+    _set_arm_state(station, root_context, q_d, v_d)
+    _set_arm_state(station, root_context, controller_equilibrium(station, root_context), v_d)
     if station.compensation is not None:
         station.compensation.chain.initialize(root_context)
+
+
+#: How close (rad/s²) the arm's first step must come to the trajectory's start acceleration
+#: for :func:`controller_equilibrium`, and the most Newton steps it takes to get there.
+EQUILIBRIUM_TOLERANCE = 1e-6
+EQUILIBRIUM_STEPS = 10
+
+
+def controller_equilibrium(station: Station, root_context) -> np.ndarray:
+    """The arm's q (n, rad) at which its first step under the controller accelerates as the
+    trajectory's start asks, for the velocity already in `root_context`.
+
+    The controller's model of the tool is wrong (``controller.tool_mass_error``), so a PD law
+    holds the arm a little off its desired pose: by ~0.03 rad at the wrist with the defaults.
+    A real controller has been holding the arm for a while when a log starts; started at the
+    desired pose instead, the simulated arm drops for ~50 ms at up to 8 rad/s², a transient
+    that every run repeats at the same pose and that a learned residual learns as if it were
+    the pose's. Found by Newton steps on a finite-difference Jacobian of one simulated step;
+    warns when they do not reach :data:`EQUILIBRIUM_TOLERANCE`.
+
+    With compliant transmissions (``transmission.enabled``) the links' first step follows
+    the springs, not the controller: the motors' static state (:func:`set_initial_state`)
+    already holds the links, and q stays as it is."""
+    plant, arm = station.scene.plant, station.scene.arm
+    if station.transmission is not None:
+        return plant.GetPositions(plant.GetMyContextFromRoot(root_context), arm).copy()
+    t0 = station.trajectory.start_time()
+    target = station.trajectory.derivative(2).value(t0).ravel()
+    v0 = plant.GetVelocities(plant.GetMyContextFromRoot(root_context), arm).copy()
+    q = plant.GetPositions(plant.GetMyContextFromRoot(root_context), arm).copy()
+
+    def miss(q_try):  # the first step's acceleration − the trajectory's, rad/s²
+        context = root_context.Clone()
+        _set_arm_state(station, context, q_try, v0)
+        step = Simulator(station.diagram, context)
+        step.AdvanceTo(t0 + station.scene.plant.time_step())
+        v1 = plant.GetVelocities(plant.GetMyContextFromRoot(context), arm)
+        return (v1 - v0) / plant.time_step() - target
+
+    error = miss(q)
+    if np.max(np.abs(error)) <= EQUILIBRIUM_TOLERANCE:
+        return q
+    h = 1e-6  # rad; the step is linear in q over far more than this
+    jacobian = np.column_stack([(miss(q + h * e) - error) / h for e in np.eye(len(q))])
+    for _ in range(EQUILIBRIUM_STEPS):
+        q = q - np.linalg.lstsq(jacobian, error, rcond=None)[0]
+        error = miss(q)
+        if np.max(np.abs(error)) <= EQUILIBRIUM_TOLERANCE:
+            return q
+    warnings.warn(f"controller_equilibrium: the arm's first step still misses the trajectory's "
+                  f"start acceleration by {np.max(np.abs(error)):.2g} rad/s² after "
+                  f"{EQUILIBRIUM_STEPS} steps; the run starts with that transient", stacklevel=2)
+    return q
+
+
+def _set_arm_state(station: Station, root_context, q, v) -> None:
+    """The arm's q, v, and with compliant transmissions the motors where they hold the links
+    still at q."""
+    plant = station.scene.plant
+    plant_context = plant.GetMyMutableContextFromRoot(root_context)
+    plant.SetPositions(plant_context, station.scene.arm, q)
+    plant.SetVelocities(plant_context, station.scene.arm, v)
+    if station.transmission is not None:
+        motors = station.transmission
+        load = plant.GetVelocitiesFromArray(
+            station.scene.arm, plant.CalcGravityGeneralizedForces(plant_context))
+        state = motors.static_motor_state(np.asarray(q, dtype=float), load)
+        state[motors.n:] = v
+        motors.set_motor_state(motors.GetMyMutableContextFromRoot(root_context), state)
 
 
 def assemble_log(station: Station, root_context) -> pd.DataFrame:
