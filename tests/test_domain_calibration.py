@@ -100,3 +100,21 @@ def calibration_rows(model, X, Y):
     parameter_var = model.physics_._variance(model.physics_._select(Z), include_noise=False)
     return (model.domain_distance(X), Y - model._physics(Z), model.residual_.predict(Z),
             model._noise_var(), model.domain_far_var_, parameter_var)
+
+
+def test_a_shared_in_domain_level_scales_with_each_axis_training_error():
+    """With in_domain="held_out" and `shared`, σ²_in is one multiple of each axis' floor (the
+    residual's training error): errors generated with σ²_in = 1.5 × floor on axes whose floors
+    differ ninefold give back that one ratio."""
+    rng = np.random.default_rng(3)
+    n, floor, far = 20000, np.array([1.0, 4.0, 9.0]), np.array([10.0, 20.0, 30.0])
+    d = rng.uniform(0.0, 3.0, n)
+    w = domain.weight(d, 1.5)[:, None]
+    error = rng.normal(size=(n, 3)) * np.sqrt(w * 1.5 * floor + (1 - w) * far)
+    args = (d, error, np.zeros((n, 3)), floor, far, np.zeros((n, 3)))
+    _, in_var, growth, _ = domain.calibrate(*args, shared=True, in_domain="held_out")
+    ratio = in_var / floor
+    assert np.ptp(ratio) < 1e-9 and ratio[0] == pytest.approx(1.5, abs=0.1)
+    assert np.all(growth < 0.2 * np.sqrt(far))  # no growth was generated
+    _, per_axis, _, _ = domain.calibrate(*args, shared=False, in_domain="held_out")
+    assert np.ptp(per_axis / floor) > 1e-3  # per axis, each its own

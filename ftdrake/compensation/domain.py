@@ -159,11 +159,12 @@ def calibrate(d, target, predicted, in_var, far_var, parameter_var, *,
     (docs/guide/calibration.md has both, measured on the same runs).
 
     `shared`: one growth for all axes in units of each axis' σ²_far, g²ₐ = κ · σ²_far,ₐ (an
-    axis whose physics part errs more in training errs more away from it); default one per
-    axis. Per axis suits many independent held-out poses (``tests/test_domain_uncertainty``:
-    the synthetic error's growth differs per axis; shared leaves Fx at 0.66 coverage out of
-    domain); with σ²_in from the cross-fit, the shared growth carried over better on the
-    demo's few held-out runs (the guide)."""
+    axis whose physics part errs more in training errs more away from it), and with
+    ``"held_out"`` one excess in units of each axis' floor, aₐ = λ · `in_var`ₐ (the same
+    argument next to the data); default one per axis. Per axis suits many independent
+    held-out poses (``tests/test_domain_uncertainty``: the synthetic error's growth differs
+    per axis; shared leaves Fx at 0.66 coverage out of domain); the shared terms carried
+    over better on the demo's few held-out runs (the guide)."""
     if in_domain not in IN_DOMAIN_SOURCES:
         raise ValueError(f"in_domain must be one of {IN_DOMAIN_SOURCES}; got {in_domain!r}")
     fit_level = in_domain == "held_out"
@@ -177,36 +178,38 @@ def calibrate(d, target, predicted, in_var, far_var, parameter_var, *,
         error = target - w[:, None] * predicted
         known = w[:, None] * in_var + (1 - w[:, None]) * far_var
         scale, excess, growth2, var = _fit_variance_terms(error, known, parameter_var, w, d,
-                                                          unit, shared, fit_level)
+                                                          unit, in_var, shared, fit_level)
         score = _nll(error, var)
         if score < best[0]:
             best = (score, length, in_var + excess, np.sqrt(growth2), scale)
     return float(best[1]), best[2], best[3], float(best[4])
 
 
-def _fit_variance_terms(error, known, parameter_var, w, d, unit, shared, fit_level):
+def _fit_variance_terms(error, known, parameter_var, w, d, unit, floor, shared, fit_level):
     """(c, a (k,), g² (k,), the variance (N, k)), all ≥ 0: the re-weighted non-negative
     least-squares fit of E[e²] = known + c · parameter_var + w · a + g² · d over all axes at
-    once (one c), with g² = κ · `unit` (one κ) when `shared`; without `fit_level` only g²
-    (c = 1, a = 0)."""
+    once (one c), with g² = κ · `unit` and a = λ · `floor` (one κ, one λ) when `shared`;
+    without `fit_level` only g² (c = 1, a = 0)."""
     n, k = error.shape
     var = np.maximum(np.mean(error ** 2, axis=0), 1e-300) * np.ones_like(known)
-    level_columns = 1 + k if fit_level else 0
+    levels = (1 if shared else k) if fit_level else 0
+    first = 1 + levels if fit_level else 0  # the growth's first column
     scale, excess = 1.0, np.zeros(k)
     for _ in range(REWEIGHTING_PASSES):
-        design = np.zeros((n * k, level_columns + (1 if shared else k)))
+        design = np.zeros((n * k, first + (1 if shared else k)))
         for a in range(k):
             rows = slice(a * n, (a + 1) * n)
             if fit_level:
                 design[rows, 0] = parameter_var[:, a] / var[:, a]
-                design[rows, 1 + a] = w / var[:, a]
+                level_unit = floor[a] if shared else 1.0
+                design[rows, 1 if shared else 1 + a] = w * level_unit / var[:, a]
             growth_unit = unit[a] if shared else 1.0
-            design[rows, level_columns + (0 if shared else a)] = d * growth_unit / var[:, a]
+            design[rows, first + (0 if shared else a)] = d * growth_unit / var[:, a]
         fixed = known + (0.0 if fit_level else parameter_var)
         x, _ = nnls(design, ((error ** 2 - fixed) / var).T.ravel())
         if fit_level:
-            scale, excess = float(x[0]), x[1:1 + k]
-        growth2 = x[level_columns] * unit if shared else x[level_columns:]
+            scale, excess = float(x[0]), (x[1] * floor if shared else x[1:first])
+        growth2 = x[first] * unit if shared else x[first:]
         var = np.maximum(known + scale * parameter_var + w[:, None] * excess
                          + growth2 * d[:, None], 1e-300)
     return scale, excess, growth2, var
