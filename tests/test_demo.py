@@ -45,10 +45,11 @@ def test_demo_compares_forest_and_hybrid_on_the_same_held_out_contact(tmp_path, 
     # refitted on all), and its coverage is reported per distance bin on the held-out runs.
     calibration = hybrid["model"]["domain_calibration"]
     assert calibration["refit"] and len(calibration["held_out_groups"]) >= 1
-    # One growth shared by the axes; σ²_in and c the fit's (c = 1).
+    # One growth shared by the axes; σ²_in (one multiple of each axis' training error) and
+    # the parameters' scale c from the held-out runs too.
     assert calibration["shared_growth"] and min(calibration["growth"]) >= 0
-    assert calibration["in_domain"] == "cross_fit"
-    assert calibration["parameter_variance_scale"] == 1.0
+    assert calibration["in_domain"] == "held_out"
+    assert calibration["parameter_variance_scale"] >= 0.0
     bins = hybrid["domain_coverage"]
     assert sum(b["rows"] for b in bins.values()) > 1000
     assert all(len(b["coverage_95"]) == 6 for b in bins.values() if b["rows"])

@@ -90,8 +90,8 @@ def drake_motion(plant, frame_S, q, v, vdot):
 
 @pytest.mark.parametrize("include_acceleration", [True, False])
 def test_motion_is_drakes_angular_velocity_and_acceleration_of_S(robot, include_acceleration):
-    """Constant q̈: the loop's causal q̈ estimate converges to it (to round-off after 0.3 s at
-    25 Hz), so ω, α (and g − a_So) must be Drake's at the last sample."""
+    """Constant q̈: the loop's causal q̈ estimate converges to it (to round-off within the
+    run, at the default cut-off), so ω, α (and g − a_So) must be Drake's at the last sample."""
     plant, frame_S, chain = robot
     rng = np.random.default_rng(7)
     q0, v0, a = rng.uniform(-1.5, 1.5, 7), rng.uniform(-0.8, 0.8, 7), rng.uniform(-3, 3, 7)

@@ -12,7 +12,7 @@ import pytest
 
 import ftdrake
 from ftdrake.conventions import QD, QDD_EST, joint_columns
-from ftdrake.signals import causal_acceleration
+from ftdrake.signals import DEFAULT_ACCELERATION_CUTOFF_HZ, causal_acceleration
 
 EXAMPLE = Path(__file__).resolve().parents[1] / "examples" / "record_your_diagram.py"
 
@@ -37,6 +37,7 @@ def test_the_example_records_a_user_arm_trains_and_replays_the_loop(tmp_path):
     assert report["rows_recorded"] == len(log) == 12_000
     qd = log[joint_columns(QD, 3)].to_numpy()
     np.testing.assert_allclose(log[joint_columns(QDD_EST, 3)],
-                               causal_acceleration(qd, 1e-3, 25.0), atol=1e-12)
+                               causal_acceleration(qd, 1e-3, DEFAULT_ACCELERATION_CUTOFF_HZ),
+                               atol=1e-12)
     X = ftdrake.joint_state_layout(log)
     np.testing.assert_array_equal(X[:, 3:6], qd)

@@ -23,7 +23,7 @@ from ftdrake.data.logs import LogError, option_spelling
 from ftdrake.data.training import ReadOptions, load_training_data
 from ftdrake.errors import ConfigError
 from ftdrake.runtime.compensator import CompensatorSystem
-from ftdrake.signals import causal_acceleration
+from ftdrake.signals import DEFAULT_ACCELERATION_CUTOFF_HZ, causal_acceleration
 
 RATE_HZ = 125.0
 DT = 1 / RATE_HZ
@@ -91,11 +91,11 @@ def test_causal_option_equals_signals_causal_acceleration(tmp_path):
     log = sine_log()
     log.to_csv(tmp_path / "log.csv", index=False)
     qd = log.filter(regex=r"^qd_").to_numpy()
-    for cutoff in (10.0, None):  # None, and no scenario in the file: the config's 25 Hz
+    for cutoff in (10.0, None):  # None, and no scenario in the file: the config's default
         options = ReadOptions(velocities="qd_*", qdd_estimate="causal",
                               acceleration_cutoff_hz=cutoff)
         dut = load_training_data(tmp_path / "log.csv", options)
-        expected = causal_acceleration(qd, DT, cutoff or 25.0)
+        expected = causal_acceleration(qd, DT, cutoff or DEFAULT_ACCELERATION_CUTOFF_HZ)
         np.testing.assert_allclose(dut.X[:, 2 * N_JOINTS:], expected, rtol=0, atol=1e-9)
         np.testing.assert_array_equal(dut.X[:, N_JOINTS:2 * N_JOINTS], qd)
     # The default stays the study's Savitzky–Golay q̈, which differs.

@@ -6,6 +6,7 @@ import dataclasses as dc
 import math
 
 from ..errors import ConfigError
+from ..signals import DEFAULT_ACCELERATION_CUTOFF_HZ
 from .checks import finite, non_negative, positive, vector
 
 
@@ -13,9 +14,10 @@ from .checks import finite, non_negative, positive, vector
 class CompensatorConfig:
     """How a trained compensator runs in the loop (``CompensatorSystem``)."""
 
-    # Cut-off (Hz) of the first-order low-pass on the causal difference of q̇ that estimates q̈
-    # in the loop (a real controller has no q̈ sensor); training can use the same estimate.
-    acceleration_cutoff_hz: float = 25.0
+    # Cut-off (Hz) of the tracker on the causal difference of q̇ that estimates q̈ in the loop
+    # (a real controller has no q̈ sensor; signals.causal_acceleration); training can use the
+    # same estimate. Lower it for a noisy q̇: the noise it passes grows about as cutoff^1.5.
+    acceleration_cutoff_hz: float = DEFAULT_ACCELERATION_CUTOFF_HZ
 
     def validate(self, where: str = "compensator") -> None:
         positive(self.acceleration_cutoff_hz, f"{where}.acceleration_cutoff_hz")

@@ -16,6 +16,7 @@ import numpy as np
 
 from ..conventions import MEASURED, TORQUE, joint_columns, wrench_columns
 from ..errors import LogError
+from ..signals import DEFAULT_ACCELERATION_CUTOFF_HZ
 from .robot_log import RobotLog, assemble_log, option_hint, warn_log
 
 # --- Bags --------------------------------------------------------------------------------------
@@ -56,7 +57,7 @@ def read_bag(
     gap_factor: float = 3.0,
     check_units: bool = True,
     qdd_estimate: str = "savgol",
-    acceleration_cutoff_hz: float = 25.0,
+    acceleration_cutoff_hz: float = DEFAULT_ACCELERATION_CUTOFF_HZ,
 ) -> RobotLog:
     """Reads a ROS 1 bag (``.bag`` file, or several) or a ROS 2 bag (directory) with `rosbags`.
 

@@ -22,6 +22,7 @@ import pyarrow.parquet as pq
 
 from ..conventions import MEASURED, TIME
 from ..errors import LogError
+from ..signals import DEFAULT_ACCELERATION_CUTOFF_HZ
 from .robot_log import (
     ANGLE_UNITS,
     MIN_ROWS,
@@ -237,7 +238,7 @@ def read_table(
     gap_factor: float = 3.0,
     check_units: bool = True,
     qdd_estimate: str = "savgol",
-    acceleration_cutoff_hz: float = 25.0,
+    acceleration_cutoff_hz: float = DEFAULT_ACCELERATION_CUTOFF_HZ,
     temperature: str | None = None,
     label: str | None = None,
     min_rows: int = MIN_ROWS,

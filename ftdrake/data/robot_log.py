@@ -43,7 +43,7 @@ import pandas as pd
 
 from ..conventions import QD, QDD, TEMPERATURE, TIME, Q, joint_columns
 from ..errors import LogError
-from ..signals import causal_acceleration, savgol_derivative
+from ..signals import DEFAULT_ACCELERATION_CUTOFF_HZ, causal_acceleration, savgol_derivative
 
 MIN_ROWS = 10
 ANGLE_UNITS = {"rad": 1.0, "deg": np.pi / 180}
@@ -215,7 +215,8 @@ def _take(t, blocks, rows):
 def assemble_log(
     t, q, qd, qdd, targets, target_names, joint_names, source, *,
     sort, t0, position_unit, sg_window, sg_polyorder, gap_factor, check_units,
-    qdd_estimate="savgol", acceleration_cutoff_hz=25.0, temperature=None, min_rows=MIN_ROWS,
+    qdd_estimate="savgol", acceleration_cutoff_hz=DEFAULT_ACCELERATION_CUTOFF_HZ,
+    temperature=None, min_rows=MIN_ROWS,
 ) -> RobotLog:
     """Cleans rows, checks units and fills missing derivatives; see the module docstring.
 

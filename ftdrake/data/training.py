@@ -81,11 +81,11 @@ class ReadOptions:
         ``"causal"``: :func:`ftdrake.signals.causal_acceleration` of q̇, the estimate
         ``CompensatorSystem`` makes in the loop (which has no q̈ sensor and cannot look
         ahead). Use it for a ``q,qd,qdd`` model that will run in the loop: trained on a
-        Savitzky–Golay q̈, it sees at run time a q̈ that lags by about 1/(2π·cut-off) s and is
-        noisier, i.e. inputs unlike those it was fitted on.
-      acceleration_cutoff_hz: the causal estimate's low-pass cut-off (Hz); None: the
+        Savitzky–Golay q̈, it sees at run time a causal, noisier q̈, i.e. inputs unlike
+        those it was fitted on.
+      acceleration_cutoff_hz: the causal estimate's cut-off (Hz); None: the
         scenario's ``compensator.acceleration_cutoff_hz`` when the file carries one (a
-        ``collect`` dataset), else that field's default (25 Hz). Set it to the cut-off of the
+        ``collect`` dataset), else that field's default (12 Hz). Set it to the cut-off of the
         loop the model will run in.
       sg_window, sg_polyorder: Savitzky–Golay window (s) and order, see
         :func:`ftdrake.signals.savgol_derivative`.

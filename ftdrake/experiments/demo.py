@@ -177,29 +177,34 @@ def _train(train, progress):
     with warnings.catch_warnings():
         # Excitation is reported in the summary (condition number), not as a warning here.
         warnings.simplefilter("ignore", ExcitationWarning)
-        # A sensor is rarely mounted exactly as its model says; the rotation is identified
-        # with the payload (default_residual on what is left).
-        # A cable's hanging weight is not tool mass: its own 4 parameters
-        # (weight_without_inertia), so the payload's inertia is not inflated by it.
-        # Its pull depends on the configuration, which a residual on q learns only where
-        # the data went: a tether, its far end found among the arm's frames.
-        # Its std grows out of domain: the support term calibrated on the training runs
-        # farthest from the others, held out, then the hybrid refitted on every run.
-        # Not identify_crosstalk: it lowered the free-motion error, but its tighter std
-        # let the same error on the wall approaches raise 11 false contacts in
-        # evaluate-detection against none (docs/guide/calibration.md).
-        hybrid = HybridCompensator(physics=PhysicsPayloadCompensator(
-            identify_mounting=True, weight_without_inertia=True, tether="auto"))
+        hybrid = demo_hybrid()
         started = time.perf_counter()
         # One growth for all axes (in units of their training error): calibrated on two
         # or three runs, a growth per axis did not carry over to other runs (the guide).
-        # σ²_in stays the cross-fit's: the held-out runs' tighter one covers better but
-        # raised a false contact in free motion and after a re-tare in evaluate-detection
-        # (benchmarks/domain_calibration.py; the guide).
+        # σ²_in from the held-out runs too, one multiple of each axis' training error: the
+        # cross-fit's, from rows about a run away, over-covered next to the data (the guide).
         hybrid.fit_calibrated(X, Y, groups=train["trajectory"].to_numpy()[::every],
-                              share=DOMAIN_HOLDOUT_SHARE, shared_growth=True)
+                              share=DOMAIN_HOLDOUT_SHARE, shared_growth=True,
+                              in_domain="held_out")
         hybrid.domain_calibration_["fit_time_s"] = time.perf_counter() - started
     return {"forest": forest, "hybrid": hybrid}, search, X
+
+
+def demo_hybrid() -> HybridCompensator:
+    """The demo's hybrid, unfitted (what each option is for is said beside it)."""
+    return HybridCompensator(physics=PhysicsPayloadCompensator(
+        # A sensor is rarely mounted exactly as its model says; the rotation is identified
+        # with the payload (default_residual on what is left).
+        identify_mounting=True,
+        # The sensor's cross-talk too: the map to S then undoes it, so what the bias
+        # tracker sees of a grasped payload is the payload's own wrench.
+        identify_crosstalk=True,
+        # A cable's hanging weight is not tool mass: its own 4 parameters, so the
+        # payload's inertia is not inflated by it.
+        weight_without_inertia=True,
+        # Its pull depends on the configuration, which a residual on q learns only where
+        # the data went: a tether, its far end found among the arm's frames.
+        tether="auto"))
 
 
 def domain_coverage(model, X, Y) -> dict:

@@ -18,7 +18,7 @@ from ..compensation.compiled.loop import (
 )
 from ..compensation.features import check_feature_set
 from ..errors import ConfigError
-from ..signals import acceleration_filter_gain
+from ..signals import DEFAULT_ACCELERATION_CUTOFF_HZ, acceleration_filter_gains, estimator_size
 
 
 class CompensatorSystem(LeafSystem):
@@ -60,7 +60,8 @@ class CompensatorSystem(LeafSystem):
     """
 
     def __init__(self, model, period: float, *, n_joints: int | None = None,
-                 acceleration_cutoff_hz: float = 25.0, fast: bool = True):
+                 acceleration_cutoff_hz: float = DEFAULT_ACCELERATION_CUTOFF_HZ,
+                 fast: bool = True):
         super().__init__()
         check_model_fits(model, n_joints)
         if not (period > 0 and math.isfinite(period)):
@@ -87,8 +88,8 @@ class CompensatorSystem(LeafSystem):
         self._to_S = (np.empty((0, 6)) if to_model_frame is None
                       else np.ascontiguousarray(to_model_frame, dtype=float))
         self._lo, self._hi = _training_box(model)
-        alpha = acceleration_filter_gain(acceleration_cutoff_hz, self.period)
-        self._constants = np.array([alpha, self.period])
+        self._constants = np.array([*acceleration_filter_gains(acceleration_cutoff_hz,
+                                                               self.period), self.period])
         self._no_acceleration = np.zeros(n)
 
         self._wrench_port = self.DeclareVectorInputPort("wrench_measured", 6)
@@ -96,9 +97,9 @@ class CompensatorSystem(LeafSystem):
         self._accel_port = self.DeclareVectorInputPort("joint_acceleration", n)
         self._temperature_port = self.DeclareVectorInputPort("temperature", 1)
         self._nan_wrench = np.full(6, np.nan)
-        # Previous v (n), filtered v̇ (n), primed flag, and copies of the fault and
+        # The q̈ estimator's state (signals.estimator_size), and copies of the fault and
         # out-of-domain outputs (so the compiled update knows when those change).
-        self._estimator = self.DeclareDiscreteState(2 * n + 3)
+        self._estimator = self.DeclareDiscreteState(estimator_size(n) + 2)
         self._internal = self.DeclareDiscreteState(6)
         self._external = self.DeclareDiscreteState(6)
         self._std = self.DeclareDiscreteState(6)

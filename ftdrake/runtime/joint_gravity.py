@@ -7,7 +7,7 @@ so this system computes the same quantities from ``[q; v]`` through the robot's 
 serial chain (:class:`~ftdrake.physics.chain.SerialChain`), with q̈ estimated the way
 ``CompensatorSystem`` estimates it (a causal difference of v, low-passed at
 ``acceleration_cutoff_hz``). It feeds the bias tracker's payload estimate on hardware. α (and
-a_So) inherit the q̈ estimate's filter: a lag of ~1/(2π·cutoff) (6 ms at 25 Hz).
+a_So) inherit the q̈ estimate's filter (:func:`ftdrake.signals.causal_acceleration`).
 """
 
 from __future__ import annotations
@@ -20,7 +20,12 @@ from pydrake.systems.framework import LeafSystem
 
 from ..conventions import GRAVITY_W
 from ..physics.chain import SerialChain, sensor_kinematics_row
-from ..signals import acceleration_filter_gain, causal_acceleration_step
+from ..signals import (
+    DEFAULT_ACCELERATION_CUTOFF_HZ,
+    acceleration_filter_gains,
+    causal_acceleration_step,
+    estimator_size,
+)
 
 
 class JointStateGravity(LeafSystem):
@@ -40,7 +45,8 @@ class JointStateGravity(LeafSystem):
     alone: a payload is then only identified right while the arm moves slowly).
     """
 
-    def __init__(self, chain: SerialChain, period: float, *, acceleration_cutoff_hz: float = 25.0,
+    def __init__(self, chain: SerialChain, period: float, *,
+                 acceleration_cutoff_hz: float = DEFAULT_ACCELERATION_CUTOFF_HZ,
                  gravity_W=GRAVITY_W, include_acceleration: bool = True):
         super().__init__()
         if not (period > 0 and math.isfinite(period)):
@@ -49,12 +55,11 @@ class JointStateGravity(LeafSystem):
             raise ValueError("JointStateGravity needs one velocity per position (no quaternions)")
         self.chain = chain
         n = self.n = chain.num_positions
-        self._constants = np.array([acceleration_filter_gain(acceleration_cutoff_hz, period),
+        self._constants = np.array([*acceleration_filter_gains(acceleration_cutoff_hz, period),
                                     float(period), float(bool(include_acceleration))])
         self._gravity_W = np.asarray(gravity_W, dtype=float)
         self._state_port = self.DeclareVectorInputPort("joint_state", 2 * n)
-        # previous v (n), filtered v̇ (n), primed flag (1)
-        self._estimator = self.DeclareDiscreteState(2 * n + 1)
+        self._estimator = self.DeclareDiscreteState(estimator_size(n))  # the q̈ estimator's
         self._gravity = self.DeclareDiscreteState(3)
         self._motion = self.DeclareDiscreteState(6)
         self.DeclarePeriodicDiscreteUpdateEvent(period, 0.0, self._update)
@@ -86,8 +91,8 @@ def _apparent_gravity(x, estimator, g_S, motion, constants, gravity_W, X_pre, ki
             return
     q, v = x[:n], x[n:]
     vdot = np.empty(n)
-    causal_acceleration_step(v, estimator, constants[0], constants[1], vdot)
-    with_acceleration = constants[2]
+    causal_acceleration_step(v, estimator, constants[0], constants[1], constants[2], vdot)
+    with_acceleration = constants[3]
     R = np.empty((3, 3))
     out = np.empty((4, 3))
     sensor_kinematics_row(q, v, vdot, gravity_W, X_pre, kinds, axes, q_index, v_index, R, out)

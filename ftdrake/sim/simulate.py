@@ -239,8 +239,7 @@ def _add_joint_columns(frame: dict, x, acceleration, n: int, period: float,
                        cutoff_hz: float) -> None:
     """q, q̇, q̈ from the plant, and q̇, q̈ as the loop's compensator gets them: the joint
     state's q̇ and its causal q̈ estimate. A model trained on central differences instead
-    (zero lag) meets the estimate's lag (≈ 1 / (2π·cutoff)) only in the loop, where it errs
-    wherever q̈ changes fast."""
+    meets the estimate's own error (its transients where q̈ changes rate) only in the loop."""
     q, qd = x[:, :n], x[:, n:]
     qd_est, qdd_est = qd, causal_acceleration(qd, period, cutoff_hz)
     for prefix, values in (

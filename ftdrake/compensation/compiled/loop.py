@@ -5,7 +5,7 @@ the compensated wrench.
 signature::
 
     update(wrench (6), x (2n) [q; v], accel (n), measured (bool), estimator (2n + 3),
-           lo, hi (used inputs' training range), constants [α, period], to_S (6 × 6 or 0 × 6),
+           lo, hi (used inputs' training range), constants [g, h, period], to_S (6 × 6 or 0 × 6),
            *arrays, internal (6), external (6), std (6)) -> status bits
 
 that checks the inputs (:func:`prepare_row`), predicts the internal wrench and its std into
@@ -41,12 +41,12 @@ def prepare_row(wrench, x, accel, measured, estimator, row, lo, hi, constants):
     """Checks the inputs and builds the feature row [q, v, v̇] in place.
 
     On NaN/inf in any input, writes nothing but the fault copy and returns FAULT. Otherwise
-    updates the acceleration estimator (a causal difference of v, low-passed with
-    ``constants = [α, period]``) unless `measured`, and checks the used inputs against
+    updates the acceleration estimator (:func:`~ftdrake.signals.causal_acceleration_step`
+    with ``constants = [g, h, period]``) unless `measured`, and checks the used inputs against
     [lo, hi]. Returns the status bits.
     """
     n = len(accel)
-    fault_slot, ood_slot = 2 * n + 1, 2 * n + 2
+    fault_slot, ood_slot = 3 * n + 1, 3 * n + 2
     finite = True
     for value in wrench:
         finite = finite and np.isfinite(value)
@@ -66,12 +66,12 @@ def prepare_row(wrench, x, accel, measured, estimator, row, lo, hi, constants):
         status |= FAULT_CHANGED
     if measured:
         for i in range(n):
-            estimator[i], estimator[n + i] = x[n + i], accel[i]
+            estimator[i], estimator[n + i], estimator[2 * n + i] = x[n + i], accel[i], 0.0
             row[2 * n + i] = accel[i]
-        estimator[2 * n] = 1.0
+        estimator[3 * n] = 1.0
     else:
         causal_acceleration_step(x[n:2 * n], estimator, constants[0], constants[1],
-                                 row[2 * n:3 * n])
+                                 constants[2], row[2 * n:3 * n])
     for i in range(2 * n):
         row[i] = x[i]
     ood = False
