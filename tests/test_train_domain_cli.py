@@ -64,6 +64,27 @@ def test_calibration_on_another_log_and_the_refusals(ftdrake, logs, tmp_path):
                    "--robot", "ftdrake", "--domain-shared-growth", "--max-rows", "300",
                    "--out", tmp_path / "s.ftd")
     assert "--domain-shared-growth needs --domain-holdout or --domain-calibration" in line
+    line = failure(ftdrake, "train", "--data", logs / "runs.parquet", "--kind", "hybrid",
+                   "--robot", "ftdrake", "--domain-level", "held_out", "--max-rows", "300",
+                   "--out", tmp_path / "l.ftd")
+    assert "--domain-level needs --domain-holdout or --domain-calibration" in line
+
+
+def test_the_demos_calibration_from_the_command_line(ftdrake, logs, tmp_path):
+    """--domain-shared-growth --domain-level held_out: the level next to the data from the
+    held-out runs too, never below the residual's training error (as the demo calibrates;
+    the shared level's arithmetic: test_domain_calibration.py)."""
+    path = tmp_path / "d.ftd"
+    manifest = train(ftdrake, logs / "runs.parquet", path, "--kind", "hybrid", "--robot",
+                     "ftdrake", "--preset", "none", "--domain-holdout", "0.3",
+                     "--domain-shared-growth", "--domain-level", "held_out",
+                     "--max-rows", "1200")
+    record = manifest["extra"]["domain_calibration"]
+    assert record["in_domain"] == "held_out"
+    model = model_of(path)
+    assert np.all(model.residual_noise_var_ >= model.residual_training_var_ * (1 - 1e-9))
+    assert model.domain_parameter_scale_ == pytest.approx(record["parameter_variance_scale"])
+    assert record["parameter_variance_scale"] != 1.0  # fitted; "cross_fit" keeps c = 1
 
 
 

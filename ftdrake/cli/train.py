@@ -43,7 +43,7 @@ from sklearn.base import clone
 from ..compensation import registry
 from ..compensation.build import BUILTIN_ROBOT, RobotOptions, is_wrench
 from ..compensation.calibration import static_table_hint
-from ..compensation.domain import MIN_GROUPS
+from ..compensation.domain import IN_DOMAIN_SOURCES, MIN_GROUPS
 from ..compensation.evaluation import target_ranges
 from ..compensation.features import check_feature_set
 from ..compensation.hybrid import HybridCompensator
@@ -167,6 +167,12 @@ def _add_domain_flags(p) -> None:
         "--domain-shared-growth", action="store_true",
         help="with --domain-holdout/--domain-calibration: one growth of the std for all axes, "
              "in units of each axis' training error (default: one per axis)")
+    p.add_argument(
+        "--domain-level", choices=IN_DOMAIN_SOURCES, default="cross_fit",
+        help="with --domain-holdout/--domain-calibration: where the std's level next to the "
+             "data comes from: the fit's cross-fit (default) or the held-out rows too "
+             "(with --domain-shared-growth one multiple of each axis' training error; the "
+             "demo's choice)")
 
 
 def _add_model_options(p) -> None:
@@ -248,10 +254,10 @@ def target_units(text: str | None, names: list[str]) -> list[str]:
 # -- train --------------------------------------------------------------------------------------
 def run_train(args) -> int:
     say = reporter(args.quiet)
-    if args.domain_shared_growth and args.domain_holdout is None and (
-            args.domain_calibration is None):
-        raise ConfigError("--domain-shared-growth needs --domain-holdout or "
-                          "--domain-calibration")
+    for flag, given in (("--domain-shared-growth", args.domain_shared_growth),
+                        ("--domain-level", args.domain_level != "cross_fit")):
+        if given and args.domain_holdout is None and args.domain_calibration is None:
+            raise ConfigError(f"{flag} needs --domain-holdout or --domain-calibration")
     options = with_flags(ReadOptions(), args)
     data = read_data(args, options, say)
     robot = RobotOptions(args.robot, args.sensor_frame, args.base_frame, data.scenario_yaml,
@@ -281,7 +287,8 @@ def run_train(args) -> int:
         say(f"fitting {args.kind}{why} on {len(data.X)} rows …")
         started = time.perf_counter()
         model = _fit(estimator, data, needs_robot=registry.entry(args.kind).needs_robot,
-                     holdout=args.domain_holdout, shared_growth=args.domain_shared_growth)
+                     holdout=args.domain_holdout, shared_growth=args.domain_shared_growth,
+                     in_domain=args.domain_level)
         say(f"fitted in {time.perf_counter() - started:.1f} s")
     domain = _calibrate_domain(args, options, model, data, say)
     if hasattr(model, "summary"):  # physics and hybrid: the identified payload
@@ -343,7 +350,7 @@ def _align_streams(args, data: TrainingData, estimator, say):
 
 
 def _fit(estimator, data: TrainingData, *, needs_robot: bool, holdout: float | None = None,
-         shared_growth: bool = False):
+         shared_growth: bool = False, in_domain: str = "cross_fit"):
     """Fits `estimator` (with `holdout`, a hybrid's :meth:`fit_calibrated` on that share of
     the runs). A robot-based model's ValueErrors are about the robot description (joint
     count, frames); they name the flags that choose it."""
@@ -352,7 +359,7 @@ def _fit(estimator, data: TrainingData, *, needs_robot: bool, holdout: float | N
             return estimator.fit(data.X, data.Y)
         runs = data.groups if len(np.unique(data.groups)) >= MIN_GROUPS else None
         return estimator.fit_calibrated(data.X, data.Y, groups=runs, share=holdout,
-                                        shared_growth=shared_growth)
+                                        shared_growth=shared_growth, in_domain=in_domain)
 
     if holdout is not None:
         _needs_hybrid(estimator, "--domain-holdout")
@@ -389,12 +396,14 @@ def _calibrate_domain(args, options: ReadOptions, model, data: TrainingData, say
                            f"({log.target_names}) are not the training data's "
                            f"({data.target_names}); give a log of the same robot and sensor")
         before = coverage(log.Y, model.predict(log.X), model.predict_std(log.X))
-        model.calibrate_domain(log.X, log.Y, shared_growth=args.domain_shared_growth)
+        model.calibrate_domain(log.X, log.Y, shared_growth=args.domain_shared_growth,
+                               in_domain=args.domain_level)
         found = {"file": str(args.domain_calibration), "rows": len(log.X),
                  "length": (float(model.domain_length_) if np.isfinite(model.domain_length_)
                             else None),  # None: ∞
                  "growth": model.domain_growth_.tolist(),
                  "shared_growth": bool(args.domain_shared_growth),
+                 "in_domain": args.domain_level,
                  "in_domain_std": np.sqrt(model.residual_noise_var_).tolist(),
                  "parameter_variance_scale": float(model.domain_parameter_scale_),
                  "coverage_95_before": before.tolist(),

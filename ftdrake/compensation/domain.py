@@ -154,9 +154,10 @@ def calibrate(d, target, predicted, in_var, far_var, parameter_var, *,
     axes: one covariance). Why one might: the cross-fit's residual learned from half the runs,
     so its error is that of rows about a run away, not of rows next to the training data, and
     the parameters' covariance treats the physics part's training error as white noise, most
-    of which the residual explains. Why it is not the default: the tighter std raised a false
-    contact in free motion and after a re-tare where the cross-fit's did not
-    (docs/guide/calibration.md has both, measured on the same runs).
+    of which the residual explains. Why it is not the default: its tighter std rests on the
+    few held-out runs, and where the model's own error is larger than they show it raises
+    false contacts the cross-fit's std does not (docs/guide/calibration.md: both, measured;
+    the demo uses it with `shared`).
 
     `shared`: one growth for all axes in units of each axis' σ²_far, g²ₐ = κ · σ²_far,ₐ (an
     axis whose physics part errs more in training errs more away from it), and with

@@ -196,8 +196,8 @@ def demo_hybrid() -> HybridCompensator:
         # A sensor is rarely mounted exactly as its model says; the rotation is identified
         # with the payload (default_residual on what is left).
         identify_mounting=True,
-        # The sensor's cross-talk too: the map to S then undoes it, so what the bias
-        # tracker sees of a grasped payload is the payload's own wrench.
+        # The sensor's cross-talk too, in the prediction of the readings (a contact is
+        # still mapped to S by the rotation alone: reading_to_model_frame).
         identify_crosstalk=True,
         # A cable's hanging weight is not tool mass: its own 4 parameters, so the
         # payload's inertia is not inflated by it.
