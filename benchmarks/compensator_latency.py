@@ -28,9 +28,9 @@ through
   (``hybrid.default_residual``: one multi-output forest of 50 trees on q), with a
   multi-output residual of 100 trees and with per-axis forests (6 × 100 trees, the study's
   layout), and as the demo's (mounting rotation and weight without inertia, 20 parameters;
-  with a tether, 22); for the default residual also the fused kernel writing into preallocated
-  buffers (what ``CompensatorSystem`` does) and the two-call row it replaced (the payload row,
-  the forest row, combined in numpy),
+  with a tether and the cross-talk, ``demo.demo_hybrid``); for the default residual also the
+  fused kernel writing into preallocated buffers (what ``CompensatorSystem`` does) and the
+  two-call row it replaced (the payload row, the forest row, combined in numpy),
 
 beside the compiled forests of the first part (the per-axis one is RandomForestCompensator's
 default, the demo's forest). The residual here is the noise of the synthetic readings, so its
@@ -73,6 +73,7 @@ from ftdrake.compensation.physics import (
     payload_regressor,
 )
 from ftdrake.config import DetectorConfig
+from ftdrake.experiments import demo
 from ftdrake.physics.rigid_body import sensor_kinematics
 from ftdrake.runtime.detector import chi2_threshold, detect_chi2
 
@@ -222,7 +223,7 @@ def main() -> None:
         ("hybrid, default, no support term", physics["hybrid_no_support_row_us"]),
         ("χ² test of the detector, one sample", physics["chi2_test_us"]),
         ("hybrid as the demo's (mounting, 20 p.)", physics["hybrid_demo_row_us"]),
-        ("hybrid as the demo's, tether (22 p.)", physics["hybrid_tether_row_us"]),
+        ("hybrid as the demo's, tether + cross-talk", physics["hybrid_tether_row_us"]),
         ("hybrid, default, kernel into buffers", physics["hybrid_kernel_us"]),
         ("hybrid, default, two calls (before)", physics["hybrid_two_call_row_us"]),
         ("hybrid, multi-output residual, 100 t.", physics["hybrid_multi_output_row_us"]),
@@ -296,11 +297,11 @@ def physics_latency(X_train, rows) -> dict:
         warnings.simplefilter("ignore", ExcitationWarning)  # no weight in these readings
         hybrids["demo"] = HybridCompensator(physics=PhysicsPayloadCompensator(
             identify_mounting=True, weight_without_inertia=True)).fit(X_train, Y)
-        # This round's demo: a tether as well (22 parameters; the frames of the arm's
-        # joints in S and the tether's columns in the kernel). No cable in these readings:
-        # the search fits one to noise, which costs the same per row.
-        hybrids["tether"] = HybridCompensator(physics=PhysicsPayloadCompensator(
-            identify_mounting=True, weight_without_inertia=True, tether="auto")).fit(X_train, Y)
+        # The demo's now (demo.demo_hybrid): a tether as well (22 parameters; the frames of
+        # the arm's joints in S and the tether's columns in the kernel) and the cross-talk
+        # (the reading matrix). No cable in these readings: the search fits one to noise,
+        # which costs the same per row.
+        hybrids["tether"] = demo.demo_hybrid().fit(X_train, Y)
 
     plant, frame_S = physics.robot_description().build_plant()
     context = plant.CreateDefaultContext()
