@@ -170,9 +170,9 @@ def _add_domain_flags(p) -> None:
     p.add_argument(
         "--domain-level", choices=IN_DOMAIN_SOURCES, default="cross_fit",
         help="with --domain-holdout/--domain-calibration: where the std's level next to the "
-             "data comes from: the fit's cross-fit (default) or the held-out rows too "
-             "(with --domain-shared-growth one multiple of each axis' training error; the "
-             "demo's choice)")
+             "data comes from: the fit's cross-fit or the held-out rows too (with "
+             "--domain-shared-growth one multiple of each axis' training error; the demo's "
+             "choice) (default: cross_fit)")
 
 
 def _add_model_options(p) -> None:
