@@ -215,11 +215,14 @@ def identify_correction(W_S, Y, structure="block", temperature=None,
             np.zeros(D.shape[1], bool)
         se_unit = np.where(free, np.inf, np.sqrt(np.maximum(np.diag(unit), 0.0)))
         for row, i in enumerate(cols):
+            # A free entry's error is ∞ even where the fit leaves no residual (0 · ∞).
+            se = np.where(np.isinf(se_unit), np.inf, np.sqrt(sigma2[row]) * np.where(
+                np.isinf(se_unit), 0.0, se_unit))
             M[i, cols] += coef[:nc, row]
-            M_se[i, cols] = np.sqrt(sigma2[row]) * se_unit[:nc]
-            bias[i], bias_se[i] = coef[nc, row], np.sqrt(sigma2[row]) * se_unit[nc]
+            M_se[i, cols] = se[:nc]
+            bias[i], bias_se[i] = coef[nc, row], se[nc]
             if d is not None:
-                k[i], k_se[i] = coef[nc + 1, row], np.sqrt(sigma2[row]) * se_unit[nc + 1]
+                k[i], k_se[i] = coef[nc + 1, row], se[nc + 1]
             per_row[i] = (cols, sigma2[row] * unit[:nc, :nc], null[:nc])
         if r < D.shape[1]:
             undetermined.append(_describe_null(cols, null[:nc]))

@@ -8,17 +8,17 @@
    ``other_surfaces`` (``demo --rehearse-all-surfaces``) also one rehearsal at each other
    surface of the task (the wall), trained on and held out; off by default.
 2. Train, on the same data, the study's model — a multi-output random forest on joint
-   positions, `quick` grid, folds grouped by trajectory segment — and the hybrid: the rigid
-   payload, the biases, the sensor's mounting rotation and a weight carried without inertia
-   identified (physically consistent fit) plus a forest on its residual, its std growing
-   out of domain: the support term is calibrated on the training runs farthest from the
-   others (``DOMAIN_HOLDOUT_SHARE`` of the rows, held out for it), then the hybrid is
-   refitted on every run (:meth:`~ftdrake.compensation.hybrid.HybridCompensator.
-   fit_calibrated`); the summary reports its coverage in and out of domain on the held-out
-   runs below (``domain_coverage``). One rehearsal and one
-   run of each free-motion kind are held out; each model's detector thresholds follow from
-   its residual there (the samples the detector judges) and the scenario's false-positive
-   budget, ``detector.false_positives_per_hour``
+   positions, `quick` grid, folds grouped by trajectory segment — and the hybrid
+   (:func:`demo_hybrid`): the rigid payload, the biases, the sensor's mounting rotation and
+   cross-talk, a weight carried without inertia and the cable's pull (a tether) identified
+   plus a forest on its residual, its std growing out of domain: the support term and the
+   in-domain level are calibrated on the training runs farthest from the others
+   (``DOMAIN_HOLDOUT_SHARE`` of the rows, held out for it), then the hybrid is refitted on
+   every run (:meth:`~ftdrake.compensation.hybrid.HybridCompensator.fit_calibrated`); the
+   summary reports its coverage in and out of domain on the held-out runs below
+   (``domain_coverage``). One rehearsal and one run of each free-motion kind are held out;
+   each model's detector thresholds follow from its residual there (the samples the detector
+   judges) and the scenario's false-positive budget, ``detector.false_positives_per_hour``
    (:func:`~ftdrake.runtime.thresholds.thresholds_for_false_positive_rate`).
 3. Run the same contact scenario, trajectory seed and sensor noise not seen in training, with
    each model and its detector in the loop at the sensor rate, and score both against the

@@ -4,7 +4,7 @@ the compensated wrench.
 ``CompensatorSystem`` runs every sample through a *fused update*, a numba function with the
 signature::
 
-    update(wrench (6), x (2n) [q; v], accel (n), measured (bool), estimator (2n + 3),
+    update(wrench (6), x (2n) [q; v], accel (n), measured (bool), estimator (3n + 3),
            lo, hi (used inputs' training range), constants [g, h, period], to_S (6 × 6 or 0 × 6),
            *arrays, internal (6), external (6), std (6)) -> status bits
 
