@@ -49,15 +49,16 @@ def savgol_derivative(
 #: The loop's default cut-off for its q̈ estimate (Hz; ``compensator.acceleration_cutoff_hz``).
 #: At 1 kHz the tracker passes white noise on q̇ with the gain the first-order low-pass at
 #: 25 Hz it replaced had (0.144 against 0.151 rad/s² per mrad/s), and follows q̈ with a
-#: third of that filter's error on the demo's wall runs (RMS 0.0054 against 0.017 rad/s²):
+#: third of that filter's error on a wall run of evaluate-detection (RMS 0.0054 against
+#: 0.017 rad/s²):
 #: that filter lagged q̈ by 1/(2π·25 Hz) = 6.4 ms, this one follows a q̈ ramp without lag.
 DEFAULT_ACCELERATION_CUTOFF_HZ = 12.0
 
 
 def acceleration_filter_gains(cutoff_hz: float, period: float) -> tuple[float, float]:
     """(g, h) of the loop's q̈ tracker at `cutoff_hz`, sampled every `period` s: the
-    critically damped (fading-memory) g–h filter, g = 1 − θ², h = (1 − θ)², θ = e^(−2π·cutoff·
-    period)."""
+    critically damped (fading-memory) g–h filter, g = 1 − θ², h = (1 − θ)² with
+    θ = exp(−2π · cutoff · period)."""
     theta = math.exp(-2 * math.pi * cutoff_hz * period)
     return 1.0 - theta * theta, (1.0 - theta) ** 2
 
@@ -104,6 +105,16 @@ def causal_acceleration_step(v, estimator, g, h, period, vdot):
             vdot[i] = 0.0
             estimator[2 * n + i] = 0.0
         estimator[i], estimator[n + i] = v[i], vdot[i]
+    estimator[3 * n] = 1.0
+
+
+@numba.njit(cache=True)
+def hold_acceleration(v, vdot, estimator):
+    """Puts :func:`causal_acceleration_step`'s `estimator` at a measured q̇ `v` and q̈ `vdot`
+    (a robot that reports q̈): the next step starts from them, with no jerk."""
+    n = len(v)
+    for i in range(n):
+        estimator[i], estimator[n + i], estimator[2 * n + i] = v[i], vdot[i], 0.0
     estimator[3 * n] = 1.0
 
 

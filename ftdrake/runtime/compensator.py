@@ -28,8 +28,8 @@ class CompensatorSystem(LeafSystem):
       wrench_measured (6): sensor reading ``[Fx Fy Fz Tx Ty Tz]`` in N, N·m, sensor frame S.
       joint_state (2n): ``[q; v]`` in rad, rad/s, as a plant's (model instance) state port.
       joint_acceleration (n, optional): v̇ in rad/s². When not connected, it is estimated
-        inside by a causal difference of v low-passed at ``acceleration_cutoff_hz`` (a real
-        controller has no q̈ sensor).
+        inside from v (:func:`ftdrake.signals.causal_acceleration` at
+        ``acceleration_cutoff_hz``; a real controller has no q̈ sensor).
       temperature (1, optional): the sensor's temperature in °C (the noisy sensor's
         ``temperature`` port). Read only by a model trained with the temperature
         (``model.temperature_in_``; ``needs_temperature``), which then requires it: a

@@ -5,9 +5,9 @@ The simulation's :class:`~ftdrake.systems.sensor_gravity.SensorGravity` reads th
 body poses, velocities and accelerations. A live robot has no plant, only its joint state,
 so this system computes the same quantities from ``[q; v]`` through the robot's compiled
 serial chain (:class:`~ftdrake.physics.chain.SerialChain`), with q̈ estimated the way
-``CompensatorSystem`` estimates it (a causal difference of v, low-passed at
+``CompensatorSystem`` estimates it (:func:`ftdrake.signals.causal_acceleration` at
 ``acceleration_cutoff_hz``). It feeds the bias tracker's payload estimate on hardware. α (and
-a_So) inherit the q̈ estimate's filter (:func:`ftdrake.signals.causal_acceleration`).
+a_So) inherit that estimate's filter.
 """
 
 from __future__ import annotations

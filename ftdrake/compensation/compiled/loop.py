@@ -25,7 +25,7 @@ from __future__ import annotations
 import numba
 import numpy as np
 
-from ...signals import causal_acceleration_step
+from ...signals import causal_acceleration_step, hold_acceleration
 from .forest import forest_accumulate_with_std
 from .hybrid import hybrid_row
 
@@ -46,7 +46,7 @@ def prepare_row(wrench, x, accel, measured, estimator, row, lo, hi, constants):
     [lo, hi]. Returns the status bits.
     """
     n = len(accel)
-    fault_slot, ood_slot = 3 * n + 1, 3 * n + 2
+    fault_slot, ood_slot = len(estimator) - 2, len(estimator) - 1  # after the q̈ estimator's
     finite = True
     for value in wrench:
         finite = finite and np.isfinite(value)
@@ -65,10 +65,9 @@ def prepare_row(wrench, x, accel, measured, estimator, row, lo, hi, constants):
         estimator[fault_slot] = 0.0
         status |= FAULT_CHANGED
     if measured:
+        hold_acceleration(x[n:2 * n], accel, estimator)
         for i in range(n):
-            estimator[i], estimator[n + i], estimator[2 * n + i] = x[n + i], accel[i], 0.0
             row[2 * n + i] = accel[i]
-        estimator[3 * n] = 1.0
     else:
         causal_acceleration_step(x[n:2 * n], estimator, constants[0], constants[1],
                                  constants[2], row[2 * n:3 * n])
