@@ -65,17 +65,20 @@ def payload_wrench(g, mass, com):
 
 
 def run(wrench, *, config=None, contact=0.0, detector=None, flags=None, gravity=None,
-        motion=None, tared=None, changed=None, estimate=None, stops=()):
+        motion=None, tared=None, changed=None, estimate=None, stops=(), payload_map=None,
+        model_std=None, tracker_std=True):
     """Simulates the tracker on `wrench` (rows: samples); returns (logs, snapshots).
 
     logs[name][k] is the output after sample k. `contact` is a constant or, with `detector`
-    (a DetectorConfig), the real ContactDetector in the loop. `flags` maps out_of_domain /
-    fault / contact to per-sample arrays. `estimate` = (bias, payload) starts it settled.
-    `stops`: times (s) at which to copy the estimator's state (after the samples < t).
+    (a DetectorConfig), the real ContactDetector in the loop; `model_std` (6) is then the
+    compensator's std it reads, with the tracker's added when `tracker_std`. `flags` maps
+    out_of_domain / fault / contact to per-sample arrays. `estimate` = (bias, payload)
+    starts it settled. `stops`: times (s) at which to copy the estimator's state (after the
+    samples < t). `payload_map`: the tracker's K.
     """
     config = config or BiasTrackerConfig(track_payload=gravity is not None)
     builder = DiagramBuilder()
-    dut = builder.AddSystem(OnlineBiasTracker(config, SENSOR, PERIOD))
+    dut = builder.AddSystem(OnlineBiasTracker(config, SENSOR, PERIOD, payload_map=payload_map))
     builder.Connect(builder.AddSystem(zoh(wrench)).get_output_port(),
                     dut.get_input_port_wrench_compensated())
     flags = dict(flags or {})
@@ -83,6 +86,12 @@ def run(wrench, *, config=None, contact=0.0, detector=None, flags=None, gravity=
         det = builder.AddSystem(ContactDetector(detector, PERIOD))
         builder.Connect(dut.get_output_port_wrench_contact(), det.get_input_port_wrench_contact())
         builder.Connect(det.get_output_port_contact(), dut.get_input_port_contact())
+        if model_std is not None:
+            builder.Connect(builder.AddSystem(ConstantVectorSource(model_std)).get_output_port(),
+                            det.get_input_port_wrench_std())
+            if tracker_std:
+                builder.Connect(dut.get_output_port_wrench_std(),
+                                det.get_input_port_wrench_std_tracker())
     elif "contact" not in flags:
         builder.Connect(builder.AddSystem(ConstantVectorSource([contact])).get_output_port(),
                         dut.get_input_port_contact())
@@ -93,7 +102,7 @@ def run(wrench, *, config=None, contact=0.0, detector=None, flags=None, gravity=
             values = np.asarray(values, dtype=float).reshape(len(wrench), -1)
             builder.Connect(builder.AddSystem(zoh(values)).get_output_port(),
                             dut.GetInputPort(name))
-    names = ["wrench_contact", "bias", "tracking"] + (["payload", "payload_inertia"]
+    names = ["wrench_contact", "bias", "tracking", "wrench_std"] + (["payload", "payload_inertia"]
                                                        if dut.track_payload else [])
     logs = {name: LogVectorOutput(dut.GetOutputPort(name), builder, PERIOD) for name in names}
     if detector is not None:
@@ -333,6 +342,100 @@ def test_grasp_identified_in_arm_motion_with_the_motion_terms(arm_motion, with_m
     np.testing.assert_allclose(out["payload_inertia"][-1], I_true, rtol=0, atol=2e-4)
 
 
+def crosstalk(seed):
+    """I + E: a sensor calibration's cross-talk, ±1 % per entry (torque rows and columns
+    scaled by 5 cm: up to 0.2 N per N·m), as the simulated sensor draws it."""
+    from ftdrake.systems.noisy_sensor import crosstalk_matrix
+    return crosstalk_matrix(0.01, 0.05, seed)
+
+
+@pytest.mark.parametrize("mapped", [True, False])
+def test_a_payload_is_read_through_the_models_sensor_matrix(arm_motion, mapped):
+    """The grasp above read through a sensor's cross-talk K (the tool's model knows K: the
+    compensator's identified reading matrix). With ``payload_map=K`` the tracker reads the
+    payload through it: back within 2σ in the settle window and the first moment to 1 g·m.
+    Without it the cross-talk's share of the payload's 0.6 N·m (up to 0.2 N per N·m, 8 σ of
+    a force axis) stays in the corrected wrench."""
+    t, kin = arm_motion
+    mass, p = 0.5, np.array([0.0, 0.02, 0.12])
+    K = crosstalk(3)
+    k0 = round(1.0 / PERIOD)
+    held = (np.arange(len(t)) >= k0)[:, None]
+    n = noise(len(t), 13)
+    wrench = BIAS + np.where(held, point_mass_wrench(mass, p, kin) @ K.T, 0.0) + n
+    changed = np.zeros(len(t))
+    changed[k0] = 1.0
+    out, _ = run(wrench, gravity=kin.g_S - kin.a_WSo_S, motion=np.hstack([kin.w_WS_S,
+                 kin.alpha_WS_S]), changed=changed, estimate=(BIAS, np.zeros(4)),
+                 payload_map=K if mapped else None)
+    error = (out["wrench_contact"] - n) / SIGMA
+    late = t >= t[-1] - 1.0
+    worst = np.abs(error[late]).max(axis=0)
+    print(f"mapped={mapped}: Δ(m·c) {1e3 * out['payload'][-1, 1:]} g·m, in the last second "
+          f"{worst.round(1)} σ")
+    if not mapped:
+        assert worst.max() > 4.0
+        return
+    assert settle_time(error, 2.0, k0) <= 5.0
+    np.testing.assert_allclose(out["payload"][-1, 1:], mass * p, atol=1e-3)
+
+
+def test_the_trackers_std_covers_what_it_has_not_yet_identified(arm_motion):
+    """After a signalled grasp in brisk motion, ``wrench_std`` (Φ·S·R⁻¹·S·Φᵀ) is the
+    spread of the tracker's own error (the corrected wrench less the noise): after the
+    hold, the RMS of error / std is 0.4–1.6 on every axis and the error within 2 std on
+    ≥ 85 % of the samples (its errors are correlated over many samples: measured 0.48–1.2
+    and 87–100 % on two noise seeds); in the hold the std is the payload's prior (a 5 kg
+    weight: > 10 N on some force axis), and it shrinks to below 0.5 σ of the noise as the
+    payload is identified."""
+    t, kin = arm_motion
+    mass, p = 0.5, np.array([0.0, 0.02, 0.12])
+    k0 = round(1.0 / PERIOD)
+    held = (np.arange(len(t)) >= k0)[:, None]
+    n = noise(len(t), 14)
+    wrench = BIAS + np.where(held, point_mass_wrench(mass, p, kin), 0.0) + n
+    changed = np.zeros(len(t))
+    changed[k0] = 1.0
+    out, _ = run(wrench, gravity=kin.g_S - kin.a_WSo_S, motion=np.hstack([kin.w_WS_S,
+                 kin.alpha_WS_S]), changed=changed, estimate=(BIAS, np.zeros(4)))
+    error, std = out["wrench_contact"][k0:] - n[k0:], out["wrench_std"][k0:]
+    hold = BiasTrackerConfig().hold_samples
+    z = error[hold:] / std[hold:]
+    rms, covered = np.sqrt((z**2).mean(axis=0)), (np.abs(z) <= 2).mean(axis=0)
+    late = (std[-1000:] / SIGMA).max()
+    print(f"error / std RMS {rms.round(2)}, within 2 std {covered.round(3)}; in the "
+          f"hold ≥ {std[:hold, :3].max(axis=1).min():.1f} N; last second ≤ {late:.3f} σ")
+    assert np.all((rms >= 0.4) & (rms <= 1.6)), rms
+    assert np.all(covered >= 0.85), covered
+    assert std[:hold, :3].max(axis=1).min() > 10.0
+    assert late < 0.5
+
+
+def test_the_trackers_std_keeps_a_grasp_from_reading_as_contact(arm_motion):
+    """The χ² detector at the 1-per-hour budget on the grasp above, the compensator's std
+    1.2 σ: with the tracker's std added (as the chain wires it) no contact is read from the
+    grasp on; with the compensator's std alone the payload still being identified is."""
+    t, kin = arm_motion
+    mass, p = 0.5, np.array([0.0, 0.02, 0.12])
+    k0 = round(1.0 / PERIOD)
+    held = (np.arange(len(t)) >= k0)[:, None]
+    n = noise(len(t), 15)
+    wrench = BIAS + np.where(held, point_mass_wrench(mass, p, kin), 0.0) + n
+    changed = np.zeros(len(t))
+    changed[k0] = 1.0
+    detector = DetectorConfig(test="chi2")
+    contact = {}
+    for added in (True, False):
+        out, _ = run(wrench, gravity=kin.g_S - kin.a_WSo_S, motion=np.hstack([
+            kin.w_WS_S, kin.alpha_WS_S]), changed=changed, estimate=(BIAS, np.zeros(4)),
+            detector=detector, model_std=1.2 * SIGMA, tracker_std=added)
+        contact[added] = out["contact"][:, 0].sum() * PERIOD
+    print(f"contact after the grasp: {contact[True]:.3f} s with the tracker's std, "
+          f"{contact[False]:.3f} s without")
+    assert contact[True] == 0.0
+    assert contact[False] > 0.02  # at least the release debounce (25 samples)
+
+
 # -- (c) the slow push -----------------------------------------------------------------------------
 def test_slow_push_is_detected_and_not_absorbed():
     """A 5 N push along x ramped over 5 s, the real ContactDetector (0.5 N, 0.05 N·m) in the
@@ -465,9 +568,9 @@ def test_config_is_validated():
     assert tracking.n == 16 and tracking.prior_std.shape == (16,)
     assert [tracking.get_output_port(i).get_name()
             for i in range(tracking.num_output_ports())] == [
-        "wrench_contact", "bias", "payload", "payload_inertia", "tracking"]
+        "wrench_contact", "bias", "payload", "payload_inertia", "tracking", "wrench_std"]
     dut = OnlineBiasTracker(BiasTrackerConfig(), SENSOR)
     assert dut.lam == pytest.approx(math.exp(-PERIOD / TAU))
     np.testing.assert_allclose(dut.rate_bound, RATE)
     assert [dut.get_output_port(i).get_name() for i in range(dut.num_output_ports())] == [
-        "wrench_contact", "bias", "tracking"]
+        "wrench_contact", "bias", "tracking", "wrench_std"]

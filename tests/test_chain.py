@@ -25,7 +25,7 @@ NOISE = np.array([0.3, 0.3, 0.3, 0.01, 0.01, 0.01])  # N, N·m: well below the d
 PERIOD = 1e-3
 STEPS = 600  # 0.6 s
 OUTPUTS = ("wrench_internal", "wrench_compensated", "wrench_contact", "wrench_std",
-           "out_of_domain", "fault", "contact", "contact_force", "bias", "payload")
+           "out_of_domain", "fault", "contact", "contact_force", "bias", "tracker_std", "payload")
 
 
 def forest(temperature: bool):
@@ -104,9 +104,12 @@ def wire_by_hand(builder, config, model, sources) -> dict:
                         tracker.get_input_port_out_of_domain())
         builder.Connect(comp.get_output_port_fault(), tracker.get_input_port_fault())
         builder.Connect(detector.get_output_port_contact(), tracker.get_input_port_contact())
+        builder.Connect(tracker.get_output_port_wrench_std(),
+                        detector.get_input_port_wrench_std_tracker())
         builder.Connect(sources["tared"], tracker.get_input_port_tared())
         out["wrench_contact"] = tracker.get_output_port_wrench_contact()
         out["bias"] = tracker.get_output_port_bias()
+        out["tracker_std"] = tracker.get_output_port_wrench_std()
         if config.bias_tracker.track_payload:
             builder.Connect(sources["gravity_S"], tracker.get_input_port_gravity_S())
             builder.Connect(sources["motion_S"], tracker.get_input_port_motion_S())

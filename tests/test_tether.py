@@ -14,7 +14,7 @@ import warnings
 import numpy as np
 import pytest
 
-from ftdrake import ScenarioConfig
+from ftdrake import CompensationChain, ScenarioConfig
 from ftdrake.compensation.payload_identification import (
     CROSSTALK_LENGTH_M,
     CROSSTALK_PRIOR,
@@ -176,6 +176,14 @@ def test_tether_with_the_sensors_mounting_and_crosstalk(cable_b_runs):
     rotation = np.kron(np.eye(2), model.mounting_rotation_).T
     np.testing.assert_allclose(model.reading_to_model_frame(), np.linalg.inv(rotation))
     assert not np.allclose(model.reading_matrix(), rotation)
+    # A grasped payload's wrench is read through the whole matrix, seen from S; the chain's
+    # tracker gets that map (a forest's chain the identity).
+    K = model.payload_reading_map()
+    np.testing.assert_allclose(K, rotation.T @ model.reading_matrix(), atol=1e-12)
+    config = ScenarioConfig()
+    config.bias_tracker.track_payload = True
+    chain = CompensationChain(model, config, gravity="input")
+    np.testing.assert_array_equal(chain.tracker.payload_map, K)
 
 
 def test_crosstalk_from_generated_wrenches(rng):

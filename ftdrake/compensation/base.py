@@ -164,6 +164,11 @@ class Compensator(RegressorMixin, BaseEstimator):
     def reading_to_model_frame(self):
         """None: this model's readings are in S already (see the module docstring)."""
 
+    def payload_reading_map(self):
+        """None: a wrench at the sensor shows unchanged in the compensated wrench (a model
+        with a reading matrix returns T·M; see :class:`~ftdrake.runtime.bias_tracker.
+        OnlineBiasTracker`)."""
+
     def onnx_parts(self):
         """The compiled form :func:`~ftdrake.compensation.onnx_export.build_onnx` writes."""
         raise TypeError(

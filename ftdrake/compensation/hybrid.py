@@ -272,6 +272,10 @@ class HybridCompensator(Compensator):
         """The physics part's (the residual is learned in the reading's frame too)."""
         return self.physics_.reading_to_model_frame()
 
+    def payload_reading_map(self):
+        """The physics part's (:meth:`~.physics.PhysicsPayloadCompensator.payload_reading_map`)."""
+        return self.physics_.payload_reading_map()
+
     def compiled_predictor(self):
         """A :class:`~ftdrake.compensation.compiled.hybrid.CompiledHybrid` (payload model
         and residual forest in one numba call per row, mean and std) when the residual's

@@ -20,10 +20,12 @@ N_PAYLOAD = 16
 
 
 @numba.njit(cache=True)
-def _regressor(g, motion, n, out):
-    """Φ (6 × n), rows F then T, columns θ = [b (6); Δm; Δ(m·c) (3); ΔI_So (6)]: b plus the
-    Newton–Euler wrench of the payload (:mod:`ftdrake.runtime.bias_tracker`) for g = g − a_So
-    and motion = [ω; α], all in S. The payload's columns are the physics compensator's regressor row
+def _regressor(g, motion, n, K, out):
+    """Φ (6 × n), rows F then T, columns θ = [b (6); Δm; Δ(m·c) (3); ΔI_So (6)]: b plus
+    K times the Newton–Euler wrench of the payload (:mod:`ftdrake.runtime.bias_tracker`) for
+    g = g − a_So and motion = [ω; α], all in S; K (6 × 6) the map from a wrench at the sensor
+    to the compensated wrench (the model's reading matrix in S; identity without one). The
+    payload's columns are the physics compensator's regressor row
     (:func:`~ftdrake.compensation.compiled.payload.regressor_row`, d = a − g = −g), whose
     parameter order is [m, m·c, I_So, b]."""
     out[:, :] = 0.0
@@ -40,7 +42,10 @@ def _regressor(g, motion, n, out):
         regressor_row(w[:3], w[3:], d, A)
         for i in range(6):
             for j in range(10):
-                out[i, 6 + j] = A[i, j]
+                acc = 0.0
+                for k in range(6):
+                    acc += K[i, k] * A[k, j]
+                out[i, 6 + j] = acc
 
 
 @numba.njit(cache=True)
@@ -54,16 +59,18 @@ def _reset_block(R, n, lo, hi):
 
 
 @numba.njit(cache=True)
-def track_sample(y, g, motion, flags, n, x, constants, steps, sigma, prior, corrected, bias,
-                 payload, inertia, tracking):
+def track_sample(y, g, motion, flags, n, K, x, constants, steps, sigma, prior, corrected,
+                 bias, payload, inertia, tracking, std):
     """One sample of the tracker; updates the state arrays in place (see
     :mod:`ftdrake.runtime.bias_tracker` for what it estimates and when it freezes).
 
-    `g` (3) = g − a_So and `motion` (6) = [ω, α], in S; `x` = [θ (n), published θ (n), R (n²), tare
-    hold, tare settle, payload hold, payload settle, the jump's state]; `constants` = [λ, hold
-    samples, tare settle samples, payload settle samples, jump window, guard samples]; `steps` =
-    the rate bound × period per parameter; `flags` = [contact, out_of_domain, fault, tared,
-    payload_changed].
+    `g` (3) = g − a_So and `motion` (6) = [ω, α], in S; `K` (6 × 6) maps the payload's
+    wrench in S to the compensated wrench (:func:`_regressor`); `x` = [θ (n), published θ
+    (n), R (n²), tare hold, tare settle, payload hold, payload settle, the jump's state];
+    `constants` = [λ, hold samples, tare settle samples, payload settle samples, jump
+    window, guard samples]; `steps` = the rate bound × period per parameter; `flags` =
+    [contact, out_of_domain, fault, tared, payload_changed]; `std` (6) receives the
+    predictive std of Φ·θ (:func:`_predictive_std`).
     """
     theta = x[:n]
     published = x[n:2 * n]
@@ -79,17 +86,26 @@ def track_sample(y, g, motion, flags, n, x, constants, steps, sigma, prior, corr
     if not _all_finite(y, g, motion):
         return  # hold every output; not evidence of anything
     phi = np.empty((6, n))
-    _regressor(g, motion, n, phi)
+    _regressor(g, motion, n, K, phi)
+    L = np.zeros((n, n))  # R's Cholesky factor, for the update and the std alike
     if jump[_PHASE] > 0:
         _jump_step(y, phi, flags, n, theta, published, jump, window, corrected, bias, payload,
                    inertia, tracking)
+        _predictive_std(L, _cholesky(R, n, L), phi, prior, n, std)
         return
     free = flags[0] < 0.5
     update = _may_update(flags, counters)
     if update:
-        _rls_step(y, g, motion, phi, n, theta, R, counters, lam, sigma, prior)
+        rhs = _rls_step(y, g, motion, phi, n, K, theta, R, counters, lam, sigma, prior)
+    factored = _cholesky(R, n, L)
+    if update:
+        if factored:
+            _solve_factored(L, rhs, n)
+            for j in range(n):
+                theta[j] += prior[j] * rhs[j]
         _move_published(theta, published, counters, steps, n)
     _publish(y, phi, n, published, corrected, bias, payload, inertia)
+    _predictive_std(L, factored, phi, prior, n, std)
     if update and free and counters[0] <= 0 and counters[1] <= 0:
         _remember(jump, corrected, window, guard)
     tracking[0] = 1.0 if update else 0.0
@@ -139,12 +155,14 @@ def _may_update(flags, counters):
 
 
 @numba.njit(cache=True)
-def _rls_step(y, g, motion, phi, n, theta, R, counters, lam, sigma, prior):
-    """One RLS update of θ and R; a held block's information is reset to the prior first."""
+def _rls_step(y, g, motion, phi, n, K, theta, R, counters, lam, sigma, prior):
+    """One RLS update of R (a held block's information reset to the prior first); returns
+    Φ'ᵀe', with which R⁻¹ gives θ's step (scaled)."""
     if counters[0] > 0:
         _reset_block(R, n, 0, 6)
         counters[0] -= 1
     fit = phi
+    noise = sigma
     if counters[2] > 0:
         _reset_block(R, n, 6, n)
         counters[2] -= 1
@@ -153,15 +171,30 @@ def _rls_step(y, g, motion, phi, n, theta, R, counters, lam, sigma, prior):
         # spread of motion (the settle window's), and fitted to one sample they take up
         # the compensator's error in the grasp's transient.
         fit = np.empty((6, n))
-        _regressor(g, motion[:0], n, fit)
+        _regressor(g, motion[:0], n, K, fit)
+        noise = _with_unfitted_terms(phi, fit, n, sigma, prior)
     scaled = np.empty((6, n))
     e = np.empty(6)
-    _whiten(y, fit, n, theta, sigma, prior, scaled, e)
+    _whiten(y, fit, n, theta, noise, prior, scaled, e)
     rhs = np.zeros(n)
     _forget_and_add(R, scaled, e, n, lam, rhs)
-    if _cholesky_solve(R, rhs, n):
-        for j in range(n):
-            theta[j] += prior[j] * rhs[j]
+    return rhs
+
+
+@numba.njit(cache=True)
+def _with_unfitted_terms(phi, fit, n, sigma, prior):
+    """Each row's noise σᵢ with the terms a held sample leaves out (Φ − fit: the payload's
+    motion terms) added at their prior's spread, √(σᵢ² + Σⱼ ((Φ − fit)ᵢⱼ·priorⱼ)²): the
+    sample then informs the payload only as far as the motion lets it, so the estimate's
+    covariance after the hold is honest (at rest it is σ, the gravity part exact)."""
+    noise = np.empty(6)
+    for i in range(6):
+        acc = sigma[i] * sigma[i]
+        for j in range(6, n):
+            d = (phi[i, j] - fit[i, j]) * prior[j]
+            acc += d * d
+        noise[i] = math.sqrt(acc)
+    return noise
 
 
 @numba.njit(cache=True)
@@ -313,9 +346,8 @@ def _jump_step(y, phi, flags, n, theta, published, jump, window, corrected, bias
 
 
 @numba.njit(cache=True)
-def _cholesky_solve(R, rhs, n):
-    """Solves R·z = rhs in place (rhs ← z) by Cholesky; False (rhs untouched) if not SPD."""
-    L = np.zeros((n, n))
+def _cholesky(R, n, L):
+    """L (n × n, lower) with L·Lᵀ = R; False if R is not positive definite."""
     for i in range(n):
         for j in range(i + 1):
             acc = R[i, j]
@@ -327,6 +359,12 @@ def _cholesky_solve(R, rhs, n):
                 L[i, i] = math.sqrt(acc)
             else:
                 L[i, j] = acc / L[j, j]
+    return True
+
+
+@numba.njit(cache=True)
+def _solve_factored(L, rhs, n):
+    """Solves L·Lᵀ·z = rhs in place (rhs ← z)."""
     z = np.empty(n)
     for i in range(n):
         acc = rhs[i]
@@ -338,18 +376,38 @@ def _cholesky_solve(R, rhs, n):
         for m in range(i + 1, n):
             acc -= L[m, i] * rhs[m]
         rhs[i] = acc / L[i, i]
-    return True
 
 
-def steady_information(sigma, prior, lam, n):
+@numba.njit(cache=True)
+def _predictive_std(L, factored, phi, prior, n, std):
+    """std_i = √(Φ S R⁻¹ S Φᵀ)_ii (S = diag(prior), L·Lᵀ = R): the std of row i of Φ·θ from
+    the estimate's covariance, N or N·m; ∞ on every axis when R was not positive definite."""
+    if not factored:
+        for i in range(6):
+            std[i] = np.inf
+        return
+    v = np.empty(n)
+    for i in range(6):
+        total = 0.0
+        for a in range(n):  # v = L⁻¹ S Φᵢᵀ; std_i² = |v|²
+            acc = phi[i, a] * prior[a]
+            for m in range(a):
+                acc -= L[a, m] * v[m]
+            v[a] = acc / L[a, a]
+            total += v[a] * v[a]
+        std[i] = math.sqrt(total)
+
+
+def steady_information(sigma, prior, lam, n, K=None):
     """R (scaled) after a long run of free motion: E[Φ'ᵀΦ']/(1 − λ) + I, the expectation over
     the six axis directions of g (exact isotropic second moments), at rest: the inertia's
     information stays at its prior (motion is not assumed)."""
     phi = np.empty((6, n))
+    K = np.eye(6) if K is None else np.asarray(K, dtype=float)
     info = np.zeros((n, n))
     directions = STANDARD_GRAVITY * np.vstack([np.eye(3), -np.eye(3)])
     for g in directions:
-        _regressor(g, np.zeros(6), n, phi)
+        _regressor(g, np.zeros(6), n, K, phi)
         scaled = phi * prior[None, :] / sigma[:, None]
         info += scaled.T @ scaled / len(directions)
     return info / (1.0 - lam) + np.eye(n)

@@ -9,10 +9,13 @@ state output, so the tracker reads the previous sample's decision: no algebraic 
 
 **What it estimates** (one sample, sensor frame S, ``[Fx Fy Fz Tx Ty Tz]`` in N, N·m)::
 
-    wrench_compensated = b + [F_P; T_P] + contact wrench + noise
+    wrench_compensated = b + K·[F_P; T_P] + contact wrench + noise
     F_P = Δm·g_S − ([α]× + [ω]×[ω]×) Δ(m·c)
     T_P = Δ(m·c) × g_S − (L(α) + [ω]× L(ω)) ΔI_So
 
+K (``payload_map``, identity by default) is how a wrench at the sensor shows in the
+compensated wrench: the compensator's reading matrix seen from S (its identified cross-talk,
+1–2 % per entry on a real sensor, acts on a grasped payload's wrench as on the tool's).
 θ = [b (6); Δm; Δ(m·c) (3); ΔI_So (6)]: the bias left after the compensator, and with
 ``track_payload`` a rigid payload picked up after training (mass kg, first moment about So
 kg·m, inertia about So kg·m² as ``[Ixx, Ixy, Ixz, Iyy, Iyz, Izz]``; L(x) maps them to I·x);
@@ -44,13 +47,21 @@ from contact by the wrench, so they are inputs:
 * ``payload_changed``, and a ``tared`` at the run's start (or with ``tare_jump_window_s``
   0): for the signal's samples and ``hold_samples`` − 1 after, the block's information is
   reset to the prior before the update (the payload from the gravity part of that sample
-  alone); then the published values follow the estimate without the rate bound for
-  ``tare_settle_s`` (bias) or ``payload_settle_s`` (bias and payload) of used samples.
-  Within those windows contact does not freeze the estimator (out_of_domain and fault do):
-  keep the tool free after a tare or a grasp.
+  alone, its motion terms counted as noise at their prior's spread); then the published
+  values follow the estimate without the rate bound for ``tare_settle_s`` (bias) or
+  ``payload_settle_s`` (bias and payload) of used samples. Within those windows contact
+  does not freeze the estimator (out_of_domain and fault do): keep the tool free after a
+  tare or a grasp.
 * a later ``tared``: estimated as a jump of the bias, the mean level over
   ``tare_jump_window_s`` after the hold less the mean corrected wrench before the signal
   (leaving out its last ``tare_guard_s``); the estimator keeps its information.
+
+**How sure it is.** ``wrench_std`` is the predictive std of what it subtracts, Φ·θ, from
+the estimate's covariance (S·R⁻¹·S in parameter units). It is small once the estimator has
+seen τ seconds of motion; after a grasp it starts from the payload's prior (the motion terms'
+part stays large until the arm has accelerated and turned with the new load), so a detector
+that adds it to the compensator's std (the chain's does) cannot take the payload still being
+identified for contact.
 
 **State** (discrete): θ, the published θ, R (n × n, scaled), four counters (tare hold, tare
 settle, payload hold, payload settle), the jump's state (the "before" mean, the pulse's bias,
@@ -97,22 +108,27 @@ class OnlineBiasTracker(LeafSystem):
         :class:`~ftdrake.runtime.payload_change.PayloadChangeMonitor` (a change nobody
         signalled); either input > 0.5 counts.
     Output ports (updated every `period` s):
-      wrench_contact (6): input − bias − [F_P; T_P] (the payload's wrench, module
-        docstring), N, N·m, S.
+      wrench_contact (6): input − bias − K·[F_P; T_P] (the payload's wrench as the model
+        reads it, module docstring), N, N·m, S.
       bias (6): the published bias estimate, N, N·m, S.
       payload (4, with ``track_payload``): [Δm (kg), Δ(m·c) about So in S (kg·m)].
       payload_inertia (6, with ``track_payload``): ΔI_So [Ixx, Ixy, Ixz, Iyy, Iyz, Izz]
         (kg·m², about So, in S).
       tracking (1): 1.0 on samples that updated the estimator.
+      wrench_std (6): the predictive std of bias + K·[F_P; T_P] from the estimate's
+        covariance (module docstring, "How sure it is"), N, N·m, S.
 
     `sensor` gives the noise σ per axis (the rows' weights) and the drift (the rate bound);
-    `period` defaults to the sensor's sample period. See the module docstring for what is
-    estimated, when it freezes, the rate bound and what tared / payload_changed do; the
-    compiled estimator is :mod:`ftdrake.runtime.bias_estimator`.
+    `period` defaults to the sensor's sample period. `payload_map` (6 × 6, default identity):
+    how a wrench acting at the sensor (in S, about So) shows in ``wrench_compensated``; the
+    chain passes its model's (``payload_reading_map()``, the identified cross-talk seen from
+    S), so a grasped payload is read through the same sensor matrix as the tool. See the
+    module docstring for what is estimated, when it freezes, the rate bound and what tared /
+    payload_changed do; the compiled estimator is :mod:`ftdrake.runtime.bias_estimator`.
     """
 
     def __init__(self, config: BiasTrackerConfig, sensor: SensorConfig,
-                 period: float | None = None):
+                 period: float | None = None, payload_map=None):
         super().__init__()
         self.config = config.validate()  # built on its own too, from its config alone
         spec = sensor.spec()
@@ -122,6 +138,7 @@ class OnlineBiasTracker(LeafSystem):
         c = self.config
         self.track_payload = bool(c.track_payload)
         self.n = N_PAYLOAD if self.track_payload else 6
+        self.payload_map = self._checked_payload_map(payload_map)
         # Noise σ weights the rows; floored so an ideal sensor (σ = 0) stays well posed.
         self.noise_std = np.maximum(np.asarray(spec.noise_std, dtype=float),
                                     np.maximum(np.asarray(spec.resolution, float), 1e-6))
@@ -138,6 +155,16 @@ class OnlineBiasTracker(LeafSystem):
         self._steps = self.rate_bound * self.period
         self._declare_state(hold, tare_settle, payload_settle)
         self._declare_ports()
+
+    @staticmethod
+    def _checked_payload_map(payload_map) -> np.ndarray:
+        if payload_map is None:
+            return np.eye(6)
+        K = np.asarray(payload_map, dtype=float)
+        if K.shape != (6, 6) or not np.all(np.isfinite(K)):
+            raise ValueError(f"payload_map must be a finite 6 × 6 matrix (the model's map from "
+                             f"a wrench in S to the compensated wrench), got shape {K.shape}")
+        return K
 
     def _rate_bound(self, sensor: SensorConfig) -> np.ndarray:
         """ḃ_max per parameter (N/s, N·m/s for the bias) from the sensor's drift; the
@@ -169,6 +196,7 @@ class OnlineBiasTracker(LeafSystem):
         self._payload = self.DeclareDiscreteState(4) if self.track_payload else None
         self._inertia = self.DeclareDiscreteState(6) if self.track_payload else None
         self._tracking = self.DeclareDiscreteState(1)
+        self._std = self.DeclareDiscreteState(6)
         self._flags = np.zeros(5)
         self._no_gravity = np.zeros(3)
         self._no_motion = np.zeros(6)
@@ -192,6 +220,7 @@ class OnlineBiasTracker(LeafSystem):
             self.DeclareStateOutputPort("payload", self._payload)
             self.DeclareStateOutputPort("payload_inertia", self._inertia)
         self.DeclareStateOutputPort("tracking", self._tracking)
+        self.DeclareStateOutputPort("wrench_std", self._std)
 
     # -- ports ---------------------------------------------------------------------------------
     def get_input_port_wrench_compensated(self):
@@ -236,6 +265,9 @@ class OnlineBiasTracker(LeafSystem):
     def get_output_port_tracking(self):
         return self.GetOutputPort("tracking")
 
+    def get_output_port_wrench_std(self):
+        return self.GetOutputPort("wrench_std")
+
     # -- state -----------------------------------------------------------------------------------
     def set_estimate(self, context, bias, payload=None, *, settled: bool = True) -> None:
         """Starts the estimator from a known bias (and payload) in `context`.
@@ -257,7 +289,8 @@ class OnlineBiasTracker(LeafSystem):
                                  f"{len(payload)}")
             theta[6:6 + len(payload)] = payload
         if settled:
-            info = steady_information(self.noise_std, self.prior_std, self.lam, n)
+            info = steady_information(self.noise_std, self.prior_std, self.lam, n,
+                                      self.payload_map)
             counters = np.zeros(4)
         else:
             info = np.eye(n)
@@ -300,7 +333,8 @@ class OnlineBiasTracker(LeafSystem):
             gravity, motion = self._no_gravity, self._no_motion
             payload = inertia = self._no_payload
         track_sample(self._wrench_port.Eval(context), gravity, motion, flags, self.n,
-                     state.get_mutable_value(self._x), self._constants, self._steps,
-                     self.noise_std, self.prior_std, state.get_mutable_value(self._corrected),
+                     self.payload_map, state.get_mutable_value(self._x), self._constants,
+                     self._steps, self.noise_std, self.prior_std,
+                     state.get_mutable_value(self._corrected),
                      state.get_mutable_value(self._bias), payload, inertia,
-                     state.get_mutable_value(self._tracking))
+                     state.get_mutable_value(self._tracking), state.get_mutable_value(self._std))

@@ -64,12 +64,15 @@ class CompensationChain(Diagram):
       wrench_compensated (6): measured − internal, turned into S (N, N·m, about So).
       wrench_contact (6): the contact wrench estimate the detector judges: compensated − the
         tracker's bias and payload wrench (= wrench_compensated without the tracker).
-      wrench_std (6): the model's predictive std (zeros for a model without one).
+      wrench_std (6): the model's predictive std (zeros for a model without one), N, N·m.
       out_of_domain (1), fault (1): 1.0 when a joint input is outside the training range /
         the latest inputs were not finite (outputs then hold their last good values).
       contact (1): 1.0 while the detector reports contact.
       contact_force (1): ‖F‖ of wrench_contact in N while in contact, else 0.
       bias (6; with the tracker): the tracker's published bias, N, N·m, in S.
+      tracker_std (6; with the tracker): the predictive std of what the tracker subtracted
+        (bias and payload wrench), N, N·m, in S; the detector's test whitens by
+        √(wrench_std² + tracker_std²).
       payload (4; with ``track_payload``): ``[Δm; Δ(m·c)]`` in kg, kg·m (S).
       payload_change (1; with ``bias_tracker.payload_change.enabled``): 1.0 for a while
         after a payload change nobody signalled was recognised
@@ -120,7 +123,8 @@ class CompensationChain(Diagram):
         contact_wrench = comp.get_output_port_wrench_compensated()
         if config.bias_tracker.enabled:
             self.tracker = builder.AddNamedSystem(
-                "bias_tracker", OnlineBiasTracker(config.bias_tracker, config.sensor, period))
+                "bias_tracker", OnlineBiasTracker(config.bias_tracker, config.sensor, period,
+                                                  payload_map=_payload_reading_map(model)))
             self._wire_tracker(builder)
             contact_wrench = self.tracker.get_output_port_wrench_contact()
         builder.Connect(contact_wrench, self.detector.get_input_port_wrench_contact())
@@ -194,6 +198,10 @@ class CompensationChain(Diagram):
         # The detector's contact is a state output (the previous sample's flag): no algebraic
         # loop through the pair.
         builder.Connect(self.detector.get_output_port_contact(), tracker.get_input_port_contact())
+        # The detector whitens by the compensator's std and the tracker's together: a payload
+        # still being identified after a grasp is not taken for contact.
+        builder.Connect(tracker.get_output_port_wrench_std(),
+                        self.detector.get_input_port_wrench_std_tracker())
 
     def _export_tracker_inputs(self, builder, gravity, joint_state, robot, model) -> None:
         tracker = self.tracker
@@ -207,6 +215,7 @@ class CompensationChain(Diagram):
 
     def _export_tracker_outputs(self, builder) -> None:
         builder.ExportOutput(self.tracker.get_output_port_bias(), "bias")
+        builder.ExportOutput(self.tracker.get_output_port_wrench_std(), "tracker_std")
         if self.tracker.track_payload:
             builder.ExportOutput(self.tracker.get_output_port_payload(), "payload")
         if self.payload_monitor is not None:
@@ -302,6 +311,9 @@ class CompensationChain(Diagram):
     def get_output_port_bias(self):
         return self.GetOutputPort("bias")
 
+    def get_output_port_tracker_std(self):
+        return self.GetOutputPort("tracker_std")
+
     def get_output_port_payload(self):
         return self.GetOutputPort("payload")
 
@@ -324,3 +336,10 @@ def _joint_state_gravity(config: ScenarioConfig, robot, model, period) -> JointS
     return JointStateGravity(chain, period,
                              acceleration_cutoff_hz=config.compensator.acceleration_cutoff_hz,
                              gravity_W=plant.gravity_field().gravity_vector())
+
+
+def _payload_reading_map(model):
+    """The model's map from a wrench at the sensor to its compensated wrench (None: identity);
+    a model class without one (a forest) reads wrenches in S unchanged."""
+    reading_map = getattr(model, "payload_reading_map", None)
+    return None if reading_map is None else reading_map()

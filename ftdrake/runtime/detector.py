@@ -42,6 +42,9 @@ class ContactDetector(LeafSystem):
       wrench_std (6; required by ``test: "chi2"``, else optional): the compensator's
         predictive std, N, N·m; the χ² test whitens by it, the norm test raises its
         thresholds by ``std_gain · ‖std‖`` when connected.
+      wrench_std_tracker (6, optional): the bias tracker's predictive std of what it
+        subtracted (``OnlineBiasTracker.wrench_std``), N, N·m; added to wrench_std in
+        quadrature when connected (independent errors).
     Output ports (updated every `period` s):
       contact (1): 1.0 while in contact.
       contact_force (1): ‖F‖ of the external wrench in N while in contact, else 0.
@@ -59,6 +62,7 @@ class ContactDetector(LeafSystem):
         self.period = float(period)
         self._wrench_port = self.DeclareVectorInputPort("wrench_contact", 6)
         self._std_port = self.DeclareVectorInputPort("wrench_std", 6)
+        self._tracker_std_port = self.DeclareVectorInputPort("wrench_std_tracker", 6)
         self._flag = self.DeclareDiscreteState(1)
         self._force = self.DeclareDiscreteState(1)
         self._counter = self.DeclareDiscreteState(1)
@@ -77,12 +81,16 @@ class ContactDetector(LeafSystem):
                                         c.debounce_on, c.debounce_off, c.std_gain])
         self._arm_after_s, self._uses_std = c.arm_after_s, c.std_gain > 0 or self._chi2
         self._no_std = np.zeros(6)
+        self._std = np.zeros(6)
 
     def get_input_port_wrench_contact(self):
         return self.GetInputPort("wrench_contact")
 
     def get_input_port_wrench_std(self):
         return self.GetInputPort("wrench_std")
+
+    def get_input_port_wrench_std_tracker(self):
+        return self.GetInputPort("wrench_std_tracker")
 
     def get_output_port_contact(self):
         return self.GetOutputPort("contact")
@@ -97,6 +105,8 @@ class ContactDetector(LeafSystem):
         w = self._wrench_port.Eval(context)
         std = (self._std_port.Eval(context)
                if self._uses_std and self._std_port.HasValue(context) else self._no_std)
+        if std is not self._no_std and self._tracker_std_port.HasValue(context):
+            std = _in_quadrature(std, self._tracker_std_port.Eval(context), self._std)
         if self._chi2:
             if std is self._no_std:
                 raise ConfigError("detector.test 'chi2' whitens by the model's std: connect "
@@ -107,6 +117,14 @@ class ContactDetector(LeafSystem):
             return
         _detect(w, std, self._constants, state.get_mutable_value(self._flag),
                 state.get_mutable_value(self._counter), state.get_mutable_value(self._force))
+
+
+@numba.njit(cache=True)
+def _in_quadrature(a, b, out):
+    """out = √(a² + b²) per entry (a NaN in either stays NaN: the test then skips the sample)."""
+    for i in range(6):
+        out[i] = math.sqrt(a[i] * a[i] + b[i] * b[i])
+    return out
 
 
 @numba.njit(cache=True)
