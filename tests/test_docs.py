@@ -110,7 +110,7 @@ def test_the_chain_api_page_shows_every_port_with_its_size(site):
     for port in ports:
         assert port.get_data_type() == PortDataType.kVectorValued
         assert f"{port.get_name()} ({port.size()})" in {html.unescape(t) for t in labels}
-    assert len(ports) == 17
+    assert len(ports) == 18
 
 
 def test_every_command_usage_comes_from_the_parser(site):
