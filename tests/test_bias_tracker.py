@@ -304,6 +304,31 @@ def point_mass_wrench(mass, p, kin):
     return np.hstack([force, np.cross(p, force)])
 
 
+#: The grasp of the arm-motion tests: 0.5 kg at (0, 20, 120) mm from So, signalled at 1 s.
+GRASP_MASS, GRASP_P = 0.5, np.array([0.0, 0.02, 0.12])
+
+
+def grasp_in_arm_motion(t, kin, noise_seed, K=None):
+    """(wrench, noise, payload_changed, k0) of the grasp above, its wrench read through K
+    (default: the identity)."""
+    K = np.eye(6) if K is None else K
+    k0 = round(1.0 / PERIOD)
+    held = (np.arange(len(t)) >= k0)[:, None]
+    n = noise(len(t), noise_seed)
+    wrench = BIAS + np.where(held, point_mass_wrench(GRASP_MASS, GRASP_P, kin) @ K.T, 0.0) + n
+    changed = np.zeros(len(t))
+    changed[k0] = 1.0
+    return wrench, n, changed, k0
+
+
+def run_grasp(kin, wrench, changed, *, inertia="rigid_body", motion=True, **kwargs):
+    """The tracker (settled on BIAS, no payload) on a grasp in arm motion."""
+    return run(wrench, gravity=kin.g_S - kin.a_WSo_S,
+               motion=np.hstack([kin.w_WS_S, kin.alpha_WS_S]) if motion else None,
+               changed=changed, estimate=(BIAS, np.zeros(4)),
+               config=BiasTrackerConfig(track_payload=True, payload_inertia=inertia), **kwargs)
+
+
 @pytest.mark.parametrize("with_motion,inertia", [(True, "rigid_body"), (True, "point_mass"),
                                                  (False, "rigid_body")])
 def test_grasp_identified_in_arm_motion_with_the_motion_terms(arm_motion, with_motion, inertia):
@@ -313,17 +338,9 @@ def test_grasp_identified_in_arm_motion_with_the_motion_terms(arm_motion, with_m
     5 s settle window and for good. Without motion_S (the gravity-only model) the offset terms
     α×c, ω×(ω×c) and the point's inertia stay in the corrected wrench: far outside 2σ."""
     t, kin = arm_motion
-    mass, p = 0.5, np.array([0.0, 0.02, 0.12])
-    k0 = round(1.0 / PERIOD)
-    held = (np.arange(len(t)) >= k0)[:, None]
-    n = noise(len(t), 12)
-    wrench = BIAS + np.where(held, point_mass_wrench(mass, p, kin), 0.0) + n
-    changed = np.zeros(len(t))
-    changed[k0] = 1.0
-    motion = np.hstack([kin.w_WS_S, kin.alpha_WS_S]) if with_motion else None
-    out, _ = run(wrench, gravity=kin.g_S - kin.a_WSo_S, motion=motion, changed=changed,
-                 estimate=(BIAS, np.zeros(4)), config=BiasTrackerConfig(
-                     track_payload=True, payload_inertia=inertia))
+    mass, p = GRASP_MASS, GRASP_P
+    wrench, n, changed, k0 = grasp_in_arm_motion(t, kin, 12)
+    out, _ = run_grasp(kin, wrench, changed, inertia=inertia, motion=with_motion)
     error = (out["wrench_contact"] - n) / SIGMA  # what is left of the payload, in σ
     late = t >= t[-1] - 1.0
     worst = np.abs(error[late]).max()
@@ -359,17 +376,9 @@ def test_a_payload_is_read_through_the_models_sensor_matrix(arm_motion, mapped):
     Without it the cross-talk's share of the payload's 0.6 N·m (up to 0.2 N per N·m, 8 σ of
     a force axis) stays in the corrected wrench."""
     t, kin = arm_motion
-    mass, p = 0.5, np.array([0.0, 0.02, 0.12])
     K = crosstalk(3)
-    k0 = round(1.0 / PERIOD)
-    held = (np.arange(len(t)) >= k0)[:, None]
-    n = noise(len(t), 13)
-    wrench = BIAS + np.where(held, point_mass_wrench(mass, p, kin) @ K.T, 0.0) + n
-    changed = np.zeros(len(t))
-    changed[k0] = 1.0
-    out, _ = run(wrench, gravity=kin.g_S - kin.a_WSo_S, motion=np.hstack([kin.w_WS_S,
-                 kin.alpha_WS_S]), changed=changed, estimate=(BIAS, np.zeros(4)),
-                 payload_map=K if mapped else None)
+    wrench, n, changed, k0 = grasp_in_arm_motion(t, kin, 13, K)
+    out, _ = run_grasp(kin, wrench, changed, payload_map=K if mapped else None)
     error = (out["wrench_contact"] - n) / SIGMA
     late = t >= t[-1] - 1.0
     worst = np.abs(error[late]).max(axis=0)
@@ -379,7 +388,7 @@ def test_a_payload_is_read_through_the_models_sensor_matrix(arm_motion, mapped):
         assert worst.max() > 4.0
         return
     assert settle_time(error, 2.0, k0) <= 5.0
-    np.testing.assert_allclose(out["payload"][-1, 1:], mass * p, atol=1e-3)
+    np.testing.assert_allclose(out["payload"][-1, 1:], GRASP_MASS * GRASP_P, atol=1e-3)
 
 
 @pytest.mark.parametrize("inertia", ["rigid_body", "point_mass"])
@@ -393,16 +402,8 @@ def test_the_trackers_std_covers_what_it_has_not_yet_identified(arm_motion, iner
     payload is identified. With a point mass the std is the rigid body's, before the sample
     (measured: RMS 0.92–1.34, 88.8–98.9 %)."""
     t, kin = arm_motion
-    mass, p = 0.5, np.array([0.0, 0.02, 0.12])
-    k0 = round(1.0 / PERIOD)
-    held = (np.arange(len(t)) >= k0)[:, None]
-    n = noise(len(t), 14)
-    wrench = BIAS + np.where(held, point_mass_wrench(mass, p, kin), 0.0) + n
-    changed = np.zeros(len(t))
-    changed[k0] = 1.0
-    out, _ = run(wrench, gravity=kin.g_S - kin.a_WSo_S, motion=np.hstack([kin.w_WS_S,
-                 kin.alpha_WS_S]), changed=changed, estimate=(BIAS, np.zeros(4)),
-                 config=BiasTrackerConfig(track_payload=True, payload_inertia=inertia))
+    wrench, n, changed, k0 = grasp_in_arm_motion(t, kin, 14)
+    out, _ = run_grasp(kin, wrench, changed, inertia=inertia)
     error, std = out["wrench_contact"][k0:] - n[k0:], out["wrench_std"][k0:]
     hold = BiasTrackerConfig().hold_samples
     z = error[hold:] / std[hold:]
@@ -425,20 +426,12 @@ def test_the_trackers_std_keeps_a_grasp_from_reading_as_contact(arm_motion, iner
     brisk motion (|α| up to ~10 rad/s²): it reads contact there (measured 0.09 s, ending
     0.11 s after the grasp), and never later."""
     t, kin = arm_motion
-    mass, p = 0.5, np.array([0.0, 0.02, 0.12])
-    k0 = round(1.0 / PERIOD)
-    held = (np.arange(len(t)) >= k0)[:, None]
-    n = noise(len(t), 15)
-    wrench = BIAS + np.where(held, point_mass_wrench(mass, p, kin), 0.0) + n
-    changed = np.zeros(len(t))
-    changed[k0] = 1.0
+    wrench, _, changed, k0 = grasp_in_arm_motion(t, kin, 15)
     detector = DetectorConfig(test="chi2")
     contact, last = {}, {}
     for added in (True, False):
-        out, _ = run(wrench, gravity=kin.g_S - kin.a_WSo_S, motion=np.hstack([
-            kin.w_WS_S, kin.alpha_WS_S]), changed=changed, estimate=(BIAS, np.zeros(4)),
-            detector=detector, model_std=1.2 * SIGMA, tracker_std=added,
-            config=BiasTrackerConfig(track_payload=True, payload_inertia=inertia))
+        out, _ = run_grasp(kin, wrench, changed, inertia=inertia, detector=detector,
+                           model_std=1.2 * SIGMA, tracker_std=added)
         flagged = np.flatnonzero(out["contact"][:, 0] > 0.5)
         contact[added] = len(flagged) * PERIOD
         last[added] = (flagged[-1] - k0) * PERIOD if len(flagged) else None
