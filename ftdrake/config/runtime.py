@@ -27,8 +27,6 @@ class CompensatorConfig:
 #: The payload inertia's prior std (kg·m², per entry of ΔI_So), consistent with the default
 #: mass and first-moment priors: (0.5 kg·m)² / 5 kg.
 PAYLOAD_INERTIA_PRIOR_STD = 0.05
-#: BiasTrackerConfig.payload_inertia: how the tracker models a grasped payload's inertia.
-PAYLOAD_INERTIA_MODELS = ("point_mass", "rigid_body")
 
 
 @dc.dataclass
@@ -101,13 +99,6 @@ class BiasTrackerConfig:
     # parameters). Off: gravity only (Δm, Δ(m·c) from g − a; the inertia stays at 0), which
     # leaves the payload's offset and inertia terms to bias its centre of mass in motion.
     track_payload_motion: bool = True
-    # With track_payload_motion: "rigid_body" (default): the payload's inertia about So,
-    # ΔI_So, is estimated (6 parameters), which in seconds of motion also take up the
-    # compensator's own error; "point_mass": ΔI_So is that of a point mass at the centre of
-    # mass, (|h|²·1 − h·hᵀ)/Δm with h = Δ(m·c), so only Δm and h are estimated (more accurate
-    # once settled; its extended least-squares step converges over ~0.1 s after a grasp and
-    # can read that as contact in brisk motion: see the bias tracker's guide).
-    payload_inertia: str = "rigid_body"
     # Samples (from the signal on) whose update re-initialises the bias (tared) or payload
     # (payload_changed) block; covers the pipeline's one-sample lag.
     hold_samples: int = 3
@@ -148,9 +139,6 @@ class BiasTrackerConfig:
                               f"got {self.rate_bound_sigmas!r}")
         if int(self.hold_samples) < 1:
             raise ConfigError(f"{where}.hold_samples: must be >= 1, got {self.hold_samples!r}")
-        if self.payload_inertia not in PAYLOAD_INERTIA_MODELS:
-            raise ConfigError(f"{where}.payload_inertia: {self.payload_inertia!r} is not one of "
-                              f"{PAYLOAD_INERTIA_MODELS}")
         vector(self.bias_prior_std, 6, f"{where}.bias_prior_std")
         if self.payload_prior_std is None or len(self.payload_prior_std) not in (4, 10):
             got = 0 if self.payload_prior_std is None else len(self.payload_prior_std)

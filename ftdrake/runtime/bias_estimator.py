@@ -60,7 +60,7 @@ def _reset_block(R, n, lo, hi):
 
 @numba.njit(cache=True)
 def track_sample(y, g, motion, flags, n, K, x, constants, steps, sigma, prior, corrected,
-                 bias, payload, inertia, tracking, std, R_std):
+                 bias, payload, inertia, tracking, std):
     """One sample of the tracker; updates the state arrays in place (see
     :mod:`ftdrake.runtime.bias_tracker` for what it estimates and when it freezes).
 
@@ -68,11 +68,9 @@ def track_sample(y, g, motion, flags, n, K, x, constants, steps, sigma, prior, c
     wrench in S to the compensated wrench (:func:`_regressor`); `x` = [θ (n), published θ
     (n), R (n²), tare hold, tare settle, payload hold, payload settle, the jump's state];
     `constants` = [λ, hold samples, tare settle samples, payload settle samples, jump
-    window, guard samples, 1 for a point-mass payload (ΔI_So derived from Δm, Δ(m·c)) else
-    0]; `steps` = the rate bound × period per parameter; `flags` =
+    window, guard samples]; `steps` = the rate bound × period per parameter; `flags` =
     [contact, out_of_domain, fault, tared, payload_changed]; `std` (6) receives the
-    predictive std of Φ·θ (:func:`_predictive_std`); `R_std` (n², used with a point mass):
-    the information of the rigid body's Φ, from which the std is computed then.
+    predictive std of Φ·θ (:func:`_predictive_std`).
     """
     theta = x[:n]
     published = x[n:2 * n]
@@ -89,59 +87,28 @@ def track_sample(y, g, motion, flags, n, K, x, constants, steps, sigma, prior, c
         return  # hold every output; not evidence of anything
     phi = np.empty((6, n))
     _regressor(g, motion, n, K, phi)
-    point_mass = n == N_PAYLOAD and constants[6] > 0.5
-    J = _point_mass_jacobian(phi, theta) if point_mass else phi
-    # The std's information: with a point mass, that of the rigid body (R_std, rows Φ), whose
-    # inertia is free: the point mass's own, linearised at an estimate that starts far off,
-    # claims more than it knows in the first tenths of a second after a grasp.
-    info = R_std.reshape((n, n)) if point_mass else R
     L = np.zeros((n, n))  # R's Cholesky factor, for the update and the std alike
     if jump[_PHASE] > 0:
         _jump_step(y, phi, flags, n, theta, published, jump, window, corrected, bias, payload,
                    inertia, tracking)
-        _predictive_std(L, _cholesky(info, n, L), phi, prior, n, std)
+        _predictive_std(L, _cholesky(R, n, L), phi, prior, n, std)
         return
     free = flags[0] < 0.5
     update = _may_update(flags, counters)
-    if point_mass:  # the std of this sample's prediction, before the sample informs it
-        _std_before_update(info, counters, update, phi, prior, n, L, std)
     if update:
-        rhs = _rls_step(y, g, motion, phi, J, n, K, theta, R, info, point_mass, counters, lam,
-                        sigma, prior)
+        rhs = _rls_step(y, g, motion, phi, n, K, theta, R, counters, lam, sigma, prior)
     factored = _cholesky(R, n, L)
     if update:
-        _step(theta, published, L, factored, rhs, prior, counters, steps, n, point_mass)
+        if factored:
+            _solve_factored(L, rhs, n)
+            for j in range(n):
+                theta[j] += prior[j] * rhs[j]
+        _move_published(theta, published, counters, steps, n)
     _publish(y, phi, n, published, corrected, bias, payload, inertia)
-    if not point_mass:  # the fitted prediction's: the rigid body's estimate fits the sample
-        _predictive_std(L, factored, phi, prior, n, std)
+    _predictive_std(L, factored, phi, prior, n, std)
     if update and free and counters[0] <= 0 and counters[1] <= 0:
         _remember(jump, corrected, window, guard)
     tracking[0] = 1.0 if update else 0.0
-
-
-@numba.njit(cache=True)
-def _std_before_update(info, counters, update, phi, prior, n, L, std):
-    """The std from `info` as this sample's update will start from it (a held block reset)."""
-    if update and counters[0] > 0:
-        _reset_block(info, n, 0, 6)
-    if update and counters[2] > 0:
-        _reset_block(info, n, 6, n)
-    _predictive_std(L, _cholesky(info, n, L), phi, prior, n, std)
-
-
-@numba.njit(cache=True)
-def _step(theta, published, L, factored, rhs, prior, counters, steps, n, point_mass):
-    """θ moves by R⁻¹·rhs (scaled; not when R was not positive definite), a point mass's
-    inertia follows its Δm, Δ(m·c), and the published θ follows θ."""
-    if factored:
-        _solve_factored(L, rhs, n)
-        for j in range(n):
-            theta[j] += prior[j] * rhs[j]
-    if point_mass:
-        _point_mass_inertia(theta)
-    _move_published(theta, published, counters, steps, n)
-    if point_mass:
-        _point_mass_inertia(published)
 
 
 @numba.njit(cache=True)
@@ -188,24 +155,16 @@ def _may_update(flags, counters):
 
 
 @numba.njit(cache=True)
-def _rls_step(y, g, motion, phi, J, n, K, theta, R, info, separate, counters, lam, sigma,
-              prior):
+def _rls_step(y, g, motion, phi, n, K, theta, R, counters, lam, sigma, prior):
     """One RLS update of R (a held block's information reset to the prior first); returns
-    Φ'ᵀe', with which R⁻¹ gives θ's step (scaled). Φ gives the innovation, J (Φ itself, or
-    its point-mass Jacobian) the information. With `separate`, `info` (the std's
-    information) gets the rows of Φ."""
+    Φ'ᵀe', with which R⁻¹ gives θ's step (scaled)."""
     if counters[0] > 0:
         _reset_block(R, n, 0, 6)
-        if separate:
-            _reset_block(info, n, 0, 6)
         counters[0] -= 1
     fit = phi
-    rows = J
     noise = sigma
     if counters[2] > 0:
         _reset_block(R, n, 6, n)
-        if separate:
-            _reset_block(info, n, 6, n)
         counters[2] -= 1
         # A held sample re-initialises the payload from itself alone: the gravity part
         # (Δm, Δ(m·c) ⊥ g_S), which one sample determines; the motion terms need a
@@ -213,75 +172,13 @@ def _rls_step(y, g, motion, phi, J, n, K, theta, R, info, separate, counters, la
         # the compensator's error in the grasp's transient.
         fit = np.empty((6, n))
         _regressor(g, motion[:0], n, K, fit)
-        rows = fit  # at rest the point mass's inertia has no effect: its Jacobian is Φ
-        # The left-out terms at the rigid body's spread (Φ with ΔI_So free): a point mass's
-        # Jacobian at the reset payload (≈ 0) would not see its inertia at all.
         noise = _with_unfitted_terms(phi, fit, n, sigma, prior)
     scaled = np.empty((6, n))
     e = np.empty(6)
-    _whiten(y, fit, rows, n, theta, noise, prior, scaled, e)
+    _whiten(y, fit, n, theta, noise, prior, scaled, e)
     rhs = np.zeros(n)
     _forget_and_add(R, scaled, e, n, lam, rhs)
-    if separate:  # the rigid body's rows: Φ (in the hold, its gravity part)
-        _whiten(y, fit, fit, n, theta, noise, prior, scaled, e)
-        _forget_and_add(info, scaled, e, n, lam, np.zeros(n))
     return rhs
-
-
-#: kg: below this |Δm| the point mass's inertia (Δ(m·c))²/Δm is taken at this mass (no
-#: payload: Δ(m·c) ≈ 0, the inertia ≈ 0 instead of 0/0).
-POINT_MASS_FLOOR_KG = 0.01
-#: (row, column) of [Ixx, Ixy, Ixz, Iyy, Iyz, Izz] in the 3 × 3 inertia.
-_INERTIA_ENTRIES = ((0, 0), (0, 1), (0, 2), (1, 1), (1, 2), (2, 2))
-
-
-@numba.njit(cache=True)
-def _point_mass_terms(m, h):
-    """The inertia about So of a point mass m at c = h/m, (|h|²·1 − h·hᵀ)/m, as 6 entries,
-    and its derivatives by m (6) and by h (6 × 3); m is taken at ±POINT_MASS_FLOOR_KG
-    (and the derivative by m as 0) below it."""
-    m_eff = m
-    clamped = abs(m) < POINT_MASS_FLOOR_KG
-    if clamped:
-        m_eff = POINT_MASS_FLOOR_KG if m >= 0.0 else -POINT_MASS_FLOOR_KG
-    hh = h[0] * h[0] + h[1] * h[1] + h[2] * h[2]
-    value = np.empty(6)
-    by_m = np.empty(6)
-    by_h = np.zeros((6, 3))
-    for e in range(6):
-        a, b = _INERTIA_ENTRIES[e]
-        entry = ((hh if a == b else 0.0) - h[a] * h[b]) / m_eff
-        value[e] = entry
-        by_m[e] = 0.0 if clamped else -entry / m_eff
-        for k in range(3):
-            d = (2.0 * h[k] if a == b else 0.0) - (h[b] if a == k else 0.0) \
-                - (h[a] if b == k else 0.0)
-            by_h[e, k] = d / m_eff
-    return value, by_m, by_h
-
-
-@numba.njit(cache=True)
-def _point_mass_inertia(theta):
-    """θ's ΔI_So (θ[10:16]) set to the point mass's inertia of its Δm, Δ(m·c)."""
-    value, _, _ = _point_mass_terms(theta[6], theta[7:10])
-    for e in range(6):
-        theta[10 + e] = value[e]
-
-
-@numba.njit(cache=True)
-def _point_mass_jacobian(phi, theta):
-    """J = ∂(Φ·θ)/∂θ with ΔI_So the point mass's inertia of Δm, Δ(m·c): the inertia's
-    columns folded into Δm's and Δ(m·c)'s by the chain rule, its own columns 0."""
-    J = phi.copy()
-    _, by_m, by_h = _point_mass_terms(theta[6], theta[7:10])
-    for i in range(6):
-        for e in range(6):
-            J[i, 6] += phi[i, 10 + e] * by_m[e]
-            for k in range(3):
-                J[i, 7 + k] += phi[i, 10 + e] * by_h[e, k]
-        for e in range(6):
-            J[i, 10 + e] = 0.0
-    return J
 
 
 @numba.njit(cache=True)
@@ -301,13 +198,13 @@ def _with_unfitted_terms(phi, fit, n, sigma, prior):
 
 
 @numba.njit(cache=True)
-def _whiten(y, fit, rows, n, theta, sigma, prior, scaled, e):
-    """Scaled, whitened rows Φ' = Σ⁻¹ J S and innovation e' = Σ⁻¹ (y − Φθ)."""
+def _whiten(y, fit, n, theta, sigma, prior, scaled, e):
+    """Scaled, whitened regressor Φ' = Σ⁻¹ Φ S and innovation e' = Σ⁻¹ (y − Φθ)."""
     for i in range(6):
         acc = y[i]
         for j in range(n):
             acc -= fit[i, j] * theta[j]
-            scaled[i, j] = rows[i, j] * prior[j] / sigma[i]
+            scaled[i, j] = fit[i, j] * prior[j] / sigma[i]
         e[i] = acc / sigma[i]
 
 

@@ -20,11 +20,7 @@ compensated wrench: the compensator's reading matrix seen from S (its identified
 ``track_payload`` a rigid payload picked up after training (mass kg, first moment about So
 kg·m, inertia about So kg·m² as ``[Ixx, Ixy, Ixz, Iyy, Iyz, Izz]``; L(x) maps them to I·x);
 g_S = g − a_So (``gravity_S``), ω, α of S (``motion_S``), all in S, as the physics payload
-compensator's regressor (:mod:`ftdrake.compensation.compiled.payload`). With
-``payload_inertia: point_mass`` ΔI_So is not estimated but is that of a point mass at the
-centre of mass, (|h|²·1 − h·hᵀ)/Δm with h = Δ(m·c) (Δm taken at ±10 g below 10 g): the
-update uses the Jacobian of Φ·θ by Δm and h (an extended least-squares step), so only b, Δm
-and h are estimated; ``rigid_body`` (the default) estimates ΔI_So as well. Without
+compensator's regressor (:mod:`ftdrake.compensation.compiled.payload`). Without
 ``motion_S`` only the gravity part is fitted and ΔI_So stays at its prior (0). Without
 ``track_payload`` only b (6 parameters).
 
@@ -65,14 +61,12 @@ the estimate's covariance (S·R⁻¹·S in parameter units). It is small once th
 seen τ seconds of motion; after a grasp it starts from the payload's prior (the motion terms'
 part stays large until the arm has accelerated and turned with the new load), so a detector
 that adds it to the compensator's std (the chain's does) cannot take the payload still being
-identified for contact. With a point mass it is the rigid body's (a second information matrix
-with Φ's rows, from which the point mass's estimate takes nothing), before the sample
-updates it.
+identified for contact.
 
 **State** (discrete): θ, the published θ, R (n × n, scaled), four counters (tare hold, tare
 settle, payload hold, payload settle), the jump's state (the "before" mean, the pulse's bias,
-the sum after it, its phase, a ring of the last ``tare_guard_s`` of corrected wrenches), the
-std's information with a point mass, and the outputs (state outputs).
+the sum after it, its phase, a ring of the last ``tare_guard_s`` of corrected wrenches), and
+the outputs (state outputs).
 
 The derivation, the guards' reasoning and their measured figures are in the documentation
 (user guide, "The bias tracker").
@@ -156,11 +150,8 @@ class OnlineBiasTracker(LeafSystem):
         payload_settle = max(hold, round(c.payload_settle_s / self.period))
         window = round(c.tare_jump_window_s / self.period)
         self.guard = max(1, round(c.tare_guard_s / self.period))
-        self.point_mass = self.track_payload and c.payload_inertia == "point_mass"
         self._constants = np.array([self.lam, hold, tare_settle, payload_settle, window,
-                                    self.guard, 1.0 if self.point_mass else 0.0])
-        self._constants_at_rest = self._constants.copy()  # no motion_S: nothing to derive
-        self._constants_at_rest[6] = 0.0
+                                    self.guard])
         self._steps = self.rate_bound * self.period
         self._declare_state(hold, tare_settle, payload_settle)
         self._declare_ports()
@@ -206,9 +197,6 @@ class OnlineBiasTracker(LeafSystem):
         self._inertia = self.DeclareDiscreteState(6) if self.track_payload else None
         self._tracking = self.DeclareDiscreteState(1)
         self._std = self.DeclareDiscreteState(6)
-        # The std's information with a point mass (the rigid body's): n², or 1 unused entry.
-        self._info_std = self.DeclareDiscreteState(np.eye(n).ravel() if self.point_mass
-                                                   else np.zeros(1))
         self._flags = np.zeros(5)
         self._no_gravity = np.zeros(3)
         self._no_motion = np.zeros(6)
@@ -313,8 +301,6 @@ class OnlineBiasTracker(LeafSystem):
                             np.zeros(jump_state_size(self.guard))])
         state = context.get_mutable_discrete_state()
         state.set_value(self._x, x)
-        if self.point_mass:
-            state.set_value(self._info_std, info.ravel())
         state.set_value(self._bias, theta[:6])
         if self.track_payload:
             state.set_value(self._payload, theta[6:10])
@@ -335,9 +321,8 @@ class OnlineBiasTracker(LeafSystem):
                     if self._tared_port.HasValue(context) else 0.0)
         if self.track_payload:
             gravity = self._gravity_port.Eval(context)
-            moving = self._motion_port.HasValue(context)
-            motion = self._motion_port.Eval(context) if moving else self._no_motion
-            constants = self._constants if moving else self._constants_at_rest
+            motion = (self._motion_port.Eval(context) if self._motion_port.HasValue(context)
+                      else self._no_motion)
             flags[4] = (self._changed_port.Eval(context)[0]
                         if self._changed_port.HasValue(context) else 0.0)
             if self._detected_port.HasValue(context):  # either announces the change
@@ -347,11 +332,9 @@ class OnlineBiasTracker(LeafSystem):
         else:
             gravity, motion = self._no_gravity, self._no_motion
             payload = inertia = self._no_payload
-            constants = self._constants
         track_sample(self._wrench_port.Eval(context), gravity, motion, flags, self.n,
-                     self.payload_map, state.get_mutable_value(self._x), constants,
+                     self.payload_map, state.get_mutable_value(self._x), self._constants,
                      self._steps, self.noise_std, self.prior_std,
                      state.get_mutable_value(self._corrected),
                      state.get_mutable_value(self._bias), payload, inertia,
-                     state.get_mutable_value(self._tracking), state.get_mutable_value(self._std),
-                     state.get_mutable_value(self._info_std))
+                     state.get_mutable_value(self._tracking), state.get_mutable_value(self._std))
