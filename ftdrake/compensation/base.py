@@ -165,9 +165,19 @@ class Compensator(RegressorMixin, BaseEstimator):
         """None: this model's readings are in S already (see the module docstring)."""
 
     def payload_reading_map(self):
-        """None: a wrench at the sensor shows unchanged in the compensated wrench (a model
-        with a reading matrix returns T·M; see :class:`~ftdrake.runtime.bias_tracker.
-        OnlineBiasTracker`)."""
+        """K = T·M (6 × 6): how a wrench acting at the sensor (in S, about So) shows in the
+        compensated wrench ``T·(measured − predicted)``, for a model with a
+        ``reading_matrix()`` M (T: :meth:`reading_to_model_frame`); None when it is the
+        identity or the model has no M. With a cross-talk identified in free motion it is
+        ``R⁻¹·(I + E)·R`` (R the mounting rotation on forces and torques): the bias tracker
+        reads a grasped payload through it, as the model reads the tool."""
+        reading_matrix = getattr(self, "reading_matrix", None)
+        if reading_matrix is None:
+            return None
+        M = reading_matrix()
+        T = self.reading_to_model_frame()
+        K = M if T is None else T @ M
+        return None if np.allclose(K, np.eye(6), rtol=0.0, atol=1e-12) else K
 
     def onnx_parts(self):
         """The compiled form :func:`~ftdrake.compensation.onnx_export.build_onnx` writes."""

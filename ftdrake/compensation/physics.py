@@ -433,17 +433,6 @@ class PhysicsPayloadCompensator(CarriesRobot, Compensator):
             return None
         return np.linalg.inv(matrix)
 
-    def payload_reading_map(self):
-        """K = T·M (6 × 6): how a wrench acting at the sensor (in S, about So) shows in the
-        compensated wrench ``T·(measured − predicted)``; None when it is the identity. With
-        a cross-talk identified in free motion, ``R⁻¹·(I + E)·R`` (R the mounting rotation
-        on forces and torques): the bias tracker reads a grasped payload through it, as the
-        model reads the tool."""
-        M = self.reading_matrix()
-        T = self.reading_to_model_frame()
-        K = M if T is None else T @ M
-        return None if np.allclose(K, np.eye(6), rtol=0.0, atol=1e-12) else K
-
     def with_correction(self, correction) -> PhysicsPayloadCompensator:
         """A copy that predicts readings through a gain/cross-talk correction identified on
         static poses (:class:`~ftdrake.compensation.calibration.CalibrationCorrection`):
