@@ -273,7 +273,7 @@ class HybridCompensator(Compensator):
         return self.physics_.reading_to_model_frame()
 
     def payload_reading_map(self):
-        """The physics part's (:meth:`~.physics.PhysicsPayloadCompensator.payload_reading_map`)."""
+        """The physics part's (:meth:`~.base.Compensator.payload_reading_map`)."""
         return self.physics_.payload_reading_map()
 
     def compiled_predictor(self):
