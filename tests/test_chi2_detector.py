@@ -59,21 +59,24 @@ def test_false_positive_rate_on_gaussian_data_is_the_budgets():
     assert abs(np.mean(np.sum((w / std) ** 2, axis=1) > high) - p) > 4 * np.sqrt(p / n)
 
 
-def test_detector_in_a_diagram_fires_on_a_whitened_excess_and_keeps_debounce():
-    def run(wrench, std, seconds=0.2):
-        config = DetectorConfig(test="chi2", debounce_on=3, arm_after_s=0.0)
-        builder = DiagramBuilder()
-        dut = builder.AddSystem(ContactDetector(config, 0.001))
-        w = builder.AddSystem(ConstantVectorSource(np.asarray(wrench, float)))
-        s = builder.AddSystem(ConstantVectorSource(np.asarray(std, float)))
-        builder.Connect(w.get_output_port(), dut.get_input_port_wrench_contact())
-        builder.Connect(s.get_output_port(), dut.get_input_port_wrench_std())
-        diagram = builder.Build()
-        simulator = Simulator(diagram)
-        simulator.AdvanceTo(seconds)
-        context = dut.GetMyContextFromRoot(simulator.get_context())
-        return dut, dut.get_output_port_contact().Eval(context)[0]
+def run(wrench, std, seconds=0.2, tracker_std=None):
+    """The χ² detector on constant inputs for `seconds`: (detector, its contact flag)."""
+    config = DetectorConfig(test="chi2", debounce_on=3, arm_after_s=0.0)
+    builder = DiagramBuilder()
+    dut = builder.AddSystem(ContactDetector(config, 0.001))
+    inputs = {dut.get_input_port_wrench_contact(): wrench, dut.get_input_port_wrench_std(): std}
+    if tracker_std is not None:
+        inputs[dut.get_input_port_wrench_std_tracker()] = tracker_std
+    for port, value in inputs.items():
+        source = builder.AddSystem(ConstantVectorSource(np.asarray(value, float)))
+        builder.Connect(source.get_output_port(), port)
+    simulator = Simulator(builder.Build())
+    simulator.AdvanceTo(seconds)
+    context = dut.GetMyContextFromRoot(simulator.get_context())
+    return dut, dut.get_output_port_contact().Eval(context)[0]
 
+
+def test_detector_in_a_diagram_fires_on_a_whitened_excess_and_keeps_debounce():
     dut, _ = run(np.zeros(6), np.ones(6))
     k = np.sqrt(dut.chi2_on)  # ≈ 6.5 σ at 1 per hour and 1 kHz
     sigma = np.array([0.1, 0.1, 0.1, 0.01, 0.01, 0.01])
@@ -81,6 +84,17 @@ def test_detector_in_a_diagram_fires_on_a_whitened_excess_and_keeps_debounce():
     assert run([0.9 * k * 0.1, 0, 0, 0, 0, 0], sigma)[1] == 0.0
     # The same force out of domain, where the model's std is 3× larger: no contact.
     assert run([1.1 * k * 0.1, 0, 0, 0, 0, 0], 3 * sigma)[1] == 0.0
+
+
+def test_the_trackers_std_is_added_in_quadrature():
+    """The model's std 0.6 σ and the tracker's 0.8 σ whiten as σ (√(0.36 + 0.64)): a force
+    just over the threshold at σ is contact, just under it is not. Summed stds (1.4 σ) or
+    the tracker's left out (0.6 σ) would turn one of the two answers round."""
+    dut, _ = run(np.zeros(6), np.ones(6))
+    k = np.sqrt(dut.chi2_on)
+    sigma = np.array([0.1, 0.1, 0.1, 0.01, 0.01, 0.01])
+    assert run([1.1 * k * 0.1, 0, 0, 0, 0, 0], 0.6 * sigma, tracker_std=0.8 * sigma)[1] == 1.0
+    assert run([0.9 * k * 0.1, 0, 0, 0, 0, 0], 0.6 * sigma, tracker_std=0.8 * sigma)[1] == 0.0
 
 
 def test_thresholds_for_the_chi2_test_from_held_out_data():

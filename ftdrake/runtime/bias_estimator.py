@@ -401,7 +401,8 @@ def _predictive_std(L, factored, phi, prior, n, std):
 def steady_information(sigma, prior, lam, n, K=None):
     """R (scaled) after a long run of free motion: E[Φ'ᵀΦ']/(1 − λ) + I, the expectation over
     the six axis directions of g (exact isotropic second moments), at rest: the inertia's
-    information stays at its prior (motion is not assumed)."""
+    information stays at its prior (motion is not assumed). `K`: the payload's map
+    (:func:`_regressor`; default the identity)."""
     phi = np.empty((6, n))
     K = np.eye(6) if K is None else np.asarray(K, dtype=float)
     info = np.zeros((n, n))

@@ -339,7 +339,8 @@ def _joint_state_gravity(config: ScenarioConfig, robot, model, period) -> JointS
 
 
 def _payload_reading_map(model):
-    """The model's map from a wrench at the sensor to its compensated wrench (None: identity);
-    a model class without one (a forest) reads wrenches in S unchanged."""
+    """The model's map from a wrench at the sensor to its compensated wrench (None: the
+    identity, as for a model without a reading matrix, e.g. a forest, or an object that is
+    not a :class:`~ftdrake.compensation.base.Compensator` and has no such method)."""
     reading_map = getattr(model, "payload_reading_map", None)
     return None if reading_map is None else reading_map()
