@@ -275,6 +275,10 @@ def test_grasp_identified_while_rotating(bias_known):
 
 @pytest.fixture(scope="module")
 def arm_motion():
+    return brisk_arm_motion()
+
+
+def brisk_arm_motion():
     """S's motion along 6 s of brisk multi-sine joint motion of the scenario's arm, from Drake
     (S's Jacobian and bias acceleration): g_S − a_So, [ω; α] (in S). |α| reaches ~10 rad/s²."""
     from ftdrake.physics.rigid_body import sensor_kinematics

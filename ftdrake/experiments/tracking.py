@@ -8,6 +8,15 @@ criterion is strict. Recovery time: from the event until ``|d_i| ≤ 2 σ_i`` on
 the rest of the run (σ the sensor's noise per axis). For the grasp the motion itself changes a
 little (the controller does not know the new weight), which stays in ``d``.
 
+For a grasp two more figures judge the window from ``judged_after_s`` after the grasp on
+(the plan's, 5 s: the tracker's default payload settle window): the largest |d_i|/σ_i and
+the share of samples within tolerance on every axis — for the tracker, and for the *best
+constant payload in hindsight* (:func:`constant_payload_floor`): a bias and a rigid payload
+fitted by least squares to the whole run after the grasp. It has all the data at once,
+which no tracker has, and still takes up the compensator's own error as a tracker does, so
+the two figures say how much of what is left is the tracker's and how much the
+compensator's.
+
 The push grows linearly (``events.push_force_W`` over ``events.push_ramp_s``): reported are
 the time and the push's force at the first detection, and how much of it the tracker had
 taken as bias by then (‖Δ bias_F‖ from the push's start to the detection).
@@ -22,7 +31,11 @@ from joblib import Parallel, delayed
 from tqdm.auto import tqdm
 
 from .. import conventions as col
+from ..compensation.payload_identification import payload_regressor
 from ..config import ScenarioConfig, dump_config, parse_config
+from ..physics.rigid_body import sensor_kinematics
+from ..physics.scenario_robot import robot_description
+from ..runtime.chain import model_payload_map
 from ..sim.simulate import simulate
 from ..sim.station import build_station
 
@@ -37,6 +50,7 @@ class EventPlan:
     duration_s: float = 20.0
     event_at_s: float = 5.0
     seeds: tuple[int, ...] = (0,)  # trajectory and noise seeds (offset by the plan's seed)
+    events: tuple[str, ...] = EVENTS  # which of EVENTS run
     retare_offset: tuple[float, ...] = (2.9, -2.9, 2.9, 0.116, -0.116, 0.116)  # 5 N, 0.2 N·m
     grasp_mass_kg: float = 0.5
     # After the grasp the station's controller carries the tracker's payload estimate
@@ -45,6 +59,8 @@ class EventPlan:
     push_force_n: float = 5.0
     push_ramp_s: float = 5.0
     tolerance_sigmas: float = 2.0
+    # A grasp is also judged from this long after it on (the settled figures).
+    judged_after_s: float = 5.0
 
 
 def event_configs(base: ScenarioConfig, event: str, plan: EventPlan, seed: int) -> dict:
@@ -85,11 +101,14 @@ def run_events(models: dict, config: ScenarioConfig, plan: EventPlan | None = No
     """Runs every event for every model (name → fitted compensator; `config.detector` or a
     per-model detector in ``models[name] = (model, detector)``). Returns name → rows."""
     plan = plan or EventPlan()
+    unknown = sorted(set(plan.events) - set(EVENTS))
+    if unknown:
+        raise ValueError(f"EventPlan.events: unknown {unknown}; choose from {EVENTS}")
     jobs = []
     for name, entry in models.items():
         model, detector = entry if isinstance(entry, tuple) else (entry, config.detector)
         base = dc.replace(config, detector=detector)
-        for event in EVENTS:
+        for event in plan.events:
             for s in plan.seeds:
                 configs = event_configs(base, event, plan, seed + s)
                 jobs.append((name, event, seed + s, model,
@@ -112,8 +131,16 @@ def _event_run(model, yamls: dict, plan: EventPlan, event: str) -> dict:
     sigma = np.asarray(config.sensor.spec().noise_std, dtype=float)
     if event == "push":
         return push_metrics(logs["with"], logs["reference"], plan)
-    return recovery_metrics(logs["with"], logs["untracked"], logs["reference"], sigma, plan,
-                            payload=event == "grasp")
+    row = recovery_metrics(logs["with"], logs["untracked"], logs["reference"], sigma, plan,
+                           payload=event == "grasp")
+    if event == "grasp":
+        judged_from = plan.event_at_s + plan.judged_after_s
+        row["settled"] = settled_metrics(logs["with"], logs["reference"], sigma, judged_from,
+                                         plan.tolerance_sigmas)
+        row["best_constant_payload"] = constant_payload_floor(
+            logs["with"], logs["reference"], sensor_regressor(logs["with"], config),
+            model_payload_map(model), sigma, plan.event_at_s, judged_from, plan.tolerance_sigmas)
+    return row
 
 
 def recovery_metrics(with_event, untracked, reference, sigma, plan: EventPlan, *,
@@ -137,6 +164,74 @@ def recovery_metrics(with_event, untracked, reference, sigma, plan: EventPlan, *
     if payload and col.PAYLOAD_ESTIMATE[0] in with_event:
         row["payload_estimate"] = [float(with_event[c].iloc[-1]) for c in col.PAYLOAD_ESTIMATE]
     return row
+
+
+def settled_metrics(with_event, reference, sigma, judged_from_s: float,
+                    tolerance_sigmas: float) -> dict:
+    """The largest |d_i|/σ_i from `judged_from_s` on and the share of those samples within
+    `tolerance_sigmas` on every axis (d as in the module docstring)."""
+    t = with_event[col.TIME].to_numpy()
+    z = (_estimate(with_event) - _estimate(reference))[t >= judged_from_s] / sigma
+    return _judged(z, tolerance_sigmas)
+
+
+def sensor_regressor(log, config: ScenarioConfig) -> np.ndarray:
+    """(N, 6, 16) rigid-payload regressor of `log`'s samples, ``[payload (10) | bias (6)]``
+    (:func:`~ftdrake.compensation.payload_identification.payload_regressor`), from the
+    plant's true q, q̇, q̈ (columns ``q_i``, ``qd_i``, ``qdd_i``): S's motion in S."""
+    plant, frame_S = robot_description(config).build_plant()
+    q, v, vdot = (log[col.joint_columns(prefix)].to_numpy() for prefix in ("q", "qd", "qdd"))
+    kin = sensor_kinematics(plant, plant.CreateDefaultContext(), frame_S, q, v, vdot)
+    return payload_regressor(kin.w_WS_S, kin.alpha_WS_S, kin.a_WSo_S - kin.g_S)
+
+
+def constant_payload_floor(with_event, reference, regressor, payload_map, sigma,
+                           event_at_s: float, judged_from_s: float,
+                           tolerance_sigmas: float) -> dict:
+    """What the best constant payload leaves: d's figures (:func:`settled_metrics`) had the
+    tracker subtracted, in both runs, a constant estimated in hindsight from every sample
+    after the event that the tracker learns from (the compensator's ``out_of_domain`` and
+    ``fault`` < 0.5, where the log has them) — in the event's run a bias and a rigid
+    payload read through `payload_map` (K, 6 × 6; the compensator's map of a wrench at the
+    sensor), in the reference a bias; each by least squares on that run's compensated
+    wrench, rows weighted by 1/σ. `regressor`: :func:`sensor_regressor` of the event's run.
+    Figures are None when fewer than 16 samples are left to fit.
+
+    The fit sees what a tracker sees (the compensated wrench, model error included), so the
+    payload takes up the part of the compensator's pose-dependent error its regressor can
+    express, as any tracker of a constant payload does over that run; with the error
+    absent it is the payload's wrench, and d's figures are the noise-free ~0."""
+    t = with_event[col.TIME].to_numpy()
+    fitted = (t > event_at_s) & _trusted(with_event)
+    K = np.eye(6) if payload_map is None else np.asarray(payload_map, dtype=float)
+    A = np.concatenate([np.einsum("ij,njk->nik", K, regressor[:, :, :10]),
+                        regressor[:, :, 10:]], axis=2) / sigma[None, :, None]
+    compensated = with_event[col.wrench_columns(col.COMPENSATED)].to_numpy() / sigma
+    fitted_reference = (reference[col.TIME].to_numpy() > event_at_s) & _trusted(reference)
+    if min(fitted.sum(), fitted_reference.sum()) < 16:
+        return {**_judged(np.empty((0, 6)), tolerance_sigmas), "payload": None}
+    theta = np.linalg.lstsq(A[fitted].reshape(-1, 16), compensated[fitted].reshape(-1),
+                            rcond=None)[0]
+    left = compensated - A @ theta
+    left_reference = reference[col.wrench_columns(col.COMPENSATED)].to_numpy() / sigma
+    left_reference = left_reference - left_reference[fitted_reference].mean(axis=0)
+    row = _judged((left - left_reference)[t >= judged_from_s], tolerance_sigmas)
+    return {**row, "payload": [float(x) for x in theta[:4]]}
+
+
+def _trusted(log) -> np.ndarray:
+    trusted = np.ones(len(log), dtype=bool)
+    for flag in (col.OUT_OF_DOMAIN, col.FAULT):
+        if flag in log:
+            trusted &= ~(log[flag].to_numpy() >= 0.5)  # NaN counts as set, as in the tracker
+    return trusted
+
+
+def _judged(z, tolerance_sigmas: float) -> dict:
+    if len(z) == 0:
+        return {"max_error_sigmas": None, "within_tolerance": None}
+    return {"max_error_sigmas": float(np.abs(z).max()),
+            "within_tolerance": float((np.abs(z) <= tolerance_sigmas).all(axis=1).mean())}
 
 
 def push_metrics(with_event, reference, plan: EventPlan) -> dict:
@@ -184,6 +279,9 @@ def markdown(results: dict, plan: EventPlan) -> str:
                           f"{r[key]['false_contact_s']:.2f} s"]
             lines.append(f"| {name} | {_event_label(r['event'], plan)} | {r['seed']} | "
                          + " | ".join(cells) + " |")
+    lines += _settled_table(results, plan)
+    if not any(r["event"] == "push" for rows in results.values() for r in rows):
+        return "\n".join(lines) + "\n"
     lines += ["", ("| model | slow push | seed | detected | after | push at detection | "
               "taken as bias by then |"), "| --- | --- | --- | --- | --- | --- | --- |"]
     for name, rows in results.items():
@@ -198,6 +296,38 @@ def markdown(results: dict, plan: EventPlan) -> str:
                 f"| {'yes' if r['detected'] else '**no**'} | {delay} | {force} "
                 f"| {r['bias_absorbed_n'] * 1000:.1f} mN |")
     return "\n".join(lines) + "\n"
+
+
+def _settled_table(results: dict, plan: EventPlan) -> list[str]:
+    """The grasp's judged window (from `judged_after_s` after it on): the tracker beside the
+    best constant payload in hindsight."""
+    rows = [(name, r) for name, rs in results.items() for r in rs if "settled" in r]
+    if not rows:
+        return []
+    lines = ["", (f"| model | grasp | seed | from {plan.judged_after_s:g} s after it on: largest "
+                  f"effect, within {plan.tolerance_sigmas:g} σ (tracker) | the same, best "
+                  f"constant payload in hindsight | its payload |"),
+             "| --- | --- | --- | --- | --- | --- |"]
+    for name, r in rows:
+        cells = [_judged_cell(r["settled"]), _judged_cell(r["best_constant_payload"]),
+                 _payload_cell(r["best_constant_payload"]["payload"])]
+        lines.append(f"| {name} | {plan.grasp_mass_kg:g} kg | {r['seed']} | "
+                     + " | ".join(cells) + " |")
+    return lines
+
+
+def _payload_cell(payload) -> str:
+    if payload is None:
+        return "–"
+    dm, *mc = payload
+    com = " ".join(f"{1000 * x / dm:.1f}" for x in mc) if dm else "–"
+    return f"{dm:.4f} kg at ({com}) mm"
+
+
+def _judged_cell(row: dict) -> str:
+    if row["max_error_sigmas"] is None:
+        return "–"
+    return f"{row['max_error_sigmas']:.1f} σ, {100 * row['within_tolerance']:.1f} %"
 
 
 def _event_label(event: str, plan: EventPlan) -> str:

@@ -124,7 +124,7 @@ class CompensationChain(Diagram):
         if config.bias_tracker.enabled:
             self.tracker = builder.AddNamedSystem(
                 "bias_tracker", OnlineBiasTracker(config.bias_tracker, config.sensor, period,
-                                                  payload_map=_payload_reading_map(model)))
+                                                  payload_map=model_payload_map(model)))
             self._wire_tracker(builder)
             contact_wrench = self.tracker.get_output_port_wrench_contact()
         builder.Connect(contact_wrench, self.detector.get_input_port_wrench_contact())
@@ -338,7 +338,7 @@ def _joint_state_gravity(config: ScenarioConfig, robot, model, period) -> JointS
                              gravity_W=plant.gravity_field().gravity_vector())
 
 
-def _payload_reading_map(model):
+def model_payload_map(model):
     """The model's map from a wrench at the sensor to its compensated wrench (None: the
     identity, as for a model without a reading matrix, e.g. a forest, or an object that is
     not a :class:`~ftdrake.compensation.base.Compensator` and has no such method)."""
