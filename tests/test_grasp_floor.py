@@ -133,3 +133,20 @@ def test_the_events_table_shows_the_tracker_beside_the_best_constant_payload():
 def test_an_unknown_event_is_refused_by_name():
     with pytest.raises(ValueError, match="grab"):
         run_events({}, ScenarioConfig(), EventPlan(events=("grasp", "grab")))
+
+
+def test_with_no_sample_the_tracker_learns_from_there_are_no_figures(arm_motion):
+    """Every sample out of the compensator's domain: nothing to fit, no figures (not a fit
+    of nothing), and the table says so."""
+    t, kin = arm_motion
+    event, reference = runs(t, kin, 0.0)
+    for log_ in (event, reference):
+        log_[col.OUT_OF_DOMAIN] = 1.0
+    row = constant_payload_floor(event, reference, regressor(kin), None, SIGMA, GRASP_AT,
+                                 JUDGED_FROM, 2.0)
+    assert row == {"max_error_sigmas": None, "within_tolerance": None, "payload": None}
+    event[col.OUT_OF_DOMAIN] = np.where(t < 2.0, 1.0, 0.0)  # only the first second after it
+    reference[col.OUT_OF_DOMAIN] = 0.0
+    row = constant_payload_floor(event, reference, regressor(kin), None, SIGMA, GRASP_AT,
+                                 JUDGED_FROM, 2.0)
+    assert row["payload"][0] == pytest.approx(MASS, rel=1e-3)

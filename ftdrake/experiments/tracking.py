@@ -6,16 +6,17 @@ The difference between the first and the reference, ``d(t) = est_with(t) − est
 what the event leaves in the compensated wrench — model error and noise cancel, so the 2 σ
 criterion is strict. Recovery time: from the event until ``|d_i| ≤ 2 σ_i`` on every axis for
 the rest of the run (σ the sensor's noise per axis). For the grasp the motion itself changes a
-little (the controller does not know the new weight), which stays in ``d``.
+little (the controller adapts to the tracker's estimate of the weight, not to the truth),
+which stays in ``d``.
 
 For a grasp two more figures judge the window from ``judged_after_s`` after the grasp on
 (the plan's, 5 s: the tracker's default payload settle window): the largest |d_i|/σ_i and
 the share of samples within tolerance on every axis — for the tracker, and for the *best
 constant payload in hindsight* (:func:`constant_payload_floor`): a bias and a rigid payload
-fitted by least squares to the whole run after the grasp. It has all the data at once,
-which no tracker has, and still takes up the compensator's own error as a tracker does, so
-the two figures say how much of what is left is the tracker's and how much the
-compensator's.
+fitted by least squares to every sample after the grasp that the tracker learns from. It
+has all the data at once, which no tracker has, and still takes up the compensator's own
+error as a tracker does, so the two figures say how much of what is left is the tracker's
+and how much the compensator's.
 
 The push grows linearly (``events.push_force_W`` over ``events.push_ramp_s``): reported are
 the time and the push's force at the first detection, and how much of it the tracker had
@@ -188,14 +189,14 @@ def sensor_regressor(log, config: ScenarioConfig) -> np.ndarray:
 def constant_payload_floor(with_event, reference, regressor, payload_map, sigma,
                            event_at_s: float, judged_from_s: float,
                            tolerance_sigmas: float) -> dict:
-    """What the best constant payload leaves: d's figures (:func:`settled_metrics`) had the
-    tracker subtracted, in both runs, a constant estimated in hindsight from every sample
-    after the event that the tracker learns from (the compensator's ``out_of_domain`` and
-    ``fault`` < 0.5, where the log has them) — in the event's run a bias and a rigid
-    payload read through `payload_map` (K, 6 × 6; the compensator's map of a wrench at the
-    sensor), in the reference a bias; each by least squares on that run's compensated
-    wrench, rows weighted by 1/σ. `regressor`: :func:`sensor_regressor` of the event's run.
-    Figures are None when fewer than 16 samples are left to fit.
+    """What the best constant payload leaves: d's figures (:func:`settled_metrics`) as they
+    would be had the tracker subtracted, in both runs, a constant estimated in hindsight from
+    every sample after the event that the tracker learns from (the compensator's
+    ``out_of_domain`` and ``fault`` < 0.5, where the log has them) — in the event's run a
+    bias and a rigid payload read through `payload_map` (K, 6 × 6; the compensator's map of
+    a wrench at the sensor), in the reference a bias; each by least squares on that run's
+    compensated wrench, rows weighted by 1/σ. `regressor`: :func:`sensor_regressor` of the
+    event's run. Figures are None when fewer than 16 samples are left to fit.
 
     The fit sees what a tracker sees (the compensated wrench, model error included), so the
     payload takes up the part of the compensator's pose-dependent error its regressor can
