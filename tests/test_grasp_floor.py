@@ -105,7 +105,7 @@ def test_the_payload_is_read_through_the_models_map(arm_motion):
     assert wrong["max_error_sigmas"] > 2.0
 
 
-def test_settled_metrics_judge_only_the_window_after_the_settle(arm_motion):
+def test_settled_metrics_judge_only_the_samples_from_the_judged_start(arm_motion):
     t, _ = arm_motion
     d = np.zeros((len(t), 6))
     d[(t > GRASP_AT) & (t < JUDGED_FROM), 3] = 10 * SIGMA[3]  # before the window: not judged

@@ -29,14 +29,21 @@ PLAN = EventPlan(duration_s=10.0, event_at_s=3.0, push_ramp_s=4.0)
 
 
 @pytest.fixture(scope="module")
-def trained():
-    config = ScenarioConfig()
-    data = collect(config, 1, kind=PLAN.kind, seed=0, duration=PLAN.duration_s, n_jobs=1,
-                   progress=False)
-    model = PhysicsPayloadCompensator().fit(joint_state_layout(data), wrench_targets(data))
+def training_data():
+    return collect(ScenarioConfig(), 1, kind=PLAN.kind, seed=0, duration=PLAN.duration_s,
+                   n_jobs=1, progress=False)
+
+
+def fitted(data, model):
+    """`model` fitted on `data` and the scenario with thresholds from its residual there."""
+    model.fit(joint_state_layout(data), wrench_targets(data))
     residual = wrench_targets(data) - model.predict(joint_state_layout(data))
-    config = dc.replace(config, detector=thresholds_from_quantile(residual))
-    return model, config
+    return model, dc.replace(ScenarioConfig(), detector=thresholds_from_quantile(residual))
+
+
+@pytest.fixture(scope="module")
+def trained(training_data):
+    return fitted(training_data, PhysicsPayloadCompensator())
 
 
 def run(config, model):
@@ -100,19 +107,13 @@ def test_grasp_mass_and_position_identified_in_motion(trained):
     assert not detected[t > 4.0].any()
 
 
-def test_the_grasp_experiment_judges_the_window_and_fits_the_injected_payload():
+def test_the_grasp_experiment_judges_the_window_and_fits_the_injected_payload(training_data):
     """The experiment's grasp row in the loop: the best constant payload in hindsight, fitted
     on the run's compensated wrench through Drake's kinematics of its logged joints and the
     model's map, is the injected point mass — for a physics model with the sensor's
     cross-talk identified (with the identity map the sensor's cross-talk and mounting put the
     centre of mass ~1 cm off) — and both judged figures cover the window after the grasp."""
-    config = ScenarioConfig()
-    data = collect(config, 1, kind=PLAN.kind, seed=0, duration=PLAN.duration_s, n_jobs=1,
-                   progress=False)
-    model = PhysicsPayloadCompensator(identify_crosstalk=True).fit(
-        joint_state_layout(data), wrench_targets(data))
-    residual = wrench_targets(data) - model.predict(joint_state_layout(data))
-    config = dc.replace(config, detector=thresholds_from_quantile(residual))
+    model, config = fitted(training_data, PhysicsPayloadCompensator(identify_crosstalk=True))
     plan = dc.replace(PLAN, events=("grasp",))
     row, = run_events({"physics": model}, config, plan, n_jobs=1, progress=False)["physics"]
     dm, *mc = row["best_constant_payload"]["payload"]

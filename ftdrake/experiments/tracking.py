@@ -33,8 +33,8 @@ from tqdm.auto import tqdm
 
 from .. import conventions as col
 from ..compensation.payload_identification import payload_regressor
+from ..compensation.payload_kinematics import kinematics_for
 from ..config import ScenarioConfig, dump_config, parse_config
-from ..physics.rigid_body import sensor_kinematics
 from ..physics.scenario_robot import robot_description
 from ..runtime.chain import model_payload_map
 from ..sim.simulate import simulate
@@ -180,9 +180,8 @@ def sensor_regressor(log, config: ScenarioConfig) -> np.ndarray:
     """(N, 6, 16) rigid-payload regressor of `log`'s samples, ``[payload (10) | bias (6)]``
     (:func:`~ftdrake.compensation.payload_identification.payload_regressor`), from the
     plant's true q, q̇, q̈ (columns ``q_i``, ``qd_i``, ``qdd_i``): S's motion in S."""
-    plant, frame_S = robot_description(config).build_plant()
     q, v, vdot = (log[col.joint_columns(prefix)].to_numpy() for prefix in ("q", "qd", "qdd"))
-    kin = sensor_kinematics(plant, plant.CreateDefaultContext(), frame_S, q, v, vdot)
+    kin = kinematics_for(robot_description(config), col.GRAVITY_W).evaluate(q, v, vdot)
     return payload_regressor(kin.w_WS_S, kin.alpha_WS_S, kin.a_WSo_S - kin.g_S)
 
 
