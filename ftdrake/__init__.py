@@ -10,10 +10,12 @@ layers, from the bottom up (a module imports only from its own layer or those be
 4. ``compensation``: estimators, their registry, compiled predictors, persistence, ONNX.
 5. ``runtime``: the product, :class:`CompensationChain` (compensator → bias tracker →
    detector) that both stations add.
-6. ``systems``: the simulation rig's LeafSystems (sensor model, contact truth, controller, ...).
-7. ``sim`` (scene, trajectories, station, simulate, evaluation, collection) and ``hardware``
+6. ``offline``: tools around the product: the chain replayed over a log, the detector's
+   thresholds from a false-positive budget, the residual budget.
+7. ``systems``: the simulation rig's LeafSystems (sensor model, contact truth, controller, ...).
+8. ``sim`` (scene, trajectories, station, simulate, evaluation, collection) and ``hardware``
    (live LCM transport around the runtime chain; imports nothing of ``sim`` or ``systems``).
-8. ``experiments`` (demo, study, feedforward) and ``cli``.
+9. ``experiments`` (demo, study, feedforward) and ``cli``.
 """
 
 from .version import ftdrake_version
@@ -57,14 +59,14 @@ from .errors import (
 )
 from .hardware.config import HardwareConfig
 from .hardware.station import HardwareStation
+from .offline.replay import replay
+from .offline.thresholds import thresholds_for_false_positive_rate
 from .runtime.bias_tracker import OnlineBiasTracker
 from .runtime.chain import CompensationChain
 from .runtime.compensator import CompensatorSystem
 from .runtime.detector import ContactDetector
 from .runtime.joint_gravity import JointStateGravity
 from .runtime.recorder import Recorder, add_recorder
-from .runtime.replay import replay
-from .runtime.thresholds import thresholds_for_false_positive_rate
 from .sim.collection import collect
 from .sim.evaluation import evaluate_detection
 from .sim.scene import Scene, add_scene, make_control_plant

@@ -10,7 +10,7 @@ import pytest
 
 import ftdrake
 from ftdrake.cli.main import main
-from ftdrake.experiments.residual_budget import SHARES, decompose, residual_budget
+from ftdrake.offline.residual_budget import SHARES, decompose, residual_budget
 
 PERIOD = 1e-3  # s
 NOISE = np.array([0.03, 0.03, 0.05, 1e-3, 1e-3, 1e-3])  # N, N·m
@@ -165,7 +165,7 @@ def test_replay_budget_prints_the_functions_budget(delayed_replay, tmp_path, cap
 
 
 def test_the_resting_noise_is_measured_on_each_still_stretch_about_its_own_mean():
-    from ftdrake.experiments.residual_budget import _resting_noise
+    from ftdrake.offline.residual_budget import _resting_noise
     rng = np.random.default_rng(3)
     n = 3000
     still = np.zeros(n, bool)

@@ -4,15 +4,15 @@
                    [--view aligned|held] [--delay S | --align] [--budget]
                    [--calibrate-detector YAML]
 
-Writes the chain's outputs per row (:func:`ftdrake.runtime.replay.replay`: compensated and
+Writes the chain's outputs per row (:func:`ftdrake.offline.replay.replay`: compensated and
 contact wrench, std, bias, out-of-domain, fault and contact flags, contact force) as CSV or
 Parquet (by the suffix of --out) and prints a JSON summary. --log is a CSV/Parquet table, a
 ROS bag (with --wrench-topic) or an LCM log (read with --hardware's channels). --budget adds
 what the in-motion residual is made of (offset, drift, stream delay, the sensor's filter,
-remainder: :func:`ftdrake.experiments.residual_budget.residual_budget`) to the summary.
+remainder: :func:`ftdrake.offline.residual_budget.residual_budget`) to the summary.
 --calibrate-detector writes the scenario with its detector's thresholds set for its budget
 from the log, which must be contact-free motion the model was not trained on
-(:func:`ftdrake.runtime.replay.calibrated_detector`); ``serve`` and ``replay`` take it as
+(:func:`ftdrake.offline.replay.calibrated_detector`); ``serve`` and ``replay`` take it as
 --config.
 """
 
@@ -28,10 +28,9 @@ from ..data.bag import is_bag
 from ..data.logs import is_table
 from ..data.stream_delay import estimate_stream_delay
 from ..errors import ConfigError, LogError
-from ..experiments.residual_budget import residual_budget
 from ..hardware.recording import read_lcm_log
 from ..io import atomic_path
-from ..runtime.replay import (
+from ..offline.replay import (
     calibrated_detector,
     read_replay_log,
     replay,
@@ -39,6 +38,7 @@ from ..runtime.replay import (
     summary,
     to_replay_layout,
 )
+from ..offline.residual_budget import residual_budget
 from . import args as a
 from .hardware import add_transport_flags, hardware_from_args
 

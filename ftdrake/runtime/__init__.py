@@ -3,11 +3,11 @@
 :class:`CompensationChain` (``chain``) wires the :class:`CompensatorSystem` (``compensator``),
 the :class:`OnlineBiasTracker` (``bias_tracker``) and the :class:`ContactDetector`
 (``detector``), with :class:`JointStateGravity` (``joint_gravity``) for the tracker's payload
-estimate on a robot without a plant. :func:`replay` (``replay``) runs the chain offline over
-a log, :func:`add_recorder` (``recorder``) logs any diagram in the layout both read, and
-:class:`DelayLine` (``delay_line``) corrects a delay between the joint-state and wrench
-streams. ``sim.station`` and ``hardware.station`` both add the
-chain; nothing here imports the simulation rig (``systems``, ``sim``).
+estimate on a robot without a plant. :func:`add_recorder` (``recorder``) logs any diagram in
+the layout :func:`ftdrake.offline.replay.replay` reads, and :class:`DelayLine`
+(``delay_line``) corrects a delay between the joint-state and wrench streams.
+``sim.station`` and ``hardware.station`` both add the chain; nothing here imports the
+simulation rig (``systems``, ``sim``).
 """
 
 from .bias_tracker import OnlineBiasTracker
@@ -17,7 +17,6 @@ from .delay_line import DelayLine
 from .detector import ContactDetector
 from .joint_gravity import JointStateGravity
 from .recorder import Recorder, add_recorder
-from .replay import replay
 
 __all__ = [
     "CompensationChain",
@@ -28,5 +27,4 @@ __all__ = [
     "OnlineBiasTracker",
     "Recorder",
     "add_recorder",
-    "replay",
 ]

@@ -30,7 +30,7 @@ reports them):
 ``external_*``      the true contact wrench (with a `wrench_contact_true` port)
 chain outputs       with `chain`: ``pred_*``, ``comp_external_*``, ``est_external_*``,
                     ``pred_std_*``, ``bias_est_*``, ``out_of_domain``, ``fault``,
-                    ``detected``, ``detected_force`` (:mod:`~ftdrake.runtime.replay`'s names)
+                    ``detected``, ``detected_force`` (:mod:`~ftdrake.offline.replay`'s names)
 ==================  ============================================================
 
 So ``joint_state_layout(log)`` (``source="est"``) gives ``[q, q̇, q̈]`` as the loop sees them,
@@ -50,8 +50,8 @@ from pydrake.systems.primitives import LogVectorOutput
 from .. import conventions as col
 from ..config import CompensatorConfig
 from ..errors import ConfigError
+from ..offline.replay import FLAG_OUTPUTS, INTEGER_COLUMNS, PAYLOAD_COLUMNS, WRENCH_OUTPUTS
 from ..signals import causal_acceleration
-from .replay import FLAG_OUTPUTS, INTEGER_COLUMNS, PAYLOAD_COLUMNS, WRENCH_OUTPUTS
 
 
 @dc.dataclass

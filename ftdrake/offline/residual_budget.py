@@ -59,7 +59,7 @@ from .. import conventions as col
 from ..compensation.physics import PhysicsPayloadCompensator
 from ..config import ScenarioConfig, parse_config
 from ..errors import LogError
-from ..runtime.replay import read_replay_log, replay
+from .replay import read_replay_log, replay
 
 SHARES = ("offset", "drift", "delay", "filter", "remainder")
 #: Joint speed (rad/s) at or below which every joint counts as at rest.
