@@ -3,9 +3,10 @@
 :class:`CompensationChain` (``chain``) wires the :class:`CompensatorSystem` (``compensator``),
 the :class:`OnlineBiasTracker` (``bias_tracker``) and the :class:`ContactDetector`
 (``detector``), with :class:`JointStateGravity` (``joint_gravity``) for the tracker's payload
-estimate on a robot without a plant. :func:`add_recorder` (``recorder``) logs any diagram in
-the layout :func:`ftdrake.offline.replay.replay` reads, and :class:`DelayLine`
-(``delay_line``) corrects a delay between the joint-state and wrench streams.
+estimate on a robot without a plant, and :class:`DelayLine` (``delay_line``) corrects a delay
+between the joint-state and wrench streams. :func:`add_recorder` (``recorder``; not imported
+by this package, as it reads the column names of :mod:`ftdrake.offline.replay`) logs any
+diagram in the layout replay reads.
 ``sim.station`` and ``hardware.station`` both add the chain; nothing here imports the
 simulation rig (``systems``, ``sim``).
 """
@@ -16,7 +17,6 @@ from .compensator import CompensatorSystem
 from .delay_line import DelayLine
 from .detector import ContactDetector
 from .joint_gravity import JointStateGravity
-from .recorder import Recorder, add_recorder
 
 __all__ = [
     "CompensationChain",
@@ -25,6 +25,4 @@ __all__ = [
     "DelayLine",
     "JointStateGravity",
     "OnlineBiasTracker",
-    "Recorder",
-    "add_recorder",
 ]
