@@ -40,9 +40,7 @@ import warnings
 from pathlib import Path
 
 from ..config import TRAJECTORY_KINDS, ScenarioConfig, load_config
-from ..data.logs import option_spelling
 from ..errors import ConfigError, FtdrakeError, command_line_front_end
-from ..physics.robot import show_parser_warnings
 
 
 # -- argument types -----------------------------------------------------------------------------
@@ -292,6 +290,9 @@ def run(args) -> int:
     """Runs a parsed command. A :class:`FtdrakeError` (a problem the user can fix: its message
     names the flag or field) prints as ``ftdrake CMD: error: MESSAGE`` and exits with 2, like
     argparse's own errors. Any other exception is a bug in ftdrake and keeps its traceback."""
+    from ..data.logs import option_spelling
+    from ..physics.robot import show_parser_warnings
+
     with (command_line_front_end(), option_spelling(flag_hint), one_line_warnings(),
           show_parser_warnings(getattr(args, "verbose", False))):
         try:

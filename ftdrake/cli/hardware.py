@@ -21,16 +21,15 @@ import contextlib
 import json
 import sys
 import time
+from typing import TYPE_CHECKING
 
-from ..compensation.persistence import load_model
 from ..config import load_config
-from ..hardware.config import HardwareConfig
-from ..hardware.recording import read_lcm_log, table_from_messages, write_table
-from ..hardware.station import HardwareStation
-from ..hardware.transport import open_lcm
 from . import args as a
 from . import ros2
 from .live import serve_until_stopped, stop_on_signals
+
+if TYPE_CHECKING:
+    from ..hardware.config import HardwareConfig
 
 
 def register(sub) -> None:
@@ -75,6 +74,8 @@ def add_transport_flags(p, lcm_help: str = "LCM URL, e.g. 'udpm://239.255.76.67:
 
 def hardware_from_args(args) -> HardwareConfig:
     """The HardwareConfig of --hardware (defaults without it) with --lcm applied."""
+    from ..hardware.config import HardwareConfig
+
     if args.hardware is None:
         config = HardwareConfig()
     else:
@@ -87,6 +88,8 @@ def hardware_from_args(args) -> HardwareConfig:
 
 
 def open_transport(args, hardware: HardwareConfig):
+    from ..hardware.transport import open_lcm
+
     where = (f"--lcm {args.lcm}" if args.lcm
              else f"--hardware {args.hardware}" if args.hardware else "hardware.lcm_url")
     return open_lcm(hardware.lcm_url, where=where)
@@ -109,6 +112,9 @@ def describe_channels(hardware) -> str:
 def run_serve(args) -> int:
     if args.ros2:
         return ros2.serve(args)
+    from ..compensation.persistence import load_model
+    from ..hardware.station import HardwareStation
+
     scenario = a.load_scenario(args)
     hardware = hardware_from_args(args)
     with a.naming("--model", args.model):
@@ -131,6 +137,8 @@ def run_serve(args) -> int:
 def run_record(args) -> int:
     if args.ros2:
         return ros2.record(args)
+    from ..hardware.recording import read_lcm_log, table_from_messages, write_table
+
     hardware = hardware_from_args(args)
     if args.from_log is not None:
         with a.naming("--from-log", args.from_log):

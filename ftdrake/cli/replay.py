@@ -22,23 +22,9 @@ import dataclasses as dc
 import json
 import sys
 
-from ..compensation.persistence import load_model
 from ..config import load_config, save_config
-from ..data.bag import is_bag
-from ..data.logs import is_table
-from ..data.stream_delay import estimate_stream_delay
 from ..errors import ConfigError, LogError
-from ..hardware.recording import read_lcm_log
 from ..io import atomic_path
-from ..offline.replay import (
-    calibrated_detector,
-    read_replay_log,
-    replay,
-    scenario_of,
-    summary,
-    to_replay_layout,
-)
-from ..offline.residual_budget import residual_budget
 from . import args as a
 from .hardware import add_transport_flags, hardware_from_args
 
@@ -87,6 +73,11 @@ def register(sub) -> None:
 
 
 def run_replay(args) -> int:
+    from ..compensation.persistence import load_model
+    from ..data.stream_delay import estimate_stream_delay
+    from ..offline.replay import replay, scenario_of, summary
+    from ..offline.residual_budget import residual_budget
+
     _check_flags(args)
     with a.naming("--model", args.model):
         model = load_model(args.model)
@@ -136,12 +127,19 @@ def _check_flags(args) -> None:
 
 def _write_calibrated(path, result, model, scenario) -> dict:
     """Writes `scenario` with the detector calibrated on `result`; returns the detector."""
+    from ..offline.replay import calibrated_detector
+
     detector = calibrated_detector(result, model, scenario)
     save_config(dc.replace(scenario, detector=detector), path)
     return {"file": str(path), **dc.asdict(detector)}
 
 
 def _read_log(args):
+    from ..data.bag import is_bag
+    from ..data.logs import is_table
+    from ..hardware.recording import read_lcm_log
+    from ..offline.replay import read_replay_log, to_replay_layout
+
     if is_table(args.log):
         return to_replay_layout(read_replay_log(args.log), positions=args.positions,
                                 velocities=args.velocities, targets=args.targets,

@@ -7,12 +7,13 @@ from importlib import resources
 from pathlib import Path
 
 import yaml as pyyaml
-from pydrake.common.yaml import yaml_dump_typed, yaml_load_typed
 
 from ..errors import ConfigError
 from ..io import atomic_write_text
 from .scenario import ScenarioConfig
 
+# _DRAKE_ON_USE: Drake's YAML reader and writer are imported where a file is read or written,
+# so that importing the configuration (the command line's flags and help) loads no pydrake.
 
 # ----------------------------------------------------------------------------------------------
 # YAML in and out.
@@ -44,6 +45,8 @@ def parse_config(text: str, schema=ScenarioConfig, source: str = "<string>"):
         raise ConfigError(f"{source}: expected a mapping of fields, got {type(data).__name__}")
     _check_fields(data, schema, "scenario" if schema is ScenarioConfig else schema.__name__)
     try:
+        from pydrake.common.yaml import yaml_load_typed  # noqa: PLC0415 (see _DRAKE_ON_USE)
+
         config = yaml_load_typed(schema=schema, data=text)
     except (RuntimeError, ValueError, TypeError) as e:
         raise ConfigError(f"{source}: {e}") from None
@@ -58,6 +61,8 @@ def save_config(config, path: "str | Path") -> None:
 
 
 def dump_config(config) -> str:
+    from pydrake.common.yaml import yaml_dump_typed  # noqa: PLC0415 (see _DRAKE_ON_USE)
+
     return yaml_dump_typed(config)
 
 

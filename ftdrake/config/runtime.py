@@ -5,8 +5,8 @@
 import dataclasses as dc
 import math
 
+from ..conventions import DEFAULT_ACCELERATION_CUTOFF_HZ
 from ..errors import ConfigError
-from ..signals import DEFAULT_ACCELERATION_CUTOFF_HZ
 from .checks import finite, non_negative, positive, vector
 
 
