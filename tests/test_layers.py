@@ -138,6 +138,12 @@ def test_no_module_imports_from_a_layer_above_it():
     ("ftdrake.compensation.physics", "ftdrake.data.logs", None),
     ("ftdrake.data.logs", "ftdrake.compensation.physics", "above"),
     ("ftdrake.cli.main", "ftdrake.experiments.demo", None),
+    ("ftdrake.runtime.chain", "ftdrake.offline.replay", "above"),
+    ("ftdrake.offline.replay", "ftdrake.systems.ft_sensor", "above"),
+    ("ftdrake.offline.replay", "ftdrake.sim.simulate", "above"),
+    ("ftdrake.offline.residual_budget", "ftdrake.experiments.demo", "above"),
+    ("ftdrake.offline.replay", "ftdrake.runtime.chain", None),
+    ("ftdrake.hardware.station", "ftdrake.offline.replay", None),
 ])
 def test_the_rules_themselves(importer, imported, expected):
     why = violation(importer, imported)
