@@ -58,8 +58,8 @@ def main():
     forest, hybrid = demo_models()
     load_before = os.getloadavg()[0]
     config = ScenarioConfig()
-    untracked = dc.replace(config, bias_tracker=dc.replace(config.bias_tracker, enabled=False))
-    payload = dc.replace(config, bias_tracker=dc.replace(config.bias_tracker,
+    untracked = config.with_chain(bias_tracker=dc.replace(config.chain.bias_tracker, enabled=False))
+    payload = config.with_chain(bias_tracker=dc.replace(config.chain.bias_tracker,
                                                          track_payload=True))
     cases = {
         "no_compensation": (config, None),

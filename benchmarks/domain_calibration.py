@@ -75,7 +75,7 @@ def report(name, model, seconds, X_h, Y_h, config):
     std = model.predict_std(X_h)
     chi2_on = chi2_on_for_false_positive_rate(
         Y_h - model.predict(X_h), std, sample_rate_hz=config.sensor.spec().rate_hz,
-        false_positives_per_hour=config.detector.false_positives_per_hour)
+        false_positives_per_hour=config.chain.detector.false_positives_per_hour)
     d = model.domain_distance(X_h)
     print(f"\n## {name} (fit {seconds:.0f} s)")
     length = model.domain_length_

@@ -85,7 +85,7 @@ def record(urdf: Path, seconds: float, seed: int, model=None):
 
     chain = None
     if model is not None:  # the runtime chain in the loop, as in compensate_in_your_diagram
-        chain = builder.AddSystem(ftdrake.CompensationChain(model, ftdrake.ScenarioConfig(),
+        chain = builder.AddSystem(ftdrake.CompensationChain(model, ftdrake.ChainConfig(),
                                                             period=PERIOD, n_joints=n))
         builder.Connect(reading, chain.get_input_port_wrench_measured())
         builder.Connect(plant.get_state_output_port(), chain.get_input_port_joint_state())

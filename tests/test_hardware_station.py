@@ -61,7 +61,7 @@ def test_simulated_robot_stream_gives_the_in_simulation_numbers(kind):
                               joint_state_channel="ROBOT_STATE" if kind == "robot_state"
                               else "IIWA_STATUS",
                               velocity_channel="ROBOT_VELOCITY" if kind == "robot_state" else "")
-    _, handles = build_hardware_station(hardware, model, scenario, lcm="memq://")
+    _, handles = build_hardware_station(hardware, model, scenario.chain_config(), lcm="memq://")
     dut = handles["station"]
     wrenches, contacts = [], []
     dut.lcm.subscribe(hardware.external_wrench_channel, lambda d: wrenches.append(decode_wrench(d)))
@@ -101,13 +101,13 @@ def test_the_simulated_robot_announces_its_re_tare_and_grasp_once():
     scenario.trajectory.duration_s = 1.0
     scenario.events.retare_at_s = 0.4
     scenario.events.grasp_at_s = 0.7
-    scenario.bias_tracker.track_payload = True
+    scenario.chain.bias_tracker.track_payload = True
     scenario.validate()
     hardware = HardwareConfig(lcm_url="memq://", tare_channel="FT_TARED",
                               payload_channel="FT_GRASP",
                               sensor_timeout_s=100.0, joint_state_timeout_s=100.0)
     model = fit_forest(scenario, duration=0.3)
-    _, handles = build_hardware_station(hardware, model, scenario, lcm="memq://")
+    _, handles = build_hardware_station(hardware, model, scenario.chain_config(), lcm="memq://")
     dut = handles["station"]
     stamps, grasps = [], []
     dut.lcm.subscribe(hardware.tare_channel, lambda d: stamps.append(decode_event(d, TARE_COORD)))

@@ -104,7 +104,7 @@ def run_user_diagram(seconds, seed, model=None, press=False):
     builder.Connect(ideal.get_output_port_wrench(), sensor.get_input_port_wrench_ideal())
     chain = None
     if model is not None:
-        chain = builder.AddSystem(ftdrake.CompensationChain(model, ftdrake.ScenarioConfig(),
+        chain = builder.AddSystem(ftdrake.CompensationChain(model, ftdrake.ChainConfig(),
                                                             period=PERIOD, n_joints=3))
         builder.Connect(sensor.get_output_port_wrench_measured(),
                         chain.get_input_port_wrench_measured())

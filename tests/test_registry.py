@@ -393,8 +393,8 @@ def test_a_robot_based_compensator_runs_its_fused_update_in_the_loop(pointmass, 
 
     # The product chain around it (no bias tracker): the detector sees the push.
     config = ScenarioConfig()
-    config.bias_tracker.enabled = False
-    chain = CompensationChain(model, config)
+    config.chain.bias_tracker.enabled = False
+    chain = CompensationChain(model, config.chain_config())
     simulator = Simulator(chain)
     context = simulator.get_mutable_context()
     chain.get_input_port_wrench_measured().FixValue(context, internal + push)

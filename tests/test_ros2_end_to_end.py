@@ -163,7 +163,7 @@ def test_simulate_and_serve_over_dds(tmp_path):
     np.testing.assert_array_equal(detected, log["detected"].to_numpy().astype(bool))
     np.testing.assert_allclose([f.data for f in got["contact_force"]],
                                log["detected_force"].to_numpy(), rtol=0, atol=1e-9)
-    assert scenario.bias_tracker.enabled and len(got["bias"]) == K
+    assert scenario.chain.bias_tracker.enabled and len(got["bias"]) == K
     np.testing.assert_allclose([wrench_of(b) for b in got["bias"]],
                                log[[f"bias_est_{a}" for a in WRENCH_AXES]].to_numpy(), rtol=0,
                                atol=1e-9)

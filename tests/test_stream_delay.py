@@ -9,6 +9,7 @@ import ftdrake
 from ftdrake import ScenarioConfig, replay
 from ftdrake.conventions import wrench_columns
 from ftdrake.data.stream_delay import estimate_stream_delay, fit_aligned, shift_wrench
+from ftdrake.runtime.replay import chain_config_of
 
 PERIOD = 1e-3
 PHYSICS = ["--model", "physics", "--robot", "ftdrake"]
@@ -76,17 +77,18 @@ def test_the_chain_applies_a_model_s_delay_like_the_offline_correction(free_log,
     loaded = ftdrake.load_model(tmp_path / "m.ftd")
     assert loaded.wrench_delay_s_ == pytest.approx(0.005)
     assert ftdrake.CompensationChain(loaded).delay_line is not None
-    assert ftdrake.CompensationChain(loaded, wrench_delay_s=0.0).delay_line is None
+    no_delay = ftdrake.ChainConfig(sensor=ftdrake.SensorStreamConfig(wrench_delay_s=0.0))
+    assert ftdrake.CompensationChain(loaded, no_delay).delay_line is None
     # The delayed log replayed with the stored delay against the original replayed without:
     # shifting dropped the original's first `lag` rows, so row k of the delayed log holds the
     # joint state of row k + lag and the reading of row k; the delay line pairs the reading
     # of row k with the joint state of row k again (after its first `lag` samples).
     n = len(delayed)
     dut = replay(loaded, delayed)[wrench_columns("comp_external")].to_numpy()
-    reference = replay(loaded, free_log.iloc[:n], wrench_delay_s=0.0)
+    reference = replay(loaded, free_log.iloc[:n], _without_delay(free_log))
     np.testing.assert_allclose(dut[lag:], reference[wrench_columns("comp_external")]
                                .to_numpy()[lag:], rtol=0, atol=1e-12)
-    assert np.abs(dut[lag:] - replay(loaded, delayed, wrench_delay_s=0.0)[
+    assert np.abs(dut[lag:] - replay(loaded, delayed, _without_delay(delayed))[
         wrench_columns("comp_external")].to_numpy()[lag:]).max() > 0.01  # the delay matters
 
 
@@ -129,3 +131,10 @@ def test_a_hybrid_finds_the_delay_its_forest_learnt_on_the_training_rows(free_lo
     model, found = fit_aligned(hybrid, log, source="plant")
     assert found.delay_s == pytest.approx(alone, abs=PERIOD)
     assert model.wrench_delay_s_ == found.delay_s
+
+
+def _without_delay(log):
+    """The chain config a replay of `log` runs, with no delay line."""
+    config = chain_config_of(log)
+    config.sensor.wrench_delay_s = 0.0
+    return config

@@ -38,7 +38,7 @@ def fitted(data, model):
     """`model` fitted on `data` and the scenario with thresholds from its residual there."""
     model.fit(joint_state_layout(data), wrench_targets(data))
     residual = wrench_targets(data) - model.predict(joint_state_layout(data))
-    return model, dc.replace(ScenarioConfig(), detector=thresholds_from_quantile(residual))
+    return model, ScenarioConfig().with_chain(detector=thresholds_from_quantile(residual))
 
 
 @pytest.fixture(scope="module")
@@ -151,7 +151,7 @@ def test_slow_push_is_detected_and_not_absorbed(trained):
                                PLAN.push_force_n * (t[ramp] - 3.0) / PLAN.push_ramp_s,
                                atol=2e-3 * PLAN.push_force_n)
     row = push_metrics(log, reference, PLAN)
-    threshold = configs["with"].detector.force_on
+    threshold = configs["with"].chain.detector.force_on
     assert row["detected"]
     # Detected within a few tenths of a newton of the threshold, while the tracker had taken
     # under 1 % of the push as bias.
@@ -199,14 +199,14 @@ def test_events_config_is_validated():
     with pytest.raises(ConfigError, match=r"events\.grasp_mass_kg"):
         dc.replace(ScenarioConfig().events, grasp_mass_kg=-0.5).validate()
     with pytest.raises(ConfigError, match=r"bias_tracker\.time_constant_s"):
-        dc.replace(ScenarioConfig().bias_tracker, time_constant_s=0.0).validate()
+        dc.replace(ScenarioConfig().chain.bias_tracker, time_constant_s=0.0).validate()
 
 
 @pytest.mark.parametrize("motion", [False, True])
 def test_the_station_feeds_the_trackers_motion_input_only_when_asked(trained, motion):
     model, config = trained
-    config = dc.replace(config, bias_tracker=dc.replace(
-        config.bias_tracker, track_payload=True, track_payload_motion=motion))
+    config = config.with_chain(bias_tracker=dc.replace(
+        config.chain.bias_tracker, track_payload=True, track_payload_motion=motion))
     station = build_station(config, model)
     tracker = station.compensation.tracker
     context = tracker.GetMyContextFromRoot(station.diagram.CreateDefaultContext())
@@ -217,10 +217,11 @@ def unsignalled(config, event):
     """`event`'s run with the payload-change monitor on and no driver signal."""
     configs = event_configs(config, event, PLAN, seed=0)
     with_event = configs["with"]
-    tracker = dc.replace(with_event.bias_tracker, track_payload=True, payload_change=dc.replace(
-        with_event.bias_tracker.payload_change, enabled=True))
+    tracker = dc.replace(with_event.chain.bias_tracker, track_payload=True,
+                         payload_change=dc.replace(with_event.chain.bias_tracker.payload_change,
+                                                   enabled=True))
     events = dc.replace(with_event.events, grasp_signalled=False)
-    return dc.replace(with_event, bias_tracker=tracker, events=events)
+    return dc.replace(with_event.with_chain(bias_tracker=tracker), events=events)
 
 
 def gravity_turn_deg(config, log, since_s):
@@ -262,7 +263,7 @@ def test_an_unsignalled_grasp_is_announced_and_taken_over_by_the_tracker(trained
     assert not (log[col.PAYLOAD_CHANGE].to_numpy()[t < grasp] > 0).any()
     # Replayed offline (g_S then from the logged joint state through the robot's chain, not
     # from the plant): the same announcement, within a monitor period or two.
-    replayed = replay(model, log, config, pairing="simulated")
+    replayed = replay(model, log, config.chain_config(), pairing="simulated")
     offline = t[(replayed[col.PAYLOAD_CHANGE].to_numpy() > 0) & (t > grasp)]
     assert len(offline) and abs(offline[0] - announced[0]) <= 0.05
 

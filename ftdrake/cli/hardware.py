@@ -5,8 +5,9 @@
     ftdrake record --from-log lcmlog-2025-01-01.00 --out log.parquet
 
 ``--hardware`` is a :class:`~ftdrake.hardware.config.HardwareConfig` YAML (channels, message
-types, timeouts, joint count); ``--lcm`` overrides its ``lcm_url``. ``--config`` is the usual
-scenario YAML: serve takes the compensator, bias-tracker, detector and sensor (rate, drift)
+types, timeouts, joint count); ``--lcm`` overrides its ``lcm_url``. ``--config`` is a chain config
+(:class:`~ftdrake.config.ChainConfig`): serve takes the compensator, bias-tracker, detector,
+sensor stream (rate, noise, drift) and robot
 settings from it. ``ftdrake simulate --lcm URL [--realtime]`` (cli/simulation.py) publishes a
 simulated robot on the same channels.
 
@@ -39,8 +40,7 @@ def register(sub) -> None:
                       "Reads the joint state and F/T streams; publishes the external wrench "
                       "and the contact state.")
     a.add_model_file(p, required=True)
-    a.add_config(p, help="scenario YAML: compensator, bias_tracker, detector, sensor settings "
-                 "(default: the shipped one)")
+    a.add_chain_config(p)
     add_transport_flags(p)
     p.add_argument("--duration", type=a.positive_float, metavar="S",
                    help="stop after S seconds, wall clock (default: on Ctrl-C)")
@@ -109,7 +109,7 @@ def describe_channels(hardware) -> str:
 def run_serve(args) -> int:
     if args.ros2:
         return ros2.serve(args)
-    scenario = a.load_scenario(args)
+    chain = a.load_chain(args)
     hardware = hardware_from_args(args)
     with a.naming("--model", args.model):
         model = load_model(args.model, expect_n_joints=hardware.n_joints)
@@ -118,7 +118,7 @@ def run_serve(args) -> int:
     def on_event(event) -> None:
         print(f"ftdrake serve: {event}", file=sys.stderr, flush=True)
 
-    station = HardwareStation(hardware, model, scenario, transport, on_event=on_event)
+    station = HardwareStation(hardware, model, chain, transport, on_event=on_event)
     if not args.quiet:
         print(f"ftdrake serve: {type(model).__name__} from {args.model}, "
               f"{1 / station.period:g} Hz updates\n{describe_channels(hardware)}",

@@ -1,7 +1,7 @@
 """``--ros2`` for ``ftdrake serve``, ``simulate`` and ``record``: the same commands on ROS 2
 topics (Cyclone DDS, no ROS installation needed).
 
-    ftdrake serve --ros2 --ros2-config ros2.yaml --model m.ftd [--config scenario.yaml]
+    ftdrake serve --ros2 --ros2-config ros2.yaml --model m.ftd [--config chain.yaml]
     ftdrake simulate --ros2 --ros2-config ros2.yaml --realtime [--trajectory fourier]
     ftdrake record --ros2 --ros2-config ros2.yaml --out log.parquet [--duration S]
 
@@ -70,7 +70,7 @@ def describe_topics(config) -> str:
 
 def serve(args) -> int:
     """``ftdrake serve --ros2``."""
-    scenario = a.load_scenario(args)
+    chain = a.load_chain(args)
     config = config_from_args(args)
     with a.naming("--model", args.model):
         model = load_model(args.model, expect_n_joints=config.n_joints)
@@ -78,7 +78,7 @@ def serve(args) -> int:
     def on_event(event) -> None:
         print(f"ftdrake serve: {event}", file=sys.stderr, flush=True)
 
-    station = Ros2Station(config, model, scenario, on_event=on_event)
+    station = Ros2Station(config, model, chain, on_event=on_event)
     print(f"ftdrake serve: {type(model).__name__} from {args.model}, "
           f"{1 / station.period:g} Hz updates\n{describe_topics(config)}",
           file=sys.stderr, flush=True)

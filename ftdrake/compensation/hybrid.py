@@ -272,6 +272,10 @@ class HybridCompensator(Compensator):
         """The physics part's (the residual is learned in the reading's frame too)."""
         return self.physics_.reading_to_model_frame()
 
+    def robot_description(self):
+        """The physics part's robot (``physics_.robot_description()``)."""
+        return self.physics_.robot_description()
+
     def payload_reading_map(self):
         """The physics part's (:meth:`~.base.Compensator.payload_reading_map`)."""
         return self.physics_.payload_reading_map()

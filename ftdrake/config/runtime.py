@@ -266,6 +266,6 @@ class DetectorConfig:
 def model_has_reading_std(model) -> bool:
     """Whether `model`'s predictive std is that of a reading — model error and sensor noise,
     as physics, hybrid and GP models give and the χ² test needs (a forest's spread across
-    its trees is not one)."""
-    return bool(getattr(model, "provides_std", False)
-                and getattr(model, "std_includes_noise", False))
+    its trees is not one). `model` follows the loop contract
+    (:class:`~ftdrake.compensation.contract.LoopModel`)."""
+    return bool(model.provides_std and model.std_includes_noise)

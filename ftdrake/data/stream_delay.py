@@ -20,7 +20,7 @@ stamped t is the sensor's load at the robot's state of t − d (d < 0: the joint
   (linearly interpolated), so each row pairs the joint state of t with the reading of t + d.
 * Live (and in :func:`ftdrake.replay`), the runtime chain cannot look ahead: it delays the
   joint state by d instead (:class:`~ftdrake.runtime.delay_line.DelayLine`; a model's
-  ``wrench_delay_s_`` or ``CompensationChain(wrench_delay_s=...)``). Both pair the same
+  ``wrench_delay_s_`` or ``ChainConfig.sensor.wrench_delay_s``). Both pair the same
   samples.
 """
 

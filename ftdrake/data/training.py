@@ -263,7 +263,7 @@ def _cutoff(options: ReadOptions, scenario_yaml: str | None, label: str) -> floa
         return float(options.acceleration_cutoff_hz)
     if scenario_yaml:
         return float(parse_config(scenario_yaml, source=f"{label} metadata")
-                     .compensator.acceleration_cutoff_hz)
+                     .chain.compensator.acceleration_cutoff_hz)
     return float(CompensatorConfig().acceleration_cutoff_hz)
 
 

@@ -117,7 +117,7 @@ def run_demo(out: Path, config: ScenarioConfig | None = None, *, fourier: int = 
         "contact_scenario_s": float(logs["forest"]["t"].iloc[-1]),
         "training_rows": len(X),
         "training_trajectories": int(train["trajectory"].nunique()),
-        "false_positives_per_hour_budget": config.detector.false_positives_per_hour,
+        "false_positives_per_hour_budget": config.chain.detector.false_positives_per_hour,
         "sensor_preset": scenario.sensor.preset,
         "held_out_seed": HELD_OUT_SEED,
     }
@@ -227,7 +227,7 @@ def domain_coverage(model, X, Y) -> dict:
 def held_out_rows(config, *frames):
     """(X, Y) of the samples the detector judges in the held-out runs `frames`."""
     data = pd.concat(frames, ignore_index=True)
-    judged = armed(data[col.TIME].to_numpy(), config.detector.arm_after_s)
+    judged = armed(data[col.TIME].to_numpy(), config.chain.detector.arm_after_s)
     return joint_state_layout(data)[judged], wrench_targets(data)[judged]
 
 
@@ -239,10 +239,10 @@ def _calibrate_detectors(models, config, validation, held_out) -> dict:
     rate_hz = config.sensor.spec().rate_hz
     detectors = {}
     for name, model in models.items():
-        test = config.detector.for_model(model, calibrating=True).test
+        test = config.chain.detector.for_model(model, calibrating=True).test
         detectors[name] = thresholds_for_false_positive_rate(
             Y_cal - model.predict(X_cal), sample_rate_hz=rate_hz,
-            false_positives_per_hour=config.detector.false_positives_per_hour, test=test,
+            false_positives_per_hour=config.chain.detector.false_positives_per_hour, test=test,
             std=model.predict_std(X_cal) if test == "chi2" else None)
     return detectors
 
@@ -250,7 +250,7 @@ def _calibrate_detectors(models, config, validation, held_out) -> dict:
 def _contact_runs(models, detectors, scenario, config, validation, meshcat_html, progress):
     """Each model and its detector in the loop on the contact scenario, scored against the
     plant's truth; the hybrid's run recorded in Meshcat with `meshcat_html`."""
-    judged = armed(validation[col.TIME].to_numpy(), config.detector.arm_after_s)
+    judged = armed(validation[col.TIME].to_numpy(), config.chain.detector.arm_after_s)
     X_val, Y_val = joint_state_layout(validation)[judged], wrench_targets(validation)[judged]
     meshcat = None
     results, logs = {}, {}
@@ -258,7 +258,7 @@ def _contact_runs(models, detectors, scenario, config, validation, meshcat_html,
         if meshcat_html and name == "hybrid":
             meshcat = Meshcat()
             meshcat.StartRecording(set_visualizations_while_recording=False)
-        run = simulate(build_station(dc.replace(scenario, detector=detectors[name]), model,
+        run = simulate(build_station(scenario.with_chain(detector=detectors[name]), model,
                                      meshcat=meshcat if name == "hybrid" else None),
                        progress=progress)
         logs[name] = run.log

@@ -71,9 +71,9 @@ def event_configs(base: ScenarioConfig, event: str, plan: EventPlan, seed: int) 
         raise ValueError(f"unknown event {event!r}; choose from {EVENTS}")
     trajectory = dc.replace(base.trajectory, kind=plan.kind, duration_s=plan.duration_s,
                             seed=seed)
-    tracker = dc.replace(base.bias_tracker, enabled=True,
-                         track_payload=event == "grasp" or base.bias_tracker.track_payload)
-    reference = dc.replace(base, trajectory=trajectory, bias_tracker=tracker,
+    tracker = dc.replace(base.chain.bias_tracker, enabled=True,
+                         track_payload=event == "grasp" or base.chain.bias_tracker.track_payload)
+    reference = dc.replace(base.with_chain(bias_tracker=tracker), trajectory=trajectory,
                            sensor=dc.replace(base.sensor, seed=seed),
                            events=dc.replace(base.events, retare_at_s=None, grasp_at_s=None,
                                              push_at_s=None))
@@ -91,15 +91,15 @@ def event_configs(base: ScenarioConfig, event: str, plan: EventPlan, seed: int) 
                             push_force_W=[0.0, 0.0, -plan.push_force_n],
                             push_hold_s=max(0.0, plan.duration_s - t - plan.push_ramp_s))
     with_event = dc.replace(reference, events=events)
-    untracked = dc.replace(with_event, bias_tracker=dc.replace(tracker, enabled=False),
-                           controller=dc.replace(with_event.controller,
-                                                 adapt_to_payload=False))
+    untracked = dc.replace(
+        with_event.with_chain(bias_tracker=dc.replace(tracker, enabled=False)),
+        controller=dc.replace(with_event.controller, adapt_to_payload=False))
     return {"with": with_event, "untracked": untracked, "reference": reference}
 
 
 def run_events(models: dict, config: ScenarioConfig, plan: EventPlan | None = None, *,
                seed: int = 0, n_jobs: int = -1, progress: bool = True) -> dict:
-    """Runs every event for every model (name → fitted compensator; `config.detector` or a
+    """Runs every event for every model (name → fitted compensator; `config.chain.detector` or a
     per-model detector in ``models[name] = (model, detector)``). Returns name → rows."""
     plan = plan or EventPlan()
     unknown = sorted(set(plan.events) - set(EVENTS))
@@ -107,8 +107,8 @@ def run_events(models: dict, config: ScenarioConfig, plan: EventPlan | None = No
         raise ValueError(f"EventPlan.events: unknown {unknown}; choose from {EVENTS}")
     jobs = []
     for name, entry in models.items():
-        model, detector = entry if isinstance(entry, tuple) else (entry, config.detector)
-        base = dc.replace(config, detector=detector)
+        model, detector = entry if isinstance(entry, tuple) else (entry, config.chain.detector)
+        base = config.with_chain(detector=detector)
         for event in plan.events:
             for s in plan.seeds:
                 configs = event_configs(base, event, plan, seed + s)

@@ -34,13 +34,13 @@ class HardwareConfig:
     Temperature (only for a model trained with the sensor temperature): ``lcmt_drake_signal``
     with one value in °C (:func:`encode_temperature`) on `temperature_channel`; older than
     `temperature_timeout_s` it faults the inputs like a silent sensor.
-    Events (optional; for ``scenario.bias_tracker``): an ``lcmt_drake_signal``
+    Events (optional; for ``chain.bias_tracker``): an ``lcmt_drake_signal``
     (:func:`encode_event`) on `tare_channel` says the driver re-zeroed the sensor, one on
     `payload_channel` that the gripper took or released a payload (needs ``track_payload``).
     The tracker's ``tared`` / ``payload_changed`` input is then high for the next F/T update:
     it re-initialises its bias or payload estimate and averages over ``tare_settle_s`` /
     ``payload_settle_s`` of free motion. With ``track_payload`` the station computes gravity
-    at the sensor from the joint state on the scenario's robot (``JointStateGravity``).
+    at the sensor from the joint state on the model's robot (``JointStateGravity``).
     """
 
     lcm_url: str = "udpm://239.255.76.67:7667?ttl=0"

@@ -39,7 +39,7 @@ import time
 import numpy as np
 from pydrake.systems.analysis import Simulator
 
-from ..config import ScenarioConfig
+from ..config import ChainConfig
 from ..runtime.chain import CompensationChain
 from .live_inputs import StreamMonitor
 from .messages import ContactState
@@ -79,9 +79,12 @@ class FaultEvent:
 class StationCore:
     """Holds the diagram, its context, the monitor and the counts (see the module).
 
-    `scenario` gives the compensator, bias-tracker, detector and sensor settings (the
-    sensor's rate sets the update period). `n_joints` and the timeouts (s) configure the
-    StreamMonitor; `temperature_timeout_s` is used only when the model needs the temperature.
+    `chain` (a :class:`~ftdrake.config.ChainConfig`; default ``ChainConfig()``) gives the
+    compensator, bias-tracker, detector, sensor-stream and robot settings (the stream's rate
+    sets the update period; joint-state gravity runs on ``chain.robot``, else the robot
+    embedded in the model, never on ftdrake's simulated arm by default). `n_joints` and the
+    timeouts (s) configure the StreamMonitor; `temperature_timeout_s` is used only when the
+    model needs the temperature.
     `events`: the tracker event inputs fed by messages (``"tared"``, ``"payload_changed"``).
     `clock` gives arrival times in s (monotonic). `on_event(FaultEvent)` is called on every
     fault change. A subclass implements ``_check_sources(chain)`` (raise ConfigError when the
@@ -89,14 +92,13 @@ class StationCore:
     ``_publish_contact(t, fault)``.
     """
 
-    def __init__(self, model, scenario: ScenarioConfig | None, *, n_joints: int,
+    def __init__(self, model, chain: ChainConfig | None, *, n_joints: int,
                  sensor_timeout_s: float, joint_state_timeout_s: float,
                  temperature_timeout_s: float, events=(), clock=time.monotonic,
                  on_event=None, max_events: int = 10_000):
-        self.scenario = (scenario or ScenarioConfig()).validate()
         self.n_joints = int(n_joints)
-        self.period = 1.0 / self.scenario.sensor.spec().rate_hz
-        self._build(model)
+        self._build(model, chain)
+        self.period = self.chain.period
         self.simulator = Simulator(self.diagram)
         self.context = self.simulator.get_mutable_context()
         self.chain.initialize(self.context)
@@ -129,12 +131,12 @@ class StationCore:
         self.fault_episodes = collections.Counter()  # reason → times the fault rose with it
         self._state = (True, "no_data")
 
-    def _build(self, model) -> None:
-        """The runtime chain, its joint-state gravity on the scenario robot's serial chain
-        (there is no plant on hardware), checked against the configured streams."""
-        self.diagram = chain = CompensationChain(
-            model, self.scenario, period=self.period, n_joints=self.n_joints,
-            gravity="joint_state")
+    def _build(self, model, config: ChainConfig | None) -> None:
+        """The runtime chain, its joint-state gravity on the model's (or the configured)
+        robot's serial chain (there is no plant on hardware), checked against the configured
+        streams."""
+        self.diagram = chain = CompensationChain(model, config, n_joints=self.n_joints,
+                                                 gravity="joint_state")
         chain.set_name("ftdrake_hardware")
         self.chain = chain
         self.compensator, self.tracker, self.detector = (chain.compensator, chain.tracker,

@@ -8,12 +8,13 @@
                          lcmt_drake_signal  ◄── contact, contact_force, fault, out_of_domain
 
 The diagram is :class:`~ftdrake.runtime.chain.CompensationChain`, the one
-:func:`ftdrake.sim.station.build_station` puts in the loop, built from the same scenario
-(``compensator``, ``bias_tracker``, ``detector``); with ``track_payload`` the tracker's
-``gravity_S`` and ``motion_S`` come from the joint state through the scenario robot's chain
-(:class:`~ftdrake.runtime.joint_gravity.JointStateGravity`). The same messages therefore give
-the same numbers as in simulation (``tests/test_live_end_to_end.py`` checks it to 1e-9). This
-module imports nothing of the simulation.
+:func:`ftdrake.sim.station.build_station` puts in the loop, built from a
+:class:`~ftdrake.config.ChainConfig` (``compensator``, ``bias_tracker``, ``detector``,
+``sensor``, ``robot``); with ``track_payload`` the tracker's ``gravity_S`` and ``motion_S``
+come from the joint state through the serial chain of the robot embedded in the model (or of
+``chain.robot``; :class:`~ftdrake.runtime.joint_gravity.JointStateGravity`). The same
+messages therefore give the same numbers as in simulation (``tests/test_live_end_to_end.py``
+checks it to 1e-9). This module imports nothing of the simulation.
 
 The message-driven loop, its checks, fault episodes and counts are
 :class:`~ftdrake.hardware.core.StationCore`'s (shared with the ROS 2 station); this class adds
@@ -36,7 +37,7 @@ import time
 
 import numpy as np
 
-from ..config import ScenarioConfig
+from ..config import ChainConfig
 from ..errors import ConfigError
 from .config import HardwareConfig
 from .core import FaultEvent, StationCore  # noqa: F401 (FaultEvent: its home before core)
@@ -58,19 +59,20 @@ from .transport import open_lcm
 class HardwareStation(StationCore):
     """The LCM station: StationCore fed by the LCM subscriptions of `config`.
 
-    `scenario` gives the compensator, bias-tracker, detector and sensor settings (the
-    sensor's rate sets the update period; the tracker reads its drift). `lcm`: an LCM URL, an
+    `chain` (a :class:`~ftdrake.config.ChainConfig`) gives the compensator, bias-tracker,
+    detector, sensor-stream and robot settings (the stream's rate sets the update period;
+    the tracker reads its drift). `lcm`: an LCM URL, an
     ``lcm.LCM``, a ``DrakeLcm`` or a transport (default: ``config.lcm_url``). `clock` gives
     arrival times in s (monotonic). `on_event(FaultEvent)` is called on every fault change.
     """
 
-    def __init__(self, config: HardwareConfig, model, scenario: ScenarioConfig | None = None,
+    def __init__(self, config: HardwareConfig, model, chain: ChainConfig | None = None,
                  lcm=None, *, clock=time.monotonic, on_event=None, max_events: int = 10_000):
         self.config = config.validate()
         self.lcm = open_lcm(lcm if lcm is not None else config.lcm_url)
         self._coords = {name: coord for name, coord, channel in self._event_channels()
                         if channel}
-        super().__init__(model, scenario, n_joints=config.n_joints,
+        super().__init__(model, chain, n_joints=config.n_joints,
                          sensor_timeout_s=config.sensor_timeout_s,
                          joint_state_timeout_s=config.joint_state_timeout_s,
                          temperature_timeout_s=config.temperature_timeout_s,
@@ -94,10 +96,10 @@ class HardwareStation(StationCore):
     def _check_sources(self, chain) -> None:
         if self.config.tare_channel and not chain.HasInputPort("tared"):
             raise ConfigError("hardware.tare_channel: a re-tare goes to the bias tracker; "
-                              "enable scenario.bias_tracker or leave the channel empty")
+                              "enable chain.bias_tracker or leave the channel empty")
         if self.config.payload_channel and not chain.HasInputPort("payload_changed"):
             raise ConfigError("hardware.payload_channel: a grasp goes to the bias tracker's "
-                              "payload estimate; set scenario.bias_tracker.enabled and "
+                              "payload estimate; set chain.bias_tracker.enabled and "
                               "track_payload, or leave the channel empty")
         if chain.needs_temperature and not self.config.temperature_channel:
             raise ConfigError(
@@ -170,15 +172,15 @@ def _decoded(decode, *args):
         return None
 
 
-def build_hardware_station(config: HardwareConfig, model, scenario: ScenarioConfig | None = None,
+def build_hardware_station(config: HardwareConfig, model, chain: ChainConfig | None = None,
                            lcm=None, **kwargs):
     """Returns (diagram, handles): handles["station"] is the HardwareStation to spin."""
-    station = HardwareStation(config, model, scenario, lcm, **kwargs)
+    station = HardwareStation(config, model, chain, lcm, **kwargs)
     return station.diagram, {"station": station, "monitor": station.monitor,
                              "context": station.context}
 
 
-def measure_latency(model, scenario: ScenarioConfig | None = None, n_messages: int = 2000,
+def measure_latency(model, chain: ChainConfig | None = None, n_messages: int = 2000,
                     seed: int = 0, q_range=None):
     """In-process (memq://) latency of arrival → publication of the compensated wrench.
 
@@ -193,7 +195,7 @@ def measure_latency(model, scenario: ScenarioConfig | None = None, n_messages: i
     lo, hi = q_range if q_range is not None else (-np.ones(n), np.ones(n))
     config = HardwareConfig(lcm_url="memq://", n_joints=n, sensor_timeout_s=1.0,
                             joint_state_timeout_s=1.0)
-    station = HardwareStation(config, model, scenario, "memq://")
+    station = HardwareStation(config, model, chain, "memq://")
     for k in range(n_messages):
         t = station.period * (k + 1)
         station.lcm.publish(config.joint_state_channel, encode_joint_state(

@@ -36,7 +36,7 @@ import math
 import numpy as np
 from pydrake.systems.framework import LeafSystem
 
-from ..config import PayloadChangeConfig, SensorConfig
+from ..config import PayloadChangeConfig, SensorConfig, SensorStreamConfig
 
 __all__ = ["PayloadChangeMonitor", "payload_change_statistics"]
 
@@ -102,7 +102,7 @@ class PayloadChangeMonitor(LeafSystem):
     refractory and signal timers (periods), the outputs.
     """
 
-    def __init__(self, config: PayloadChangeConfig, sensor: SensorConfig):
+    def __init__(self, config: PayloadChangeConfig, sensor: SensorStreamConfig | SensorConfig):
         super().__init__()
         self.config = config.validate()
         self.period = float(config.sample_period_s)

@@ -59,7 +59,7 @@ import pandas as pd
 from pydrake.systems.analysis import Simulator
 
 from .. import conventions as col
-from ..config import DetectorConfig, ScenarioConfig, parse_config
+from ..config import ChainConfig, DetectorConfig, ScenarioConfig, parse_config
 from ..data.bag import is_bag, read_bag
 from ..data.logs import (
     expand_columns,
@@ -99,22 +99,23 @@ class ReplayInputs:
     payload_changed: np.ndarray | None = None  # (N,) > 0.5 for a grasp's sample
 
 
-def replay(model, log, config: ScenarioConfig | None = None, *, pairing: str = "row",
+def replay(model, log, config: ChainConfig | None = None, *, pairing: str = "row",
            view: str = "aligned", period: float | None = None, wrench: str = col.MEASURED,
-           robot=None, **chain_options) -> pd.DataFrame:
+           robot=None) -> pd.DataFrame:
     """Runs the runtime chain over `log`, one update per row; returns its outputs per row.
 
     `model`: a fitted compensator (``load_model``). `log`: a DataFrame in the layout of the
     module docstring, or the path of a CSV/Parquet table or ROS bag (read with
     :func:`read_replay_log`; an LCM log is read with
-    :func:`ftdrake.hardware.recording.read_lcm_log` first). `config`: the scenario whose
-    ``compensator``, ``bias_tracker`` and ``detector`` sections configure the chain (default:
-    the one a ``collect`` Parquet file carries, else ``ScenarioConfig()``). `pairing`,
+    :func:`ftdrake.hardware.recording.read_lcm_log` first). `config`: the chain's
+    :class:`~ftdrake.config.ChainConfig` (default: the one of the scenario a ``collect``
+    Parquet file carries, ``scenario.chain_config()``, else ``ChainConfig()``). `pairing`,
     `view`: see the module docstring. `period`: the chain's sample period in s (default: the
-    scenario sensor's period when the log's median period is within 1 % of it, else the
+    config's sensor period when the log's median period is within 1 % of it, else the
     log's median period). `wrench`: the prefix of the wrench columns. `robot`: the
-    RobotDescription for the tracker's payload estimate (``track_payload``; default: the
-    scenario's robot). `chain_options` go to :class:`CompensationChain`.
+    RobotDescription for the tracker's payload estimate (``track_payload``; default:
+    ``config.robot``, else the robot embedded in the model). A delay between the streams is
+    ``config.sensor.wrench_delay_s`` (null: the model's own).
 
     Raises LogError naming a missing column and what produces it.
     """
@@ -123,15 +124,15 @@ def replay(model, log, config: ScenarioConfig | None = None, *, pairing: str = "
     if view not in VIEWS:
         raise LogError(f"replay: view must be one of {VIEWS}, got {view!r}")
     frame = log if isinstance(log, pd.DataFrame) else read_replay_log(log)
-    config = scenario_of(frame, config)
+    config = chain_config_of(frame, config)
     n = int(model.n_joints_)
     inputs = replay_inputs(frame, n, wrench=wrench,
-                           temperature=bool(getattr(model, "temperature_in_", False)))
+                           temperature=bool(model.temperature_in_))
     period = period if period is not None else _period(inputs.t, config)
     if pairing == "simulated":
         inputs = dc.replace(inputs, wrench=np.vstack([np.zeros((1, 6)), inputs.wrench[:-1]]))
     chain = CompensationChain(model, config, period=period, n_joints=n, gravity="joint_state",
-                              robot=robot, **chain_options)
+                              robot=robot)
     outputs = run_chain(chain, inputs)
     if view == "held":
         outputs = {k: np.vstack([np.full((1, v.shape[1]), np.nan), v[:-1]])
@@ -270,16 +271,22 @@ def read_replay_log(path, *, wrench_topic: str | None = None,
                    "LCM log read with ftdrake.hardware.recording.read_lcm_log")
 
 
-def scenario_of(frame: pd.DataFrame, config: ScenarioConfig | None = None) -> ScenarioConfig:
-    """The scenario a replay of `frame` runs: `config`, else the one a ``collect`` Parquet
-    file carries in its metadata, else ``ScenarioConfig()``; validated."""
+def chain_config_of(frame: pd.DataFrame, config: ChainConfig | None = None) -> ChainConfig:
+    """The chain config a replay of `frame` runs: `config`, else that of the scenario a
+    ``collect`` Parquet file carries in its metadata, else ``ChainConfig()``; validated."""
     if config is None:
-        scenario = frame.attrs.get("scenario")
-        config = parse_config(scenario, source="the log's metadata") if scenario else None
-    return (config if config is not None else ScenarioConfig()).validate()
+        scenario = scenario_of(frame)
+        return scenario.chain_config() if scenario is not None else ChainConfig()
+    return config.validate()
 
 
-def calibrated_detector(result: pd.DataFrame, model, config: ScenarioConfig) -> DetectorConfig:
+def scenario_of(frame: pd.DataFrame) -> ScenarioConfig | None:
+    """The scenario a ``collect`` Parquet file carries in its metadata (None: none)."""
+    scenario = frame.attrs.get("scenario")
+    return parse_config(scenario, source="the log's metadata") if scenario else None
+
+
+def calibrated_detector(result: pd.DataFrame, model, config: ChainConfig) -> DetectorConfig:
     """``config.detector`` with its thresholds set for its false-positive budget from a
     replay `result` (:func:`replay`'s output) of contact-free motion the model was not
     trained on: the contact wrench the detector judges, and with the χ² test the model's
@@ -318,11 +325,11 @@ def summary(result: pd.DataFrame) -> dict:
                                  .tolist(), strict=True))}
 
 
-def _period(t: np.ndarray, config: ScenarioConfig) -> float:
-    """The scenario sensor's period when the log's median period is within 1 % of it (so a
+def _period(t: np.ndarray, config: ChainConfig) -> float:
+    """The config's sensor period when the log's median period is within 1 % of it (so a
     simulated log replays with the loop's exact period), else the log's median period."""
     logged = float(np.median(np.diff(t)))
-    nominal = 1.0 / config.sensor.spec().rate_hz
+    nominal = config.sensor.period
     if not (logged > 0 and math.isfinite(logged)):
         raise LogError(f"replay: the log's median sample period is {logged!r} s")
     return nominal if abs(logged - nominal) <= 0.01 * nominal else logged

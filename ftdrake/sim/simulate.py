@@ -211,7 +211,7 @@ def assemble_log(station: Station, root_context) -> pd.DataFrame:
     series = _sampled_with_state(station.loggers, root_context, t)
     frame = {col.TIME: t[keep]}
     _add_joint_columns(frame, x[keep], series["acceleration"][keep], n, station.period,
-                       station.config.compensator.acceleration_cutoff_hz)
+                       station.config.chain.compensator.acceleration_cutoff_hz)
     _add_sensor_columns(frame, station, root_context, t, keep, series)
     if station.compensation is not None:
         _add_compensation_columns(frame, station.compensation.loggers, root_context, t, keep)

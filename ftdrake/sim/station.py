@@ -104,7 +104,7 @@ class Compensation:
 
     @property
     def tracker(self):
-        """The bias tracker; None with ``scenario.bias_tracker.enabled`` off."""
+        """The bias tracker; None with ``scenario.chain.bias_tracker.enabled`` off."""
         return self.chain.tracker
 
 
@@ -151,12 +151,13 @@ def build_station(config: ScenarioConfig, compensator=None, *, meshcat=None,
     """Builds the simulated arm, sensor and environment for `config`.
 
     `compensator` (a fitted ftdrake compensator, e.g. from ``load_model``) adds the
-    CompensatorSystem and ContactDetector (configured by ``config.compensator`` and
-    ``config.detector``) in the loop. `trajectory` overrides the one ``config.trajectory``
-    describes. `feedforward` (a ``LearnedFeedforward`` or ``TimeIndexedFeedforward``) adds
-    its torque correction to the controller's output. `meshcat` (a pydrake Meshcat) adds a
-    visualizer (and, with a compensator, the wrench arrows). The models are parsed once for
-    the simulation and once for the controller's own (imperfect) model.
+    CompensatorSystem and ContactDetector (configured by ``config.chain``, with the simulated
+    sensor's stream: ``config.chain_config()``) in the loop. `trajectory` overrides the one
+    ``config.trajectory`` describes. `feedforward` (a ``LearnedFeedforward`` or
+    ``TimeIndexedFeedforward``) adds its torque correction to the controller's output.
+    `meshcat` (a pydrake Meshcat) adds a visualizer (and, with a compensator, the wrench arrows).
+    The models are parsed once for the simulation and once for the controller's own (imperfect)
+    model.
 
     `config` is taken as valid: :func:`~ftdrake.config.load_config` checks a file, and a
     config built or edited in Python is checked by ``config.validate()``. What only the
@@ -302,7 +303,7 @@ def _add_control(builder, config: ScenarioConfig, scene: Scene, q_source, vd_sou
 def _add_payload_feedforward(builder, config, scene, encoder_state, vd_source, actuation):
     """The torque for the bias tracker's payload estimate, added to `actuation` (its payload
     input is connected once the chain is there). Returns (system, the summed actuation)."""
-    if not config.bias_tracker.track_payload:
+    if not config.chain.bias_tracker.track_payload:
         raise ConfigError("controller.adapt_to_payload: the payload comes from the bias "
                           "tracker; set bias_tracker.track_payload: true")
     control_plant = make_control_plant(config, scene)
@@ -334,7 +335,8 @@ def _add_compensation(builder, config, model, scene, events: EventSignals, perio
     tracker's payload regressor from the plant's own kinematics (SensorGravity)."""
     plant = scene.plant
     chain = builder.AddNamedSystem("compensation_chain", CompensationChain(
-        model, config, period=period, n_joints=plant.num_positions(scene.arm), gravity="input"))
+        model, config.chain_config(), period=period, n_joints=plant.num_positions(scene.arm),
+        gravity="input"))
     builder.Connect(events.reading, chain.get_input_port_wrench_measured())
     builder.Connect(plant.get_state_output_port(scene.arm), chain.get_input_port_joint_state())
     if chain.needs_temperature:  # a model trained with the sensor temperature (°C)

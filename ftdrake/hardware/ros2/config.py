@@ -36,7 +36,7 @@ class Ros2Config:
         ``force_torque_sensor_broadcaster`` publishes it; each message runs the chain once.
       `temperature_topic` (only for a model trained with the sensor temperature):
         ``sensor_msgs/msg/Temperature`` (°C).
-      `tare_topic`, `payload_topic` (optional, for ``scenario.bias_tracker``):
+      `tare_topic`, `payload_topic` (optional, for ``chain.bias_tracker``):
         ``std_msgs/msg/Empty``: the sensor was re-zeroed / a payload was grasped or let go.
       `*_qos`: ``reliable`` (rclcpp's default; what ros2_control's broadcasters offer) or
         ``sensor_data`` (best effort, keep last 5: matches a best-effort or a reliable

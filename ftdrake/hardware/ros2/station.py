@@ -18,7 +18,7 @@ order they arrived (:class:`~ftdrake.hardware.ros2.dds.Ros2Node`).
 
 Python entry point::
 
-    station = Ros2Station(Ros2Config(joint_names=[...]), load_model("m.ftd"), scenario)
+    station = Ros2Station(Ros2Config(joint_names=[...]), load_model("m.ftd"), ChainConfig())
     while running:
         station.spin_once(timeout_ms=2)
 
@@ -32,7 +32,7 @@ import time
 
 import numpy as np
 
-from ...config import ScenarioConfig
+from ...config import ChainConfig
 from ...errors import ConfigError
 from ..core import StationCore
 from ..messages import JointSample, WrenchSample
@@ -50,19 +50,21 @@ _MIN_PAYLOAD_KG = 1e-3  # below this the payload's centre of mass is not publish
 class Ros2Station(StationCore):
     """StationCore fed by ROS 2 topics (see the module and Ros2Config).
 
-    `node`: a :class:`~ftdrake.hardware.ros2.dds.Ros2Node` (default: one on
+    `chain`: the :class:`~ftdrake.config.ChainConfig` the chain is built from (default
+    ``ChainConfig()``; joint-state gravity on the model's own robot unless ``chain.robot``
+    names one). `node`: a :class:`~ftdrake.hardware.ros2.dds.Ros2Node` (default: one on
     ``config.domain_id`` with ``config.dds_config`` and `clock`). `clock` gives arrival times
     in s (monotonic); `on_event(FaultEvent)` is called on every fault change.
     """
 
-    def __init__(self, config: Ros2Config, model, scenario: ScenarioConfig | None = None,
+    def __init__(self, config: Ros2Config, model, chain: ChainConfig | None = None,
                  node: Ros2Node | None = None, *, clock=time.monotonic, on_event=None,
                  max_events: int = 10_000):
         self.config = c = config.validate()
         events = tuple(name for name, topic in (("tared", c.tare_topic),
                                                 ("payload_changed", c.payload_topic)) if topic)
         self._user_on_event = on_event
-        super().__init__(model, scenario, n_joints=c.n_joints,
+        super().__init__(model, chain, n_joints=c.n_joints,
                          sensor_timeout_s=c.sensor_timeout_s,
                          joint_state_timeout_s=c.joint_state_timeout_s,
                          temperature_timeout_s=c.temperature_timeout_s, events=events,
@@ -109,10 +111,10 @@ class Ros2Station(StationCore):
         c = self.config
         if c.tare_topic and not chain.HasInputPort("tared"):
             raise ConfigError("ros2.tare_topic: a re-tare goes to the bias tracker; enable "
-                              "scenario.bias_tracker or leave the topic empty")
+                              "chain.bias_tracker or leave the topic empty")
         if c.payload_topic and not chain.HasInputPort("payload_changed"):
             raise ConfigError("ros2.payload_topic: a grasp goes to the bias tracker's payload "
-                              "estimate; set scenario.bias_tracker.enabled and track_payload, "
+                              "estimate; set chain.bias_tracker.enabled and track_payload, "
                               "or leave the topic empty")
         if chain.needs_temperature and not c.temperature_topic:
             raise ConfigError("ros2.temperature_topic: the model was trained with the sensor "
