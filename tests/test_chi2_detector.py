@@ -133,9 +133,9 @@ def test_thresholds_for_the_chi2_test_from_held_out_data():
 
 def test_config_names_bad_tests_and_the_chain_refuses_a_model_without_std():
     with pytest.raises(ConfigError, match=r"detector\.test"):
-        parse_config("detector: {test: chi3}")
+        parse_config("chain: {detector: {test: chi3}}")
     with pytest.raises(ConfigError, match=r"detector\.chi2_on"):
-        parse_config("detector: {chi2_on: -1.0}")
+        parse_config("chain: {detector: {chi2_on: -1.0}}")
     assert parse_config("chain: {detector: {test: chi2}}").chain.detector.test == "chi2"
     from ftdrake.compensation.forest import RandomForestCompensator
     from ftdrake.config import ScenarioConfig
@@ -175,7 +175,7 @@ def test_auto_is_the_calibrated_chi2_test_for_a_model_with_a_reading_std_else_no
     # In a chain: a χ² threshold given makes it the χ² test, for a model that can run it.
     given = ScenarioConfig().with_chain(detector=DetectorConfig(chi2_on=45.0))
     chain = CompensationChain(physics, given.chain_config())
-    assert chain.config.chain.detector.test == "chi2" and chain.detector.config.test == "chi2"
+    assert chain.config.detector.test == "chi2" and chain.detector.config.test == "chi2"
     assert chain.detector.chi2_on == 45.0
     assert CompensationChain(forest, given.chain_config()).detector.config.test == "norm"
     # Uncalibrated (the budget's quantile would trust a std never checked on held-out

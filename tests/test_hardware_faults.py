@@ -6,7 +6,7 @@ station recovers on the next good messages."""
 import numpy as np
 import pytest
 
-from ftdrake import ConfigError, RandomForestCompensator, ScenarioConfig
+from ftdrake import ChainConfig, ConfigError, RandomForestCompensator, ScenarioConfig
 from ftdrake.hardware import HardwareConfig, HardwareStation
 from ftdrake.hardware.messages import (
     ContactState,
@@ -199,12 +199,12 @@ def test_a_grasp_on_hardware_is_identified_from_the_joint_state():
     tracker must find m and m·c, and nothing may read as contact after the settle window."""
     scenario = ScenarioConfig()
     scenario.chain.bias_tracker.track_payload = True
+    scenario.chain.robot.file = "ftdrake"  # a forest carries no robot: the simulated arm
     model = RandomForestCompensator(features="q", n_estimators=2).fit(
         np.random.default_rng(0).uniform(-2, 2, (50, 3 * N)), np.zeros((50, 6)))
     with pytest.raises(ConfigError, match=r"hardware\.payload_channel"):
-        off = ScenarioConfig()
-        HardwareStation(HardwareConfig(lcm_url="memq://", payload_channel="GRASP"), model, off,
-                        "memq://")
+        HardwareStation(HardwareConfig(lcm_url="memq://", payload_channel="GRASP"), model,
+                        ChainConfig(), "memq://")
     config = HardwareConfig(lcm_url="memq://", payload_channel="GRASP", sensor_timeout_s=10.0,
                             joint_state_timeout_s=10.0)
     dut = HardwareStation(config, model, scenario.chain_config(), "memq://")
@@ -325,6 +325,7 @@ def test_an_unsignalled_grasp_on_hardware_is_announced_on_the_contact_channel():
 
     scenario = ScenarioConfig()
     scenario.chain.bias_tracker.track_payload = True
+    scenario.chain.robot.file = "ftdrake"  # a forest carries no robot: the simulated arm
     scenario.chain.bias_tracker.payload_change.enabled = True
     model = RandomForestCompensator(features="q", n_estimators=2).fit(
         np.random.default_rng(0).uniform(-2, 2, (50, 3 * N)), np.zeros((50, 6)))

@@ -102,6 +102,7 @@ def test_the_simulated_robot_announces_its_re_tare_and_grasp_once():
     scenario.events.retare_at_s = 0.4
     scenario.events.grasp_at_s = 0.7
     scenario.chain.bias_tracker.track_payload = True
+    scenario.chain.robot.file = "ftdrake"  # a forest carries no robot: the simulated arm
     scenario.validate()
     hardware = HardwareConfig(lcm_url="memq://", tare_channel="FT_TARED",
                               payload_channel="FT_GRASP",
