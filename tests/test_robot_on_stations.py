@@ -122,3 +122,40 @@ def test_a_model_without_a_robot_must_be_given_one():
     given.robot = ftdrake.RobotConfig(file=str(URDF), sensor_frame="tool", base_frame="base")
     chain = ftdrake.CompensationChain(forest, given)
     assert chain.robot.model == str(URDF) and chain.robot.sensor_frame == "tool"
+
+
+def test_replay_command_takes_the_robot_and_a_chain_config_file(tmp_path, capsys):
+    """``replay --robot FILE --sensor-frame NAME`` gives a forest's payload tracking its
+    kinematics; ``--config`` reads a chain config file; a scenario file still loads, with a
+    warning naming the chain layout; a frame without its robot names the flag."""
+    from ftdrake.cli.main import main
+
+    rng = np.random.default_rng(1)
+    q = rng.uniform(-1, 1, (300, N))
+    forest = ftdrake.RandomForestCompensator(features="q", n_estimators=2).fit(
+        np.hstack([q, np.zeros((300, 2 * N))]), np.zeros((300, 6)))
+    ftdrake.save_model(forest, tmp_path / "forest.ftd")
+    frame = pd.DataFrame(np.hstack([np.arange(300)[:, None] * 1e-3, q, np.zeros((300, N)),
+                                    np.zeros((300, 6))]),
+                         columns=[col.TIME, *col.joint_columns(col.Q, N),
+                                  *col.joint_columns(col.QD, N),
+                                  *col.wrench_columns(col.MEASURED)])
+    frame.to_csv(tmp_path / "log.csv", index=False)
+    (tmp_path / "chain.yaml").write_text("bias_tracker: {track_payload: true}\n")
+    base = ["replay", "--model", tmp_path / "forest.ftd", "--log", tmp_path / "log.csv",
+            "--out", tmp_path / "out.csv", "--config", tmp_path / "chain.yaml"]
+    assert main([str(a) for a in base]) == 2  # a forest: no robot to compute gravity on
+    assert "--robot FILE --sensor-frame NAME" in capsys.readouterr().err
+    assert main([str(a) for a in [*base, "--sensor-frame", "tool"]]) == 2
+    assert "--sensor-frame/--base-frame name frames of --robot" in capsys.readouterr().err
+    robot = ["--robot", URDF, "--sensor-frame", "tool", "--base-frame", "base"]
+    assert main([str(a) for a in [*base, *robot]]) == 0
+    assert "payload_est_dm" in pd.read_csv(tmp_path / "out.csv")
+    (tmp_path / "scenario.yaml").write_text(
+        "time_step: 0.001\nbias_tracker: {track_payload: true}\n")
+    old = [*base[:-1], tmp_path / "scenario.yaml", *robot]
+    capsys.readouterr()
+    assert main([str(a) for a in old]) == 0
+    err = capsys.readouterr().err
+    assert "a scenario file where a chain config is expected" in err
+    assert "now live under 'chain:'" in err
