@@ -149,8 +149,9 @@ def add_chain_config(p):
     on a live robot or a log."""
     p.add_argument("--config", type=existing_file, metavar="FILE",
                    help="chain config YAML: compensator, bias_tracker, detector, sensor "
-                        "(rate, noise, drift, wrench_delay_s), robot (default: the defaults; "
-                        "a scenario file's chain section is read too, with a warning)")
+                        "(rate, noise, drift, wrench_delay_s), robot at its top, or a live "
+                        "config with chain:, lcm:, ros2: sections (default: the defaults; a "
+                        "scenario file's chain is read too, with a warning)")
     p.add_argument("--robot", type=existing_file, metavar="FILE",
                    help="URDF/SDF of the robot joint-state gravity runs on, with "
                         "--sensor-frame (default: chain.robot, else the robot embedded in the "
@@ -162,19 +163,25 @@ def add_chain_config(p):
 
 
 def load_chain(args):
-    """The ChainConfig of --config with --robot/--sensor-frame/--base-frame applied; errors
-    name the flag."""
+    """The ChainConfig of --config (validated where it is read) with --robot/--sensor-frame/
+    --base-frame applied; errors name the flag."""
     with naming("--config", args.config) if args.config else contextlib.nullcontext():
         config = load_chain_config(args.config)
-    if args.robot is not None or args.sensor_frame is not None or args.base_frame is not None:
-        if args.robot is None:
-            raise ConfigError("--sensor-frame/--base-frame name frames of --robot FILE; give it")
-        if not args.sensor_frame:
-            raise ConfigError(f"--robot {args.robot} needs --sensor-frame NAME (the frame the "
-                              "wrench is measured in)")
-        config.robot = RobotConfig(file=str(args.robot), sensor_frame=args.sensor_frame,
-                                   base_frame=args.base_frame or "")
-    return config.validate()
+    return with_robot_flags(config, args)
+
+
+def with_robot_flags(config, args):
+    """`config` (a ChainConfig) with the robot --robot/--sensor-frame/--base-frame give."""
+    if args.robot is None and args.sensor_frame is None and args.base_frame is None:
+        return config
+    if args.robot is None:
+        raise ConfigError("--sensor-frame/--base-frame name frames of --robot FILE; give it")
+    if not args.sensor_frame:
+        raise ConfigError(f"--robot {args.robot} needs --sensor-frame NAME (the frame the "
+                          "wrench is measured in)")
+    config.robot = RobotConfig(file=str(args.robot), sensor_frame=args.sensor_frame,
+                               base_frame=args.base_frame or "")
+    return config
 
 
 def add_trajectory(p, *, default: str, kinds=TRAJECTORY_KINDS, help: str = "trajectory kind"):

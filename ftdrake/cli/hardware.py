@@ -26,12 +26,13 @@ import time
 from ..compensation.persistence import load_model
 from ..config import load_config
 from ..hardware.config import HardwareConfig
+from ..hardware.live_config import LiveConfig
 from ..hardware.recording import read_lcm_log, table_from_messages, write_table
 from ..hardware.station import HardwareStation
 from ..hardware.transport import open_lcm
 from . import args as a
 from . import ros2
-from .live import serve_until_stopped, stop_on_signals
+from .live import load_live, serve_until_stopped, stop_on_signals
 
 
 def register(sub) -> None:
@@ -73,10 +74,11 @@ def add_transport_flags(p, lcm_help: str = "LCM URL, e.g. 'udpm://239.255.76.67:
     p.add_argument("--lcm", metavar="URL", help=lcm_help)
 
 
-def hardware_from_args(args) -> HardwareConfig:
-    """The HardwareConfig of --hardware (defaults without it) with --lcm applied."""
+def hardware_from_args(args, live: LiveConfig | None = None) -> HardwareConfig:
+    """The HardwareConfig of --hardware (else the live config's ``lcm:`` section, else the
+    defaults) with --lcm applied."""
     if args.hardware is None:
-        config = HardwareConfig()
+        config = live.lcm if live is not None else HardwareConfig()
     else:
         with a.naming("--hardware", args.hardware):
             config = load_config(args.hardware, schema=HardwareConfig)
@@ -109,8 +111,8 @@ def describe_channels(hardware) -> str:
 def run_serve(args) -> int:
     if args.ros2:
         return ros2.serve(args)
-    chain = a.load_chain(args)
-    hardware = hardware_from_args(args)
+    live = load_live(args)
+    hardware = hardware_from_args(args, live)
     with a.naming("--model", args.model):
         model = load_model(args.model, expect_n_joints=hardware.n_joints)
     transport = open_transport(args, hardware)
@@ -118,7 +120,7 @@ def run_serve(args) -> int:
     def on_event(event) -> None:
         print(f"ftdrake serve: {event}", file=sys.stderr, flush=True)
 
-    station = HardwareStation(hardware, model, chain, transport, on_event=on_event)
+    station = HardwareStation(hardware, model, live.chain, transport, on_event=on_event)
     if not args.quiet:
         print(f"ftdrake serve: {type(model).__name__} from {args.model}, "
               f"{1 / station.period:g} Hz updates\n{describe_channels(hardware)}",

@@ -31,7 +31,7 @@ from ..hardware.ros2.recording import Ros2Recorder
 from ..hardware.ros2.station import Ros2Station
 from ..sim.ros2_publisher import arm_joint_names, simulate_on_ros2
 from . import args as a
-from .live import serve_until_stopped, stop_on_signals
+from .live import load_live, serve_until_stopped, stop_on_signals
 
 
 def add_options(p) -> None:
@@ -45,11 +45,12 @@ def add_options(p) -> None:
                    help="ROS_DOMAIN_ID (default: the --ros2-config file's domain_id, else 0)")
 
 
-def config_from_args(args):
-    """The Ros2Config of --ros2-config (defaults without it) with --ros2-domain applied."""
+def config_from_args(args, live=None):
+    """The Ros2Config of --ros2-config (else the live config's ``ros2:`` section, else the
+    defaults) with --ros2-domain applied."""
     path = args.ros2_config
     if path is None:
-        config = Ros2Config()
+        config = live.ros2 if live is not None else Ros2Config()
     else:
         with a.naming("--ros2-config", path):
             config = load_config(path, schema=Ros2Config)
@@ -70,15 +71,15 @@ def describe_topics(config) -> str:
 
 def serve(args) -> int:
     """``ftdrake serve --ros2``."""
-    chain = a.load_chain(args)
-    config = config_from_args(args)
+    live = load_live(args)
+    config = config_from_args(args, live)
     with a.naming("--model", args.model):
         model = load_model(args.model, expect_n_joints=config.n_joints)
 
     def on_event(event) -> None:
         print(f"ftdrake serve: {event}", file=sys.stderr, flush=True)
 
-    station = Ros2Station(config, model, chain, on_event=on_event)
+    station = Ros2Station(config, model, live.chain, on_event=on_event)
     print(f"ftdrake serve: {type(model).__name__} from {args.model}, "
           f"{1 / station.period:g} Hz updates\n{describe_topics(config)}",
           file=sys.stderr, flush=True)

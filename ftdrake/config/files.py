@@ -49,22 +49,28 @@ def parse_config(text: str, schema=ScenarioConfig, source: str = "<string>"):
     return config
 
 
+#: The transport sections a live config file has beside ``chain:``
+#: (:class:`~ftdrake.hardware.live_config.LiveConfig`).
+LIVE_TRANSPORTS = ("lcm", "ros2")
+
+
 def load_chain_config(path: "str | Path | None" = None) -> ChainConfig:
     """The :class:`ChainConfig` of a file: a chain config (``compensator``, ``bias_tracker``,
-    ``detector``, ``sensor``, ``robot`` at the top), or, until the next release, a scenario
+    ``detector``, ``sensor``, ``robot`` at the top), a live config file's ``chain:``
+    section, or, until the next release, a scenario
     file's chain (``scenario.chain_config()``: its chain section on its simulated sensor's
     stream), with a :class:`ConfigLayoutWarning` naming the chain layout. None: defaults."""
     if path is None:
         return ChainConfig().validate()
     path = Path(path)
-    try:
-        text = path.read_text()
-    except OSError as e:
-        raise ConfigError(f"cannot read config {path}: {e.strerror}") from None
+    text = _read(path)
     data = _mapping(text, str(path))
     chain_fields = {f.name for f in dc.fields(ChainConfig)}
     if set(data) <= chain_fields:
         return parse_config(text, ChainConfig, source=str(path))
+    if "chain" in data and set(data) <= {"chain", *LIVE_TRANSPORTS}:  # a live config file
+        return parse_config(pyyaml.safe_dump(data["chain"] or {}), ChainConfig,
+                            source=f"{path}: chain")
     warnings.warn(
         f"{path}: a scenario file where a chain config is expected; its chain section on the "
         "simulated sensor's stream is used until the next release. A chain config holds "
@@ -81,6 +87,18 @@ def save_config(config, path: "str | Path") -> None:
 
 def dump_config(config) -> str:
     return yaml_dump_typed(config)
+
+
+def read_mapping(path: Path) -> dict:
+    """The top-level mapping of the YAML file `path` (errors name the file)."""
+    return _mapping(_read(path), str(path))
+
+
+def _read(path: Path) -> str:
+    try:
+        return path.read_text()
+    except OSError as e:
+        raise ConfigError(f"cannot read config {path}: {e.strerror}") from None
 
 
 def _mapping(text: str, source: str) -> dict:

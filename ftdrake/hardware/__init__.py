@@ -1,6 +1,7 @@
 """ftdrake on a live robot over LCM: configuration and message codecs.
 
-Modules: ``config`` (HardwareConfig: channels, message types, timeouts), ``messages``
+Modules: ``config`` (HardwareConfig: channels, message types, timeouts), ``live_config``
+(LiveConfig: a live config file, the chain and its transports), ``messages``
 (decode joint state and F/T, encode the external wrench and the contact state),
 ``live_inputs`` (StreamMonitor: per-message checks, fault, counters; RobotStatePairer),
 ``transport`` (open_lcm: an LCM connection that does not drop queued messages), ``core``
@@ -14,6 +15,7 @@ ROS 2 topics over Cyclone DDS: :mod:`ftdrake.hardware.ros2` (``--ros2``).
 """
 
 from .config import JOINT_STATE_TYPES, HardwareConfig
+from .live_config import LiveConfig, load_live_config
 from .live_inputs import REASONS, RobotStatePairer, StreamMonitor
 from .messages import (
     ContactState,
@@ -38,6 +40,7 @@ __all__ = [
     "HardwareConfig",
     "HardwareStation",
     "JointSample",
+    "LiveConfig",
     "RobotStatePairer",
     "StreamMonitor",
     "WrenchSample",
@@ -49,6 +52,7 @@ __all__ = [
     "encode_joint_state",
     "encode_wrench",
     "measure_latency",
+    "load_live_config",
     "open_lcm",
     "read_lcm_log",
     "record_to_parquet",
