@@ -44,9 +44,7 @@ def parse_config(text: str, schema=ScenarioConfig, source: str = "<string>"):
         config = yaml_load_typed(schema=schema, data=text)
     except (RuntimeError, ValueError, TypeError) as e:
         raise ConfigError(f"{source}: {e}") from None
-    if hasattr(config, "validate"):
-        config.validate()
-    return config
+    return config.validate()
 
 
 #: The transport sections a live config file has beside ``chain:``

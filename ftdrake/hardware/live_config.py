@@ -17,7 +17,6 @@ from pathlib import Path
 
 from ..config import ChainConfig, load_chain_config, parse_config
 from ..config.files import read_mapping
-from ..errors import ConfigError
 from .config import HardwareConfig
 from .ros2.config import Ros2Config
 
@@ -32,6 +31,11 @@ class LiveConfig:
     lcm: HardwareConfig = dc.field(default_factory=HardwareConfig)
     ros2: Ros2Config = dc.field(default_factory=Ros2Config)
 
+    def validate(self) -> "LiveConfig":
+        """Validates the chain (the transports: by the station that opens one)."""
+        self.chain.validate()
+        return self
+
 
 def load_live_config(path: "str | Path | None") -> LiveConfig:
     """The LiveConfig of `path` (see the module); None: the defaults. Its chain is validated
@@ -44,9 +48,4 @@ def load_live_config(path: "str | Path | None") -> LiveConfig:
         return LiveConfig(chain=load_chain_config(path))
     if not set(data) <= {f.name for f in dc.fields(LiveConfig)}:
         return LiveConfig(chain=load_chain_config(path))  # a scenario file (it warns)
-    live = parse_config(Path(path).read_text(), LiveConfig, source=str(path))
-    try:
-        live.chain.validate()
-    except ConfigError as e:
-        raise ConfigError(f"{path}: {e}") from None
-    return live
+    return parse_config(Path(path).read_text(), LiveConfig, source=str(path))

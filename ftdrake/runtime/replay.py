@@ -301,8 +301,9 @@ def calibrated_detector(result: pd.DataFrame, model, config: ChainConfig) -> Det
     test = config.detector.for_model(model, calibrating=True).test
     std = (result[col.wrench_columns(WRENCH_OUTPUTS["wrench_std"])].to_numpy()[judged]
            if test == "chi2" else None)
-    kept = {name: getattr(config.detector, name)
-            for name in ("release_ratio", "debounce_on", "debounce_off", "arm_after_s")}
+    detector = config.detector
+    kept = {"release_ratio": detector.release_ratio, "debounce_on": detector.debounce_on,
+            "debounce_off": detector.debounce_off, "arm_after_s": detector.arm_after_s}
     return thresholds_for_false_positive_rate(
         result[col.wrench_columns(WRENCH_OUTPUTS["wrench_contact"])].to_numpy()[judged],
         sample_rate_hz=1.0 / float(np.median(np.diff(t))),
