@@ -46,12 +46,9 @@ def savgol_derivative(
     return savgol_filter(x, window, polyorder, deriv=deriv, delta=dt, axis=0)
 
 
-#: The loop's default cut-off for its q̈ estimate (Hz; ``compensator.acceleration_cutoff_hz``).
-#: At 1 kHz the tracker passes white noise on q̇ with the gain the first-order low-pass at
-#: 25 Hz it replaced had (0.144 against 0.151 rad/s² per mrad/s), and follows q̈ with a
-#: third of that filter's error on a wall run of evaluate-detection (RMS 0.0054 against
-#: 0.017 rad/s²):
-#: that filter lagged q̈ by 1/(2π·25 Hz) = 6.4 ms, this one follows a q̈ ramp without lag.
+#: The loop's default cut-off for its q̈ estimate (Hz; ``compensator.acceleration_cutoff_hz``):
+#: the white-noise gain of the first-order low-pass at 25 Hz it replaced, without its lag on a
+#: q̈ ramp (the figures: docs, Derivations).
 DEFAULT_ACCELERATION_CUTOFF_HZ = 12.0
 
 

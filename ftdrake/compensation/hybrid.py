@@ -389,12 +389,9 @@ def default_residual() -> RandomForestCompensator:
     run in the loop, where one multi-output forest of 50 trees costs a fraction of six
     per-axis forests of 100 (``benchmarks/compensator_latency.py`` measures both).
 
-    Why 40 rows a leaf (5 before): a smooth residual needs no finer leaves, and the file is a
-    quarter of the nodes. On the demo's data (45,500 rows, ``benchmarks/model_size.py``) the
-    hybrid's file went from 27.8 MB to 3.5 MB with held-out errors equal or lower on every
-    axis (Fx..Tz 2.29, 2.24, 1.74, 1.88, 2.84, 1.79 σ with 5 rows a leaf; 2.28, 2.24, 1.75,
-    1.76, 2.77, 1.73 σ with 40). The size grows with the training rows (``--max-rows`` bounds
-    it).
+    Why 40 rows a leaf: a smooth residual needs no finer leaves, and the file is a quarter of
+    the nodes (``benchmarks/model_size.py`` measures it; the figures: docs, Derivations). The
+    size grows with the training rows (``--max-rows`` bounds it).
     """
     return RandomForestCompensator(features="q", per_output=False, n_estimators=50,
                                    min_samples_leaf=40, random_state=0)

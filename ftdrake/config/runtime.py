@@ -17,7 +17,7 @@ class CompensatorConfig:
     # Cut-off (Hz) of the tracker on the causal difference of q̇ that estimates q̈ in the loop
     # (a real controller has no q̈ sensor; signals.causal_acceleration); training can use the
     # same estimate. Lower it for a noisy q̇: the white noise it passes grows about in
-    # proportion (at 1 kHz, 0.074, 0.144 and 0.287 rad/s² per mrad/s at 6, 12 and 25 Hz).
+    # proportion to the cut-off (docs, Derivations).
     acceleration_cutoff_hz: float = DEFAULT_ACCELERATION_CUTOFF_HZ
 
     def validate(self, where: str = "compensator") -> None:

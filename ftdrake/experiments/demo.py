@@ -66,9 +66,8 @@ DOMAIN_HOLDOUT_SHARE = 0.2
 #: of these kinds stay inside the training ranges the thresholds were calibrated on.
 OTHER_KINDS = ("random", "z_rich", "reference")
 #: Training runs of the ``task_covering`` kind (motion planned from the task: the approaches to
-#: every surface, the wall's included). With 2 × 20 s of it added to the rest, the wall
-#: approaches raised 0 false positives instead of 4 in the detection evaluation by replay
-#: (benchmarks/excitation_detection.py, 4 simulated minutes), free motion 2 instead of 3.
+#: every surface, the wall's included; ``benchmarks/excitation_detection.py`` measures what
+#: they change in detection, figures in docs, Derivations).
 TASK_COVERING_RUNS = 2
 
 
