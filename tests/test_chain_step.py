@@ -120,8 +120,11 @@ def assert_equal_outputs(diagram, stepped):
 
 
 def configs(scenario) -> dict:
-    base = dc.replace(scenario, bias_tracker=dc.replace(scenario.bias_tracker, enabled=True))
-    tracker = base.bias_tracker
+    # Settle windows (in which contact does not freeze the tracker) shorter than the time
+    # from the first re-tare to the press, so that the press freezes it.
+    tracker = dc.replace(scenario.bias_tracker, enabled=True, tare_settle_s=0.3,
+                         payload_settle_s=0.3)
+    base = dc.replace(scenario, bias_tracker=tracker)
     return {
         "tracker_off": dc.replace(base, bias_tracker=dc.replace(tracker, enabled=False)),
         "tracker_on": base,
