@@ -22,6 +22,14 @@ payload-change flag) from before the update and runs the systems consumers first
 payload monitor, the detector, the tracker, the joint-state gravity, the compensator, the
 delay line's memory last (its output, direct feedthrough, is computed first).
 
+Time: the k-th update (k = 0, 1, ...) is the diagram's periodic update at t = k·period, as
+a diagram started at time 0 fires them; `t` arms the detector (``arm_after_s``). The payload
+monitor samples every ``payload_change.sample_period_s``: the step samples it on every m-th
+update (m that period over the chain's, which must be whole), with the chain's update as
+the diagram does where its sample times fall on the chain's to the last bit (a monitor
+period that is not a whole number of the chain's is refused: the diagram would then sample
+it between the chain's updates).
+
 Usage (``chain`` a built CompensationChain; `t` the update's time on the chain's clock)::
 
     step = ChainStep(chain)                       # its initial state: chain.initialize's
