@@ -36,6 +36,7 @@ from ftdrake.testing import push_scenario
 
 N = 7
 TARE_AT, GRASP_AT = (5, 1700), 1800  # samples where a tared / payload_changed pulse starts
+MAIN_INPUTS = ("wrench_measured", "joint_state")  # ChainStep.update's positional inputs
 
 
 @pytest.fixture(scope="module")
@@ -101,10 +102,8 @@ def run_both(chain, inputs: dict, period: float):
             value.GetMutableData().get_mutable_value().SetFromVector(
                 np.atleast_1d(inputs[name][k]))
         simulator.AdvanceTo((k + 0.5) * period)
-        out = step.update(k * period, *(inputs[name][k] for name in (
-            "wrench_measured", "joint_state")), **{name: inputs[name][k] for name in fixed
-                                                   if name not in ("wrench_measured",
-                                                                   "joint_state")})
+        others = {name: inputs[name][k] for name in fixed if name not in MAIN_INPUTS}
+        out = step.update(k * period, *(inputs[name][k] for name in MAIN_INPUTS), **others)
         for name in names:
             diagram[name].append(chain.GetOutputPort(name).Eval(context))
             stepped[name].append(out[name].copy())
