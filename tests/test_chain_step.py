@@ -11,6 +11,10 @@ import warnings
 import numpy as np
 import pytest
 from pydrake.systems.analysis import Simulator
+from test_chain import PERIOD as CHAIN_PERIOD
+from test_chain import configs as chain_configs
+from test_chain import forest as chain_forest
+from test_chain import stream as chain_stream
 
 from ftdrake import CompensationChain
 from ftdrake.compensation.forest import RandomForestCompensator
@@ -192,6 +196,23 @@ def test_the_step_equals_the_diagram_when_the_monitor_announces_a_payload(press)
     assert diagram["payload_change"].max() == 1.0  # the monitor decided, the tracker heard it
 
 
+@pytest.mark.parametrize("case", ["tracker_on", "track_payload"])
+def test_the_step_equals_the_diagram_with_temperature_and_gravity_inputs(case):
+    """test_chain's stream (a warming sensor, g_S and motion_S as inputs, a contact, a NaN
+    reading, a re-tare, a grasp) through a forest trained with the temperature, on a chain
+    built with ``gravity="input"`` (the simulation's way)."""
+    config, _ = chain_configs()[case]
+    chain = CompensationChain(chain_forest(temperature=True), config, period=CHAIN_PERIOD,
+                              n_joints=N, gravity="input")
+    inputs = chain_stream()
+    inputs = {name: inputs[name].squeeze(1) if name in ("temperature", "tared",
+                                                          "payload_changed") else inputs[name]
+              for name in inputs if name != "t"}
+    diagram, stepped = run_both(chain, inputs, CHAIN_PERIOD)
+    assert_equal_outputs(diagram, stepped)
+    assert diagram["contact"].max() == 1.0 and diagram["fault"].max() == 1.0
+
+
 def test_the_step_refuses_what_it_cannot_reproduce_and_names_it(press):
     scenario, _, models = press
     tracker = dc.replace(scenario.bias_tracker, track_payload=True, payload_change=dc.replace(
@@ -203,6 +224,14 @@ def test_the_step_refuses_what_it_cannot_reproduce_and_names_it(press):
     step = ChainStep(CompensationChain(models["physics"], scenario, n_joints=N))
     with pytest.raises(ValueError, match="joint_state 14"):
         step.update(0.0, np.zeros(6), np.zeros(12))
+    step = ChainStep(CompensationChain(chain_forest(temperature=True), scenario, n_joints=N))
+    with pytest.raises(ConfigError, match="temperature"):
+        step.update(0.0, np.zeros(6), np.zeros(2 * N))
+    config, _ = chain_configs()["track_payload"]
+    step = ChainStep(CompensationChain(chain_forest(temperature=False), config, n_joints=N,
+                                       gravity="input"))
+    with pytest.raises(ConfigError, match="gravity_S"):
+        step.update(0.0, np.zeros(6), np.zeros(2 * N))
 
 
 def test_the_station_publishes_the_same_by_the_step_and_by_the_diagram(press):

@@ -146,6 +146,9 @@ class ChainStep:
         `motion_S` (6) only for a chain built with ``gravity="input"`` and payload tracking
         (motion_S with ``track_payload_motion``). Returns :attr:`outputs`.
         """
+        if self.needs_temperature and temperature is None:
+            raise ConfigError("ChainStep.update: the model was trained with the sensor "
+                              "temperature (°C); pass temperature each update")
         try:
             self._wrench[:] = wrench_measured
             self._joint_state[:] = joint_state
@@ -214,9 +217,6 @@ class ChainStep:
                         self._flag, self._counter, self._force)
 
     def _compensate(self, wrench, x, temperature) -> None:
-        if self.needs_temperature and temperature is None:
-            raise ConfigError("ChainStep.update: the model was trained with the sensor "
-                              "temperature (°C); pass temperature each update")
         estimator, internal, external, std, ood, fault = self._comp_state
         self._comp.compensate(wrench, x, self._no_acceleration, False,
                               float(temperature) if self.needs_temperature else math.nan,
@@ -233,6 +233,6 @@ def _whole_periods(sample_period: float, period: float) -> int:
         raise ConfigError(
             f"ChainStep: bias_tracker.payload_change.sample_period_s ({sample_period} s) must "
             f"be a whole number of the chain's periods ({period} s) for the step to sample "
-            "the payload monitor where the diagram does; set it to a multiple of the "
-            "sensor's period, or drive the diagram")
+            "the payload monitor where the diagram does; set it to a whole multiple of the "
+            "sensor's period (1 / rate_hz)")
     return every
