@@ -119,7 +119,8 @@ class StationCore:
             "wrench_compensated", "wrench_contact", "fault", "out_of_domain", "contact",
             "contact_force", "bias", "payload", "payload_change")
             if self.diagram.HasOutputPort(name)}
-        # Each F/T sample updates the chain by the step (use_diagram(): by the diagram).
+        # Each F/T sample updates the chain by the step (use_diagram(): by the diagram); the
+        # step keeps its own state, so `context` then stays at the initial one.
         self._step = ChainStep(self.chain, self.context)
         self.monitor = StreamMonitor(
             self.n_joints, sensor_timeout_s, joint_state_timeout_s,
