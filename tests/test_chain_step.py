@@ -89,6 +89,11 @@ def faulted_inputs(log) -> dict:
 def run_both(chain, inputs: dict, period: float):
     """The chain's exported outputs per sample (K × size per name), from the diagram driven as
     the live station drove it and from a ChainStep made from the same chain."""
+    return drive(chain, inputs, period)[:2]
+
+
+def drive(chain, inputs: dict, period: float):
+    """run_both's outputs, then the diagram's context and the step at the end."""
     simulator = Simulator(chain)
     context = simulator.get_mutable_context()
     chain.initialize(context)
@@ -112,7 +117,7 @@ def run_both(chain, inputs: dict, period: float):
             diagram[name].append(chain.GetOutputPort(name).Eval(context))
             stepped[name].append(out[name].copy())
     return ({name: np.array(v) for name, v in diagram.items()},
-            {name: np.array(v) for name, v in stepped.items()})
+            {name: np.array(v) for name, v in stepped.items()}, context, step)
 
 
 def assert_equal_outputs(diagram, stepped):
@@ -166,6 +171,45 @@ def test_the_step_equals_the_diagram_with_a_delay_line(press, delay):
     assert_equal_outputs(*run_both(chain, faulted_inputs(log), chain.period))
 
 
+@pytest.mark.parametrize("case", ["press_delayed", "grasp_nobody_signalled"])
+def test_the_step_writes_its_state_into_a_context_as_the_diagram_holds_it(press, case):
+    """After a run, every discrete state of the chain (compensator, tracker, detector,
+    joint-state gravity, delay line; the payload monitor after it decided) written by the
+    step into a fresh context equals the diagram's, so any port evaluates there as in the
+    diagram (here the tracker's payload_inertia, which the chain does not export)."""
+    scenario, log, models = press
+    if case == "press_delayed":
+        chain = CompensationChain(models["hybrid"], configs(scenario)["track_payload"],
+                                  n_joints=N, wrench_delay_s=0.0025)
+        inputs = faulted_inputs(log)
+    else:
+        chain = CompensationChain(models["physics"], monitored(scenario), n_joints=N,
+                                  gravity="input")
+        inputs = grasp_nobody_signalled(log, models["physics"], chain.period)
+    *_, context, step = drive(chain, inputs, chain.period)
+    written = chain.CreateDefaultContext()
+    step.write_state(written)
+    got, expected = (np.concatenate([c.get_discrete_state().get_vector(i).CopyToVector()
+                                     for i in range(c.num_discrete_state_groups())])
+                     for c in (written, context))
+    np.testing.assert_array_equal(got, expected)
+    inertia = chain.tracker.get_output_port_payload_inertia()
+    np.testing.assert_array_equal(inertia.Eval(chain.tracker.GetMyContextFromRoot(written)),
+                                  inertia.Eval(chain.tracker.GetMyContextFromRoot(context)))
+    if chain.payload_monitor is not None:  # its decision's estimate is part of the state
+        estimate = chain.payload_monitor.get_output_port_payload_change_estimate()
+        assert np.abs(estimate.Eval(chain.payload_monitor.GetMyContextFromRoot(written))).max(
+        ) > 0
+
+
+def monitored(scenario):
+    """Payload tracking (gravity only) with the unsignalled payload change's monitor."""
+    tracker = dc.replace(scenario.bias_tracker, enabled=True, track_payload=True,
+                         track_payload_motion=False, payload_change=dc.replace(
+                             scenario.bias_tracker.payload_change, enabled=True))
+    return dc.replace(scenario, bias_tracker=tracker)
+
+
 def grasp_nobody_signalled(log, model, period):
     """Inputs for a chain with gravity from inputs: the run's joint states, readings the model
     predicts for them (no press), and from 1 s on a 0.5 kg payload (centre of mass 0.1 m
@@ -185,11 +229,8 @@ def grasp_nobody_signalled(log, model, period):
 
 def test_the_step_equals_the_diagram_when_the_monitor_announces_a_payload(press):
     scenario, log, models = press
-    tracker = dc.replace(scenario.bias_tracker, enabled=True, track_payload=True,
-                         track_payload_motion=False, payload_change=dc.replace(
-                             scenario.bias_tracker.payload_change, enabled=True))
-    config = dc.replace(scenario, bias_tracker=tracker)
-    chain = CompensationChain(models["physics"], config, n_joints=N, gravity="input")
+    chain = CompensationChain(models["physics"], monitored(scenario), n_joints=N,
+                              gravity="input")
     diagram, stepped = run_both(chain, grasp_nobody_signalled(log, models["physics"],
                                                               chain.period), chain.period)
     assert_equal_outputs(diagram, stepped)

@@ -120,7 +120,7 @@ class StationCore:
             "contact_force", "bias", "payload", "payload_change")
             if self.diagram.HasOutputPort(name)}
         # Each F/T sample updates the chain by the step (use_diagram(): by the diagram); the
-        # step keeps its own state, so `context` then stays at the initial one.
+        # step keeps its own state, written into `context` by chain_context().
         self._step = ChainStep(self.chain, self.context)
         self.monitor = StreamMonitor(
             self.n_joints, sensor_timeout_s, joint_state_timeout_s,
@@ -163,6 +163,14 @@ class StationCore:
         if self._step is not None:
             return self._step.outputs[name].copy()
         return self._out[name].Eval(self.context)
+
+    def chain_context(self):
+        """The diagram's context holding the chain's state now (the step's written into it
+        first), to evaluate any port of the chain's systems, e.g. the tracker's
+        ``payload_inertia``."""
+        if self._step is not None:
+            self._step.write_state(self.context)
+        return self.context
 
     def contact_state(self, t: float, fault: bool) -> ContactState:
         """The detector's state now, stamped `t`, with `fault`."""

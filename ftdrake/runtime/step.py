@@ -73,9 +73,13 @@ class ChainStep:
         self.n_joints = comp.n
         self.needs_temperature = comp.needs_temperature
 
+        self._states = []  # (system, discrete state index, the step's array)
+
         def state(system, index):
             context = system.GetMyContextFromRoot(root_context)
-            return np.array(context.get_discrete_state(index).get_value(), dtype=float)
+            value = np.array(context.get_discrete_state(index).get_value(), dtype=float)
+            self._states.append((system, index, value))
+            return value
 
         self._comp = comp
         self._comp_state = [state(comp, i) for i in (comp._estimator, comp._internal,
@@ -133,6 +137,14 @@ class ChainStep:
             self.outputs["payload_change"] = self._monitor_state[1]
             self._monitor_every = _whole_periods(m.period, self.period)
             self._monitor_due = 0  # updates until its next sample (0: this one)
+
+    def write_state(self, root_context) -> None:
+        """Writes the step's state (every discrete state of the chain's systems) into
+        `root_context`, a context of the chain or of a diagram holding it: any port of the
+        chain or of its systems (e.g. the tracker's ``payload_inertia``, not exported) then
+        evaluates there as at the step's last update."""
+        for system, index, value in self._states:
+            system.GetMyMutableContextFromRoot(root_context).SetDiscreteState(index, value)
 
     def update(self, t: float, wrench_measured, joint_state, temperature=None, tared=0.0,
                payload_changed=0.0, gravity_S=None, motion_S=None) -> dict:
