@@ -212,7 +212,8 @@ def test_a_grasp_on_hardware_is_identified_from_the_joint_state():
     mass, com = GRASP_MASS, GRASP_COM
 
     estimate = dut.tracker.get_output_port_payload().Eval(
-        dut.tracker.GetMyContextFromRoot(dut.context))
+        dut.tracker.GetMyContextFromRoot(dut.chain_context()))
+    np.testing.assert_array_equal(estimate, dut.output("payload"))
     assert dut.summary()["signals"]["payload_changed"] == {"received": 1, "rejected": 0}
     assert estimate[0] == pytest.approx(mass, rel=0.01)
     np.testing.assert_allclose(estimate[1:] / estimate[0], com, atol=0.001)

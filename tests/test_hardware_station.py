@@ -1,6 +1,8 @@
 """Station over memq://: published external wrench == measured − model.predict, exactly once;
 the same updates as the simulation's in-loop compensator for the simulated robot's stream."""
 
+import dataclasses as dc
+
 import numpy as np
 import pytest
 
@@ -53,7 +55,9 @@ def test_simulated_robot_stream_gives_the_in_simulation_numbers(kind):
     """The simulated robot publishes on memq://, the station processes it as it comes: each
     published wrench equals the in-loop compensator's ``comp_external`` and the contact flag
     the in-loop detector's ``detected``, sample for sample (robot_state: float32 positions on
-    the wire, so to the float32 resolution instead, and the detector may differ there)."""
+    the wire, so to the float32 resolution instead, and the detector may differ there). A
+    second station on the same bus drives its Drake diagram per message instead of the chain
+    step: it publishes the same wrenches and contact states, to 1e-12."""
     scenario = push_scenario(duration=2.0, push_at=0.6)
     model = fit_forest(scenario, duration=0.5)
     hardware = HardwareConfig(lcm_url="memq://", sensor_timeout_s=100.0,
@@ -66,6 +70,14 @@ def test_simulated_robot_stream_gives_the_in_simulation_numbers(kind):
     wrenches, contacts = [], []
     dut.lcm.subscribe(hardware.external_wrench_channel, lambda d: wrenches.append(decode_wrench(d)))
     dut.lcm.subscribe(hardware.contact_channel, lambda d: contacts.append(decode_contact_state(d)))
+    reference = dc.replace(hardware, external_wrench_channel="DIAGRAM_EXTERNAL",
+                           contact_channel="DIAGRAM_CONTACT")
+    _, by_diagram = build_hardware_station(reference, model, scenario, lcm=dut.lcm)
+    by_diagram["station"].use_diagram()
+    reference_out = ([], [])
+    dut.lcm.subscribe("DIAGRAM_EXTERNAL", lambda d: reference_out[0].append(decode_wrench(d)))
+    dut.lcm.subscribe("DIAGRAM_CONTACT",
+                      lambda d: reference_out[1].append(decode_contact_state(d)))
     station = build_station(scenario, model)
     result = simulate_on_lcm(station, hardware, dut.lcm, progress=False)
     while dut.spin_once(0):  # the station takes what the simulation queued, then its outputs
@@ -78,6 +90,8 @@ def test_simulated_robot_stream_gives_the_in_simulation_numbers(kind):
     assert not dut.monitor.rejected.get("unpaired")
     np.testing.assert_allclose([w.t for w in wrenches], np.arange(K) * dut.period, atol=1e-9)
     got = np.array([w.wrench for w in wrenches])
+    np.testing.assert_allclose(got, [w.wrench for w in reference_out[0]], rtol=0, atol=1e-12)
+    assert contacts == reference_out[1]
     expected = log[[c for c in log if c.startswith("comp_external_")]].to_numpy()
     detected = np.array([c.contact for c in contacts])
     assert log["detected"].sum() > 50  # the push is detected in simulation

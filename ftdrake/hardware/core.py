@@ -17,7 +17,10 @@ sleep granularity to the latency. Here each message reaches a callback; every ac
 fault-free F/T message triggers exactly one periodic update of the diagram: the k-th such
 message advances a (non-realtime) Simulator to (k + ½)·period, so exactly the update at
 k·period fires (diagram time is processed-message index × period, not the message's
-timestamp; they agree while no message is rejected).
+timestamp; they agree while no message is rejected). By default that update is made by a
+:class:`~ftdrake.runtime.step.ChainStep` (the same systems' code on arrays, without the
+Simulator's per-update overhead; its outputs equal the diagram's, tests/test_chain_step.py);
+:meth:`StationCore.use_diagram` drives the diagram itself instead, for checking.
 
 Per F/T sample the transport publishes the wrench (``_publish_wrench``) only when the inputs
 are fault-free — a stale wrench is never published as fresh — and the contact state
@@ -41,6 +44,7 @@ from pydrake.systems.analysis import Simulator
 
 from ..config import ChainConfig
 from ..runtime.chain import CompensationChain
+from ..runtime.step import ChainStep
 from .live_inputs import StreamMonitor
 from .messages import ContactState
 
@@ -117,6 +121,9 @@ class StationCore:
             "wrench_compensated", "wrench_contact", "fault", "out_of_domain", "contact",
             "contact_force", "bias", "payload", "payload_change")
             if self.diagram.HasOutputPort(name)}
+        # Each F/T sample updates the chain by the step (use_diagram(): by the diagram); the
+        # step keeps its own state, written into `context` by chain_context().
+        self._step = ChainStep(self.chain, self.context)
         self.monitor = StreamMonitor(
             self.n_joints, sensor_timeout_s, joint_state_timeout_s,
             temperature_timeout_s if self._temperature_in is not None else None)
@@ -153,8 +160,19 @@ class StationCore:
         raise NotImplementedError
 
     def output(self, name: str) -> np.ndarray:
-        """The diagram output `name` now (see CompensationChain's ports)."""
+        """The chain's output `name` now (see CompensationChain's ports), a copy: the
+        ChainStep's, or the diagram's after use_diagram()."""
+        if self._step is not None:
+            return self._step.outputs[name].copy()
         return self._out[name].Eval(self.context)
+
+    def chain_context(self):
+        """The diagram's context holding the chain's state now (the step's written into it
+        first), to evaluate any port of the chain's systems, e.g. the tracker's
+        ``payload_inertia``."""
+        if self._step is not None:
+            self._step.write_state(self.context)
+        return self.context
 
     def contact_state(self, t: float, fault: bool) -> ContactState:
         """The detector's state now, stamped `t`, with `fault`."""
@@ -189,23 +207,51 @@ class StationCore:
         fresh = self.monitor.on_wrench(sample, arrival)
         t = sample.t if sample is not None and np.isfinite(sample.t) else self._stream_time()
         if fresh:
-            self._wrench_in.GetMutableData().get_mutable_value().SetFromVector(self.monitor.wrench)
-            self._state_in.GetMutableData().get_mutable_value().SetFromVector(self.monitor.joint_state)
-            if self._temperature_in is not None:
-                self._temperature_in.GetMutableData().get_mutable_value().SetFromVector(
-                    [self.monitor.temperature])
-            for signal in self._signals.values():  # high for one update after its message
-                signal.fixed.GetMutableData().get_mutable_value().SetFromVector(
-                    [1.0 if signal.pending else 0.0])
-                signal.pending = False
-            self.simulator.AdvanceTo((self.processed + 0.5) * self.period)
+            if self._step is not None:
+                self._step_chain()
+            else:
+                self._advance_diagram()
             self.processed += 1
-            if self._out["fault"].Eval(self.context)[0] <= 0.5:
+            if self.output("fault")[0] <= 0.5:
                 self._publish_wrench(t)
                 self.latencies.append(self.clock() - arrival)
                 self.published += 1
         self.contact_published += bool(self._publish_contact(t, self.monitor.fault))
         self._note(t)
+
+    def _step_chain(self) -> None:
+        """One update of the chain by the ChainStep, from the monitor's held inputs."""
+        m = self.monitor
+        signals = {}
+        for name, signal in self._signals.items():  # high for one update after its message
+            signals[name] = 1.0 if signal.pending else 0.0
+            signal.pending = False
+        self._step.update(self.processed * self.period, m.wrench, m.joint_state,
+                          m.temperature, **signals)
+
+    def _advance_diagram(self) -> None:
+        """One update of the chain by the Drake diagram: inputs fixed, the Simulator advanced
+        past the next periodic update (the module docstring)."""
+        self._wrench_in.GetMutableData().get_mutable_value().SetFromVector(self.monitor.wrench)
+        self._state_in.GetMutableData().get_mutable_value().SetFromVector(self.monitor.joint_state)
+        if self._temperature_in is not None:
+            self._temperature_in.GetMutableData().get_mutable_value().SetFromVector(
+                [self.monitor.temperature])
+        for signal in self._signals.values():  # high for one update after its message
+            signal.fixed.GetMutableData().get_mutable_value().SetFromVector(
+                [1.0 if signal.pending else 0.0])
+            signal.pending = False
+        self.simulator.AdvanceTo((self.processed + 0.5) * self.period)
+
+    def use_diagram(self) -> None:
+        """Updates the chain per F/T sample through the Drake diagram and its Simulator (the
+        reference: what the ChainStep reproduces, at several times its cost) instead of the
+        ChainStep; for checking. Only before the first processed sample."""
+        if self.processed:
+            raise RuntimeError("StationCore.use_diagram: the chain has already been updated "
+                               f"{self.processed} times by the step; call it before the first "
+                               "F/T sample")
+        self._step = None
 
     def check_timeouts(self) -> None:
         """Raises the fault when a stream went silent, publishing it at once."""

@@ -333,9 +333,19 @@ class OnlineBiasTracker(LeafSystem):
         else:
             gravity, motion = self._no_gravity, self._no_motion
             payload = inertia = self._no_payload
-        track_sample(self._wrench_port.Eval(context), gravity, motion, flags, self.n,
-                     self.payload_map, state.get_mutable_value(self._x), self._constants,
-                     self._steps, self.noise_std, self.prior_std,
-                     state.get_mutable_value(self._corrected),
-                     state.get_mutable_value(self._bias), payload, inertia,
-                     state.get_mutable_value(self._tracking), state.get_mutable_value(self._std))
+        self.track(self._wrench_port.Eval(context), gravity, motion, flags,
+                   state.get_mutable_value(self._x), state.get_mutable_value(self._corrected),
+                   state.get_mutable_value(self._bias), payload, inertia,
+                   state.get_mutable_value(self._tracking), state.get_mutable_value(self._std))
+
+    def track(self, y, gravity, motion, flags, x, corrected, bias, payload, inertia, tracking,
+              std) -> None:
+        """One sample on plain arrays (what ``_update`` does with the context's): the inputs
+        `y` (6), `gravity` (3), `motion` (6) and `flags` [contact, out_of_domain, fault,
+        tared, payload_changed], the state updated in place (``payload``/``inertia``: any
+        scratch arrays of n entries without ``track_payload``); see
+        :func:`~ftdrake.runtime.bias_estimator.track_sample`.
+        :class:`~ftdrake.runtime.step.ChainStep` calls it too."""
+        track_sample(y, gravity, motion, flags, self.n, self.payload_map, x, self._constants,
+                     self._steps, self.noise_std, self.prior_std, corrected, bias, payload,
+                     inertia, tracking, std)

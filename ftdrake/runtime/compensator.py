@@ -140,37 +140,44 @@ class CompensatorSystem(LeafSystem):
     def _update(self, context, state):
         # Runs at the sensor rate, so it makes as few Python calls as it can: Drake starts
         # `state` as a copy of the current state, and compiled code updates it in place.
-        wrench = self._wrench_port.Eval(context)
-        x = self._state_port.Eval(context)
         measured = self._accel_port.HasValue(context)
-        accel = self._accel_port.Eval(context) if measured else self._no_acceleration
-        estimator = state.get_mutable_value(self._estimator)
-        internal = state.get_mutable_value(self._internal)
-        external = state.get_mutable_value(self._external)
+        self.compensate(
+            self._wrench_port.Eval(context), self._state_port.Eval(context),
+            self._accel_port.Eval(context) if measured else self._no_acceleration, measured,
+            self._temperature(context) if self.needs_temperature else math.nan,
+            state.get_mutable_value(self._estimator), state.get_mutable_value(self._internal),
+            state.get_mutable_value(self._external), state.get_mutable_value(self._std),
+            state.get_mutable_value(self._ood), state.get_mutable_value(self._fault))
+
+    def compensate(self, wrench, x, accel, measured, temperature, estimator, internal,
+                   external, std, ood, fault) -> None:
+        """One sample on plain arrays (what ``_update`` does with the context's): the inputs
+        (`accel` used when `measured`; `temperature` °C read only when the model needs it)
+        and the state (q̈ estimator with the fault/out-of-domain copies, the five outputs),
+        updated in place. :class:`~ftdrake.runtime.step.ChainStep` calls it too, so the
+        diagram and the step run the same code."""
         if self._fused is not None:
             update, arrays = self._fused
-            status = update(
-                wrench, x, accel, measured, estimator, self._lo, self._hi, self._constants,
-                self._to_S, *arrays, internal, external, state.get_mutable_value(self._std),
-            )
+            status = update(wrench, x, accel, measured, estimator, self._lo, self._hi,
+                            self._constants, self._to_S, *arrays, internal, external, std)
         else:
             row = np.empty(3 * self.n + self.needs_temperature)
             if self.needs_temperature:
-                row[-1] = self._temperature(context)
+                row[-1] = temperature
                 if not math.isfinite(row[-1]):
                     wrench = self._nan_wrench  # a fault: _prepare_row then writes nothing
             status = prepare_row(wrench, x, accel, measured, estimator, row, self._lo,
                                  self._hi, self._constants)
             if not status & FAULT:
-                mean, std = self._predict(row)
+                mean, std_row = self._predict(row)
                 internal[:] = mean
                 external_wrench(wrench, internal, self._to_S, external)
                 if self._has_std:
-                    state.get_mutable_value(self._std)[:] = std
+                    std[:] = std_row
         if status & FAULT_CHANGED:
-            state.get_mutable_value(self._fault)[0] = float(status & FAULT != 0)
+            fault[0] = float(status & FAULT != 0)
         if status & OOD_CHANGED:
-            state.get_mutable_value(self._ood)[0] = float(status & OOD != 0)
+            ood[0] = float(status & OOD != 0)
 
     def _temperature(self, context) -> float:
         if not self._temperature_port.HasValue(context):
