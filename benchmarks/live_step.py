@@ -44,7 +44,7 @@ import warnings
 import numpy as np
 from pydrake.systems.analysis import Simulator
 
-from ftdrake import CompensationChain, ScenarioConfig
+from ftdrake import ChainConfig, CompensationChain
 from ftdrake.compensation.hybrid import HybridCompensator
 from ftdrake.compensation.physics import PhysicsPayloadCompensator
 from ftdrake.hardware import HardwareConfig
@@ -179,7 +179,7 @@ def ros2_station_batch(station, messages) -> float:
 
 
 def measure(model, rows, Y, n_messages: int, batches: int) -> dict:
-    scenario = ScenarioConfig()
+    scenario = ChainConfig()  # the defaults: bias tracker and detector on
     states = rows[:, :2 * N]
     stations, messages = lcm_stations(model, scenario, states, Y)
     ros2 = ros2_stations(model, scenario, states, Y)

@@ -130,9 +130,10 @@ def assert_equal_outputs(diagram, stepped):
 def configs(scenario) -> dict:
     # Settle windows (in which contact does not freeze the tracker) shorter than the time
     # from the first re-tare to the press, so that the press freezes it.
-    tracker = dc.replace(scenario.bias_tracker, enabled=True, tare_settle_s=0.3,
+    chain = scenario.chain_config()
+    tracker = dc.replace(chain.bias_tracker, enabled=True, tare_settle_s=0.3,
                          payload_settle_s=0.3)
-    base = dc.replace(scenario, bias_tracker=tracker)
+    base = dc.replace(chain, bias_tracker=tracker)
     return {
         "tracker_off": dc.replace(base, bias_tracker=dc.replace(tracker, enabled=False)),
         "tracker_on": base,
@@ -166,7 +167,8 @@ def test_the_step_equals_the_diagram_with_a_delay_line(press, delay):
     and one 1.3 ms ahead (the wrench delayed): fractional delays, interpolated."""
     scenario, log, models = press
     config = configs(scenario)["track_payload"]
-    chain = CompensationChain(models["physics"], config, n_joints=N, wrench_delay_s=delay)
+    config.sensor.wrench_delay_s = delay
+    chain = CompensationChain(models["physics"], config, n_joints=N)
     assert chain.delay_line is not None
     assert_equal_outputs(*run_both(chain, faulted_inputs(log), chain.period))
 
@@ -179,8 +181,9 @@ def test_the_step_writes_its_state_into_a_context_as_the_diagram_holds_it(press,
     diagram (here the tracker's payload_inertia, which the chain does not export)."""
     scenario, log, models = press
     if case == "press_delayed":
-        chain = CompensationChain(models["hybrid"], configs(scenario)["track_payload"],
-                                  n_joints=N, wrench_delay_s=0.0025)
+        config = configs(scenario)["track_payload"]
+        config.sensor.wrench_delay_s = 0.0025
+        chain = CompensationChain(models["hybrid"], config, n_joints=N)
         inputs = faulted_inputs(log)
     else:
         chain = CompensationChain(models["physics"], monitored(scenario), n_joints=N,
@@ -204,10 +207,11 @@ def test_the_step_writes_its_state_into_a_context_as_the_diagram_holds_it(press,
 
 def monitored(scenario):
     """Payload tracking (gravity only) with the unsignalled payload change's monitor."""
-    tracker = dc.replace(scenario.bias_tracker, enabled=True, track_payload=True,
+    chain = scenario.chain_config()
+    tracker = dc.replace(chain.bias_tracker, enabled=True, track_payload=True,
                          track_payload_motion=False, payload_change=dc.replace(
-                             scenario.bias_tracker.payload_change, enabled=True))
-    return dc.replace(scenario, bias_tracker=tracker)
+                             chain.bias_tracker.payload_change, enabled=True))
+    return dc.replace(chain, bias_tracker=tracker)
 
 
 def grasp_nobody_signalled(log, model, period):
@@ -242,7 +246,7 @@ def test_the_step_equals_the_diagram_with_temperature_and_gravity_inputs(case):
     """test_chain's stream (a warming sensor, g_S and motion_S as inputs, a contact, a NaN
     reading, a re-tare, a grasp) through a forest trained with the temperature, on a chain
     built with ``gravity="input"`` (the simulation's way)."""
-    config, _ = chain_configs()[case]
+    config = chain_configs()[case][0].chain_config()
     chain = CompensationChain(chain_forest(temperature=True), config, period=CHAIN_PERIOD,
                               n_joints=N, gravity="input")
     inputs = chain_stream()
@@ -256,19 +260,20 @@ def test_the_step_equals_the_diagram_with_temperature_and_gravity_inputs(case):
 
 def test_the_step_refuses_what_it_cannot_reproduce_and_names_it(press):
     scenario, _, models = press
-    tracker = dc.replace(scenario.bias_tracker, track_payload=True, payload_change=dc.replace(
-        scenario.bias_tracker.payload_change, enabled=True, sample_period_s=0.0125))
-    chain = CompensationChain(models["physics"], dc.replace(scenario, bias_tracker=tracker),
+    base = scenario.chain_config()
+    tracker = dc.replace(base.bias_tracker, track_payload=True, payload_change=dc.replace(
+        base.bias_tracker.payload_change, enabled=True, sample_period_s=0.0125))
+    chain = CompensationChain(models["physics"], dc.replace(base, bias_tracker=tracker),
                               n_joints=N)
     with pytest.raises(ConfigError, match=r"payload_change\.sample_period_s"):
         ChainStep(chain)
-    step = ChainStep(CompensationChain(models["physics"], scenario, n_joints=N))
+    step = ChainStep(CompensationChain(models["physics"], base, n_joints=N))
     with pytest.raises(ValueError, match="joint_state 14"):
         step.update(0.0, np.zeros(6), np.zeros(12))
-    step = ChainStep(CompensationChain(chain_forest(temperature=True), scenario, n_joints=N))
+    step = ChainStep(CompensationChain(chain_forest(temperature=True), base, n_joints=N))
     with pytest.raises(ConfigError, match="temperature"):
         step.update(0.0, np.zeros(6), np.zeros(2 * N))
-    config, _ = chain_configs()["track_payload"]
+    config = chain_configs()["track_payload"][0].chain_config()
     step = ChainStep(CompensationChain(chain_forest(temperature=False), config, n_joints=N,
                                        gravity="input"))
     with pytest.raises(ConfigError, match="gravity_S"):
