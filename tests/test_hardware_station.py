@@ -72,7 +72,8 @@ def test_simulated_robot_stream_gives_the_in_simulation_numbers(kind):
     dut.lcm.subscribe(hardware.contact_channel, lambda d: contacts.append(decode_contact_state(d)))
     reference = dc.replace(hardware, external_wrench_channel="DIAGRAM_EXTERNAL",
                            contact_channel="DIAGRAM_CONTACT")
-    _, by_diagram = build_hardware_station(reference, model, scenario, lcm=dut.lcm)
+    _, by_diagram = build_hardware_station(reference, model, scenario.chain_config(),
+                                           lcm=dut.lcm)
     by_diagram["station"].use_diagram()
     reference_out = ([], [])
     dut.lcm.subscribe("DIAGRAM_EXTERNAL", lambda d: reference_out[0].append(decode_wrench(d)))
