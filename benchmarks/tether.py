@@ -69,7 +69,7 @@ def _models(X, Y):
 
 def _error_over_noise(model, frame, noise):
     X = joint_state_layout(frame)
-    error = model.predict(X) - wrench_targets(frame, "internal")
+    error = model.predict(X) - wrench_targets(frame, "internal_true")
     keep = frame["t"].to_numpy() > 0.5
     error, runs = error[keep], frame["trajectory"].to_numpy()[keep]
     for run in np.unique(runs):

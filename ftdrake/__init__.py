@@ -57,12 +57,12 @@ from .errors import (
 )
 from .hardware.config import HardwareConfig
 from .hardware.station import HardwareStation
+from .offline.recorder import Recorder, add_recorder
 from .runtime.bias_tracker import OnlineBiasTracker
 from .runtime.chain import CompensationChain
 from .runtime.compensator import CompensatorSystem
 from .runtime.detector import ContactDetector
 from .runtime.joint_gravity import JointStateGravity
-from .runtime.recorder import Recorder, add_recorder
 from .runtime.replay import replay
 from .runtime.thresholds import thresholds_for_false_positive_rate
 from .sim.collection import collect

@@ -53,8 +53,8 @@ def test_a_contact_free_log_calibrates_the_chi2_test_that_then_stays_quiet_on_it
     # quantile (1 per hour at 1 kHz).
     out = pd.read_parquet(folder / "out.parquet")
     judged = (out["t"] - out["t"].iloc[0]).to_numpy() >= tuned.detector.arm_after_s
-    w = out[wrench_columns("est_external")].to_numpy()[judged]
-    s = out[wrench_columns("pred_std")].to_numpy()[judged]
+    w = out[wrench_columns("wrench_contact")].to_numpy()[judged]
+    s = out[wrench_columns("wrench_std")].to_numpy()[judged]
     expected = max(chi2.isf(1.0 / 3600.0 / RATE_HZ, 6), 1.05 * np.max(np.sum((w / s) ** 2, 1)))
     assert tuned.detector.chi2_on == pytest.approx(expected, rel=1e-9)
     # The rest of the scenario and the detector's debounce are the ones replay ran.
@@ -78,7 +78,7 @@ def test_hand_set_norm_thresholds_are_recalibrated_as_the_norm_test(physics_and_
     tuned = ftdrake.load_config(folder / "norm.yaml").detector
     out = pd.read_parquet(folder / "out.parquet")
     judged = (out["t"] - out["t"].iloc[0]).to_numpy() >= tuned.arm_after_s
-    r = out[wrench_columns("est_external")].to_numpy()[judged]
+    r = out[wrench_columns("wrench_contact")].to_numpy()[judged]
     assert tuned.test == "norm"
     # Independent: per block, max(the largest axis RMS · √(χ²₃ quantile at 1 − p/2), 1.05 ×
     # the largest norm on the log), p = 1 per hour at 1 kHz.

@@ -5,6 +5,7 @@ import numpy as np
 import pytest
 
 from ftdrake import RandomForestCompensator, ScenarioConfig
+from ftdrake.conventions import WRENCH_AXES
 from ftdrake.hardware import HardwareConfig
 from ftdrake.hardware.messages import (
     decode_contact_state,
@@ -28,7 +29,8 @@ def test_station_compensates_each_message_once():
     _, handles = build_hardware_station(config, model, lcm="memq://")
     dut = handles["station"]
     out = []
-    dut.lcm.subscribe(config.external_wrench_channel, lambda d: out.append(decode_wrench(d)))
+    dut.lcm.subscribe(config.output_channel("wrench_compensated"),
+                      lambda d: out.append(decode_wrench(d)))
     rows, meas = [], []
     for k in range(20):
         t = 0.001 * (k + 1)
@@ -63,9 +65,13 @@ def test_simulated_robot_stream_gives_the_in_simulation_numbers(kind):
                               velocity_channel="ROBOT_VELOCITY" if kind == "robot_state" else "")
     _, handles = build_hardware_station(hardware, model, scenario, lcm="memq://")
     dut = handles["station"]
-    wrenches, contacts = [], []
-    dut.lcm.subscribe(hardware.external_wrench_channel, lambda d: wrenches.append(decode_wrench(d)))
-    dut.lcm.subscribe(hardware.contact_channel, lambda d: contacts.append(decode_contact_state(d)))
+    wrenches, contact_wrenches, biases, contacts = [], [], [], []
+    for port, received in (("wrench_compensated", wrenches), ("wrench_contact", contact_wrenches),
+                           ("bias", biases)):
+        dut.lcm.subscribe(hardware.output_channel(port),
+                          lambda d, r=received: r.append(decode_wrench(d)))
+    dut.lcm.subscribe(hardware.output_channel("contact"),
+                      lambda d: contacts.append(decode_contact_state(d)))
     station = build_station(scenario, model)
     result = simulate_on_lcm(station, hardware, dut.lcm, progress=False)
     while dut.spin_once(0):  # the station takes what the simulation queued, then its outputs
@@ -78,15 +84,21 @@ def test_simulated_robot_stream_gives_the_in_simulation_numbers(kind):
     assert not dut.monitor.rejected.get("unpaired")
     np.testing.assert_allclose([w.t for w in wrenches], np.arange(K) * dut.period, atol=1e-9)
     got = np.array([w.wrench for w in wrenches])
-    expected = log[[c for c in log if c.startswith("comp_external_")]].to_numpy()
+    expected = log[[c for c in log if c.startswith("wrench_compensated_")]].to_numpy()
     detected = np.array([c.contact for c in contacts])
-    assert log["detected"].sum() > 50  # the push is detected in simulation
+    assert log["contact"].sum() > 50  # the push is detected in simulation
     if kind == "iiwa_status":
         np.testing.assert_allclose(got, expected, rtol=0, atol=1e-9)
-        np.testing.assert_array_equal(detected, log["detected"].to_numpy().astype(bool))
+        np.testing.assert_array_equal(detected, log["contact"].to_numpy().astype(bool))
+        # The other published wrenches (as ROS 2 publishes them), under the same names.
+        for received, port in ((contact_wrenches, "wrench_contact"), (biases, "bias")):
+            assert len(received) == K
+            np.testing.assert_allclose([w.wrench for w in received],
+                                       log[[f"{port}_{a}" for a in WRENCH_AXES]].to_numpy(),
+                                       rtol=0, atol=1e-9)
     else:
         np.testing.assert_allclose(got, expected, rtol=0, atol=0.5)  # float32 q, v
-        assert (detected == log["detected"].to_numpy().astype(bool)).mean() > 0.99
+        assert (detected == log["contact"].to_numpy().astype(bool)).mean() > 0.99
 
 
 def test_the_simulated_robot_announces_its_re_tare_and_grasp_once():

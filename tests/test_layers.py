@@ -31,6 +31,9 @@ LAYERS = {
     "data": 2,
     "compensation": 3,
     "runtime": 4,
+    # The recorder every station and replay use (offline/recorder.py); runtime/replay.py
+    # records with it. Offline tools above the runtime, below sim and hardware (which record).
+    "offline": 4,
     "systems": 5,
     "sim": 6,
     "hardware": 6,

@@ -98,8 +98,8 @@ def describe_channels(hardware) -> str:
     if h.joint_state_type == "robot_state":
         joint += f" + velocities {h.velocity_channel}"
     return (f"LCM {h.lcm_url}\n  in:  {joint}; F/T {h.ft_channel} (force_torque)\n"
-            f"  out: external wrench {h.external_wrench_channel} (force_torque); contact "
-            f"{h.contact_channel} (drake_signal: contact, contact_force, fault, out_of_domain)")
+            "  out: " + "; ".join(f"{channel} ({ports})"
+                                  for channel, ports in h.output_channels().items()))
 
 
 

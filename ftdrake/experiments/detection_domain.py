@@ -49,7 +49,7 @@ def free_motion_samples(model, log: pd.DataFrame, replayed: pd.DataFrame,
         return None
     judged = np.flatnonzero(armed(log[col.TIME].to_numpy(), arm_after_s))[::STRIDE]
     X = joint_state_layout(log, n=int(model.n_joints_))[judged]
-    std = replayed[col.wrench_columns(col.PREDICTED_STD)].to_numpy(dtype=float)[judged]
+    std = replayed[col.wrench_columns(col.WRENCH_STD)].to_numpy(dtype=float)[judged]
     return {"d": model.domain_distance(X), "std": std}
 
 
