@@ -3,8 +3,8 @@ as two processes over UDP multicast (ttl=0) for 60 s at 1 kHz, with this script 
 listener on every channel.
 
 Prints: messages published by the simulation, received/processed/published by serve and seen
-here (none lost, none twice); the largest difference between serve's external wrench and the
-in-simulation compensator's ``comp_external`` for the same stream (the same scenario simulated
+here (none lost, none twice); the largest difference between serve's ``wrench_compensated`` and the
+in-simulation compensator's ``wrench_compensated`` for the same stream (the same scenario simulated
 in-process with the compensator in the loop); whether serve's contact flag equals the
 in-simulation detector's sample for sample, and both against the ground truth ``contact``
 (agreement, first detection); serve's own arrival → publication latency (p50/p99) and the

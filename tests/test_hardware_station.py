@@ -1,4 +1,4 @@
-"""Station over memq://: published external wrench == measured − model.predict, exactly once;
+"""Station over memq://: published wrench_compensated == measured − model.predict, exactly once;
 the same updates as the simulation's in-loop compensator for the simulated robot's stream."""
 
 import numpy as np
@@ -53,8 +53,8 @@ def test_station_compensates_each_message_once():
 @pytest.mark.parametrize("kind", ["iiwa_status", "robot_state"])
 def test_simulated_robot_stream_gives_the_in_simulation_numbers(kind):
     """The simulated robot publishes on memq://, the station processes it as it comes: each
-    published wrench equals the in-loop compensator's ``comp_external`` and the contact flag
-    the in-loop detector's ``detected``, sample for sample (robot_state: float32 positions on
+    published wrench equals the in-loop compensator's ``wrench_compensated`` and the contact flag
+    the in-loop detector's ``contact``, sample for sample (robot_state: float32 positions on
     the wire, so to the float32 resolution instead, and the detector may differ there)."""
     scenario = push_scenario(duration=2.0, push_at=0.6)
     model = fit_forest(scenario, duration=0.5)

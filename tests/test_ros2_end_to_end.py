@@ -3,7 +3,7 @@
 alphabetical order, not the model's) and its sensor's WrenchStamped at the sensor's rate;
 ``ftdrake serve --ros2`` compensates them. Checked: every message once on every side (the
 simulation's count, serve's summary and a third listener, this test), the published wrench
-equals the in-simulation chain's (``est_external_*``, bias tracker included) to 1e-9 with the
+equals the in-simulation chain's (``wrench_contact_*``, bias tracker included) to 1e-9 with the
 input's stamp and frame_id, the contact flag and force its detector's and the bias its
 tracker's, sample for sample; a NaN wrench
 and a joint state with an unknown joint injected before the stream are faulted, printed,

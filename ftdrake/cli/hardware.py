@@ -36,8 +36,8 @@ from .live import serve_until_stopped, stop_on_signals
 def register(sub) -> None:
     """Adds ``serve`` and ``record`` to an ``argparse`` subparsers object."""
     p = a.add_command(sub, "serve", "run a compensator on a live robot (LCM)",
-                      "Reads the joint state and F/T streams; publishes the external wrench "
-                      "and the contact state.")
+                      "Reads the joint state and F/T streams; publishes the contact wrench, "
+                      "the compensated wrench and the contact state.")
     a.add_model_file(p, required=True)
     a.add_config(p, help="scenario YAML: compensator, bias_tracker, detector, sensor settings "
                  "(default: the shipped one)")
