@@ -10,6 +10,7 @@ layers, from the bottom up (a module imports only from its own layer or those be
 4. ``compensation``: estimators, their registry, compiled predictors, persistence, ONNX.
 5. ``runtime``: the product, :class:`CompensationChain` (compensator → bias tracker →
    detector) that both stations add.
+   ``offline``: the one recorder of the chain's signals (:func:`add_recorder`), beside it.
 6. ``systems``: the simulation rig's LeafSystems (sensor model, contact truth, controller, ...).
 7. ``sim`` (scene, trajectories, station, simulate, evaluation, collection) and ``hardware``
    (live LCM transport around the runtime chain; imports nothing of ``sim`` or ``systems``).

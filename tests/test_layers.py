@@ -1,8 +1,8 @@
 """The package's layers as built: no module imports one from a layer above its own.
 
 Bottom-up (``ftdrake/__init__.py`` documents them): base → physics → data → compensation →
-runtime → systems → sim / hardware → experiments → cli, and the ``ftdrake`` facade on top,
-which no module inside the package imports. Within the sim / hardware layer, ``hardware``
+runtime / offline → systems → sim / hardware → experiments → cli, and the ``ftdrake`` facade on
+top, which no module inside the package imports. Within the sim / hardware layer, ``hardware``
 (the live robot) imports nothing of ``sim`` or ``systems``; ``sim`` may use the hardware's
 wire modules (messages, transport, config) to publish a simulated robot.
 

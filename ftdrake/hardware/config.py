@@ -74,9 +74,10 @@ class HardwareConfig:
     def output_channel(self, port: str) -> str:
         """The LCM channel of the chain output `port` (a port of
         :data:`~ftdrake.conventions.PUBLISHED`)."""
-        channel = OUTPUTS[port].lcm_channel
+        channel = OUTPUTS[port].lcm_channel if port in OUTPUTS else None
         if channel is None:
-            raise ConfigError(f"hardware: the chain output {port!r} is not published")
+            raise ConfigError(f"hardware: {port!r} is not a published chain output; those are "
+                              f"{', '.join(PUBLISHED)}")
         legacy = {"WRENCH_COMPENSATED": self.external_wrench_channel,
                   "CONTACT_STATE": self.contact_channel}.get(channel)
         return legacy or self.output_prefix + channel
