@@ -127,7 +127,7 @@ def main(argv=None):
     replayed = ftdrake.replay(model, loop, pairing="simulated")
     columns = [c for c in replayed.columns if c != "t"]
     noise = np.asarray(ftdrake.SensorConfig().spec().noise_std)
-    residual = loop[[f"est_external_{a}" for a in ftdrake.WRENCH_AXES]].to_numpy()[500:]
+    residual = loop[[f"wrench_contact_{a}" for a in ftdrake.WRENCH_AXES]].to_numpy()[500:]
     print(json.dumps({
         "rows_recorded": len(log),
         "mass_kg": round(model.parameters_[0], 4),  # the gripper: 0.9 kg
@@ -137,7 +137,7 @@ def main(argv=None):
             np.sqrt(np.mean(residual**2, axis=0)) / noise, 2).tolist(),
         "replay_minus_loop_max": float(np.max(np.abs(
             replayed[columns].to_numpy(float) - loop[columns].to_numpy(float)))),
-        "contact_samples": int(loop["detected"].sum()),
+        "contact_samples": int(loop["contact"].sum()),
     }))
 
 

@@ -10,6 +10,7 @@ layers, from the bottom up (a module imports only from its own layer or those be
 4. ``compensation``: estimators, their registry, compiled predictors, persistence, ONNX.
 5. ``runtime``: the product, :class:`CompensationChain` (compensator → bias tracker →
    detector) that both stations add.
+   ``offline``: the one recorder of the chain's signals (:func:`add_recorder`), beside it.
 6. ``systems``: the simulation rig's LeafSystems (sensor model, contact truth, controller, ...).
 7. ``sim`` (scene, trajectories, station, simulate, evaluation, collection) and ``hardware``
    (live LCM transport around the runtime chain; imports nothing of ``sim`` or ``systems``).
@@ -62,12 +63,12 @@ from .errors import (
 )
 from .hardware.config import HardwareConfig
 from .hardware.station import HardwareStation
+from .offline.recorder import Recorder, add_recorder
 from .runtime.bias_tracker import OnlineBiasTracker
 from .runtime.chain import CompensationChain
 from .runtime.compensator import CompensatorSystem
 from .runtime.detector import ContactDetector
 from .runtime.joint_gravity import JointStateGravity
-from .runtime.recorder import Recorder, add_recorder
 from .runtime.replay import replay
 from .runtime.thresholds import thresholds_for_false_positive_rate
 from .sim.collection import collect

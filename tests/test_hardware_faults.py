@@ -39,9 +39,9 @@ class Rig:
                                    clock=lambda: self.now, on_event=self.events.append)
         self.wrenches, self.contacts = [], []
         lcm = self.dut.lcm
-        lcm.subscribe(self.config.external_wrench_channel,
+        lcm.subscribe(self.config.output_channel("wrench_compensated"),
                       lambda d: self.wrenches.append(decode_wrench(d)))
-        lcm.subscribe(self.config.contact_channel,
+        lcm.subscribe(self.config.output_channel("contact"),
                       lambda d: self.contacts.append(decode_contact_state(d)))
         self.q = np.linspace(-0.5, 0.5, N)
 
@@ -169,7 +169,8 @@ def hold_poses_and_grasp(dut, config, scenario, n_poses, announce: bool):
     from ftdrake.physics.scenario_robot import robot_description
 
     contact = []
-    dut.lcm.subscribe(config.contact_channel, lambda d: contact.append(decode_contact_state(d)))
+    dut.lcm.subscribe(config.output_channel("contact"),
+                      lambda d: contact.append(decode_contact_state(d)))
     plant, frame_S = robot_description(scenario).build_plant()
     context = plant.CreateDefaultContext()
     k = 0
@@ -244,7 +245,8 @@ def test_a_temperature_model_reads_the_temperature_channel_and_faults_when_it_go
     dut = HardwareStation(config, model, scenario.chain_config(), "memq://", clock=lambda: now[0],
                           on_event=events.append)
     wrenches = []
-    dut.lcm.subscribe(config.external_wrench_channel, lambda d: wrenches.append(decode_wrench(d)))
+    dut.lcm.subscribe(config.output_channel("wrench_compensated"),
+                      lambda d: wrenches.append(decode_wrench(d)))
     q = np.linspace(-0.5, 0.5, N)
 
     def step(t, temperature=None):
@@ -293,7 +295,7 @@ def test_a_re_tare_message_resets_the_tracked_bias_and_nothing_reads_as_contact(
     def run(send_tare: bool):
         dut = HardwareStation(config, model, scenario.chain_config(), "memq://")
         contact = []
-        dut.lcm.subscribe(config.contact_channel,
+        dut.lcm.subscribe(config.output_channel("contact"),
                           lambda d: contact.append(decode_contact_state(d)))
         for k in range(3000):  # 3 s at 1 kHz, the jump at 0.5 s
             t = 0.001 * (k + 1)

@@ -1,4 +1,4 @@
-"""Station over memq://: published external wrench == measured − model.predict, exactly once;
+"""Station over memq://: published wrench_compensated == measured − model.predict, exactly once;
 the same updates as the simulation's in-loop compensator for the simulated robot's stream."""
 
 import dataclasses as dc
@@ -7,6 +7,7 @@ import numpy as np
 import pytest
 
 from ftdrake import RandomForestCompensator, ScenarioConfig
+from ftdrake.conventions import WRENCH_AXES
 from ftdrake.hardware import HardwareConfig
 from ftdrake.hardware.messages import (
     decode_contact_state,
@@ -30,7 +31,8 @@ def test_station_compensates_each_message_once():
     _, handles = build_hardware_station(config, model, lcm="memq://")
     dut = handles["station"]
     out = []
-    dut.lcm.subscribe(config.external_wrench_channel, lambda d: out.append(decode_wrench(d)))
+    dut.lcm.subscribe(config.output_channel("wrench_compensated"),
+                      lambda d: out.append(decode_wrench(d)))
     rows, meas = [], []
     for k in range(20):
         t = 0.001 * (k + 1)
@@ -53,8 +55,8 @@ def test_station_compensates_each_message_once():
 @pytest.mark.parametrize("kind", ["iiwa_status", "robot_state"])
 def test_simulated_robot_stream_gives_the_in_simulation_numbers(kind):
     """The simulated robot publishes on memq://, the station processes it as it comes: each
-    published wrench equals the in-loop compensator's ``comp_external`` and the contact flag
-    the in-loop detector's ``detected``, sample for sample (robot_state: float32 positions on
+    published wrench equals the in-loop compensator's ``wrench_compensated`` and the contact flag
+    the in-loop detector's ``contact``, sample for sample (robot_state: float32 positions on
     the wire, so to the float32 resolution instead, and the detector may differ there). A
     second station on the same bus drives its Drake diagram per message instead of the chain
     step: it publishes the same wrenches and contact states, to 1e-12."""
@@ -67,17 +69,21 @@ def test_simulated_robot_stream_gives_the_in_simulation_numbers(kind):
                               velocity_channel="ROBOT_VELOCITY" if kind == "robot_state" else "")
     _, handles = build_hardware_station(hardware, model, scenario.chain_config(), lcm="memq://")
     dut = handles["station"]
-    wrenches, contacts = [], []
-    dut.lcm.subscribe(hardware.external_wrench_channel, lambda d: wrenches.append(decode_wrench(d)))
-    dut.lcm.subscribe(hardware.contact_channel, lambda d: contacts.append(decode_contact_state(d)))
-    reference = dc.replace(hardware, external_wrench_channel="DIAGRAM_EXTERNAL",
-                           contact_channel="DIAGRAM_CONTACT")
+    wrenches, contact_wrenches, biases, contacts = [], [], [], []
+    for port, received in (("wrench_compensated", wrenches), ("wrench_contact", contact_wrenches),
+                           ("bias", biases)):
+        dut.lcm.subscribe(hardware.output_channel(port),
+                          lambda d, r=received: r.append(decode_wrench(d)))
+    dut.lcm.subscribe(hardware.output_channel("contact"),
+                      lambda d: contacts.append(decode_contact_state(d)))
+    reference = dc.replace(hardware, output_prefix="DIAGRAM_")
     _, by_diagram = build_hardware_station(reference, model, scenario.chain_config(),
                                            lcm=dut.lcm)
     by_diagram["station"].use_diagram()
     reference_out = ([], [])
-    dut.lcm.subscribe("DIAGRAM_EXTERNAL", lambda d: reference_out[0].append(decode_wrench(d)))
-    dut.lcm.subscribe("DIAGRAM_CONTACT",
+    dut.lcm.subscribe(reference.output_channel("wrench_compensated"),
+                      lambda d: reference_out[0].append(decode_wrench(d)))
+    dut.lcm.subscribe(reference.output_channel("contact"),
                       lambda d: reference_out[1].append(decode_contact_state(d)))
     station = build_station(scenario, model)
     result = simulate_on_lcm(station, hardware, dut.lcm, progress=False)
@@ -93,15 +99,21 @@ def test_simulated_robot_stream_gives_the_in_simulation_numbers(kind):
     got = np.array([w.wrench for w in wrenches])
     np.testing.assert_allclose(got, [w.wrench for w in reference_out[0]], rtol=0, atol=1e-12)
     assert contacts == reference_out[1]
-    expected = log[[c for c in log if c.startswith("comp_external_")]].to_numpy()
+    expected = log[[c for c in log if c.startswith("wrench_compensated_")]].to_numpy()
     detected = np.array([c.contact for c in contacts])
-    assert log["detected"].sum() > 50  # the push is detected in simulation
+    assert log["contact"].sum() > 50  # the push is detected in simulation
     if kind == "iiwa_status":
         np.testing.assert_allclose(got, expected, rtol=0, atol=1e-9)
-        np.testing.assert_array_equal(detected, log["detected"].to_numpy().astype(bool))
+        np.testing.assert_array_equal(detected, log["contact"].to_numpy().astype(bool))
+        # The other published wrenches (as ROS 2 publishes them), under the same names.
+        for received, port in ((contact_wrenches, "wrench_contact"), (biases, "bias")):
+            assert len(received) == K
+            np.testing.assert_allclose([w.wrench for w in received],
+                                       log[[f"{port}_{a}" for a in WRENCH_AXES]].to_numpy(),
+                                       rtol=0, atol=1e-9)
     else:
         np.testing.assert_allclose(got, expected, rtol=0, atol=0.5)  # float32 q, v
-        assert (detected == log["detected"].to_numpy().astype(bool)).mean() > 0.99
+        assert (detected == log["contact"].to_numpy().astype(bool)).mean() > 0.99
 
 
 def test_the_simulated_robot_announces_its_re_tare_and_grasp_once():

@@ -1,8 +1,8 @@
 """The package's layers as built: no module imports one from a layer above its own.
 
 Bottom-up (``ftdrake/__init__.py`` documents them): base → physics → data → compensation →
-runtime → systems → sim / hardware → experiments → cli, and the ``ftdrake`` facade on top,
-which no module inside the package imports. Within the sim / hardware layer, ``hardware``
+runtime / offline → systems → sim / hardware → experiments → cli, and the ``ftdrake`` facade on
+top, which no module inside the package imports. Within the sim / hardware layer, ``hardware``
 (the live robot) imports nothing of ``sim`` or ``systems``; ``sim`` may use the hardware's
 wire modules (messages, transport, config) to publish a simulated robot.
 
@@ -31,6 +31,9 @@ LAYERS = {
     "data": 2,
     "compensation": 3,
     "runtime": 4,
+    # The recorder every station and replay use (offline/recorder.py); runtime/replay.py
+    # records with it. Offline tools above the runtime, below sim and hardware (which record).
+    "offline": 4,
     "systems": 5,
     "sim": 6,
     "hardware": 6,

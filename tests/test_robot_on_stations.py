@@ -107,7 +107,7 @@ def test_replay_identifies_a_grasp_with_the_models_robot(model):
     config = tracking_chain()
     config.bias_tracker.payload_settle_s = 4.0
     out = ftdrake.replay(model, log, config)
-    payload = out[list(col.PAYLOAD_ESTIMATE)].to_numpy()[-1]
+    payload = out[list(col.PAYLOAD)].to_numpy()[-1]
     assert payload[0] == pytest.approx(mass, rel=0.01)
     np.testing.assert_allclose(payload[1:], mass * com, rtol=0, atol=2e-3)
 
@@ -150,7 +150,7 @@ def test_replay_command_takes_the_robot_and_a_chain_config_file(tmp_path, capsys
     assert "--sensor-frame/--base-frame name frames of --robot" in capsys.readouterr().err
     robot = ["--robot", URDF, "--sensor-frame", "tool", "--base-frame", "base"]
     assert main([str(a) for a in [*base, *robot]]) == 0
-    assert "payload_est_dm" in pd.read_csv(tmp_path / "out.csv")
+    assert "payload_dm" in pd.read_csv(tmp_path / "out.csv")
     (tmp_path / "scenario.yaml").write_text(
         "time_step: 0.001\nbias_tracker: {track_payload: true}\n")
     old = [*base[:-1], tmp_path / "scenario.yaml", *robot]

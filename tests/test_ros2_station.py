@@ -63,11 +63,13 @@ class Rig:
         self.ft = self.driver.publisher(self.config.wrench_topic,
                                         "geometry_msgs/msg/WrenchStamped")
         self.listener = Ros2Node(DOMAIN)
+        # "wrench": the contact wrench the detector judges (= measured − predicted here).
         self.got = {name: [] for name in ("wrench", "contact", "contact_force", "diagnostics")}
-        for name, msgtype in (("wrench", "geometry_msgs/msg/WrenchStamped"),
-                              ("contact", "std_msgs/msg/Bool"),
-                              ("contact_force", "std_msgs/msg/Float64")):
-            self.listener.subscribe(self.config.output_topic(name), msgtype,
+        for name, topic, msgtype in (
+                ("wrench", "wrench_contact", "geometry_msgs/msg/WrenchStamped"),
+                ("contact", "contact", "std_msgs/msg/Bool"),
+                ("contact_force", "contact_force", "std_msgs/msg/Float64")):
+            self.listener.subscribe(self.config.output_topic(topic), msgtype,
                                     lambda m, _a, n=name: self.got[n].append(m))
         self.listener.subscribe(self.config.diagnostics_topic,
                                 "diagnostic_msgs/msg/DiagnosticArray",

@@ -84,12 +84,12 @@ def test_the_chain_applies_a_model_s_delay_like_the_offline_correction(free_log,
     # joint state of row k + lag and the reading of row k; the delay line pairs the reading
     # of row k with the joint state of row k again (after its first `lag` samples).
     n = len(delayed)
-    dut = replay(loaded, delayed)[wrench_columns("comp_external")].to_numpy()
+    dut = replay(loaded, delayed)[wrench_columns("wrench_compensated")].to_numpy()
     reference = replay(loaded, free_log.iloc[:n], _without_delay(free_log))
-    np.testing.assert_allclose(dut[lag:], reference[wrench_columns("comp_external")]
+    np.testing.assert_allclose(dut[lag:], reference[wrench_columns("wrench_compensated")]
                                .to_numpy()[lag:], rtol=0, atol=1e-12)
     assert np.abs(dut[lag:] - replay(loaded, delayed, _without_delay(delayed))[
-        wrench_columns("comp_external")].to_numpy()[lag:]).max() > 0.01  # the delay matters
+        wrench_columns("wrench_compensated")].to_numpy()[lag:]).max() > 0.01  # the delay matters
 
 
 @pytest.mark.slow

@@ -38,8 +38,8 @@ from .live import load_live, serve_until_stopped, stop_on_signals
 def register(sub) -> None:
     """Adds ``serve`` and ``record`` to an ``argparse`` subparsers object."""
     p = a.add_command(sub, "serve", "run a compensator on a live robot (LCM)",
-                      "Reads the joint state and F/T streams; publishes the external wrench "
-                      "and the contact state.")
+                      "Reads the joint state and F/T streams; publishes the contact wrench, "
+                      "the compensated wrench and the contact state.")
     a.add_model_file(p, required=True)
     a.add_chain_config(p)
     add_transport_flags(p)
@@ -100,8 +100,8 @@ def describe_channels(hardware) -> str:
     if h.joint_state_type == "robot_state":
         joint += f" + velocities {h.velocity_channel}"
     return (f"LCM {h.lcm_url}\n  in:  {joint}; F/T {h.ft_channel} (force_torque)\n"
-            f"  out: external wrench {h.external_wrench_channel} (force_torque); contact "
-            f"{h.contact_channel} (drake_signal: contact, contact_force, fault, out_of_domain)")
+            "  out: " + "; ".join(f"{channel} ({ports})"
+                                  for channel, ports in h.output_channels().items()))
 
 
 

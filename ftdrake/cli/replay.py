@@ -26,12 +26,11 @@ import sys
 from ..compensation.persistence import load_model
 from ..config import save_config
 from ..data.bag import is_bag
-from ..data.logs import is_table
+from ..data.logs import is_table, write_log
 from ..data.stream_delay import estimate_stream_delay
 from ..errors import ConfigError, LogError
 from ..experiments.residual_budget import residual_budget
 from ..hardware.recording import read_lcm_log
-from ..io import atomic_path
 from ..runtime.replay import (
     calibrated_detector,
     chain_config_of,
@@ -106,11 +105,7 @@ def run_replay(args) -> int:
         config = chain_config_of(frame, config)
         config.sensor.wrench_delay_s = delay
     result = replay(model, frame, config, pairing=args.pairing, view=args.view)
-    with atomic_path(args.out) as tmp:
-        if args.out.suffix == ".csv":
-            result.to_csv(tmp, index=False)
-        else:
-            result.to_parquet(tmp, index=False)
+    write_log(result, args.out)
     report = {"out": str(args.out), **summary(result)}
     if delay is not None:
         report["wrench_delay_s"] = delay

@@ -62,7 +62,8 @@ def config_from_args(args, live=None):
 
 def describe_topics(config) -> str:
     c = config
-    outs = ", ".join(c.output_topic(name) for name in ("wrench", "contact", "contact_force"))
+    outs = ", ".join(c.output_topic(name) for name in ("wrench_contact", "wrench_compensated",
+                                                         "contact", "contact_force"))
     return (f"ROS 2 domain {c.domain_id} (DDS: {c.dds_config})\n"
             f"  in:  {c.joint_state_topic} (JointState, {c.joint_state_qos}); "
             f"{c.wrench_topic} (WrenchStamped, {c.wrench_qos})\n"

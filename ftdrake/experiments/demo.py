@@ -48,6 +48,7 @@ from ..compensation.physics import ExcitationWarning, PhysicsPayloadCompensator
 from ..compensation.tuning import segment_groups, tune
 from ..config import ScenarioConfig
 from ..data.dataset import joint_state_layout, wrench_targets
+from ..data.logs import write_log
 from ..io import atomic_path, staged_outputs
 from ..plots import plot_contact_comparison
 from ..runtime.thresholds import armed, threshold_text, thresholds_for_false_positive_rate
@@ -159,7 +160,7 @@ def _collect_free_motion(config, fourier, rehearsals, duration, other_kinds, oth
           for i, kind in enumerate(("fourier", *other_kinds))),
         *(collect(surface, 1, kind="rehearsal", seed=350 + j, progress=progress)
           for j, surface in enumerate(surfaces))], ignore_index=True)
-    if data[col.CONTACT].any() or held_out[col.CONTACT].any():
+    if data[col.CONTACT_TRUE].any() or held_out[col.CONTACT_TRUE].any():
         raise RuntimeError("training data touched the environment; it must be contact-free")
     return data, held_out
 
@@ -306,7 +307,7 @@ def _write(out, summary, logs, models, meshcat, started, stages) -> None:
     with staged_outputs(out) as staging:
         plot_contact_comparison(logs, staging / "contact.png")
         for name, log in logs.items():
-            log.to_parquet(staging / f"contact_log_{name}.parquet", index=False)
+            write_log(log, staging / f"contact_log_{name}.parquet")
         for name, model in models.items():
             save_model(model, staging / f"model_{name}.ftd", target_names=col.WRENCH_AXES,
                        target_units=col.WRENCH_UNITS, sensor_frame="S")

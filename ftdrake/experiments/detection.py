@@ -258,10 +258,10 @@ def run_row(log: pd.DataFrame, config: ScenarioConfig, meta: dict,
            "false_positives": metrics["false_positives"]}
     if meta["kind"] == "contact":
         t = log[col.TIME].to_numpy()
-        touching = log[col.CONTACT].to_numpy().astype(bool)
+        touching = log[col.CONTACT_TRUE].to_numpy().astype(bool)
         onset = t[np.argmax(touching)] if touching.any() else np.inf
         steady = touching & (t >= onset + TOUCHDOWN_S)
-        force = np.linalg.norm(log[col.wrench_columns(col.EXTERNAL)[:3]].to_numpy(), axis=1)
+        force = np.linalg.norm(log[col.wrench_columns(col.EXTERNAL_TRUE)[:3]].to_numpy(), axis=1)
         row.update(
             force_n=float(np.median(force[steady])) if steady.any() else 0.0,
             detected=metrics["missed_contacts"] == 0 and metrics["true_contacts"] > 0,

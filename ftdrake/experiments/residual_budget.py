@@ -147,8 +147,8 @@ def residual_budget(model, log, config: ChainConfig | None = None, *,
         else None
     predicted = _motion_prediction(model, frame)
     if predicted is None:
-        predicted = result[col.wrench_columns("pred")].to_numpy(float)
-    budget = decompose(result[col.wrench_columns("est_external")].to_numpy(float),
+        predicted = result[col.wrench_columns(col.WRENCH_INTERNAL)].to_numpy(float)
+    budget = decompose(result[col.wrench_columns(col.WRENCH_CONTACT)].to_numpy(float),
                        predicted, t, motion, noise, transform=transform,
                        max_lag_s=max_lag_s)
     return dc.replace(budget, noise_source=source,

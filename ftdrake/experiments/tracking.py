@@ -162,8 +162,8 @@ def recovery_metrics(with_event, untracked, reference, sigma, plan: EventPlan, *
             "false_contact_s": float(_contact_seconds(log, after)),
         }
     row["reference_false_contact_s"] = float(_contact_seconds(reference, after))
-    if payload and col.PAYLOAD_ESTIMATE[0] in with_event:
-        row["payload_estimate"] = [float(with_event[c].iloc[-1]) for c in col.PAYLOAD_ESTIMATE]
+    if payload and col.PAYLOAD[0] in with_event:
+        row["payload_estimate"] = [float(with_event[c].iloc[-1]) for c in col.PAYLOAD]
     return row
 
 
@@ -206,14 +206,14 @@ def constant_payload_floor(with_event, reference, regressor, payload_map, sigma,
     K = np.eye(6) if payload_map is None else np.asarray(payload_map, dtype=float)
     A = np.concatenate([np.einsum("ij,njk->nik", K, regressor[:, :, :10]),
                         regressor[:, :, 10:]], axis=2) / sigma[None, :, None]
-    compensated = with_event[col.wrench_columns(col.COMPENSATED)].to_numpy() / sigma
+    compensated = with_event[col.wrench_columns(col.WRENCH_COMPENSATED)].to_numpy() / sigma
     fitted_reference = (reference[col.TIME].to_numpy() > event_at_s) & _trusted(reference)
     if min(fitted.sum(), fitted_reference.sum()) < 16:
         return {**_judged(np.empty((0, 6)), tolerance_sigmas), "payload": None}
     theta = np.linalg.lstsq(A[fitted].reshape(-1, 16), compensated[fitted].reshape(-1),
                             rcond=None)[0]
     left = compensated - A @ theta
-    left_reference = reference[col.wrench_columns(col.COMPENSATED)].to_numpy() / sigma
+    left_reference = reference[col.wrench_columns(col.WRENCH_COMPENSATED)].to_numpy() / sigma
     left_reference = left_reference - left_reference[fitted_reference].mean(axis=0)
     row = _judged((left - left_reference)[t >= judged_from_s], tolerance_sigmas)
     return {**row, "payload": [float(x) for x in theta[:4]]}
@@ -238,8 +238,8 @@ def push_metrics(with_event, reference, plan: EventPlan) -> dict:
     """When the slow push was detected, at what force, and how much of it became bias."""
     t = with_event[col.TIME].to_numpy()
     start = np.searchsorted(t, plan.event_at_s)
-    detected = with_event[col.DETECTED].to_numpy()[start:] > 0
-    bias = with_event[col.wrench_columns(col.BIAS_ESTIMATE)[:3]].to_numpy()
+    detected = with_event[col.CONTACT].to_numpy()[start:] > 0
+    bias = with_event[col.wrench_columns(col.BIAS)[:3]].to_numpy()
     row = {"reference_false_contact_s": float(_contact_seconds(reference, t >= plan.event_at_s))}
     if not detected.any():
         return {**row, "detected": False, "delay_s": None, "force_at_detection_n": None,
@@ -251,13 +251,13 @@ def push_metrics(with_event, reference, plan: EventPlan) -> dict:
 
 
 def _estimate(log):
-    return log[col.wrench_columns(col.ESTIMATED)].to_numpy()
+    return log[col.wrench_columns(col.WRENCH_CONTACT)].to_numpy()
 
 
 def _contact_seconds(log, mask) -> float:
     t = log[col.TIME].to_numpy()
     period = float(np.median(np.diff(t)))
-    return float((log[col.DETECTED].to_numpy()[mask] > 0).sum() * period)
+    return float((log[col.CONTACT].to_numpy()[mask] > 0).sum() * period)
 
 
 def markdown(results: dict, plan: EventPlan) -> str:

@@ -2,7 +2,7 @@
 
 Modules: ``config`` (HardwareConfig: channels, message types, timeouts), ``live_config``
 (LiveConfig: a live config file, the chain and its transports), ``messages``
-(decode joint state and F/T, encode the external wrench and the contact state),
+(decode joint state and F/T, encode the published wrenches and the contact state),
 ``live_inputs`` (StreamMonitor: per-message checks, fault, counters; RobotStatePairer),
 ``transport`` (open_lcm: an LCM connection that does not drop queued messages), ``core``
 (StationCore: the message-driven loop around the runtime chain, whatever the transport),

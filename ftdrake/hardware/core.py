@@ -43,6 +43,7 @@ import numpy as np
 from pydrake.systems.analysis import Simulator
 
 from ..config import ChainConfig
+from ..offline.recorder import UpdateRecorder, chain_outputs
 from ..runtime.chain import CompensationChain
 from ..runtime.step import ChainStep
 from .live_inputs import StreamMonitor
@@ -117,10 +118,8 @@ class StationCore:
                 self.context, np.full(1, np.nan))
         self._signals = {name: EventSignal(self.diagram.GetInputPort(name).FixValue(
             self.context, [0.0])) for name in events}
-        self._out = {name: self.diagram.GetOutputPort(name) for name in (
-            "wrench_compensated", "wrench_contact", "fault", "out_of_domain", "contact",
-            "contact_force", "bias", "payload", "payload_change")
-            if self.diagram.HasOutputPort(name)}
+        self._out = {o.port: self.diagram.GetOutputPort(o.port) for o in chain_outputs(self.chain)}
+        self.recorder = None  # an UpdateRecorder after start_recording()
         # Each F/T sample updates the chain by the step (use_diagram(): by the diagram); the
         # step keeps its own state, written into `context` by chain_context().
         self._step = ChainStep(self.chain, self.context)
@@ -174,11 +173,25 @@ class StationCore:
             self._step.write_state(self.context)
         return self.context
 
+    def has_output(self, name: str) -> bool:
+        """Whether the chain has the output port `name` (``bias`` only with the tracker ...)."""
+        return name in self._out
+
+    def start_recording(self):
+        """From now on keeps every update's inputs and the chain's outputs after it; returns
+        the :class:`~ftdrake.offline.recorder.UpdateRecorder` (``recorder.to_frame()``: a log
+        in the layout ``replay`` reads, with the chain's output columns, one row per
+        processed F/T message, ``t`` its timestamp)."""
+        self.recorder = UpdateRecorder(self.chain)
+        return self.recorder
+
     def contact_state(self, t: float, fault: bool) -> ContactState:
-        """The detector's state now, stamped `t`, with `fault`."""
+        """The detector's state now, stamped `t`, with `fault` (the inputs' fault) or the
+        chain's own ``fault`` output once it has been updated."""
         changed = "payload_change" in self._out and self.output("payload_change")[0] > 0.5
+        model_fault = self.processed > 0 and self.output("fault")[0] > 0.5
         return ContactState(t, self.output("contact")[0] > 0.5,
-                            float(self.output("contact_force")[0]), bool(fault),
+                            float(self.output("contact_force")[0]), bool(fault or model_fault),
                             self.output("out_of_domain")[0] > 0.5, bool(changed))
 
     # -- samples ------------------------------------------------------------------------------
@@ -212,6 +225,11 @@ class StationCore:
             else:
                 self._advance_diagram()
             self.processed += 1
+            if self.recorder is not None:
+                self.recorder.record_values(
+                    {name: self.output(name) for name in self.recorder.ports}, t,
+                    self.monitor.joint_state, self.monitor.wrench,
+                    self.monitor.temperature if self._temperature_in is not None else None)
             if self.output("fault")[0] <= 0.5:
                 self._publish_wrench(t)
                 self.latencies.append(self.clock() - arrival)

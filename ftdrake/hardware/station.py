@@ -4,8 +4,12 @@
     (iiwa/panda/robot_state)  (checks, counts)      ▼
     F/T ──────────► StreamMonitor ──► wrench_measured ─► CompensationChain
                                                                │
-                         lcmt_force_torque  ◄── wrench_compensated
-                         lcmt_drake_signal  ◄── contact, contact_force, fault, out_of_domain
+    FT_WRENCH_CONTACT      lcmt_force_torque ◄── wrench_contact
+    FT_WRENCH_COMPENSATED  lcmt_force_torque ◄── wrench_compensated
+    FT_BIAS                lcmt_force_torque ◄── bias (with the tracker)
+    FT_PAYLOAD             lcmt_drake_signal ◄── payload (with track_payload)
+    FT_CONTACT_STATE       lcmt_drake_signal ◄── contact, contact_force, fault, out_of_domain,
+                                                  payload_change
 
 The diagram is :class:`~ftdrake.runtime.chain.CompensationChain`, the one
 :func:`ftdrake.sim.station.build_station` puts in the loop, built from a
@@ -18,12 +22,13 @@ checks it to 1e-9). This module imports nothing of the simulation.
 
 The message-driven loop, its checks, fault episodes and counts are
 :class:`~ftdrake.hardware.core.StationCore`'s (shared with the ROS 2 station); this class adds
-the LCM side. Published per F/T message: the compensated wrench (``lcmt_force_torque`` on
-``external_wrench_channel``) only when the inputs are fault-free — a stale wrench is never
-published as fresh — and the contact state (``lcmt_drake_signal`` on ``contact_channel``)
-always, with its fault flag. Both carry the F/T message's timestamp. When a stream goes
-silent (``spin_once`` checks the timeouts), one contact state with ``fault = 1`` is published
-at once, stamped with the detection time on the stream's clock.
+the LCM side. Published per F/T message (the outputs :data:`ftdrake.conventions.PUBLISHED`,
+the ROS 2 station's, on the channels :meth:`HardwareConfig.output_channel` names): the
+wrenches and the payload only when the inputs are fault-free — a stale wrench is never
+published as fresh — and the contact state always, with its fault flag. All carry the F/T
+message's timestamp. When a stream goes silent (``spin_once`` checks the timeouts), one
+contact state with ``fault = 1`` is published at once, stamped with the detection time on the
+stream's clock.
 
 Fault episodes are kept in ``events`` and passed to `on_event` (``serve`` prints them);
 ``summary()`` counts everything.
@@ -38,6 +43,7 @@ import time
 import numpy as np
 
 from ..config import ChainConfig
+from ..conventions import OUTPUTS, PUBLISHED
 from ..errors import ConfigError
 from .config import HardwareConfig
 from .core import FaultEvent, StationCore  # noqa: F401 (FaultEvent: its home before core)
@@ -51,6 +57,7 @@ from .messages import (
     decode_wrench,
     encode_contact_state,
     encode_joint_state,
+    encode_payload,
     encode_wrench,
 )
 from .transport import open_lcm
@@ -78,6 +85,10 @@ class HardwareStation(StationCore):
                          temperature_timeout_s=config.temperature_timeout_s,
                          events=tuple(self._coords), clock=clock, on_event=on_event,
                          max_events=max_events)
+        # The published outputs (conventions.PUBLISHED) with an LCM message of their own; the
+        # others are values of the contact state (_publish_contact).
+        self._own_channel = [port for port in PUBLISHED if self.has_output(port)
+                             and OUTPUTS[port].lcm_field is None]
         self._pairer = None
         kind = config.joint_state_type
         if kind == "robot_state":
@@ -143,11 +154,14 @@ class HardwareStation(StationCore):
         self.on_wrench_sample(_decoded(decode_wrench, data), arrival)
 
     def _publish_wrench(self, t: float) -> None:
-        self.lcm.publish(self.config.external_wrench_channel,
-                         encode_wrench(t, self.output("wrench_compensated")))
+        """The published outputs of their own channel (wrenches, the payload) the chain has."""
+        for port in self._own_channel:
+            data = (encode_payload(t, self.output(port)) if port == "payload"
+                    else encode_wrench(t, self.output(port)))
+            self.lcm.publish(self.config.output_channel(port), data)
 
     def _publish_contact(self, t: float, fault: bool) -> bool:
-        self.lcm.publish(self.config.contact_channel,
+        self.lcm.publish(self.config.output_channel("contact"),
                          encode_contact_state(self.contact_state(t, fault)))
         return True
 

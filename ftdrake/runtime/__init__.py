@@ -4,8 +4,8 @@
 the :class:`OnlineBiasTracker` (``bias_tracker``) and the :class:`ContactDetector`
 (``detector``), with :class:`JointStateGravity` (``joint_gravity``) for the tracker's payload
 estimate on a robot without a plant. :func:`replay` (``replay``) runs the chain offline over
-a log, :func:`add_recorder` (``recorder``) logs any diagram in the layout both read, and
-:class:`DelayLine` (``delay_line``) corrects a delay between the joint-state and wrench
+a log (its recorder, :func:`~ftdrake.offline.recorder.add_recorder`, is in ``ftdrake.offline``),
+and :class:`DelayLine` (``delay_line``) corrects a delay between the joint-state and wrench
 streams. ``sim.station`` and ``hardware.station`` both add the
 chain; nothing here imports the simulation rig (``systems``, ``sim``).
 """
@@ -16,7 +16,6 @@ from .compensator import CompensatorSystem
 from .delay_line import DelayLine
 from .detector import ContactDetector
 from .joint_gravity import JointStateGravity
-from .recorder import Recorder, add_recorder
 from .replay import replay
 
 __all__ = [
@@ -26,7 +25,5 @@ __all__ = [
     "DelayLine",
     "JointStateGravity",
     "OnlineBiasTracker",
-    "Recorder",
-    "add_recorder",
     "replay",
 ]

@@ -32,6 +32,7 @@ from pydrake.systems.primitives import Adder, LogVectorOutput, TrajectorySource,
 from pydrake.trajectories import PiecewisePolynomial
 
 from ..config import ConfigError, ScenarioConfig
+from ..offline.recorder import add_output_loggers
 from ..runtime.chain import CompensationChain
 from ..systems.contact_truth import ContactTruth
 from ..systems.controller import DiscreteInverseDynamicsController
@@ -64,35 +65,13 @@ class Loggers:
 
 
 @dc.dataclass
-class CompensationLoggers:
-    """Loggers of the runtime chain's outputs at the sensor rate, one per output port of
-    :class:`~ftdrake.runtime.chain.CompensationChain`, named as the port (None where the
-    chain has no such port: ``bias`` without the tracker, ``payload`` without
-    ``track_payload``, ``payload_change`` without ``bias_tracker.payload_change.enabled``)."""
-
-    PORTS = ("wrench_internal", "wrench_compensated", "wrench_contact", "wrench_std",
-             "out_of_domain", "fault", "contact", "contact_force", "bias", "payload",
-             "payload_change")
-
-    wrench_internal: VectorLogSink
-    wrench_compensated: VectorLogSink
-    wrench_contact: VectorLogSink
-    wrench_std: VectorLogSink
-    out_of_domain: VectorLogSink
-    fault: VectorLogSink
-    contact: VectorLogSink
-    contact_force: VectorLogSink
-    bias: VectorLogSink | None = None
-    payload: VectorLogSink | None = None
-    payload_change: VectorLogSink | None = None
-
-
-@dc.dataclass
 class Compensation:
-    """The runtime chain in the loop, with its loggers."""
+    """The runtime chain in the loop, with its loggers: one per output port the chain has,
+    under the port's name, sampled at the sensor rate
+    (:func:`~ftdrake.offline.recorder.add_output_loggers`)."""
 
     chain: CompensationChain
-    loggers: CompensationLoggers
+    loggers: dict  # port name → VectorLogSink
 
     @property
     def compensator(self):
@@ -217,7 +196,7 @@ def build_station(config: ScenarioConfig, compensator=None, *, meshcat=None,
     compensation = arrows = None
     if compensator is not None:
         compensation = _add_compensation(builder, config, compensator, scene, events, period,
-                                         log, noisy.get_output_port_temperature())
+                                         noisy.get_output_port_temperature())
         if payload_ff is not None:  # adaptive computed torque: the tracker's payload
             if not compensation.chain.HasOutputPort("payload"):
                 raise ConfigError("controller.adapt_to_payload: the payload comes from the "
@@ -329,7 +308,7 @@ def _add_arrows(builder, meshcat, scene: Scene, events: EventSignals,
     return arrows
 
 
-def _add_compensation(builder, config, model, scene, events: EventSignals, period, log,
+def _add_compensation(builder, config, model, scene, events: EventSignals, period,
                       temperature) -> Compensation:
     """The runtime chain in the loop: the sensor's reading and the arm's state in; the
     tracker's payload regressor from the plant's own kinematics (SensorGravity)."""
@@ -347,10 +326,7 @@ def _add_compensation(builder, config, model, scene, events: EventSignals, perio
         _add_sensor_gravity(builder, scene, chain)
     if events.payload_changed is not None and chain.HasInputPort("payload_changed"):
         builder.Connect(events.payload_changed, chain.get_input_port_payload_changed())
-    loggers = CompensationLoggers(**{
-        name: log(chain.GetOutputPort(name)) if chain.HasOutputPort(name) else None
-        for name in CompensationLoggers.PORTS})
-    return Compensation(chain, loggers)
+    return Compensation(chain, add_output_loggers(builder, chain, period))
 
 
 def _add_sensor_gravity(builder, scene, chain: CompensationChain) -> None:

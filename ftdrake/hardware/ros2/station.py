@@ -3,10 +3,14 @@
     /joint_states (JointState) ──► by name, into joint_names' order ──┐
     …/wrench (WrenchStamped) ───────────────────────────────────────► StationCore
                                                                         │ (CompensationChain)
-    <ns>/wrench  WrenchStamped   ◄── wrench_contact (input's frame_id and stamp)
+    <ns>/wrench_contact, <ns>/wrench_compensated  WrenchStamped ◄── wrench_contact,
+                                  wrench_compensated (the input's frame_id and stamp)
     <ns>/contact Bool, <ns>/contact_force Float64 ◄── contact, contact_force
     <ns>/bias WrenchStamped, <ns>/payload InertiaStamped ◄── the bias tracker's estimates
-    /diagnostics DiagnosticArray ◄── fault, reason, out-of-domain, rates, counts
+    /diagnostics DiagnosticArray ◄── fault, reason, out_of_domain, payload_change, rates,
+                                     counts
+
+The outputs are the LCM station's, under the same names (:data:`ftdrake.conventions.PUBLISHED`).
 
 The message-driven loop, the checks (:class:`~ftdrake.hardware.live_inputs.StreamMonitor`),
 the fault episodes and the counts are :class:`~ftdrake.hardware.core.StationCore`'s, the same
@@ -45,6 +49,9 @@ OK, WARN, ERROR = 0, 1, 2
 #: The DiagnosticStatus name ftdrake publishes.
 DIAGNOSTIC_NAME = "ftdrake: F/T compensation"
 _MIN_PAYLOAD_KG = 1e-3  # below this the payload's centre of mass is not published (0)
+#: The outputs published as WrenchStamped (with the input's frame_id and stamp).
+WRENCH_TOPICS = tuple(name for name, msgtype in OUTPUTS.items()
+                      if msgtype == "geometry_msgs/msg/WrenchStamped")
 
 
 class Ros2Station(StationCore):
@@ -77,8 +84,7 @@ class Ros2Station(StationCore):
         self._contact_due = False  # its wrench was published: contact and force follow
         self._writers = {name: self.node.publisher(c.output_topic(name), msgtype,
                                                    depth=c.queue_depth)
-                         for name, msgtype in OUTPUTS.items()
-                         if name not in ("bias", "payload") or name in self._out}
+                         for name, msgtype in OUTPUTS.items() if self.has_output(name)}
         self._diagnostics = self.node.publisher(c.diagnostics_topic,
                                                 "diagnostic_msgs/msg/DiagnosticArray")
         self._types = {name: ros2_type(msgtype) for name, msgtype in (
@@ -166,10 +172,10 @@ class Ros2Station(StationCore):
     def _publish_wrench(self, t: float) -> None:
         h, types, w = self._header, self._types, self._writers
         del t  # the stamp is the input's header's
-        w["wrench"].write(wrench_stamped(h, self.output("wrench_contact")))
+        for name in WRENCH_TOPICS:
+            if name in w:  # bias: with the tracker
+                w[name].write(wrench_stamped(h, self.output(name)))
         self._contact_due = True
-        if "bias" in w:
-            w["bias"].write(wrench_stamped(h, self.output("bias")))
         if "payload" in w:
             dm, *mc = (float(x) for x in self.output("payload"))
             com = [x / dm for x in mc] if abs(dm) >= _MIN_PAYLOAD_KG else [0.0] * 3
