@@ -128,7 +128,9 @@ def live_chain(station, model):
     """The runtime chain as a live robot's station builds it (gravity from the joint state)."""
     import ftdrake  # noqa: PLC0415
 
-    return ftdrake.CompensationChain(model, station.config.chain_config(), gravity="joint_state")
+    config = station.config.chain_config()
+    config.robot.file = "ftdrake"  # the forest carries no robot: the simulated arm's kinematics
+    return ftdrake.CompensationChain(model, config, gravity="joint_state")
 
 
 def instances(station, model) -> dict:
