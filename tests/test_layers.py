@@ -31,6 +31,7 @@ LAYERS = {
     "data": 2,
     "compensation": 3,
     "runtime": 4,
+    "training": 4,  # ftdrake.train: the training pipeline on compensation and data
     "systems": 5,
     "sim": 6,
     "hardware": 6,
