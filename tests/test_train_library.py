@@ -230,3 +230,86 @@ def test_a_held_out_calibration_fits_clones_and_keeps_the_calibrated_terms(runs,
     np.testing.assert_allclose(model.residual_noise_var_, model.estimator_.residual_training_var_
                                + model.domain_excess_var_)
     assert model.wrench_delay_s_ == model.estimator_.wrench_delay_s_ == 0.001
+
+
+# -- what training says about the model -----------------------------------------------------------
+def test_a_gp_says_how_many_rows_it_keeps_and_what_they_weigh(monkeypatch):
+    """A GP keeps at most max_points rows (a covering subset); training says so, and how big
+    the m × m factors its file holds are."""
+    from ftdrake.compensation import registry
+
+    monkeypatch.setitem(registry.entry("gpr").defaults, "max_points", 100)
+    monkeypatch.setitem(registry.entry("gpr").defaults, "optimize_points", 0)
+    lines = []
+    result = ftdrake.train(UR3_ID1, kind="gpr", preset="none", read=TORQUES,
+                           progress=lines.append)
+    kept = [line for line in lines if line.startswith("the GP keeps")]
+    n = len(result.data.X)
+    factors = result.model.L_
+    assert factors.shape == (6, 100, 100)  # one factor per output's kernel
+    assert kept == [(f"the GP keeps 100 of the {n} rows (max_points 100: its fit costs m³, "
+                     f"its file m² a kernel); its 6 Cholesky factors of 100 × 100 take "
+                     f"{6 * 100 * 100 * 8 / 1e6:.1f} MB before compression")]
+    monkeypatch.setitem(registry.entry("gpr").defaults, "max_points", 5000)
+    lines.clear()
+    ftdrake.train(UR3_ID1, kind="gpr", preset="none", read=TORQUES, progress=lines.append)
+    assert not any(line.startswith("the GP keeps") for line in lines)  # it kept every row
+
+
+@pytest.fixture(scope="module")
+def physics_targets(runs):
+    """The runs' rows with targets a payload model explains exactly, plus white noise: (the
+    training rows, those targets plus a smooth effect on Fx that it cannot explain)."""
+    X, Y, _, _ = runs
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        physics = ftdrake.PhysicsPayloadCompensator().fit(X, Y)
+    noise = 0.05 * np.random.default_rng(3).standard_normal(Y.shape)
+    rigid = physics.predict(X) + noise
+    cable = rigid.copy()
+    cable[:, 0] += 1.5 * np.sin(3 * X[:, 0]) * np.cos(2 * X[:, 1])  # N, smooth in q
+    names = [f"{block}_{j}" for block in ("q", "qd", "qdd") for j in range(7)]
+    frame = pd.DataFrame(X, columns=names)  # the derivatives the targets were made with
+    frame["t"] = np.arange(len(X)) * 3e-3
+    return frame, rigid, cable
+
+
+def _trained_on(frame, targets, lines):
+    table = frame.copy()
+    for j, axis in enumerate(ftdrake.WRENCH_AXES):
+        table[f"meas_{axis}"] = targets[:, j]
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        return ftdrake.train(table, kind="hybrid", robot="ftdrake", preset="none",
+                             read=ReadOptions(velocities="qd_*", accelerations="qdd_*"),
+                             progress=lines.append)
+
+
+def test_a_hybrid_reports_its_residual_s_held_out_gain_over_physics(physics_targets):
+    frame, rigid, cable = physics_targets
+    lines = []
+    result = _trained_on(frame, cable, lines)
+    gain = result.provenance["residual_gain"]
+    model, data = result.model, result.data
+    # The physics part's error, independently: its predictions on the training rows.
+    physics_error = data.Y - model.physics_.predict(data.X)
+    np.testing.assert_allclose(gain["physics_rms"], np.sqrt(np.mean(physics_error ** 2, 0)),
+                               rtol=1e-12)
+    # The hybrid's error on rows its residual was not fitted on: the residual refitted on
+    # alternate tenths of the rows and scored on the others.
+    half = (np.arange(len(data.X)) * 10) // len(data.X) % 2 == 0
+    error = np.empty_like(physics_error)
+    for train in (half, ~half):
+        part = clone(model.residual)  # the registry's default residual forest
+        part.fit(data.X[train], physics_error[train])
+        error[~train] = physics_error[~train] - part.predict(data.X[~train])
+    np.testing.assert_allclose(gain["hybrid_rms"], np.sqrt(np.mean(error ** 2, 0)), rtol=1e-9)
+    assert gain["gain"][0] > 0.3 and not gain["physics_alone_as_good"]  # the cable on Fx
+    said = [line for line in lines if line.startswith("the residual's held-out gain")]
+    assert len(said) == 1 and "meas_Fx" in said[0] and "physics alone" not in said[0]
+    # Targets the payload model explains: the residual learns noise, and training says so.
+    lines.clear()
+    found = _trained_on(frame, rigid, lines).provenance["residual_gain"]
+    assert max(found["gain"]) <= 0.05 and found["physics_alone_as_good"]
+    assert any("physics alone is as good" in line and "kind physics" in line
+               for line in lines)

@@ -43,8 +43,8 @@ from ..compensation.calibration import static_table_hint
 from ..compensation.domain import IN_DOMAIN_SOURCES
 from ..data.logs import QDD_ESTIMATES, option_spelling
 from ..data.training import ReadOptions, TrainingData, load_training_data
-from ..errors import ConfigError, LogError
-from ..training import TrainOptions, option_names, train
+from ..errors import ConfigError, LogError, option_names
+from ..training import TrainOptions, train
 from ..training.pipeline import describe
 from . import args as a
 from .args import flag_hint
@@ -166,11 +166,12 @@ def _add_domain_flags(p) -> None:
 def _add_model_options(p) -> None:
     """The options the registered compensators take (their registry entries' train options)."""
     for option in registry.train_options():
+        text = option.describe(flag_of).replace("%", "%%")  # argparse formats help with %
         if option.kind is bool:
-            p.add_argument(option.flag, action="store_true", help=option.help)
+            p.add_argument(flag_of(option.name), action="store_true", help=text)
         else:
-            p.add_argument(option.flag, type=option.kind, default=option.default,
-                           choices=option.choices, metavar=option.metavar, help=option.help)
+            p.add_argument(flag_of(option.name), type=option.kind, default=option.default,
+                           choices=option.choices, metavar=option.metavar, help=text)
 
 
 def _model_options(args) -> dict:

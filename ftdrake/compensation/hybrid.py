@@ -67,7 +67,9 @@ class HybridCompensator(Compensator):
     or calibrated on held-out runs by :class:`~.domain_calibrated.DomainCalibratedHybrid`
     (NaN when the residual's own
     std is used); ``residual_training_var_`` (6,) its error on its own training rows, the
-    least σ²_in a calibration gives.
+    least σ²_in a calibration gives; ``residual_cross_fit_var_`` (6,) its error on rows it
+    was not fitted on (the cross-fit's, all distances; None for a residual with its own std),
+    against ``domain_far_var_``, the physics part's error alone.
     """
 
     provides_std = True
@@ -104,11 +106,14 @@ class HybridCompensator(Compensator):
         self.domain_parameter_scale_ = 1.0
         self.domain_support_ = domain.fit_support(self._domain_inputs(Z))
         self.domain_calibration_ = None  # DomainCalibratedHybrid's record
+        self.residual_cross_fit_var_ = None
         if not self._residual_std_is_calibrated():
             cross_fit = self._cross_fit(residual, Z, target)
             if cross_fit is None:
                 self.residual_noise_var_ = np.mean(target ** 2, axis=0)
             else:
+                self.residual_cross_fit_var_ = np.mean((cross_fit[1] - cross_fit[2]) ** 2,
+                                                       axis=0)
                 self.domain_length_, self.residual_noise_var_ = domain.fit_in_domain(
                     *cross_fit, self.domain_far_var_)
 

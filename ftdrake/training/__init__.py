@@ -5,7 +5,7 @@
 Layer: above ``compensation`` and ``data`` (it imports both), below ``cli``.
 """
 
-from .options import TrainOptions, option_names, spelled_option
+from .options import TrainOptions, spelled_option
 from .pipeline import TrainResult, train
 
-__all__ = ["TrainOptions", "TrainResult", "option_names", "spelled_option", "train"]
+__all__ = ["TrainOptions", "TrainResult", "spelled_option", "train"]

@@ -2,16 +2,15 @@
 
 `ftdrake.train`, the ``ftdrake train`` command and any other reader take this object; a field's
 name is the option's name everywhere (the command's flag is the name with dashes, ``max_rows``
-↔ ``--max-rows``). Messages about an option name it through :func:`spelled_option`, which a
-front end (the command line) can make spell its own way (:func:`option_names`).
+↔ ``--max-rows``; ``delay_s`` ↔ ``--delay``). Messages about an option name it through
+:func:`spelled_option` (:func:`~ftdrake.errors.option_name`), which a front end (the command
+line) spells its own way (:func:`~ftdrake.errors.option_names`).
 """
 
 from __future__ import annotations
 
-import contextlib
-import contextvars
 import dataclasses as dc
-from collections.abc import Callable, Iterator, Mapping
+from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
@@ -21,31 +20,17 @@ from ..compensation import registry
 from ..compensation.domain import IN_DOMAIN_SOURCES
 from ..compensation.features import FEATURE_SETS
 from ..data.training import ReadOptions
-from ..errors import ConfigError
+from ..errors import ConfigError, option_name
 
 #: The presets of :attr:`TrainOptions.preset`: ``quick`` tunes the kinds that have a grid
 #: (grouped CV), ``none`` fits the kind's own parameters.
 PRESETS = ("quick", "none")
 
-_SPELLING: contextvars.ContextVar[Callable[[str], str]] = contextvars.ContextVar(
-    "ftdrake_train_option_spelling", default=lambda name: name)
-
-
 def spelled_option(name: str) -> str:
     """How messages name option `name` (a :class:`TrainOptions` field, or ``read.FIELD`` for
-    a :class:`~ftdrake.data.training.ReadOptions` one): the name itself, unless a front end
-    chose another spelling (:func:`option_names`)."""
-    return _SPELLING.get()(name)
-
-
-@contextlib.contextmanager
-def option_names(spell: Callable[[str], str]) -> Iterator[None]:
-    """Within the block, messages name options as ``spell(name)`` returns (e.g. flags)."""
-    token = _SPELLING.set(spell)
-    try:
-        yield
-    finally:
-        _SPELLING.reset(token)
+    a :class:`~ftdrake.data.training.ReadOptions` one): the name itself in Python, the flag on
+    the command line (:func:`~ftdrake.errors.option_name`)."""
+    return option_name(name)
 
 
 @dc.dataclass(frozen=True)

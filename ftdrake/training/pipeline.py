@@ -34,6 +34,7 @@ from ..data.subsample import OVERSAMPLE, covering_rows
 from ..data.training import IN_MEMORY, TrainingData, load_training_data
 from ..errors import ConfigError, FtdrakeError, LogError, RobotModelError
 from ..parallel import dask_backend
+from .notes import kept_rows, residual_gain, residual_gain_text
 from .options import TrainOptions, spelled_option
 from .provenance import provenance
 
@@ -90,6 +91,30 @@ def train(data, options: TrainOptions | None = None, *, progress: Say | None = N
     say = progress or _silent
     source = data
     data = _read(source, options, say, warn)
+    kind, estimator = _estimator(options, data, say)
+    units = options.units_for(data.target_names) or default_units(data.target_names)
+    data, stream_delay = _align_streams(options, kind, data, estimator, say)
+    data, subsample = _subsample(options, data, estimator, say)
+    delay = None if stream_delay is None else stream_delay["delay_s"]
+    model, search = _tune_or_fit(options, kind, estimator, data, delay, say,
+                                 bar=progress is not None)
+    model, domain = _domain_calibration(options, model, data, say, warn)
+    gain = _report(model, data, say)
+    extra = provenance(_source_name(source, data), data, model, search, kind=kind,
+                       time_window=(options.t_start, options.t_end), dask=options.cluster)
+    # The chain applies the stream delay live: it is fitted into the model (wrench_delay_s_).
+    for key, value in (("subsample", subsample), ("domain_calibration", domain),
+                       ("stream_delay", stream_delay), ("residual_gain", gain)):
+        if value is not None:
+            extra[key] = value
+    sensor_frame = options.sensor_frame or ("S" if is_wrench(data.target_names) else "joints")
+    summary = model.summary() if hasattr(model, "summary") else None
+    return TrainResult(model, extra, list(data.target_names), units, sensor_frame, data,
+                       search, summary)
+
+
+def _estimator(options: TrainOptions, data: TrainingData, say: Say):
+    """(the registry name, the unfitted compensator) the options ask for on `data`."""
     robot = RobotOptions(options.robot, options.sensor_frame, options.base_frame,
                          data.scenario_yaml, joints=options.joints,
                          fixed_joints=options.fixed_joints)
@@ -102,15 +127,16 @@ def train(data, options: TrainOptions | None = None, *, progress: Say | None = N
     estimator = registry.make_estimator(kind, features=options.features, seed=options.seed,
                                         target_names=data.target_names, robot=robot,
                                         options=options.model_options)
-    units = options.units_for(data.target_names) or default_units(data.target_names)
     for name in ("domain_holdout", "domain_calibration"):
         if getattr(options, name) is not None:
             _needs_hybrid(estimator, name)
-    data, stream_delay = _align_streams(options, kind, data, estimator, say)
-    data, subsample = _subsample(options, data, estimator, say)
-    delay = None if stream_delay is None else stream_delay["delay_s"]
-    model, search = _tune_or_fit(options, kind, estimator, data, delay, say,
-                                 bar=progress is not None)
+    return kind, estimator
+
+
+def _domain_calibration(options: TrainOptions, model, data: TrainingData, say: Say,
+                        warn: Say | None):
+    """(the model, calibrated on another log when asked; what the manifest keeps about its
+    domain calibration, or None without one)."""
     domain = None
     if options.domain_calibration is not None:
         model, domain = _calibrate_domain(options, model, data, say, warn)
@@ -118,18 +144,19 @@ def train(data, options: TrainOptions | None = None, *, progress: Say | None = N
         domain = dict(model.domain_calibration_)
     if domain is not None:
         _say_domain(domain, say)
-    extra = provenance(_source_name(source, data), data, model, search, kind=kind,
-                       time_window=(options.t_start, options.t_end), dask=options.cluster)
-    if subsample is not None:
-        extra["subsample"] = subsample
-    if domain is not None:
-        extra["domain_calibration"] = domain
-    if stream_delay is not None:  # fitted into the model: the chain applies it live
-        extra["stream_delay"] = stream_delay
-    sensor_frame = options.sensor_frame or ("S" if is_wrench(data.target_names) else "joints")
-    summary = model.summary() if hasattr(model, "summary") else None
-    return TrainResult(model, extra, list(data.target_names), units, sensor_frame, data,
-                       search, summary)
+    return model, domain
+
+
+def _report(model, data: TrainingData, say: Say) -> dict | None:
+    """Says what the model kept of the rows and what a hybrid's residual gained over its
+    physics part; returns the latter (:func:`~.notes.residual_gain`) or None."""
+    kept = kept_rows(model, len(data.X))
+    if kept is not None:
+        say(kept)
+    gain = residual_gain(model)
+    if gain is not None:
+        say(residual_gain_text(gain, data.target_names))
+    return gain
 
 
 def _silent(_message: str) -> None:
