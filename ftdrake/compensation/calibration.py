@@ -72,8 +72,8 @@ __all__ = [  # with the table reader's and the correction's names callers take f
 STATIC_NAMES = ("m", "mcx", "mcy", "mcz", "bFx", "bFy", "bFz", "bTx", "bTy", "bTz")
 STATIC_UNITS = ("kg", "kg*m", "kg*m", "kg*m", "N", "N", "N", "N*m", "N*m", "N*m")
 NOT_IDENTIFIABLE = ("static poses determine the mass, the first moment m·c (so the centre of "
-                    "mass) and the biases; the inertia needs motion (a dynamic log with "
-                    "`ftdrake train --kind physics`)")
+                    "mass) and the biases; the inertia needs motion (a dynamic log, trained "
+                    "on with kind physics)")
 
 
 @dc.dataclass

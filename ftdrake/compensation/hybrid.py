@@ -341,8 +341,8 @@ def default_residual() -> RandomForestCompensator:
     quarter of the nodes. On the demo's data (45,500 rows, ``benchmarks/model_size.py``) the
     hybrid's file went from 27.8 MB to 3.5 MB with held-out errors equal or lower on every
     axis (Fx..Tz 2.29, 2.24, 1.74, 1.88, 2.84, 1.79 σ with 5 rows a leaf; 2.28, 2.24, 1.75,
-    1.76, 2.77, 1.73 σ with 40). The size grows with the training rows (``--max-rows`` bounds
-    it).
+    1.76, 2.77, 1.73 σ with 40). The size grows with the training rows (training's
+    ``max_rows`` bounds it).
     """
     return RandomForestCompensator(features="q", per_output=False, n_estimators=50,
                                    min_samples_leaf=40, random_state=0)

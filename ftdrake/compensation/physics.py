@@ -282,8 +282,9 @@ class PhysicsPayloadCompensator(CarriesRobot, Compensator):
         if self.identify_crosstalk and self.mode != "dynamic":
             raise ConfigError("identify_crosstalk needs mode='dynamic': in static poses the "
                               "tool's wrench spans too few directions to separate the "
-                              "cross-talk from the payload (calibrate the sensor with "
-                              "`ftdrake calibrate --correction` instead)")
+                              "cross-talk from the payload (calibrate the sensor's "
+                              "correction on static poses with known loads instead: "
+                              "calibrate_table(..., correction='full'))")
         if self.tether and not (self.weight_without_inertia and self.mode == "dynamic"):
             raise ConfigError("tether needs weight_without_inertia=True and mode='dynamic': "
                               "a cable's hanging weight is the weight carried without "

@@ -77,7 +77,7 @@ class CompensatorEntry:
     train_options: the options `make` reads, which ``ftdrake train`` offers as flags.
     """
 
-    name: str  # as on the command line (``--model NAME``) and in configs
+    name: str  # TrainOptions.kind, the command line's and configs' name of it
     cls: type[Compensator]
     summary: str
     defaults: Mapping[str, Any] = dc.field(default_factory=dict)  # ``train``'s arguments
