@@ -91,25 +91,23 @@ def test_progress_and_warnings_go_where_the_caller_says():
     assert silent.summary is None and silent.search is None
 
 
-def test_messages_name_the_option_and_the_command_line_names_its_flag(ftdrake, tmp_path):
+def test_messages_name_the_option_and_the_command_line_names_its_flag(tmp_path, capsys):
     with pytest.raises(ConfigError) as error:
-        ftdrake_train(UR3_ID1, domain_shared_growth=True, read=TORQUES)
+        ftdrake.train(UR3_ID1, domain_shared_growth=True, read=TORQUES)
     assert str(error.value) == ("domain_shared_growth needs domain_holdout or "
                                 "domain_calibration")
     with pytest.raises(ConfigError, match=r"^domain_holdout is for kind hybrid"):
-        ftdrake_train(UR3_ID1, kind="rf", domain_holdout=0.2, read=TORQUES)
+        ftdrake.train(UR3_ID1, kind="rf", domain_holdout=0.2, read=TORQUES)
     with pytest.raises(ConfigError, match=r"^max_rows: must be a positive integer"):
-        ftdrake_train(UR3_ID1, max_rows=0)
+        ftdrake.train(UR3_ID1, max_rows=0)
     with pytest.raises(ConfigError, match=r"^delay_s and align: "):
-        ftdrake_train(UR3_ID1, delay_s=0.01, align=True)
-    code, _, err = ftdrake("train", "--data", UR3_ID1, "--targets", "tau_*", "--kind", "rf",
-                           "--domain-shared-growth", "--out", tmp_path / "m.ftd")
-    assert code == 2 and err.strip().endswith(
+        ftdrake.train(UR3_ID1, delay_s=0.01, align=True)
+    with pytest.raises(ConfigError, match=r"^kind physics on joint torques needs robot FILE"):
+        ftdrake.train(UR3_ID1, kind="physics", read=ReadOptions(targets="tau_*"))
+    code = cli_main(["train", "--data", str(UR3_ID1), "--targets", "tau_*", "--kind", "rf",
+                     "--domain-shared-growth", "--out", str(tmp_path / "m.ftd")])
+    assert code == 2 and capsys.readouterr().err.strip().endswith(
         "error: --domain-shared-growth needs --domain-holdout or --domain-calibration")
-
-
-def ftdrake_train(data, **fields):
-    return ftdrake.train(data, **fields)
 
 
 # -- the stream delay: a fit parameter ------------------------------------------------------------
