@@ -9,8 +9,8 @@ layers, from the bottom up (a module imports only from its own layer or those be
 3. ``data``: datasets and robot logs (tables, bags, LCM logs).
 4. ``compensation``: estimators, their registry, compiled predictors, persistence, ONNX.
 5. ``runtime``: the product, :class:`CompensationChain` (compensator → bias tracker →
-   detector) that both stations add.
-   ``offline``: the one recorder of the chain's signals (:func:`add_recorder`), beside it.
+  detector) that both stations add; ``training``: :func:`train`, the training pipeline.
+  ``offline``: the one recorder of the chain's signals (:func:`add_recorder`), beside it.
 6. ``systems``: the simulation rig's LeafSystems (sensor model, contact truth, controller, ...).
 7. ``sim`` (scene, trajectories, station, simulate, evaluation, collection) and ``hardware``
    (live LCM transport around the runtime chain; imports nothing of ``sim`` or ``systems``).
@@ -23,6 +23,7 @@ __version__ = ftdrake_version()
 
 from .compensation.build import RobotOptions
 from .compensation.calibration import calibrate_table
+from .compensation.domain_calibrated import DomainCalibratedHybrid
 from .compensation.evaluation import evaluate_model, target_ranges
 from .compensation.forest import RandomForestCompensator
 from .compensation.gpr import GPRCompensator
@@ -80,6 +81,7 @@ from .systems.contact_truth import ContactTruth
 from .systems.controller import DiscreteInverseDynamicsController
 from .systems.ft_sensor import ForceTorqueSensor
 from .systems.noisy_sensor import NoisyForceTorqueSensor
+from .training import TrainOptions, TrainResult, train
 
 __all__ = [
     "WRENCH_AXES",
@@ -97,6 +99,7 @@ __all__ = [
     "ControllerConfig",
     "DetectorConfig",
     "DiscreteInverseDynamicsController",
+    "DomainCalibratedHybrid",
     "EventsConfig",
     "ForceTorqueSensor",
     "FtdrakeError",
@@ -124,6 +127,8 @@ __all__ = [
     "SimResult",
     "Station",
     "TaskConfig",
+    "TrainOptions",
+    "TrainResult",
     "TrajectoryConfig",
     "TrajectoryError",
     "__version__",
@@ -149,5 +154,6 @@ __all__ = [
     "simulate",
     "target_ranges",
     "thresholds_for_false_positive_rate",
+    "train",
     "wrench_targets",
 ]

@@ -34,6 +34,7 @@ LAYERS = {
     # The recorder every station and replay use (offline/recorder.py); runtime/replay.py
     # records with it. Offline tools above the runtime, below sim and hardware (which record).
     "offline": 4,
+    "training": 4,  # ftdrake.train: the training pipeline on compensation and data
     "systems": 5,
     "sim": 6,
     "hardware": 6,

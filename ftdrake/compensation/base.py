@@ -83,6 +83,10 @@ class Compensator(RegressorMixin, BaseEstimator):
     temperature_in_ : bool     whether X's last column is the sensor temperature (°C)
     n_outputs_ : int
     input_min_, input_max_ : (3n,) arrays, the training range of every input column
+    wrench_delay_s_ : float    s, the delay of the targets' stream behind the joint states that
+                               the caller corrected in the training rows (``fit``'s
+                               `wrench_delay_s`; 0.0 when none was); the runtime chain
+                               applies it live as a delay line on the joint state
     """
 
     #: True for models whose ``predict_std`` returns a real standard deviation.
@@ -98,8 +102,17 @@ class Compensator(RegressorMixin, BaseEstimator):
         self.features = features
 
     # -- the sklearn API -------------------------------------------------------------------
-    def fit(self, X, y):
+    def fit(self, X, y, *, wrench_delay_s: float | None = None):
+        """Fits on rows `X` (N, 3n) ``[q, q̇, q̈]`` (and the temperature, °C, as a last column)
+        and targets `y` (N,) or (N, k). `wrench_delay_s` (s): how much later the targets'
+        stream was than the joint states, already corrected in `X`, `y` by the caller
+        (:func:`~ftdrake.data.stream_delay.align_training_data`); kept as
+        ``wrench_delay_s_`` for the loop, which must apply the same correction live."""
         check_feature_set(self.features)
+        delay = 0.0 if wrench_delay_s is None else float(wrench_delay_s)
+        if not np.isfinite(delay):
+            raise ValueError(f"wrench_delay_s must be a finite number of seconds; got "
+                             f"{wrench_delay_s!r}")
         X, y = validate_data(
             self, X, y, multi_output=True, y_numeric=True, ensure_all_finite=False,
             dtype=np.float64,
@@ -115,6 +128,7 @@ class Compensator(RegressorMixin, BaseEstimator):
         self.n_outputs_ = Y.shape[1]
         self.input_min_ = X.min(axis=0)
         self.input_max_ = X.max(axis=0)
+        self.wrench_delay_s_ = delay
         self._fit(self._select(X), Y)
         return self
 

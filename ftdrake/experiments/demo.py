@@ -14,7 +14,7 @@
    plus a forest on its residual, its std growing out of domain: the support term and the
    in-domain level are calibrated on the training runs farthest from the others
    (``DOMAIN_HOLDOUT_SHARE`` of the rows, held out for it), then the hybrid is refitted on
-   every run (:meth:`~ftdrake.compensation.hybrid.HybridCompensator.fit_calibrated`); the
+   every run (:class:`~ftdrake.compensation.domain_calibrated.DomainCalibratedHybrid`); the
    summary reports its coverage in and out of domain on the held-out runs below
    (``domain_coverage``). One rehearsal and one run of each free-motion kind are held out;
    each model's detector thresholds follow from its residual there (the samples the detector
@@ -40,6 +40,7 @@ from pydrake.math import RollPitchYaw, RotationMatrix
 
 from .. import conventions as col
 from ..compensation.domain import DISTANCE_BINS
+from ..compensation.domain_calibrated import DomainCalibratedHybrid
 from ..compensation.forest import RandomForestCompensator
 from ..compensation.hybrid import HybridCompensator
 from ..compensation.metrics import coverage
@@ -59,7 +60,7 @@ from ..sim.station import build_station
 
 HELD_OUT_SEED = 1000
 #: The share of the training rows (whole runs, those farthest from the others) the hybrid's
-#: out-of-domain std is calibrated on (:meth:`HybridCompensator.fit_calibrated`).
+#: out-of-domain std is calibrated on (:class:`DomainCalibratedHybrid`).
 DOMAIN_HOLDOUT_SHARE = 0.2
 
 
@@ -95,7 +96,7 @@ def run_demo(out: Path, config: ScenarioConfig | None = None, *, fourier: int = 
     validation_id = fourier + rehearsals - 1  # a rehearsal: free motion like the task's
     train = data[data["trajectory"] != validation_id]
     validation = data[data["trajectory"] == validation_id]
-    models, search, X = _train(train, progress)
+    models, search, X, hybrid_fit_s = _train(train, progress)
     detectors = _calibrate_detectors(models, config, validation, held_out)
 
     stage("contact scenario")
@@ -106,7 +107,7 @@ def run_demo(out: Path, config: ScenarioConfig | None = None, *, fourier: int = 
     )
     results, logs, meshcat = _contact_runs(models, detectors, scenario, config, validation,
                                            meshcat_html, progress)
-    _describe_models(results, models, search)
+    _describe_models(results, models, search, hybrid_fit_s)
     results["hybrid"]["domain_coverage"] = domain_coverage(
         models["hybrid"], *held_out_rows(config, validation, held_out))
 
@@ -177,17 +178,16 @@ def _train(train, progress):
     with warnings.catch_warnings():
         # Excitation is reported in the summary (condition number), not as a warning here.
         warnings.simplefilter("ignore", ExcitationWarning)
-        hybrid = demo_hybrid()
         started = time.perf_counter()
         # One growth for all axes (in units of their training error): calibrated on two
         # or three runs, a growth per axis did not carry over to other runs (the guide).
         # σ²_in from the held-out runs too, one multiple of each axis' training error: the
         # cross-fit's, from rows about a run away, over-covered next to the data (the guide).
-        hybrid.fit_calibrated(X, Y, groups=train["trajectory"].to_numpy()[::every],
-                              share=DOMAIN_HOLDOUT_SHARE, shared_growth=True,
-                              in_domain="held_out")
-        hybrid.domain_calibration_["fit_time_s"] = time.perf_counter() - started
-    return {"forest": forest, "hybrid": hybrid}, search, X
+        hybrid = DomainCalibratedHybrid(demo_hybrid(), holdout=DOMAIN_HOLDOUT_SHARE,
+                                        shared_growth=True, in_domain="held_out").fit(
+            X, Y, groups=train["trajectory"].to_numpy()[::every])
+        seconds = time.perf_counter() - started
+    return {"forest": forest, "hybrid": hybrid}, search, X, seconds
 
 
 def demo_hybrid() -> HybridCompensator:
@@ -275,9 +275,9 @@ def _contact_runs(models, detectors, scenario, config, validation, meshcat_html,
     return results, logs, meshcat
 
 
-def _describe_models(results: dict, models: dict, search) -> None:
+def _describe_models(results: dict, models: dict, search, hybrid_fit_s: float) -> None:
     """What each model is, for the summary: the forest's tuned parameters, the hybrid's
-    identified physics."""
+    identified physics and its domain calibration (with the fit's time, s)."""
     hybrid = models["hybrid"]
     results["forest"]["model"] = {"class": "RandomForestCompensator", "features": "q",
                                   "per_output": False, **search.best_params[0]}
@@ -299,7 +299,7 @@ def _describe_models(results: dict, models: dict, search) -> None:
                      **{k: hybrid.residual_.get_params()[k]
                         for k in ("n_estimators", "max_features", "min_samples_leaf")}},
         "physics_condition_number": hybrid.physics_.condition_number_,
-        "domain_calibration": hybrid.domain_calibration_,
+        "domain_calibration": {**hybrid.domain_calibration_, "fit_time_s": hybrid_fit_s},
     }
 
 
