@@ -44,7 +44,7 @@ def rtf(config, compensator=None, duration=6.0, detections=None):
     factor = duration / (time.perf_counter() - start)
     if detections is not None and sim.compensation is not None:
         context = simulator.get_context()
-        detected = sim.compensation.loggers.contact.FindLog(context).data()[0]
+        detected = sim.compensation.loggers["contact"].FindLog(context).data()[0]
         truth = sim.loggers.contact_true.FindLog(context).data()[0]
         n = min(len(detected), len(truth))
         detections.append(float(np.mean((detected[:n] > 0.5) & (truth[:n] < 0.5))))
@@ -58,8 +58,8 @@ def main():
     forest, hybrid = demo_models()
     load_before = os.getloadavg()[0]
     config = ScenarioConfig()
-    untracked = dc.replace(config, bias_tracker=dc.replace(config.bias_tracker, enabled=False))
-    payload = dc.replace(config, bias_tracker=dc.replace(config.bias_tracker,
+    untracked = config.with_chain(bias_tracker=dc.replace(config.chain.bias_tracker, enabled=False))
+    payload = config.with_chain(bias_tracker=dc.replace(config.chain.bias_tracker,
                                                          track_payload=True))
     cases = {
         "no_compensation": (config, None),

@@ -7,7 +7,7 @@ the in-domain level σ²_in kept from the cross-fit (``in_domain="cross_fit"``, 
 fitted on the held-out runs with the parameters' scale c (``"held_out"``; with the shared
 growth, one multiple of each axis' training error); each calibrated on
 the training runs farthest from the others and refitted on every run
-(``HybridCompensator.fit_calibrated``) — and prints, for each, 95 % coverage per
+(``DomainCalibratedHybrid``) — and prints, for each, 95 % coverage per
 axis on the judged samples of the held-out runs by distance to the training inputs (the
 demo's bins), the calibrated terms, and the force the χ² test needs there (√chi2_on · the
 largest force-axis std, median over the bin's samples, with chi2_on calibrated on those same
@@ -27,6 +27,7 @@ import warnings
 import numpy as np
 
 from ftdrake.compensation.domain import DISTANCE_BINS
+from ftdrake.compensation.domain_calibrated import DomainCalibratedHybrid
 from ftdrake.compensation.physics import ExcitationWarning
 from ftdrake.config import ScenarioConfig
 from ftdrake.data.dataset import joint_state_layout, wrench_targets
@@ -65,8 +66,9 @@ def fitted(shared_growth, in_domain, X, Y, groups):
     if in_domain is None:
         model.fit(X, Y)
     else:
-        model.fit_calibrated(X, Y, groups=groups, share=demo.DOMAIN_HOLDOUT_SHARE,
-                             shared_growth=shared_growth, in_domain=in_domain)
+        model = DomainCalibratedHybrid(model, holdout=demo.DOMAIN_HOLDOUT_SHARE,
+                                       shared_growth=shared_growth,
+                                       in_domain=in_domain).fit(X, Y, groups=groups)
     return model, time.perf_counter() - started
 
 
@@ -75,7 +77,7 @@ def report(name, model, seconds, X_h, Y_h, config):
     std = model.predict_std(X_h)
     chi2_on = chi2_on_for_false_positive_rate(
         Y_h - model.predict(X_h), std, sample_rate_hz=config.sensor.spec().rate_hz,
-        false_positives_per_hour=config.detector.false_positives_per_hour)
+        false_positives_per_hour=config.chain.detector.false_positives_per_hour)
     d = model.domain_distance(X_h)
     print(f"\n## {name} (fit {seconds:.0f} s)")
     length = model.domain_length_

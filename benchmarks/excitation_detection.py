@@ -97,9 +97,9 @@ def run_job(config_yaml: str, meta: dict, models: dict, detectors: dict) -> dict
     rows = {}
     for name, model in models.items():
         for owner, detector in detectors.items():
-            tuned = dc.replace(config, detector=detector)
-            rows[name, owner] = run_row(log, tuned, meta,
-                                        replay(model, log, tuned, pairing="simulated"))
+            tuned = config.with_chain(detector=detector)
+            replayed = replay(model, log, tuned.chain_config(), pairing="simulated")
+            rows[name, owner] = run_row(log, tuned, meta, replayed)
     return rows
 
 

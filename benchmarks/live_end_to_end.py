@@ -3,8 +3,8 @@ as two processes over UDP multicast (ttl=0) for 60 s at 1 kHz, with this script 
 listener on every channel.
 
 Prints: messages published by the simulation, received/processed/published by serve and seen
-here (none lost, none twice); the largest difference between serve's external wrench and the
-in-simulation compensator's ``comp_external`` for the same stream (the same scenario simulated
+here (none lost, none twice); the largest difference between serve's ``wrench_compensated`` and the
+in-simulation compensator's ``wrench_compensated`` for the same stream (the same scenario simulated
 in-process with the compensator in the loop); whether serve's contact flag equals the
 in-simulation detector's sample for sample, and both against the ground truth ``contact``
 (agreement, first detection); serve's own arrival → publication latency (p50/p99) and the
@@ -75,7 +75,8 @@ def main() -> None:
     hardware = HardwareConfig(lcm_url=url)
     lc = lcm.LCM(url)
     got = {c: [] for c in (hardware.joint_state_channel, hardware.ft_channel,
-                           hardware.external_wrench_channel, hardware.contact_channel)}
+                           hardware.output_channel("wrench_compensated"),
+                           hardware.output_channel("contact"))}
     for channel, messages in got.items():
         lc.subscribe(channel, lambda _c, d, m=messages: m.append(d)).set_queue_capacity(10**6)
     env = {**os.environ, "PYTHONUNBUFFERED": "1"}
@@ -85,7 +86,7 @@ def main() -> None:
                                   work / "model.ftd", "--config", work / "scenario.yaml",
                                   "--lcm", url], stdout=subprocess.PIPE, stderr=err, text=True,
                                  env=env)
-    while "out: external wrench" not in err_path.read_text():
+    while "  out: " not in err_path.read_text():
         time.sleep(0.1)
     load_start = os.getloadavg()
     sim = subprocess.Popen([sys.executable, "-m", "ftdrake", "simulate", "--config",
@@ -106,18 +107,18 @@ def main() -> None:
     sim_summary = json.loads(sim_out[sim_out.index("{"):])
     K = sim_summary["published"]["ft"]
 
-    wrenches = [decode_wrench(d) for d in got[hardware.external_wrench_channel]]
-    contacts = [c for c in map(decode_contact_state, got[hardware.contact_channel])
+    wrenches = [decode_wrench(d) for d in got[hardware.output_channel("wrench_compensated")]]
+    contacts = [c for c in map(decode_contact_state, got[hardware.output_channel("contact")])
                 if not c.fault]
     sent = [decode_wrench(d).t for d in got[hardware.ft_channel]]
     in_sim = simulate(build_station(scenario, model), progress=False).log
-    expected = in_sim[[f"comp_external_{a}" for a in WRENCH_AXES]].to_numpy()
+    expected = in_sim[[f"wrench_compensated_{a}" for a in WRENCH_AXES]].to_numpy()
     got_w = np.array([w.wrench for w in wrenches])
     n = min(len(got_w), len(expected))
     diff = float(np.abs(got_w[:n] - expected[:n]).max())
     detected_live = np.array([c.contact for c in contacts])
-    detected_sim = in_sim["detected"].to_numpy().astype(bool)
-    truth = in_sim["contact"].to_numpy().astype(bool)
+    detected_sim = in_sim["contact"].to_numpy().astype(bool)
+    truth = in_sim["contact_true"].to_numpy().astype(bool)
     t = in_sim["t"].to_numpy()
     m = min(len(detected_live), len(truth))
     result = {

@@ -50,9 +50,10 @@ def main() -> None:
     rows = {}
     for name, model in models.items():
         model.fit(X, Y)
-        measure_latency(model, scenario, n_messages=200, q_range=q_range)  # compile, warm up
+        chain = scenario.chain_config()
+        measure_latency(model, chain, n_messages=200, q_range=q_range)  # compile, warm up
         load = os.getloadavg()
-        r = measure_latency(model, scenario, n_messages=args.messages, q_range=q_range)
+        r = measure_latency(model, chain, n_messages=args.messages, q_range=q_range)
         rows[name] = {"p50_ms": r["p50_s"] * 1e3, "p99_ms": r["p99_s"] * 1e3,
                       "published": r["published"], "messages": args.messages,
                       "load_before": load[0], "load_after": os.getloadavg()[0]}

@@ -60,11 +60,12 @@ def hybrid():
         identify_mounting=True, weight_without_inertia=True))
 
 
-def fit(train):
+def fit(train, wrench_delay_s=None):
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", ExcitationWarning)
         return hybrid().fit(ftdrake.joint_state_layout(train)[::EVERY],
-                            ftdrake.wrench_targets(train)[::EVERY])
+                            ftdrake.wrench_targets(train)[::EVERY],
+                            wrench_delay_s=wrench_delay_s)
 
 
 def fit_aligned(train, model):
@@ -78,9 +79,7 @@ def fit_aligned(train, model):
                              rows["t"].to_numpy(), rows["trajectory"].to_numpy())
     aligned = pd.concat([shift_wrench(run, estimate.delay_s)
                          for _, run in train.groupby("trajectory")], ignore_index=True)
-    refit = fit(aligned)
-    refit.wrench_delay_s_ = estimate.delay_s
-    return refit, estimate
+    return fit(aligned, wrench_delay_s=estimate.delay_s), estimate
 
 
 def budgets(model, held_out):

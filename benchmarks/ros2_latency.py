@@ -86,7 +86,7 @@ def run_one(model, scenario, names, q_range, args, folder: Path) -> dict:
         wrenches = node.publisher(config.wrench_topic, "geometry_msgs/msg/WrenchStamped",
                                   depth=5000)
         back = {}
-        node.subscribe(config.output_topic("wrench"), "geometry_msgs/msg/WrenchStamped",
+        node.subscribe(config.output_topic("wrench_contact"), "geometry_msgs/msg/WrenchStamped",
                        lambda m, arrival: back.setdefault(round(from_stamp(m.header.stamp)
                                                                 * 1e6), arrival),
                        depth=100_000)

@@ -10,7 +10,7 @@ For each: 6 × 20 s Fourier runs to fit on (every 4th row), 2 held-out Fourier r
 held-out rehearsals (the contact task's motion, stopping above the surface). Six models:
 the payload model of the demo (mounting, weight without inertia) without a tether, with
 ``tether="auto"``, and with the tether and ``identify_crosstalk``; and the hybrid on each.
-Printed per axis (Fx … Tz): the held-out RMS of prediction − ``internal_*`` (what the sensor
+Printed per axis (Fx … Tz): the held-out RMS of prediction − ``internal_true_*`` (what the sensor
 reads without contact, noise and drift; each run's mean removed, as the bias tracker removes
 it) over the sensor's noise σ. Then the same fit on the plant's own reaction at the weld
 (``ideal_*``: no sensor imperfections), with the identified geometry against the injected one.
@@ -69,7 +69,7 @@ def _models(X, Y):
 
 def _error_over_noise(model, frame, noise):
     X = joint_state_layout(frame)
-    error = model.predict(X) - wrench_targets(frame, "internal")
+    error = model.predict(X) - wrench_targets(frame, "internal_true")
     keep = frame["t"].to_numpy() > 0.5
     error, runs = error[keep], frame["trajectory"].to_numpy()[keep]
     for run in np.unique(runs):

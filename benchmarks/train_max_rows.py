@@ -2,9 +2,9 @@
 against the fit on every row, for the physics and the hybrid model.
 
 Simulates a Fourier log of `--minutes` at 1 kHz (the training log) and a 20 s one of another
-seed (held out), then runs ``ftdrake train`` (no tuning grid) on all rows and with
-``--max-rows`` (default 20 000), in one process, and prints the wall times and the held-out
-RMS error per force axis with its ratio to the full fit's.
+seed (held out), then trains (:func:`ftdrake.train`, as ``ftdrake train`` does; no tuning
+grid) on all rows and with ``max_rows`` (default 20 000), in one process, and prints the
+wall times and the held-out RMS error per force axis with its ratio to the full fit's.
 
     python benchmarks/train_max_rows.py [--minutes 3] [--max-rows 20000] [--models physics,hybrid]
 """
@@ -22,7 +22,6 @@ from pathlib import Path
 import numpy as np
 
 import ftdrake
-from ftdrake.cli.main import main as train_cli
 
 
 def simulated(minutes: float, seed: int, path: Path) -> object:
@@ -47,15 +46,14 @@ def main():
     rows, load = [], os.getloadavg()[0]
     for kind in args.models.split(","):
         result = {}
-        for way, extra in (("all rows", []), ("max rows", ["--max-rows", str(args.max_rows)])):
+        for way, max_rows in (("all rows", None), ("max rows", args.max_rows)):
             out = folder / f"{kind}_{way.replace(' ', '_')}.ftd"
             start = time.perf_counter()
-            code = train_cli(["train", "--data", str(folder / "train.parquet"), "--kind", kind,
-                              "--robot", "ftdrake", "--preset", "none", "--out", str(out),
-                              "--quiet", *extra])
+            trained = ftdrake.train(folder / "train.parquet", kind=kind, robot="ftdrake",
+                                    preset="none", max_rows=max_rows)
+            trained.save(out)
             wall = time.perf_counter() - start
-            assert code == 0, f"train {kind} {way} failed"
-            model = ftdrake.load_model(out)
+            model = trained.model
             rms = np.sqrt(np.mean((Y - model.predict(X)) ** 2, axis=0))
             result[way] = {"wall_s": round(wall, 1), "rms_F": np.round(rms[:3], 4).tolist(),
                            "size_mb": round(out.stat().st_size / 1e6, 2)}

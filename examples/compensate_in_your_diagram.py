@@ -61,7 +61,7 @@ def main():
 
     # --- ftdrake's runtime chain, from a saved model ---------------------------------------
     model = ftdrake.load_model(model_path, expect_n_joints=n)
-    chain = builder.AddSystem(ftdrake.CompensationChain(model, config))
+    chain = builder.AddSystem(ftdrake.CompensationChain(model, config.chain_config()))
     builder.Connect(sensor.get_output_port_wrench_measured(),
                     chain.get_input_port_wrench_measured())
     builder.Connect(plant.get_state_output_port(scene.arm), chain.get_input_port_joint_state())

@@ -9,7 +9,6 @@ command ``ftdrake evaluate-detection`` does the same on many seeds, surfaces and
 Run:  python examples/evaluate_detection.py
 """
 
-import dataclasses as dc
 
 import numpy as np
 
@@ -32,7 +31,7 @@ def main():
     residual = ftdrake.wrench_targets(held_out) - model.predict(X_held)
     config = ftdrake.ScenarioConfig()  # the contact scenario: press on the table, leave
     # detector.test "auto", calibrated: the χ² test for a model with a std of a reading.
-    test = config.detector.for_model(model, calibrating=True).test
+    test = config.chain.detector.for_model(model, calibrating=True).test
     detector = ftdrake.thresholds_for_false_positive_rate(  # the scenario's budget (1 per hour)
         residual, sample_rate_hz=config.sensor.spec().rate_hz, test=test,
         std=model.predict_std(X_held) if test == "chi2" else None)
@@ -41,7 +40,7 @@ def main():
     print(f"{detector.test} test, threshold from the held-out residual: {threshold}")
 
     config.trajectory.seed = config.sensor.seed = 7  # a seed not seen in training
-    config = dc.replace(config, detector=detector)
+    config = config.with_chain(detector=detector)
     result = ftdrake.simulate(ftdrake.build_station(config, model), progress=False)
     report = ftdrake.evaluate_detection(result.log, config.sensor.spec().noise_std)
     print(f"true contacts {report['true_contacts']}, detected {report['detected_contacts']}, "

@@ -85,7 +85,7 @@ def record(urdf: Path, seconds: float, seed: int, model=None):
 
     chain = None
     if model is not None:  # the runtime chain in the loop, as in compensate_in_your_diagram
-        chain = builder.AddSystem(ftdrake.CompensationChain(model, ftdrake.ScenarioConfig(),
+        chain = builder.AddSystem(ftdrake.CompensationChain(model, ftdrake.ChainConfig(),
                                                             period=PERIOD, n_joints=n))
         builder.Connect(reading, chain.get_input_port_wrench_measured())
         builder.Connect(plant.get_state_output_port(), chain.get_input_port_joint_state())
@@ -127,7 +127,7 @@ def main(argv=None):
     replayed = ftdrake.replay(model, loop, pairing="simulated")
     columns = [c for c in replayed.columns if c != "t"]
     noise = np.asarray(ftdrake.SensorConfig().spec().noise_std)
-    residual = loop[[f"est_external_{a}" for a in ftdrake.WRENCH_AXES]].to_numpy()[500:]
+    residual = loop[[f"wrench_contact_{a}" for a in ftdrake.WRENCH_AXES]].to_numpy()[500:]
     print(json.dumps({
         "rows_recorded": len(log),
         "mass_kg": round(model.parameters_[0], 4),  # the gripper: 0.9 kg
@@ -137,7 +137,7 @@ def main(argv=None):
             np.sqrt(np.mean(residual**2, axis=0)) / noise, 2).tolist(),
         "replay_minus_loop_max": float(np.max(np.abs(
             replayed[columns].to_numpy(float) - loop[columns].to_numpy(float)))),
-        "contact_samples": int(loop["detected"].sum()),
+        "contact_samples": int(loop["contact"].sum()),
     }))
 
 

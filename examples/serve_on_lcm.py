@@ -56,9 +56,9 @@ def main():
     hardware = ftdrake.HardwareConfig(lcm_url="memq://")  # channels and timeouts: defaults
     station = ftdrake.HardwareStation(hardware, model)
     compensated, contact = [], []
-    station.lcm.subscribe(hardware.external_wrench_channel,
+    station.lcm.subscribe(hardware.output_channel("wrench_compensated"),
                           lambda data: compensated.append(lcmt_force_torque.decode(data)))
-    station.lcm.subscribe(hardware.contact_channel,
+    station.lcm.subscribe(hardware.output_channel("contact"),
                           lambda data: contact.append(lcmt_drake_signal.decode(data)))
 
     log = simulated_log(seed=1, seconds=2.0)  # the robot's stream, not trained on

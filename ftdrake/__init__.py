@@ -12,9 +12,10 @@ those below):
 3. ``data``: datasets and robot logs (tables, bags, LCM logs).
 4. ``compensation``: estimators, their registry, compiled predictors, persistence, ONNX.
 5. ``runtime``: the product, :class:`CompensationChain` (compensator → bias tracker →
-   detector) that both stations add.
-6. ``offline``: tools around the product: the chain replayed over a log, the detector's
-   thresholds from a false-positive budget, the residual budget.
+   detector) that both stations add; ``training``: :func:`train`, the training pipeline.
+6. ``offline``: tools around the product: the recorder of the chain's signals
+   (:func:`add_recorder`), the chain replayed over a log, the detector's thresholds from a
+   false-positive budget, the residual budget.
 7. ``systems``: the simulation rig's LeafSystems (sensor model, contact truth, controller, ...).
 8. ``sim`` (scene, trajectories, station, simulate, evaluation, collection) and ``hardware``
    (live LCM transport around the runtime chain; imports nothing of ``sim`` or ``systems``).
@@ -33,6 +34,7 @@ __version__ = ftdrake_version()
 _EXPORTS = {
     "RobotOptions": "compensation.build",
     "calibrate_table": "compensation.calibration",
+    "DomainCalibratedHybrid": "compensation.domain_calibrated",
     "evaluate_model": "compensation.evaluation",
     "target_ranges": "compensation.evaluation",
     "RandomForestCompensator": "compensation.forest",
@@ -45,14 +47,19 @@ _EXPORTS = {
     "SVRCompensator": "compensation.svr",
     "BiasTrackerConfig": "config",
     "CableConfig": "config",
+    "ChainConfig": "config",
     "CompensatorConfig": "config",
+    "ConfigLayoutWarning": "config",
     "ControllerConfig": "config",
     "DetectorConfig": "config",
     "EventsConfig": "config",
+    "RobotConfig": "config",
     "ScenarioConfig": "config",
     "SensorConfig": "config",
+    "SensorStreamConfig": "config",
     "TaskConfig": "config",
     "TrajectoryConfig": "config",
+    "load_chain_config": "config",
     "load_config": "config",
     "save_config": "config",
     "WRENCH_AXES": "conventions",
@@ -71,6 +78,8 @@ _EXPORTS = {
     "TrajectoryError": "errors",
     "HardwareConfig": "hardware.config",
     "HardwareStation": "hardware.station",
+    "Recorder": "offline.recorder",
+    "add_recorder": "offline.recorder",
     "replay": "offline.replay",
     "thresholds_for_false_positive_rate": "offline.thresholds",
     "OnlineBiasTracker": "runtime.bias_tracker",
@@ -78,8 +87,6 @@ _EXPORTS = {
     "CompensatorSystem": "runtime.compensator",
     "ContactDetector": "runtime.detector",
     "JointStateGravity": "runtime.joint_gravity",
-    "Recorder": "runtime.recorder",
-    "add_recorder": "runtime.recorder",
     "collect": "sim.collection",
     "evaluate_detection": "sim.evaluation",
     "Scene": "sim.scene",
@@ -93,6 +100,9 @@ _EXPORTS = {
     "DiscreteInverseDynamicsController": "systems.controller",
     "ForceTorqueSensor": "systems.ft_sensor",
     "NoisyForceTorqueSensor": "systems.noisy_sensor",
+    "TrainOptions": "training",
+    "TrainResult": "training",
+    "train": "training",
 }
 
 __all__ = [
@@ -100,15 +110,18 @@ __all__ = [
     "WRENCH_UNITS",
     "BiasTrackerConfig",
     "CableConfig",
+    "ChainConfig",
     "CompensationChain",
     "CompensatorConfig",
     "CompensatorSystem",
     "ConfigError",
+    "ConfigLayoutWarning",
     "ContactDetector",
     "ContactTruth",
     "ControllerConfig",
     "DetectorConfig",
     "DiscreteInverseDynamicsController",
+    "DomainCalibratedHybrid",
     "EventsConfig",
     "ForceTorqueSensor",
     "FtdrakeError",
@@ -125,15 +138,19 @@ __all__ = [
     "RandomForestCompensator",
     "ReadOptions",
     "Recorder",
+    "RobotConfig",
     "RobotModelError",
     "RobotOptions",
     "SVRCompensator",
     "ScenarioConfig",
     "Scene",
     "SensorConfig",
+    "SensorStreamConfig",
     "SimResult",
     "Station",
     "TaskConfig",
+    "TrainOptions",
+    "TrainResult",
     "TrajectoryConfig",
     "TrajectoryError",
     "__version__",
@@ -145,6 +162,7 @@ __all__ = [
     "evaluate_detection",
     "evaluate_model",
     "joint_state_layout",
+    "load_chain_config",
     "load_config",
     "load_dataset",
     "load_model",
@@ -158,6 +176,7 @@ __all__ = [
     "simulate",
     "target_ranges",
     "thresholds_for_false_positive_rate",
+    "train",
     "wrench_targets",
 ]
 

@@ -7,7 +7,9 @@ code keeps working.
 
 Advice in a message or warning speaks the user's language: :func:`spelled` gives its Python
 form (keywords, classes) by default and its command-line form (flags) inside
-:func:`command_line_front_end`, which the ``ftdrake`` command enters.
+:func:`command_line_front_end`, which the ``ftdrake`` command enters. A message about one
+option names it with :func:`option_name`: the keyword or field name in Python, the flag on the
+command line — the library carries no flag names.
 """
 
 from __future__ import annotations
@@ -24,6 +26,34 @@ def spelled(python: str, command_line: str) -> str:
     """`python` (advice naming keywords and classes), or `command_line` (naming flags) when
     the ``ftdrake`` command runs."""
     return command_line if _COMMAND_LINE.get() else python
+
+
+_OPTION_SPELLING: contextvars.ContextVar = contextvars.ContextVar(
+    "ftdrake_option_name_spelling", default=None)
+
+
+def option_name(name: str) -> str:
+    """How a message names option `name` (a keyword or an options field; ``read.positions``
+    for a field of a nested options object): `name` itself in Python; inside
+    :func:`command_line_front_end` the flag, ``--`` and the last part with dashes
+    (``read.max_rows`` → ``--max-rows``), unless :func:`option_names` chose a spelling."""
+    spell = _OPTION_SPELLING.get()
+    if spell is not None:
+        return spell(name)
+    if _COMMAND_LINE.get():
+        return "--" + name.rpartition(".")[2].replace("_", "-")
+    return name
+
+
+@contextlib.contextmanager
+def option_names(spell) -> Iterator[None]:
+    """Within the block, :func:`option_name` returns ``spell(name)`` (a command whose flags
+    are not all the options' names with dashes)."""
+    token = _OPTION_SPELLING.set(spell)
+    try:
+        yield
+    finally:
+        _OPTION_SPELLING.reset(token)
 
 
 @contextlib.contextmanager

@@ -31,11 +31,11 @@ def plot_wrench_log(log, path: Path, title: str = "F/T sensor") -> None:
     t = log[col.TIME].to_numpy()
     for ax, axis, unit in zip(axes, col.WRENCH_AXES, col.WRENCH_UNITS, strict=True):
         ax.plot(t, log[f"{col.MEASURED}_{axis}"], lw=0.6, color="0.4", label="measured")
-        ax.plot(t, log[f"{col.INTERNAL}_{axis}"], lw=1.0, color="tab:blue",
+        ax.plot(t, log[f"{col.INTERNAL_TRUE}_{axis}"], lw=1.0, color="tab:blue",
                 label="true internal (no contact)")
-        ax.plot(t, log[f"{col.EXTERNAL}_{axis}"], lw=1.0, color="tab:red",
+        ax.plot(t, log[f"{col.EXTERNAL_TRUE}_{axis}"], lw=1.0, color="tab:red",
                 label="true external (contact)")
-        shade_contact(ax, t, log[col.CONTACT])
+        shade_contact(ax, t, log[col.CONTACT_TRUE])
         ax.set_ylabel(f"{axis} [{unit}]")
         ax.grid(alpha=0.3)
     axes[0].legend(loc="upper right", fontsize=8, ncol=4)
@@ -60,17 +60,17 @@ def plot_contact_comparison(logs: dict, path: Path,
         for r, axis in enumerate(("Fx", "Fy", "Fz")):
             ax = axes[r, c]
             ax.plot(t, log[f"{col.MEASURED}_{axis}"], lw=0.7, color="0.55", label="measured (raw)")
-            ax.plot(t, log[f"{col.ESTIMATED}_{axis}"], lw=0.8, color="tab:blue",
+            ax.plot(t, log[f"{col.WRENCH_CONTACT}_{axis}"], lw=0.8, color="tab:blue",
                     label="compensated (estimated external)")
-            ax.plot(t, log[f"{col.EXTERNAL}_{axis}"], lw=1.0, color="tab:red", ls="--",
+            ax.plot(t, log[f"{col.EXTERNAL_TRUE}_{axis}"], lw=1.0, color="tab:red", ls="--",
                     label="true external")
-            shade_contact(ax, t, log[col.CONTACT])
+            shade_contact(ax, t, log[col.CONTACT_TRUE])
             ax.grid(alpha=0.3)
             if c == 0:
                 ax.set_ylabel(f"{axis} [N]")
         axes[0, c].set_title(name)
-        shade_contact(axes[3, c], t, log[col.CONTACT])
-        axes[3, c].step(t, log[col.DETECTED], where="post", color="k", lw=1.0, label="detected")
+        shade_contact(axes[3, c], t, log[col.CONTACT_TRUE])
+        axes[3, c].step(t, log[col.CONTACT], where="post", color="k", lw=1.0, label="detected")
         axes[3, c].set_yticks([0, 1])
         axes[3, c].set_xlabel("time [s]")
     axes[0, 0].legend(loc="lower left", fontsize=8)

@@ -128,8 +128,8 @@ def test_quaternion_calibration_writes_a_model_evaluate_and_replay_use(tables, t
                         **{f"qd_{i}": 0.0 for i in range(4)},
                         **{c: held[c] for c in WRENCH}})
     result = ftdrake.replay(model, log)
-    np.testing.assert_allclose(result[[f"pred_{a}" for a in ("Fx", "Fy", "Fz", "Tx", "Ty",
-                                                             "Tz")]].to_numpy(),
+    np.testing.assert_allclose(result[[f"wrench_internal_{a}" for a in ("Fx", "Fy", "Fz", "Tx",
+                                                                        "Ty", "Tz")]].to_numpy(),
                                model.predict(X), atol=1e-9)
     log.to_csv(tmp_path / "log.csv", index=False)
     assert main(["replay", "--model", str(tmp_path / "cal" / "model.ftd"), "--log",

@@ -46,21 +46,21 @@ def test_a_contact_free_log_calibrates_the_chi2_test_that_then_stays_quiet_on_it
     folder = physics_and_free_log
     assert replay_cli(folder, "--calibrate-detector", str(folder / "tuned.yaml")) == 0
     report = json.loads(capsys.readouterr().out.strip().splitlines()[-1])
-    tuned = ftdrake.load_config(folder / "tuned.yaml")
+    tuned = ftdrake.load_chain_config(folder / "tuned.yaml")  # a chain config
     # auto, calibrating, a physics model: the χ² test.
     assert tuned.detector.test == report["detector"]["test"] == "chi2"
     # Independent: the largest whitened statistic on the judged rows, and the budget's
     # quantile (1 per hour at 1 kHz).
     out = pd.read_parquet(folder / "out.parquet")
     judged = (out["t"] - out["t"].iloc[0]).to_numpy() >= tuned.detector.arm_after_s
-    w = out[wrench_columns("est_external")].to_numpy()[judged]
-    s = out[wrench_columns("pred_std")].to_numpy()[judged]
+    w = out[wrench_columns("wrench_contact")].to_numpy()[judged]
+    s = out[wrench_columns("wrench_std")].to_numpy()[judged]
     expected = max(chi2.isf(1.0 / 3600.0 / RATE_HZ, 6), 1.05 * np.max(np.sum((w / s) ** 2, 1)))
     assert tuned.detector.chi2_on == pytest.approx(expected, rel=1e-9)
     # The rest of the scenario and the detector's debounce are the ones replay ran.
-    assert tuned.sensor == ScenarioConfig().sensor
-    assert tuned.detector.debounce_on == ScenarioConfig().detector.debounce_on
-    # Replayed with the calibrated scenario, the same motion raises no contact.
+    assert tuned.sensor == ScenarioConfig().chain_config().sensor  # the log's scenario's
+    assert tuned.detector.debounce_on == ScenarioConfig().chain.detector.debounce_on
+    # Replayed with the calibrated chain config, the same motion raises no contact.
     assert replay_cli(folder, "--config", str(folder / "tuned.yaml")) == 0
     again = json.loads(capsys.readouterr().out.strip().splitlines()[-1])
     assert again["contact_samples"] == 0
@@ -69,16 +69,16 @@ def test_a_contact_free_log_calibrates_the_chi2_test_that_then_stays_quiet_on_it
 def test_hand_set_norm_thresholds_are_recalibrated_as_the_norm_test(physics_and_free_log,
                                                                     capsys):
     folder = physics_and_free_log
-    hand = ScenarioConfig()
+    hand = ftdrake.ChainConfig()
     hand.detector.force_on = 4.0  # set by hand: "auto" keeps the norm test
     ftdrake.save_config(hand, folder / "hand.yaml")
     assert replay_cli(folder, "--config", str(folder / "hand.yaml"),
                       "--calibrate-detector", str(folder / "norm.yaml")) == 0
     capsys.readouterr()
-    tuned = ftdrake.load_config(folder / "norm.yaml").detector
+    tuned = ftdrake.load_chain_config(folder / "norm.yaml").detector
     out = pd.read_parquet(folder / "out.parquet")
     judged = (out["t"] - out["t"].iloc[0]).to_numpy() >= tuned.arm_after_s
-    r = out[wrench_columns("est_external")].to_numpy()[judged]
+    r = out[wrench_columns("wrench_contact")].to_numpy()[judged]
     assert tuned.test == "norm"
     # Independent: per block, max(the largest axis RMS · √(χ²₃ quantile at 1 − p/2), 1.05 ×
     # the largest norm on the log), p = 1 per hour at 1 kHz.

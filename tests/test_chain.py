@@ -65,12 +65,12 @@ def stream(seed: int = 3) -> dict:
 
 def configs():
     base = ScenarioConfig()
-    base.compensator.acceleration_cutoff_hz = 10.0  # not the systems' default
-    tracked = dc.replace(base, bias_tracker=dc.replace(
-        base.bias_tracker, initial_bias=[0.5, -0.3, 0.2, 0.01, 0.0, -0.02]))
-    untracked = dc.replace(base, bias_tracker=dc.replace(base.bias_tracker, enabled=False))
-    payload = dc.replace(tracked, bias_tracker=dc.replace(
-        tracked.bias_tracker, track_payload=True, track_payload_motion=True,
+    base.chain.compensator.acceleration_cutoff_hz = 10.0  # not the systems' default
+    tracked = base.with_chain(bias_tracker=dc.replace(
+        base.chain.bias_tracker, initial_bias=[0.5, -0.3, 0.2, 0.01, 0.0, -0.02]))
+    untracked = base.with_chain(bias_tracker=dc.replace(base.chain.bias_tracker, enabled=False))
+    payload = tracked.with_chain(bias_tracker=dc.replace(
+        tracked.chain.bias_tracker, track_payload=True, track_payload_motion=True,
         start_settled=False))
     return {"tracker_off": (untracked, False), "tracker_on": (tracked, False),
             "track_payload": (payload, True)}
@@ -80,8 +80,8 @@ def wire_by_hand(builder, config, model, sources) -> dict:
     """The three systems connected as their port tables say; returns output name → port."""
     comp = builder.AddSystem(CompensatorSystem(
         model, PERIOD, n_joints=N,
-        acceleration_cutoff_hz=config.compensator.acceleration_cutoff_hz))
-    detector = builder.AddSystem(ContactDetector(config.detector.for_model(model), PERIOD))
+        acceleration_cutoff_hz=config.chain.compensator.acceleration_cutoff_hz))
+    detector = builder.AddSystem(ContactDetector(config.chain.detector.for_model(model), PERIOD))
     builder.Connect(sources["wrench_measured"], comp.get_input_port_wrench_measured())
     builder.Connect(sources["joint_state"], comp.get_input_port_joint_state())
     if comp.needs_temperature:
@@ -95,8 +95,8 @@ def wire_by_hand(builder, config, model, sources) -> dict:
            "contact": detector.get_output_port_contact(),
            "contact_force": detector.get_output_port_contact_force()}
     tracker = None
-    if config.bias_tracker.enabled:
-        tracker = builder.AddSystem(OnlineBiasTracker(config.bias_tracker, config.sensor,
+    if config.chain.bias_tracker.enabled:
+        tracker = builder.AddSystem(OnlineBiasTracker(config.chain.bias_tracker, config.sensor,
                                                       PERIOD))
         builder.Connect(comp.get_output_port_wrench_compensated(),
                         tracker.get_input_port_wrench_compensated())
@@ -110,7 +110,7 @@ def wire_by_hand(builder, config, model, sources) -> dict:
         out["wrench_contact"] = tracker.get_output_port_wrench_contact()
         out["bias"] = tracker.get_output_port_bias()
         out["tracker_std"] = tracker.get_output_port_wrench_std()
-        if config.bias_tracker.track_payload:
+        if config.chain.bias_tracker.track_payload:
             builder.Connect(sources["gravity_S"], tracker.get_input_port_gravity_S())
             builder.Connect(sources["motion_S"], tracker.get_input_port_motion_S())
             builder.Connect(sources["payload_changed"],
@@ -130,8 +130,8 @@ def test_the_chain_is_the_three_systems_wired_by_hand(case):
     sources = {name: builder.AddSystem(TrajectorySource(PiecewisePolynomial.ZeroOrderHold(
         inputs["t"], values.T))).get_output_port() for name, values in inputs.items()
         if name != "t"}
-    dut = builder.AddSystem(CompensationChain(model, config, period=PERIOD, n_joints=N,
-                                              gravity="input"))
+    dut = builder.AddSystem(CompensationChain(model, config.chain_config(), period=PERIOD,
+                                              n_joints=N, gravity="input"))
     for i in range(dut.num_input_ports()):
         port = dut.get_input_port(i)
         builder.Connect(sources[port.get_name()], port)
@@ -146,7 +146,7 @@ def test_the_chain_is_the_three_systems_wired_by_hand(case):
     context = simulator.get_mutable_context()
     dut.initialize(context)
     if tracker is not None:  # the tracker's start, as BiasTrackerConfig documents it
-        settings = config.bias_tracker
+        settings = config.chain.bias_tracker
         tracker.set_estimate(tracker.GetMyMutableContextFromRoot(context),
                              settings.initial_bias, [0.0] * 4, settled=settings.start_settled)
     simulator.AdvanceTo(STEPS * PERIOD)

@@ -11,7 +11,13 @@ from pydrake.systems.framework import DiagramBuilder
 from pydrake.systems.primitives import ConstantVectorSource
 from scipy.stats import chi2
 
-from ftdrake.config import DetectorConfig, default_scenario_path, load_config, parse_config
+from ftdrake.config import (
+    ChainConfig,
+    DetectorConfig,
+    default_scenario_path,
+    load_config,
+    parse_config,
+)
 from ftdrake.errors import ConfigError
 from ftdrake.offline.thresholds import (
     chi2_on_for_false_positive_rate,
@@ -127,10 +133,10 @@ def test_thresholds_for_the_chi2_test_from_held_out_data():
 
 def test_config_names_bad_tests_and_the_chain_refuses_a_model_without_std():
     with pytest.raises(ConfigError, match=r"detector\.test"):
-        parse_config("detector: {test: chi3}")
+        parse_config("chain: {detector: {test: chi3}}")
     with pytest.raises(ConfigError, match=r"detector\.chi2_on"):
-        parse_config("detector: {chi2_on: -1.0}")
-    assert parse_config("detector: {test: chi2}").detector.test == "chi2"
+        parse_config("chain: {detector: {chi2_on: -1.0}}")
+    assert parse_config("chain: {detector: {test: chi2}}").chain.detector.test == "chi2"
     from ftdrake.compensation.forest import RandomForestCompensator
     from ftdrake.config import ScenarioConfig
     from ftdrake.runtime.chain import CompensationChain
@@ -138,9 +144,9 @@ def test_config_names_bad_tests_and_the_chain_refuses_a_model_without_std():
     X = np.random.default_rng(2).uniform(-1, 1, (200, 21))
     forest = RandomForestCompensator(features="q", n_estimators=2).fit(X, np.zeros((200, 6)))
     scenario = ScenarioConfig()
-    scenario = dc.replace(scenario, detector=dc.replace(scenario.detector, test="chi2"))
+    scenario = scenario.with_chain(detector=dc.replace(scenario.chain.detector, test="chi2"))
     with pytest.raises(ConfigError, match="forest's spread"):
-        CompensationChain(forest, scenario)
+        CompensationChain(forest, scenario.chain_config())
 
 
 def fitted_physics():
@@ -159,7 +165,7 @@ def test_auto_is_the_calibrated_chi2_test_for_a_model_with_a_reading_std_else_no
     from ftdrake.runtime.chain import CompensationChain
 
     assert DetectorConfig().test == "auto"
-    assert load_config(default_scenario_path()).detector.test == "auto"  # the shipped YAML
+    assert load_config(default_scenario_path()).chain.detector.test == "auto"  # the shipped YAML
     physics = fitted_physics()
     X = np.random.default_rng(2).uniform(-1, 1, (200, 21))
     forest = RandomForestCompensator(features="q", n_estimators=2).fit(X, np.zeros((200, 6)))
@@ -167,14 +173,14 @@ def test_auto_is_the_calibrated_chi2_test_for_a_model_with_a_reading_std_else_no
     assert DetectorConfig().for_model(physics, calibrating=True).test == "chi2"
     assert DetectorConfig().for_model(forest, calibrating=True).test == "norm"
     # In a chain: a χ² threshold given makes it the χ² test, for a model that can run it.
-    given = dc.replace(ScenarioConfig(), detector=DetectorConfig(chi2_on=45.0))
-    chain = CompensationChain(physics, given)
+    given = ScenarioConfig().with_chain(detector=DetectorConfig(chi2_on=45.0))
+    chain = CompensationChain(physics, given.chain_config())
     assert chain.config.detector.test == "chi2" and chain.detector.config.test == "chi2"
     assert chain.detector.chi2_on == 45.0
-    assert CompensationChain(forest, given).detector.config.test == "norm"
+    assert CompensationChain(forest, given.chain_config()).detector.config.test == "norm"
     # Uncalibrated (the budget's quantile would trust a std never checked on held-out
     # motion): the norm test's defaults.
-    assert CompensationChain(physics, ScenarioConfig()).detector.config.test == "norm"
+    assert CompensationChain(physics, ChainConfig()).detector.config.test == "norm"
     # Norm thresholds set by hand are meant to be used.
     hand = DetectorConfig(force_on=4.0, chi2_on=45.0)
     assert hand.for_model(physics).test == hand.for_model(physics, calibrating=True).test \

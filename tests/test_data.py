@@ -27,7 +27,7 @@ def test_round_trip_keeps_rows_units_and_scenario(small, tmp_path):
     assert scenario.sensor.preset == "robotiq_ft300" and scenario.trajectory.kind == "fourier"
     units = json.loads(pq.read_schema(path).metadata[b"ftdrake.units"])
     assert units["t"] == "s" and units["q_3"] == "rad" and units["qdd_est_0"] == "rad/s^2"
-    assert units["meas_Fz"] == "N" and units["external_Tx"] == "N*m"
+    assert units["meas_Fz"] == "N" and units["external_true_Tx"] == "N*m"
     assert sorted(frame["trajectory"].unique()) == [0, 1]
     # Runs differ (their own seeds) but share the sensor's calibration.
     a, b = (frame[frame["trajectory"] == i]["meas_Fx"].to_numpy() for i in (0, 1))

@@ -58,7 +58,8 @@ def test_replayed_evaluation_reports_both_tests_and_the_force_out_of_domain(tmp_
     X, Y = ftdrake.joint_state_layout(data)[::8], ftdrake.wrench_targets(data)[::8]
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")  # one rehearsal excites the payload poorly
-        hybrid = ftdrake.HybridCompensator().fit_calibrated(X, Y, share=0.2)
+        hybrid = ftdrake.DomainCalibratedHybrid(ftdrake.HybridCompensator(),
+                                                holdout=0.2).fit(X, Y)
     plan = DetectionPlan(free_minutes=0.1, kinds=("fourier",), depths_mm=(12.0,),
                          surfaces=("table",), rehearsals=1, calibration_runs_per_kind=0,
                          events=None, tests=("norm", "chi2"))

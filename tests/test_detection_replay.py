@@ -36,5 +36,5 @@ def test_replayed_evaluation_counts_what_the_loop_counts():
 def test_only_the_payload_tracker_needs_the_loop():
     config = ftdrake.ScenarioConfig()
     assert replay_differs_from_loop(config) is None
-    config.bias_tracker.track_payload = True
+    config.chain.bias_tracker.track_payload = True
     assert "track_payload" in replay_differs_from_loop(config)

@@ -80,7 +80,7 @@ def test_the_budget_is_the_scenarios_and_the_thresholds_record_it():
     scenario = parse_config("detector: {false_positives_per_hour: 10.0}")
     dut = thresholds_for_false_positive_rate(
         residual, sample_rate_hz=1000.0,
-        false_positives_per_hour=scenario.detector.false_positives_per_hour)
+        false_positives_per_hour=scenario.chain.detector.false_positives_per_hour)
     p = 10.0 / 3600 / 1000 / 2
     rms = np.sqrt(np.mean(residual**2, axis=0))
     assert dut.force_on == pytest.approx(np.sqrt(chi2.isf(p, 3)) * rms[:3].max(), rel=1e-12)

@@ -99,8 +99,8 @@ def test_the_chain_api_page_shows_every_port_with_its_size(site):
     model = ftdrake.RandomForestCompensator(features="q", n_estimators=2).fit(
         X, rng.normal(size=(50, 6)))
     config = ftdrake.ScenarioConfig()
-    config.bias_tracker.track_payload = config.bias_tracker.track_payload_motion = True
-    dut = ftdrake.CompensationChain(model, config, gravity="input")
+    config.chain.bias_tracker.track_payload = config.chain.bias_tracker.track_payload_motion = True
+    dut = ftdrake.CompensationChain(model, config.chain_config(), gravity="input")
     ports = [dut.get_input_port(i) for i in range(dut.num_input_ports())] + [
         dut.get_output_port(i) for i in range(dut.num_output_ports())]
     api = (site / "api" / "ftdrake.runtime.html").read_text(encoding="utf-8")

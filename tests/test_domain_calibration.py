@@ -1,6 +1,6 @@
 """Where the support term gets its calibration: runs of the training data held out because
 they lie farthest from the others (compensation.domain.farthest_groups,
-HybridCompensator.fit_calibrated)."""
+DomainCalibratedHybrid(holdout=share))."""
 
 import warnings
 
@@ -10,6 +10,7 @@ from test_domain_uncertainty import poses
 from test_uncertainty import static_readings
 
 from ftdrake.compensation import domain
+from ftdrake.compensation.domain_calibrated import DomainCalibratedHybrid
 from ftdrake.compensation.hybrid import HybridCompensator
 from ftdrake.compensation.metrics import coverage
 from ftdrake.compensation.physics import PhysicsPayloadCompensator
@@ -47,7 +48,7 @@ def test_a_share_that_leaves_too_little_to_train_on_is_refused(share, message):
         domain.farthest_groups(X[:, :7], groups, share=share)
 
 
-def test_fit_calibrated_covers_held_out_poses_in_and_out_of_the_training_region():
+def test_held_out_calibration_covers_poses_in_and_out_of_the_training_region():
     rng = np.random.default_rng(0)
     regions = [(-0.8, 0.0)] * 8 + [(-0.8, 1.0)] * 2
     X, groups = runs(rng, regions, n=250)
@@ -55,10 +56,9 @@ def test_fit_calibrated_covers_held_out_poses_in_and_out_of_the_training_region(
     physics = PhysicsPayloadCompensator(mode="static", features="q")
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")  # excitation warnings are tested elsewhere
-        model = HybridCompensator(physics=physics, identification="consistent")
-        model.fit_calibrated(X, Y, groups, share=0.2, refit=False)
-        refitted = HybridCompensator(physics=physics, identification="consistent")
-        refitted.fit_calibrated(X, Y, groups, share=0.2, refit=True)
+        hybrid = HybridCompensator(physics=physics, identification="consistent")
+        model = DomainCalibratedHybrid(hybrid, holdout=0.2, refit=False).fit(X, Y, groups)
+        refitted = DomainCalibratedHybrid(hybrid, holdout=0.2, refit=True).fit(X, Y, groups)
     record = model.domain_calibration_
     assert sorted(record["held_out_groups"]) == [8, 9] and record["held_out_rows"] == 500
     assert np.any(model.domain_growth_[:3] > 0)
@@ -84,8 +84,9 @@ def test_a_shared_growth_scales_with_each_axis_training_error():
     physics = PhysicsPayloadCompensator(mode="static", features="q")
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        model = HybridCompensator(physics=physics, identification="consistent")
-        model.fit_calibrated(X, Y, groups, refit=False, shared_growth=True)
+        model = DomainCalibratedHybrid(
+            HybridCompensator(physics=physics, identification="consistent"), holdout=0.2,
+            refit=False, shared_growth=True).fit(X, Y, groups)
         per_axis = domain.calibrate(*calibration_rows(model, X[groups >= 8], Y[groups >= 8]))
     ratio = model.domain_growth_ ** 2 / model.domain_far_var_
     assert ratio.min() > 0 and np.ptp(ratio) < 1e-9 * ratio.max()  # one κ for all axes

@@ -2,7 +2,6 @@
 model trained on a sub-region of the configuration space, its support term calibrated on
 held-out runs that leave it, covers held-out readings in and out of that region."""
 
-import copy
 import warnings
 
 import numpy as np
@@ -10,6 +9,7 @@ import pytest
 from test_uncertainty import static_readings
 
 from ftdrake.compensation.compiled.kdtree import build_kdtree, nearest_distances
+from ftdrake.compensation.domain_calibrated import DomainCalibratedHybrid
 from ftdrake.compensation.hybrid import HybridCompensator
 from ftdrake.compensation.metrics import coverage
 from ftdrake.compensation.persistence import load_model, save_model
@@ -44,7 +44,7 @@ def sub_region():
     before = {k: coverage(readings[k], model.predict(sets[k]), model.predict_std(sets[k]))
               for k in ("in", "out")}
     before["fitted_in_var"] = model.residual_noise_var_.copy()
-    model.calibrate_domain(sets["calibration"], readings["calibration"])
+    model = DomainCalibratedHybrid(model).fit(sets["calibration"], readings["calibration"])
     return model, sets, readings, before
 
 
@@ -94,9 +94,8 @@ def test_the_default_calibration_keeps_the_fits_in_domain_level(sub_region):
 def held_out_level(sub_region):
     """The sub-region model calibrated with in_domain="held_out" (σ²_in and c fitted too)."""
     model, sets, readings, _ = sub_region
-    tight = copy.deepcopy(model)
-    tight.calibrate_domain(sets["calibration"], readings["calibration"], in_domain="held_out")
-    return tight
+    return DomainCalibratedHybrid(model.estimator_, in_domain="held_out").fit(
+        sets["calibration"], readings["calibration"])
 
 
 def test_a_held_out_in_domain_level_still_covers_both(sub_region, held_out_level):

@@ -133,4 +133,4 @@ def test_collect_and_the_scenario_yaml_select_it(tmp_path):
     config = load_config(path)
     assert config.trajectory.kind == "task_covering"
     data = collect(config, 1, n_jobs=1, progress=False)
-    assert len(data) > 5000 and not data[col.CONTACT].any()
+    assert len(data) > 5000 and not data[col.CONTACT_TRUE].any()

@@ -34,8 +34,8 @@ def arm_motion():
 
 def log(t, compensated, estimated=None):
     data = {col.TIME: t}
-    for name, values in ((col.COMPENSATED, compensated),
-                         (col.ESTIMATED, compensated if estimated is None else estimated)):
+    for name, values in ((col.WRENCH_COMPENSATED, compensated),
+                         (col.WRENCH_CONTACT, compensated if estimated is None else estimated)):
         data.update(dict(zip(col.wrench_columns(name), values.T, strict=True)))
     return pd.DataFrame(data)
 

@@ -6,7 +6,7 @@ station recovers on the next good messages."""
 import numpy as np
 import pytest
 
-from ftdrake import ConfigError, RandomForestCompensator, ScenarioConfig
+from ftdrake import ChainConfig, ConfigError, RandomForestCompensator, ScenarioConfig
 from ftdrake.hardware import HardwareConfig, HardwareStation
 from ftdrake.hardware.messages import (
     ContactState,
@@ -28,20 +28,20 @@ class Rig:
         self.model = RandomForestCompensator(features="q", n_estimators=3).fit(
             X, np.sin(X[:, :6]))
         scenario = ScenarioConfig()
-        scenario.bias_tracker.enabled = False  # the published wrench is measured − predicted
+        scenario.chain.bias_tracker.enabled = False  # the published wrench is measured − predicted
         self.config = HardwareConfig(
             lcm_url="memq://", sensor_timeout_s=0.005, joint_state_timeout_s=0.02,
             joint_state_type=joint_state_type,
             velocity_channel="ROBOT_VELOCITY" if joint_state_type == "robot_state" else "")
         self.now = 0.0
         self.events = []
-        self.dut = HardwareStation(self.config, self.model, scenario, "memq://",
+        self.dut = HardwareStation(self.config, self.model, scenario.chain_config(), "memq://",
                                    clock=lambda: self.now, on_event=self.events.append)
         self.wrenches, self.contacts = [], []
         lcm = self.dut.lcm
-        lcm.subscribe(self.config.external_wrench_channel,
+        lcm.subscribe(self.config.output_channel("wrench_compensated"),
                       lambda d: self.wrenches.append(decode_wrench(d)))
-        lcm.subscribe(self.config.contact_channel,
+        lcm.subscribe(self.config.output_channel("contact"),
                       lambda d: self.contacts.append(decode_contact_state(d)))
         self.q = np.linspace(-0.5, 0.5, N)
 
@@ -169,7 +169,8 @@ def hold_poses_and_grasp(dut, config, scenario, n_poses, announce: bool):
     from ftdrake.physics.scenario_robot import robot_description
 
     contact = []
-    dut.lcm.subscribe(config.contact_channel, lambda d: contact.append(decode_contact_state(d)))
+    dut.lcm.subscribe(config.output_channel("contact"),
+                      lambda d: contact.append(decode_contact_state(d)))
     plant, frame_S = robot_description(scenario).build_plant()
     context = plant.CreateDefaultContext()
     k = 0
@@ -198,25 +199,26 @@ def test_a_grasp_on_hardware_is_identified_from_the_joint_state():
     carry its gravity wrench (m·g_S, c × m·g_S) with g_S from Drake's own kinematics. The
     tracker must find m and m·c, and nothing may read as contact after the settle window."""
     scenario = ScenarioConfig()
-    scenario.bias_tracker.track_payload = True
+    scenario.chain.bias_tracker.track_payload = True
+    scenario.chain.robot.file = "ftdrake"  # a forest carries no robot: the simulated arm
     model = RandomForestCompensator(features="q", n_estimators=2).fit(
         np.random.default_rng(0).uniform(-2, 2, (50, 3 * N)), np.zeros((50, 6)))
     with pytest.raises(ConfigError, match=r"hardware\.payload_channel"):
-        off = ScenarioConfig()
-        HardwareStation(HardwareConfig(lcm_url="memq://", payload_channel="GRASP"), model, off,
-                        "memq://")
+        HardwareStation(HardwareConfig(lcm_url="memq://", payload_channel="GRASP"), model,
+                        ChainConfig(), "memq://")
     config = HardwareConfig(lcm_url="memq://", payload_channel="GRASP", sensor_timeout_s=10.0,
                             joint_state_timeout_s=10.0)
-    dut = HardwareStation(config, model, scenario, "memq://")
+    dut = HardwareStation(config, model, scenario.chain_config(), "memq://")
     contact = hold_poses_and_grasp(dut, config, scenario, 5, announce=True)
     mass, com = GRASP_MASS, GRASP_COM
 
     estimate = dut.tracker.get_output_port_payload().Eval(
-        dut.tracker.GetMyContextFromRoot(dut.context))
+        dut.tracker.GetMyContextFromRoot(dut.chain_context()))
+    np.testing.assert_array_equal(estimate, dut.output("payload"))
     assert dut.summary()["signals"]["payload_changed"] == {"received": 1, "rejected": 0}
     assert estimate[0] == pytest.approx(mass, rel=0.01)
     np.testing.assert_allclose(estimate[1:] / estimate[0], com, atol=0.001)
-    after_settle = 500 + round(1000 * scenario.bias_tracker.payload_settle_s)
+    after_settle = 500 + round(1000 * scenario.chain.bias_tracker.payload_settle_s)
     settled = [c.contact for c in contact[after_settle:]]
     assert len(settled) > 0 and not any(settled)
 
@@ -233,17 +235,18 @@ def test_a_temperature_model_reads_the_temperature_channel_and_faults_when_it_go
     Y[:, 0] = 0.5 * (X[:, -1] - 20.0)  # Fx drifts 0.5 N/K
     model = RandomForestCompensator(features="q", n_estimators=5).fit(X, Y)
     scenario = ScenarioConfig()
-    scenario.bias_tracker.enabled = False
+    scenario.chain.bias_tracker.enabled = False
     with pytest.raises(ConfigError, match=r"hardware\.temperature_channel"):
-        HardwareStation(HardwareConfig(lcm_url="memq://"), model, scenario, "memq://")
+        HardwareStation(HardwareConfig(lcm_url="memq://"), model, scenario.chain_config(), "memq://")
     config = HardwareConfig(lcm_url="memq://", temperature_channel="FT_TEMPERATURE",
                             temperature_timeout_s=0.5)
     now = [0.0]
     events = []
-    dut = HardwareStation(config, model, scenario, "memq://", clock=lambda: now[0],
+    dut = HardwareStation(config, model, scenario.chain_config(), "memq://", clock=lambda: now[0],
                           on_event=events.append)
     wrenches = []
-    dut.lcm.subscribe(config.external_wrench_channel, lambda d: wrenches.append(decode_wrench(d)))
+    dut.lcm.subscribe(config.output_channel("wrench_compensated"),
+                      lambda d: wrenches.append(decode_wrench(d)))
     q = np.linspace(-0.5, 0.5, N)
 
     def step(t, temperature=None):
@@ -290,9 +293,9 @@ def test_a_re_tare_message_resets_the_tracked_bias_and_nothing_reads_as_contact(
     q = np.linspace(-0.5, 0.5, N)
 
     def run(send_tare: bool):
-        dut = HardwareStation(config, model, scenario, "memq://")
+        dut = HardwareStation(config, model, scenario.chain_config(), "memq://")
         contact = []
-        dut.lcm.subscribe(config.contact_channel,
+        dut.lcm.subscribe(config.output_channel("contact"),
                           lambda d: contact.append(decode_contact_state(d)))
         for k in range(3000):  # 3 s at 1 kHz, the jump at 0.5 s
             t = 0.001 * (k + 1)
@@ -311,9 +314,9 @@ def test_a_re_tare_message_resets_the_tracked_bias_and_nothing_reads_as_contact(
     _, without = run(send_tare=False)
     assert without[600:].all()  # read as contact from the jump to the end
 
-    scenario.bias_tracker.enabled = False
+    scenario.chain.bias_tracker.enabled = False
     with pytest.raises(ConfigError, match=r"hardware\.tare_channel"):
-        HardwareStation(config, model, scenario, "memq://")
+        HardwareStation(config, model, scenario.chain_config(), "memq://")
 
 
 def test_an_unsignalled_grasp_on_hardware_is_announced_on_the_contact_channel():
@@ -324,13 +327,14 @@ def test_an_unsignalled_grasp_on_hardware_is_announced_on_the_contact_channel():
     from ftdrake.hardware.messages import CONTACT_COORDS_V1
 
     scenario = ScenarioConfig()
-    scenario.bias_tracker.track_payload = True
-    scenario.bias_tracker.payload_change.enabled = True
+    scenario.chain.bias_tracker.track_payload = True
+    scenario.chain.robot.file = "ftdrake"  # a forest carries no robot: the simulated arm
+    scenario.chain.bias_tracker.payload_change.enabled = True
     model = RandomForestCompensator(features="q", n_estimators=2).fit(
         np.random.default_rng(0).uniform(-2, 2, (50, 3 * N)), np.zeros((50, 6)))
     config = HardwareConfig(lcm_url="memq://", sensor_timeout_s=10.0,
                             joint_state_timeout_s=10.0)
-    dut = HardwareStation(config, model, scenario, "memq://")
+    dut = HardwareStation(config, model, scenario.chain_config(), "memq://")
     contact = hold_poses_and_grasp(dut, config, scenario, 4, announce=False)
     mass, com = GRASP_MASS, GRASP_COM
     t = np.array([c.t for c in contact])

@@ -1,10 +1,13 @@
-"""Station over memq://: published external wrench == measured − model.predict, exactly once;
+"""Station over memq://: published wrench_compensated == measured − model.predict, exactly once;
 the same updates as the simulation's in-loop compensator for the simulated robot's stream."""
+
+import dataclasses as dc
 
 import numpy as np
 import pytest
 
 from ftdrake import RandomForestCompensator, ScenarioConfig
+from ftdrake.conventions import WRENCH_AXES
 from ftdrake.hardware import HardwareConfig
 from ftdrake.hardware.messages import (
     decode_contact_state,
@@ -28,7 +31,8 @@ def test_station_compensates_each_message_once():
     _, handles = build_hardware_station(config, model, lcm="memq://")
     dut = handles["station"]
     out = []
-    dut.lcm.subscribe(config.external_wrench_channel, lambda d: out.append(decode_wrench(d)))
+    dut.lcm.subscribe(config.output_channel("wrench_compensated"),
+                      lambda d: out.append(decode_wrench(d)))
     rows, meas = [], []
     for k in range(20):
         t = 0.001 * (k + 1)
@@ -51,9 +55,11 @@ def test_station_compensates_each_message_once():
 @pytest.mark.parametrize("kind", ["iiwa_status", "robot_state"])
 def test_simulated_robot_stream_gives_the_in_simulation_numbers(kind):
     """The simulated robot publishes on memq://, the station processes it as it comes: each
-    published wrench equals the in-loop compensator's ``comp_external`` and the contact flag
-    the in-loop detector's ``detected``, sample for sample (robot_state: float32 positions on
-    the wire, so to the float32 resolution instead, and the detector may differ there)."""
+    published wrench equals the in-loop compensator's ``wrench_compensated`` and the contact flag
+    the in-loop detector's ``contact``, sample for sample (robot_state: float32 positions on
+    the wire, so to the float32 resolution instead, and the detector may differ there). A
+    second station on the same bus drives its Drake diagram per message instead of the chain
+    step: it publishes the same wrenches and contact states, to 1e-12."""
     scenario = push_scenario(duration=2.0, push_at=0.6)
     model = fit_forest(scenario, duration=0.5)
     hardware = HardwareConfig(lcm_url="memq://", sensor_timeout_s=100.0,
@@ -61,11 +67,24 @@ def test_simulated_robot_stream_gives_the_in_simulation_numbers(kind):
                               joint_state_channel="ROBOT_STATE" if kind == "robot_state"
                               else "IIWA_STATUS",
                               velocity_channel="ROBOT_VELOCITY" if kind == "robot_state" else "")
-    _, handles = build_hardware_station(hardware, model, scenario, lcm="memq://")
+    _, handles = build_hardware_station(hardware, model, scenario.chain_config(), lcm="memq://")
     dut = handles["station"]
-    wrenches, contacts = [], []
-    dut.lcm.subscribe(hardware.external_wrench_channel, lambda d: wrenches.append(decode_wrench(d)))
-    dut.lcm.subscribe(hardware.contact_channel, lambda d: contacts.append(decode_contact_state(d)))
+    wrenches, contact_wrenches, biases, contacts = [], [], [], []
+    for port, received in (("wrench_compensated", wrenches), ("wrench_contact", contact_wrenches),
+                           ("bias", biases)):
+        dut.lcm.subscribe(hardware.output_channel(port),
+                          lambda d, r=received: r.append(decode_wrench(d)))
+    dut.lcm.subscribe(hardware.output_channel("contact"),
+                      lambda d: contacts.append(decode_contact_state(d)))
+    reference = dc.replace(hardware, output_prefix="DIAGRAM_")
+    _, by_diagram = build_hardware_station(reference, model, scenario.chain_config(),
+                                           lcm=dut.lcm)
+    by_diagram["station"].use_diagram()
+    reference_out = ([], [])
+    dut.lcm.subscribe(reference.output_channel("wrench_compensated"),
+                      lambda d: reference_out[0].append(decode_wrench(d)))
+    dut.lcm.subscribe(reference.output_channel("contact"),
+                      lambda d: reference_out[1].append(decode_contact_state(d)))
     station = build_station(scenario, model)
     result = simulate_on_lcm(station, hardware, dut.lcm, progress=False)
     while dut.spin_once(0):  # the station takes what the simulation queued, then its outputs
@@ -78,15 +97,23 @@ def test_simulated_robot_stream_gives_the_in_simulation_numbers(kind):
     assert not dut.monitor.rejected.get("unpaired")
     np.testing.assert_allclose([w.t for w in wrenches], np.arange(K) * dut.period, atol=1e-9)
     got = np.array([w.wrench for w in wrenches])
-    expected = log[[c for c in log if c.startswith("comp_external_")]].to_numpy()
+    np.testing.assert_allclose(got, [w.wrench for w in reference_out[0]], rtol=0, atol=1e-12)
+    assert contacts == reference_out[1]
+    expected = log[[c for c in log if c.startswith("wrench_compensated_")]].to_numpy()
     detected = np.array([c.contact for c in contacts])
-    assert log["detected"].sum() > 50  # the push is detected in simulation
+    assert log["contact"].sum() > 50  # the push is detected in simulation
     if kind == "iiwa_status":
         np.testing.assert_allclose(got, expected, rtol=0, atol=1e-9)
-        np.testing.assert_array_equal(detected, log["detected"].to_numpy().astype(bool))
+        np.testing.assert_array_equal(detected, log["contact"].to_numpy().astype(bool))
+        # The other published wrenches (as ROS 2 publishes them), under the same names.
+        for received, port in ((contact_wrenches, "wrench_contact"), (biases, "bias")):
+            assert len(received) == K
+            np.testing.assert_allclose([w.wrench for w in received],
+                                       log[[f"{port}_{a}" for a in WRENCH_AXES]].to_numpy(),
+                                       rtol=0, atol=1e-9)
     else:
         np.testing.assert_allclose(got, expected, rtol=0, atol=0.5)  # float32 q, v
-        assert (detected == log["detected"].to_numpy().astype(bool)).mean() > 0.99
+        assert (detected == log["contact"].to_numpy().astype(bool)).mean() > 0.99
 
 
 def test_the_simulated_robot_announces_its_re_tare_and_grasp_once():
@@ -101,13 +128,14 @@ def test_the_simulated_robot_announces_its_re_tare_and_grasp_once():
     scenario.trajectory.duration_s = 1.0
     scenario.events.retare_at_s = 0.4
     scenario.events.grasp_at_s = 0.7
-    scenario.bias_tracker.track_payload = True
+    scenario.chain.bias_tracker.track_payload = True
+    scenario.chain.robot.file = "ftdrake"  # a forest carries no robot: the simulated arm
     scenario.validate()
     hardware = HardwareConfig(lcm_url="memq://", tare_channel="FT_TARED",
                               payload_channel="FT_GRASP",
                               sensor_timeout_s=100.0, joint_state_timeout_s=100.0)
     model = fit_forest(scenario, duration=0.3)
-    _, handles = build_hardware_station(hardware, model, scenario, lcm="memq://")
+    _, handles = build_hardware_station(hardware, model, scenario.chain_config(), lcm="memq://")
     dut = handles["station"]
     stamps, grasps = [], []
     dut.lcm.subscribe(hardware.tare_channel, lambda d: stamps.append(decode_event(d, TARE_COORD)))

@@ -20,7 +20,7 @@ import pytest
 
 from ftdrake import save_model
 from ftdrake.config import save_config
-from ftdrake.conventions import WRENCH_AXES, WRENCH_UNITS
+from ftdrake.conventions import PUBLISHED, WRENCH_AXES, WRENCH_UNITS
 from ftdrake.hardware import HardwareConfig
 from ftdrake.hardware.messages import (
     decode_contact_state,
@@ -44,7 +44,7 @@ def _listen(hardware):
     except RuntimeError as e:
         pytest.skip(f"UDP multicast unavailable here ({e})")
     got = {c: [] for c in (hardware.joint_state_channel, hardware.ft_channel,
-                           hardware.external_wrench_channel, hardware.contact_channel)}
+                           *(hardware.output_channel(port) for port in PUBLISHED))}
     for channel, messages in got.items():
         lc.subscribe(channel, lambda _c, d, m=messages: m.append(d)).set_queue_capacity(100_000)
     return lc, got
@@ -77,7 +77,7 @@ def test_simulate_and_serve_over_udp(tmp_path):
              "--config", tmp_path / "scenario.yaml", "--lcm", URL],
             stdout=subprocess.PIPE, stderr=err, text=True, env=env)
     try:
-        _wait_for(serve_err, "out: external wrench", serve)
+        _wait_for(serve_err, "  out: ", serve)
         # Bad messages before the stream: a NaN wrench, a 6-joint state.
         lc.publish(hardware.ft_channel, encode_wrench(0.0, np.full(6, np.nan)))
         lc.publish(hardware.joint_state_channel,
@@ -117,8 +117,8 @@ def test_simulate_and_serve_over_udp(tmp_path):
     assert summary["accepted"] == {"joint": K + 1, "ft": K}
     assert summary["rejected"] == {"not_finite": 1, "joint_count": 1}
     assert summary["processed"] == summary["published_wrench"] == K
-    wrenches = [decode_wrench(d) for d in got[hardware.external_wrench_channel]]
-    contacts = [decode_contact_state(d) for d in got[hardware.contact_channel]]
+    wrenches = [decode_wrench(d) for d in got[hardware.output_channel("wrench_compensated")]]
+    contacts = [decode_contact_state(d) for d in got[hardware.output_channel("contact")]]
     assert len(wrenches) == K
     sent = [decode_wrench(d).t for d in got[hardware.ft_channel]][1:]
     assert [w.t for w in wrenches] == sent  # in order, none twice, none missing
@@ -128,13 +128,17 @@ def test_simulate_and_serve_over_udp(tmp_path):
     # Numbers: the in-simulation compensator and detector on the same scenario.
     log = simulate(build_station(scenario, model), progress=False).log
     assert len(log) == K
-    expected = log[[f"comp_external_{a}" for a in WRENCH_AXES]].to_numpy()
+    expected = log[[f"wrench_compensated_{a}" for a in WRENCH_AXES]].to_numpy()
     np.testing.assert_allclose([w.wrench for w in wrenches], expected, rtol=0, atol=1e-9)
+    contact_wrenches = [decode_wrench(d) for d in got[hardware.output_channel("wrench_contact")]]
+    np.testing.assert_allclose([w.wrench for w in contact_wrenches],
+                               log[[f"wrench_contact_{a}" for a in WRENCH_AXES]].to_numpy(),
+                               rtol=0, atol=1e-9)
     per_message = [c for c in contacts if not c.fault]  # one per processed F/T message
     assert [c.t for c in per_message] == sent
     detected = np.array([c.contact for c in per_message])
-    assert log["detected"].sum() > 50
-    np.testing.assert_array_equal(detected, log["detected"].to_numpy().astype(bool))
+    assert log["contact"].sum() > 50
+    np.testing.assert_array_equal(detected, log["contact"].to_numpy().astype(bool))
 
     # Faults: printed with their cause, the station recovered, the final timeout reported.
     err = serve_err.read_text()

@@ -104,7 +104,7 @@ def run_user_diagram(seconds, seed, model=None, press=False):
     builder.Connect(ideal.get_output_port_wrench(), sensor.get_input_port_wrench_ideal())
     chain = None
     if model is not None:
-        chain = builder.AddSystem(ftdrake.CompensationChain(model, ftdrake.ScenarioConfig(),
+        chain = builder.AddSystem(ftdrake.CompensationChain(model, ftdrake.ChainConfig(),
                                                             period=PERIOD, n_joints=3))
         builder.Connect(sensor.get_output_port_wrench_measured(),
                         chain.get_input_port_wrench_measured())
@@ -160,7 +160,7 @@ def test_record_train_ship_load_detect_replay(recorded, tmp_path, monkeypatch):
 
     # 4. The chain in the user's diagram: quiet in free motion, the press detected.
     loop = run_user_diagram(4.0, seed=2, model=loaded, press=True)
-    t, detected = loop["t"].to_numpy(), loop["detected"].to_numpy() > 0
+    t, detected = loop["t"].to_numpy(), loop["contact"].to_numpy() > 0
     assert not detected[t < PRESS_START].any(), "a false contact before the press"
     during = detected[(t >= PRESS_START) & (t < PRESS_END)]
     assert during.any(), "the press was not detected"
@@ -168,13 +168,13 @@ def test_record_train_ship_load_detect_replay(recorded, tmp_path, monkeypatch):
     assert first - PRESS_START < 0.02  # s
     # What the chain saw of the press: ≈ the press's force, turned into S (|F| = 6 N).
     force = np.linalg.norm(loop.loc[(t > PRESS_START + 0.1) & (t < PRESS_END),
-                                    [f"est_external_F{a}" for a in "xyz"]].to_numpy(), axis=1)
+                                    [f"wrench_contact_F{a}" for a in "xyz"]].to_numpy(), axis=1)
     assert np.median(force) == pytest.approx(np.linalg.norm(PRESS_N), abs=1.0)
 
     # 5. The recorded loop replayed offline equals the loop.
     replayed = ftdrake.replay(loaded, loop, pairing="simulated")
     columns = [c for c in replayed.columns if c != "t"]
-    assert {"pred_Fz", "est_external_Fz", "pred_std_Fz", "out_of_domain", "detected"} <= set(
-        columns)
+    assert {"wrench_internal_Fz", "wrench_contact_Fz", "wrench_std_Fz", "out_of_domain",
+            "contact"} <= set(columns)
     np.testing.assert_allclose(replayed[columns].to_numpy(float), loop[columns].to_numpy(float),
                                rtol=0, atol=1e-12)

@@ -68,7 +68,7 @@ def test_adapting_needs_the_tracker_s_payload():
     rng = np.random.default_rng(0)
     model = RandomForestCompensator(features="q", n_estimators=2).fit(
         rng.uniform(-1, 1, (50, 21)), rng.normal(size=(50, 6)))
-    config = dc.replace(config, bias_tracker=dc.replace(config.bias_tracker, enabled=False,
+    config = config.with_chain(bias_tracker=dc.replace(config.chain.bias_tracker, enabled=False,
                                                         track_payload=True))
     with pytest.raises(ConfigError, match=r"bias_tracker\.enabled: true"):
         build_station(config, model)

@@ -71,7 +71,7 @@ def test_physics_predicts_internal_wrench_near_noise_floor(rigid_dataset):
     train, test = split_by_trajectory(rigid_dataset, [2])
     dut = PhysicsPayloadCompensator().fit(joint_state_layout(train, "plant")[::3],
                                           wrench_targets(train)[::3])
-    error = dut.predict(joint_state_layout(test, "plant")) - wrench_targets(test, col.INTERNAL)
+    error = dut.predict(joint_state_layout(test, "plant")) - wrench_targets(test, col.INTERNAL_TRUE)
     rms = np.sqrt(np.mean(error**2, axis=0))
     sigma = np.array([1 / 40, 1 / 40, 1 / 20, 1 / 800, 1 / 800, 1 / 800])  # ati_gamma preset
     assert np.all(rms < 6 * sigma), rms / sigma
@@ -99,7 +99,7 @@ def test_robot_joint_count_must_match():
 def test_hybrid_beats_physics_and_forest_with_cable_and_crosstalk(realistic_dataset):
     train, test = split_by_trajectory(realistic_dataset, [3])
     Xtr, Ytr = joint_state_layout(train), wrench_targets(train)
-    Xte, truth = joint_state_layout(test), wrench_targets(test, col.INTERNAL)
+    Xte, truth = joint_state_layout(test), wrench_targets(test, col.INTERNAL_TRUE)
     forest = RandomForestCompensator(features="q", n_estimators=40, min_samples_leaf=5,
                                      random_state=0, n_jobs=2)
     models = {

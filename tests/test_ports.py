@@ -77,20 +77,24 @@ def instances():
     """{class: [instances]} of every ftdrake system in the rig and beside it."""
     config = push_scenario(duration=0.3, push_at=0.1)  # ToolPush
     config.friction.enabled = True  # JointFriction
-    config.bias_tracker.track_payload = True  # gravity_S, motion_S, payload_changed, payload
-    config.bias_tracker.track_payload_motion = True  # ... and SensorGravity's motion_S
-    config.bias_tracker.payload_change.enabled = True  # the PayloadChangeMonitor inside
+    config.chain.bias_tracker.track_payload = True  # gravity_S, motion_S, payload_changed, payload
+    config.chain.bias_tracker.track_payload_motion = True  # ... and SensorGravity's motion_S
+    config.chain.bias_tracker.payload_change.enabled = True  # the PayloadChangeMonitor inside
     config.controller.adapt_to_payload = True  # PayloadFeedforward
     model = temperature_forest()
     feedforward = TimeIndexedFeedforward(np.zeros((10, N)), 0.01)
     station = build_station(config, model, meshcat=Meshcat(), feedforward=feedforward)
     rng = np.random.default_rng(1)
     X = rng.uniform(-1, 1, (200, 3 * N))
+    chain = config.chain_config()
+    chain.robot.file = "ftdrake"  # a forest carries no robot: the gravity's kinematics
+    delayed = config.chain_config()
+    delayed.sensor.wrench_delay_s = 0.004
     beside = [
         LearnedFeedforward(fit_feedforward_gp(X, np.sin(X[:, :N]), max_points=40,
                                               optimize_points=40), n_joints=N),
-        CompensationChain(model, config, gravity="joint_state"),  # JointStateGravity inside
-        CompensationChain(model, config, wrench_delay_s=0.004),  # a DelayLine inside
+        CompensationChain(model, chain, gravity="joint_state"),  # JointStateGravity inside
+        CompensationChain(model, delayed),  # a DelayLine inside
         MotorSide(TransmissionConfig(enabled=True), config.time_step),  # compliant joints
     ]
     systems = list(all_systems(station.diagram))

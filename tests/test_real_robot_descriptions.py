@@ -109,7 +109,7 @@ def test_a_joint_left_out_stands_at_0_with_a_warning_naming_it(log):
     urdf, q, Y = log
     model = static_model(urdf, joints="j1,j2,j3")
     with pytest.warns(FixedJointsWarning, match=r"joints torso between .* fixed at 0 .*"
-                                                 r"--fixed-joints NAME=VALUE"):
+                                                 r" fixed_joints NAME=VALUE"):
         model.fit(rows(q), Y)
     # The torso is really at 0.2 rad: standing it at 0 leaves the tilt in the residual.
     assert model.residual_rms_[:3].max() > 5 * 0.02
@@ -119,7 +119,7 @@ def test_a_joint_count_mismatch_names_joints_and_lists_the_model_joints(log):
     urdf, q, Y = log
     with pytest.raises(RobotModelError, match=r"the data has 3 joints; the robot model has 7 "
                                               r"\(torso, j1, j2, j3, .*head_pan.*\): name the "
-                                              r"log's joints .* with --joints"):
+                                              r"log's joints .* with joints NAME"):
         static_model(urdf).fit(rows(q), Y)
     with pytest.raises(RobotModelError, match=r"\['j9'\] that robot model .* does not have"):
         static_model(urdf, joints="j1,j2,j9").fit(rows(q), Y)

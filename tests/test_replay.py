@@ -20,10 +20,10 @@ from ftdrake.signals import causal_acceleration
 from ftdrake.sim.simulate import simulate
 from ftdrake.sim.station import build_station
 
-CHAIN_COLUMNS = [*wrench_columns("pred"), *wrench_columns("comp_external"),
-                 *wrench_columns("est_external"), *wrench_columns("pred_std"),
-                 *wrench_columns("bias_est"), "out_of_domain", "fault", "detected",
-                 "detected_force"]
+CHAIN_COLUMNS = [*wrench_columns("wrench_internal"), *wrench_columns("wrench_compensated"),
+                 *wrench_columns("wrench_contact"), *wrench_columns("wrench_std"),
+                 "contact", "contact_force", "fault", "out_of_domain",
+                 *wrench_columns("bias"), *wrench_columns("tracker_std")]
 
 
 @pytest.fixture(scope="module")
@@ -41,27 +41,27 @@ def contact_run():
 @pytest.mark.slow
 def test_replay_of_a_simulated_log_equals_the_loop(contact_run):
     scenario, model, log = contact_run
-    assert log["detected"].sum() > 1000 and log["contact"].sum() > 1000  # a real press
-    dut = replay(model, log, scenario, pairing="simulated")
+    assert log["contact"].sum() > 1000 and log["contact_true"].sum() > 1000  # a real press
+    dut = replay(model, log, scenario.chain_config(), pairing="simulated")
     assert list(dut.columns) == ["t", *CHAIN_COLUMNS]
     np.testing.assert_array_equal(dut["t"], log["t"])
     for name in CHAIN_COLUMNS:
         np.testing.assert_allclose(dut[name], log[name], rtol=0, atol=1e-12, err_msg=name)
     # The held view is the aligned one a row later: what the output ports held on arrival.
-    held = replay(model, log, scenario, pairing="simulated", view="held")
+    held = replay(model, log, scenario.chain_config(), pairing="simulated", view="held")
     assert held.iloc[0, 1:].isna().all()
     np.testing.assert_array_equal(held[CHAIN_COLUMNS].to_numpy()[1:],
                                   dut[CHAIN_COLUMNS].to_numpy(dtype=float)[:-1])
     # Each update of the aligned view: the compensator's output is wrench − model(inputs) of
     # the same update (the previous row's reading in the simulated pairing), computed here
     # independently with the model's batch predict on the loop's q̈ estimate.
-    row = replay(model, log, scenario)
+    row = replay(model, log, scenario.chain_config())
     X = np.hstack([ftdrake.joint_state_layout(log, source="plant")[:, :14],
                    causal_acceleration(
                        log[[f"qd_{i}" for i in range(7)]].to_numpy(), 1e-3,
-                       scenario.compensator.acceleration_cutoff_hz)])
+                       scenario.chain.compensator.acceleration_cutoff_hz)])
     expected = log[wrench_columns("meas")].to_numpy() - model.predict(X)
-    np.testing.assert_allclose(row[wrench_columns("comp_external")], expected, atol=1e-9)
+    np.testing.assert_allclose(row[wrench_columns("wrench_compensated")], expected, atol=1e-9)
 
 
 @pytest.mark.slow
@@ -121,13 +121,13 @@ def test_evaluate_detection_takes_a_replay_and_names_what_is_missing(contact_run
     scenario, model, log = contact_run
     noise = scenario.sensor.spec().noise_std
     truth_only = log.drop(columns=CHAIN_COLUMNS)
-    with pytest.raises(LogError, match=r"'detected' \(the runtime chain's outputs.*replay"):
+    with pytest.raises(LogError, match=r"'contact' \(the runtime chain's outputs.*replay"):
         ftdrake.evaluate_detection(truth_only, noise)
-    replayed = replay(model, truth_only, scenario, pairing="simulated")
+    replayed = replay(model, truth_only, scenario.chain_config(), pairing="simulated")
     assert ftdrake.evaluate_detection(truth_only, noise, replayed) == \
         ftdrake.evaluate_detection(log, noise)
     # Without the simulator's internal wrench, that metric is named as not computed.
-    partial = ftdrake.evaluate_detection(log.drop(columns=wrench_columns("internal")), noise)
+    partial = ftdrake.evaluate_detection(log.drop(columns=wrench_columns("internal_true")), noise)
     assert partial["compensation_error_rms"] is None
     assert "simulate's log" in partial["not_computed"]["compensation_error_rms"]
     assert partial["detected_contacts"] == ftdrake.evaluate_detection(log, noise)[
@@ -169,5 +169,5 @@ def test_replay_command_reads_an_lcm_log(tmp_path, capsys):
                  str(tmp_path / "run.lcmlog"), "--out", str(tmp_path / "out.parquet")]) == 0
     got = pd.read_parquet(tmp_path / "out.parquet")
     expected = w - model.predict(np.c_[q, np.zeros((40, 14))])
-    np.testing.assert_allclose(got[wrench_columns("comp_external")], expected, atol=1e-9)
+    np.testing.assert_allclose(got[wrench_columns("wrench_compensated")], expected, atol=1e-9)
     assert json.loads(capsys.readouterr().out)["rows"] == 40

@@ -3,7 +3,7 @@
 alphabetical order, not the model's) and its sensor's WrenchStamped at the sensor's rate;
 ``ftdrake serve --ros2`` compensates them. Checked: every message once on every side (the
 simulation's count, serve's summary and a third listener, this test), the published wrench
-equals the in-simulation chain's (``est_external_*``, bias tracker included) to 1e-9 with the
+equals the in-simulation chain's (``wrench_contact_*``, bias tracker included) to 1e-9 with the
 input's stamp and frame_id, the contact flag and force its detector's and the bias its
 tracker's, sample for sample; a NaN wrench
 and a joint state with an unknown joint injected before the stream are faulted, printed,
@@ -77,12 +77,15 @@ def test_simulate_and_serve_over_dds(tmp_path):
     save_config(config, tmp_path / "ros2.yaml")
 
     listener = Ros2Node(DOMAIN)
-    got = {k: [] for k in ("joint", "ft", "wrench", "contact", "contact_force", "bias",
-                           "diagnostics")}
+    got = {k: [] for k in ("joint", "ft", "wrench_contact", "wrench_compensated", "contact",
+                           "contact_force", "bias", "diagnostics")}
     for key, topic, msgtype in (
             ("joint", config.joint_state_topic, "sensor_msgs/msg/JointState"),
             ("ft", config.wrench_topic, "geometry_msgs/msg/WrenchStamped"),
-            ("wrench", config.output_topic("wrench"), "geometry_msgs/msg/WrenchStamped"),
+            ("wrench_contact", config.output_topic("wrench_contact"),
+             "geometry_msgs/msg/WrenchStamped"),
+            ("wrench_compensated", config.output_topic("wrench_compensated"),
+             "geometry_msgs/msg/WrenchStamped"),
             ("contact", config.output_topic("contact"), "std_msgs/msg/Bool"),
             ("contact_force", config.output_topic("contact_force"), "std_msgs/msg/Float64"),
             ("bias", config.output_topic("bias"), "geometry_msgs/msg/WrenchStamped"),
@@ -103,7 +106,8 @@ def test_simulate_and_serve_over_dds(tmp_path):
     try:
         _wait_for(serve_err, "out: ", serve)
         _wait_until(lambda: all(injector.matched().values()) and
-                    listener.matched()["rt" + config.output_topic("wrench")] == 1, "discovery")
+                    listener.matched()["rt" + config.output_topic("wrench_contact")] == 1,
+                    "discovery")
         # Bad messages before the stream: a NaN wrench, a joint state with an unknown joint.
         bad_ft.write(wrench_stamped(header(0.0, "ft_sensor"), np.full(6, np.nan)))
         bad_joint.write(ros2_type("sensor_msgs/msg/JointState")(
@@ -146,27 +150,26 @@ def test_simulate_and_serve_over_dds(tmp_path):
     assert summary["rejected"] == {"not_finite": 1, "joint_names": 1}
     assert summary["processed"] == summary["published_wrench"] == K
     assert summary["published_contact"] == K
-    assert len(got["wrench"]) == len(got["contact"]) == len(got["contact_force"]) == K
+    assert len(got["wrench_contact"]) == len(got["contact"]) == len(got["contact_force"]) == K
     sent = [from_stamp(m.header.stamp) for m in got["ft"]][1:]
-    assert [from_stamp(w.header.stamp) for w in got["wrench"]] == sent  # in order, once each
-    assert {w.header.frame_id for w in got["wrench"]} == {"ft_sensor"}
+    assert [from_stamp(w.header.stamp) for w in got["wrench_contact"]] == sent  # once each
+    assert {w.header.frame_id for w in got["wrench_contact"]} == {"ft_sensor"}
     assert list(got["joint"][-1].name) == sorted(names) != names  # not the model's order
 
     # Numbers: the in-simulation chain on the same scenario.
     log = simulate(build_station(scenario, model), progress=False).log
     assert len(log) == K
-    expected = log[[f"est_external_{a}" for a in WRENCH_AXES]].to_numpy()
-    np.testing.assert_allclose([wrench_of(w) for w in got["wrench"]], expected, rtol=0,
-                               atol=1e-9)
+    assert scenario.bias_tracker.enabled
+    for port in ("wrench_contact", "wrench_compensated", "bias"):  # the LCM station's too
+        assert len(got[port]) == K
+        np.testing.assert_allclose([wrench_of(w) for w in got[port]],
+                                   log[[f"{port}_{a}" for a in WRENCH_AXES]].to_numpy(), rtol=0,
+                                   atol=1e-9, err_msg=port)
     detected = np.array([c.data for c in got["contact"]])
-    assert log["detected"].sum() > 50
-    np.testing.assert_array_equal(detected, log["detected"].to_numpy().astype(bool))
+    assert log["contact"].sum() > 50
+    np.testing.assert_array_equal(detected, log["contact"].to_numpy().astype(bool))
     np.testing.assert_allclose([f.data for f in got["contact_force"]],
-                               log["detected_force"].to_numpy(), rtol=0, atol=1e-9)
-    assert scenario.bias_tracker.enabled and len(got["bias"]) == K
-    np.testing.assert_allclose([wrench_of(b) for b in got["bias"]],
-                               log[[f"bias_est_{a}" for a in WRENCH_AXES]].to_numpy(), rtol=0,
-                               atol=1e-9)
+                               log["contact_force"].to_numpy(), rtol=0, atol=1e-9)
 
     # Faults: printed with their cause, recovered, the final timeout on /diagnostics.
     err = serve_err.read_text()

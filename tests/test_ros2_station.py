@@ -50,24 +50,26 @@ class Rig:
             X, np.sin(X[:, :6]))
         if scenario is None:
             scenario = ScenarioConfig()
-            scenario.bias_tracker.enabled = False  # published wrench = measured − predicted
+            scenario.chain.bias_tracker.enabled = False  # published wrench = measured − predicted
         self.config = Ros2Config(joint_names=list(NAMES), domain_id=DOMAIN,
                                  output_namespace=f"/ftdrake_{os.getpid()}", **config)
         self.now = 0.0
         self.events = []
-        self.dut = Ros2Station(self.config, self.model, scenario, clock=lambda: self.now,
-                               on_event=self.events.append)
+        self.dut = Ros2Station(self.config, self.model, scenario.chain_config(),
+                               clock=lambda: self.now, on_event=self.events.append)
         self.driver = Ros2Node(DOMAIN)
         self.joints = self.driver.publisher(self.config.joint_state_topic,
                                             "sensor_msgs/msg/JointState")
         self.ft = self.driver.publisher(self.config.wrench_topic,
                                         "geometry_msgs/msg/WrenchStamped")
         self.listener = Ros2Node(DOMAIN)
+        # "wrench": the contact wrench the detector judges (= measured − predicted here).
         self.got = {name: [] for name in ("wrench", "contact", "contact_force", "diagnostics")}
-        for name, msgtype in (("wrench", "geometry_msgs/msg/WrenchStamped"),
-                              ("contact", "std_msgs/msg/Bool"),
-                              ("contact_force", "std_msgs/msg/Float64")):
-            self.listener.subscribe(self.config.output_topic(name), msgtype,
+        for name, topic, msgtype in (
+                ("wrench", "wrench_contact", "geometry_msgs/msg/WrenchStamped"),
+                ("contact", "contact", "std_msgs/msg/Bool"),
+                ("contact_force", "contact_force", "std_msgs/msg/Float64")):
+            self.listener.subscribe(self.config.output_topic(topic), msgtype,
                                     lambda m, _a, n=name: self.got[n].append(m))
         self.listener.subscribe(self.config.diagnostics_topic,
                                 "diagnostic_msgs/msg/DiagnosticArray",
@@ -232,7 +234,7 @@ def test_config_errors():
         Ros2Config(joint_names=NAMES, wrench_topic="/joint_states").validate()
     with pytest.raises(ConfigError, match=r"ros2\.tare_topic"):
         scenario = ScenarioConfig()
-        scenario.bias_tracker.enabled = False
+        scenario.chain.bias_tracker.enabled = False
         Rig(scenario, tare_topic="/ft_tare")
 
 
@@ -275,7 +277,7 @@ def test_cli_errors_name_the_ros2_setting(tmp_path, capsys):
 
 def test_tare_and_payload_topics_reach_the_tracker_and_its_estimates_are_published():
     scenario = ScenarioConfig()
-    scenario.bias_tracker.track_payload = True
+    scenario.chain.bias_tracker.track_payload = True
     rig = Rig(scenario, tare_topic=f"/tare_{os.getpid()}", payload_topic=f"/grasp_{os.getpid()}")
     try:
         outputs = {"bias": [], "payload": []}

@@ -171,8 +171,8 @@ def test_simulate_cli_writes_documented_outputs(tmp_path):
     expected = [col.TIME, *col.joint_columns(col.Q), *col.joint_columns(col.QD),
                 *col.joint_columns(col.QDD), *col.joint_columns(col.QD_EST),
                 *col.joint_columns(col.QDD_EST), *col.wrench_columns(col.IDEAL),
-                *col.wrench_columns(col.MEASURED), *col.wrench_columns(col.INTERNAL),
-                *col.wrench_columns(col.EXTERNAL), col.CONTACT, col.SATURATED,
+                *col.wrench_columns(col.MEASURED), *col.wrench_columns(col.INTERNAL_TRUE),
+                *col.wrench_columns(col.EXTERNAL_TRUE), col.CONTACT_TRUE, col.SATURATED,
                 col.TEMPERATURE]
     assert list(log.columns) == expected
     assert (out / "wrench.png").stat().st_size > 10_000

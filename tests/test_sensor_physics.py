@@ -124,12 +124,12 @@ def contact_run():
 
 def test_contact_wrench_equals_ideal_minus_newton_euler(contact_run):
     sim, log = contact_run
-    in_contact = np.flatnonzero(log[col.CONTACT].to_numpy() == 1)
+    in_contact = np.flatnonzero(log[col.CONTACT_TRUE].to_numpy() == 1)
     assert len(in_contact) > 1000  # seconds of pressing at 1 kHz
     rows = in_contact[in_contact > 0][::25]
     newton_euler, _ = newton_euler_for_rows(sim, log, rows)
     ideal = log[col.wrench_columns(col.IDEAL)].to_numpy()[rows]
-    external = log[col.wrench_columns(col.EXTERNAL)].to_numpy()[rows]
+    external = log[col.wrench_columns(col.EXTERNAL_TRUE)].to_numpy()[rows]
     force = np.linalg.norm(external[:, :3], axis=1)
     assert 5.0 < np.median(force) < 50.0  # a realistic press
     # ContactTruth maps forces with the pose at sample k while the contact solve used the
@@ -139,8 +139,8 @@ def test_contact_wrench_equals_ideal_minus_newton_euler(contact_run):
 
 def test_contact_flag_matches_force(contact_run):
     _, log = contact_run
-    force = np.linalg.norm(log[col.wrench_columns(col.EXTERNAL)].to_numpy()[:, :3], axis=1)
-    contact = log[col.CONTACT].to_numpy() == 1
+    force = np.linalg.norm(log[col.wrench_columns(col.EXTERNAL_TRUE)].to_numpy()[:, :3], axis=1)
+    contact = log[col.CONTACT_TRUE].to_numpy() == 1
     assert not np.any(force[~contact] > 0)
     assert np.median(force[contact]) > 5.0
     # The tool presses once and leaves: one interval of contact, and truth clears after it.

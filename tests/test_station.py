@@ -10,11 +10,11 @@ from ftdrake import ScenarioConfig, SimResult, build_station, simulate
 from ftdrake import conventions as col
 from ftdrake.compensation.physics import PhysicsPayloadCompensator
 from ftdrake.conventions import (
-    BIAS_ESTIMATE,
-    COMPENSATED,
-    ESTIMATED,
-    PREDICTED,
-    PREDICTED_STD,
+    BIAS,
+    WRENCH_COMPENSATED,
+    WRENCH_CONTACT,
+    WRENCH_INTERNAL,
+    WRENCH_STD,
 )
 from ftdrake.data.dataset import joint_state_layout, wrench_targets
 
@@ -48,24 +48,24 @@ def test_simulate_returns_the_log_with_compensation_columns(forest):
     assert isinstance(result, SimResult)
     log = result.log
     assert len(log) == result.timing["samples"] == 300  # 0.3 s at 1 kHz, t = 0 dropped
-    for prefix in (PREDICTED, ESTIMATED, PREDICTED_STD):
+    for prefix in (WRENCH_INTERNAL, WRENCH_CONTACT, WRENCH_STD):
         assert set(col.wrench_columns(prefix)) <= set(log.columns)
     # The compensator reads the sensor's previous sample (README: it lags the sensor by one
     # sample) and the plant's state of this sample; its external estimate is measured −
     # predicted. Checked here against the model's own predict, independently of the loop.
     measured = log[col.wrench_columns(col.MEASURED)].to_numpy()
-    predicted = log[col.wrench_columns(PREDICTED)].to_numpy()
-    compensated = log[col.wrench_columns(COMPENSATED)].to_numpy()
+    predicted = log[col.wrench_columns(WRENCH_INTERNAL)].to_numpy()
+    compensated = log[col.wrench_columns(WRENCH_COMPENSATED)].to_numpy()
     np.testing.assert_allclose(compensated[5:], measured[4:-1] - predicted[5:], atol=1e-12)
     # The bias tracker (on by default) reads that one sample later and subtracts its bias.
-    bias = log[col.wrench_columns(BIAS_ESTIMATE)].to_numpy()
-    np.testing.assert_allclose(log[col.wrench_columns(ESTIMATED)].to_numpy()[6:],
+    bias = log[col.wrench_columns(BIAS)].to_numpy()
+    np.testing.assert_allclose(log[col.wrench_columns(WRENCH_CONTACT)].to_numpy()[6:],
                                compensated[5:-1] - bias[6:], atol=1e-12)
     q = log[col.joint_columns(col.Q)].to_numpy()
     X = np.hstack([q, np.zeros_like(q), np.zeros_like(q)])
     np.testing.assert_allclose(predicted[5:], forest.predict(X[5:]), atol=1e-9)
     # The context is returned, not stored on the station: the loggers are still readable.
-    logger = station.compensation.loggers.wrench_internal
+    logger = station.compensation.loggers["wrench_internal"]
     assert logger.FindLog(result.context).num_samples() == len(log) + 1
 
 
@@ -78,7 +78,7 @@ def test_the_log_records_the_joint_state_the_compensator_read():
     data = simulate(build_station(config), progress=False).log
     model = PhysicsPayloadCompensator().fit(joint_state_layout(data), wrench_targets(data))
     log = simulate(build_station(config, model), progress=False).log
-    in_loop = log[col.wrench_columns(PREDICTED)].to_numpy()
+    in_loop = log[col.wrench_columns(WRENCH_INTERNAL)].to_numpy()
     np.testing.assert_allclose(in_loop, model.predict(joint_state_layout(log)), atol=1e-9)
     assert np.abs(in_loop - model.predict(joint_state_layout(log, "plant"))).max() > 0.01
 

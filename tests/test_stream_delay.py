@@ -9,6 +9,7 @@ import ftdrake
 from ftdrake import ScenarioConfig, replay
 from ftdrake.conventions import wrench_columns
 from ftdrake.data.stream_delay import estimate_stream_delay, fit_aligned, shift_wrench
+from ftdrake.offline.replay import chain_config_of
 
 PERIOD = 1e-3
 PHYSICS = ["--model", "physics", "--robot", "ftdrake"]
@@ -42,7 +43,7 @@ def test_an_injected_delay_is_recovered_within_one_sample(free_log, injected):
     model, dut = aligned(shift_wrench(free_log, -injected))
     assert dut.delay_s - baseline == pytest.approx(injected, abs=PERIOD)
     assert dut.std_s > 0 and dut.period_s == pytest.approx(PERIOD)
-    assert model.wrench_delay_s_ == dut.delay_s and model.stream_delay_["delay_s"] == dut.delay_s
+    assert model.wrench_delay_s_ == dut.delay_s  # fitted with it (fit's wrench_delay_s)
     # One pass without the refit is biased towards zero by the misaligned fit.
     once = estimate_stream_delay(physics(shift_wrench(free_log, -injected)),
                                  shift_wrench(free_log, -injected)).delay_s
@@ -76,18 +77,19 @@ def test_the_chain_applies_a_model_s_delay_like_the_offline_correction(free_log,
     loaded = ftdrake.load_model(tmp_path / "m.ftd")
     assert loaded.wrench_delay_s_ == pytest.approx(0.005)
     assert ftdrake.CompensationChain(loaded).delay_line is not None
-    assert ftdrake.CompensationChain(loaded, wrench_delay_s=0.0).delay_line is None
+    no_delay = ftdrake.ChainConfig(sensor=ftdrake.SensorStreamConfig(wrench_delay_s=0.0))
+    assert ftdrake.CompensationChain(loaded, no_delay).delay_line is None
     # The delayed log replayed with the stored delay against the original replayed without:
     # shifting dropped the original's first `lag` rows, so row k of the delayed log holds the
     # joint state of row k + lag and the reading of row k; the delay line pairs the reading
     # of row k with the joint state of row k again (after its first `lag` samples).
     n = len(delayed)
-    dut = replay(loaded, delayed)[wrench_columns("comp_external")].to_numpy()
-    reference = replay(loaded, free_log.iloc[:n], wrench_delay_s=0.0)
-    np.testing.assert_allclose(dut[lag:], reference[wrench_columns("comp_external")]
+    dut = replay(loaded, delayed)[wrench_columns("wrench_compensated")].to_numpy()
+    reference = replay(loaded, free_log.iloc[:n], _without_delay(free_log))
+    np.testing.assert_allclose(dut[lag:], reference[wrench_columns("wrench_compensated")]
                                .to_numpy()[lag:], rtol=0, atol=1e-12)
-    assert np.abs(dut[lag:] - replay(loaded, delayed, wrench_delay_s=0.0)[
-        wrench_columns("comp_external")].to_numpy()[lag:]).max() > 0.01  # the delay matters
+    assert np.abs(dut[lag:] - replay(loaded, delayed, _without_delay(delayed))[
+        wrench_columns("wrench_compensated")].to_numpy()[lag:]).max() > 0.01  # the delay matters
 
 
 @pytest.mark.slow
@@ -129,3 +131,10 @@ def test_a_hybrid_finds_the_delay_its_forest_learnt_on_the_training_rows(free_lo
     model, found = fit_aligned(hybrid, log, source="plant")
     assert found.delay_s == pytest.approx(alone, abs=PERIOD)
     assert model.wrench_delay_s_ == found.delay_s
+
+
+def _without_delay(log):
+    """The chain config a replay of `log` runs, with no delay line."""
+    config = chain_config_of(log)
+    config.sensor.wrench_delay_s = 0.0
+    return config

@@ -211,7 +211,7 @@ def held_out_contact_run(model, task_data, seed=777):
     residual = wrench_targets(validation) - model.predict(joint_state_layout(validation))
     scenario = ScenarioConfig()
     scenario.trajectory.seed = scenario.sensor.seed = seed  # not in training
-    scenario.detector = thresholds_from_quantile(residual)
+    scenario.chain.detector = thresholds_from_quantile(residual)
     log = simulate(build_station(scenario, model), progress=False).log
     return evaluate_detection(log, scenario.sensor.spec().noise_std)
 

@@ -16,7 +16,7 @@ from ftdrake import conventions as col
 from ftdrake.compensation.forest import RandomForestCompensator
 from ftdrake.compensation.hybrid import HybridCompensator
 from ftdrake.compensation.physics import ExcitationWarning, PhysicsPayloadCompensator
-from ftdrake.conventions import PREDICTED, PREDICTED_STD
+from ftdrake.conventions import WRENCH_INTERNAL, WRENCH_STD
 from ftdrake.errors import ConfigError
 from ftdrake.testing import THETA, static_poses
 
@@ -66,9 +66,9 @@ def test_a_temperature_model_in_the_loop_matches_its_offline_predict(hybrid):
     # temperature too. Features are q (and T), so the offline row is [q, 0, 0, T_prev].
     q = log[col.joint_columns(col.Q)].to_numpy()
     X = np.c_[q, np.zeros_like(q), np.zeros_like(q), np.r_[np.nan, T[:-1]]][5:]
-    predicted = log[col.wrench_columns(PREDICTED)].to_numpy()[5:]
+    predicted = log[col.wrench_columns(WRENCH_INTERNAL)].to_numpy()[5:]
     np.testing.assert_allclose(predicted, hybrid.predict(X), atol=1e-9)
-    np.testing.assert_allclose(log[col.wrench_columns(PREDICTED_STD)].to_numpy()[5:],
+    np.testing.assert_allclose(log[col.wrench_columns(WRENCH_STD)].to_numpy()[5:],
                                hybrid.predict_std(X), atol=1e-9)
     # The temperature term is really applied: at the ambient temperature the prediction
     # would differ by about k·ΔT (1.10 N on Fz at the end; the forest residual's own split

@@ -181,8 +181,8 @@ def test_tether_with_the_sensors_mounting_and_crosstalk(cable_b_runs):
     K = model.payload_reading_map()
     np.testing.assert_allclose(K, rotation.T @ model.reading_matrix(), atol=1e-12)
     config = ScenarioConfig()
-    config.bias_tracker.track_payload = True
-    chain = CompensationChain(model, config, gravity="input")
+    config.chain.bias_tracker.track_payload = True
+    chain = CompensationChain(model, config.chain_config(), gravity="input")
     np.testing.assert_array_equal(chain.tracker.payload_map, K)
 
 

@@ -14,7 +14,7 @@ from pydrake.math import RigidTransform
 from ftdrake import ScenarioConfig, replay
 from ftdrake import conventions as col
 from ftdrake.compensation.physics import PhysicsPayloadCompensator
-from ftdrake.conventions import BIAS_ESTIMATE, ESTIMATED, PAYLOAD_ESTIMATE
+from ftdrake.conventions import BIAS, PAYLOAD, WRENCH_CONTACT
 from ftdrake.data.dataset import joint_state_layout, wrench_targets
 from ftdrake.errors import ConfigError
 from ftdrake.experiments.tracking import EventPlan, event_configs, push_metrics, run_events
@@ -38,7 +38,7 @@ def fitted(data, model):
     """`model` fitted on `data` and the scenario with thresholds from its residual there."""
     model.fit(joint_state_layout(data), wrench_targets(data))
     residual = wrench_targets(data) - model.predict(joint_state_layout(data))
-    return model, dc.replace(ScenarioConfig(), detector=thresholds_from_quantile(residual))
+    return model, ScenarioConfig().with_chain(detector=thresholds_from_quantile(residual))
 
 
 @pytest.fixture(scope="module")
@@ -51,7 +51,7 @@ def run(config, model):
 
 
 def estimate(log):
-    return log[col.wrench_columns(ESTIMATED)].to_numpy()
+    return log[col.wrench_columns(WRENCH_CONTACT)].to_numpy()
 
 
 @pytest.fixture(scope="module")
@@ -73,21 +73,21 @@ def test_retare_offset_is_tracked_as_a_jump_and_raises_no_contact(retare_logs):
     # published bias is the reference run's plus the injected offset, and what the event
     # leaves in the detector's input is within 2σ of the sensor noise on every axis.
     sigma = np.asarray(ScenarioConfig().sensor.spec().noise_std)
-    columns = col.wrench_columns(BIAS_ESTIMATE)
+    columns = col.wrench_columns(BIAS)
     shift = logs["with"][columns].to_numpy() - logs["reference"][columns].to_numpy()
     after = t > 3.1
     assert (np.abs(shift[after] - offset) <= 2 * sigma).all()
     d = estimate(logs["with"]) - estimate(logs["reference"])
     assert (np.abs(d[after]) <= 2 * sigma).all()
-    assert logs["with"]["detected"].sum() == 0
+    assert logs["with"]["contact"].sum() == 0
 
 
 def test_without_the_tracker_a_retare_reads_as_contact_until_the_end(retare_logs):
     log = retare_logs["untracked"]
     t = log[col.TIME].to_numpy()
-    assert BIAS_ESTIMATE + "_Fx" not in log
-    assert log["detected"].to_numpy()[t > 3.1].all()
-    assert retare_logs["reference"]["detected"].sum() == 0
+    assert BIAS + "_Fx" not in log
+    assert log["contact"].to_numpy()[t > 3.1].all()
+    assert retare_logs["reference"]["contact"].sum() == 0
 
 
 def test_grasp_mass_and_position_identified_in_motion(trained):
@@ -95,14 +95,14 @@ def test_grasp_mass_and_position_identified_in_motion(trained):
     configs = event_configs(config, "grasp", PLAN, seed=0)
     log = run(configs["with"], model)
     t = log[col.TIME].to_numpy()
-    dm, *mc = log[list(PAYLOAD_ESTIMATE)].to_numpy()[t > 7.0].mean(axis=0)
+    dm, *mc = log[list(PAYLOAD)].to_numpy()[t > 7.0].mean(axis=0)
     events = configs["with"].events
     assert dm == pytest.approx(events.grasp_mass_kg, rel=0.05)
     np.testing.assert_allclose(np.asarray(mc) / dm, events.grasp_p_SP, atol=0.01)
     # The grasp's transient (the controller catching the weight) takes q̈ out of the model's
     # domain for a few tenths of a second: the tracker waits for it and the detector reads
     # contact meanwhile (0.41 s here), then releases for good.
-    detected = log["detected"].to_numpy()
+    detected = log["contact"].to_numpy()
     assert detected[t > 3.0].mean() < 0.1
     assert not detected[t > 4.0].any()
 
@@ -144,14 +144,14 @@ def test_slow_push_is_detected_and_not_absorbed(trained):
     log, reference = run(configs["with"], model), run(configs["reference"], model)
     # The push shows in the truth at the sensor with its full force.
     t = log[col.TIME].to_numpy()
-    external = log[col.wrench_columns(col.EXTERNAL)[:3]].to_numpy()
+    external = log[col.wrench_columns(col.EXTERNAL_TRUE)[:3]].to_numpy()
     np.testing.assert_allclose(np.linalg.norm(external, axis=1), log["push_force"], atol=1e-9)
     ramp = (t > 3.1) & (t < 3.0 + PLAN.push_ramp_s)
     np.testing.assert_allclose(log["push_force"].to_numpy()[ramp],
                                PLAN.push_force_n * (t[ramp] - 3.0) / PLAN.push_ramp_s,
                                atol=2e-3 * PLAN.push_force_n)
     row = push_metrics(log, reference, PLAN)
-    threshold = configs["with"].detector.force_on
+    threshold = configs["with"].chain.detector.force_on
     assert row["detected"]
     # Detected within a few tenths of a newton of the threshold, while the tracker had taken
     # under 1 % of the push as bias.
@@ -199,14 +199,14 @@ def test_events_config_is_validated():
     with pytest.raises(ConfigError, match=r"events\.grasp_mass_kg"):
         dc.replace(ScenarioConfig().events, grasp_mass_kg=-0.5).validate()
     with pytest.raises(ConfigError, match=r"bias_tracker\.time_constant_s"):
-        dc.replace(ScenarioConfig().bias_tracker, time_constant_s=0.0).validate()
+        dc.replace(ScenarioConfig().chain.bias_tracker, time_constant_s=0.0).validate()
 
 
 @pytest.mark.parametrize("motion", [False, True])
 def test_the_station_feeds_the_trackers_motion_input_only_when_asked(trained, motion):
     model, config = trained
-    config = dc.replace(config, bias_tracker=dc.replace(
-        config.bias_tracker, track_payload=True, track_payload_motion=motion))
+    config = config.with_chain(bias_tracker=dc.replace(
+        config.chain.bias_tracker, track_payload=True, track_payload_motion=motion))
     station = build_station(config, model)
     tracker = station.compensation.tracker
     context = tracker.GetMyContextFromRoot(station.diagram.CreateDefaultContext())
@@ -217,10 +217,11 @@ def unsignalled(config, event):
     """`event`'s run with the payload-change monitor on and no driver signal."""
     configs = event_configs(config, event, PLAN, seed=0)
     with_event = configs["with"]
-    tracker = dc.replace(with_event.bias_tracker, track_payload=True, payload_change=dc.replace(
-        with_event.bias_tracker.payload_change, enabled=True))
+    tracker = dc.replace(with_event.chain.bias_tracker, track_payload=True,
+                         payload_change=dc.replace(with_event.chain.bias_tracker.payload_change,
+                                                   enabled=True))
     events = dc.replace(with_event.events, grasp_signalled=False)
-    return dc.replace(with_event, bias_tracker=tracker, events=events)
+    return dc.replace(with_event.with_chain(bias_tracker=tracker), events=events)
 
 
 def gravity_turn_deg(config, log, since_s):
@@ -255,14 +256,14 @@ def test_an_unsignalled_grasp_is_announced_and_taken_over_by_the_tracker(trained
     print(f"turned 10° at {turned - grasp:.3f} s after the grasp; announced at "
           f"{announced[0] - grasp:.3f} s")
     assert len(announced) and announced[0] <= turned + 2.0
-    dm = log["payload_est_dm"].to_numpy()[t > announced[0] + 3.0].mean()
+    dm = log["payload_dm"].to_numpy()[t > announced[0] + 3.0].mean()
     assert dm == pytest.approx(config.events.grasp_mass_kg, rel=0.05)
-    detected = log[col.DETECTED].to_numpy()
+    detected = log[col.CONTACT].to_numpy()
     assert not detected[t > announced[0] + 1.0].any()
     assert not (log[col.PAYLOAD_CHANGE].to_numpy()[t < grasp] > 0).any()
     # Replayed offline (g_S then from the logged joint state through the robot's chain, not
     # from the plant): the same announcement, within a monitor period or two.
-    replayed = replay(model, log, config, pairing="simulated")
+    replayed = replay(model, log, config.chain_config(), pairing="simulated")
     offline = t[(replayed[col.PAYLOAD_CHANGE].to_numpy() > 0) & (t > grasp)]
     assert len(offline) and abs(offline[0] - announced[0]) <= 0.05
 
@@ -282,9 +283,9 @@ def test_a_press_of_the_same_force_is_not_a_payload_change_unless_it_is_a_weight
     log = run(config, model)
     t = log[col.TIME].to_numpy()
     announced = t[log[col.PAYLOAD_CHANGE].to_numpy() > 0]
-    print(f"{direction}: contact {log[col.DETECTED].mean():.3f} of the run; announced at "
+    print(f"{direction}: contact {log[col.CONTACT].mean():.3f} of the run; announced at "
           f"{announced[:1]} s")
-    assert log[col.DETECTED].to_numpy().any()
+    assert log[col.CONTACT].to_numpy().any()
     assert announced.size > 0 if direction == "straight down" else announced.size == 0
 
 
@@ -312,7 +313,7 @@ def test_adapting_to_the_grasp_keeps_the_arm_on_its_path(trained):
                     ("adapting", adapting)):
         t, error, log = tracking_error(c, model)
         late = t > PLAN.event_at_s + 2.0
-        after[name] = (np.sqrt(np.mean(error[late] ** 2)), log[col.DETECTED].to_numpy()[late])
+        after[name] = (np.sqrt(np.mean(error[late] ** 2)), log[col.CONTACT].to_numpy()[late])
     print({k: f"{1e3 * v[0]:.3f} mrad" for k, v in after.items()})
     assert after["fixed"][0] > 1.5 * after["reference"][0]  # the grasp matters
     assert after["adapting"][0] < 1.2 * after["reference"][0]

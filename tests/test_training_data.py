@@ -52,7 +52,7 @@ def dataset(tmp_path_factory):
 
     config = ScenarioConfig()
     config.sensor.preset = "robotiq_ft300"  # 100 Hz: a small frame
-    config.compensator = dc.replace(config.compensator, acceleration_cutoff_hz=17.0)
+    config.chain.compensator = dc.replace(config.chain.compensator, acceleration_cutoff_hz=17.0)
     frame = collect(config, 2, kind="fourier", duration=1.0, n_jobs=1, progress=False)
     path = tmp_path_factory.mktemp("dataset") / "d.parquet"
     save_dataset(frame, path)

@@ -60,8 +60,8 @@ def _full_scenario():
     config = ScenarioConfig()
     config.events.retare_at_s, config.events.grasp_at_s, config.events.push_at_s = 1.0, 1.5, 2.0
     config.friction.enabled = True
-    config.bias_tracker.track_payload = True
-    config.bias_tracker.track_payload_motion = True
+    config.chain.bias_tracker.track_payload = True
+    config.chain.bias_tracker.track_payload_motion = True
     return config
 
 
@@ -83,13 +83,12 @@ def _extra_instances(station, model) -> list:
     from pydrake.geometry import Meshcat, MeshcatParams  # noqa: PLC0415
 
     import ftdrake  # noqa: PLC0415
-    from ftdrake.config import TransmissionConfig  # noqa: PLC0415
-    from ftdrake.config import PayloadChangeConfig  # noqa: PLC0415
+    from ftdrake.config import PayloadChangeConfig, TransmissionConfig  # noqa: PLC0415
     from ftdrake.runtime.delay_line import DelayLine  # noqa: PLC0415
     from ftdrake.runtime.payload_change import PayloadChangeMonitor  # noqa: PLC0415
     from ftdrake.sim.scene import CONTROL_SENSOR_FRAME, make_control_plant  # noqa: PLC0415
-    from ftdrake.systems.payload_feedforward import PayloadFeedforward  # noqa: PLC0415
     from ftdrake.systems.learned_feedforward import LearnedFeedforward  # noqa: PLC0415
+    from ftdrake.systems.payload_feedforward import PayloadFeedforward  # noqa: PLC0415
     from ftdrake.systems.time_indexed_feedforward import TimeIndexedFeedforward  # noqa: PLC0415
     from ftdrake.systems.transmission import MotorSide  # noqa: PLC0415
     from ftdrake.systems.wrench_arrows import WrenchArrows  # noqa: PLC0415
@@ -129,7 +128,9 @@ def live_chain(station, model):
     """The runtime chain as a live robot's station builds it (gravity from the joint state)."""
     import ftdrake  # noqa: PLC0415
 
-    return ftdrake.CompensationChain(model, station.config, gravity="joint_state")
+    config = station.config.chain_config()
+    config.robot.file = "ftdrake"  # the forest carries no robot: the simulated arm's kinematics
+    return ftdrake.CompensationChain(model, config, gravity="joint_state")
 
 
 def instances(station, model) -> dict:

@@ -39,7 +39,13 @@ import sys
 import warnings
 from pathlib import Path
 
-from ..config import TRAJECTORY_KINDS, ScenarioConfig, load_config
+from ..config import (
+    TRAJECTORY_KINDS,
+    RobotConfig,
+    ScenarioConfig,
+    load_chain_config,
+    load_config,
+)
 from ..errors import ConfigError, FtdrakeError, command_line_front_end
 
 
@@ -133,6 +139,47 @@ def cluster_address(text: str) -> str:
 # -- the flags every command spells alike --------------------------------------------------------
 def add_config(p, help: str = "scenario YAML (default: the shipped one)"):
     return p.add_argument("--config", type=existing_file, metavar="FILE", help=help)
+
+
+def add_chain_config(p):
+    """``--config FILE``: the chain config (and ``--robot``, ``--sensor-frame``,
+    ``--base-frame``: the robot joint-state gravity runs on) of a command that runs the chain
+    on a live robot or a log."""
+    p.add_argument("--config", type=existing_file, metavar="FILE",
+                   help="chain config YAML: compensator, bias_tracker, detector, sensor "
+                        "(rate, noise, drift, wrench_delay_s), robot at its top, or a live "
+                        "config with chain:, lcm:, ros2: sections (default: the defaults; a "
+                        "scenario file's chain is read too, with a warning)")
+    p.add_argument("--robot", type=existing_file, metavar="FILE",
+                   help="URDF/SDF of the robot joint-state gravity runs on, with "
+                        "--sensor-frame (default: chain.robot, else the robot embedded in the "
+                        "model)")
+    p.add_argument("--sensor-frame", metavar="NAME",
+                   help="frame S of the wrench in --robot")
+    p.add_argument("--base-frame", metavar="NAME",
+                   help="frame of --robot welded to the world (default: its root)")
+
+
+def load_chain(args):
+    """The ChainConfig of --config (validated where it is read) with --robot/--sensor-frame/
+    --base-frame applied; errors name the flag."""
+    with naming("--config", args.config) if args.config else contextlib.nullcontext():
+        config = load_chain_config(args.config)
+    return with_robot_flags(config, args)
+
+
+def with_robot_flags(config, args):
+    """`config` (a ChainConfig) with the robot --robot/--sensor-frame/--base-frame give."""
+    if args.robot is None and args.sensor_frame is None and args.base_frame is None:
+        return config
+    if args.robot is None:
+        raise ConfigError("--sensor-frame/--base-frame name frames of --robot FILE; give it")
+    if not args.sensor_frame:
+        raise ConfigError(f"--robot {args.robot} needs --sensor-frame NAME (the frame the "
+                          "wrench is measured in)")
+    config.robot = RobotConfig(file=str(args.robot), sensor_frame=args.sensor_frame,
+                               base_frame=args.base_frame or "")
+    return config
 
 
 def add_trajectory(p, *, default: str, kinds=TRAJECTORY_KINDS, help: str = "trajectory kind"):

@@ -5,8 +5,9 @@
     ftdrake record --from-log lcmlog-2025-01-01.00 --out log.parquet
 
 ``--hardware`` is a :class:`~ftdrake.hardware.config.HardwareConfig` YAML (channels, message
-types, timeouts, joint count); ``--lcm`` overrides its ``lcm_url``. ``--config`` is the usual
-scenario YAML: serve takes the compensator, bias-tracker, detector and sensor (rate, drift)
+types, timeouts, joint count); ``--lcm`` overrides its ``lcm_url``. ``--config`` is a chain config
+(:class:`~ftdrake.config.ChainConfig`): serve takes the compensator, bias-tracker, detector,
+sensor stream (rate, noise, drift) and robot
 settings from it. ``ftdrake simulate --lcm URL [--realtime]`` (cli/simulation.py) publishes a
 simulated robot on the same channels.
 
@@ -26,20 +27,20 @@ from typing import TYPE_CHECKING
 from ..config import load_config
 from . import args as a
 from . import ros2
-from .live import serve_until_stopped, stop_on_signals
+from .live import load_live, serve_until_stopped, stop_on_signals
 
 if TYPE_CHECKING:
     from ..hardware.config import HardwareConfig
+    from ..hardware.live_config import LiveConfig
 
 
 def register(sub) -> None:
     """Adds ``serve`` and ``record`` to an ``argparse`` subparsers object."""
     p = a.add_command(sub, "serve", "run a compensator on a live robot (LCM)",
-                      "Reads the joint state and F/T streams; publishes the external wrench "
-                      "and the contact state.")
+                      "Reads the joint state and F/T streams; publishes the contact wrench, "
+                      "the compensated wrench and the contact state.")
     a.add_model_file(p, required=True)
-    a.add_config(p, help="scenario YAML: compensator, bias_tracker, detector, sensor settings "
-                 "(default: the shipped one)")
+    a.add_chain_config(p)
     add_transport_flags(p)
     p.add_argument("--duration", type=a.positive_float, metavar="S",
                    help="stop after S seconds, wall clock (default: on Ctrl-C)")
@@ -72,12 +73,13 @@ def add_transport_flags(p, lcm_help: str = "LCM URL, e.g. 'udpm://239.255.76.67:
     p.add_argument("--lcm", metavar="URL", help=lcm_help)
 
 
-def hardware_from_args(args) -> HardwareConfig:
-    """The HardwareConfig of --hardware (defaults without it) with --lcm applied."""
+def hardware_from_args(args, live: LiveConfig | None = None) -> HardwareConfig:
+    """The HardwareConfig of --hardware (else the live config's ``lcm:`` section, else the
+    defaults) with --lcm applied."""
     from ..hardware.config import HardwareConfig
 
     if args.hardware is None:
-        config = HardwareConfig()
+        config = live.lcm if live is not None else HardwareConfig()
     else:
         with a.naming("--hardware", args.hardware):
             config = load_config(args.hardware, schema=HardwareConfig)
@@ -101,8 +103,8 @@ def describe_channels(hardware) -> str:
     if h.joint_state_type == "robot_state":
         joint += f" + velocities {h.velocity_channel}"
     return (f"LCM {h.lcm_url}\n  in:  {joint}; F/T {h.ft_channel} (force_torque)\n"
-            f"  out: external wrench {h.external_wrench_channel} (force_torque); contact "
-            f"{h.contact_channel} (drake_signal: contact, contact_force, fault, out_of_domain)")
+            "  out: " + "; ".join(f"{channel} ({ports})"
+                                  for channel, ports in h.output_channels().items()))
 
 
 
@@ -115,8 +117,8 @@ def run_serve(args) -> int:
     from ..compensation.persistence import load_model
     from ..hardware.station import HardwareStation
 
-    scenario = a.load_scenario(args)
-    hardware = hardware_from_args(args)
+    live = load_live(args)
+    hardware = hardware_from_args(args, live)
     with a.naming("--model", args.model):
         model = load_model(args.model, expect_n_joints=hardware.n_joints)
     transport = open_transport(args, hardware)
@@ -124,7 +126,7 @@ def run_serve(args) -> int:
     def on_event(event) -> None:
         print(f"ftdrake serve: {event}", file=sys.stderr, flush=True)
 
-    station = HardwareStation(hardware, model, scenario, transport, on_event=on_event)
+    station = HardwareStation(hardware, model, live.chain, transport, on_event=on_event)
     if not args.quiet:
         print(f"ftdrake serve: {type(model).__name__} from {args.model}, "
               f"{1 / station.period:g} Hz updates\n{describe_channels(hardware)}",

@@ -1,5 +1,5 @@
-"""What `serve` and `record` share on every transport (LCM, ROS 2): stopping on Ctrl-C and the
-throttled status line."""
+"""What `serve` and `record` share on every transport (LCM, ROS 2): the live config file,
+stopping on Ctrl-C and the throttled status line."""
 
 from __future__ import annotations
 
@@ -8,6 +8,12 @@ import math
 import signal
 import sys
 import time
+from typing import TYPE_CHECKING
+
+from . import args as a
+
+if TYPE_CHECKING:
+    from ..hardware.live_config import LiveConfig
 
 STATUS_PERIOD_S = 0.5  # status line rate: 2 Hz
 
@@ -87,3 +93,13 @@ def serve_until_stopped(station, duration_s: float | None, quiet: bool,
                              for k, v in summary["latency_ms"].items()}
     return summary
 
+
+def load_live(args) -> LiveConfig:
+    """The LiveConfig of --config (chain and transports) with the robot flags applied to its
+    chain; errors name --config."""
+    from ..hardware.live_config import load_live_config
+
+    with a.naming("--config", args.config) if args.config else contextlib.nullcontext():
+        live = load_live_config(args.config)
+    live.chain = a.with_robot_flags(live.chain, args)
+    return live

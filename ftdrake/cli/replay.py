@@ -1,6 +1,7 @@
 """`ftdrake replay`: the runtime chain run offline over a logged stream, one update per row.
 
-    ftdrake replay --model FILE --log FILE --out FILE [--config YAML] [--pairing row|simulated]
+    ftdrake replay --model FILE --log FILE --out FILE [--config YAML] [--robot FILE
+                   --sensor-frame NAME] [--pairing row|simulated]
                    [--view aligned|held] [--delay S | --align] [--budget]
                    [--calibrate-detector YAML]
 
@@ -10,7 +11,7 @@ Parquet (by the suffix of --out) and prints a JSON summary. --log is a CSV/Parqu
 ROS bag (with --wrench-topic) or an LCM log (read with --hardware's channels). --budget adds
 what the in-motion residual is made of (offset, drift, stream delay, the sensor's filter,
 remainder: :func:`ftdrake.offline.residual_budget.residual_budget`) to the summary.
---calibrate-detector writes the scenario with its detector's thresholds set for its budget
+--calibrate-detector writes the chain config with its detector's thresholds set for its budget
 from the log, which must be contact-free motion the model was not trained on
 (:func:`ftdrake.offline.replay.calibrated_detector`); ``serve`` and ``replay`` take it as
 --config.
@@ -22,9 +23,8 @@ import dataclasses as dc
 import json
 import sys
 
-from ..config import load_config, save_config
+from ..config import save_config
 from ..errors import ConfigError, LogError
-from ..io import atomic_path
 from . import args as a
 from .hardware import add_transport_flags, hardware_from_args
 
@@ -40,8 +40,7 @@ def register(sub) -> None:
                    help="CSV/Parquet table (t, q_i, qd_i, meas_*), ROS bag or LCM log")
     p.add_argument("--out", type=a.output_file, required=True, metavar="FILE",
                    help="result table (.csv or .parquet)")
-    a.add_config(p, help="scenario YAML: compensator, bias_tracker, detector, sensor rate "
-                         "(default: the shipped one)")
+    a.add_chain_config(p)
     p.add_argument("--pairing", choices=["row", "simulated"], default="row",
                    help="row: each update reads its row's wrench and joint state (a recorded "
                         "log); simulated: the previous row's wrench, as a simulated station's "
@@ -55,10 +54,11 @@ def register(sub) -> None:
                    help="also split the in-motion residual into offset, drift, stream delay, "
                         "the sensor's filter and what is left, in units of the resting noise")
     p.add_argument("--calibrate-detector", type=a.output_file, metavar="YAML",
-                   help="also write the scenario (--config or the shipped one) with the "
-                        "detector's thresholds set for its false-positive budget from this "
-                        "log, which must be contact-free motion the model was not trained on "
-                        "(detector.test auto: the χ² test for a physics, hybrid or GP model)")
+                   help="also write the chain config (--config's, the log's or the "
+                        "defaults) with the detector's thresholds set for its false-positive "
+                        "budget from this log, which must be contact-free motion the model "
+                        "was not trained on (detector.test auto: the χ² test for a physics, "
+                        "hybrid or GP model)")
     p.add_argument("--wrench-topic", metavar="TOPIC", help="a ROS bag's WrenchStamped topic")
     for flag, default, what in (("--positions", "q_*", "joint position columns (rad)"),
                                 ("--velocities", "qd_*", "joint velocity columns (rad/s)"),
@@ -74,8 +74,9 @@ def register(sub) -> None:
 
 def run_replay(args) -> int:
     from ..compensation.persistence import load_model
+    from ..data.logs import write_log
     from ..data.stream_delay import estimate_stream_delay
-    from ..offline.replay import replay, scenario_of, summary
+    from ..offline.replay import chain_config_of, replay, summary
     from ..offline.residual_budget import residual_budget
 
     _check_flags(args)
@@ -83,10 +84,7 @@ def run_replay(args) -> int:
         model = load_model(args.model)
     with a.naming("--log", args.log):
         frame = _read_log(args)
-    config = None
-    if args.config is not None:
-        with a.naming("--config", args.config):
-            config = load_config(args.config)
+    config = a.load_chain(args) if _chain_given(args) else None
     delay, estimate = args.delay, None
     if args.align:
         estimate = estimate_stream_delay(model, frame)
@@ -95,13 +93,11 @@ def run_replay(args) -> int:
             print(f"warning: the estimated delay {delay * 1e3:.2f} ms is within two of its "
                   f"standard errors ({estimate.std_s * 1e3:.2f} ms) of zero; corrected anyway",
                   file=sys.stderr)
-    result = replay(model, frame, config, pairing=args.pairing, view=args.view,
-                    wrench_delay_s=delay)
-    with atomic_path(args.out) as tmp:
-        if args.out.suffix == ".csv":
-            result.to_csv(tmp, index=False)
-        else:
-            result.to_parquet(tmp, index=False)
+    if delay is not None:
+        config = chain_config_of(frame, config)
+        config.sensor.wrench_delay_s = delay
+    result = replay(model, frame, config, pairing=args.pairing, view=args.view)
+    write_log(result, args.out)
     report = {"out": str(args.out), **summary(result)}
     if delay is not None:
         report["wrench_delay_s"] = delay
@@ -111,7 +107,7 @@ def run_replay(args) -> int:
         report["residual_budget"] = residual_budget(model, frame, config, result=result).as_dict()
     if args.calibrate_detector is not None:
         report["detector"] = _write_calibrated(args.calibrate_detector, result, model,
-                                               scenario_of(frame, config))
+                                               chain_config_of(frame, config))
     print(json.dumps(report))
     return 0
 
@@ -125,12 +121,19 @@ def _check_flags(args) -> None:
                           "replay would not hold there; train with --delay/--align instead")
 
 
-def _write_calibrated(path, result, model, scenario) -> dict:
-    """Writes `scenario` with the detector calibrated on `result`; returns the detector."""
+def _chain_given(args) -> bool:
+    """Whether the command line sets the chain config (else: the log's, see replay)."""
+    return any(v is not None for v in (args.config, args.robot, args.sensor_frame,
+                                       args.base_frame))
+
+
+def _write_calibrated(path, result, model, chain) -> dict:
+    """Writes the chain config `chain` with the detector calibrated on `result`; returns the
+    detector."""
     from ..offline.replay import calibrated_detector
 
-    detector = calibrated_detector(result, model, scenario)
-    save_config(dc.replace(scenario, detector=detector), path)
+    detector = calibrated_detector(result, model, chain)
+    save_config(chain.replace(detector=detector), path)
     return {"file": str(path), **dc.asdict(detector)}
 
 

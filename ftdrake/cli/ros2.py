@@ -1,7 +1,7 @@
 """``--ros2`` for ``ftdrake serve``, ``simulate`` and ``record``: the same commands on ROS 2
 topics (Cyclone DDS, no ROS installation needed).
 
-    ftdrake serve --ros2 --ros2-config ros2.yaml --model m.ftd [--config scenario.yaml]
+    ftdrake serve --ros2 --ros2-config ros2.yaml --model m.ftd [--config chain.yaml]
     ftdrake simulate --ros2 --ros2-config ros2.yaml --realtime [--trajectory fourier]
     ftdrake record --ros2 --ros2-config ros2.yaml --out log.parquet [--duration S]
 
@@ -25,7 +25,7 @@ import time
 from ..config import load_config
 from ..errors import ConfigError
 from . import args as a
-from .live import serve_until_stopped, stop_on_signals
+from .live import load_live, serve_until_stopped, stop_on_signals
 
 
 def add_options(p) -> None:
@@ -39,13 +39,14 @@ def add_options(p) -> None:
                    help="ROS_DOMAIN_ID (default: the --ros2-config file's domain_id, else 0)")
 
 
-def config_from_args(args):
-    """The Ros2Config of --ros2-config (defaults without it) with --ros2-domain applied."""
+def config_from_args(args, live=None):
+    """The Ros2Config of --ros2-config (else the live config's ``ros2:`` section, else the
+    defaults) with --ros2-domain applied."""
     from ..hardware.ros2.config import Ros2Config
 
     path = args.ros2_config
     if path is None:
-        config = Ros2Config()
+        config = live.ros2 if live is not None else Ros2Config()
     else:
         with a.naming("--ros2-config", path):
             config = load_config(path, schema=Ros2Config)
@@ -57,7 +58,8 @@ def config_from_args(args):
 
 def describe_topics(config) -> str:
     c = config
-    outs = ", ".join(c.output_topic(name) for name in ("wrench", "contact", "contact_force"))
+    outs = ", ".join(c.output_topic(name) for name in ("wrench_contact", "wrench_compensated",
+                                                         "contact", "contact_force"))
     return (f"ROS 2 domain {c.domain_id} (DDS: {c.dds_config})\n"
             f"  in:  {c.joint_state_topic} (JointState, {c.joint_state_qos}); "
             f"{c.wrench_topic} (WrenchStamped, {c.wrench_qos})\n"
@@ -69,15 +71,15 @@ def serve(args) -> int:
     from ..compensation.persistence import load_model
     from ..hardware.ros2.station import Ros2Station
 
-    scenario = a.load_scenario(args)
-    config = config_from_args(args)
+    live = load_live(args)
+    config = config_from_args(args, live)
     with a.naming("--model", args.model):
         model = load_model(args.model, expect_n_joints=config.n_joints)
 
     def on_event(event) -> None:
         print(f"ftdrake serve: {event}", file=sys.stderr, flush=True)
 
-    station = Ros2Station(config, model, scenario, on_event=on_event)
+    station = Ros2Station(config, model, live.chain, on_event=on_event)
     print(f"ftdrake serve: {type(model).__name__} from {args.model}, "
           f"{1 / station.period:g} Hz updates\n{describe_topics(config)}",
           file=sys.stderr, flush=True)

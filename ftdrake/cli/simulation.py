@@ -72,6 +72,7 @@ def run_simulate(args) -> int:
     from pydrake.geometry import Meshcat
 
     from .. import plots
+    from ..data.logs import write_log
     from ..sim import station as sim_station
     from ..sim.lcm_publisher import simulate_on_lcm
     from ..sim.simulate import simulate
@@ -95,7 +96,7 @@ def run_simulate(args) -> int:
         result = simulate(station, progress=not args.quiet, realtime_rate=realtime_rate)
     log, summary = result.log, dict(result.timing)
     scenario = "contact" if args.trajectory == "contact" else "free"
-    contact_times = log.loc[log[col.CONTACT] == 1, col.TIME]
+    contact_times = log.loc[log[col.CONTACT_TRUE] == 1, col.TIME]
     summary.update(
         scenario=scenario,
         trajectory=config.trajectory.kind,
@@ -103,12 +104,12 @@ def run_simulate(args) -> int:
         sensor_rate_hz=config.sensor.spec().rate_hz,
         first_contact_time_s=float(contact_times.iloc[0]) if len(contact_times) else None,
         max_contact_force_n=float(
-            (log[col.wrench_columns(col.EXTERNAL)[:3]] ** 2).sum(axis=1).max() ** 0.5
+            (log[col.wrench_columns(col.EXTERNAL_TRUE)[:3]] ** 2).sum(axis=1).max() ** 0.5
         ),
         saturated_samples=int(log[col.SATURATED].sum()),
     )
     with staged_outputs(args.out) as stage:
-        log.to_parquet(stage / "log.parquet", index=False)
+        write_log(log, stage / "log.parquet")
         plots.plot_wrench_log(log, stage / "wrench.png", title=f"{scenario} scenario")
         if meshcat is not None:
             meshcat.StopRecording()
@@ -136,5 +137,5 @@ def run_collect(args) -> int:
     save_dataset(frame, args.out)
     print(json.dumps({"out": str(args.out), "rows": len(frame),
                       "trajectories": int(frame[col.TRAJECTORY].nunique()),
-                      "contact_rows": int(frame[col.CONTACT].sum())}))
+                      "contact_rows": int(frame[col.CONTACT_TRUE].sum())}))
     return 0

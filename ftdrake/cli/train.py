@@ -15,8 +15,10 @@ of the same kind, table or bag). ``--t-start``/``--t-end`` keep the rows in a ti
 (s, on the log's own time axis); derivatives are computed on the whole log first.
 ``--qdd-estimate causal`` trains on the q̈ estimate the loop makes (see ReadOptions).
 
-`train` tunes the model with the ``quick`` grid and grouped CV (``--preset none`` fits the
-defaults), locally or on a Dask cluster (``--cluster ADDRESS``), saves it with
+`train` parses its flags into a :class:`~ftdrake.training.TrainOptions` (a flag is its
+field's name with dashes; ``--delay`` is ``delay_s``), calls :func:`ftdrake.train` — which
+tunes the model with the ``quick`` grid and grouped CV (``--preset none`` fits the
+defaults), locally or on a Dask cluster (``--cluster ADDRESS``) — saves the result with
 :func:`~ftdrake.compensation.persistence.save_model` and prints the file's size. The
 manifest's ``extra`` records the data file and its ReadOptions, the columns used and how the
 computed ones were derived, the training ranges of time and targets (those of the inputs are
@@ -34,29 +36,16 @@ from __future__ import annotations
 import argparse
 import dataclasses as dc
 import sys
-import time
-from pathlib import Path
-
-import numpy as np
-from sklearn.base import clone
 
 from ..compensation import registry
-from ..compensation.build import BUILTIN_ROBOT, RobotOptions, is_wrench
+from ..compensation.build import BUILTIN_ROBOT
 from ..compensation.calibration import static_table_hint
-from ..compensation.domain import IN_DOMAIN_SOURCES, MIN_GROUPS
-from ..compensation.evaluation import target_ranges
-from ..compensation.features import check_feature_set
-from ..compensation.hybrid import HybridCompensator
-from ..compensation.metrics import coverage
-from ..compensation.persistence import save_model
-from ..compensation.tuning import segment_groups, tune
-from ..conventions import WRENCH_UNITS
+from ..compensation.domain import IN_DOMAIN_SOURCES
 from ..data.logs import QDD_ESTIMATES, option_spelling
-from ..data.stream_delay import align_training_data, estimate_training_delay
-from ..data.subsample import OVERSAMPLE, covering_rows
 from ..data.training import ReadOptions, TrainingData, load_training_data
-from ..errors import ConfigError, FtdrakeError, LogError, RobotModelError
-from ..parallel import dask_backend
+from ..errors import ConfigError, LogError, option_names
+from ..training import TrainOptions, train
+from ..training.pipeline import describe
 from . import args as a
 from .args import flag_hint
 
@@ -149,8 +138,7 @@ def register(subparsers) -> None:
 
 def _add_domain_flags(p) -> None:
     """--domain-holdout / --domain-calibration: where the hybrid's out-of-domain std is
-    calibrated (:meth:`~ftdrake.compensation.hybrid.HybridCompensator.fit_calibrated`,
-    :meth:`~ftdrake.compensation.hybrid.HybridCompensator.calibrate_domain`)."""
+    calibrated (:class:`~ftdrake.compensation.domain_calibrated.DomainCalibratedHybrid`)."""
     group = p.add_mutually_exclusive_group()
     group.add_argument(
         "--domain-holdout", type=a.holdout_share, metavar="SHARE",
@@ -178,11 +166,12 @@ def _add_domain_flags(p) -> None:
 def _add_model_options(p) -> None:
     """The options the registered compensators take (their registry entries' train options)."""
     for option in registry.train_options():
+        text = option.describe(flag_of).replace("%", "%%")  # argparse formats help with %
         if option.kind is bool:
-            p.add_argument(option.flag, action="store_true", help=option.help)
+            p.add_argument(flag_of(option.name), action="store_true", help=text)
         else:
-            p.add_argument(option.flag, type=option.kind, default=option.default,
-                           choices=option.choices, metavar=option.metavar, help=option.help)
+            p.add_argument(flag_of(option.name), type=option.kind, default=option.default,
+                           choices=option.choices, metavar=option.metavar, help=text)
 
 
 def _model_options(args) -> dict:
@@ -234,192 +223,44 @@ def read_data(args, options: ReadOptions, say, static_poses: bool | None = False
             if hint is None:
                 raise
             raise LogError(f"{e}; {hint}") from None
-    say(_describe(data))
+    say(describe(data))
     return data
-
-
-def target_units(text: str | None, names: list[str]) -> list[str]:
-    """The unit of each target: from ``--target-units``, else N/N·m for a wrench, else N·m."""
-    if text:
-        units = [u.strip() for u in text.split(",")]
-        if len(units) != len(names):
-            raise ConfigError(f"--target-units gives {len(units)} units for {len(names)} "
-                              f"targets {names}")
-        return units
-    if is_wrench(names):
-        return list(WRENCH_UNITS)
-    return ["N*m"] * len(names)
 
 
 # -- train --------------------------------------------------------------------------------------
 def run_train(args) -> int:
     say = reporter(args.quiet)
-    for flag, given in (("--domain-shared-growth", args.domain_shared_growth),
-                        ("--domain-level", args.domain_level != "cross_fit")):
-        if given and args.domain_holdout is None and args.domain_calibration is None:
-            raise ConfigError(f"{flag} needs --domain-holdout or --domain-calibration")
-    options = with_flags(ReadOptions(), args)
-    data = read_data(args, options, say)
-    robot = RobotOptions(args.robot, args.sensor_frame, args.base_frame, data.scenario_yaml,
-                         joints=args.joints, fixed_joints=args.fixed_joints)
-    if args.kind is None:
-        args.kind = registry.default_kind(robot)
-        say(f"--kind not given: {args.kind} "
-            + ("(a robot description and wrench targets: physics + learned residual)"
-               if args.kind == "hybrid" else "(no --robot: a black box)"))
-    estimator = registry.make_estimator(args.kind, features=args.features, seed=args.seed,
-                                        target_names=data.target_names, robot=robot,
-                                        options=_model_options(args))
-    units = target_units(args.target_units, data.target_names)
-    data, stream_delay = _align_streams(args, data, estimator, say)
-    data, subsample = _subsample(args, data, estimator, say)
-    search = None
-    if args.preset == "quick" and "quick" in registry.entry(args.kind).presets:
-        where = f"Dask scheduler {args.cluster}" if args.cluster else "local processes"
-        say(f"tuning {args.kind} (quick grid, grouped 5-fold CV) on {where} …")
-        with dask_backend(args.cluster):
-            model, search = tune(estimator, data.X, data.Y, groups=segment_groups(data.groups),
-                                 preset="quick", cv="grouped", target_names=data.target_names,
-                                 n_jobs=args.jobs, progress=not args.quiet)
-        say(f"best {search.best_params[0]}, CV MSE {-search.mean_score[0]:.4g}")
-    else:
-        why = "" if args.preset == "none" else " (no grid: its parameters are fitted from data)"
-        say(f"fitting {args.kind}{why} on {len(data.X)} rows …")
-        started = time.perf_counter()
-        model = _fit(estimator, data, needs_robot=registry.entry(args.kind).needs_robot,
-                     holdout=args.domain_holdout, shared_growth=args.domain_shared_growth,
-                     in_domain=args.domain_level)
-        say(f"fitted in {time.perf_counter() - started:.1f} s")
-    domain = _calibrate_domain(args, options, model, data, say)
-    if hasattr(model, "summary"):  # physics and hybrid: the identified payload
-        print(model.summary())
-    extra = provenance(args.data, data, model, search, kind=args.kind,
-                       time_window=(args.t_start, args.t_end), dask=args.cluster)
-    if subsample is not None:
-        extra["subsample"] = subsample
-    if domain is not None:
-        extra["domain_calibration"] = domain
-    if stream_delay is not None:  # the chain applies it live (CompensationChain)
-        model.wrench_delay_s_ = stream_delay["delay_s"]
-        extra["stream_delay"] = stream_delay
-    args.out.parent.mkdir(parents=True, exist_ok=True)
-    sensor_frame = args.sensor_frame or ("S" if is_wrench(data.target_names) else "joints")
-    save_model(model, args.out, target_names=data.target_names, target_units=units,
-               sensor_frame=sensor_frame, extra=extra)
+    with option_names(flag_of):
+        options = train_options(args)
+        result = train(args.data, options, progress=None if args.quiet else say, warn=warn)
+    if result.summary is not None:  # physics and hybrid: the identified payload
+        print(result.summary)
+    result.save(args.out)
     print(f"saved {args.out} ({file_size(args.out.stat().st_size)})")
     return 0
 
 
-def _subsample(args, data: TrainingData, estimator, say):
-    """--max-rows: (data cut to the covering rows, what was done) or (data, None)."""
-    if args.max_rows is None or len(data.X) <= args.max_rows:
-        return data, None
-    features = getattr(estimator, "features", None)
-    columns = check_feature_set(features) * data.n_joints if features else None
-    say(f"choosing {args.max_rows} of {len(data.X)} rows that cover the log's states …")
-    started = time.perf_counter()
-    rows = covering_rows(data.X, args.max_rows, groups=data.groups, columns=columns)
-    elapsed = time.perf_counter() - started
-    say(f"chose {len(rows)} rows in {elapsed:.1f} s")
-    done = {"rows_in": len(data.X), "rows_used": len(rows), "max_rows": args.max_rows,
-            "method": "every k-th row, then farthest-point in the model's scaled inputs",
-            "oversample": OVERSAMPLE, "metric_columns": columns or data.X.shape[1]}
-    return dc.replace(data, X=data.X[rows], Y=data.Y[rows], t=data.t[rows],
-                      groups=data.groups[rows], rows=dict(data.rows, used=len(rows))), done
+#: TrainOptions fields whose flag is not the field's name with dashes.
+_FLAGS = {"delay_s": "--delay"}
 
 
-def _align_streams(args, data: TrainingData, estimator, say):
-    """--delay / --align: (data with the targets moved the delay earlier, the delay as a
-    dict) or (data, None) without either (:mod:`ftdrake.data.stream_delay`)."""
-    if args.delay is None and not args.align:
-        return data, None
-    if data.static:
-        raise LogError("--delay/--align: a table of static poses has no time axis to align")
-    if args.align:
-        needs_robot = registry.entry(args.kind).needs_robot
-        say(f"estimating the wrench stream's delay with {args.kind} …")
-        estimate = estimate_training_delay(
-            lambda d: _fit(clone(estimator), d, needs_robot=needs_robot), data)
-        found = estimate.as_dict()
-        say(f"wrench stream delay: {estimate.delay_s * 1e3:.2f} ± {estimate.std_s * 1e3:.2f} ms "
-            f"({estimate.samples:.2f} samples); corrected"
-            + ("" if found["distinct_from_zero"] else " (within two standard errors of 0)"))
-    else:
-        found = {"delay_s": float(args.delay), "given": True}
-    return align_training_data(data, found["delay_s"]), found
+def flag_of(option: str) -> str:
+    """The flag of TrainOptions field `option` (``read.positions``: a read flag)."""
+    name = option.removeprefix("read.")
+    return _FLAGS.get(name, _flag_name(name))
 
 
-def _fit(estimator, data: TrainingData, *, needs_robot: bool, holdout: float | None = None,
-         shared_growth: bool = False, in_domain: str = "cross_fit"):
-    """Fits `estimator` (with `holdout`, a hybrid's :meth:`fit_calibrated` on that share of
-    the runs). A robot-based model's ValueErrors are about the robot description (joint
-    count, frames); they name the flags that choose it."""
-    def fit():
-        if holdout is None:
-            return estimator.fit(data.X, data.Y)
-        runs = data.groups if len(np.unique(data.groups)) >= MIN_GROUPS else None
-        return estimator.fit_calibrated(data.X, data.Y, groups=runs, share=holdout,
-                                        shared_growth=shared_growth, in_domain=in_domain)
-
-    if holdout is not None:
-        _needs_hybrid(estimator, "--domain-holdout")
-    if not needs_robot:
-        return fit()
-    try:
-        return fit()
-    except FtdrakeError:
-        raise
-    except ValueError as e:
-        raise RobotModelError(f"{e} (check --robot, --sensor-frame, --base-frame and "
-                              f"--positions)") from e
-
-
-def _needs_hybrid(model, flag: str) -> None:
-    residual = getattr(model, "residual", None)
-    own_std = getattr(residual, "provides_std", False) and getattr(
-        residual, "std_includes_noise", False)  # a GP residual: no support term
-    if not isinstance(model, HybridCompensator) or own_std:
-        raise ConfigError(f"{flag} is for --kind hybrid with its forest residual (the "
-                          "support term of its std); omit it")
-
-
-def _calibrate_domain(args, options: ReadOptions, model, data: TrainingData, say):
-    """--domain-calibration: calibrates `model`'s support term on that log; returns what
-    the manifest keeps about the calibration (or None without either domain flag)."""
-    if args.domain_calibration is not None:
-        _needs_hybrid(model, "--domain-calibration")
-        say(f"reading {args.domain_calibration} (out-of-domain calibration) …")
-        with option_spelling(flag_hint):
-            log = load_training_data(args.domain_calibration, options, report=warn)
-        if log.target_names != data.target_names or log.X.shape[1] != data.X.shape[1]:
-            raise LogError(f"--domain-calibration {args.domain_calibration}: its columns "
-                           f"({log.target_names}) are not the training data's "
-                           f"({data.target_names}); give a log of the same robot and sensor")
-        before = coverage(log.Y, model.predict(log.X), model.predict_std(log.X))
-        model.calibrate_domain(log.X, log.Y, shared_growth=args.domain_shared_growth,
-                               in_domain=args.domain_level)
-        found = {"file": str(args.domain_calibration), "rows": len(log.X),
-                 "length": (float(model.domain_length_) if np.isfinite(model.domain_length_)
-                            else None),  # None: ∞
-                 "growth": model.domain_growth_.tolist(),
-                 "shared_growth": bool(args.domain_shared_growth),
-                 "in_domain": args.domain_level,
-                 "in_domain_std": np.sqrt(model.residual_noise_var_).tolist(),
-                 "parameter_variance_scale": float(model.domain_parameter_scale_),
-                 "coverage_95_before": before.tolist(),
-                 "coverage_95_after": coverage(log.Y, model.predict(log.X),
-                                               model.predict_std(log.X)).tolist()}
-    elif args.domain_holdout is not None:
-        found = dict(model.domain_calibration_)
-    else:
-        return None
-    length = "∞" if found["length"] is None else f"{found['length']:.3g}"
-    say(f"out-of-domain std: ℓ = {length}, g = "
-        + ", ".join(f"{g:.3g}" for g in found["growth"])
-        + "; 95 % coverage on the calibration rows "
-        + ", ".join(f"{c:.2f}" for c in found["coverage_95_after"])
-        + " (before: " + ", ".join(f"{c:.2f}" for c in found["coverage_95_before"]) + ")")
-    return found
+def train_options(args) -> TrainOptions:
+    """The TrainOptions the flags give (an invalid value's error names its flag)."""
+    return TrainOptions(
+        kind=args.kind, features=args.features, preset=args.preset, robot=args.robot,
+        sensor_frame=args.sensor_frame, base_frame=args.base_frame, joints=args.joints,
+        fixed_joints=args.fixed_joints, model_options=_model_options(args),
+        target_units=args.target_units, seed=args.seed, jobs=args.jobs, cluster=args.cluster,
+        max_rows=args.max_rows, delay_s=args.delay, align=args.align,
+        domain_holdout=args.domain_holdout, domain_calibration=args.domain_calibration,
+        domain_shared_growth=args.domain_shared_growth, domain_level=args.domain_level,
+        read=with_flags(ReadOptions(), args), t_start=args.t_start, t_end=args.t_end)
 
 
 def file_size(n_bytes: int) -> str:
@@ -428,63 +269,6 @@ def file_size(n_bytes: int) -> str:
         if n_bytes >= scale:
             return f"{n_bytes / scale:.3g} {unit}"
     return f"{n_bytes} B"
-
-
-def provenance(path: Path, data: TrainingData, model, search, *, kind: str,
-               time_window=(None, None), dask: str | None = None) -> dict:
-    """What the manifest's ``extra`` keeps about a training run on `data` read from `path`."""
-    return {
-        "data": {
-            "file": str(path),
-            "kind": data.kind,
-            "source": data.source,
-            "options": data.options.to_dict(),
-            "time_window_s": list(time_window),
-        },
-        "columns": {
-            "joints": data.joint_names,
-            "targets": data.target_names,
-            "temperature": data.options.temperature if data.has_temperature else None,
-            "derived": data.derivation,
-        },
-        "training_range": {
-            "t_s": [float(data.t.min()), float(data.t.max())],
-            "targets": target_ranges(data.Y, data.target_names),
-            "inputs": "see the manifest's input_range",
-        },
-        "rows": data.rows,
-        "reader_warnings": data.warnings,
-        "model": {"kind": kind, "params": _plain(model.get_params(deep=False))},
-        "tuning": search.to_dict() if search is not None else None,
-        "dask": dask,
-    }
-
-
-def _plain(params: dict) -> dict:
-    """The JSON-friendly parameters (numbers, strings, lists of them); others by type name."""
-    out = {}
-    for k, v in params.items():
-        if k == "robot" and isinstance(v, str) and v.lstrip().startswith("directives:"):
-            out[k] = "<model directives of the training data's robot>"
-        elif v is None or isinstance(v, (bool, int, float, str)):
-            out[k] = v
-        elif isinstance(v, (list, tuple)) and all(isinstance(x, (int, float)) for x in v):
-            out[k] = list(v)
-        else:
-            out[k] = type(v).__name__
-    return out
-
-
-
-
-
-
-
-
-
-
-
-
 
 
 # -- output ---------------------------------------------------------------------------------------
@@ -498,15 +282,6 @@ def reporter(quiet: bool):
 
 def warn(message: str) -> None:
     print(message, file=sys.stderr, flush=True)
-
-
-def _describe(data: TrainingData) -> str:
-    r = data.rows
-    methods = {"savitzky_golay": "Savitzky–Golay", "causal": "the loop's causal estimate"}
-    derived = "".join(f"; {k} from {methods[v['method']]}" for k, v in data.derivation.items())
-    return (f"{r['used']} rows used of {r['in_file']} in the file ({r['dropped_by_reader']} "
-            f"dropped by the reader, {r['outside_time_window']} outside the time window), "
-            f"{data.n_joints} joints, {len(data.target_names)} targets{derived}")
 
 
 def main(argv=None) -> int:

@@ -40,7 +40,7 @@ import numpy as np
 from pydrake.solvers import MathematicalProgram, SolverOptions
 
 from ..conventions import GRAVITY_W
-from ..errors import ConfigError, RobotModelError
+from ..errors import ConfigError, RobotModelError, option_name
 from ..physics.arm_dynamics import INERTIAL_NAMES, INERTIAL_UNITS, ArmDynamics, ArmModel
 from .base import Compensator
 from .consistent_program import IdentificationError, pick_solver, prior_precision
@@ -282,8 +282,8 @@ class ArmDynamicsCompensator(CarriesRobot, Compensator):
                 + ", ".join(f"{self.residual_rms_[j]:.3g}" for j in far)
                 + " N·m), so the targets are joint torques: an arm that measures joint torque "
                 "has no drive gain to identify (a gain that far from 1 only trades off "
-                "against the joint's friction and offset). Drop --drive-gains identify "
-                "(drive_gains='fixed' in Python)")
+                f"against the joint's friction and offset). Drop {option_name('drive_gains')} "
+                "identify")
             warnings.warn(self.gain_warning_, DriveGainWarning, stacklevel=4)
 
     def _initial_gains(self, A, Y, prior, p_rb):

@@ -29,12 +29,16 @@ The protocol a compensator follows to run in a control loop and leave Python:
   one call, with the model's arrays it takes (:mod:`ftdrake.compensation.compiled.loop`), or
   None (the loop then calls ``row_predictor()``). Forests and hybrids with a forest residual
   have one; it takes the 3n joint row only, so a model trained with the temperature has none.
+* ``robot_description()`` – the robot the model was trained on (physics and hybrid models
+  carry it in their file), or None: the chain computes gravity at the sensor on it.
 * ``onnx_parts()`` – what :mod:`ftdrake.compensation.onnx_export` writes as a graph, or
   TypeError for models that have no ONNX form.
 * ``reading_to_model_frame()`` – None, or the 6 × 6 matrix T that turns ``measured −
   predicted`` (a wrench as the sensor reads it) into the model's frame S: the inverse of
   an identified mounting rotation or gain/cross-talk correction (physics and hybrid).
   ``CompensatorSystem`` applies it to the external wrench.
+
+:mod:`.contract` declares this protocol (``LoopModel``) and checks a model against it once.
 
 A new compensator is one module (a subclass, with its own ``make`` and train options when the
 registry's defaults do not build it) and one entry in :mod:`ftdrake.compensation.registry`.
@@ -79,19 +83,36 @@ class Compensator(RegressorMixin, BaseEstimator):
     temperature_in_ : bool     whether X's last column is the sensor temperature (°C)
     n_outputs_ : int
     input_min_, input_max_ : (3n,) arrays, the training range of every input column
+    wrench_delay_s_ : float    s, the delay of the targets' stream behind the joint states that
+                               the caller corrected in the training rows (``fit``'s
+                               `wrench_delay_s`; 0.0 when none was); the runtime chain
+                               applies it live as a delay line on the joint state
     """
 
     #: True for models whose ``predict_std`` returns a real standard deviation.
     provides_std = False
     #: True when ``predict_std`` is the std of a new reading (noise included; see above).
     std_includes_noise = False
+    # Defaults of fitted attributes that models saved before them lack (the loop contract,
+    # :mod:`.contract`): no temperature input; the wrench stream in step with the joints.
+    temperature_in_ = False
+    wrench_delay_s_ = 0.0
 
     def __init__(self, features: str = "q,qd,qdd"):
         self.features = features
 
     # -- the sklearn API -------------------------------------------------------------------
-    def fit(self, X, y):
+    def fit(self, X, y, *, wrench_delay_s: float | None = None):
+        """Fits on rows `X` (N, 3n) ``[q, q̇, q̈]`` (and the temperature, °C, as a last column)
+        and targets `y` (N,) or (N, k). `wrench_delay_s` (s): how much later the targets'
+        stream was than the joint states, already corrected in `X`, `y` by the caller
+        (:func:`~ftdrake.data.stream_delay.align_training_data`); kept as
+        ``wrench_delay_s_`` for the loop, which must apply the same correction live."""
         check_feature_set(self.features)
+        delay = 0.0 if wrench_delay_s is None else float(wrench_delay_s)
+        if not np.isfinite(delay):
+            raise ValueError(f"wrench_delay_s must be a finite number of seconds; got "
+                             f"{wrench_delay_s!r}")
         X, y = validate_data(
             self, X, y, multi_output=True, y_numeric=True, ensure_all_finite=False,
             dtype=np.float64,
@@ -107,6 +128,7 @@ class Compensator(RegressorMixin, BaseEstimator):
         self.n_outputs_ = Y.shape[1]
         self.input_min_ = X.min(axis=0)
         self.input_max_ = X.max(axis=0)
+        self.wrench_delay_s_ = delay
         self._fit(self._select(X), Y)
         return self
 
@@ -178,6 +200,10 @@ class Compensator(RegressorMixin, BaseEstimator):
         T = self.reading_to_model_frame()
         K = M if T is None else T @ M
         return None if np.allclose(K, np.eye(6), rtol=0.0, atol=1e-12) else K
+
+    def robot_description(self):
+        """The RobotDescription this model was trained on, or None (a model of joint states
+        alone, e.g. a forest, knows no robot)."""
 
     def onnx_parts(self):
         """The compiled form :func:`~ftdrake.compensation.onnx_export.build_onnx` writes."""

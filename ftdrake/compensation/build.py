@@ -18,7 +18,7 @@ from typing import Any
 
 from ..config import parse_config
 from ..conventions import WRENCH_AXES
-from ..errors import ConfigError, RobotModelError
+from ..errors import ConfigError, RobotModelError, option_name
 from ..physics.robot import (
     RobotDescription,
     fixed_joint_values,
@@ -42,8 +42,8 @@ class RobotOptions:
     scenario_yaml: the scenario a ``collect`` dataset was simulated with (its YAML text).
     joints: the joints of `robot` the log's position columns hold, in their order (names, one
       comma-separated string, or a YAML file of ``joints: [...]`` and optionally
-      ``fixed_joints: {...}``; ``--joints``); None: every joint of `robot`, in its order.
-    fixed_joints: where `robot`'s other joints stand (``--fixed-joints``): a mapping name →
+      ``fixed_joints: {...}``); None: every joint of `robot`, in its order.
+    fixed_joints: where `robot`'s other joints stand: a mapping name →
       rad or m, ``"a=0.2,b=0.01"`` or a YAML file of such a mapping; unnamed joints stand at 0.
     """
 
@@ -62,10 +62,10 @@ class RobotOptions:
         joints, fixed = self.joints, dict(fixed_joint_values(self.fixed_joints))
         if isinstance(joints, str) and joints.endswith((".yaml", ".yml")):
             joints, in_file = joint_mapping_file(joints)
-            fixed = {**dict(in_file), **fixed}  # --fixed-joints overrides the file's
+            fixed = {**dict(in_file), **fixed}  # fixed_joints given overrides the file's
         if joints is None:
-            raise ConfigError("--fixed-joints needs --joints (the joints the log holds, in the "
-                              "order of its position columns)")
+            raise ConfigError(f"{option_name('fixed_joints')} needs {option_name('joints')} (the "
+                              "joints the log holds, in the order of its position columns)")
         return {"joints": joint_names(joints), "fixed_joints": fixed or None}
 
     @property
@@ -84,18 +84,19 @@ class RobotOptions:
         """`robot` as an absolute path; a RobotModelError when there is no such file."""
         path = Path(self.robot)
         if not path.is_file():
-            raise RobotModelError(f"--robot {path}: no such file")
+            raise RobotModelError(f"{option_name('robot')} {path}: no such file")
         return str(path.resolve())
 
 
 @dc.dataclass(frozen=True)
 class TrainOption:
-    """One option a registry entry reads when it builds its compensator; ``ftdrake train``
-    offers it as the flag :attr:`flag` (a switch when `kind` is bool).
+    """One option a registry entry reads when it builds its compensator (a
+    :attr:`~ftdrake.training.TrainOptions.model_options` entry; ``ftdrake train`` offers it
+    as a flag, a switch when `kind` is bool).
 
-    name: the keyword in :attr:`BuildRequest.options` (``identify_mounting`` →
-      ``--identify-mounting``).
-    help: what it does, for ``train --help``.
+    name: the keyword in :attr:`BuildRequest.options` (``identify_mounting``).
+    description: what it does; other options in it are written ``{name}``, filled by
+      :meth:`describe`.
     default: its value when not given; a value other than this is "given".
     kind: the value's type (bool: a switch, given by its presence).
     choices, metavar: the values it takes and how help shows them.
@@ -104,16 +105,18 @@ class TrainOption:
     """
 
     name: str
-    help: str
+    description: str
     default: Any = None
     kind: type = str
     choices: tuple | None = None
     metavar: str | None = None
     scope: str = ""
 
-    @property
-    def flag(self) -> str:
-        return "--" + self.name.replace("_", "-")
+    def describe(self, spell=None) -> str:
+        """:attr:`description` with each ``{option}`` named by `spell` (default
+        :func:`~ftdrake.errors.option_name`: the name in Python, the flag on the command
+        line)."""
+        return options_named(self.description, spell)
 
     def given(self, value) -> bool:
         """Whether `value` differs from the default (the user asked for something)."""
@@ -123,14 +126,32 @@ class TrainOption:
         """The error for this option given to a model that does not take it: it names the
         models (registry names `owners`) that do."""
         scope = f" {self.scope}" if self.scope else ""
-        return ConfigError(f"{self.flag} is for --kind {join_or(owners)}{scope}")
+        return ConfigError(f"{option_name(self.name)} is for {option_name('kind')} "
+                           f"{join_or(owners)}{scope}")
+
+
+def options_named(text: str, spell=None) -> str:
+    """`text` with each ``{option}`` in it named by `spell` (default
+    :func:`~ftdrake.errors.option_name`)."""
+    return text.format_map(_Spelled(spell or option_name))
+
+
+class _Spelled(dict):
+    """``str.format_map``'s mapping: an option's name → how `spell` names it."""
+
+    def __init__(self, spell):
+        super().__init__()
+        self.spell = spell
+
+    def __missing__(self, key: str) -> str:
+        return self.spell(key)
 
 
 @dc.dataclass(frozen=True)
 class BuildRequest:
     """What an entry builds its unfitted compensator for.
 
-    kind: the registry name asked for (errors name it as ``--model KIND``).
+    kind: the registry name asked for (errors name it as the option ``kind``).
     features: ``q``, ``q,qd`` or ``q,qd,qdd``; None for the entry's default.
     seed: random state of the models that have one.
     target_names: the data's targets (a wrench, :func:`is_wrench`, or anything else).
@@ -176,8 +197,8 @@ def join_or(names) -> str:
 def wrench_only_error(kind: str, target_names) -> ConfigError:
     """The error of a wrench-only model asked to fit other targets."""
     return ConfigError(
-        f"--kind {kind} predicts a wrench: 6 targets named *Fx, *Fy, *Fz, *Tx, *Ty, "
-        f"*Tz (N, N·m) in the sensor frame; got {list(target_names)}. Joint torques need "
-        f"rf, svr, gpr, or arm/physics/hybrid with --robot (or choose the wrench columns "
-        f"with --targets)"
+        f"{option_name('kind')} {kind} predicts a wrench: 6 targets named *Fx, *Fy, *Fz, *Tx, "
+        f"*Ty, *Tz (N, N·m) in the sensor frame; got {list(target_names)}. Joint torques need "
+        f"rf, svr, gpr, or arm/physics/hybrid with {option_name('robot')} (or choose the "
+        f"wrench columns with {option_name('read.targets')})"
     )

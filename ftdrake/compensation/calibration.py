@@ -36,7 +36,7 @@ import pandas as pd
 
 from ..conventions import GRAVITY_W, MEASURED, TEMPERATURE, WRENCH_AXES
 from ..data.logs import expand_columns, option_hint
-from ..errors import ConfigError, LogError
+from ..errors import ConfigError, LogError, option_name
 from .consistent import PayloadPrior, identify_consistent, identify_least_squares
 from .correction import (
     CORRECTIONS,
@@ -72,8 +72,8 @@ __all__ = [  # with the table reader's and the correction's names callers take f
 STATIC_NAMES = ("m", "mcx", "mcy", "mcz", "bFx", "bFy", "bFz", "bTx", "bTy", "bTz")
 STATIC_UNITS = ("kg", "kg*m", "kg*m", "kg*m", "N", "N", "N", "N*m", "N*m", "N*m")
 NOT_IDENTIFIABLE = ("static poses determine the mass, the first moment m·c (so the centre of "
-                    "mass) and the biases; the inertia needs motion (a dynamic log with "
-                    "`ftdrake train --kind physics`)")
+                    "mass) and the biases; the inertia needs motion (a dynamic log, trained "
+                    "on with kind physics)")
 
 
 @dc.dataclass
@@ -362,7 +362,8 @@ def _calibrate(frame, robot, sensor_frame, base_frame, positions, targets, posit
                                        identify_mounting, gravity, mapping)
     if kind is None:
         raise LogError("no orientation in the table: give joint angles (columns "
-                       f"{positions!r}) with --robot and --sensor-frame, or one of the column "
+                       f"{positions!r}) with {option_name('robot')} and "
+                       f"{option_name('sensor_frame')}, or one of the column "
                        "sets " + "; ".join(", ".join(c if len(c) < 5 else (c[0], "…", c[-1]))
                                              for c in ORIENTATIONS.values()))
     g_S = gravity_in_sensor(frame, kind, gravity)
@@ -404,7 +405,8 @@ def _calibrate_joint_angles(frame, joint_cols, Y, temperature, robot, sensor_fra
     if robot in (None, "ftdrake"):
         robot = sensor_frame = None
     elif not sensor_frame:
-        raise ConfigError(f"--robot {robot} needs --sensor-frame (the frame of the wrench)")
+        raise ConfigError(f"{option_name('robot')} {robot} needs {option_name('sensor_frame')} "
+                          "(the frame of the wrench)")
     X = joint_layout(frame, joint_cols, position_unit)
     if temperature is not None:
         X = np.column_stack([X, temperature])

@@ -26,10 +26,11 @@ The distance runs on a k-d tree of at most :data:`SUPPORT_POINTS` training rows
 ℓ and σ²_in are calibrated when the hybrid is fitted, on its cross-fit (the residual refitted
 on alternate blocks of rows and scored on the others, whose rows lie at many distances from
 the other half), with g = 0; :func:`calibrate` re-fits ℓ and g (and, optionally, σ²_in and
-c) on held-out runs that leave the training data (``HybridCompensator.calibrate_domain``).
-Which runs: another log of the task's motion, or those of the training data that
+c) on held-out runs that leave the training data (``HybridCompensator.domain_terms``, which
+:class:`~.domain_calibrated.DomainCalibratedHybrid` predicts with). Which runs: another log of
+the task's motion (``holdout=None``), or those of the training data that
 :func:`farthest_groups` picks — the runs (or, in a log of one run, the time blocks) whose
-inputs lie farthest from the others' (``HybridCompensator.fit_calibrated``). Both choose ℓ by
+inputs lie farthest from the others' (``holdout=share``). Both choose ℓ by
 the Gaussian likelihood of the held-out errors over a grid; for each ℓ the variance terms are a
 (weighted, non-negative) least-squares fit of the squared errors, which they are linear in.
 """

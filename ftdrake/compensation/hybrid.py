@@ -24,8 +24,8 @@ exp(−(d/ℓ)²) of the distance d to the training inputs in the residual's sta
 metric (``domain_distance``). Fitted alone, ℓ (``domain_length_``) and σ²_in come from the
 cross-fit (the residual refitted on alternate blocks of rows and scored on the others, with
 g = 0); calibrated on held-out runs that leave the training data
-(:meth:`HybridCompensator.calibrate_domain` — or, with the runs of the training data
-farthest from the others held out for it, :meth:`HybridCompensator.fit_calibrated`), ℓ and
+(:class:`~.domain_calibrated.DomainCalibratedHybrid`, which wraps a hybrid: on another log,
+or on the runs of the training data farthest from the others, held out for it), ℓ and
 g are fitted on them — and with ``in_domain="held_out"`` σ²_in (at least the residual's error
 on its training rows) and c too.
 
@@ -47,7 +47,6 @@ from .compiled.hybrid import CompiledHybrid, hybrid_row
 from .compiled.loop import compensate_with_hybrid
 from .features import check_feature_set
 from .forest import RandomForestCompensator
-from .metrics import coverage
 from .physics import PhysicsPayloadCompensator
 
 
@@ -65,9 +64,12 @@ class HybridCompensator(Compensator):
 
     Fitted attributes: ``physics_``, ``residual_`` (fitted clones), ``residual_noise_var_``
     (6,) σ²_in, the residual's error variance per axis where it has data: cross-validated,
-    or calibrated on held-out runs by :meth:`calibrate_domain` (NaN when the residual's own
+    or calibrated on held-out runs by :class:`~.domain_calibrated.DomainCalibratedHybrid`
+    (NaN when the residual's own
     std is used); ``residual_training_var_`` (6,) its error on its own training rows, the
-    least σ²_in a calibration gives.
+    least σ²_in a calibration gives; ``residual_cross_fit_var_`` (6,) its error on rows it
+    was not fitted on (the cross-fit's, all distances; None for a residual with its own std),
+    against ``domain_far_var_``, the physics part's error alone.
     """
 
     provides_std = True
@@ -103,12 +105,15 @@ class HybridCompensator(Compensator):
         self.domain_excess_var_ = np.zeros(Y.shape[1])
         self.domain_parameter_scale_ = 1.0
         self.domain_support_ = domain.fit_support(self._domain_inputs(Z))
-        self.domain_calibration_ = None  # fit_calibrated's record
+        self.domain_calibration_ = None  # DomainCalibratedHybrid's record
+        self.residual_cross_fit_var_ = None
         if not self._residual_std_is_calibrated():
             cross_fit = self._cross_fit(residual, Z, target)
             if cross_fit is None:
                 self.residual_noise_var_ = np.mean(target ** 2, axis=0)
             else:
+                self.residual_cross_fit_var_ = np.mean((cross_fit[1] - cross_fit[2]) ** 2,
+                                                       axis=0)
                 self.domain_length_, self.residual_noise_var_ = domain.fit_in_domain(
                     *cross_fit, self.domain_far_var_)
 
@@ -154,23 +159,26 @@ class HybridCompensator(Compensator):
         """(N,) the residual's weight w in [0, 1] at each row (1: where it has data)."""
         return domain.weight(self.domain_distance(X), self._length())
 
-    def calibrate_domain(self, X, y, shared_growth: bool = False,
-                         in_domain: str = "cross_fit") -> HybridCompensator:
-        """Re-fits ℓ and g on held-out readings `X`, `y` (contact-free, not trained on) that
+    def domain_terms(self, X, y, shared_growth: bool = False,
+                     in_domain: str = "cross_fit") -> dict:
+        """ℓ and g re-fitted on held-out readings `X`, `y` (contact-free, not trained on) that
         leave the training data — and come back to it: rows at many distances pin ℓ down
         (:func:`.domain.calibrate`; `shared_growth`: one growth for all axes in units of
         their σ²_far). `in_domain`: ``"cross_fit"`` keeps the fit's σ²_in (and c = 1);
         ``"held_out"`` fits σ²_in — at least the residual's error on its training rows
-        (``residual_training_var_``), plus ``domain_excess_var_`` — and the parameters'
-        scale c (``domain_parameter_scale_``) on those rows too: a tighter std next to the
-        data, see :func:`.domain.calibrate` for the trade. σ²_far stays the fit's. Returns
-        self. A hybrid whose residual has a calibrated std of its own (a GP) has no support
-        term to calibrate: ValueError."""
+        (``residual_training_var_``), plus an excess — and the parameters' scale c on those
+        rows too: a tighter std next to the data, see :func:`.domain.calibrate` for the trade.
+        σ²_far stays the fit's. Changes nothing: returns the terms ``length`` (ℓ),
+        ``in_var`` (σ²_in, k), ``growth`` (g, k), ``parameter_scale`` (c) and
+        ``excess_var`` (σ²_in's excess over its floor, k), which
+        :class:`~.domain_calibrated.DomainCalibratedHybrid` predicts with. A hybrid whose
+        residual has a calibrated std of its own (a GP) has no support term to calibrate:
+        ValueError."""
         check_is_fitted(self)
         if self._residual_std_is_calibrated() or getattr(self, "domain_support_", None) is None:
-            raise ValueError("calibrate_domain: this hybrid's residual brings its own std (or "
-                             "the model was saved before the support term); refit it with a "
-                             "forest residual")
+            raise ValueError("domain calibration: this hybrid's residual brings its own std "
+                             "(or the model was saved before the support term); refit it "
+                             "with a forest residual")
         Z = self._validated_features(X)
         Y = np.asarray(y, dtype=float).reshape(len(Z), -1)
         target = Y - self._physics(Z)
@@ -178,74 +186,18 @@ class HybridCompensator(Compensator):
         parameter_var = self.physics_._variance(self.physics_._select(Z), include_noise=False)
         floor = (self._training_var() if in_domain == "held_out"
                  else np.nan_to_num(self._noise_var()))
-        self.domain_length_, in_var, self.domain_growth_, self.domain_parameter_scale_ = (
-            domain.calibrate(
-                domain.distances(self._domain_inputs(Z), self.domain_support_), target,
-                predicted, floor, self.domain_far_var_, parameter_var, shared=shared_growth,
-                in_domain=in_domain))
-        self.domain_excess_var_ = in_var - floor
-        self.residual_noise_var_ = in_var
-        return self
+        length, in_var, growth, scale = domain.calibrate(
+            domain.distances(self._domain_inputs(Z), self.domain_support_), target,
+            predicted, floor, self.domain_far_var_, parameter_var, shared=shared_growth,
+            in_domain=in_domain)
+        return {"length": length, "in_var": in_var, "growth": growth,
+                "parameter_scale": scale, "excess_var": in_var - floor}
 
     def _training_var(self):
         """The residual's error variance on its own training rows (k,); zeros for a model
         file from before it was kept."""
         var = getattr(self, "residual_training_var_", None)
         return np.zeros(self.n_outputs_) if var is None else np.asarray(var, dtype=float)
-
-    def fit_calibrated(self, X, y, groups=None, share: float = domain.HOLDOUT_SHARE,
-                       refit: bool = True, shared_growth: bool = False,
-                       in_domain: str = "cross_fit") -> HybridCompensator:
-        """Fits, with the support term calibrated on runs of `X`, `y` held out from it.
-
-        The runs whose inputs lie farthest from the others (:func:`.domain.farthest_groups`:
-        `groups` a run label per row, or None for contiguous time blocks) are held out until
-        `share` of the rows is; the hybrid is fitted on the rest and
-        :meth:`calibrate_domain` on them (with `shared_growth` and `in_domain`). With `refit`
-        it is then fitted again on all rows and keeps the calibrated ℓ and g, and with
-        ``in_domain="held_out"`` c and σ²_in's excess over the training error (what the
-        model does at a given distance from its data carries over to the larger support);
-        without it the model stays the one fitted on the rest.
-        ``domain_calibration_`` records the held-out groups, their rows, ℓ (None: ∞, the
-        residual weighted 1 everywhere), g, c, σ_in and the 95 % coverage per axis on the held-out
-        rows before and after the calibration (of the model not fitted on them). Costs a
-        second fit. Returns self."""
-        X = np.asarray(X, dtype=float)
-        Y = np.asarray(y, dtype=float).reshape(len(X), -1)
-        columns = X.shape[1] - X.shape[1] % 3  # [q, q̇, q̈]; a temperature column after them
-        features = getattr(self.residual if self.residual is not None else default_residual(),
-                           "features", "q")
-        inputs = X[:, :check_feature_set(features) * (columns // 3)]
-        held, chosen = domain.farthest_groups(inputs, groups, share)
-        self.fit(X[~held], Y[~held])
-        before = coverage(Y[held], self.predict(X[held]), self.predict_std(X[held]))
-        self.calibrate_domain(X[held], Y[held], shared_growth=shared_growth,
-                              in_domain=in_domain)
-        length, growth, excess = self.domain_length_, self.domain_growth_, self.domain_excess_var_
-        scale = self.domain_parameter_scale_
-        record = {
-            "held_out_groups": chosen, "held_out_rows": int(held.sum()),
-            "training_rows": int((~held).sum()),
-            "length": float(length) if np.isfinite(length) else None,  # None: ℓ = ∞
-            "growth": growth.tolist(), "shared_growth": bool(shared_growth),
-            "in_domain": in_domain,
-            "parameter_variance_scale": float(scale),
-            "refit": bool(refit),
-            "coverage_95_before": before.tolist(),
-            "coverage_95_after": coverage(Y[held], self.predict(X[held]),
-                                          self.predict_std(X[held])).tolist(),
-            "median_distance_held_out": float(np.median(self.domain_distance(X[held]))),
-        }
-        if refit:
-            self.fit(X, Y)
-            self.domain_length_, self.domain_growth_ = length, growth
-            self.domain_parameter_scale_ = scale
-            if in_domain == "held_out":  # else the refit's own cross-fit σ²_in
-                self.domain_excess_var_ = excess
-                self.residual_noise_var_ = self._training_var() + excess
-        record["in_domain_std"] = np.sqrt(np.nan_to_num(self._noise_var())).tolist()
-        self.domain_calibration_ = record
-        return self
 
     def _length(self) -> float:
         return float(getattr(self, "domain_length_", np.inf))
@@ -271,6 +223,10 @@ class HybridCompensator(Compensator):
     def reading_to_model_frame(self):
         """The physics part's (the residual is learned in the reading's frame too)."""
         return self.physics_.reading_to_model_frame()
+
+    def robot_description(self):
+        """The physics part's robot (``physics_.robot_description()``)."""
+        return self.physics_.robot_description()
 
     def payload_reading_map(self):
         """The physics part's (:meth:`~.base.Compensator.payload_reading_map`)."""
@@ -385,12 +341,9 @@ def default_residual() -> RandomForestCompensator:
     run in the loop, where one multi-output forest of 50 trees costs a fraction of six
     per-axis forests of 100 (``benchmarks/compensator_latency.py`` measures both).
 
-    Why 40 rows a leaf (5 before): a smooth residual needs no finer leaves, and the file is a
-    quarter of the nodes. On the demo's data (45,500 rows, ``benchmarks/model_size.py``) the
-    hybrid's file went from 27.8 MB to 3.5 MB with held-out errors equal or lower on every
-    axis (Fx..Tz 2.29, 2.24, 1.74, 1.88, 2.84, 1.79 σ with 5 rows a leaf; 2.28, 2.24, 1.75,
-    1.76, 2.77, 1.73 σ with 40). The size grows with the training rows (``--max-rows`` bounds
-    it).
+    Why 40 rows a leaf: a smooth residual needs no finer leaves, and the file is a quarter of
+    the nodes (``benchmarks/model_size.py`` measures it; the figures: docs, Derivations). The
+    size grows with the training rows (training's ``max_rows`` bounds it).
     """
     return RandomForestCompensator(features="q", per_output=False, n_estimators=50,
                                    min_samples_leaf=40, random_state=0)

@@ -57,7 +57,7 @@ import weakref
 import numpy as np
 
 from ..conventions import GRAVITY_W
-from ..errors import ConfigError, RobotModelError, spelled
+from ..errors import ConfigError, RobotModelError, option_name, spelled
 from ..physics.robot import RobotDescription, fixed_joint_values, ftdrake_arm, joint_names
 from .base import Compensator
 from .compiled.payload import pack_payload_row, payload_mean_std, payload_predict
@@ -97,8 +97,8 @@ _PYTHON_ADVICE = ("give a prior (identification='consistent', prior=PayloadPrior
                   "use a richer trajectory (e.g. kind 'fourier' or 'z_rich')")
 _CLI_ADVICE = ("record a log in which every joint moves, faster and through more of its "
                "range, so that the tool turns through more orientations; or identify the "
-               "mass and centre of mass from static poses with `ftdrake calibrate` (a prior "
-               "with --prior-mass/--prior-com)")
+               "payload from static poses with `ftdrake calibrate` (which also takes a prior "
+               "of its mass and centre of mass)")
 
 
 class ExcitationWarning(UserWarning):
@@ -282,8 +282,9 @@ class PhysicsPayloadCompensator(CarriesRobot, Compensator):
         if self.identify_crosstalk and self.mode != "dynamic":
             raise ConfigError("identify_crosstalk needs mode='dynamic': in static poses the "
                               "tool's wrench spans too few directions to separate the "
-                              "cross-talk from the payload (calibrate the sensor with "
-                              "`ftdrake calibrate --correction` instead)")
+                              "cross-talk from the payload (calibrate the sensor's "
+                              "correction on static poses with known loads instead: "
+                              "calibrate_table(..., correction='full'))")
         if self.tether and not (self.weight_without_inertia and self.mode == "dynamic"):
             raise ConfigError("tether needs weight_without_inertia=True and mode='dynamic': "
                               "a cable's hanging weight is the weight carried without "
@@ -581,15 +582,15 @@ class PhysicsPayloadCompensator(CarriesRobot, Compensator):
         if kinematics.num_joints != self.n_joints_:
             if self._joint_columns():
                 raise RobotModelError(
-                    f"the data has {self.n_joints_} joints but --joints names "
-                    f"{kinematics.num_joints} ({', '.join(self._joint_columns())}; joints= in "
-                    "Python): name one joint per position column, in their order")
+                    f"the data has {self.n_joints_} joints but {option_name('joints')} names "
+                    f"{kinematics.num_joints} ({', '.join(self._joint_columns())}): name one "
+                    "joint per position column, in their order")
             raise RobotModelError(kinematics.count_message(self.n_joints_))
         if kinematics.defaulted:
             warnings.warn(
                 f"joints {', '.join(kinematics.defaulted)} between the world and the sensor "
                 "frame are not in the log: fixed at 0 (give their positions with "
-                "--fixed-joints NAME=VALUE,...; fixed_joints= in Python)",
+                f"{option_name('fixed_joints')} NAME=VALUE,...)",
                 FixedJointsWarning, stacklevel=4)
 
 

@@ -63,6 +63,8 @@ _GP_KERNELS = tuple(f"sklearn.gaussian_process.kernels.{k}"
 # What a physics model keeps from its identification (the result and a prior).
 _PHYSICS_TYPES = ("ftdrake.compensation.consistent.ConsistentIdentification",
                   "ftdrake.compensation.consistent.PayloadPrior")
+#: A hybrid with its out-of-domain std calibrated (what ``train``'s domain options save).
+_DOMAIN_CALIBRATED = "ftdrake.compensation.domain_calibrated.DomainCalibratedHybrid"
 
 
 @dc.dataclass(frozen=True)
@@ -75,7 +77,7 @@ class CompensatorEntry:
     train_options: the options `make` reads, which ``ftdrake train`` offers as flags.
     """
 
-    name: str  # as on the command line (``--model NAME``) and in configs
+    name: str  # TrainOptions.kind, the command line's and configs' name of it
     cls: type[Compensator]
     summary: str
     defaults: Mapping[str, Any] = dc.field(default_factory=dict)  # ``train``'s arguments
@@ -119,7 +121,7 @@ REGISTRY: dict[str, CompensatorEntry] = {e.name: e for e in (
     CompensatorEntry("hybrid", HybridCompensator,
                      "physics + a forest on its residual (cable, cross-talk, the rest)",
                      HYBRID_DEFAULTS, needs_robot=True, wrench_only=True,
-                     trusted_types=_PHYSICS_TYPES, make=make_hybrid,
+                     trusted_types=(*_PHYSICS_TYPES, _DOMAIN_CALIBRATED), make=make_hybrid,
                      train_options=PAYLOAD_OPTIONS),
     CompensatorEntry("arm", ArmDynamicsCompensator,
                      "joint torques: the arm's rigid-body dynamics + friction, physically "

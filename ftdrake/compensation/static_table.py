@@ -25,7 +25,7 @@ from pydrake.math import RollPitchYaw
 
 from ..conventions import GRAVITY_W
 from ..data.logs import expand_columns, is_table, read_frame, time_columns
-from ..errors import ConfigError, LogError
+from ..errors import ConfigError, LogError, option_name, spelled
 from .consistent import PayloadPrior
 
 #: Orientation column sets, in the order they are looked for.
@@ -95,10 +95,12 @@ def static_table_hint(path, time: str | None = None, positions=None) -> str | No
         joints = joint_columns(frame, positions or "q_*")
         if joints and _moves_smoothly(frame[joints].to_numpy(dtype=float)):
             return None
+    how = spelled("ftdrake.calibrate_table on its rows (a DataFrame)",
+                  f"`ftdrake calibrate {option_name('data')} {path}`")
     return (f"{Path(path).name} looks like a table of static poses (orientation columns, or "
             f"joints that jump from pose to pose and no time column): identify payload and "
-            f"biases with `ftdrake calibrate --data {path}` (add --robot/--sensor-frame for "
-            f"joint angles)")
+            f"biases with {how} (add {option_name('robot')}/{option_name('sensor_frame')} "
+            "for joint angles)")
 
 
 def _moves_smoothly(q: np.ndarray) -> bool:

@@ -198,13 +198,15 @@ def tune(
     n_jobs: int | None = None,
     progress: bool = True,
     random_state: int = 0,
+    wrench_delay_s: float | None = None,
 ):
     """Grid search with (grouped) repeated K-fold CV; returns ``(best_model, TuneResult)``.
 
     The best model is refitted on all rows. With ``per_output=True`` and several target
     columns, each column gets its own search and the model is a :class:`PerOutputCompensator`
     of one tuned estimator per column. `preset` is a name in :data:`PRESET_NAMES` or a grid.
-    See :func:`cv_splits` for `cv`, `groups`, `n_splits`, `n_repeats`.
+    See :func:`cv_splits` for `cv`, `groups`, `n_splits`, `n_repeats`. `wrench_delay_s`:
+    the refitted model's (:meth:`~.base.Compensator.fit`).
     """
     X, Y = _checked_data(X, y)
     blocks = check_feature_set(estimator.get_params()["features"])
@@ -233,7 +235,8 @@ def tune(
         scores = [_score_grid(estimator, X, t, candidates, splits, n_jobs, bar) for t in targets]
 
     best = [int(np.argmax(s.mean(axis=1))) for s in scores]
-    model = _refit(estimator, X, y, Y, [candidates[b] for b in best], per_output)
+    model = _refit(estimator, X, y, Y, [candidates[b] for b in best], per_output,
+                   wrench_delay_s)
     result = TuneResult(
         estimator=type(estimator).__name__,
         preset=preset if isinstance(preset, str) else "custom",
@@ -304,12 +307,14 @@ def _fit_and_score(estimator, params, X, y, train, test, key):
     return key, -float(np.mean(error**2))
 
 
-def _refit(estimator, X, y, Y, best_params, per_output):
+def _refit(estimator, X, y, Y, best_params, per_output, wrench_delay_s=None):
     if per_output and Y.shape[1] > 1:
         members = [clone(estimator).set_params(**p) for p in best_params]
         features = estimator.get_params()["features"]
-        return PerOutputCompensator(members, features=features).fit(X, Y)
-    return clone(estimator).set_params(**best_params[0]).fit(X, y)
+        return PerOutputCompensator(members, features=features).fit(
+            X, Y, wrench_delay_s=wrench_delay_s)
+    return clone(estimator).set_params(**best_params[0]).fit(X, y,
+                                                             wrench_delay_s=wrench_delay_s)
 
 
 def _jsonable(params: dict) -> dict:

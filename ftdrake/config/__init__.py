@@ -20,18 +20,31 @@ The sections, one module each:
   :class:`CableConfig`, :class:`FrictionConfig`.
 * :mod:`.task` — what a run does: :class:`TrajectoryConfig`, :class:`TaskConfig`,
   :class:`EventsConfig`.
-* :mod:`.runtime` — the product: :class:`CompensatorConfig`, :class:`BiasTrackerConfig`,
-  :class:`DetectorConfig`, :class:`PayloadChangeConfig`.
+* :mod:`.runtime` — the product's sections: :class:`CompensatorConfig`,
+  :class:`BiasTrackerConfig`, :class:`DetectorConfig`, :class:`PayloadChangeConfig`.
+* :mod:`.chain` — :class:`ChainConfig`, the product's own root (those sections, the sensor
+  stream :class:`SensorStreamConfig` and the robot :class:`RobotConfig`): what a
+  ``CompensationChain``, the live stations and ``replay`` are built from.
 * :mod:`.transmission` — compliant joints (motor, gearbox spring and damper):
   :class:`TransmissionConfig`, off by default.
 * :mod:`.contour` — the hole-cutting task and its tool-side measurements (the two-part
   feedforward experiment).
-* :mod:`.scenario` — :class:`ScenarioConfig`, the root.
+* :mod:`.scenario` — :class:`ScenarioConfig`, the simulation's root (it contains a
+  :class:`ChainConfig`).
 * :mod:`.files` — YAML in and out.
 """
 
 from ..errors import ConfigError
-from .files import default_scenario_path, dump_config, load_config, parse_config, save_config
+from .chain import ChainConfig, RobotConfig, SensorStreamConfig
+from .files import (
+    ConfigLayoutWarning,
+    default_scenario_path,
+    dump_config,
+    load_chain_config,
+    load_config,
+    parse_config,
+    save_config,
+)
 from .plant import CableConfig, ControllerConfig, FrictionConfig, ModelsConfig
 from .runtime import (
     PAYLOAD_INERTIA_PRIOR_STD,
@@ -52,22 +65,27 @@ __all__ = [
     "TRAJECTORY_KINDS",
     "BiasTrackerConfig",
     "CableConfig",
+    "ChainConfig",
     "CompensatorConfig",
     "ConfigError",
+    "ConfigLayoutWarning",
     "ControllerConfig",
     "DetectorConfig",
     "EventsConfig",
     "FrictionConfig",
     "ModelsConfig",
     "PayloadChangeConfig",
+    "RobotConfig",
     "ScenarioConfig",
     "SensorConfig",
     "SensorSpec",
+    "SensorStreamConfig",
     "TaskConfig",
     "TrajectoryConfig",
     "TransmissionConfig",
     "default_scenario_path",
     "dump_config",
+    "load_chain_config",
     "load_config",
     "model_has_reading_std",
     "parse_config",

@@ -3,6 +3,7 @@
 # No `from __future__ import annotations`: Drake's YAML loader needs real type objects.
 
 import dataclasses as dc
+import warnings
 from importlib import resources
 from pathlib import Path
 
@@ -10,6 +11,7 @@ import yaml as pyyaml
 
 from ..errors import ConfigError
 from ..io import atomic_write_text
+from .chain import ChainConfig
 from .scenario import ScenarioConfig
 
 # _DRAKE_ON_USE: Drake's YAML reader and writer are imported where a file is read or written,
@@ -35,24 +37,48 @@ def load_config(path: "str | Path | None" = None, schema=ScenarioConfig):
 
 def parse_config(text: str, schema=ScenarioConfig, source: str = "<string>"):
     """Parses YAML text into `schema`, naming the bad field on error."""
-    try:
-        data = pyyaml.safe_load(text)
-    except pyyaml.YAMLError as e:
-        raise ConfigError(f"{source}: malformed YAML: {e}") from None
-    if data is None:
-        data = {}
-    if not isinstance(data, dict):
-        raise ConfigError(f"{source}: expected a mapping of fields, got {type(data).__name__}")
-    _check_fields(data, schema, "scenario" if schema is ScenarioConfig else schema.__name__)
+    data = _mapping(text, source)
+    if schema is ScenarioConfig and _moved_chain_sections(data, source):
+        text = pyyaml.safe_dump(data, sort_keys=False)
+    _check_fields(data, schema, _where(schema))
     try:
         from pydrake.common.yaml import yaml_load_typed  # noqa: PLC0415 (see _DRAKE_ON_USE)
 
         config = yaml_load_typed(schema=schema, data=text)
     except (RuntimeError, ValueError, TypeError) as e:
         raise ConfigError(f"{source}: {e}") from None
-    if hasattr(config, "validate"):
-        config.validate()
-    return config
+    return config.validate()
+
+
+#: The transport sections a live config file has beside ``chain:``
+#: (:class:`~ftdrake.hardware.live_config.LiveConfig`).
+LIVE_TRANSPORTS = ("lcm", "ros2")
+
+
+def load_chain_config(path: "str | Path | None" = None) -> ChainConfig:
+    """The :class:`ChainConfig` of a file: a chain config (``compensator``, ``bias_tracker``,
+    ``detector``, ``sensor``, ``robot`` at the top), a live config file's ``chain:``
+    section, or, until the next release, a scenario
+    file's chain (``scenario.chain_config()``: its chain section on its simulated sensor's
+    stream), with a :class:`ConfigLayoutWarning` naming the chain layout. None: defaults."""
+    if path is None:
+        return ChainConfig().validate()
+    path = Path(path)
+    text = _read(path)
+    data = _mapping(text, str(path))
+    chain_fields = {f.name for f in dc.fields(ChainConfig)}
+    if set(data) <= chain_fields:
+        return parse_config(text, ChainConfig, source=str(path))
+    if "chain" in data and set(data) <= {"chain", *LIVE_TRANSPORTS}:  # a live config file
+        return parse_config(pyyaml.safe_dump(data["chain"] or {}), ChainConfig,
+                            source=f"{path}: chain")
+    warnings.warn(
+        f"{path}: a scenario file where a chain config is expected; its chain section on the "
+        "simulated sensor's stream is used until the next release. A chain config holds "
+        f"only {', '.join(sorted(chain_fields))} at its top (a scenario's 'chain:' section, "
+        "with sensor: {rate_hz: ..., noise_std: [...]} the live sensor's).",
+        ConfigLayoutWarning, stacklevel=2)
+    return parse_config(text, ScenarioConfig, source=str(path)).chain_config()
 
 
 def save_config(config, path: "str | Path") -> None:
@@ -64,6 +90,69 @@ def dump_config(config) -> str:
     from pydrake.common.yaml import yaml_dump_typed  # noqa: PLC0415 (see _DRAKE_ON_USE)
 
     return yaml_dump_typed(config)
+
+
+def read_mapping(path: Path) -> dict:
+    """The top-level mapping of the YAML file `path` (errors name the file)."""
+    return _mapping(_read(path), str(path))
+
+
+def _read(path: Path) -> str:
+    try:
+        return path.read_text()
+    except OSError as e:
+        raise ConfigError(f"cannot read config {path}: {e.strerror}") from None
+
+
+def _mapping(text: str, source: str) -> dict:
+    """The YAML text's top-level mapping ({} for an empty file)."""
+    try:
+        data = pyyaml.safe_load(text)
+    except pyyaml.YAMLError as e:
+        raise ConfigError(f"{source}: malformed YAML: {e}") from None
+    if data is None:
+        data = {}
+    if not isinstance(data, dict):
+        raise ConfigError(f"{source}: expected a mapping of fields, got {type(data).__name__}")
+    return data
+
+
+#: Scenario sections that moved under ``chain:`` (the product's own config).
+CHAIN_SECTIONS = ("compensator", "detector", "bias_tracker")
+
+
+class ConfigLayoutWarning(FutureWarning):
+    """A config file in a layout that still loads but will not in the next release."""
+
+
+def _moved_chain_sections(data: dict, source: str) -> bool:
+    """Moves a scenario's top-level ``compensator``/``detector``/``bias_tracker`` (the layout
+    before ``chain:``) under ``chain:``, with a warning naming the new layout. True when any
+    moved."""
+    moved = [key for key in CHAIN_SECTIONS if key in data]
+    if not moved:
+        return False
+    chain = data.setdefault("chain", {}) or {}
+    if not isinstance(chain, dict):
+        raise ConfigError(f"{source}: scenario.chain: expected a mapping of sections")
+    both = [key for key in moved if key in chain]
+    if both:
+        raise ConfigError(f"{source}: scenario.{both[0]} and scenario.chain.{both[0]} are both "
+                          f"given; keep only scenario.chain.{both[0]}")
+    for key in moved:
+        chain[key] = data.pop(key)
+    data["chain"] = chain
+    warnings.warn(
+        f"{source}: the scenario sections {', '.join(moved)} now live under 'chain:' "
+        f"(scenario.chain.{moved[0]}: ...); this layout loads until the next release. Indent "
+        "them under a 'chain:' key (ftdrake's shipped scenario shows the layout).",
+        ConfigLayoutWarning, stacklevel=3)
+    return True
+
+
+def _where(schema) -> str:
+    """The prefix an error names a field of `schema` with."""
+    return {ScenarioConfig: "scenario", ChainConfig: "chain"}.get(schema, schema.__name__)
 
 
 def _check_fields(data: dict, schema, where: str) -> None:

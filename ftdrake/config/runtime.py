@@ -17,7 +17,7 @@ class CompensatorConfig:
     # Cut-off (Hz) of the tracker on the causal difference of q̇ that estimates q̈ in the loop
     # (a real controller has no q̈ sensor; signals.causal_acceleration); training can use the
     # same estimate. Lower it for a noisy q̇: the white noise it passes grows about in
-    # proportion (at 1 kHz, 0.074, 0.144 and 0.287 rad/s² per mrad/s at 6, 12 and 25 Hz).
+    # proportion to the cut-off (docs, Derivations).
     acceleration_cutoff_hz: float = DEFAULT_ACCELERATION_CUTOFF_HZ
 
     def validate(self, where: str = "compensator") -> None:
@@ -266,6 +266,6 @@ class DetectorConfig:
 def model_has_reading_std(model) -> bool:
     """Whether `model`'s predictive std is that of a reading — model error and sensor noise,
     as physics, hybrid and GP models give and the χ² test needs (a forest's spread across
-    its trees is not one)."""
-    return bool(getattr(model, "provides_std", False)
-                and getattr(model, "std_includes_noise", False))
+    its trees is not one). `model` follows the loop contract
+    (:class:`~ftdrake.compensation.contract.LoopModel`)."""
+    return bool(model.provides_std and model.std_includes_noise)

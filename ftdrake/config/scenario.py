@@ -5,9 +5,9 @@
 import dataclasses as dc
 
 from ..errors import ConfigError
+from .chain import ChainConfig
 from .checks import finite, positive, vector
 from .plant import CableConfig, ControllerConfig, FrictionConfig, ModelsConfig
-from .runtime import BiasTrackerConfig, CompensatorConfig, DetectorConfig
 from .sensor import SensorConfig
 from .task import EventsConfig, TaskConfig, TrajectoryConfig
 from .transmission import TransmissionConfig
@@ -15,7 +15,8 @@ from .transmission import TransmissionConfig
 
 @dc.dataclass
 class ScenarioConfig:
-    """One simulated scenario: plant, controller, sensor, cable, trajectory and logging."""
+    """One simulated scenario: plant, controller, sensor, cable, trajectory, events, and the
+    product's own :class:`ChainConfig` in the loop (``chain``)."""
 
     time_step: float = 1e-3  # s, discrete plant step
     contact_approximation: str = "sap"
@@ -29,9 +30,9 @@ class ScenarioConfig:
     cable: CableConfig = dc.field(default_factory=CableConfig)
     trajectory: TrajectoryConfig = dc.field(default_factory=TrajectoryConfig)
     task: TaskConfig = dc.field(default_factory=TaskConfig)
-    compensator: CompensatorConfig = dc.field(default_factory=CompensatorConfig)
-    detector: DetectorConfig = dc.field(default_factory=DetectorConfig)
-    bias_tracker: BiasTrackerConfig = dc.field(default_factory=BiasTrackerConfig)
+    # The product in the loop: compensator, bias tracker, detector (its ``sensor`` stream is
+    # the simulated sensor's, see chain_config; its ``robot`` defaults to the scenario's arm).
+    chain: ChainConfig = dc.field(default_factory=ChainConfig)
     events: EventsConfig = dc.field(default_factory=EventsConfig)
     friction: FrictionConfig = dc.field(default_factory=FrictionConfig)
     transmission: TransmissionConfig = dc.field(default_factory=TransmissionConfig)
@@ -60,9 +61,7 @@ class ScenarioConfig:
                 f"scenario.trajectory.contact_target: {self.trajectory.contact_target!r} is not "
                 f"a surface of scenario.task.surfaces {sorted(self.task.surfaces)}"
             )
-        self.compensator.validate("scenario.compensator")
-        self.detector.validate("scenario.detector")
-        self.bias_tracker.validate("scenario.bias_tracker")
+        self.chain.validate("scenario.chain")
         self.events.validate("scenario.events")
         self.friction.validate("scenario.friction")
         self.transmission.validate("scenario.transmission")
@@ -75,3 +74,13 @@ class ScenarioConfig:
             )
         return self
 
+
+    def chain_config(self) -> ChainConfig:
+        """The chain as this scenario runs it: ``chain`` with each unset field of its sensor
+        stream read from the simulated sensor (preset, rate, noise, resolution, drift), so
+        that the product weighs the noise the simulation makes unless told otherwise."""
+        return dc.replace(self.chain, sensor=self.chain.sensor.filled_from(self.sensor))
+
+    def with_chain(self, **sections) -> "ScenarioConfig":
+        """A copy with sections of ``chain`` replaced (``with_chain(detector=...)``)."""
+        return dc.replace(self, chain=dc.replace(self.chain, **sections))

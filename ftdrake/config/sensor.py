@@ -126,6 +126,11 @@ class SensorConfig:
             ),
         )
 
+    @property
+    def drift(self) -> tuple:
+        """`drift_std` as a tuple (as :attr:`SensorStreamConfig.drift` gives it)."""
+        return tuple(self.drift_std)
+
     def validate(self, where: str = "sensor") -> None:
         spec = self.spec()
         positive(spec.rate_hz, f"{where}.rate_hz")

@@ -113,7 +113,7 @@ class EventsConfig:
       tracker's ``payload_changed`` input pulses (the gripper's command is known).
     - **Push**: from `push_at_s` a force at the tool tip grows linearly over `push_ramp_s` to
       `push_force_W` (N, world frame), stays for `push_hold_s`, then stops. It is applied as
-      an external force (not contact), and it is added to the log's ``external_*`` columns
+      an external force (not contact), and it is added to the log's ``external_true_*`` columns
       (at the sensor, in S) like a contact would be.
     """
 

@@ -2,9 +2,11 @@
 
 A dataset holds the log columns of :mod:`ftdrake.sim.simulate` for several runs stacked, plus
 ``trajectory`` (int id). The scenario config that made it is stored as YAML in the file's
-metadata (key ``ftdrake.scenario``), with the column units (``ftdrake.units``) and the ftdrake
-version. ``joint_state_layout`` and ``wrench_targets`` turn a dataset into ``X = [q, q̇, q̈]``
-and wrench targets.
+metadata (key ``ftdrake.scenario``), with the column units (``ftdrake.units``), the ftdrake
+version and the layout's version (``ftdrake.log_format``,
+:data:`ftdrake.conventions.LOG_FORMAT`; a dataset of an older layout is read with today's
+column names, see :func:`~ftdrake.data.logs.read_frame`). ``joint_state_layout`` and
+``wrench_targets`` turn a dataset into ``X = [q, q̇, q̈]`` and wrench targets.
 """
 
 from __future__ import annotations
@@ -22,7 +24,7 @@ from ..config import ScenarioConfig, parse_config
 from ..errors import LogError
 from ..io import atomic_path
 from ..version import ftdrake_version
-from .logs import META_SCENARIO, read_frame
+from .logs import META_LOG_FORMAT, META_SCENARIO, read_frame
 
 META_UNITS = b"ftdrake.units"
 META_VERSION = b"ftdrake.version"
@@ -35,6 +37,7 @@ def save_dataset(frame: pd.DataFrame, path: str | Path, scenario_yaml: str | Non
     metadata[META_SCENARIO] = (scenario_yaml or frame.attrs.get("scenario") or "").encode()
     metadata[META_UNITS] = json.dumps(column_units(frame.columns)).encode()
     metadata[META_VERSION] = ftdrake_version().encode()
+    metadata[META_LOG_FORMAT] = str(col.LOG_FORMAT).encode()
     table = table.replace_schema_metadata(metadata)
     with atomic_path(path) as tmp:
         pq.write_table(table, tmp)

@@ -18,10 +18,12 @@ from pathlib import Path
 
 import numpy as np
 import pandas as pd
+import pyarrow as pa
 import pyarrow.parquet as pq
 
-from ..conventions import MEASURED, TIME
+from ..conventions import LOG_FORMAT, MEASURED, TIME, legacy_renames
 from ..errors import LogError
+from ..io import atomic_path
 from ..signals import DEFAULT_ACCELERATION_CUTOFF_HZ
 from .robot_log import (
     ANGLE_UNITS,
@@ -55,11 +57,14 @@ __all__ = [
     "read_table",
     "time_columns",
     "warn_log",
+    "write_log",
 ]
 
 _TIME_UNITS = {"s": 1.0, "ms": 1e-3, "us": 1e-6, "ns": 1e-9}
 _GLOB_CHARS = set("*?[")
 META_SCENARIO = b"ftdrake.scenario"  # Parquet metadata key of a `collect` dataset's scenario
+#: Parquet metadata key of the log layout's version (conventions.LOG_FORMAT; absent: unknown).
+META_LOG_FORMAT = b"ftdrake.log_format"
 
 Columns = str | re.Pattern | Sequence[str]
 
@@ -195,7 +200,11 @@ def read_frame(path: str | Path, kind: str | None = None) -> pd.DataFrame:
 
     `kind` (``"csv"`` or ``"parquet"``) overrides the format the file name suggests.
     A Parquet file's ``ftdrake.scenario`` metadata (a ``collect`` dataset's scenario YAML)
-    is returned in ``frame.attrs["scenario"]`` (None when absent). Raises
+    is returned in ``frame.attrs["scenario"]`` (None when absent). A log written before
+    :data:`~ftdrake.conventions.LOG_FORMAT` 2 gets today's column names
+    (:func:`~ftdrake.conventions.legacy_renames`: ``pred_*`` → ``wrench_internal_*``,
+    ``detected`` → ``contact``, ``contact`` → ``contact_true`` …), by the version its Parquet
+    metadata says, else (a CSV file, a Parquet file of another writer) by its columns. Raises
     FileNotFoundError for a missing file and LogError for an unknown or unreadable one.
     """
     path = Path(path)
@@ -209,17 +218,44 @@ def read_frame(path: str | Path, kind: str | None = None) -> pd.DataFrame:
         except (pd.errors.ParserError, pd.errors.EmptyDataError, UnicodeDecodeError) as e:
             raise LogError(f"{path.name}: not a readable CSV file: {e}") from None
         frame.attrs["scenario"] = None
-        return frame
+        return _current_names(frame, None)
     if kind == "parquet":
         try:
             table = pq.read_table(path)
         except Exception as e:  # noqa: BLE001 - any pyarrow failure: unreadable
             raise LogError(f"{path.name}: not a readable Parquet file: {e}") from None
         frame = table.to_pandas()
-        scenario = (table.schema.metadata or {}).get(META_SCENARIO)
+        metadata = table.schema.metadata or {}
+        scenario = metadata.get(META_SCENARIO)
         frame.attrs["scenario"] = scenario.decode() if scenario else None
-        return frame
+        version = metadata.get(META_LOG_FORMAT)
+        return _current_names(frame, int(version) if version else None)
     raise LogError(f"{path}: unknown table format; expected .csv or .parquet")
+
+
+def _current_names(frame: pd.DataFrame, log_format: int | None) -> pd.DataFrame:
+    renames = legacy_renames(frame.columns, log_format)
+    if renames:
+        attrs = dict(frame.attrs)
+        frame = frame.rename(columns=renames)
+        frame.attrs = {**attrs, "renamed_columns": renames}
+    return frame
+
+
+def write_log(frame: pd.DataFrame, path: str | Path) -> None:
+    """Writes a log table atomically: CSV for a ``.csv`` name, else Parquet stamped with the
+    layout's version (``ftdrake.log_format``: :data:`~ftdrake.conventions.LOG_FORMAT`) and
+    with ``frame.attrs["scenario"]`` as its ``ftdrake.scenario`` when there is one."""
+    path = Path(path)
+    with atomic_path(path) as tmp:
+        if path.name.endswith((".csv", ".csv.gz")):
+            frame.to_csv(tmp, index=False)
+            return
+        table = pa.Table.from_pandas(frame, preserve_index=False)
+        metadata = {**(table.schema.metadata or {}), META_LOG_FORMAT: str(LOG_FORMAT).encode()}
+        if frame.attrs.get("scenario"):
+            metadata[META_SCENARIO] = str(frame.attrs["scenario"]).encode()
+        pq.write_table(table.replace_schema_metadata(metadata), tmp)
 
 
 def read_table(

@@ -20,7 +20,7 @@ stamped t is the sensor's load at the robot's state of t − d (d < 0: the joint
   (linearly interpolated), so each row pairs the joint state of t with the reading of t + d.
 * Live (and in :func:`ftdrake.replay`), the runtime chain cannot look ahead: it delays the
   joint state by d instead (:class:`~ftdrake.runtime.delay_line.DelayLine`; a model's
-  ``wrench_delay_s_`` or ``CompensationChain(wrench_delay_s=...)``). Both pair the same
+  ``wrench_delay_s_`` or ``ChainConfig.sensor.wrench_delay_s``). Both pair the same
   samples.
 """
 
@@ -197,13 +197,14 @@ def fit_aligned(model, log: pd.DataFrame, *, delay_s: float | None = None,
     left estimated and added, `iterations` times (a model fitted on a misaligned log absorbs
     a little of the delay: 1 ms of 30 ms at once, none after the second pass on the demo's
     arm), then the model is fitted on the log corrected by the total. A number: that delay
-    corrected, nothing estimated. The model keeps the delay as ``wrench_delay_s_`` (s), which
-    the runtime chain applies live (a delay line on the joint state), and the estimate as
-    ``stream_delay_`` (a dict; None when the delay was given).
+    corrected, nothing estimated. The model is fitted with the delay (``fit``'s
+    `wrench_delay_s`): it keeps it as ``wrench_delay_s_`` (s), which the runtime chain applies
+    live (a delay line on the joint state).
     """
     def fit(delay):
         aligned = shift_wrench(log, delay, wrench=wrench) if delay else log
-        model.fit(joint_state_layout(aligned, source), wrench_targets(aligned, wrench))
+        model.fit(joint_state_layout(aligned, source), wrench_targets(aligned, wrench),
+                  wrench_delay_s=float(delay))
         return aligned
 
     estimate = None
@@ -215,8 +216,6 @@ def fit_aligned(model, log: pd.DataFrame, *, delay_s: float | None = None,
             delay_s += estimate.delay_s
         estimate = dc.replace(estimate, delay_s=float(delay_s))
     fit(delay_s)
-    model.wrench_delay_s_ = float(delay_s)
-    model.stream_delay_ = None if estimate is None else estimate.as_dict()
     return model, estimate
 
 

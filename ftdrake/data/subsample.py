@@ -1,4 +1,4 @@
-"""A subsample of a long log that covers its state space: what ``train --max-rows`` fits on.
+"""A subsample of a long log that covers its state space: what training's ``max_rows`` fits on.
 
 At 1 kHz consecutive rows are near duplicates: minutes of a robot log hold a few thousand
 distinct states, repeated. :func:`covering_rows` picks at most `max_rows` of them in two steps:

@@ -204,7 +204,7 @@ class TrainingData:
 
 
 def load_training_data(
-    path: str | Path,
+    path: str | Path | pd.DataFrame,
     options: ReadOptions | None = None,
     *,
     t_start: float | None = None,
@@ -212,7 +212,9 @@ def load_training_data(
     report: Callable[[str], None] | None = None,
     static_poses: bool | None = False,
 ) -> TrainingData:
-    """Reads `path` (CSV/Parquet table, ROS 1 ``.bag`` file or ROS 2 bag folder).
+    """Reads `path` (CSV/Parquet table, ROS 1 ``.bag`` file or ROS 2 bag folder), or a
+    table already in memory (a ``pandas.DataFrame``, read as a table file is; messages call
+    it ``DataFrame``; a ``collect`` dataset's scenario is its ``attrs["scenario"]``).
 
     `static_poses`: True reads a table as static poses (:func:`~.logs.read_static_table`:
     q̇ = q̈ = 0, no time column needed, nothing differentiated); None does so when the table
@@ -228,13 +230,19 @@ def load_training_data(
     file and for every check the log fails; the message names the option that fixes it.
     """
     options = options or ReadOptions()
-    path = Path(path)
-    if not path.exists():
-        raise LogError(f"{path}: no such file or folder")
+    in_memory = isinstance(path, pd.DataFrame)
+    if not in_memory:
+        path = Path(path)
+        if not path.exists():
+            raise LogError(f"{path}: no such file or folder")
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always", LogWarning)
-        data = (_read_bag(path, options) if is_bag(path)
-                else _read_table(path, options, static_poses))
+        if in_memory:
+            data = _table_data(path, IN_MEMORY, options, static_poses)
+        elif is_bag(path):
+            data = _read_bag(path, options)
+        else:
+            data = _read_table(path, options, static_poses)
     for w in caught:
         if issubclass(w.category, LogWarning):
             data.warnings.append(str(w.message))
@@ -243,10 +251,14 @@ def load_training_data(
         else:
             warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
     if data.static and (t_start is not None or t_end is not None):
-        raise LogError(f"{path.name}: a table of static poses has no time axis; "
+        name = IN_MEMORY if in_memory else path.name
+        raise LogError(f"{name}: a table of static poses has no time axis; "
                        f"{option_hint('t_start', None)} and {option_hint('t_end', None)}")
     return _time_window(data, t_start, t_end)
 
+
+#: What messages call a table given in memory (a DataFrame) instead of a file.
+IN_MEMORY = "DataFrame"
 
 #: A velocities/accelerations option that computes them from q (``--accelerations derive``),
 #: e.g. for `evaluate` on a log without the columns the model was trained with.
@@ -263,7 +275,7 @@ def _cutoff(options: ReadOptions, scenario_yaml: str | None, label: str) -> floa
         return float(options.acceleration_cutoff_hz)
     if scenario_yaml:
         return float(parse_config(scenario_yaml, source=f"{label} metadata")
-                     .compensator.acceleration_cutoff_hz)
+                     .chain.compensator.acceleration_cutoff_hz)
     return float(CompensatorConfig().acceleration_cutoff_hz)
 
 
@@ -279,12 +291,17 @@ def _read_table(path: Path, options: ReadOptions, static_poses: bool | None = Fa
     if not is_table(path):
         raise LogError(f"{path}: unknown format; expected .csv, .parquet, a .bag file or a "
                        f"ROS 2 bag folder")
-    frame = read_frame(path)
+    return _table_data(read_frame(path), path.name, options, static_poses)
+
+
+def _table_data(frame: pd.DataFrame, name: str, options: ReadOptions,
+                static_poses: bool | None = False) -> TrainingData:
+    """The rows of table `frame` (`name`: the file's name, for messages)."""
     scenario = frame.attrs.get("scenario") or None
-    cutoff = _cutoff(options, scenario, path.name)
+    cutoff = _cutoff(options, scenario, name)
     time = options.time or TABLE_DEFAULTS["time"]
     if static_poses or (static_poses is None and time not in frame.columns):
-        return _read_static(frame, path, options, cutoff)
+        return _read_static(frame, name, options, cutoff)
     kwargs = {
         "positions": column_spec(options.positions or TABLE_DEFAULTS["positions"]),
         "targets": column_spec(options.targets or TABLE_DEFAULTS["targets"]),
@@ -298,37 +315,37 @@ def _read_table(path: Path, options: ReadOptions, static_poses: bool | None = Fa
     if group is None and TRAJECTORY in frame.columns:
         group = TRAJECTORY
     if group is None:
-        logs, ids = [read_table(frame, label=path.name, **kwargs)], [0]
+        logs, ids = [read_table(frame, label=name, **kwargs)], [0]
     else:
         if group not in frame.columns:
-            raise LogError(f"{path.name}: no group column {group!r}; available columns: "
+            raise LogError(f"{name}: no group column {group!r}; available columns: "
                            f"{list(frame.columns)}; choose it with "
                            f"{option_hint('group', 'COLUMN')}")
         ids = list(pd.unique(frame[group]))
         # One short trajectory does not stop the others: its derivatives adapt to its length
         # (a warning counts them); only the whole file must have MIN_ROWS.
         logs = [read_table(frame[frame[group] == i].reset_index(drop=True),
-                           label=f"{path.name} [{group}={i}]", min_rows=2, **kwargs)
+                           label=f"{name} [{group}={i}]", min_rows=2, **kwargs)
                 for i in ids]
         rows = sum(len(log) for log in logs)
         if rows < MIN_ROWS:
-            raise LogError(f"{path.name}: only {rows} usable rows in {len(ids)} trajectories; "
+            raise LogError(f"{name}: only {rows} usable rows in {len(ids)} trajectories; "
                            f"need at least {MIN_ROWS}")
-    data = _stack(logs, ids, path.name)
+    data = _stack(logs, ids, name)
     data.rows["in_file"] = len(frame)
     data.scenario_yaml = scenario
     data.options = dc.replace(options, acceleration_cutoff_hz=cutoff)
     return data
 
 
-def _read_static(frame, path: Path, options: ReadOptions, cutoff: float) -> TrainingData:
+def _read_static(frame, name: str, options: ReadOptions, cutoff: float) -> TrainingData:
     """A table of static poses (one pose and its reading a row; q̇ = q̈ = 0)."""
     log = read_static_table(
         frame, column_spec(options.positions or TABLE_DEFAULTS["positions"]),
         column_spec(options.targets or TABLE_DEFAULTS["targets"]),
         position_unit=options.position_unit, check_units=options.check_units,
-        temperature=options.temperature, label=path.name)
-    data = _stack([log], [0], path.name)
+        temperature=options.temperature, label=name)
+    data = _stack([log], [0], name)
     data.rows["in_file"] = len(frame)
     data.static = True
     data.options = dc.replace(options, acceleration_cutoff_hz=cutoff)

@@ -123,7 +123,7 @@ def with_test(config: ScenarioConfig, test: str | None) -> ScenarioConfig:
     """`config` with its detector's test set to `test` (None: as it is)."""
     if test is None:
         return config
-    return dc.replace(config, detector=dc.replace(config.detector, test=test))
+    return config.with_chain(detector=dc.replace(config.chain.detector, test=test))
 
 
 def thresholds_from_held_out(model, config: ScenarioConfig, plan: DetectionPlan,
@@ -131,18 +131,18 @@ def thresholds_from_held_out(model, config: ScenarioConfig, plan: DetectionPlan,
                              ) -> DetectorConfig:
     """Detector thresholds for `model` from held-out free motion — the plan's rehearsals and
     runs of each of its kinds, on seeds the evaluation does not use — and the scenario's
-    budget, ``config.detector.false_positives_per_hour``. The runs of each kind are there
+    budget, ``config.chain.detector.false_positives_per_hour``. The runs of each kind are there
     because a budget calibrated on rehearsals alone holds on rehearsal-like motion only.
     `data`: that motion (:func:`held_out_motion`) when already collected."""
     data = held_out_motion(config, plan, n_jobs) if data is None else data
-    judged = armed(data[col.TIME].to_numpy(), config.detector.arm_after_s)
+    judged = armed(data[col.TIME].to_numpy(), config.chain.detector.arm_after_s)
     X = joint_state_layout(data)[judged]
     residual = wrench_targets(data)[judged] - model.predict(X)
     # "auto" resolved for this model; the χ² test whitens by its std on the same rows.
-    test = config.detector.for_model(model, calibrating=True).test
+    test = config.chain.detector.for_model(model, calibrating=True).test
     return thresholds_for_false_positive_rate(
         residual, sample_rate_hz=config.sensor.spec().rate_hz,
-        false_positives_per_hour=config.detector.false_positives_per_hour, test=test,
+        false_positives_per_hour=config.chain.detector.false_positives_per_hour, test=test,
         std=model.predict_std(X) if test == "chi2" else None)
 
 
@@ -168,7 +168,7 @@ def run_plan(models: dict, config: ScenarioConfig, plan: DetectionPlan, *, n_job
     results = {}
     for name, (model, test) in with_tests(models, plan).items():
         detector = thresholds_from_held_out(model, with_test(config, test), plan, n_jobs)
-        base = dc.replace(config, detector=detector)
+        base = config.with_chain(detector=detector)
         jobs = _free_jobs(base, plan) + _press_jobs(base, plan)
         runs = Parallel(n_jobs=n_jobs, return_as="generator")(
             delayed(_closed_loop_run)(yaml_text, model, meta) for yaml_text, meta in jobs)
@@ -258,10 +258,10 @@ def run_row(log: pd.DataFrame, config: ScenarioConfig, meta: dict,
            "false_positives": metrics["false_positives"]}
     if meta["kind"] == "contact":
         t = log[col.TIME].to_numpy()
-        touching = log[col.CONTACT].to_numpy().astype(bool)
+        touching = log[col.CONTACT_TRUE].to_numpy().astype(bool)
         onset = t[np.argmax(touching)] if touching.any() else np.inf
         steady = touching & (t >= onset + TOUCHDOWN_S)
-        force = np.linalg.norm(log[col.wrench_columns(col.EXTERNAL)[:3]].to_numpy(), axis=1)
+        force = np.linalg.norm(log[col.wrench_columns(col.EXTERNAL_TRUE)[:3]].to_numpy(), axis=1)
         row.update(
             force_n=float(np.median(force[steady])) if steady.any() else 0.0,
             detected=metrics["missed_contacts"] == 0 and metrics["true_contacts"] > 0,
@@ -342,8 +342,8 @@ def run_detection_evaluation(out: Path, models: dict, config: ScenarioConfig | N
     config = config or ScenarioConfig()
     plan = plan or DetectionPlan()
     if plan.false_positives_per_hour is not None:
-        config = dc.replace(config, detector=dc.replace(
-            config.detector, false_positives_per_hour=plan.false_positives_per_hour))
+        config = config.with_chain(detector=dc.replace(
+            config.chain.detector, false_positives_per_hour=plan.false_positives_per_hour))
     run = run or run_plan
     results = run(models, config, plan, n_jobs=n_jobs, progress=progress)
     events = None

@@ -44,12 +44,12 @@ def free_motion_samples(model, log: pd.DataFrame, replayed: pd.DataFrame,
                         arm_after_s: float) -> dict | None:
     """{"d": (n,), "std": (n, 6)} at every :data:`STRIDE`-th sample the detector judges in a
     free-motion run: d of the log's joint state ([q, q̇, q̈] as estimated in the log) and the
-    chain's std (``pred_std_*`` of the replay, N, N·m). None for a model without a support."""
+    chain's std (``wrench_std_*`` of the replay, N, N·m). None for a model without a support."""
     if not has_domain(model):
         return None
     judged = np.flatnonzero(armed(log[col.TIME].to_numpy(), arm_after_s))[::STRIDE]
     X = joint_state_layout(log, n=int(model.n_joints_))[judged]
-    std = replayed[col.wrench_columns(col.PREDICTED_STD)].to_numpy(dtype=float)[judged]
+    std = replayed[col.wrench_columns(col.WRENCH_STD)].to_numpy(dtype=float)[judged]
     return {"d": model.domain_distance(X), "std": std}
 
 

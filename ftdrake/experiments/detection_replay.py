@@ -19,8 +19,6 @@ results count both kinds of run (``replayed_runs``, ``closed_loop_runs``).
 
 from __future__ import annotations
 
-import dataclasses as dc
-
 from joblib import Parallel, delayed
 from tqdm.auto import tqdm
 
@@ -52,7 +50,7 @@ from .detection_domain import (
 def replay_differs_from_loop(config: ScenarioConfig) -> str | None:
     """Why a replay of `config`'s simulated run would not give the in-loop chain's numbers
     (None when it gives them): then the run needs the loop."""
-    if config.bias_tracker.enabled and config.bias_tracker.track_payload:
+    if config.chain.bias_tracker.enabled and config.chain.bias_tracker.track_payload:
         return ("bias_tracker.track_payload: in simulation the tracker's gravity comes from "
                 "the plant's kinematics, in a replay from the joint state")
     return None
@@ -102,7 +100,7 @@ def _simulated_once(config_yaml: str, models: dict, detectors: dict, meta: dict)
     """{model name: (row, "replay" | "loop", free-motion samples or None)} for one run of
     the plan (:func:`.detection_domain.free_motion_samples` for a free run, replayed)."""
     config = parse_config(config_yaml)
-    tuned = {name: dc.replace(config, detector=detectors[name]) for name in models}
+    tuned = {name: config.with_chain(detector=detectors[name]) for name in models}
     if replay_differs_from_loop(config) is not None:
         return {name: (_closed_loop_run(dump_config(tuned[name]), model, meta), "loop", None)
                 for name, model in models.items()}
@@ -113,8 +111,8 @@ def _simulated_once(config_yaml: str, models: dict, detectors: dict, meta: dict)
     log = simulate(station, progress=False).log
     out = {}
     for name, model in models.items():
-        replayed = replay(model, log, tuned[name], pairing="simulated")
-        samples = (free_motion_samples(model, log, replayed, config.detector.arm_after_s)
+        replayed = replay(model, log, tuned[name].chain_config(), pairing="simulated")
+        samples = (free_motion_samples(model, log, replayed, config.chain.detector.arm_after_s)
                    if meta["kind"] != "contact" else None)
         out[name] = (run_row(log, tuned[name], meta, replayed), "replay", samples)
     return out

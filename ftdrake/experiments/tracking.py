@@ -71,9 +71,9 @@ def event_configs(base: ScenarioConfig, event: str, plan: EventPlan, seed: int) 
         raise ValueError(f"unknown event {event!r}; choose from {EVENTS}")
     trajectory = dc.replace(base.trajectory, kind=plan.kind, duration_s=plan.duration_s,
                             seed=seed)
-    tracker = dc.replace(base.bias_tracker, enabled=True,
-                         track_payload=event == "grasp" or base.bias_tracker.track_payload)
-    reference = dc.replace(base, trajectory=trajectory, bias_tracker=tracker,
+    tracker = dc.replace(base.chain.bias_tracker, enabled=True,
+                         track_payload=event == "grasp" or base.chain.bias_tracker.track_payload)
+    reference = dc.replace(base.with_chain(bias_tracker=tracker), trajectory=trajectory,
                            sensor=dc.replace(base.sensor, seed=seed),
                            events=dc.replace(base.events, retare_at_s=None, grasp_at_s=None,
                                              push_at_s=None))
@@ -91,15 +91,15 @@ def event_configs(base: ScenarioConfig, event: str, plan: EventPlan, seed: int) 
                             push_force_W=[0.0, 0.0, -plan.push_force_n],
                             push_hold_s=max(0.0, plan.duration_s - t - plan.push_ramp_s))
     with_event = dc.replace(reference, events=events)
-    untracked = dc.replace(with_event, bias_tracker=dc.replace(tracker, enabled=False),
-                           controller=dc.replace(with_event.controller,
-                                                 adapt_to_payload=False))
+    untracked = dc.replace(
+        with_event.with_chain(bias_tracker=dc.replace(tracker, enabled=False)),
+        controller=dc.replace(with_event.controller, adapt_to_payload=False))
     return {"with": with_event, "untracked": untracked, "reference": reference}
 
 
 def run_events(models: dict, config: ScenarioConfig, plan: EventPlan | None = None, *,
                seed: int = 0, n_jobs: int = -1, progress: bool = True) -> dict:
-    """Runs every event for every model (name → fitted compensator; `config.detector` or a
+    """Runs every event for every model (name → fitted compensator; `config.chain.detector` or a
     per-model detector in ``models[name] = (model, detector)``). Returns name → rows."""
     plan = plan or EventPlan()
     unknown = sorted(set(plan.events) - set(EVENTS))
@@ -107,8 +107,8 @@ def run_events(models: dict, config: ScenarioConfig, plan: EventPlan | None = No
         raise ValueError(f"EventPlan.events: unknown {unknown}; choose from {EVENTS}")
     jobs = []
     for name, entry in models.items():
-        model, detector = entry if isinstance(entry, tuple) else (entry, config.detector)
-        base = dc.replace(config, detector=detector)
+        model, detector = entry if isinstance(entry, tuple) else (entry, config.chain.detector)
+        base = config.with_chain(detector=detector)
         for event in plan.events:
             for s in plan.seeds:
                 configs = event_configs(base, event, plan, seed + s)
@@ -162,8 +162,8 @@ def recovery_metrics(with_event, untracked, reference, sigma, plan: EventPlan, *
             "false_contact_s": float(_contact_seconds(log, after)),
         }
     row["reference_false_contact_s"] = float(_contact_seconds(reference, after))
-    if payload and col.PAYLOAD_ESTIMATE[0] in with_event:
-        row["payload_estimate"] = [float(with_event[c].iloc[-1]) for c in col.PAYLOAD_ESTIMATE]
+    if payload and col.PAYLOAD[0] in with_event:
+        row["payload_estimate"] = [float(with_event[c].iloc[-1]) for c in col.PAYLOAD]
     return row
 
 
@@ -206,14 +206,14 @@ def constant_payload_floor(with_event, reference, regressor, payload_map, sigma,
     K = np.eye(6) if payload_map is None else np.asarray(payload_map, dtype=float)
     A = np.concatenate([np.einsum("ij,njk->nik", K, regressor[:, :, :10]),
                         regressor[:, :, 10:]], axis=2) / sigma[None, :, None]
-    compensated = with_event[col.wrench_columns(col.COMPENSATED)].to_numpy() / sigma
+    compensated = with_event[col.wrench_columns(col.WRENCH_COMPENSATED)].to_numpy() / sigma
     fitted_reference = (reference[col.TIME].to_numpy() > event_at_s) & _trusted(reference)
     if min(fitted.sum(), fitted_reference.sum()) < 16:
         return {**_judged(np.empty((0, 6)), tolerance_sigmas), "payload": None}
     theta = np.linalg.lstsq(A[fitted].reshape(-1, 16), compensated[fitted].reshape(-1),
                             rcond=None)[0]
     left = compensated - A @ theta
-    left_reference = reference[col.wrench_columns(col.COMPENSATED)].to_numpy() / sigma
+    left_reference = reference[col.wrench_columns(col.WRENCH_COMPENSATED)].to_numpy() / sigma
     left_reference = left_reference - left_reference[fitted_reference].mean(axis=0)
     row = _judged((left - left_reference)[t >= judged_from_s], tolerance_sigmas)
     return {**row, "payload": [float(x) for x in theta[:4]]}
@@ -238,8 +238,8 @@ def push_metrics(with_event, reference, plan: EventPlan) -> dict:
     """When the slow push was detected, at what force, and how much of it became bias."""
     t = with_event[col.TIME].to_numpy()
     start = np.searchsorted(t, plan.event_at_s)
-    detected = with_event[col.DETECTED].to_numpy()[start:] > 0
-    bias = with_event[col.wrench_columns(col.BIAS_ESTIMATE)[:3]].to_numpy()
+    detected = with_event[col.CONTACT].to_numpy()[start:] > 0
+    bias = with_event[col.wrench_columns(col.BIAS)[:3]].to_numpy()
     row = {"reference_false_contact_s": float(_contact_seconds(reference, t >= plan.event_at_s))}
     if not detected.any():
         return {**row, "detected": False, "delay_s": None, "force_at_detection_n": None,
@@ -251,13 +251,13 @@ def push_metrics(with_event, reference, plan: EventPlan) -> dict:
 
 
 def _estimate(log):
-    return log[col.wrench_columns(col.ESTIMATED)].to_numpy()
+    return log[col.wrench_columns(col.WRENCH_CONTACT)].to_numpy()
 
 
 def _contact_seconds(log, mask) -> float:
     t = log[col.TIME].to_numpy()
     period = float(np.median(np.diff(t)))
-    return float((log[col.DETECTED].to_numpy()[mask] > 0).sum() * period)
+    return float((log[col.CONTACT].to_numpy()[mask] > 0).sum() * period)
 
 
 def markdown(results: dict, plan: EventPlan) -> str:

@@ -1,7 +1,8 @@
 """ftdrake on a live robot over LCM: configuration and message codecs.
 
-Modules: ``config`` (HardwareConfig: channels, message types, timeouts), ``messages``
-(decode joint state and F/T, encode the external wrench and the contact state),
+Modules: ``config`` (HardwareConfig: channels, message types, timeouts), ``live_config``
+(LiveConfig: a live config file, the chain and its transports), ``messages``
+(decode joint state and F/T, encode the published wrenches and the contact state),
 ``live_inputs`` (StreamMonitor: per-message checks, fault, counters; RobotStatePairer),
 ``transport`` (open_lcm: an LCM connection that does not drop queued messages), ``core``
 (StationCore: the message-driven loop around the runtime chain, whatever the transport),
@@ -14,6 +15,7 @@ ROS 2 topics over Cyclone DDS: :mod:`ftdrake.hardware.ros2` (``--ros2``).
 """
 
 from .config import JOINT_STATE_TYPES, HardwareConfig
+from .live_config import LiveConfig, load_live_config
 from .live_inputs import REASONS, RobotStatePairer, StreamMonitor
 from .messages import (
     ContactState,
@@ -38,6 +40,7 @@ __all__ = [
     "HardwareConfig",
     "HardwareStation",
     "JointSample",
+    "LiveConfig",
     "RobotStatePairer",
     "StreamMonitor",
     "WrenchSample",
@@ -48,6 +51,7 @@ __all__ = [
     "encode_contact_state",
     "encode_joint_state",
     "encode_wrench",
+    "load_live_config",
     "measure_latency",
     "open_lcm",
     "read_lcm_log",

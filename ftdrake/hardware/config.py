@@ -7,7 +7,9 @@ Loadable with ``pydrake.common.yaml.yaml_load_typed(schema=HardwareConfig, ...)`
 # No `from __future__ import annotations`: yaml_load_typed reads the field types.
 import dataclasses as dc
 import math
+import warnings
 
+from ..conventions import OUTPUTS, PUBLISHED
 from ..errors import ConfigError
 
 #: Joint-state message types understood by :func:`ftdrake.hardware.messages.decode_joint_state`.
@@ -28,19 +30,25 @@ class HardwareConfig:
         ``joint_position`` field holds v in rad/s with the same ``utime`` as the position
         message it belongs to.
     F/T sensor: ``drake.lcmt_force_torque`` on `ft_channel` (timestamp in µs; see messages).
-    Outputs: the external wrench (``lcmt_force_torque``) on `external_wrench_channel`; the
-    contact state (``lcmt_drake_signal``, see :func:`encode_contact_state`) on
-    `contact_channel`.
+    Outputs: the chain outputs :data:`ftdrake.conventions.PUBLISHED` (the ROS 2 station
+    publishes the same), each on the channel `output_prefix` + its LCM name in
+    :data:`~ftdrake.conventions.CHAIN_OUTPUTS` (:meth:`output_channel`; with the default
+    prefix ``FT_WRENCH_CONTACT``, ``FT_WRENCH_COMPENSATED``, ``FT_BIAS`` as
+    ``lcmt_force_torque``, ``FT_PAYLOAD`` (:func:`encode_payload`), and ``FT_CONTACT_STATE``
+    with contact, contact_force, fault, out_of_domain and payload_change
+    (``lcmt_drake_signal``, :func:`encode_contact_state`)). `external_wrench_channel` and
+    `contact_channel` are the names of an earlier release, still read for one: the first is
+    where ``wrench_compensated`` then goes, the second the contact state's channel.
     Temperature (only for a model trained with the sensor temperature): ``lcmt_drake_signal``
     with one value in °C (:func:`encode_temperature`) on `temperature_channel`; older than
     `temperature_timeout_s` it faults the inputs like a silent sensor.
-    Events (optional; for ``scenario.bias_tracker``): an ``lcmt_drake_signal``
+    Events (optional; for ``chain.bias_tracker``): an ``lcmt_drake_signal``
     (:func:`encode_event`) on `tare_channel` says the driver re-zeroed the sensor, one on
     `payload_channel` that the gripper took or released a payload (needs ``track_payload``).
     The tracker's ``tared`` / ``payload_changed`` input is then high for the next F/T update:
     it re-initialises its bias or payload estimate and averages over ``tare_settle_s`` /
     ``payload_settle_s`` of free motion. With ``track_payload`` the station computes gravity
-    at the sensor from the joint state on the scenario's robot (``JointStateGravity``).
+    at the sensor from the joint state on the model's robot (``JointStateGravity``).
     """
 
     lcm_url: str = "udpm://239.255.76.67:7667?ttl=0"
@@ -48,8 +56,10 @@ class HardwareConfig:
     joint_state_type: str = "iiwa_status"
     velocity_channel: str = ""  # only for joint_state_type == "robot_state"
     ft_channel: str = "FT_SENSOR"
-    external_wrench_channel: str = "FT_EXTERNAL_WRENCH"
-    contact_channel: str = "FT_CONTACT_STATE"
+    output_prefix: str = "FT_"
+    # Deprecated (see the class docstring): "" unless an older file sets them.
+    external_wrench_channel: str = ""
+    contact_channel: str = ""
     # The sensor's temperature (lcmt_drake_signal, one value in °C; see messages), for models
     # trained with it; "" when the model needs none.
     temperature_channel: str = ""
@@ -61,7 +71,27 @@ class HardwareConfig:
     joint_state_timeout_s: float = 0.02
     n_joints: int = 7
 
+    def output_channel(self, port: str) -> str:
+        """The LCM channel of the chain output `port` (a port of
+        :data:`~ftdrake.conventions.PUBLISHED`)."""
+        channel = OUTPUTS[port].lcm_channel if port in OUTPUTS else None
+        if channel is None:
+            raise ConfigError(f"hardware: {port!r} is not a published chain output; those are "
+                              f"{', '.join(PUBLISHED)}")
+        legacy = {"WRENCH_COMPENSATED": self.external_wrench_channel,
+                  "CONTACT_STATE": self.contact_channel}.get(channel)
+        return legacy or self.output_prefix + channel
+
+    def output_channels(self) -> dict[str, str]:
+        """{LCM channel: the published ports on it}, e.g. ``{"FT_CONTACT_STATE": "contact,
+        contact_force, ..."}``."""
+        channels = {}
+        for port in PUBLISHED:
+            channels.setdefault(self.output_channel(port), []).append(port)
+        return {channel: ", ".join(ports) for channel, ports in channels.items()}
+
     def validate(self, where: str = "hardware") -> "HardwareConfig":
+        """Checks every field; ConfigError names the first wrong one (`where` is its path)."""
         if not (isinstance(self.lcm_url, str) and self.lcm_url):
             raise ConfigError(f"{where}.lcm_url: must be a non-empty LCM URL")
         if self.joint_state_type not in JOINT_STATE_TYPES:
@@ -70,19 +100,7 @@ class HardwareConfig:
         if self.joint_state_type == "robot_state" and not self.velocity_channel:
             raise ConfigError(f"{where}.velocity_channel: required when joint_state_type is "
                               "'robot_state' (that message carries positions only)")
-        names = {}
-        optional = tuple(f for f in ("velocity_channel", "temperature_channel",
-                                            "tare_channel", "payload_channel")
-                         if getattr(self, f))
-        for field in ("joint_state_channel", "ft_channel", "external_wrench_channel",
-                      "contact_channel", *optional):
-            value = getattr(self, field)
-            if not (isinstance(value, str) and value):
-                raise ConfigError(f"{where}.{field}: must be a non-empty channel name")
-            if value in names:
-                raise ConfigError(f"{where}.{field}: channel {value!r} is also "
-                                  f"{where}.{names[value]}")
-            names[value] = field
+        self._check_channels(where)
         for field in ("sensor_timeout_s", "joint_state_timeout_s", "temperature_timeout_s"):
             value = getattr(self, field)
             if not (isinstance(value, (int, float)) and value > 0 and math.isfinite(value)):
@@ -92,3 +110,31 @@ class HardwareConfig:
             raise ConfigError(f"{where}.n_joints: must be a positive integer, got "
                               f"{self.n_joints!r}")
         return self
+
+    def _check_channels(self, where: str) -> None:
+        """Every channel named and none twice, the outputs' included; warns on the
+        deprecated output fields."""
+        for field, now in (("external_wrench_channel", "FT_WRENCH_COMPENSATED"),
+                           ("contact_channel", "FT_CONTACT_STATE")):
+            if getattr(self, field):
+                warnings.warn(f"{where}.{field} is deprecated: the station publishes each "
+                              f"output on {where}.output_prefix + its name (e.g. {now}); "
+                              f"{getattr(self, field)!r} is still used for this release",
+                              FutureWarning, stacklevel=3)
+        if not (isinstance(self.output_prefix, str) and self.output_prefix):
+            raise ConfigError(f"{where}.output_prefix: must be a non-empty channel prefix, "
+                              "e.g. FT_")
+        optional = tuple(f for f in ("velocity_channel", "temperature_channel",
+                                     "tare_channel", "payload_channel") if getattr(self, f))
+        fields = {field: getattr(self, field)
+                  for field in ("joint_state_channel", "ft_channel", *optional)}
+        fields.update({f"output_prefix ({ports})": channel
+                       for channel, ports in self.output_channels().items()})
+        names = {}
+        for field, value in fields.items():
+            if not (isinstance(value, str) and value):
+                raise ConfigError(f"{where}.{field}: must be a non-empty channel name")
+            if value in names:
+                raise ConfigError(f"{where}.{field}: channel {value!r} is also "
+                                  f"{where}.{names[value]}")
+            names[value] = field

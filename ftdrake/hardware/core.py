@@ -17,7 +17,10 @@ sleep granularity to the latency. Here each message reaches a callback; every ac
 fault-free F/T message triggers exactly one periodic update of the diagram: the k-th such
 message advances a (non-realtime) Simulator to (k + ½)·period, so exactly the update at
 k·period fires (diagram time is processed-message index × period, not the message's
-timestamp; they agree while no message is rejected).
+timestamp; they agree while no message is rejected). By default that update is made by a
+:class:`~ftdrake.runtime.step.ChainStep` (the same systems' code on arrays, without the
+Simulator's per-update overhead; its outputs equal the diagram's, tests/test_chain_step.py);
+:meth:`StationCore.use_diagram` drives the diagram itself instead, for checking.
 
 Per F/T sample the transport publishes the wrench (``_publish_wrench``) only when the inputs
 are fault-free — a stale wrench is never published as fresh — and the contact state
@@ -39,8 +42,10 @@ import time
 import numpy as np
 from pydrake.systems.analysis import Simulator
 
-from ..config import ScenarioConfig
+from ..config import ChainConfig
+from ..offline.recorder import UpdateRecorder, chain_outputs
 from ..runtime.chain import CompensationChain
+from ..runtime.step import ChainStep
 from .live_inputs import StreamMonitor
 from .messages import ContactState
 
@@ -79,9 +84,12 @@ class FaultEvent:
 class StationCore:
     """Holds the diagram, its context, the monitor and the counts (see the module).
 
-    `scenario` gives the compensator, bias-tracker, detector and sensor settings (the
-    sensor's rate sets the update period). `n_joints` and the timeouts (s) configure the
-    StreamMonitor; `temperature_timeout_s` is used only when the model needs the temperature.
+    `chain` (a :class:`~ftdrake.config.ChainConfig`; default ``ChainConfig()``) gives the
+    compensator, bias-tracker, detector, sensor-stream and robot settings (the stream's rate
+    sets the update period; joint-state gravity runs on ``chain.robot``, else the robot
+    embedded in the model, never on ftdrake's simulated arm by default). `n_joints` and the
+    timeouts (s) configure the StreamMonitor; `temperature_timeout_s` is used only when the
+    model needs the temperature.
     `events`: the tracker event inputs fed by messages (``"tared"``, ``"payload_changed"``).
     `clock` gives arrival times in s (monotonic). `on_event(FaultEvent)` is called on every
     fault change. A subclass implements ``_check_sources(chain)`` (raise ConfigError when the
@@ -89,14 +97,13 @@ class StationCore:
     ``_publish_contact(t, fault)``.
     """
 
-    def __init__(self, model, scenario: ScenarioConfig | None, *, n_joints: int,
+    def __init__(self, model, chain: ChainConfig | None, *, n_joints: int,
                  sensor_timeout_s: float, joint_state_timeout_s: float,
                  temperature_timeout_s: float, events=(), clock=time.monotonic,
                  on_event=None, max_events: int = 10_000):
-        self.scenario = (scenario or ScenarioConfig()).validate()
         self.n_joints = int(n_joints)
-        self.period = 1.0 / self.scenario.sensor.spec().rate_hz
-        self._build(model)
+        self._build(model, chain)
+        self.period = self.chain.period
         self.simulator = Simulator(self.diagram)
         self.context = self.simulator.get_mutable_context()
         self.chain.initialize(self.context)
@@ -111,10 +118,11 @@ class StationCore:
                 self.context, np.full(1, np.nan))
         self._signals = {name: EventSignal(self.diagram.GetInputPort(name).FixValue(
             self.context, [0.0])) for name in events}
-        self._out = {name: self.diagram.GetOutputPort(name) for name in (
-            "wrench_compensated", "wrench_contact", "fault", "out_of_domain", "contact",
-            "contact_force", "bias", "payload", "payload_change")
-            if self.diagram.HasOutputPort(name)}
+        self._out = {o.port: self.diagram.GetOutputPort(o.port) for o in chain_outputs(self.chain)}
+        self.recorder = None  # an UpdateRecorder after start_recording()
+        # Each F/T sample updates the chain by the step (use_diagram(): by the diagram); the
+        # step keeps its own state, written into `context` by chain_context().
+        self._step = ChainStep(self.chain, self.context)
         self.monitor = StreamMonitor(
             self.n_joints, sensor_timeout_s, joint_state_timeout_s,
             temperature_timeout_s if self._temperature_in is not None else None)
@@ -129,12 +137,12 @@ class StationCore:
         self.fault_episodes = collections.Counter()  # reason → times the fault rose with it
         self._state = (True, "no_data")
 
-    def _build(self, model) -> None:
-        """The runtime chain, its joint-state gravity on the scenario robot's serial chain
-        (there is no plant on hardware), checked against the configured streams."""
-        self.diagram = chain = CompensationChain(
-            model, self.scenario, period=self.period, n_joints=self.n_joints,
-            gravity="joint_state")
+    def _build(self, model, config: ChainConfig | None) -> None:
+        """The runtime chain, its joint-state gravity on the model's (or the configured)
+        robot's serial chain (there is no plant on hardware), checked against the configured
+        streams."""
+        self.diagram = chain = CompensationChain(model, config, n_joints=self.n_joints,
+                                                 gravity="joint_state")
         chain.set_name("ftdrake_hardware")
         self.chain = chain
         self.compensator, self.tracker, self.detector = (chain.compensator, chain.tracker,
@@ -151,14 +159,39 @@ class StationCore:
         raise NotImplementedError
 
     def output(self, name: str) -> np.ndarray:
-        """The diagram output `name` now (see CompensationChain's ports)."""
+        """The chain's output `name` now (see CompensationChain's ports), a copy: the
+        ChainStep's, or the diagram's after use_diagram()."""
+        if self._step is not None:
+            return self._step.outputs[name].copy()
         return self._out[name].Eval(self.context)
 
+    def chain_context(self):
+        """The diagram's context holding the chain's state now (the step's written into it
+        first), to evaluate any port of the chain's systems, e.g. the tracker's
+        ``payload_inertia``."""
+        if self._step is not None:
+            self._step.write_state(self.context)
+        return self.context
+
+    def has_output(self, name: str) -> bool:
+        """Whether the chain has the output port `name` (``bias`` only with the tracker ...)."""
+        return name in self._out
+
+    def start_recording(self):
+        """From now on keeps every update's inputs and the chain's outputs after it; returns
+        the :class:`~ftdrake.offline.recorder.UpdateRecorder` (``recorder.to_frame()``: a log
+        in the layout ``replay`` reads, with the chain's output columns, one row per
+        processed F/T message, ``t`` its timestamp)."""
+        self.recorder = UpdateRecorder(self.chain)
+        return self.recorder
+
     def contact_state(self, t: float, fault: bool) -> ContactState:
-        """The detector's state now, stamped `t`, with `fault`."""
+        """The detector's state now, stamped `t`, with `fault` (the inputs' fault) or the
+        chain's own ``fault`` output once it has been updated."""
         changed = "payload_change" in self._out and self.output("payload_change")[0] > 0.5
+        model_fault = self.processed > 0 and self.output("fault")[0] > 0.5
         return ContactState(t, self.output("contact")[0] > 0.5,
-                            float(self.output("contact_force")[0]), bool(fault),
+                            float(self.output("contact_force")[0]), bool(fault or model_fault),
                             self.output("out_of_domain")[0] > 0.5, bool(changed))
 
     # -- samples ------------------------------------------------------------------------------
@@ -187,23 +220,56 @@ class StationCore:
         fresh = self.monitor.on_wrench(sample, arrival)
         t = sample.t if sample is not None and np.isfinite(sample.t) else self._stream_time()
         if fresh:
-            self._wrench_in.GetMutableData().get_mutable_value().SetFromVector(self.monitor.wrench)
-            self._state_in.GetMutableData().get_mutable_value().SetFromVector(self.monitor.joint_state)
-            if self._temperature_in is not None:
-                self._temperature_in.GetMutableData().get_mutable_value().SetFromVector(
-                    [self.monitor.temperature])
-            for signal in self._signals.values():  # high for one update after its message
-                signal.fixed.GetMutableData().get_mutable_value().SetFromVector(
-                    [1.0 if signal.pending else 0.0])
-                signal.pending = False
-            self.simulator.AdvanceTo((self.processed + 0.5) * self.period)
+            if self._step is not None:
+                self._step_chain()
+            else:
+                self._advance_diagram()
             self.processed += 1
-            if self._out["fault"].Eval(self.context)[0] <= 0.5:
+            if self.recorder is not None:
+                self.recorder.record_values(
+                    {name: self.output(name) for name in self.recorder.ports}, t,
+                    self.monitor.joint_state, self.monitor.wrench,
+                    self.monitor.temperature if self._temperature_in is not None else None)
+            if self.output("fault")[0] <= 0.5:
                 self._publish_wrench(t)
                 self.latencies.append(self.clock() - arrival)
                 self.published += 1
         self.contact_published += bool(self._publish_contact(t, self.monitor.fault))
         self._note(t)
+
+    def _step_chain(self) -> None:
+        """One update of the chain by the ChainStep, from the monitor's held inputs."""
+        m = self.monitor
+        signals = {}
+        for name, signal in self._signals.items():  # high for one update after its message
+            signals[name] = 1.0 if signal.pending else 0.0
+            signal.pending = False
+        self._step.update(self.processed * self.period, m.wrench, m.joint_state,
+                          m.temperature, **signals)
+
+    def _advance_diagram(self) -> None:
+        """One update of the chain by the Drake diagram: inputs fixed, the Simulator advanced
+        past the next periodic update (the module docstring)."""
+        self._wrench_in.GetMutableData().get_mutable_value().SetFromVector(self.monitor.wrench)
+        self._state_in.GetMutableData().get_mutable_value().SetFromVector(self.monitor.joint_state)
+        if self._temperature_in is not None:
+            self._temperature_in.GetMutableData().get_mutable_value().SetFromVector(
+                [self.monitor.temperature])
+        for signal in self._signals.values():  # high for one update after its message
+            signal.fixed.GetMutableData().get_mutable_value().SetFromVector(
+                [1.0 if signal.pending else 0.0])
+            signal.pending = False
+        self.simulator.AdvanceTo((self.processed + 0.5) * self.period)
+
+    def use_diagram(self) -> None:
+        """Updates the chain per F/T sample through the Drake diagram and its Simulator (the
+        reference: what the ChainStep reproduces, at several times its cost) instead of the
+        ChainStep; for checking. Only before the first processed sample."""
+        if self.processed:
+            raise RuntimeError("StationCore.use_diagram: the chain has already been updated "
+                               f"{self.processed} times by the step; call it before the first "
+                               "F/T sample")
+        self._step = None
 
     def check_timeouts(self) -> None:
         """Raises the fault when a stream went silent, publishing it at once."""

@@ -10,11 +10,12 @@ Units and conventions (one place):
 * Wrench: ``[Fx, Fy, Fz, Tx, Ty, Tz]`` in N and N·m — ``lcmt_force_torque``'s
   ``fx fy fz tx ty tz`` in that order. As in ftdrake's conventions (README "Conventions"),
   the reading is the load the tool side applies to the sensor, about the sensor origin So,
-  expressed in the sensor frame S; the published external wrench is the estimated contact
-  wrench in the same frame, about the same point (measured − predicted internal wrench).
-  No frame change or sign flip happens here.
+  expressed in the sensor frame S; the published wrenches (``wrench_contact``,
+  ``wrench_compensated``, ``bias``; :data:`ftdrake.conventions.CHAIN_OUTPUTS`) are in the
+  same frame, about the same point. No frame change or sign flip happens here.
 * Contact state: ``drake.lcmt_drake_signal`` (an existing, documented Drake type: ``dim``,
   ``val[dim]``, ``coord[dim]`` names, ``timestamp`` µs) with ``coord = CONTACT_COORDS``.
+* Payload estimate: ``lcmt_drake_signal`` with ``coord = PAYLOAD_COORDS`` (kg, kg·m).
 * Events (optional inputs): ``lcmt_drake_signal`` with one value named ``TARE_COORD`` (the
   driver re-zeroed the sensor) or ``PAYLOAD_COORD`` (a payload was grasped or released).
 * Sensor temperature (optional input): ``lcmt_drake_signal`` with one value, °C, named
@@ -37,6 +38,8 @@ from drake import (
     lcmt_robot_state,
 )
 
+from ..conventions import CHAIN_OUTPUTS, OUTPUTS
+
 #: Name of the value in the temperature message (°C).
 TEMPERATURE_COORD = "temperature_c"
 #: Names of the value in the event messages (:func:`encode_event`): the sensor was re-zeroed
@@ -44,11 +47,15 @@ TEMPERATURE_COORD = "temperature_c"
 TARE_COORD = "tared"
 PAYLOAD_COORD = "payload_changed"
 
-#: Names of the values in the contact-state message, in order. ``payload_change``: 1 while
-#: the chain announces a payload change nobody signalled (``bias_tracker.payload_change``).
-CONTACT_COORDS = ("contact", "contact_force", "fault", "out_of_domain", "payload_change")
+#: Names of the values in the contact-state message, in order: the chain outputs that
+#: :data:`ftdrake.conventions.CHAIN_OUTPUTS` puts in ``CONTACT_STATE`` (``contact``,
+#: ``contact_force``, ``fault``, ``out_of_domain``, ``payload_change``: 1 while the chain
+#: announces a payload change nobody signalled, ``bias_tracker.payload_change``).
+CONTACT_COORDS = tuple(o.lcm_field for o in CHAIN_OUTPUTS if o.lcm_channel == "CONTACT_STATE")
 #: The message before it carried ``payload_change``; still decoded (the flag then False).
-CONTACT_COORDS_V1 = CONTACT_COORDS[:4]
+CONTACT_COORDS_V1 = ("contact", "contact_force", "fault", "out_of_domain")
+#: Names of the values in the payload message (:func:`encode_payload`): its log columns.
+PAYLOAD_COORDS = OUTPUTS["payload"].columns
 
 _JOINT_CLASSES = {
     "iiwa_status": lcmt_iiwa_status,
@@ -156,6 +163,26 @@ def decode_contact_state(data: bytes) -> ContactState:
     c, f, fault, ood, *changed = msg.val
     return ContactState(msg.timestamp * 1e-6, c > 0.5, f, fault > 0.5, ood > 0.5,
                         bool(changed) and changed[0] > 0.5)
+
+
+def encode_payload(t: float, payload) -> bytes:
+    """``lcmt_drake_signal`` bytes: the tracker's payload estimate ``[Δm kg, Δ(m·c) kg·m]``
+    (about So, in S) at t (s), its values named ``PAYLOAD_COORDS``."""
+    msg = lcmt_drake_signal()
+    msg.timestamp = _utime(t)
+    msg.dim = len(PAYLOAD_COORDS)
+    msg.coord = list(PAYLOAD_COORDS)
+    msg.val = [float(x) for x in np.asarray(payload, dtype=float).reshape(len(PAYLOAD_COORDS))]
+    return msg.encode()
+
+
+def decode_payload(data: bytes) -> tuple[float, np.ndarray]:
+    """(t s, ``[Δm, Δ(m·c)]`` kg, kg·m) of :func:`encode_payload`; ValueError for another
+    signal."""
+    msg = lcmt_drake_signal.decode(data)
+    if tuple(msg.coord) != PAYLOAD_COORDS:
+        raise ValueError(f"not a payload signal: coord {list(msg.coord)}")
+    return msg.timestamp * 1e-6, np.array(msg.val, dtype=float)
 
 
 def encode_temperature(t: float, celsius: float) -> bytes:

@@ -21,7 +21,6 @@ import pandas as pd
 
 from ..conventions import MEASURED, QD, TIME, Q, joint_columns, wrench_columns
 from ..errors import LogError
-from ..io import atomic_path
 from .config import HardwareConfig
 from .live_inputs import RobotStatePairer
 from .messages import decode_joint_state, decode_wrench
@@ -104,9 +103,11 @@ def table_from_samples(joints, wrenches, n: int, tolerance_s: float = 0.002,
 
 
 def write_table(table, out_path) -> None:
-    """Writes a recorded table as Parquet, atomically."""
-    with atomic_path(out_path) as tmp:
-        table.to_parquet(tmp, index=False)
+    """Writes a recorded table as Parquet, atomically, stamped with the log format
+    (:func:`ftdrake.data.logs.write_log`)."""
+    from ..data.logs import write_log  # noqa: PLC0415 (the log readers only to write one)
+
+    write_log(table, out_path)
 
 
 def record_to_parquet(log_path, out_path, config: HardwareConfig, tolerance_s: float = 0.002):

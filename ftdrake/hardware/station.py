@@ -4,25 +4,31 @@
     (iiwa/panda/robot_state)  (checks, counts)      ▼
     F/T ──────────► StreamMonitor ──► wrench_measured ─► CompensationChain
                                                                │
-                         lcmt_force_torque  ◄── wrench_compensated
-                         lcmt_drake_signal  ◄── contact, contact_force, fault, out_of_domain
+    FT_WRENCH_CONTACT      lcmt_force_torque ◄── wrench_contact
+    FT_WRENCH_COMPENSATED  lcmt_force_torque ◄── wrench_compensated
+    FT_BIAS                lcmt_force_torque ◄── bias (with the tracker)
+    FT_PAYLOAD             lcmt_drake_signal ◄── payload (with track_payload)
+    FT_CONTACT_STATE       lcmt_drake_signal ◄── contact, contact_force, fault, out_of_domain,
+                                                  payload_change
 
 The diagram is :class:`~ftdrake.runtime.chain.CompensationChain`, the one
-:func:`ftdrake.sim.station.build_station` puts in the loop, built from the same scenario
-(``compensator``, ``bias_tracker``, ``detector``); with ``track_payload`` the tracker's
-``gravity_S`` and ``motion_S`` come from the joint state through the scenario robot's chain
-(:class:`~ftdrake.runtime.joint_gravity.JointStateGravity`). The same messages therefore give
-the same numbers as in simulation (``tests/test_live_end_to_end.py`` checks it to 1e-9). This
-module imports nothing of the simulation.
+:func:`ftdrake.sim.station.build_station` puts in the loop, built from a
+:class:`~ftdrake.config.ChainConfig` (``compensator``, ``bias_tracker``, ``detector``,
+``sensor``, ``robot``); with ``track_payload`` the tracker's ``gravity_S`` and ``motion_S``
+come from the joint state through the serial chain of the robot embedded in the model (or of
+``chain.robot``; :class:`~ftdrake.runtime.joint_gravity.JointStateGravity`). The same
+messages therefore give the same numbers as in simulation (``tests/test_live_end_to_end.py``
+checks it to 1e-9). This module imports nothing of the simulation.
 
 The message-driven loop, its checks, fault episodes and counts are
 :class:`~ftdrake.hardware.core.StationCore`'s (shared with the ROS 2 station); this class adds
-the LCM side. Published per F/T message: the compensated wrench (``lcmt_force_torque`` on
-``external_wrench_channel``) only when the inputs are fault-free — a stale wrench is never
-published as fresh — and the contact state (``lcmt_drake_signal`` on ``contact_channel``)
-always, with its fault flag. Both carry the F/T message's timestamp. When a stream goes
-silent (``spin_once`` checks the timeouts), one contact state with ``fault = 1`` is published
-at once, stamped with the detection time on the stream's clock.
+the LCM side. Published per F/T message (the outputs :data:`ftdrake.conventions.PUBLISHED`,
+the ROS 2 station's, on the channels :meth:`HardwareConfig.output_channel` names): the
+wrenches and the payload only when the inputs are fault-free — a stale wrench is never
+published as fresh — and the contact state always, with its fault flag. All carry the F/T
+message's timestamp. When a stream goes silent (``spin_once`` checks the timeouts), one
+contact state with ``fault = 1`` is published at once, stamped with the detection time on the
+stream's clock.
 
 Fault episodes are kept in ``events`` and passed to `on_event` (``serve`` prints them);
 ``summary()`` counts everything.
@@ -36,7 +42,8 @@ import time
 
 import numpy as np
 
-from ..config import ScenarioConfig
+from ..config import ChainConfig
+from ..conventions import OUTPUTS, PUBLISHED
 from ..errors import ConfigError
 from .config import HardwareConfig
 from .core import FaultEvent, StationCore  # noqa: F401 (FaultEvent: its home before core)
@@ -50,6 +57,7 @@ from .messages import (
     decode_wrench,
     encode_contact_state,
     encode_joint_state,
+    encode_payload,
     encode_wrench,
 )
 from .transport import open_lcm
@@ -58,24 +66,29 @@ from .transport import open_lcm
 class HardwareStation(StationCore):
     """The LCM station: StationCore fed by the LCM subscriptions of `config`.
 
-    `scenario` gives the compensator, bias-tracker, detector and sensor settings (the
-    sensor's rate sets the update period; the tracker reads its drift). `lcm`: an LCM URL, an
+    `chain` (a :class:`~ftdrake.config.ChainConfig`) gives the compensator, bias-tracker,
+    detector, sensor-stream and robot settings (the stream's rate sets the update period;
+    the tracker reads its drift). `lcm`: an LCM URL, an
     ``lcm.LCM``, a ``DrakeLcm`` or a transport (default: ``config.lcm_url``). `clock` gives
     arrival times in s (monotonic). `on_event(FaultEvent)` is called on every fault change.
     """
 
-    def __init__(self, config: HardwareConfig, model, scenario: ScenarioConfig | None = None,
+    def __init__(self, config: HardwareConfig, model, chain: ChainConfig | None = None,
                  lcm=None, *, clock=time.monotonic, on_event=None, max_events: int = 10_000):
         self.config = config.validate()
         self.lcm = open_lcm(lcm if lcm is not None else config.lcm_url)
         self._coords = {name: coord for name, coord, channel in self._event_channels()
                         if channel}
-        super().__init__(model, scenario, n_joints=config.n_joints,
+        super().__init__(model, chain, n_joints=config.n_joints,
                          sensor_timeout_s=config.sensor_timeout_s,
                          joint_state_timeout_s=config.joint_state_timeout_s,
                          temperature_timeout_s=config.temperature_timeout_s,
                          events=tuple(self._coords), clock=clock, on_event=on_event,
                          max_events=max_events)
+        # The published outputs (conventions.PUBLISHED) with an LCM message of their own; the
+        # others are values of the contact state (_publish_contact).
+        self._own_channel = [port for port in PUBLISHED if self.has_output(port)
+                             and OUTPUTS[port].lcm_field is None]
         self._pairer = None
         kind = config.joint_state_type
         if kind == "robot_state":
@@ -94,10 +107,10 @@ class HardwareStation(StationCore):
     def _check_sources(self, chain) -> None:
         if self.config.tare_channel and not chain.HasInputPort("tared"):
             raise ConfigError("hardware.tare_channel: a re-tare goes to the bias tracker; "
-                              "enable scenario.bias_tracker or leave the channel empty")
+                              "enable chain.bias_tracker or leave the channel empty")
         if self.config.payload_channel and not chain.HasInputPort("payload_changed"):
             raise ConfigError("hardware.payload_channel: a grasp goes to the bias tracker's "
-                              "payload estimate; set scenario.bias_tracker.enabled and "
+                              "payload estimate; set chain.bias_tracker.enabled and "
                               "track_payload, or leave the channel empty")
         if chain.needs_temperature and not self.config.temperature_channel:
             raise ConfigError(
@@ -141,11 +154,14 @@ class HardwareStation(StationCore):
         self.on_wrench_sample(_decoded(decode_wrench, data), arrival)
 
     def _publish_wrench(self, t: float) -> None:
-        self.lcm.publish(self.config.external_wrench_channel,
-                         encode_wrench(t, self.output("wrench_compensated")))
+        """The published outputs of their own channel (wrenches, the payload) the chain has."""
+        for port in self._own_channel:
+            data = (encode_payload(t, self.output(port)) if port == "payload"
+                    else encode_wrench(t, self.output(port)))
+            self.lcm.publish(self.config.output_channel(port), data)
 
     def _publish_contact(self, t: float, fault: bool) -> bool:
-        self.lcm.publish(self.config.contact_channel,
+        self.lcm.publish(self.config.output_channel("contact"),
                          encode_contact_state(self.contact_state(t, fault)))
         return True
 
@@ -170,15 +186,15 @@ def _decoded(decode, *args):
         return None
 
 
-def build_hardware_station(config: HardwareConfig, model, scenario: ScenarioConfig | None = None,
+def build_hardware_station(config: HardwareConfig, model, chain: ChainConfig | None = None,
                            lcm=None, **kwargs):
     """Returns (diagram, handles): handles["station"] is the HardwareStation to spin."""
-    station = HardwareStation(config, model, scenario, lcm, **kwargs)
+    station = HardwareStation(config, model, chain, lcm, **kwargs)
     return station.diagram, {"station": station, "monitor": station.monitor,
                              "context": station.context}
 
 
-def measure_latency(model, scenario: ScenarioConfig | None = None, n_messages: int = 2000,
+def measure_latency(model, chain: ChainConfig | None = None, n_messages: int = 2000,
                     seed: int = 0, q_range=None):
     """In-process (memq://) latency of arrival → publication of the compensated wrench.
 
@@ -193,7 +209,7 @@ def measure_latency(model, scenario: ScenarioConfig | None = None, n_messages: i
     lo, hi = q_range if q_range is not None else (-np.ones(n), np.ones(n))
     config = HardwareConfig(lcm_url="memq://", n_joints=n, sensor_timeout_s=1.0,
                             joint_state_timeout_s=1.0)
-    station = HardwareStation(config, model, scenario, "memq://")
+    station = HardwareStation(config, model, chain, "memq://")
     for k in range(n_messages):
         t = station.period * (k + 1)
         station.lcm.publish(config.joint_state_channel, encode_joint_state(

@@ -4,7 +4,7 @@ in the library.
 Why not ``pydrake.lcm.DrakeLcm`` for the live streams: LCM keeps at most 30 undelivered
 messages per subscription and drops the rest silently; DrakeLcm does not expose
 ``set_queue_capacity`` to Python, so a subscriber that is descheduled for 30 ms on a busy
-machine loses 1 kHz messages (seen here: 6 of 5000 over udpm at load 4 on 2 cores). The
+machine loses 1 kHz messages (docs, Derivations). The
 ``lcm`` package's subscriptions take a capacity; :func:`open_lcm` sets it to
 `QUEUE_CAPACITY` (≈ 10 s of one 1 kHz stream). A DrakeLcm is still accepted (tests, users'
 own diagrams) through :class:`DrakeTransport`.

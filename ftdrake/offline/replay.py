@@ -17,13 +17,13 @@ Which inputs an update reads (`pairing`):
   plant steps before the chain's update, so in :func:`ftdrake.sim.simulate.simulate`'s log
   the wrench reaches the chain one sample after the joint state of its row (the simulated
   robot on LCM publishes the same way, :mod:`ftdrake.sim.lcm_publisher`). Replaying such a
-  log with this pairing reproduces its ``pred_*``, ``comp_external_*``, ``est_external_*``,
-  ``detected`` ... columns.
+  log with this pairing reproduces its ``wrench_internal_*``, ``wrench_compensated_*``,
+  ``wrench_contact_*``, ``contact`` ... columns.
 
 Which row an output belongs to (`view`):
 
 * ``"aligned"`` (default): row k holds the chain's outputs after the update that read row
-  k's inputs — e.g. ``comp_external`` = wrench − model(joint state) of that same update.
+  k's inputs — e.g. ``wrench_compensated`` = wrench − model(joint state) of that same update.
   This is what the live station publishes for the k-th F/T message, and what
   :func:`~ftdrake.sim.simulate.simulate` logs in row k.
 * ``"held"``: row k holds what the chain's (state) output ports held when row k's inputs
@@ -33,14 +33,14 @@ Which row an output belongs to (`view`):
 Within the chain the bias tracker reads the compensator's previous output and the detector
 the tracker's, as in the loop; replay runs the same diagram, so those lags are the loop's.
 
-Result columns (one row per log row, ``t`` copied from the log; the names of
-:mod:`ftdrake.sim.simulate`'s compensation columns, so a replay can stand in for them):
-``pred_*`` (``wrench_internal``), ``comp_external_*`` (``wrench_compensated``),
-``est_external_*`` (``wrench_contact``), ``pred_std_*`` (``wrench_std``), ``bias_est_*``
-(``bias``, with the tracker), ``payload_est_dm``, ``payload_est_mcx..mcz`` (``payload``, with
-``track_payload``), ``out_of_domain``, ``fault``, ``detected`` (``contact``),
-``detected_force`` (``contact_force``) and ``payload_change`` (with
-``bias_tracker.payload_change.enabled``).
+Result columns (one row per log row, ``t`` copied from the log): the columns of every output
+port the chain has, named as :data:`ftdrake.conventions.CHAIN_OUTPUTS` says and recorded by
+:class:`~ftdrake.offline.recorder.UpdateRecorder` — the names of
+:mod:`ftdrake.sim.simulate`'s compensation columns, so a replay can stand in for them:
+``wrench_internal_*``, ``wrench_compensated_*``, ``wrench_contact_*``, ``wrench_std_*``,
+``out_of_domain``, ``fault``, ``contact`` (the detector's flag), ``contact_force``, and with the
+bias tracker ``bias_*``, ``tracker_std_*``, ``payload_dm``, ``payload_mcx..mcz`` (with
+``track_payload``) and ``payload_change`` (with ``bias_tracker.payload_change.enabled``).
 
 Log columns read (the layout ``collect``, ``simulate`` and :func:`ftdrake.add_recorder`
 write): ``t`` (s), ``q_i`` (rad), ``qd_i`` (rad/s), the wrench ``meas_Fx..meas_Tz`` (N, N·m),
@@ -59,7 +59,7 @@ import pandas as pd
 from pydrake.systems.analysis import Simulator
 
 from .. import conventions as col
-from ..config import DetectorConfig, ScenarioConfig, parse_config
+from ..config import ChainConfig, DetectorConfig, ScenarioConfig, parse_config
 from ..data.bag import is_bag, read_bag
 from ..data.logs import (
     expand_columns,
@@ -70,22 +70,12 @@ from ..data.logs import (
 )
 from ..errors import LogError, spelled
 from ..runtime.chain import CompensationChain
+from .recorder import UpdateRecorder, output_columns
 from .thresholds import armed, thresholds_for_false_positive_rate
 
 PAIRINGS = ("row", "simulated")
 VIEWS = ("aligned", "held")
 TARED, PAYLOAD_CHANGED = "tared", "payload_changed"
-
-# Output port of the chain → result column prefix (wrenches) or name (flags); the names of
-# ftdrake.sim.simulate's compensation columns.
-WRENCH_OUTPUTS = {"wrench_internal": "pred", "wrench_compensated": "comp_external",
-                  "wrench_contact": "est_external", "wrench_std": "pred_std",
-                  "bias": "bias_est"}
-PAYLOAD_COLUMNS = ("payload_est_dm", "payload_est_mcx", "payload_est_mcy", "payload_est_mcz")
-FLAG_OUTPUTS = {"out_of_domain": "out_of_domain", "fault": "fault", "contact": "detected",
-                "contact_force": "detected_force", "payload_change": col.PAYLOAD_CHANGE}
-INTEGER_COLUMNS = ("out_of_domain", "fault", "detected", col.PAYLOAD_CHANGE)
-
 
 @dc.dataclass
 class ReplayInputs:
@@ -99,22 +89,23 @@ class ReplayInputs:
     payload_changed: np.ndarray | None = None  # (N,) > 0.5 for a grasp's sample
 
 
-def replay(model, log, config: ScenarioConfig | None = None, *, pairing: str = "row",
+def replay(model, log, config: ChainConfig | None = None, *, pairing: str = "row",
            view: str = "aligned", period: float | None = None, wrench: str = col.MEASURED,
-           robot=None, **chain_options) -> pd.DataFrame:
+           robot=None) -> pd.DataFrame:
     """Runs the runtime chain over `log`, one update per row; returns its outputs per row.
 
     `model`: a fitted compensator (``load_model``). `log`: a DataFrame in the layout of the
     module docstring, or the path of a CSV/Parquet table or ROS bag (read with
     :func:`read_replay_log`; an LCM log is read with
-    :func:`ftdrake.hardware.recording.read_lcm_log` first). `config`: the scenario whose
-    ``compensator``, ``bias_tracker`` and ``detector`` sections configure the chain (default:
-    the one a ``collect`` Parquet file carries, else ``ScenarioConfig()``). `pairing`,
+    :func:`ftdrake.hardware.recording.read_lcm_log` first). `config`: the chain's
+    :class:`~ftdrake.config.ChainConfig` (default: the one of the scenario a ``collect``
+    Parquet file carries, ``scenario.chain_config()``, else ``ChainConfig()``). `pairing`,
     `view`: see the module docstring. `period`: the chain's sample period in s (default: the
-    scenario sensor's period when the log's median period is within 1 % of it, else the
+    config's sensor period when the log's median period is within 1 % of it, else the
     log's median period). `wrench`: the prefix of the wrench columns. `robot`: the
-    RobotDescription for the tracker's payload estimate (``track_payload``; default: the
-    scenario's robot). `chain_options` go to :class:`CompensationChain`.
+    RobotDescription for the tracker's payload estimate (``track_payload``; default:
+    ``config.robot``, else the robot embedded in the model). A delay between the streams is
+    ``config.sensor.wrench_delay_s`` (null: the model's own).
 
     Raises LogError naming a missing column and what produces it.
     """
@@ -123,15 +114,15 @@ def replay(model, log, config: ScenarioConfig | None = None, *, pairing: str = "
     if view not in VIEWS:
         raise LogError(f"replay: view must be one of {VIEWS}, got {view!r}")
     frame = log if isinstance(log, pd.DataFrame) else read_replay_log(log)
-    config = scenario_of(frame, config)
+    config = chain_config_of(frame, config)
     n = int(model.n_joints_)
     inputs = replay_inputs(frame, n, wrench=wrench,
-                           temperature=bool(getattr(model, "temperature_in_", False)))
+                           temperature=bool(model.temperature_in_))
     period = period if period is not None else _period(inputs.t, config)
     if pairing == "simulated":
         inputs = dc.replace(inputs, wrench=np.vstack([np.zeros((1, 6)), inputs.wrench[:-1]]))
     chain = CompensationChain(model, config, period=period, n_joints=n, gravity="joint_state",
-                              robot=robot, **chain_options)
+                              robot=robot)
     outputs = run_chain(chain, inputs)
     if view == "held":
         outputs = {k: np.vstack([np.full((1, v.shape[1]), np.nan), v[:-1]])
@@ -159,19 +150,15 @@ def run_chain(chain: CompensationChain, inputs: ReplayInputs) -> dict[str, np.nd
             fixed[name] = np.asarray(values, dtype=float).reshape(len(inputs.t), 1)
     ports = {name: chain.GetInputPort(name).FixValue(context, values[0])
              for name, values in fixed.items()}
-    names = [name for name in (*WRENCH_OUTPUTS, "payload", *FLAG_OUTPUTS)
-             if chain.HasOutputPort(name)]
-    outputs = {name: chain.GetOutputPort(name) for name in names}
-    results = {name: np.empty((len(inputs.t), port.size())) for name, port in outputs.items()}
+    recorder = UpdateRecorder(chain)
     period = chain.period
     values = [(ports[name].GetMutableData().get_mutable_value(), fixed[name]) for name in fixed]
     for k in range(len(inputs.t)):
         for value, rows in values:
             value.SetFromVector(rows[k])
         simulator.AdvanceTo((k + 0.5) * period)
-        for name, port in outputs.items():
-            results[name][k] = port.Eval(context)
-    return results
+        recorder.record(context)
+    return recorder.outputs()
 
 
 def replay_inputs(frame: pd.DataFrame, n: int, *, wrench: str = col.MEASURED,
@@ -270,16 +257,22 @@ def read_replay_log(path, *, wrench_topic: str | None = None,
                    "LCM log read with ftdrake.hardware.recording.read_lcm_log")
 
 
-def scenario_of(frame: pd.DataFrame, config: ScenarioConfig | None = None) -> ScenarioConfig:
-    """The scenario a replay of `frame` runs: `config`, else the one a ``collect`` Parquet
-    file carries in its metadata, else ``ScenarioConfig()``; validated."""
+def chain_config_of(frame: pd.DataFrame, config: ChainConfig | None = None) -> ChainConfig:
+    """The chain config a replay of `frame` runs: `config`, else that of the scenario a
+    ``collect`` Parquet file carries in its metadata, else ``ChainConfig()``; validated."""
     if config is None:
-        scenario = frame.attrs.get("scenario")
-        config = parse_config(scenario, source="the log's metadata") if scenario else None
-    return (config if config is not None else ScenarioConfig()).validate()
+        scenario = scenario_of(frame)
+        return scenario.chain_config() if scenario is not None else ChainConfig()
+    return config.validate()
 
 
-def calibrated_detector(result: pd.DataFrame, model, config: ScenarioConfig) -> DetectorConfig:
+def scenario_of(frame: pd.DataFrame) -> ScenarioConfig | None:
+    """The scenario a ``collect`` Parquet file carries in its metadata (None: none)."""
+    scenario = frame.attrs.get("scenario")
+    return parse_config(scenario, source="the log's metadata") if scenario else None
+
+
+def calibrated_detector(result: pd.DataFrame, model, config: ChainConfig) -> DetectorConfig:
     """``config.detector`` with its thresholds set for its false-positive budget from a
     replay `result` (:func:`replay`'s output) of contact-free motion the model was not
     trained on: the contact wrench the detector judges, and with the χ² test the model's
@@ -292,12 +285,13 @@ def calibrated_detector(result: pd.DataFrame, model, config: ScenarioConfig) -> 
         raise LogError("calibrating the detector needs a replay with increasing times")
     judged = armed(t - t[0], config.detector.arm_after_s)
     test = config.detector.for_model(model, calibrating=True).test
-    std = (result[col.wrench_columns(WRENCH_OUTPUTS["wrench_std"])].to_numpy()[judged]
+    std = (result[col.wrench_columns(col.WRENCH_STD)].to_numpy()[judged]
            if test == "chi2" else None)
-    kept = {name: getattr(config.detector, name)
-            for name in ("release_ratio", "debounce_on", "debounce_off", "arm_after_s")}
+    detector = config.detector
+    kept = {"release_ratio": detector.release_ratio, "debounce_on": detector.debounce_on,
+            "debounce_off": detector.debounce_off, "arm_after_s": detector.arm_after_s}
     return thresholds_for_false_positive_rate(
-        result[col.wrench_columns(WRENCH_OUTPUTS["wrench_contact"])].to_numpy()[judged],
+        result[col.wrench_columns(col.WRENCH_CONTACT)].to_numpy()[judged],
         sample_rate_hz=1.0 / float(np.median(np.diff(t))),
         false_positives_per_hour=config.detector.false_positives_per_hour, test=test,
         std=std, **kept)
@@ -306,40 +300,27 @@ def calibrated_detector(result: pd.DataFrame, model, config: ScenarioConfig) -> 
 def summary(result: pd.DataFrame) -> dict:
     """Counts of a replay result: rows, samples in contact and contact episodes, samples out
     of domain and faulted, RMS of the contact wrench (N, N·m) outside contact."""
-    detected = result[FLAG_OUTPUTS["contact"]].fillna(0).to_numpy() > 0.5
+    detected = result[col.CONTACT].fillna(0).to_numpy() > 0.5
     onsets = int(np.count_nonzero(np.diff(np.r_[0, detected.astype(int)]) == 1))
-    free = result.loc[~detected, col.wrench_columns(WRENCH_OUTPUTS["wrench_contact"])]
+    free = result.loc[~detected, col.wrench_columns(col.WRENCH_CONTACT)]
     return {"rows": len(result), "contact_samples": int(detected.sum()),
             "contact_episodes": onsets,
-            "out_of_domain_samples": int((result["out_of_domain"].fillna(0) > 0.5).sum()),
-            "fault_samples": int((result["fault"].fillna(0) > 0.5).sum()),
+            "out_of_domain_samples": int((result[col.OUT_OF_DOMAIN].fillna(0) > 0.5).sum()),
+            "fault_samples": int((result[col.FAULT].fillna(0) > 0.5).sum()),
             "free_rms": dict(zip(col.WRENCH_AXES,
                                  np.sqrt(np.nanmean(free.to_numpy() ** 2, axis=0)).round(6)
                                  .tolist(), strict=True))}
 
 
-def _period(t: np.ndarray, config: ScenarioConfig) -> float:
-    """The scenario sensor's period when the log's median period is within 1 % of it (so a
+def _period(t: np.ndarray, config: ChainConfig) -> float:
+    """The config's sensor period when the log's median period is within 1 % of it (so a
     simulated log replays with the loop's exact period), else the log's median period."""
     logged = float(np.median(np.diff(t)))
-    nominal = 1.0 / config.sensor.spec().rate_hz
+    nominal = config.sensor.period
     if not (logged > 0 and math.isfinite(logged)):
         raise LogError(f"replay: the log's median sample period is {logged!r} s")
     return nominal if abs(logged - nominal) <= 0.01 * nominal else logged
 
 
 def _frame(t: np.ndarray, outputs: dict[str, np.ndarray]) -> pd.DataFrame:
-    columns = {col.TIME: t}
-    for port, prefix in WRENCH_OUTPUTS.items():
-        if port in outputs:
-            columns.update(zip(col.wrench_columns(prefix), outputs[port].T, strict=True))
-    if "payload" in outputs:
-        columns.update(zip(PAYLOAD_COLUMNS, outputs["payload"].T, strict=True))
-    for port, name in FLAG_OUTPUTS.items():
-        if port not in outputs:  # payload_change: only with the monitor
-            continue
-        values = outputs[port][:, 0]
-        if name in INTEGER_COLUMNS and np.isfinite(values).all():
-            values = values.astype(np.int8)
-        columns[name] = values
-    return pd.DataFrame(columns)
+    return pd.DataFrame({col.TIME: t, **output_columns(outputs)})

@@ -57,9 +57,9 @@ from scipy.signal import lfilter
 
 from .. import conventions as col
 from ..compensation.physics import PhysicsPayloadCompensator
-from ..config import ScenarioConfig, parse_config
+from ..config import ChainConfig
 from ..errors import LogError
-from .replay import read_replay_log, replay
+from .replay import chain_config_of, read_replay_log, replay
 
 SHARES = ("offset", "drift", "delay", "filter", "remainder")
 #: Joint speed (rad/s) at or below which every joint counts as at rest.
@@ -114,7 +114,7 @@ class ResidualBudget:
                 "rows": self.rows}
 
 
-def residual_budget(model, log, config: ScenarioConfig | None = None, *,
+def residual_budget(model, log, config: ChainConfig | None = None, *,
                     pairing: str = "row", noise_std=None, rest_speed: float = REST_SPEED,
                     max_lag_s: float = 0.05, result: pd.DataFrame | None = None,
                     **replay_options) -> ResidualBudget:
@@ -125,13 +125,12 @@ def residual_budget(model, log, config: ScenarioConfig | None = None, *,
     columns ``t``, ``q_i``, ``qd_i``, ``meas_*``). `noise_std`: the resting noise (6 values,
     N, N·m); default: the wrench's spread on the log's rows at rest (every joint at or below
     `rest_speed` rad/s; each still stretch's own mean removed) when it has at least
-    ``MIN_REST_ROWS`` of them, else the scenario sensor's ``sqrt(noise_std² +
+    ``MIN_REST_ROWS`` of them, else the chain config sensor's ``sqrt(noise_std² +
     resolution²/12)``. `max_lag_s`: the largest delay tried either way (s). `result`: the
     replay of `log` when it was run already (``ftdrake replay --budget``).
     """
     frame = log if isinstance(log, pd.DataFrame) else read_replay_log(log)
-    if config is None and frame.attrs.get("scenario"):
-        config = parse_config(frame.attrs["scenario"], source="the log's metadata")
+    config = chain_config_of(frame, config)
     if result is None:
         result = replay(model, frame, config, pairing=pairing, **replay_options)
     n = int(model.n_joints_)
@@ -148,8 +147,8 @@ def residual_budget(model, log, config: ScenarioConfig | None = None, *,
         else None
     predicted = _motion_prediction(model, frame)
     if predicted is None:
-        predicted = result[col.wrench_columns("pred")].to_numpy(float)
-    budget = decompose(result[col.wrench_columns("est_external")].to_numpy(float),
+        predicted = result[col.wrench_columns(col.WRENCH_INTERNAL)].to_numpy(float)
+    budget = decompose(result[col.wrench_columns(col.WRENCH_CONTACT)].to_numpy(float),
                        predicted, t, motion, noise, transform=transform,
                        max_lag_s=max_lag_s)
     return dc.replace(budget, noise_source=source,
@@ -321,6 +320,6 @@ def _resting_noise(frame, rest, noise_std, config):
         stretch = np.cumsum(np.r_[1, np.diff(np.flatnonzero(rest)) > 1])
         centred = reading - pd.DataFrame(reading).groupby(stretch).transform("mean").to_numpy()
         return np.sqrt(np.mean(centred ** 2, axis=0)), "rest rows"
-    spec = (config or ScenarioConfig()).sensor.spec()
+    spec = config.sensor.spec()
     noise = np.sqrt(np.asarray(spec.noise_std) ** 2 + np.asarray(spec.resolution) ** 2 / 12)
     return noise, "sensor config"

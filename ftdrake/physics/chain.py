@@ -276,7 +276,7 @@ def sensor_kinematics_row(q, v, vdot, gravity_W, X_pre, kinds, axes, q_index, v_
     R[:, :] = 0.0
     R[0, 0] = R[1, 1] = R[2, 2] = 1.0
     # One allocation for the 3-vectors and Rj (rows of `work`, C-contiguous views): the
-    # kernel runs once per 1 kHz sample, and ten small allocations were a fifth of its time.
+    # kernel runs once per 1 kHz sample, where small allocations cost much of its time.
     work = np.zeros((12, 3))
     p, w, al, vel, acc = work[0], work[1], work[2], work[3], work[4]
     r, t1, t2, u = work[5], work[6], work[7], work[8]

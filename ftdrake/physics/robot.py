@@ -31,7 +31,7 @@ from pydrake.math import RigidTransform
 from pydrake.multibody.plant import MultibodyPlant
 
 from ..assets import offline_parser
-from ..errors import RobotModelError, spelled
+from ..errors import RobotModelError, option_name, spelled
 
 DIRECTIVES_PREFIX = "directives:"
 # The opening tag of a robot description held as text, and its format for Drake's parser.
@@ -294,13 +294,13 @@ def _parser_warnings_summarised(model: str, label: str):
 
 def floating_base_hint(plant) -> str:
     """What to say of a plant with more positions than velocities: which body floats and the
-    flag (``--base-frame``; ``base_frame=`` in Python) that welds it to the world."""
+    option (``base_frame``, :func:`~ftdrake.errors.option_name`) that welds it to the world."""
     floating = [plant.get_joint(j).child_body().name() for j in plant.GetJointIndices()
                 if "floating" in plant.get_joint(j).type_name()]
     if not floating:
         return "a floating body?"
     return (f"{', '.join(repr(b) for b in floating)} floats: weld it to the world with "
-            f"--base-frame {floating[0]} (base_frame='{floating[0]}' in Python)")
+            f"{option_name('base_frame')} {floating[0]}")
 
 
 
@@ -320,31 +320,32 @@ def check_joint_names(plant, description: RobotDescription) -> None:
     unknown = [n for n in description.joints if n not in known]
     if unknown:
         raise RobotModelError(
-            f"--joints names {unknown} that robot model {description.label} does not have "
-            f"(joints= in Python); {listed}")
+            f"{option_name('joints')} names {unknown} that robot model {description.label} "
+            f"does not have; {listed}")
     repeated = sorted({n for n in description.joints if description.joints.count(n) > 1})
     if repeated:
-        raise RobotModelError(f"--joints names {repeated} more than once (joints= in Python)")
+        raise RobotModelError(f"{option_name('joints')} names {repeated} more than once")
     fixed = [name for name, _ in description.fixed_joints]
     unknown = [n for n in fixed if n not in known]
     if unknown:
         raise RobotModelError(
-            f"--fixed-joints names {unknown} that robot model {description.label} does not "
-            f"have (fixed_joints= in Python); {listed}")
+            f"{option_name('fixed_joints')} names {unknown} that robot model "
+            f"{description.label} does not have; {listed}")
     both = [n for n in fixed if n in description.joints]
     if both:
         raise RobotModelError(
-            f"{both}: both a log's joint (--joints) and fixed (--fixed-joints); keep one")
+            f"{both}: both a log's joint ({option_name('joints')}) and fixed "
+            f"({option_name('fixed_joints')}); keep one")
 
 
 def joint_count_message(plant, n_data: int, label: str) -> str:
     """What to say when the rows hold `n_data` joints and the model has others: the model's
-    joint names, and the flags that name the log's joints and fix the others."""
+    joint names, and the options that name the log's joints and fix the others."""
     known = movable_joint_names(plant)
     return (f"the data has {n_data} joints; the robot model has {len(known)} "
             f"({', '.join(known)}; {label}): name the log's joints in the order of its position "
-            f"columns with --joints NAME,NAME,... and fix the others with --fixed-joints "
-            f"NAME=VALUE,... (default 0; joints= and fixed_joints= in Python)")
+            f"columns with {option_name('joints')} NAME,NAME,... and fix the others with "
+            f"{option_name('fixed_joints')} NAME=VALUE,... (default 0)")
 
 
 def joint_names(spec) -> tuple[str, ...]:
@@ -386,16 +387,18 @@ def joint_mapping_file(path) -> tuple[tuple[str, ...], tuple[tuple[str, float], 
     try:
         data = yaml.safe_load(Path(path).read_text())
     except (OSError, yaml.YAMLError) as e:
-        raise RobotModelError(f"--joints {path}: cannot read it as YAML: {e}") from None
+        raise RobotModelError(f"{option_name('joints')} {path}: cannot read it as YAML: "
+                              f"{e}") from None
     joints = data.get("joints") if isinstance(data, dict) else None
     if not (isinstance(joints, list) and joints and all(isinstance(j, str) for j in joints)):
-        raise RobotModelError(f"--joints {path}: must hold 'joints: [NAME, ...]' (the log's "
+        raise RobotModelError(f"{option_name('joints')} {path}: must hold 'joints: [NAME, "
+                              "...]' (the log's "
                               "joints, in the order of its position columns) and optionally "
                               "'fixed_joints: {NAME: VALUE}'")
     unknown = sorted(set(data) - {"joints", "fixed_joints"})
     if unknown:
-        raise RobotModelError(f"--joints {path}: unknown keys {unknown}; it holds joints and "
-                              "fixed_joints")
+        raise RobotModelError(f"{option_name('joints')} {path}: unknown keys {unknown}; it "
+                              "holds joints and fixed_joints")
     return tuple(joints), fixed_joint_values(data.get("fixed_joints") or {})
 
 

@@ -77,7 +77,7 @@ import math
 import numpy as np
 from pydrake.systems.framework import LeafSystem
 
-from ..config import BiasTrackerConfig, SensorConfig
+from ..config import BiasTrackerConfig, SensorConfig, SensorStreamConfig
 from ..conventions import STANDARD_GRAVITY
 from .bias_estimator import N_PAYLOAD, jump_state_size, steady_information, track_sample
 
@@ -118,7 +118,8 @@ class OnlineBiasTracker(LeafSystem):
       wrench_std (6): the predictive std of bias + K·[F_P; T_P] from the estimate's
         covariance (module docstring, "How sure it is"), N, N·m, S.
 
-    `sensor` gives the noise σ per axis (the rows' weights) and the drift (the rate bound);
+    `sensor` (the chain's SensorStreamConfig, or a simulated SensorConfig) gives the noise σ
+    per axis (the rows' weights) and the drift (the rate bound);
     `period` defaults to the sensor's sample period. `payload_map` (6 × 6, default identity):
     how a wrench acting at the sensor (in S, about So) shows in ``wrench_compensated``; the
     chain passes its model's (``payload_reading_map()``, the identified cross-talk seen from
@@ -127,7 +128,7 @@ class OnlineBiasTracker(LeafSystem):
     payload_changed do; the compiled estimator is :mod:`ftdrake.runtime.bias_estimator`.
     """
 
-    def __init__(self, config: BiasTrackerConfig, sensor: SensorConfig,
+    def __init__(self, config: BiasTrackerConfig, sensor: SensorStreamConfig | SensorConfig,
                  period: float | None = None, payload_map=None):
         super().__init__()
         self.config = config.validate()  # built on its own too, from its config alone
@@ -166,12 +167,12 @@ class OnlineBiasTracker(LeafSystem):
                              f"a wrench in S to the compensated wrench), got shape {K.shape}")
         return K
 
-    def _rate_bound(self, sensor: SensorConfig) -> np.ndarray:
+    def _rate_bound(self, sensor: SensorStreamConfig | SensorConfig) -> np.ndarray:
         """ḃ_max per parameter (N/s, N·m/s for the bias) from the sensor's drift; the
         payload's so that Δṁ·g ≤ min ḃ_F, Δ(m·c)˙·g ≤ min ḃ_T, ΔI˙·ANGULAR_SCALE ≤ min ḃ_T."""
         c = self.config
         k = c.rate_bound_sigmas
-        bias_rate = k * np.asarray(sensor.drift_std, float) / math.sqrt(c.time_constant_s)
+        bias_rate = k * np.asarray(sensor.drift, float) / math.sqrt(c.time_constant_s)
         if math.isinf(k):
             bias_rate = np.full(6, np.inf)
         return np.concatenate(
@@ -332,9 +333,19 @@ class OnlineBiasTracker(LeafSystem):
         else:
             gravity, motion = self._no_gravity, self._no_motion
             payload = inertia = self._no_payload
-        track_sample(self._wrench_port.Eval(context), gravity, motion, flags, self.n,
-                     self.payload_map, state.get_mutable_value(self._x), self._constants,
-                     self._steps, self.noise_std, self.prior_std,
-                     state.get_mutable_value(self._corrected),
-                     state.get_mutable_value(self._bias), payload, inertia,
-                     state.get_mutable_value(self._tracking), state.get_mutable_value(self._std))
+        self.track(self._wrench_port.Eval(context), gravity, motion, flags,
+                   state.get_mutable_value(self._x), state.get_mutable_value(self._corrected),
+                   state.get_mutable_value(self._bias), payload, inertia,
+                   state.get_mutable_value(self._tracking), state.get_mutable_value(self._std))
+
+    def track(self, y, gravity, motion, flags, x, corrected, bias, payload, inertia, tracking,
+              std) -> None:
+        """One sample on plain arrays (what ``_update`` does with the context's): the inputs
+        `y` (6), `gravity` (3), `motion` (6) and `flags` [contact, out_of_domain, fault,
+        tared, payload_changed], the state updated in place (``payload``/``inertia``: any
+        scratch arrays of n entries without ``track_payload``); see
+        :func:`~ftdrake.runtime.bias_estimator.track_sample`.
+        :class:`~ftdrake.runtime.step.ChainStep` calls it too."""
+        track_sample(y, gravity, motion, flags, self.n, self.payload_map, x, self._constants,
+                     self._steps, self.noise_std, self.prior_std, corrected, bias, payload,
+                     inertia, tracking, std)

@@ -8,32 +8,36 @@
                               │ contact, contact_force
                               └──► (back to the tracker: it freezes during contact)
 
-Built from one :class:`~ftdrake.config.ScenarioConfig` (its ``compensator``, ``bias_tracker``,
-``detector`` and ``sensor`` sections) and a fitted compensator. With the tracker disabled the
-detector reads ``wrench_compensated`` directly. With ``bias_tracker.track_payload`` the tracker
-needs the apparent gravity at the sensor: from the joint state through the robot's serial chain
-(``gravity="joint_state"``, the live robot's way; :class:`JointStateGravity`), or from inputs
-(``gravity="input"``, the simulation's way: the plant's kinematics).
+Built from a fitted compensator and the product's own :class:`~ftdrake.config.ChainConfig`
+(its ``compensator``, ``bias_tracker``, ``detector``, ``sensor`` stream and ``robot``; a
+simulated scenario contains one, ``scenario.chain_config()``). The model is checked against
+the loop contract once, here (:func:`~ftdrake.compensation.contract.loop_view`). With the
+tracker disabled the detector reads ``wrench_compensated`` directly. With
+``bias_tracker.track_payload`` the tracker needs the apparent gravity at the sensor: from
+the joint state through the robot's serial chain (``gravity="joint_state"``, the live
+robot's way; :class:`JointStateGravity`, on the robot embedded in the model unless ``config.robot``
+or `robot` names another), or from inputs (``gravity="input"``, the simulation's way: the plant's
+kinematics).
 
 Adding it to a diagram (frames, units and signs as in :mod:`ftdrake.conventions`)::
 
-    chain = builder.AddSystem(CompensationChain(model, scenario))
+    chain = builder.AddSystem(CompensationChain(model, ftdrake.ChainConfig()))
     builder.Connect(sensor_reading, chain.get_input_port_wrench_measured())
     builder.Connect(plant.get_state_output_port(arm), chain.get_input_port_joint_state())
 """
 
 from __future__ import annotations
 
-import dataclasses as dc
+import copy
 import math
 
 from pydrake.systems.framework import Diagram, DiagramBuilder
 
-from ..config import ScenarioConfig, model_has_reading_std
+from ..compensation.contract import LoopView, loop_view
+from ..config import ChainConfig, RobotConfig
 from ..errors import ConfigError
 from ..physics.chain import SerialChain
-from ..physics.robot import RobotDescription
-from ..physics.scenario_robot import robot_description
+from ..physics.robot import RobotDescription, ftdrake_arm
 from .bias_tracker import OnlineBiasTracker
 from .compensator import CompensatorSystem
 from .delay_line import DelayLine
@@ -78,43 +82,47 @@ class CompensationChain(Diagram):
         after a payload change nobody signalled was recognised
         (:class:`~ftdrake.runtime.payload_change.PayloadChangeMonitor`).
 
-    `model`: a fitted ftdrake compensator (``load_model``). `config`: the scenario (default:
-    ``ScenarioConfig()``); its ``detector.test: auto`` becomes the χ² test for a model with
-    a std of a reading when ``chi2_on`` is given and the norm test otherwise
-    (:meth:`~ftdrake.config.DetectorConfig.for_model`; ``self.config`` holds the resolved one).
-    `period`: s (default: the sensor's rate). `n_joints`: checked against the model.
+    `model`: a fitted ftdrake compensator (``load_model``), following the loop contract
+    (:class:`~ftdrake.compensation.contract.LoopModel`). `config`: a
+    :class:`~ftdrake.config.ChainConfig` (default: ``ChainConfig()``; the chain keeps a
+    validated copy, ``self.config``, with ``detector.test: auto`` resolved: the χ² test for a
+    model with a std of a reading when ``chi2_on`` is given, the norm test otherwise,
+    :meth:`~ftdrake.config.DetectorConfig.for_model`).
+    `period`: s (default: ``config.sensor``'s rate). `n_joints`: checked against the model.
     `gravity`: see above. `robot`: the RobotDescription whose chain gives ``gravity_S`` from
-    the joint state (default: the scenario's robot). `wrench_delay_s`: how long the wrench
+    the joint state; default: ``config.robot`` when it names a file, else the robot embedded
+    in the model (``model.robot_description()``; ``self.robot`` holds the one used, None
+    without joint-state gravity). ``config.sensor.wrench_delay_s``: how long the wrench
     stream lags the joint states (s; negative: the joint states lag), which a
     :class:`DelayLine` on the stream that is ahead corrects (its output interpolated between
-    samples); default: the model's ``wrench_delay_s_`` when it has one (set by training with
-    a delay correction), else 0, and with 0 there is no delay line.
+    samples); null: the model's ``wrench_delay_s_`` (set by training with a delay
+    alignment); with 0 there is no delay line.
     """
 
-    def __init__(self, model, config: ScenarioConfig | None = None, *,
+    def __init__(self, model, config: ChainConfig | None = None, *,
                  period: float | None = None, n_joints: int | None = None,
-                 gravity: str = "joint_state", robot: RobotDescription | None = None,
-                 wrench_delay_s: float | None = None):
+                 gravity: str = "joint_state", robot: RobotDescription | None = None):
         super().__init__()
         if gravity not in GRAVITY_SOURCES:
             raise ConfigError(f"CompensationChain: gravity must be one of {GRAVITY_SOURCES}; "
                               f"got {gravity!r}")
-        config = config if config is not None else ScenarioConfig()
-        period = float(period) if period is not None else 1.0 / config.sensor.spec().rate_hz
+        config = _checked_config(config)
+        view = self.view = loop_view(model, n_joints)
+        period = float(period) if period is not None else config.sensor.period
         if not (period > 0 and math.isfinite(period)):
             raise ConfigError(f"CompensationChain: period must be a positive number of seconds; "
                               f"got {period!r}")
         # "auto" becomes the test this model supports (χ² with a std of a reading).
-        config = dc.replace(config, detector=config.detector.for_model(model))
-        self.config, self.period = config, period
-        if config.detector.test == "chi2" and not model_has_reading_std(model):
+        config = config.replace(detector=config.detector.for_model(view.model))
+        self.config, self.period, self.robot = config, period, None
+        if config.detector.test == "chi2" and not view.reading_std:
             raise ConfigError(
                 f"detector.test 'chi2' whitens the wrench by the model's std of a reading; "
                 f"{type(model).__name__} has none (a forest's spread across trees is not "
                 "one): use a physics, hybrid or GP model, or detector.test 'norm'")
         builder = DiagramBuilder()
         self.compensator = builder.AddNamedSystem("compensator", CompensatorSystem(
-            model, period, n_joints=n_joints,
+            view, period,
             acceleration_cutoff_hz=config.compensator.acceleration_cutoff_hz))
         self.detector = builder.AddNamedSystem("contact_detector",
                                                ContactDetector(config.detector, period))
@@ -124,20 +132,20 @@ class CompensationChain(Diagram):
         if config.bias_tracker.enabled:
             self.tracker = builder.AddNamedSystem(
                 "bias_tracker", OnlineBiasTracker(config.bias_tracker, config.sensor, period,
-                                                  payload_map=model_payload_map(model)))
+                                                  payload_map=view.payload_map))
             self._wire_tracker(builder)
             contact_wrench = self.tracker.get_output_port_wrench_contact()
         builder.Connect(contact_wrench, self.detector.get_input_port_wrench_contact())
         builder.Connect(comp.get_output_port_wrench_std(),
                         self.detector.get_input_port_wrench_std())
 
-        wrench_in, joint_state_in = self._delayed_inputs(builder, model, wrench_delay_s)
+        wrench_in, joint_state_in = self._delayed_inputs(builder, view)
         builder.ExportInput(wrench_in, "wrench_measured")
         joint_state = builder.ExportInput(joint_state_in, "joint_state")
         if comp.needs_temperature:
             builder.ExportInput(comp.get_input_port_temperature(), "temperature")
         if self.tracker is not None:
-            self._export_tracker_inputs(builder, gravity, joint_state, robot, model)
+            self._export_tracker_inputs(builder, gravity, joint_state, robot)
 
         builder.ExportOutput(comp.get_output_port_wrench_internal(), "wrench_internal")
         builder.ExportOutput(comp.get_output_port_wrench_compensated(), "wrench_compensated")
@@ -167,14 +175,14 @@ class CompensationChain(Diagram):
                                   settings.initial_bias, [0.0] * 4,
                                   settled=settings.start_settled)
 
-    def _delayed_inputs(self, builder, model, wrench_delay_s):
+    def _delayed_inputs(self, builder, view: LoopView):
         """The compensator's wrench and joint-state inputs, one behind a DelayLine when the
-        streams are `wrench_delay_s` apart (see the class docstring)."""
+        streams are ``wrench_delay_s`` apart (see the class docstring)."""
         comp = self.compensator
         wrench_in, state_in = (comp.get_input_port_wrench_measured(),
                                comp.get_input_port_joint_state())
-        delay = (float(getattr(model, "wrench_delay_s_", 0.0) or 0.0)
-                 if wrench_delay_s is None else float(wrench_delay_s))
+        given = self.config.sensor.wrench_delay_s
+        delay = view.wrench_delay_s if given is None else float(given)
         self.wrench_delay_s = delay
         if not math.isfinite(delay):
             raise ConfigError(f"CompensationChain: wrench_delay_s must be finite; got {delay!r}")
@@ -203,12 +211,12 @@ class CompensationChain(Diagram):
         builder.Connect(tracker.get_output_port_wrench_std(),
                         self.detector.get_input_port_wrench_std_tracker())
 
-    def _export_tracker_inputs(self, builder, gravity, joint_state, robot, model) -> None:
+    def _export_tracker_inputs(self, builder, gravity, joint_state, robot) -> None:
         tracker = self.tracker
         builder.ExportInput(tracker.get_input_port_tared(), "tared")
         if not tracker.track_payload:
             return
-        self._wire_gravity(builder, gravity, joint_state, robot, model)
+        self._wire_gravity(builder, gravity, joint_state, robot)
         builder.ExportInput(tracker.get_input_port_payload_changed(), "payload_changed")
         if self.config.bias_tracker.payload_change.enabled:
             self._wire_payload_monitor(builder, gravity)
@@ -241,7 +249,7 @@ class CompensationChain(Diagram):
         builder.Connect(monitor.get_output_port_payload_change(),
                         tracker.get_input_port_payload_change_detected())
 
-    def _wire_gravity(self, builder, gravity: str, joint_state, robot, model) -> None:
+    def _wire_gravity(self, builder, gravity: str, joint_state, robot) -> None:
         tracker = self.tracker
         motion = self.config.bias_tracker.track_payload_motion
         if gravity == "input":
@@ -249,8 +257,10 @@ class CompensationChain(Diagram):
             if motion:
                 builder.ExportInput(tracker.get_input_port_motion_S(), "motion_S")
             return
+        self.robot = self._gravity_robot(robot)
         self.gravity = builder.AddNamedSystem(
-            "sensor_gravity", _joint_state_gravity(self.config, robot, model, self.period))
+            "sensor_gravity", _joint_state_gravity(self.config, self.robot, self.view.n_joints,
+                                                   self.period))
         if self.delay_line is not None and self.wrench_delay_s > 0:  # the delayed joint state
             builder.Connect(self.delay_line.get_output_port_delayed(),
                             self.gravity.get_input_port_joint_state())
@@ -261,6 +271,22 @@ class CompensationChain(Diagram):
         if motion:
             builder.Connect(self.gravity.get_output_port_motion_S(),
                             tracker.get_input_port_motion_S())
+
+    def _gravity_robot(self, robot: RobotDescription | None) -> RobotDescription:
+        """The robot joint-state gravity is computed on: `robot`, else ``config.robot``, else
+        the model's own; a ConfigError when there is none."""
+        if robot is not None:
+            return robot
+        if self.config.robot.file:
+            return configured_robot(self.config.robot)
+        if self.view.robot is not None:
+            return self.view.robot
+        raise ConfigError(
+            f"bias_tracker.track_payload computes gravity at the sensor from the joint state, "
+            f"on the robot's kinematics; a {type(self.view.model).__name__} carries no robot "
+            "(physics and hybrid models do): set chain.robot.file and chain.robot.sensor_frame "
+            "(--robot FILE --sensor-frame NAME on the command line), or pass "
+            "CompensationChain(..., robot=RobotDescription(...))")
 
     # Named accessors of the exported ports (those a configuration leaves out raise).
     def get_input_port_wrench_measured(self):
@@ -321,18 +347,38 @@ class CompensationChain(Diagram):
         return self.GetOutputPort("payload_change")
 
 
-def _joint_state_gravity(config: ScenarioConfig, robot, model, period) -> JointStateGravity:
-    """g_S − a_So and S's [ω; α] from the joint state, on `robot`'s serial chain (default: the
-    scenario's robot; there is no plant on a live robot)."""
-    description = robot if robot is not None else robot_description(config)
+def _checked_config(config) -> ChainConfig:
+    """A validated copy of `config` (``ChainConfig()`` for None): the chain owns its config."""
+    if config is None:
+        return ChainConfig()
+    if not isinstance(config, ChainConfig):
+        raise ConfigError(
+            f"CompensationChain takes a ChainConfig (the product's own config); got "
+            f"{type(config).__name__}. For a simulated scenario pass scenario.chain_config(); "
+            "a live config file's chain section loads with "
+            "ftdrake.load_chain_config(path)")
+    return copy.deepcopy(config).validate()
+
+
+def configured_robot(robot: RobotConfig) -> RobotDescription:
+    """The RobotDescription a ``chain.robot`` section names (``ftdrake``: ftdrake's arm)."""
+    if robot.file == "ftdrake":
+        return ftdrake_arm()
+    return RobotDescription(robot.file, robot.sensor_frame, robot.base_frame or None)
+
+
+def _joint_state_gravity(config: ChainConfig, description: RobotDescription, n_joints: int,
+                         period: float) -> JointStateGravity:
+    """g_S − a_So and S's [ω; α] from the joint state, on `description`'s serial chain (there
+    is no plant on a live robot)."""
     plant, frame_S = description.build_plant()
     chain = SerialChain.from_plant(plant, frame_S)
     if description.joints:  # a log's joints in a bigger description; the others held still
         chain, _ = chain.with_joint_columns(description.joints, dict(description.fixed_joints))
-    if chain.num_positions != int(model.n_joints_):
-        raise ConfigError(f"bias_tracker.track_payload: the robot has {chain.num_positions} "
-                          f"joints, the model {int(model.n_joints_)}; pass the robot the model "
-                          "was trained on (CompensationChain(..., robot=...))")
+    if chain.num_positions != n_joints:
+        raise ConfigError(f"bias_tracker.track_payload: the robot {description.label} has "
+                          f"{chain.num_positions} joints, the model {n_joints}; give the robot "
+                          "the model was trained on (chain.robot; --robot on the command line)")
     return JointStateGravity(chain, period,
                              acceleration_cutoff_hz=config.compensator.acceleration_cutoff_hz,
                              gravity_W=plant.gravity_field().gravity_vector())
@@ -340,7 +386,5 @@ def _joint_state_gravity(config: ScenarioConfig, robot, model, period) -> JointS
 
 def model_payload_map(model):
     """The model's map from a wrench at the sensor to its compensated wrench (None: the
-    identity, as for a model without a reading matrix, e.g. a forest, or an object that is
-    not a :class:`~ftdrake.compensation.base.Compensator` and has no such method)."""
-    reading_map = getattr(model, "payload_reading_map", None)
-    return None if reading_map is None else reading_map()
+    identity, as for a model without a reading matrix, e.g. a forest)."""
+    return loop_view(model).payload_map

@@ -16,7 +16,7 @@ from ..compensation.compiled.loop import (
     external_wrench,
     prepare_row,
 )
-from ..compensation.features import check_feature_set
+from ..compensation.contract import loop_view
 from ..errors import ConfigError
 from ..signals import DEFAULT_ACCELERATION_CUTOFF_HZ, acceleration_filter_gains, estimator_size
 
@@ -48,11 +48,13 @@ class CompensatorSystem(LeafSystem):
       fault (1): 1.0 when the latest inputs held NaN/inf; all other outputs then hold their
         last good values (never a NaN downstream).
 
-    `model` is any fitted ftdrake compensator (or one loaded with ``load_model``): it must have
-    ``predict``, ``features``, ``n_joints_`` and ``n_outputs_ == 6``. `n_joints`, if given,
-    must match the model (e.g. ``plant.num_positions(arm)``). Each sample runs the model's
-    ``row_predictor()`` (the compensator protocol, :mod:`ftdrake.compensation.base`); a model
-    whose ``fused_loop_update()`` gives a compiled update (a forest, a hybrid with a forest
+    `model` is any fitted ftdrake compensator (or one loaded with ``load_model``), or its
+    :class:`~ftdrake.compensation.contract.LoopView`: it follows the loop contract
+    (:class:`~ftdrake.compensation.contract.LoopModel`; a ConfigError lists what it lacks)
+    and predicts 6 outputs. `n_joints`, if given, must match the model (e.g.
+    ``plant.num_positions(arm)``). Each sample runs the model's ``row_predictor()`` (the
+    compensator protocol, :mod:`ftdrake.compensation.base`); a model whose
+    ``fused_loop_update()`` gives a compiled update (a forest, a hybrid with a forest
     residual) runs the input checks, the acceleration estimate and its prediction in that one
     compiled call (:mod:`ftdrake.compensation.compiled.loop`). ``fast=False`` goes
     through ``predict``/``predict_std`` instead (for checking the compiled paths). The q̈
@@ -63,31 +65,28 @@ class CompensatorSystem(LeafSystem):
                  acceleration_cutoff_hz: float = DEFAULT_ACCELERATION_CUTOFF_HZ,
                  fast: bool = True):
         super().__init__()
-        check_model_fits(model, n_joints)
+        view = self.view = loop_view(model, n_joints)  # the loop contract, checked once
         if not (period > 0 and math.isfinite(period)):
             raise ValueError(f"period must be a positive number of seconds, got {period!r}")
-        self.model = model
+        self.model = model = view.model
         self.period = float(period)
-        n = self.n = int(model.n_joints_)
+        n = self.n = view.n_joints
         #: Whether the model takes the sensor temperature as its last input (°C).
-        self.needs_temperature = bool(getattr(model, "temperature_in_", False))
+        self.needs_temperature = view.needs_temperature
         # The fused update takes the 3n joint row only; a temperature model runs its
         # own row predictor (compiled too, see Compensator.row_predictor).
-        fused = getattr(model, "fused_loop_update", None)
-        self._fused = fused() if fast and fused and not self.needs_temperature else None
+        self._fused = (model.fused_loop_update() if fast and not self.needs_temperature
+                       else None)
         if self._fused is not None:
             self._predict = None
-        elif fast and hasattr(model, "row_predictor"):
+        elif fast:
             self._predict = model.row_predictor()
         else:
             self._predict = generic_row_predictor(model)
-        self._has_std = bool(getattr(model, "provides_std", False))
-        to_model_frame = (model.reading_to_model_frame()
-                          if hasattr(model, "reading_to_model_frame") else None)
+        self._has_std = view.has_std
         # (0, 6) when the reading is in S already: _external_wrench then only subtracts.
-        self._to_S = (np.empty((0, 6)) if to_model_frame is None
-                      else np.ascontiguousarray(to_model_frame, dtype=float))
-        self._lo, self._hi = _training_box(model)
+        self._to_S = np.empty((0, 6)) if view.to_S is None else view.to_S
+        self._lo, self._hi = view.lo, view.hi
         self._constants = np.array([*acceleration_filter_gains(acceleration_cutoff_hz,
                                                                self.period), self.period])
         self._no_acceleration = np.zeros(n)
@@ -141,37 +140,44 @@ class CompensatorSystem(LeafSystem):
     def _update(self, context, state):
         # Runs at the sensor rate, so it makes as few Python calls as it can: Drake starts
         # `state` as a copy of the current state, and compiled code updates it in place.
-        wrench = self._wrench_port.Eval(context)
-        x = self._state_port.Eval(context)
         measured = self._accel_port.HasValue(context)
-        accel = self._accel_port.Eval(context) if measured else self._no_acceleration
-        estimator = state.get_mutable_value(self._estimator)
-        internal = state.get_mutable_value(self._internal)
-        external = state.get_mutable_value(self._external)
+        self.compensate(
+            self._wrench_port.Eval(context), self._state_port.Eval(context),
+            self._accel_port.Eval(context) if measured else self._no_acceleration, measured,
+            self._temperature(context) if self.needs_temperature else math.nan,
+            state.get_mutable_value(self._estimator), state.get_mutable_value(self._internal),
+            state.get_mutable_value(self._external), state.get_mutable_value(self._std),
+            state.get_mutable_value(self._ood), state.get_mutable_value(self._fault))
+
+    def compensate(self, wrench, x, accel, measured, temperature, estimator, internal,
+                   external, std, ood, fault) -> None:
+        """One sample on plain arrays (what ``_update`` does with the context's): the inputs
+        (`accel` used when `measured`; `temperature` °C read only when the model needs it)
+        and the state (q̈ estimator with the fault/out-of-domain copies, the five outputs),
+        updated in place. :class:`~ftdrake.runtime.step.ChainStep` calls it too, so the
+        diagram and the step run the same code."""
         if self._fused is not None:
             update, arrays = self._fused
-            status = update(
-                wrench, x, accel, measured, estimator, self._lo, self._hi, self._constants,
-                self._to_S, *arrays, internal, external, state.get_mutable_value(self._std),
-            )
+            status = update(wrench, x, accel, measured, estimator, self._lo, self._hi,
+                            self._constants, self._to_S, *arrays, internal, external, std)
         else:
             row = np.empty(3 * self.n + self.needs_temperature)
             if self.needs_temperature:
-                row[-1] = self._temperature(context)
+                row[-1] = temperature
                 if not math.isfinite(row[-1]):
                     wrench = self._nan_wrench  # a fault: _prepare_row then writes nothing
             status = prepare_row(wrench, x, accel, measured, estimator, row, self._lo,
                                  self._hi, self._constants)
             if not status & FAULT:
-                mean, std = self._predict(row)
+                mean, std_row = self._predict(row)
                 internal[:] = mean
                 external_wrench(wrench, internal, self._to_S, external)
                 if self._has_std:
-                    state.get_mutable_value(self._std)[:] = std
+                    std[:] = std_row
         if status & FAULT_CHANGED:
-            state.get_mutable_value(self._fault)[0] = float(status & FAULT != 0)
+            fault[0] = float(status & FAULT != 0)
         if status & OOD_CHANGED:
-            state.get_mutable_value(self._ood)[0] = float(status & OOD != 0)
+            ood[0] = float(status & OOD != 0)
 
     def _temperature(self, context) -> float:
         if not self._temperature_port.HasValue(context):
@@ -181,26 +187,3 @@ class CompensatorSystem(LeafSystem):
                 "connected; connect the sensor's temperature output to it "
                 "(get_input_port_temperature())")
         return float(self._temperature_port.Eval(context)[0])
-
-
-def check_model_fits(model, n_joints: int | None) -> None:
-    """Raises ValueError unless `model` is a fitted 6-output compensator for `n_joints`."""
-    for attr in ("predict", "features", "n_joints_", "n_outputs_"):
-        if not hasattr(model, attr):
-            raise ValueError(f"model lacks {attr!r}: is it a fitted ftdrake compensator?")
-    check_feature_set(model.features)
-    if model.n_outputs_ != 6:
-        raise ValueError(f"model predicts {model.n_outputs_} outputs; a wrench needs 6")
-    if n_joints is not None and int(model.n_joints_) != int(n_joints):
-        raise ValueError(
-            f"model was trained for {model.n_joints_} joints; this robot has {n_joints}"
-        )
-
-
-def _training_box(model):
-    """Lower/upper training range of the inputs the model uses (empty if unknown)."""
-    lo, hi = getattr(model, "input_min_", None), getattr(model, "input_max_", None)
-    if lo is None or hi is None:
-        return np.empty(0), np.empty(0)
-    used = check_feature_set(model.features) * int(model.n_joints_)
-    return np.asarray(lo[:used], dtype=float), np.asarray(hi[:used], dtype=float)

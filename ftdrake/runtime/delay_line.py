@@ -52,24 +52,32 @@ class DelayLine(LeafSystem):
     def get_output_port_delayed(self):
         return self.GetOutputPort("delayed")
 
-    def _history(self, context):
+    def _history(self, u, stored):
         """[u[k], u[k−1], ..., u[k−depth]] (depth + 1 rows), the missing ones filled."""
-        u = self._input.Eval(context)
-        stored = context.get_discrete_state(self._buffer).get_value()
         seen = int(stored[-1])
         rows = [u] + [stored[i * self.size:(i + 1) * self.size] for i in range(seen)]
         while len(rows) < self._depth + 1:
             rows.append(rows[-1])
         return rows
 
-    def _output(self, context, output):
-        rows = self._history(context)
+    def delayed(self, u, stored) -> np.ndarray:
+        """The output for the input `u` now and the state `stored` (what ``delayed`` reads
+        from a context); :class:`~ftdrake.runtime.step.ChainStep` calls it too."""
+        rows = self._history(u, stored)
         m, f = self.whole, self.fraction
-        value = rows[m] if f == 0.0 else (1.0 - f) * rows[m] + f * rows[m + 1]
-        output.SetFromVector(np.asarray(value, dtype=float))
+        return np.asarray(rows[m] if f == 0.0 else (1.0 - f) * rows[m] + f * rows[m + 1],
+                          dtype=float)
 
-    def _update(self, context, state):
-        rows = self._history(context)
-        stored = state.get_mutable_value(self._buffer)
+    def remember(self, u, stored) -> None:
+        """One update of the state `stored` (in place) with the input `u`."""
+        rows = self._history(u, stored)
         stored[:-1] = np.concatenate(rows[:self._depth])
         stored[-1] = min(self._depth, int(stored[-1]) + 1)
+
+    def _output(self, context, output):
+        output.SetFromVector(self.delayed(
+            self._input.Eval(context), context.get_discrete_state(self._buffer).get_value()))
+
+    def _update(self, context, state):
+        # `state` starts as a copy of the context's: remember() reads and writes it.
+        self.remember(self._input.Eval(context), state.get_mutable_value(self._buffer))

@@ -102,21 +102,40 @@ class ContactDetector(LeafSystem):
         # Runs at the sensor rate: few Python calls, the logic compiled (_detect).
         if context.get_time() < self._arm_after_s:
             return  # not armed yet
-        w = self._wrench_port.Eval(context)
         std = (self._std_port.Eval(context)
-               if self._uses_std and self._std_port.HasValue(context) else self._no_std)
-        if std is not self._no_std and self._tracker_std_port.HasValue(context):
-            std = _in_quadrature(std, self._tracker_std_port.Eval(context), self._std)
+               if self._uses_std and self._std_port.HasValue(context) else None)
+        tracker_std = (self._tracker_std_port.Eval(context)
+                       if std is not None and self._tracker_std_port.HasValue(context) else None)
+        self.detect(self._wrench_port.Eval(context), std, tracker_std,
+                    state.get_mutable_value(self._flag), state.get_mutable_value(self._counter),
+                    state.get_mutable_value(self._force))
+
+    def detect(self, w, std, tracker_std, flag, counter, force) -> None:
+        """One armed sample on plain arrays (what ``_update`` does with the context's): the
+        contact wrench `w`, the compensator's `std` and the tracker's `tracker_std` (None
+        where the input is not connected or not used), the state (flag, counter, force)
+        updated in place. :class:`~ftdrake.runtime.step.ChainStep` calls it too."""
+        if std is None:
+            std = self._no_std
+        elif tracker_std is not None:
+            std = _in_quadrature(std, tracker_std, self._std)
         if self._chi2:
             if std is self._no_std:
                 raise ConfigError("detector.test 'chi2' whitens by the model's std: connect "
                                   "the detector's wrench_std input (CompensationChain does)")
-            detect_chi2(w, std, self._constants, state.get_mutable_value(self._flag),
-                        state.get_mutable_value(self._counter),
-                        state.get_mutable_value(self._force))
+            detect_chi2(w, std, self._constants, flag, counter, force)
             return
-        _detect(w, std, self._constants, state.get_mutable_value(self._flag),
-                state.get_mutable_value(self._counter), state.get_mutable_value(self._force))
+        _detect(w, std, self._constants, flag, counter, force)
+
+    @property
+    def arm_after_s(self) -> float:
+        """s: the detector changes nothing before this time (its context's, or the step's)."""
+        return self._arm_after_s
+
+    @property
+    def uses_std(self) -> bool:
+        """Whether the test reads the std inputs (the χ² test, or the norm test's std_gain)."""
+        return self._uses_std
 
 
 @numba.njit(cache=True)

@@ -36,7 +36,7 @@ import math
 import numpy as np
 from pydrake.systems.framework import LeafSystem
 
-from ..config import PayloadChangeConfig, SensorConfig
+from ..config import PayloadChangeConfig, SensorConfig, SensorStreamConfig
 
 __all__ = ["PayloadChangeMonitor", "payload_change_statistics"]
 
@@ -102,7 +102,7 @@ class PayloadChangeMonitor(LeafSystem):
     refractory and signal timers (periods), the outputs.
     """
 
-    def __init__(self, config: PayloadChangeConfig, sensor: SensorConfig):
+    def __init__(self, config: PayloadChangeConfig, sensor: SensorStreamConfig | SensorConfig):
         super().__init__()
         self.config = config.validate()
         self.period = float(config.sample_period_s)
@@ -139,14 +139,20 @@ class PayloadChangeMonitor(LeafSystem):
         return self.GetOutputPort("payload_change_estimate")
 
     def _update(self, context, state):
-        x = state.get_mutable_value(self._window)
+        self.monitor(self._wrench_port.Eval(context), self._gravity_port.Eval(context),
+                     self._contact_port.Eval(context)[0], state.get_mutable_value(self._window),
+                     state.get_mutable_value(self._flag), state.get_mutable_value(self._estimate))
+
+    def monitor(self, wrench, gravity, contact, x, flag, estimate) -> None:
+        """One sample on plain arrays (what ``_update`` does with the context's): the inputs
+        `wrench` (6), `gravity` (3) and `contact` (the flag's value), the state (window with
+        its counters, ``payload_change``, ``payload_change_estimate``) updated in place.
+        :class:`~ftdrake.runtime.step.ChainStep` calls it too."""
         n = self.capacity * _SAMPLE
         count, index, refractory, signal = (int(v) for v in x[n:])
         signal = max(0, signal - 1)
-        state.get_mutable_value(self._flag)[0] = 1.0 if signal > 0 else 0.0
-        wrench = self._wrench_port.Eval(context)
-        gravity = self._gravity_port.Eval(context)
-        in_contact = self._contact_port.Eval(context)[0] >= 0.5
+        flag[0] = 1.0 if signal > 0 else 0.0
+        in_contact = contact >= 0.5
         finite = np.all(np.isfinite(wrench)) and np.all(np.isfinite(gravity))
         if refractory > 0 or not in_contact:
             # Waiting after a decision, or the contact ended: start the window afresh.
@@ -155,14 +161,14 @@ class PayloadChangeMonitor(LeafSystem):
         if finite:  # a non-finite sample is not evidence; the window keeps what it has
             x[index * _SAMPLE:(index + 1) * _SAMPLE] = np.concatenate([wrench, gravity])
             index, count = (index + 1) % self.capacity, min(count + 1, self.capacity)
-        if count >= 5 and self._decide(x[:count * _SAMPLE].reshape(count, _SAMPLE), state):
+        if count >= 5 and self._decide(x[:count * _SAMPLE].reshape(count, _SAMPLE), estimate):
             count, index, refractory, signal = 0, 0, self._refractory, self._signal
-            state.get_mutable_value(self._flag)[0] = 1.0
+            flag[0] = 1.0
         x[n:] = (count, index, refractory, signal)
 
-    def _decide(self, samples: np.ndarray, state) -> bool:
+    def _decide(self, samples: np.ndarray, estimate) -> bool:
         stats = payload_change_statistics(samples[:, :6], samples[:, 6:], self.noise_std)
         if not is_payload_change(stats, self.config):
             return False
-        state.get_mutable_value(self._estimate)[:] = stats["theta"]
+        estimate[:] = stats["theta"]
         return True

@@ -1,8 +1,9 @@
 """Contact detection and compensation in the loop, evaluated against the plant's ground truth.
 
 A log from :func:`ftdrake.sim.simulate.simulate` of a station built with a compensator holds
-both the truth (``contact``, ``internal_*``, ``external_*``) and what the compensator and
-detector made of the noisy stream (``pred_*``, ``est_external_*``, ``detected``);
+both the truth (``contact_true``, ``internal_true_*``, ``external_true_*``) and what the
+compensator and detector made of the noisy stream (``wrench_internal_*``, ``wrench_contact_*``,
+``contact``);
 :func:`evaluate_detection` compares them.
 """
 
@@ -24,10 +25,11 @@ def evaluate_detection(log: pd.DataFrame, noise_std, replayed: pd.DataFrame | No
     `log` holds the truth and, from a station with a compensator (or ``add_recorder(chain=)``),
     the chain's outputs; `replayed` (optional) is :func:`ftdrake.replay`'s result on the same
     rows, whose columns then replace the log's chain outputs. Columns read (and what makes
-    them): see ``INPUTS``. ``t``, ``contact``, ``detected``, ``out_of_domain`` and ``fault``
-    are required (a LogError names a missing one and its source); the wrench errors need
-    ``est_external_*`` with ``external_*``, the compensation error ``pred_*`` with
-    ``internal_*`` — without them those entries are None and ``not_computed`` says why.
+    them): see ``INPUTS``. ``t``, ``contact_true``, ``contact``, ``out_of_domain`` and
+    ``fault`` are required (a LogError names a missing one and its source); the wrench errors
+    need ``wrench_contact_*`` with ``external_true_*``, the compensation error
+    ``wrench_internal_*`` with ``internal_true_*`` — without them those entries are None and
+    ``not_computed`` says why.
 
     * detection_delay_s: per true contact episode, first detection minus true onset (a
       detection within 0.5 s before the onset counts as early, delay < 0).
@@ -43,11 +45,11 @@ def evaluate_detection(log: pd.DataFrame, noise_std, replayed: pd.DataFrame | No
       the sensor, sees that zero as a measurement.
     """
     log = _with_replay(log, replayed)
-    _require(log, [col.TIME, col.CONTACT, col.DETECTED, col.OUT_OF_DOMAIN, col.FAULT])
+    _require(log, [col.TIME, col.CONTACT_TRUE, col.CONTACT, col.OUT_OF_DOMAIN, col.FAULT])
     not_computed = {}
     t = log[col.TIME].to_numpy()
-    truth = log[col.CONTACT].to_numpy().astype(bool)
-    detected = log[col.DETECTED].to_numpy().astype(bool)
+    truth = log[col.CONTACT_TRUE].to_numpy().astype(bool)
+    detected = log[col.CONTACT].to_numpy().astype(bool)
     true_eps, det_eps = _episodes(truth), _episodes(detected)
     margin = 0.5
     delays, missed = [], 0
@@ -64,13 +66,15 @@ def evaluate_detection(log: pd.DataFrame, noise_std, replayed: pd.DataFrame | No
     free = ~truth
     free[:STARTUP_SAMPLES] = False
     comp_rms = ext_rms = steady_rms = None
-    if _available(log, (col.PREDICTED, col.INTERNAL), "compensation_error_rms", not_computed):
-        pred = log[col.wrench_columns(col.PREDICTED)].to_numpy()
-        internal = log[col.wrench_columns(col.INTERNAL)].to_numpy()
+    if _available(log, (col.WRENCH_INTERNAL, col.INTERNAL_TRUE), "compensation_error_rms",
+                  not_computed):
+        pred = log[col.wrench_columns(col.WRENCH_INTERNAL)].to_numpy()
+        internal = log[col.wrench_columns(col.INTERNAL_TRUE)].to_numpy()
         comp_rms = np.sqrt(np.mean((pred[free] - internal[free]) ** 2, axis=0))
-    if _available(log, (col.ESTIMATED, col.EXTERNAL), "external_wrench_error_rms", not_computed):
-        est = log[col.wrench_columns(col.ESTIMATED)].to_numpy()
-        ext = log[col.wrench_columns(col.EXTERNAL)].to_numpy()
+    if _available(log, (col.WRENCH_CONTACT, col.EXTERNAL_TRUE), "external_wrench_error_rms",
+                  not_computed):
+        est = log[col.wrench_columns(col.WRENCH_CONTACT)].to_numpy()
+        ext = log[col.wrench_columns(col.EXTERNAL_TRUE)].to_numpy()
         ext_rms = (np.sqrt(np.mean((est[truth] - ext[truth]) ** 2, axis=0))
                    if truth.any() else np.full(6, np.nan))
         steady = truth.copy()
@@ -101,14 +105,14 @@ _CHAIN = ("the runtime chain's outputs: a station built with a compensator (simu
           "add_recorder(..., chain=chain), or ftdrake.replay(model, log) passed as `replayed`")
 INPUTS = {
     col.TIME: "the sample time, s (every log)",
-    col.CONTACT: ("the true contact flag: simulate's log, or add_recorder(..., "
-                  "contact_true=port)"),
-    col.DETECTED: _CHAIN, col.OUT_OF_DOMAIN: _CHAIN, col.FAULT: _CHAIN,
-    col.ESTIMATED: _CHAIN, col.PREDICTED: _CHAIN,
-    col.EXTERNAL: ("the true contact wrench: simulate's log, or add_recorder(..., "
-                   "wrench_contact_true=port)"),
-    col.INTERNAL: ("the true internal wrench (the reading without contact, noise and drift): "
-                   "simulate's log"),
+    col.CONTACT_TRUE: ("the true contact flag: simulate's log, or add_recorder(..., "
+                       "contact_true=port)"),
+    col.CONTACT: _CHAIN, col.OUT_OF_DOMAIN: _CHAIN, col.FAULT: _CHAIN,
+    col.WRENCH_CONTACT: _CHAIN, col.WRENCH_INTERNAL: _CHAIN,
+    col.EXTERNAL_TRUE: ("the true contact wrench: simulate's log, or add_recorder(..., "
+                        "wrench_contact_true=port)"),
+    col.INTERNAL_TRUE: ("the true internal wrench (the reading without contact, noise and "
+                        "drift): simulate's log"),
 }
 
 

@@ -20,8 +20,8 @@ updates at t_k run, so the compensator's update at t_k reads x(t_{k+1}) with the
 w(t_k). A :class:`~ftdrake.hardware.station.HardwareStation` pairs each F/T message with the
 latest joint state that arrived before it, x(t_{k+1}), so it runs the same updates on the same
 inputs in the same order: its published wrench for the F/T message stamped t_k equals the
-simulation's ``comp_external_*`` in the log row at t_{k+1} (and its contact flag the row's
-``detected``). A run of K samples publishes K + 1 joint states (t_0 .. t_K) and K F/T
+simulation's ``wrench_compensated_*`` in the log row at t_{k+1} (and its contact flag the row's
+``contact``). A run of K samples publishes K + 1 joint states (t_0 .. t_K) and K F/T
 messages (t_0 .. t_{K-1}). Training tables built from these messages
 (:mod:`~ftdrake.hardware.recording`) pair by timestamp, x(t_k) with w(t_k), like the log.
 

@@ -17,8 +17,8 @@ every sensor sample time t_j = j·period, on the topics of a
 
 The timing, and why the reading lags, are those of :mod:`ftdrake.sim.lcm_publisher`: a
 :class:`~ftdrake.hardware.ros2.station.Ros2Station` on these topics publishes for the F/T
-message stamped t_k the simulation's ``est_external_*`` of the log row at t_{k+1} (its contact
-the row's ``detected``). A run of K samples publishes K + 1 joint states and K wrenches.
+message stamped t_k the simulation's ``wrench_contact_*`` of the log row at t_{k+1} (its contact
+the row's ``contact``). A run of K samples publishes K + 1 joint states and K wrenches.
 ``realtime_rate`` = 1 paces the simulation to the wall clock. Writers are reliable with
 ``config.queue_depth`` samples of history (what a slow subscriber may lag before losing one).
 """

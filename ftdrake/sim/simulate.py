@@ -2,52 +2,41 @@
 
 Log columns (one row per sensor sample; units SI; wrenches in S about So):
 
-==================  ============================================================
-``t``               time, s
-``q_i``             joint i position, rad (plant state)
-``qd_i``            joint i velocity, rad/s (plant state)
-``qdd_i``           joint i acceleration, rad/s² (the plant's step)
-``qd_est_i``        the velocity the loop uses: the joint state's own ``qd_i``
-``qdd_est_i``       the loop's own q̈ estimate: :func:`ftdrake.signals.causal_acceleration`
-                    of ``qd`` at ``compensator.acceleration_cutoff_hz``, row by row, as
-                    the :class:`~ftdrake.runtime.compensator.CompensatorSystem` computes it
-                    (the hardware recorder's columns, :mod:`ftdrake.runtime.recorder`)
-``ideal_*``         ideal sensor wrench (rigid-body reaction at the weld)
-``meas_*``          noisy sensor reading
-``internal_*``      true internal wrench: what the sensor would read without contact, with
-                    its mounting rotation, cross-talk, bias and thermal zero drift but
-                    without white noise, random-walk drift, filter and quantization
-                    (``C·R·(ideal − external) + bias + k·(T − T_ambient)``), in the
-                    frame the sensor measures in
-``external_*``      true contact wrench on the tool from ContactResults
-``contact``         1 while the tool touches the environment
-``saturated``       1 while any sensor axis is at its range limit
-``temperature``     the sensor's temperature, °C
-``offset_*``        the sensor driver's zero offset (with a ``events.retare_at_s``)
-``push_force``      ‖F‖ of the ``events`` push at the tool tip, N (with a push)
-==================  ============================================================
+======================  ============================================================
+``t``                   time, s
+``q_i``                 joint i position, rad (plant state)
+``qd_i``                joint i velocity, rad/s (plant state)
+``qdd_i``               joint i acceleration, rad/s² (the plant's step)
+``qd_est_i``            the velocity the loop uses: the joint state's own ``qd_i``
+``qdd_est_i``           the loop's own q̈ estimate: :func:`ftdrake.signals.causal_acceleration`
+                        of ``qd`` at ``compensator.acceleration_cutoff_hz``, row by row, as
+                        the :class:`~ftdrake.runtime.compensator.CompensatorSystem` computes it
+                        (the recorder's columns, :mod:`ftdrake.offline.recorder`)
+``ideal_*``             ideal sensor wrench (rigid-body reaction at the weld)
+``meas_*``              noisy sensor reading
+``internal_true_*``     true internal wrench: what the sensor would read without contact, with
+                        its mounting rotation, cross-talk, bias and thermal zero drift but
+                        without white noise, random-walk drift, filter and quantization
+                        (``C·R·(ideal − external) + bias + k·(T − T_ambient)``), in the
+                        frame the sensor measures in
+``external_true_*``     true contact wrench on the tool from ContactResults
+``contact_true``        1 while the tool touches the environment
+``saturated``           1 while any sensor axis is at its range limit
+``temperature``         the sensor's temperature, °C
+``offset_*``            the sensor driver's zero offset (with a ``events.retare_at_s``)
+``push_force``          ‖F‖ of the ``events`` push at the tool tip, N (with a push)
+======================  ============================================================
 
-``meas_*`` is the reading the compensator gets (after a re-tare's offset); ``external_*``
-includes an ``events`` push (as the sensor sees it) and ``internal_*`` includes the offset.
+``meas_*`` is the reading the compensator gets (after a re-tare's offset); ``external_true_*``
+includes an ``events`` push (as the sensor sees it) and ``internal_true_*`` the offset. The
+columns marked ``_true`` are the simulation's truth, which no robot log has.
 
-With a compensator in the station, also (same rows):
-
-==================  ============================================================
-``pred_*``          the compensator's predicted internal wrench
-``est_external_*``  the estimated contact wrench the detector reads: measured − predicted
-                    − the bias tracker's bias (and payload); = ``comp_external_*`` without it
-``comp_external_*`` measured − predicted (the compensator's own output)
-``bias_est_*``      the bias tracker's published bias (with the tracker)
-``payload_est_*``   its payload estimate ``[dm, mc_x, mc_y, mc_z]`` (kg, kg·m; with
-                    ``bias_tracker.track_payload``)
-``payload_change``  1 while an unsignalled payload change is announced (with
-                    ``bias_tracker.payload_change.enabled``)
-``pred_std_*``      the model's predictive std (0 where it gives none)
-``out_of_domain``   1 while a used joint input is outside the training range
-``fault``           1 while the compensator's inputs held NaN/inf
-``detected``        the detector's contact flag
-``detected_force``  the detector's ‖F‖ while in contact, N
-==================  ============================================================
+With a compensator in the station, also (same rows): the columns of every output port of the
+runtime chain, named as :data:`ftdrake.conventions.CHAIN_OUTPUTS` says (``wrench_internal_*``,
+``wrench_compensated_*``, ``wrench_contact_*``, ``wrench_std_*``, ``out_of_domain``,
+``fault``, ``contact``, ``contact_force``, and with the bias tracker ``bias_*``,
+``tracker_std_*``, ``payload_dm`` …, ``payload_change``), recorded by
+:mod:`ftdrake.offline.recorder` as :func:`~ftdrake.offline.replay.replay` records them.
 
 The plant's sampled output ports read zero before its first step, so the row at t = 0 is
 dropped (and only that row): every log starts at the first sensor sample after t = 0.
@@ -65,6 +54,7 @@ from pydrake.systems.analysis import Simulator
 from tqdm.auto import tqdm
 
 from .. import conventions as col
+from ..offline.recorder import logged_values, output_columns
 from ..signals import causal_acceleration
 from .events import apply_grasp
 from .station import Station
@@ -211,10 +201,14 @@ def assemble_log(station: Station, root_context) -> pd.DataFrame:
     series = _sampled_with_state(station.loggers, root_context, t)
     frame = {col.TIME: t[keep]}
     _add_joint_columns(frame, x[keep], series["acceleration"][keep], n, station.period,
-                       station.config.compensator.acceleration_cutoff_hz)
+                       station.config.chain.compensator.acceleration_cutoff_hz)
     _add_sensor_columns(frame, station, root_context, t, keep, series)
     if station.compensation is not None:
-        _add_compensation_columns(frame, station.compensation.loggers, root_context, t, keep)
+        try:
+            outputs = logged_values(station.compensation.loggers, root_context, t)
+        except RuntimeError as e:
+            raise RuntimeError(f"compensation: {e}") from None
+        frame.update(output_columns({port: values[keep] for port, values in outputs.items()}))
     return pd.DataFrame(frame)
 
 
@@ -264,10 +258,10 @@ def _add_sensor_columns(frame: dict, station: Station, root_context, t, keep, se
         internal = internal + offset
     for prefix, values in (
         (col.IDEAL, series["ideal"]), (col.MEASURED, series["measured"]),
-        (col.INTERNAL, internal), (col.EXTERNAL, external),
+        (col.INTERNAL_TRUE, internal), (col.EXTERNAL_TRUE, external),
     ):
         frame.update(zip(col.wrench_columns(prefix), values[keep].T, strict=True))
-    frame[col.CONTACT] = series["contact_true"][keep, 0].astype(np.int8)
+    frame[col.CONTACT_TRUE] = series["contact_true"][keep, 0].astype(np.int8)
     frame[col.SATURATED] = series["saturated"][keep, 0].astype(np.int8)
     if loggers.temperature is not None:
         frame[col.TEMPERATURE] = _log_data(loggers.temperature, root_context)[1][keep, 0]
@@ -275,26 +269,3 @@ def _add_sensor_columns(frame: dict, station: Station, root_context, t, keep, se
         frame.update(zip(col.wrench_columns(col.OFFSET), offset[keep].T, strict=True))
     if push is not None:
         frame[col.PUSH_FORCE] = np.linalg.norm(push[keep, :3], axis=1)
-
-
-def _add_compensation_columns(frame: dict, loggers, root_context, t, keep) -> None:
-    def values(name):
-        log = getattr(loggers, name).FindLog(root_context)
-        if len(log.sample_times()) != len(t) or not np.allclose(log.sample_times(), t):
-            raise RuntimeError(f"compensation logger {name!r} is not sampled with the state")
-        return log.data().T[keep]
-
-    for prefix, name in ((col.PREDICTED, "wrench_internal"), (col.ESTIMATED, "wrench_contact"),
-                         (col.COMPENSATED, "wrench_compensated"),
-                         (col.PREDICTED_STD, "wrench_std")):
-        frame.update(zip(col.wrench_columns(prefix), values(name).T, strict=True))
-    if loggers.bias is not None:
-        frame.update(zip(col.wrench_columns(col.BIAS_ESTIMATE), values("bias").T, strict=True))
-    if loggers.payload is not None:
-        frame.update(zip(col.PAYLOAD_ESTIMATE, values("payload").T, strict=True))
-    if loggers.payload_change is not None:
-        frame[col.PAYLOAD_CHANGE] = values("payload_change")[:, 0].astype(np.int8)
-    frame[col.OUT_OF_DOMAIN] = values("out_of_domain")[:, 0].astype(np.int8)
-    frame[col.FAULT] = values("fault")[:, 0].astype(np.int8)
-    frame[col.DETECTED] = values("contact")[:, 0].astype(np.int8)
-    frame[col.DETECTED_FORCE] = values("contact_force")[:, 0]

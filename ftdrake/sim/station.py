@@ -32,6 +32,7 @@ from pydrake.systems.primitives import Adder, LogVectorOutput, TrajectorySource,
 from pydrake.trajectories import PiecewisePolynomial
 
 from ..config import ConfigError, ScenarioConfig
+from ..offline.recorder import add_output_loggers
 from ..runtime.chain import CompensationChain
 from ..systems.contact_truth import ContactTruth
 from ..systems.controller import DiscreteInverseDynamicsController
@@ -65,35 +66,13 @@ class Loggers:
 
 
 @dc.dataclass
-class CompensationLoggers:
-    """Loggers of the runtime chain's outputs at the sensor rate, one per output port of
-    :class:`~ftdrake.runtime.chain.CompensationChain`, named as the port (None where the
-    chain has no such port: ``bias`` without the tracker, ``payload`` without
-    ``track_payload``, ``payload_change`` without ``bias_tracker.payload_change.enabled``)."""
-
-    PORTS = ("wrench_internal", "wrench_compensated", "wrench_contact", "wrench_std",
-             "out_of_domain", "fault", "contact", "contact_force", "bias", "payload",
-             "payload_change")
-
-    wrench_internal: VectorLogSink
-    wrench_compensated: VectorLogSink
-    wrench_contact: VectorLogSink
-    wrench_std: VectorLogSink
-    out_of_domain: VectorLogSink
-    fault: VectorLogSink
-    contact: VectorLogSink
-    contact_force: VectorLogSink
-    bias: VectorLogSink | None = None
-    payload: VectorLogSink | None = None
-    payload_change: VectorLogSink | None = None
-
-
-@dc.dataclass
 class Compensation:
-    """The runtime chain in the loop, with its loggers."""
+    """The runtime chain in the loop, with its loggers: one per output port the chain has,
+    under the port's name, sampled at the sensor rate
+    (:func:`~ftdrake.offline.recorder.add_output_loggers`)."""
 
     chain: CompensationChain
-    loggers: CompensationLoggers
+    loggers: dict  # port name → VectorLogSink
 
     @property
     def compensator(self):
@@ -105,7 +84,7 @@ class Compensation:
 
     @property
     def tracker(self):
-        """The bias tracker; None with ``scenario.bias_tracker.enabled`` off."""
+        """The bias tracker; None with ``scenario.chain.bias_tracker.enabled`` off."""
         return self.chain.tracker
 
 
@@ -152,12 +131,13 @@ def build_station(config: ScenarioConfig, compensator=None, *, meshcat=None,
     """Builds the simulated arm, sensor and environment for `config`.
 
     `compensator` (a fitted ftdrake compensator, e.g. from ``load_model``) adds the
-    CompensatorSystem and ContactDetector (configured by ``config.compensator`` and
-    ``config.detector``) in the loop. `trajectory` overrides the one ``config.trajectory``
-    describes. `feedforward` (a ``LearnedFeedforward`` or ``TimeIndexedFeedforward``) adds
-    its torque correction to the controller's output. `meshcat` (a pydrake Meshcat) adds a
-    visualizer (and, with a compensator, the wrench arrows). The models are parsed once for
-    the simulation and once for the controller's own (imperfect) model.
+    CompensatorSystem and ContactDetector (configured by ``config.chain``, with the simulated
+    sensor's stream: ``config.chain_config()``) in the loop. `trajectory` overrides the one
+    ``config.trajectory`` describes. `feedforward` (a ``LearnedFeedforward`` or
+    ``TimeIndexedFeedforward``) adds its torque correction to the controller's output.
+    `meshcat` (a pydrake Meshcat) adds a visualizer (and, with a compensator, the wrench arrows).
+    The models are parsed once for the simulation and once for the controller's own (imperfect)
+    model.
 
     `config` is taken as valid: :func:`~ftdrake.config.load_config` checks a file, and a
     config built or edited in Python is checked by ``config.validate()``. What only the
@@ -217,7 +197,7 @@ def build_station(config: ScenarioConfig, compensator=None, *, meshcat=None,
     compensation = arrows = None
     if compensator is not None:
         compensation = _add_compensation(builder, config, compensator, scene, events, period,
-                                         log, noisy.get_output_port_temperature())
+                                         noisy.get_output_port_temperature())
         if payload_ff is not None:  # adaptive computed torque: the tracker's payload
             if not compensation.chain.HasOutputPort("payload"):
                 raise ConfigError("controller.adapt_to_payload: the payload comes from the "
@@ -303,7 +283,7 @@ def _add_control(builder, config: ScenarioConfig, scene: Scene, q_source, vd_sou
 def _add_payload_feedforward(builder, config, scene, encoder_state, vd_source, actuation):
     """The torque for the bias tracker's payload estimate, added to `actuation` (its payload
     input is connected once the chain is there). Returns (system, the summed actuation)."""
-    if not config.bias_tracker.track_payload:
+    if not config.chain.bias_tracker.track_payload:
         raise ConfigError("controller.adapt_to_payload: the payload comes from the bias "
                           "tracker; set bias_tracker.track_payload: true")
     control_plant = make_control_plant(config, scene)
@@ -329,13 +309,14 @@ def _add_arrows(builder, meshcat, scene: Scene, events: EventSignals,
     return arrows
 
 
-def _add_compensation(builder, config, model, scene, events: EventSignals, period, log,
+def _add_compensation(builder, config, model, scene, events: EventSignals, period,
                       temperature) -> Compensation:
     """The runtime chain in the loop: the sensor's reading and the arm's state in; the
     tracker's payload regressor from the plant's own kinematics (SensorGravity)."""
     plant = scene.plant
     chain = builder.AddNamedSystem("compensation_chain", CompensationChain(
-        model, config, period=period, n_joints=plant.num_positions(scene.arm), gravity="input"))
+        model, config.chain_config(), period=period, n_joints=plant.num_positions(scene.arm),
+        gravity="input"))
     builder.Connect(events.reading, chain.get_input_port_wrench_measured())
     builder.Connect(plant.get_state_output_port(scene.arm), chain.get_input_port_joint_state())
     if chain.needs_temperature:  # a model trained with the sensor temperature (°C)
@@ -346,10 +327,7 @@ def _add_compensation(builder, config, model, scene, events: EventSignals, perio
         _add_sensor_gravity(builder, scene, chain)
     if events.payload_changed is not None and chain.HasInputPort("payload_changed"):
         builder.Connect(events.payload_changed, chain.get_input_port_payload_changed())
-    loggers = CompensationLoggers(**{
-        name: log(chain.GetOutputPort(name)) if chain.HasOutputPort(name) else None
-        for name in CompensationLoggers.PORTS})
-    return Compensation(chain, loggers)
+    return Compensation(chain, add_output_loggers(builder, chain, period))
 
 
 def _add_sensor_gravity(builder, scene, chain: CompensationChain) -> None:

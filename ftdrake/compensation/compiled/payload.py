@@ -124,9 +124,8 @@ def payload_mean_var(x, reals, ints, mean, var):
         for j in range(p):
             s += B[i, j] * parameters[j]
         mean[i] = s
-    # var_i = σ_i² + ‖B_i F‖², F's columns as contiguous rows of Fᵀ. Scalar sums: as fast
-    # here as a vectorised form, whose code (3× larger) evicted the caches the rest of the
-    # 1 kHz step needs.
+    # var_i = σ_i² + ‖B_i F‖², F's columns as contiguous rows of Fᵀ. Scalar sums: a
+    # vectorised form's larger code evicts the caches the rest of the 1 kHz step needs.
     for i in range(6):
         v = noise_var[i]
         for c in range(r):

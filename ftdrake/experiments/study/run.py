@@ -93,7 +93,7 @@ def run_study(out_dir, *, preset="quick", trajectories: int = TRAJECTORIES,
         "test_hz": test_hz, "svr_max_rows": svr_max_rows,
         "svr_epsilon": entry("svr").cls().epsilon, "segment_s": SEGMENT_S, "seed": seed,
         "inputs": "joint_state_layout(frame, 'est'): q̇ and the loop's causal q̈ estimate",
-        "targets": "meas_* (noisy sensor reading)", "truth": "internal_*",
+        "targets": "meas_* (noisy sensor reading)", "truth": "internal_true_*",
         "sensor_preset": config.sensor.preset,
         "noise_std": list(config.sensor.spec().noise_std),
         "hybrid_residual": {"features": "same as the row", **HYBRID_RESIDUAL},
@@ -217,7 +217,7 @@ class Split:
 def prepare_split(frame: pd.DataFrame, *, test_trajectories: int, train_hz: float,
                   test_hz: float, n_splits: int) -> Split:
     """Holds out the last `test_trajectories` runs whole and thins both sides' rows."""
-    if frame[col.CONTACT].any():
+    if frame[col.CONTACT_TRUE].any():
         raise ValueError("the study needs free motion; the dataset has contact rows")
     train, test = split_trajectories(frame, test_trajectories)
     train, test = decimate(train, train_hz), decimate(test, test_hz)
@@ -230,7 +230,7 @@ def prepare_split(frame: pd.DataFrame, *, test_trajectories: int, train_hz: floa
     return Split(X=joint_state_layout(train, "est"), Y=wrench_targets(train, col.MEASURED),
                  groups=groups, Xt=joint_state_layout(test, "est"),
                  Yt=wrench_targets(test, col.MEASURED),
-                 truth=wrench_targets(test, col.INTERNAL), sizes=sizes)
+                 truth=wrench_targets(test, col.INTERNAL_TRUE), sizes=sizes)
 
 
 def study_dataset(frame: pd.DataFrame, *, preset, cv, n_splits, n_repeats, test_trajectories,

@@ -9,17 +9,18 @@ the field, as ``ros2.<field>: ...``).
 import dataclasses as dc
 import math
 
+from ...conventions import OUTPUTS as CHAIN_OUTPUTS_BY_PORT
+from ...conventions import PUBLISHED, ROS2_TYPES
 from ...errors import ConfigError
 from .dds import QOS_PROFILES, dds_topic
 
-#: Output topics under `output_namespace` and their ROS 2 types.
-OUTPUTS = {
-    "wrench": "geometry_msgs/msg/WrenchStamped",
-    "contact": "std_msgs/msg/Bool",
-    "contact_force": "std_msgs/msg/Float64",
-    "bias": "geometry_msgs/msg/WrenchStamped",
-    "payload": "geometry_msgs/msg/InertiaStamped",
-}
+#: Output topics under `output_namespace` and their ROS 2 types: the chain outputs
+#: :data:`ftdrake.conventions.PUBLISHED` that have a topic of their own (the others,
+#: ``fault``, ``out_of_domain`` and ``payload_change``, are keys of the diagnostics), named as
+#: the ports: ``wrench_compensated``, ``wrench_contact``, ``contact``, ``contact_force``,
+#: ``bias``, ``payload``.
+OUTPUTS = {port: ROS2_TYPES[port] for port in PUBLISHED
+           if not CHAIN_OUTPUTS_BY_PORT[port].ros2.startswith("/")}
 
 
 @dc.dataclass
@@ -36,15 +37,17 @@ class Ros2Config:
         ``force_torque_sensor_broadcaster`` publishes it; each message runs the chain once.
       `temperature_topic` (only for a model trained with the sensor temperature):
         ``sensor_msgs/msg/Temperature`` (°C).
-      `tare_topic`, `payload_topic` (optional, for ``scenario.bias_tracker``):
+      `tare_topic`, `payload_topic` (optional, for ``chain.bias_tracker``):
         ``std_msgs/msg/Empty``: the sensor was re-zeroed / a payload was grasped or let go.
       `*_qos`: ``reliable`` (rclcpp's default; what ros2_control's broadcasters offer) or
         ``sensor_data`` (best effort, keep last 5: matches a best-effort or a reliable
         publisher, may drop messages).
       Message stamps (``header.stamp``) are the samples' times: they must increase.
-    Outputs, under `output_namespace` (see :data:`OUTPUTS`): ``wrench`` the compensated
-      contact wrench (measured − predicted − the tracker's bias and payload; the input's
-      ``frame_id`` and stamp), only while the inputs are fault-free; ``contact`` (Bool) and
+    Outputs, under `output_namespace` (see :data:`OUTPUTS`; the LCM station publishes the
+      same outputs under the same names): ``wrench_contact`` the contact wrench the detector
+      judges (measured − predicted − the tracker's bias and payload) and
+      ``wrench_compensated`` (measured − predicted), both with the input's ``frame_id`` and
+      stamp, only while the inputs are fault-free; ``contact`` (Bool) and
       ``contact_force`` (Float64, ‖F‖ N while in contact, else 0), ``bias``
       (WrenchStamped, with the tracker) and ``payload`` (InertiaStamped with ``m`` = Δm kg,
       ``com`` = Δ(m·c)/Δm m in the sensor frame (zero while |Δm| < 1 g), moments zero: not
@@ -52,7 +55,7 @@ class Ros2Config:
       (these types carry no fault flag); and on `diagnostics_topic`
       a ``diagnostic_msgs/msg/DiagnosticArray`` every `diagnostics_period_s` and at each fault
       change (level OK / WARN out of domain / ERROR fault; keys fault, reason, out_of_domain,
-      message rates, counts).
+      payload_change, message rates, counts).
     `queue_depth`: samples a subscription (and each of ftdrake's writers) keeps while the
       station lags (1 s at 1 kHz); a lag beyond it loses the oldest.
     `reorder_window_s`: 0 hands messages to the station as they arrive (lowest latency, as

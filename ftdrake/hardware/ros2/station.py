@@ -3,10 +3,14 @@
     /joint_states (JointState) ──► by name, into joint_names' order ──┐
     …/wrench (WrenchStamped) ───────────────────────────────────────► StationCore
                                                                         │ (CompensationChain)
-    <ns>/wrench  WrenchStamped   ◄── wrench_contact (input's frame_id and stamp)
+    <ns>/wrench_contact, <ns>/wrench_compensated  WrenchStamped ◄── wrench_contact,
+                                  wrench_compensated (the input's frame_id and stamp)
     <ns>/contact Bool, <ns>/contact_force Float64 ◄── contact, contact_force
     <ns>/bias WrenchStamped, <ns>/payload InertiaStamped ◄── the bias tracker's estimates
-    /diagnostics DiagnosticArray ◄── fault, reason, out-of-domain, rates, counts
+    /diagnostics DiagnosticArray ◄── fault, reason, out_of_domain, payload_change, rates,
+                                     counts
+
+The outputs are the LCM station's, under the same names (:data:`ftdrake.conventions.PUBLISHED`).
 
 The message-driven loop, the checks (:class:`~ftdrake.hardware.live_inputs.StreamMonitor`),
 the fault episodes and the counts are :class:`~ftdrake.hardware.core.StationCore`'s, the same
@@ -18,7 +22,7 @@ order they arrived (:class:`~ftdrake.hardware.ros2.dds.Ros2Node`).
 
 Python entry point::
 
-    station = Ros2Station(Ros2Config(joint_names=[...]), load_model("m.ftd"), scenario)
+    station = Ros2Station(Ros2Config(joint_names=[...]), load_model("m.ftd"), ChainConfig())
     while running:
         station.spin_once(timeout_ms=2)
 
@@ -32,7 +36,7 @@ import time
 
 import numpy as np
 
-from ...config import ScenarioConfig
+from ...config import ChainConfig
 from ...errors import ConfigError
 from ..core import StationCore
 from ..messages import JointSample, WrenchSample
@@ -45,24 +49,29 @@ OK, WARN, ERROR = 0, 1, 2
 #: The DiagnosticStatus name ftdrake publishes.
 DIAGNOSTIC_NAME = "ftdrake: F/T compensation"
 _MIN_PAYLOAD_KG = 1e-3  # below this the payload's centre of mass is not published (0)
+#: The outputs published as WrenchStamped (with the input's frame_id and stamp).
+WRENCH_TOPICS = tuple(name for name, msgtype in OUTPUTS.items()
+                      if msgtype == "geometry_msgs/msg/WrenchStamped")
 
 
 class Ros2Station(StationCore):
     """StationCore fed by ROS 2 topics (see the module and Ros2Config).
 
-    `node`: a :class:`~ftdrake.hardware.ros2.dds.Ros2Node` (default: one on
+    `chain`: the :class:`~ftdrake.config.ChainConfig` the chain is built from (default
+    ``ChainConfig()``; joint-state gravity on the model's own robot unless ``chain.robot``
+    names one). `node`: a :class:`~ftdrake.hardware.ros2.dds.Ros2Node` (default: one on
     ``config.domain_id`` with ``config.dds_config`` and `clock`). `clock` gives arrival times
     in s (monotonic); `on_event(FaultEvent)` is called on every fault change.
     """
 
-    def __init__(self, config: Ros2Config, model, scenario: ScenarioConfig | None = None,
+    def __init__(self, config: Ros2Config, model, chain: ChainConfig | None = None,
                  node: Ros2Node | None = None, *, clock=time.monotonic, on_event=None,
                  max_events: int = 10_000):
         self.config = c = config.validate()
         events = tuple(name for name, topic in (("tared", c.tare_topic),
                                                 ("payload_changed", c.payload_topic)) if topic)
         self._user_on_event = on_event
-        super().__init__(model, scenario, n_joints=c.n_joints,
+        super().__init__(model, chain, n_joints=c.n_joints,
                          sensor_timeout_s=c.sensor_timeout_s,
                          joint_state_timeout_s=c.joint_state_timeout_s,
                          temperature_timeout_s=c.temperature_timeout_s, events=events,
@@ -75,8 +84,7 @@ class Ros2Station(StationCore):
         self._contact_due = False  # its wrench was published: contact and force follow
         self._writers = {name: self.node.publisher(c.output_topic(name), msgtype,
                                                    depth=c.queue_depth)
-                         for name, msgtype in OUTPUTS.items()
-                         if name not in ("bias", "payload") or name in self._out}
+                         for name, msgtype in OUTPUTS.items() if self.has_output(name)}
         self._diagnostics = self.node.publisher(c.diagnostics_topic,
                                                 "diagnostic_msgs/msg/DiagnosticArray")
         self._types = {name: ros2_type(msgtype) for name, msgtype in (
@@ -109,10 +117,10 @@ class Ros2Station(StationCore):
         c = self.config
         if c.tare_topic and not chain.HasInputPort("tared"):
             raise ConfigError("ros2.tare_topic: a re-tare goes to the bias tracker; enable "
-                              "scenario.bias_tracker or leave the topic empty")
+                              "chain.bias_tracker or leave the topic empty")
         if c.payload_topic and not chain.HasInputPort("payload_changed"):
             raise ConfigError("ros2.payload_topic: a grasp goes to the bias tracker's payload "
-                              "estimate; set scenario.bias_tracker.enabled and track_payload, "
+                              "estimate; set chain.bias_tracker.enabled and track_payload, "
                               "or leave the topic empty")
         if chain.needs_temperature and not c.temperature_topic:
             raise ConfigError("ros2.temperature_topic: the model was trained with the sensor "
@@ -164,10 +172,10 @@ class Ros2Station(StationCore):
     def _publish_wrench(self, t: float) -> None:
         h, types, w = self._header, self._types, self._writers
         del t  # the stamp is the input's header's
-        w["wrench"].write(wrench_stamped(h, self.output("wrench_contact")))
+        for name in WRENCH_TOPICS:
+            if name in w:  # bias: with the tracker
+                w[name].write(wrench_stamped(h, self.output(name)))
         self._contact_due = True
-        if "bias" in w:
-            w["bias"].write(wrench_stamped(h, self.output("bias")))
         if "payload" in w:
             dm, *mc = (float(x) for x in self.output("payload"))
             com = [x / dm for x in mc] if abs(dm) >= _MIN_PAYLOAD_KG else [0.0] * 3
