@@ -79,6 +79,42 @@ def test_bad_yaml_names_the_problem(tmp_path, text, message):
         build_station(config)
 
 
+@pytest.mark.parametrize(
+    "text, message",
+    [
+        ("sensor: {noise_std: -1.0}",
+         r"^--config \S+: scenario\.sensor\.noise_std: must be a non-negative number, got -1\.0$"),
+        ("detector: {force_on: high}",
+         r"^--config \S+: scenario\.detector\.force_on: must be a number, got 'high'$"),
+        ("trajectory: {seed: 1.5}", r"scenario\.trajectory\.seed: must be a whole number"),
+        ("cable: {enabled: 3}", r"scenario\.cable\.enabled: must be true or false, got 3"),
+        ("sensor: {mounting_rpy_deg: 1.0}",
+         (r"scenario\.sensor\.mounting_rpy_deg: must be a list of 3 numbers, got the single "
+          r"number 1\.0")),
+        ("sensor: {bias: [0, 0, x, 0, 0, 0]}",
+         r"scenario\.sensor\.bias: entries must be numbers, got 'x'"),
+        ("sensor: 0.1", r"scenario\.sensor: must be a mapping of fields"),
+    ],
+)
+def test_a_mistyped_value_names_its_field(tmp_path, text, message):
+    """A value of the wrong type names the field and what it must be (not Python's 'float
+    object is not iterable' or 'could not convert string to float' with no field)."""
+    from ftdrake.cli.args import load_scenario
+
+    path = tmp_path / "bad.yaml"
+    path.write_text(text)
+    with pytest.raises(ConfigError, match=message):
+        load_scenario(type("Args", (), {"config": str(path)})())
+
+
+@pytest.mark.parametrize("field", ["noise_std", "bias", "range", "drift_std"])
+def test_a_single_number_for_a_per_axis_list_means_every_axis(field):
+    config = parse_config(f"sensor: {{{field}: 0.25}}")
+    assert getattr(config.sensor, field) == [0.25] * 6
+    listed = parse_config(f"sensor: {{{field}: [0.25, 0.25, 0.25, 0.25, 0.25, 0.25]}}")
+    assert dump_config(config) == dump_config(listed)
+
+
 def test_missing_config_file_is_a_clear_error(tmp_path):
     with pytest.raises(ConfigError, match="cannot read config"):
         load_config(tmp_path / "nope.yaml")

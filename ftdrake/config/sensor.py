@@ -64,9 +64,9 @@ class SensorConfig:
 
     preset: str = "ati_gamma"
     rate_hz: Optional[float] = None
-    range: Optional[list[float]] = None
-    resolution: Optional[list[float]] = None
-    noise_std: Optional[list[float]] = None
+    range: Optional[list[float]] = dc.field(default=None, metadata={"entries": 6})
+    resolution: Optional[list[float]] = dc.field(default=None, metadata={"entries": 6})
+    noise_std: Optional[list[float]] = dc.field(default=None, metadata={"entries": 6})
     bandwidth_hz: Optional[float] = None
     # Constant offset of the reading (N, N·m); a real sensor is tared, never perfectly.
     bias: list[float] = dc.field(default_factory=lambda: [0.6, -0.4, 1.2, 0.02, -0.015, 0.01])
