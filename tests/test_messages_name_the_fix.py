@@ -2,6 +2,7 @@
 refused with the flag that welds it, by the payload and the whole-arm model, and that flag
 fixes it; wrench columns that are not found name the option that chooses them."""
 
+import re
 import warnings
 
 import numpy as np
@@ -326,3 +327,51 @@ def test_replay_takes_the_same_column_syntax(tmp_path, capsys):
                  "--targets", "ft_*", "--quiet"]) == 0
     a, b = pd.read_csv(tmp_path / "a.csv"), pd.read_csv(tmp_path / "b.csv")
     pd.testing.assert_frame_equal(a, b)
+
+
+# -- a sensor frame the robot does not have (issue 42 item 1) -----------------------------------
+@pytest.fixture
+def welded_urdf(tmp_path):
+    path = tmp_path / "welded.urdf"
+    path.write_text(ARM.replace('<link name="base"/>', '<link name="world"/><joint name="w" '
+                                'type="fixed"><parent link="world"/><child link="base"/></joint>'
+                                '<link name="base"/>'))
+    return str(path)
+
+
+@pytest.mark.parametrize("flags, message", [
+    (["--sensor-frame", "ft_sensor_frame"],
+     (r"^ftdrake calibrate: error: --sensor-frame: robot model '.*welded\.urdf' has no sensor "
+     r"frame named 'ft_sensor_frame'; its frames, closest to 'ft_sensor_frame' first: sensor, ")),
+    ([], (r"^ftdrake calibrate: error: calibrate --robot \S+welded\.urdf needs --sensor-frame "
+          r"NAME \(the frame S of the measured wrench in \S+\); its frames, sensor-like first: "
+          r"sensor, ")),
+    (["--sensor-frame", "sensor", "--base-frame", "bse"],
+     (r"--base-frame: robot model '.*welded\.urdf' has no base frame named 'bse'; its frames, "
+     r"closest to 'bse' first: base, ")),
+])
+def test_calibrate_checks_the_robots_frames_before_reading_data(welded_urdf, tmp_path, capsys,
+                                                                monkeypatch, flags, message):
+    """The frames are checked first (the data is never read); the message names the robot
+    file and lists its frames, the closest match first."""
+    import ftdrake.cli.calibrate as calibrate_cli
+
+    def never(*_):
+        raise AssertionError("the data was read before the robot's frames were checked")
+
+    monkeypatch.setattr(calibrate_cli, "read_frame", never)
+    data = csv(pd.DataFrame({"q_0": [0.0, 1.0]}), tmp_path)
+    assert main(["calibrate", "--data", data, "--robot", welded_urdf, *flags,
+                 "--out", str(tmp_path / "cal")]) == 2
+    err = capsys.readouterr().err
+    assert re.search(message, err), err
+
+
+def test_a_fitted_models_missing_frame_names_its_robot_file(welded_urdf):
+    model = PhysicsPayloadCompensator(mode="static", features="q", robot=welded_urdf,
+                                      sensor_frame="ft_sensor_frame")
+    with pytest.raises(RobotModelError, match=r"robot model 'welded\.urdf' \(embedded URDF, \d+ "
+                                              r"characters\) has no sensor frame named "
+                                              r"'ft_sensor_frame'; its frames, closest to "
+                                              r"'ft_sensor_frame' first: sensor, "):
+        model.fit(rows(), np.zeros((30, 6)))

@@ -12,8 +12,32 @@ from __future__ import annotations
 
 import hashlib
 
+from pydrake.multibody.plant import MultibodyPlant
+
 from ..errors import RobotModelError
-from ..physics.robot import embed_model
+from ..physics.robot import RobotDescription, add_robot_model, embed_model, frames_closest_first
+
+
+def check_robot_frames(robot: str, sensor_frame: str | None, base_frame: str | None = None,
+                       package_xmls=(), command: str = "train") -> None:
+    """Before any data is read: the robot file `robot` (``--robot``) loads and has the frames
+    ``--sensor-frame`` and ``--base-frame`` name. RobotModelError names the file, the flag and
+    the model's frames, those closest to the name given first (none given: the frames by
+    name)."""
+    if not sensor_frame:
+        plant = MultibodyPlant(0.0)
+        add_robot_model(plant, str(robot), tuple(package_xmls))
+        plant.Finalize()
+        raise RobotModelError(
+            f"{command} --robot {robot} needs --sensor-frame NAME (the frame S of the measured "
+            f"wrench in {robot}); "
+            f"{frames_closest_first(plant, 'sensor', heading='its frames, sensor-like first')}")
+    description = RobotDescription(str(robot), sensor_frame, base_frame, tuple(package_xmls))
+    try:
+        description.build_plant()
+    except RobotModelError as e:
+        flag = "--base-frame" if "no base frame" in str(e) else "--sensor-frame"
+        raise RobotModelError(f"{flag}: {e}") from None
 
 
 class CarriesRobot:
