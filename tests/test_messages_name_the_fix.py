@@ -375,3 +375,38 @@ def test_a_fitted_models_missing_frame_names_its_robot_file(welded_urdf):
                                               r"'ft_sensor_frame'; its frames, closest to "
                                               r"'ft_sensor_frame' first: sensor, "):
         model.fit(rows(), np.zeros((30, 6)))
+
+
+# -- velocity columns: the count, and recorded ones left unused (issue 42 item 2) ---------------
+def test_a_velocity_pattern_matching_too_many_columns_suggests_one_that_fits(tmp_path, capsys):
+    frame = motion()
+    for i in range(2):
+        frame[f"qd_est_{i}"] = frame[f"qd_{i}"]
+    path = csv(frame, tmp_path)
+    assert main(["train", "--data", path, "--velocities", "qd_*",
+                 "--out", str(tmp_path / "m.ftd"), *rf()]) == 2
+    err = capsys.readouterr().err
+    assert ("error: log.csv: --velocities 'qd_*' matched 4 columns (qd_0, qd_1, qd_est_0, "
+            "qd_est_1) for 2 positions (q_0, q_1); one velocity column per position is "
+            "needed: re:qd_\\d+ matches 2 (qd_0, qd_1): --velocities 're:qd_\\d+'") in err
+    assert main(["train", "--data", path, "--velocities", r"re:qd_\d+",
+                 "--out", str(tmp_path / "m.ftd"), *rf()]) == 0
+
+
+def test_recorded_derivatives_left_unused_are_named(tmp_path):
+    path = csv(motion(), tmp_path)
+    data = load_training_data(path)  # velocities and accelerations computed from q
+    assert data.derived == ["qd", "qdd"]
+    assert data.warnings == [
+        ("log.csv: the log records velocities qd_0..qd_1 (computed instead: Savitzky–Golay "
+        "derivative of q); accelerations qdd_0..qdd_1 (computed instead: Savitzky–Golay second "
+        "derivative of q); to use the recorded ones: velocities='re:qd_\\\\d+' "
+        "accelerations='re:qdd_\\\\d+' (to compute them and not see this: "
+        "velocities='derive' accelerations='derive')")]
+    from ftdrake.data.training import ReadOptions
+    used = load_training_data(path, ReadOptions(velocities=r"re:qd_\d+",
+                                                accelerations=r"re:qdd_\d+"))
+    derived = load_training_data(path, ReadOptions(velocities="derive", accelerations="derive"))
+    assert used.derived == [] and used.warnings == [] and derived.warnings == []
+    bare = load_training_data(csv(motion(derivatives=False), tmp_path, "bare.csv"))
+    assert bare.warnings == []
