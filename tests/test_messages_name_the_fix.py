@@ -410,3 +410,25 @@ def test_recorded_derivatives_left_unused_are_named(tmp_path):
     assert used.derived == [] and used.warnings == [] and derived.warnings == []
     bare = load_training_data(csv(motion(derivatives=False), tmp_path, "bare.csv"))
     assert bare.warnings == []
+
+
+# -- commands name their own flags (issue 42 item 20) -------------------------------------------
+def test_calibrate_on_a_motion_without_robot_names_calibrates_flags(tmp_path, capsys):
+    path = csv(motion(), tmp_path)
+    assert main(["calibrate", "--data", path, "--out", str(tmp_path / "cal")]) == 2
+    err = capsys.readouterr().err
+    assert err.strip() == (
+        f"ftdrake calibrate: error: {path} is a motion (a time column and moving joints): "
+        "calibrate fits it with the dynamic payload model, which needs --robot FILE "
+        "(URDF/SDF) with --sensor-frame NAME, or --robot ftdrake for the simulated arm")
+    assert "--kind" not in err
+
+
+def test_serve_on_ros2_without_its_config_names_the_flag(tmp_path, capsys):
+    model = RandomForestCompensator(n_estimators=2).fit(rows(), np.zeros((30, 6)))
+    save_model(model, tmp_path / "m.ftd")
+    assert main(["serve", "--ros2", "--model", str(tmp_path / "m.ftd")]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("ftdrake serve: error: --ros2 needs --ros2-config FILE (a Ros2Config "
+                          "YAML; the defaults used without it fall short): ros2.joint_names: "
+                          "list the model's joints"), err

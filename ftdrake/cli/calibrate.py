@@ -234,6 +234,11 @@ def _read_options(args, temperature: bool):
 def _time_series(args, prior, temperature: bool) -> int:
     """A motion log: read as `train` reads it, fitted by the dynamic physics model (with the
     temperature column, if the log has one)."""
+    if args.robot is None:  # said before the log is read, in calibrate's words
+        raise ConfigError(
+            f"{args.data} is a motion (a time column and moving joints): calibrate fits it "
+            "with the dynamic payload model, which needs --robot FILE (URDF/SDF) with "
+            "--sensor-frame NAME, or --robot ftdrake for the simulated arm")
     data = load_training_data(args.data, _read_options(args, temperature))
     robot = RobotOptions(args.robot, args.sensor_frame, args.base_frame, data.scenario_yaml,
                          joints=args.joints, fixed_joints=args.fixed_joints)

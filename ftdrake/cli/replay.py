@@ -75,7 +75,9 @@ def register(sub) -> None:
                         "(detector.test auto: the χ² test for a physics, hybrid or GP model)")
     p.add_argument("--wrench-topic", metavar="TOPIC", help="a ROS bag's WrenchStamped topic")
     for flag, default, what in (("--positions", "q_*", "joint position columns (rad)"),
-                                ("--velocities", "qd_*", "joint velocity columns (rad/s)"),
+                                ("--velocities", "qd_*", ("joint velocity columns (rad/s), or "
+                                 "'derive' to compute them from q as train does (so done when "
+                                 "the log has no qd_* columns)")),
                                 ("--targets", "meas_*", "the sensor's wrench columns (N, N·m)")):
         p.add_argument(flag, metavar="PAT", help=f"tables: {what}, default '{default}'; a glob, "
                        "a comma-separated list or a regular expression after 're:'")

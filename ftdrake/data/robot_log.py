@@ -191,6 +191,20 @@ def _short_segments_message(source, short, n_segments, polyorder) -> str:
             f"); {option_hint('sg_polyorder', lowest)} fits every segment with that order")
 
 
+def velocities_from_positions(t, q, source: str, *, sg_window: float = 0.1,
+                              sg_polyorder: int = 4, gap_factor: float = 3.0) -> np.ndarray:
+    """q̇ (N, n) rad/s from q (N, n) rad at strictly increasing times `t` (s), as every
+    reader computes missing velocities (:func:`assemble_log`): Savitzky–Golay, separately
+    between gaps (reported, as are segments too short for the order)."""
+    t, q = np.asarray(t, float), np.asarray(q, float).reshape(len(t), -1)
+    breaks = _gaps(t, gap_factor, source)
+    short = []
+    qd = _piecewise_derivative(q, t, breaks, 1, sg_window, sg_polyorder, short)
+    if short:
+        warn_log(_short_segments_message(source, short, len(breaks) + 1, sg_polyorder))
+    return qd
+
+
 def _piecewise_causal(qd, t, breaks, cutoff_hz):
     """The loop's causal q̈ estimate from `qd`, restarted (q̈ = 0) after every gap."""
     dt = float(np.median(np.diff(t)))
