@@ -24,11 +24,13 @@ import sys
 
 from ..compensation.persistence import load_model
 from ..config import load_config, save_config
+from ..conventions import TIME
 from ..data.bag import is_bag
 from ..data.logs import is_table
+from ..data.robot_log import resample_uniform
 from ..data.stream_delay import estimate_stream_delay
 from ..errors import ConfigError, LogError
-from ..experiments.residual_budget import residual_budget
+from ..experiments.residual_budget import check_uniform_sampling, residual_budget
 from ..hardware.recording import read_lcm_log
 from ..io import atomic_path
 from ..runtime.replay import (
@@ -68,6 +70,10 @@ def register(sub) -> None:
     p.add_argument("--budget", action="store_true",
                    help="also split the in-motion residual into offset, drift, stream delay, "
                         "the sensor's filter and what is left, in units of the resting noise")
+    p.add_argument("--resample", action="store_true",
+                   help="put the log on a uniform time grid at its median period first "
+                        "(linear interpolation; events kept): what --budget needs of a log "
+                        "whose time steps jitter by more than 5 %%")
     p.add_argument("--calibrate-detector", type=a.output_file, metavar="YAML",
                    help="also write the scenario (--config or the shipped one) with the "
                         "detector's thresholds set for its false-positive budget from this "
@@ -93,7 +99,7 @@ def run_replay(args) -> int:
     with a.naming("--model", args.model):
         model = load_model(args.model)
     with a.naming("--log", args.log):
-        frame = _read_log(args)
+        frame = _prepared_log(args)
     config = None
     if args.config is not None:
         with a.naming("--config", args.config):
@@ -141,6 +147,22 @@ def _write_calibrated(path, result, model, scenario) -> dict:
     detector = calibrated_detector(result, model, scenario)
     save_config(dc.replace(scenario, detector=detector), path)
     return {"file": str(path), **dc.asdict(detector)}
+
+
+def _prepared_log(args):
+    """The log read, resampled with --resample, and checked for what --budget needs before
+    the replay (which takes minutes on a long log)."""
+    frame = _read_log(args)
+    if args.resample:
+        rows = len(frame)
+        frame = resample_uniform(frame)
+        if not args.quiet:
+            print(f"note: --resample: {rows} rows onto a uniform grid of {len(frame)} at "
+                  f"{(frame[TIME].iloc[1] - frame[TIME].iloc[0]) * 1e3:.4g} ms",
+                  file=sys.stderr)
+    if args.budget:
+        check_uniform_sampling(frame[TIME].to_numpy(float))
+    return frame
 
 
 def _read_log(args):

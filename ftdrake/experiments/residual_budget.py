@@ -58,7 +58,8 @@ from scipy.signal import lfilter
 from .. import conventions as col
 from ..compensation.physics import PhysicsPayloadCompensator
 from ..config import ScenarioConfig, parse_config
-from ..errors import LogError
+from ..data.robot_log import resample_uniform
+from ..errors import LogError, spelled
 from ..runtime.replay import read_replay_log, replay
 
 SHARES = ("offset", "drift", "delay", "filter", "remainder")
@@ -70,6 +71,9 @@ REST_SPEED = 0.01
 FILTER_MIN_GAIN = 0.05
 #: Rows at rest needed to measure the resting noise from the log itself.
 MIN_REST_ROWS = 200
+#: How far (relative) a time step may stray from the median step for the log to count as
+#: uniformly sampled: the delay and the filter are fitted in whole and fractional samples.
+UNIFORM_RTOL = 0.05
 
 
 @dc.dataclass(frozen=True)
@@ -117,7 +121,7 @@ class ResidualBudget:
 def residual_budget(model, log, config: ScenarioConfig | None = None, *,
                     pairing: str = "row", noise_std=None, rest_speed: float = REST_SPEED,
                     max_lag_s: float = 0.05, result: pd.DataFrame | None = None,
-                    **replay_options) -> ResidualBudget:
+                    resample: bool = False, **replay_options) -> ResidualBudget:
     """Replays `log` through the runtime chain of `model` and splits its in-motion residual
     (module docstring).
 
@@ -127,9 +131,15 @@ def residual_budget(model, log, config: ScenarioConfig | None = None, *,
     `rest_speed` rad/s; each still stretch's own mean removed) when it has at least
     ``MIN_REST_ROWS`` of them, else the scenario sensor's ``sqrt(noise_std² +
     resolution²/12)``. `max_lag_s`: the largest delay tried either way (s). `result`: the
-    replay of `log` when it was run already (``ftdrake replay --budget``).
+    replay of `log` when it was run already (``ftdrake replay --budget``). The log must be
+    sampled uniformly (:func:`check_uniform_sampling`, checked before the replay); `resample`
+    puts it on a uniform grid first (:func:`~ftdrake.data.robot_log.resample_uniform`; a
+    given `result` must then be the replay of the resampled log).
     """
     frame = log if isinstance(log, pd.DataFrame) else read_replay_log(log)
+    if resample:
+        frame = resample_uniform(frame)
+    check_uniform_sampling(frame[col.TIME].to_numpy(float))  # before the replay, which is long
     if config is None and frame.attrs.get("scenario"):
         config = parse_config(frame.attrs["scenario"], source="the log's metadata")
     if result is None:
@@ -156,6 +166,28 @@ def residual_budget(model, log, config: ScenarioConfig | None = None, *,
                       rows={"motion": int(motion.sum()), "rest": int((~moving & settle).sum())})
 
 
+def check_uniform_sampling(t) -> None:
+    """Raises LogError unless every time step of `t` (s) is within ``UNIFORM_RTOL`` of the
+    median step: the message gives the steps' range, how many stray, and the fix (resample
+    onto a uniform grid: ``--resample``, ``resample=True``)."""
+    t = np.asarray(t, float)
+    dt = np.diff(t)
+    period = float(np.median(dt)) if len(dt) else float("nan")
+    if len(dt) and period > 0 and np.all(np.abs(dt - period) <= UNIFORM_RTOL * period):
+        return
+    if not (len(dt) and period > 0 and np.all(dt > 0)):
+        raise LogError("residual_budget: the log's time column must increase (one row per "
+                       "sample; split a dataset by its trajectory column)")
+    stray = int(np.count_nonzero(np.abs(dt - period) > UNIFORM_RTOL * period))
+    raise LogError(
+        f"residual_budget: the log is not sampled uniformly: {stray} of {len(dt)} time steps "
+        f"are more than {UNIFORM_RTOL:.0%} off the median {period * 1e3:.4g} ms (steps "
+        f"{dt.min() * 1e3:.4g}–{dt.max() * 1e3:.4g} ms); the delay and filter are fitted in "
+        "samples of one period. Resample it onto a uniform grid at the median period: "
+        + spelled("residual_budget(..., resample=True) or "
+                  "ftdrake.data.robot_log.resample_uniform(frame)", "--resample"))
+
+
 def decompose(residual, predicted, t, motion, noise_std, *, transform=None,
               max_lag_s: float = 0.05, cutoffs_hz=None) -> ResidualBudget:
     """The budget of :func:`residual_budget` on arrays: `residual` r and `predicted` P (N, 6)
@@ -165,10 +197,8 @@ def decompose(residual, predicted, t, motion, noise_std, *, transform=None,
     sample rate)."""
     r, P = np.asarray(residual, float), np.asarray(predicted, float)
     t, motion = np.asarray(t, float), np.asarray(motion, bool)
+    check_uniform_sampling(t)
     period = float(np.median(np.diff(t)))
-    if not period > 0 or not np.allclose(np.diff(t), period, rtol=0.05, atol=0):
-        raise LogError("residual_budget: the log must be sampled uniformly (one row per "
-                       "sample; split a dataset by its trajectory column)")
     max_lag = max(1, round(max_lag_s / period))
     rows = np.flatnonzero(motion)
     rows = rows[(rows >= max_lag) & (rows < len(t) - max_lag)]
