@@ -15,7 +15,7 @@ import sys
 from pathlib import Path
 
 from ..compensation.build import same_targets
-from ..compensation.evaluation import evaluate_model
+from ..compensation.evaluation import MIN_REST_RUN, REST_SPEED, evaluate_model
 from ..compensation.persistence import load_model, read_manifest
 from ..conventions import TEMPERATURE
 from ..data.bag import is_bag
@@ -187,6 +187,11 @@ def print_evaluation(result: dict, file=None) -> None:
         print("  rms/σ: RMS error in units of the sensor's noise std σ (≈1 at the noise "
               f"floor); σ {', '.join(f'{v:.3g}' for v in noise['std'])} from "
               f"{noise['source']}", file=file)
+    else:
+        print(f"  no rms/σ column: the log holds no stretch at rest to measure the sensor's "
+              f"noise σ on (≥ {2 * MIN_REST_RUN} rows in runs of ≥ {MIN_REST_RUN} with every "
+              f"|q̇| < {REST_SPEED:g} rad/s; a table of static poses has none); give σ with "
+              "--noise-std S[,S...]", file=file)
     print(file=file)
     if result.get("std"):
         rows = m["in_domain"] or m["all"]
