@@ -287,3 +287,33 @@ def test_replay_budget_says_which_noise_it_judges_against(tmp_path, capsys):
     assert set(budget["noise_std"].values()) == {0.05}
     assert main([*command, "--noise-std", "0.05,0.1"]) == 2
     assert "--noise-std gives 2 values: give one, or six" in capsys.readouterr().err
+
+
+def test_negative_shares_and_a_negative_delay_are_explained():
+    """A wrench stream leading the joint states by 10 samples on five axes, Tz in step: the
+    shared delay comes out negative and costs Tz; the budget says what both mean (issue 42
+    item 5) and prints no −0.0."""
+    t = np.arange(0, 20, PERIOD)
+    P = predicted_wrench(t)
+    reading = P.copy()
+    reading[:-10, :5] = P[10:, :5]
+    reading[-10:, :5] = P[-1, :5]
+    r = reading - P + np.random.default_rng(1).standard_normal(P.shape) * NOISE
+    budget = decompose(r, P, t, np.ones(len(t), bool), NOISE)
+    assert budget.delay_s < -5 * PERIOD
+    negative = [(name, axis) for name in SHARES
+                for axis, v in zip(ftdrake.WRENCH_AXES, budget.shares[name], strict=True)
+                if round(float(v), 3) < 0]
+    assert ("delay", "Tz") in negative
+    report = budget.as_dict()
+    shares_note, delay_note = report["notes"]
+    assert shares_note.startswith("negative shares (" + ", ".join(
+        f"{n} {a} {round(float(budget.shares[n][ftdrake.WRENCH_AXES.index(a)]), 3):g}"
+        for n, a in negative) + "): correcting that part made that axis's in-motion residual "
+        "larger, not smaller")
+    assert delay_note == (f"delay_s {budget.delay_s * 1e3:.3g} ms is negative: the wrench "
+                          "stream leads the joint states (delay_s > 0 when the wrench lags), "
+                          "or the model's error follows the motion's rate and reads as a lead")
+    assert "-0.0," not in json.dumps(report) and "-0.0}" not in json.dumps(report)
+    in_step = decompose(*[injected(15)[i] for i in (2, 1, 0)], np.ones(20000, bool), NOISE)
+    assert in_step.as_dict()["notes"] == []

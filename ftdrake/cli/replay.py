@@ -164,6 +164,8 @@ def _budget(args, model, frame, config, result) -> dict:
                 "S[,S...]")
     if not args.quiet or line.startswith("warning"):
         print(line, file=sys.stderr)
+    for note in [] if args.quiet else budget.notes():
+        print(f"note: --budget: {note}", file=sys.stderr)
     return budget.as_dict()
 
 

@@ -38,6 +38,12 @@ to 1):
   orders; for slow motion the split goes as d : 1/(2π f_c));
 * ``remainder``: what is left — the model's error and the sensor noise.
 
+A share can be negative: the delay and the filter are fitted to all six axes together (and
+the offset and drift with them), so correcting them can make one axis's residual larger while
+the others' shrink; each axis's shares still add up to 1. A negative delay means the wrench
+stream leads the joint states (or a model error that follows the motion's rate reads as a
+lead). :meth:`ResidualBudget.notes` says so in the report.
+
 Delay and filter are told apart only when the motion has content near f_c; for slower motion
 the fit can trade one for the other (the sum of their shares is then still right). A model
 error that follows the wrench's rate (e.g. a payload model fitted on too little motion) also
@@ -101,11 +107,33 @@ class ResidualBudget:
         """What is left, in units of the resting noise."""
         return self.remainder_rms / self.noise_std
 
+    def notes(self) -> list[str]:
+        """What negative shares or a negative delay in this budget mean, one sentence each
+        (none when nothing is negative)."""
+        said = []
+        low = [f"{name} {a} {round(float(v), 3):g}" for name in SHARES
+               for a, v in zip(col.WRENCH_AXES, self.shares[name], strict=True)
+               if round(float(v), 3) < 0]
+        if low:
+            said.append(
+                f"negative shares ({', '.join(low)}): correcting that part made that axis's "
+                "in-motion residual larger, not smaller — the delay and the filter are fitted "
+                "to all six axes together (the offset and drift along with them), so an axis "
+                "can lose what the others gain; each axis's shares still add up to 1, and one "
+                "near 0 of either sign is within the fit's scatter")
+        if self.delay_s < 0:
+            said.append(
+                f"delay_s {self.delay_s * 1e3:.3g} ms is negative: the wrench stream leads the "
+                "joint states (delay_s > 0 when the wrench lags), or the model's error follows "
+                "the motion's rate and reads as a lead")
+        return said
+
     def as_dict(self) -> dict:
-        """Plain numbers per axis (for JSON reports)."""
+        """Plain numbers per axis (for JSON reports), and the :meth:`notes` on what negative
+        values mean."""
         def axes(values, digits=4):
-            return dict(zip(col.WRENCH_AXES, np.round(np.asarray(values, float), digits)
-                            .tolist(), strict=True))
+            return dict(zip(col.WRENCH_AXES, (np.round(np.asarray(values, float), digits)
+                                              + 0.0).tolist(), strict=True))  # no −0.0
         return {"noise_std": axes(self.noise_std, 5), "noise_source": self.noise_source,
                 "motion_rms": axes(self.motion_rms, 5),
                 "motion_over_noise": axes(self.motion_over_noise, 2),
@@ -115,7 +143,7 @@ class ResidualBudget:
                 "drift_per_s": axes(self.drift_per_s, 6), "delay_s": self.delay_s,
                 "filter_cutoff_hz": (None if not np.isfinite(self.filter_cutoff_hz)
                                      else round(self.filter_cutoff_hz, 2)),
-                "rows": self.rows}
+                "rows": self.rows, "notes": self.notes()}
 
 
 def residual_budget(model, log, config: ScenarioConfig | None = None, *,
