@@ -432,3 +432,36 @@ def test_serve_on_ros2_without_its_config_names_the_flag(tmp_path, capsys):
     assert err.startswith("ftdrake serve: error: --ros2 needs --ros2-config FILE (a Ros2Config "
                           "YAML; the defaults used without it fall short): ros2.joint_names: "
                           "list the model's joints"), err
+
+
+# -- a residual that is an offset (issue 42 item 6) ---------------------------------------------
+def test_evaluate_warns_of_a_residual_offset_as_a_bias_or_payload_change(tmp_path, capsys):
+    """After a payload change Fy reads 12 N more: its residual's mean is many of its std from
+    zero, which evaluate names (the variance score alone hides it); the log the model was
+    trained on gives no such warning."""
+    frame = motion()
+    model = str(tmp_path / "m.ftd")
+    assert main(["train", "--data", csv(frame, tmp_path), "--out", model, *rf()]) == 0
+    assert main(["evaluate", "--model", model, "--data", csv(frame, tmp_path), "--quiet"]) == 0
+    assert "constant offset" not in capsys.readouterr().err
+    changed = frame.assign(meas_Fy=frame["meas_Fy"] + 12.0)
+    json_path = tmp_path / "e.json"
+    assert main(["evaluate", "--model", model, "--data", csv(changed, tmp_path, "new.csv"),
+                 "--json", str(json_path), "--quiet"]) == 0
+    err = capsys.readouterr().err
+    result = yaml.safe_load(json_path.read_text())
+    assert list(result["offsets"]) == ["meas_Fy"]
+    offset = result["offsets"]["meas_Fy"]
+    # Independently: the residual's mean and std on the changed log.
+    from ftdrake.compensation.persistence import load_model
+    from ftdrake.data.training import load_training_data as load
+    data = load(csv(changed, tmp_path, "new.csv"))
+    e = data.Y[:, 1] - load_model(model).predict(data.X)[:, 1]
+    assert offset["mean"] == pytest.approx(e.mean()) and offset["std"] == pytest.approx(e.std())
+    assert offset["mean"] == pytest.approx(12.0, abs=0.5)
+    line = next(x for x in err.splitlines() if x.startswith("warning: meas_Fy:"))
+    assert line.startswith(f"warning: meas_Fy: the residual's mean {offset['mean']:+.4g} N is "
+                           f"{offset['mean'] / offset['std']:.1f} × its std "
+                           f"({offset['std']:.4g} N) from zero: a constant offset, not the "
+                           "model's scatter — a sensor bias or re-tare, or a payload changed "
+                           "since the training data")

@@ -113,13 +113,35 @@ def run_evaluate(args) -> int:
         **{key: scores[key] for key in ("std", "metrics", "min_subset_rows", "noise",
                                         "trust")},
     }
+    result["offsets"] = scores["offsets"]
     print_evaluation(result)
     for line in scores["trust"]["warnings"]:
+        warn(line)
+    for line in offset_warnings(result):
         warn(line)
     if args.json is not None:
         atomic_write_text(args.json, json.dumps(result, indent=2))
         say(f"wrote {args.json}")
     return 0
+
+
+def offset_warnings(result: dict) -> list[str]:
+    """A warning per target whose residual's mean is many of its std from zero (a bias or a
+    payload change, not the model's scatter), with the scores that hide or show it."""
+    lines = []
+    for name, o in result.get("offsets", {}).items():
+        unit = result["target_units"].get(name, "")
+        row = result["metrics"]["all"][name]
+        lines.append(
+            f"warning: {name}: the residual's mean {o['mean']:+.4g} {unit} is "
+            f"{abs(o['mean']) / o['std'] if o['std'] > 0 else float('inf'):.1f} × its std "
+            f"({o['std']:.4g} {unit}) from zero: a constant offset, not the model's scatter — "
+            "a sensor bias or re-tare, or a payload changed since the training data; the "
+            f"variance score ({_num(row['variance_score'], 0, '.3f')}) ignores a constant, the "
+            f"nmse ({_num(row['nmse'], 0, '.3f')}) counts it. A new payload: identify it "
+            "(ftdrake calibrate) or retrain; a bias: the bias tracker removes it (replay, "
+            "serve)")
+    return lines
 
 
 def _check_compatible(manifest: dict, data: TrainingData, args) -> None:
