@@ -396,3 +396,26 @@ def test_contact_target_is_checked_against_the_task_on_load():
                           "trajectory: {contact_target: shelf}")
     assert config.task.surfaces == {"table": "table_top", "wall": "wall_face",
                                     "shelf": "shelf_top"}
+
+
+def test_a_press_whose_moves_need_more_time_is_planned_within_the_limits(geometry):
+    """A 20 mm press into the wall turns the wrist roll fast on the last 5 mm: with the moves'
+    default durations joint_r reached 4.1046 rad/s² against its 4 rad/s² (issue 42 item 24).
+    The planner lengthens that move instead (the free motion before it gives up the time), and
+    the press still starts when it did."""
+    config, g, limits = geometry
+    trajectory = dc.replace(config.trajectory, kind="contact", contact_target="wall",
+                            press_depth_m=0.020, seed=6110)
+    traj = make_trajectory(trajectory, config.home_q, limits, g)
+    # Independently of check_limits: q̈ and q̇ on a 1 ms grid.
+    t = np.arange(traj.start_time(), traj.end_time(), 1e-3)
+    qdd = np.hstack([traj.EvalDerivative(ti, 2) for ti in t]).T
+    qd = np.hstack([traj.EvalDerivative(ti, 1) for ti in t]).T
+    assert np.all(np.abs(qdd) <= limits.acceleration * (1 + 1e-9))
+    assert np.all(np.abs(qd) <= limits.velocity * (1 + 1e-9))
+    assert np.abs(qdd).max() > 0.9 * limits.acceleration[0]  # close to the limit, not slowed
+    # The press pose is held from the same time as with the default moves (10 s before the
+    # end: ascend 1.5 s, back 1.5 s, the 3 s press ... only the moves before it grew).
+    _, _, press = g.press_poses("wall", 0.020, config.home_q)
+    press_start = config.trajectory.duration_s - 1.5 - 1.5 - trajectory.press_duration_s
+    np.testing.assert_allclose(traj.value(press_start + 0.5).ravel(), press, atol=1e-6)
