@@ -249,7 +249,9 @@ def to_replay_layout(frame: pd.DataFrame, *, positions=None, velocities=None, ta
     out = pd.DataFrame({new: frame[old].to_numpy() for old, new in renamed.items()
                         if not (derive and new.startswith(f"{col.QD}_"))})
     if derive:
-        qd = _derived_velocities(frame, time, chosen["positions"])
+        qd = _derived_velocities(frame, time, chosen["positions"],
+                                 "the log has no velocity columns" if velocities is None
+                                 else option_hint("velocities", DERIVED))
         for name, values in zip(col.joint_columns(col.QD, n), qd.T, strict=True):
             out[name] = values
     for c in columns:
@@ -277,13 +279,15 @@ def _chosen_columns(columns, positions, velocities, targets, derive: bool
     return chosen
 
 
-def _derived_velocities(frame: pd.DataFrame, time: str, positions: list[str]) -> np.ndarray:
-    """(N, n) q̇ of `positions` computed as the readers compute missing velocities; says so."""
+def _derived_velocities(frame: pd.DataFrame, time: str, positions: list[str], why: str
+                        ) -> np.ndarray:
+    """(N, n) q̇ of `positions` computed as the readers compute missing velocities; says so
+    (and `why`)."""
     t = frame[time].to_numpy(dtype=float)
     if len(t) < 2 or not np.all(np.diff(t) > 0):
         raise LogError("replay: the log's time column must increase strictly, with at least "
                        "two rows (one log at a time: split a dataset by its trajectory column)")
-    warn_log(f"replay: the log has no velocity columns; q̇ computed from {positions[0]}.."
+    warn_log(f"replay: {why}; q̇ computed from {positions[0]}.."
              f"{positions[-1]} as train and evaluate compute it (Savitzky–Golay, 0.1 s "
              f"window, order 4; {option_hint('velocities', 'PAT')} chooses recorded ones)")
     return velocities_from_positions(t, frame[positions].to_numpy(dtype=float), "replay")
