@@ -221,13 +221,19 @@ def to_replay_layout(frame: pd.DataFrame, *, positions=None, velocities=None, ta
     ``re:`` patterns; :func:`~ftdrake.data.logs.expand_columns`) renamed into the replay
     layout: ``t``, ``q_i``, ``qd_i``, ``meas_Fx … meas_Tz``; other columns are kept. The
     defaults are that layout's own (``t``, ``q_*``, ``qd_*``, ``meas_*``); with none given
-    `frame` is returned as it is. Velocities ``"derive"``, or none given on a log without
-    ``qd_*`` columns, are computed from the positions as ``train`` and ``evaluate`` compute
-    them (:func:`~ftdrake.data.robot_log.velocities_from_positions`; a LogWarning says so).
+    `frame` is returned as it is. Velocities ``"derive"``, or none given on a log with
+    positions and without ``qd_*`` columns, are computed from the positions as ``train`` and
+    ``evaluate`` compute them (:func:`~ftdrake.data.robot_log.velocities_from_positions`; a
+    LogWarning says so).
     Errors name the option (``--positions`` …) that fixes them."""
     columns = [str(c) for c in frame.columns]
-    derive = velocities == DERIVED or (velocities is None and not any(
-        re.fullmatch(rf"{col.QD}_\d+", c) for c in columns))
+    def has(prefix):
+        return any(re.fullmatch(rf"{prefix}_\d+", c) for c in columns)
+
+    # Computed when asked for, or when a log with positions has no velocities (a log in
+    # another layout altogether is named by replay_inputs, with every option to choose it).
+    derive = velocities == DERIVED or (velocities is None and not has(col.QD)
+                                       and (positions is not None or has(col.Q)))
     if not derive and all(v is None for v in (positions, velocities, targets, time)):
         return frame
     time = time or col.TIME
