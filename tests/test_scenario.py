@@ -403,7 +403,8 @@ def test_a_press_whose_moves_need_more_time_is_planned_within_the_limits(geometr
     default durations joint_r reached 4.1046 rad/s² against its 4 rad/s² (issue 42 item 24).
     The planner lengthens that move instead (the free motion before it gives up the time), and
     the press still starts when it did."""
-    config, g, limits = geometry
+    _, g, limits = geometry
+    config = ScenarioConfig()  # the defaults (other tests change the fixture's config)
     trajectory = dc.replace(config.trajectory, kind="contact", contact_target="wall",
                             press_depth_m=0.020, seed=6110)
     traj = make_trajectory(trajectory, config.home_q, limits, g)
