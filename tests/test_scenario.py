@@ -420,3 +420,17 @@ def test_a_press_whose_moves_need_more_time_is_planned_within_the_limits(geometr
     _, _, press = g.press_poses("wall", 0.020, config.home_q)
     press_start = config.trajectory.duration_s - 1.5 - 1.5 - trajectory.press_duration_s
     np.testing.assert_allclose(traj.value(press_start + 0.5).ravel(), press, atol=1e-6)
+
+
+@pytest.mark.parametrize(("section", "field", "value", "message"), [
+    ("sensor", "noise_std", 0.1, (r"scenario\.sensor\.noise_std: must be a list of 6 numbers "
+                                 r"\(one per axis Fx\.\.Tz\), got 0\.1")),
+    ("sensor", "bias", 0.5, r"scenario\.sensor\.bias: must be a list of 6 numbers, got 0\.5"),
+    (None, "home_q", 0.3, r"scenario\.home_q: must be a list of numbers, got 0\.3"),
+])
+def test_a_scalar_set_in_python_where_a_list_is_meant_names_the_field(section, field, value,
+                                                                      message):
+    config = ScenarioConfig()
+    setattr(config if section is None else getattr(config, section), field, value)
+    with pytest.raises(ConfigError, match=message):
+        config.validate()

@@ -108,8 +108,14 @@ class SensorConfig:
     seed: int = 0  # noise and drift of this run
     calibration_seed: int = 0  # the cross-talk matrix: a property of the physical sensor
 
-    def spec(self) -> SensorSpec:
-        """The resolved numbers: preset values with this config's overrides applied."""
+    def spec(self, where: str = "sensor") -> SensorSpec:
+        """The resolved numbers: preset values with this config's overrides applied (a
+        ConfigError names an override that is not a list, as ``where.field``)."""
+        for name in ("range", "resolution", "noise_std"):
+            value = getattr(self, name)
+            if value is not None and not isinstance(value, (list, tuple)):
+                raise ConfigError(f"{where}.{name}: must be a list of 6 numbers (one per "
+                                  f"axis Fx..Tz), got {value!r}")
         if self.preset not in SENSOR_PRESETS:
             raise ConfigError(
                 f"sensor.preset: unknown preset {self.preset!r}; "
@@ -127,7 +133,7 @@ class SensorConfig:
         )
 
     def validate(self, where: str = "sensor") -> None:
-        spec = self.spec()
+        spec = self.spec(where)
         positive(spec.rate_hz, f"{where}.rate_hz")
         positive(spec.bandwidth_hz, f"{where}.bandwidth_hz")
         for name, values, allow_zero in (
