@@ -466,3 +466,20 @@ def test_evaluate_warns_of_a_residual_offset_as_a_bias_or_payload_change(tmp_pat
                            f"({offset['std']:.4g} N) from zero: a constant offset, not the "
                            "model's scatter — a sensor bias or re-tare, or a payload changed "
                            "since the training data")
+
+
+def test_train_checks_the_robots_frames_before_reading_data(welded_urdf, tmp_path, capsys,
+                                                            monkeypatch):
+    """``train`` too: a frame that is not in the robot is named before the data is read."""
+    import ftdrake.training.pipeline as pipeline
+
+    def never(*_args, **_kwargs):
+        raise AssertionError("the data was read before the robot's frames were checked")
+
+    monkeypatch.setattr(pipeline, "load_training_data", never)
+    data = csv(pd.DataFrame({"q_0": [0.0, 1.0]}), tmp_path)
+    assert main(["train", "--data", data, "--kind", "physics", "--robot", welded_urdf,
+                 "--sensor-frame", "ft_sensor_frame", "--out", str(tmp_path / "m.ftd")]) == 2
+    err = capsys.readouterr().err
+    assert re.search(r"has no sensor frame named 'ft_sensor_frame'; its frames, closest to "
+                     r"'ft_sensor_frame' first: sensor, ", err), err
