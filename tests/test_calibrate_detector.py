@@ -58,7 +58,7 @@ def test_a_contact_free_log_calibrates_the_chi2_test_that_then_stays_quiet_on_it
     expected = max(chi2.isf(1.0 / 3600.0 / RATE_HZ, 6), 1.05 * np.max(np.sum((w / s) ** 2, 1)))
     assert tuned.detector.chi2_on == pytest.approx(expected, rel=1e-9)
     # The rest of the scenario and the detector's debounce are the ones replay ran.
-    assert tuned.sensor == ScenarioConfig().chain_config().sensor  # the log's scenario's
+    assert tuned.sensor == ftdrake.ChainConfig().sensor  # the log carries no scenario
     assert tuned.detector.debounce_on == ScenarioConfig().chain.detector.debounce_on
     # Replayed with the calibrated chain config, the same motion raises no contact.
     assert replay_cli(folder, "--config", str(folder / "tuned.yaml")) == 0

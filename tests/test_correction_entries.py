@@ -65,3 +65,26 @@ def test_full_correction_of_one_load_prints_what_is_determined(one_load):
     se = np.sqrt(np.outer(sigma2, np.diag(np.linalg.inv(D.T @ D))[:3]))
     np.testing.assert_allclose(corr.gravity_matrix, coef[:3].T, rtol=1e-6, atol=1e-9)
     np.testing.assert_allclose(corr.gravity_matrix_std_errors, se, rtol=0.2)
+
+
+def test_a_chosen_correction_with_free_entries_says_what_the_choice_rests_on(one_load):
+    """`auto` picks full on one load while no entry of it is determined: the output says the
+    choice rests on what the poses determine (this payload's readings), and the warning no
+    longer calls the correction's directions 'uncorrected (standard error ∞)' (issue 42
+    item 8)."""
+    with pytest.warns(ExcitationWarning) as caught:
+        cal = calibrate_table(one_load, correction="auto")
+    assert cal.choice["choice"] == "full" and cal.correction.free_entries().all()
+    text = cal.summary()
+    assert ("  correction chosen from the data: full (cross-validated (5 folds) error of full "
+            "is the lowest)") in text
+    assert ("    chosen for what these poses determine — the correction's effect on this "
+            "payload's readings, which the cross-validation scored — not for its entries one "
+            "by one: 36 of 36 are not determined (below, 'free'). It corrects readings of this "
+            "payload; for other loads, calibrate with poses of other known loads") in text
+    message = "\n".join(str(w.message) for w in caught)
+    assert "left uncorrected" not in message and "standard error ∞" not in message
+    assert "it still corrects this payload's readings, not necessarily other loads'" in message
+    # What the line claims, checked: the correction's reading of this payload's wrench matches
+    # the poses as well as the rigid fit cannot.
+    assert np.all(cal.correction.residual_rms < 0.2 * cal.correction.rigid_residual_rms)

@@ -53,3 +53,25 @@ def test_a_short_plan_runs_end_to_end_and_writes_its_report(tmp_path):
     assert np.isfinite(r["detector"]["force_on"])
     for name in ("detection.json", "detection.md", "detection_rate.png"):
         assert (tmp_path / "det" / name).is_file()
+
+
+def test_a_run_that_could_not_be_made_is_counted_in_the_results_table():
+    """A run the planner refused is a cell of the model's row, not only a line below it
+    (issue 42 item 24)."""
+    from ftdrake.config import DetectorConfig
+    from ftdrake.experiments.detection import model_result
+
+    rows = [{"kind": "fourier", "seed": 1, "duration_s": 60.0, "false_positives": 0},
+            press(8.0, True),
+            {"kind": "contact", "surface": "wall", "depth_mm": 20.0, "seed": 6110,
+             "skipped": "trajectory exceeds the acceleration limit of joint_r"}]
+    result = model_result(DetectorConfig(), rows)
+    assert result["runs_not_made"] == 1 and result["press_count"] == 1
+    text = markdown({"m": result}, DetectionPlan())
+    header = next(x for x in text.splitlines() if x.startswith("| model | thresholds"))
+    row = next(x for x in text.splitlines() if x.startswith("| m |"))
+    assert header.rstrip(" |").endswith("runs not made")
+    assert row.rstrip(" |").endswith("**1** (contact wall)")
+    assert "m: run not made (contact, wall 20.0 mm, seed 6110)" in text
+    made = markdown({"m": model_result(DetectorConfig(), rows[:2])}, DetectionPlan())
+    assert next(x for x in made.splitlines() if x.startswith("| m |")).endswith("| 0 |")

@@ -110,3 +110,19 @@ def test_no_in_domain_score_on_a_handful_of_rows(fitted):
     assert result["metrics"]["in_domain"] is None
     text = _report(result, model, X)
     assert f"not given on fewer than {MIN_SUBSET_ROWS} rows" in text
+
+
+def test_without_sigma_the_table_says_why_and_names_the_flag(fitted):
+    """A log with no rest and no --noise-std: no rms/σ column, and the output says so
+    (issue 42 item 4; it was dropped without a word)."""
+    model, kin, _, _ = fitted
+    rng = np.random.default_rng(5)
+    X = _states(rng, 300)  # always moving
+    Y = kin.regressor(X) @ TRUTH + SIGMA * rng.standard_normal((300, 6))
+    result = evaluate_model(model, X, Y, target_names=WRENCH_AXES)
+    assert result["noise"] is None
+    text = _report(result, model, X)
+    assert "rms/σ" not in text.split("no rms/σ column")[0]
+    assert ("no rms/σ column: the log holds no stretch at rest to measure the sensor's noise σ "
+            "on (≥ 40 rows in runs of ≥ 20 with every |q̇| < 0.001 rad/s; a table of static "
+            "poses has none); give σ with --noise-std S[,S...]") in text

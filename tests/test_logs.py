@@ -242,8 +242,14 @@ def test_pattern_matching_nothing_names_it_and_lists_columns():
 def test_velocity_pattern_catching_extra_columns_is_an_error():
     frame = sine_frame()
     frame["qd_est_0"] = frame["qd_0"]  # simulated logs have qd_est_* next to qd_*
-    with pytest.raises(LogError, match=r"4 velocities columns .*'qd_est_0'.* for 3 positions"):
+    frame["qd_est_1"], frame["qd_est_2"] = frame["qd_1"], frame["qd_2"]
+    with pytest.raises(LogError, match=(
+            r"^DataFrame: velocities='qd_\*' matched 6 columns \(qd_0..qd_2, qd_est_0..qd_est_2\) "
+            r"for 3 positions \(q_0..q_2\); one velocity column per position is needed: "
+            r"re:qd_\\d\+ matches 3 \(qd_0..qd_2\): velocities='re:qd_\\\\d\+'$")):
         read_table(frame, velocities="qd_*")
+    log = read_table(frame, velocities=r"re:qd_\d+")  # the pattern the message suggests
+    np.testing.assert_array_equal(log.qd[:, 2], frame["qd_2"])
 
 
 def test_non_numeric_column():

@@ -2,6 +2,7 @@
 refused with the flag that welds it, by the payload and the whole-arm model, and that flag
 fixes it; wrench columns that are not found name the option that chooses them."""
 
+import re
 import warnings
 
 import numpy as np
@@ -327,3 +328,158 @@ def test_replay_takes_the_same_column_syntax(tmp_path, capsys):
                  "--targets", "ft_*", "--quiet"]) == 0
     a, b = pd.read_csv(tmp_path / "a.csv"), pd.read_csv(tmp_path / "b.csv")
     pd.testing.assert_frame_equal(a, b)
+
+
+# -- a sensor frame the robot does not have (issue 42 item 1) -----------------------------------
+@pytest.fixture
+def welded_urdf(tmp_path):
+    path = tmp_path / "welded.urdf"
+    path.write_text(ARM.replace('<link name="base"/>', '<link name="world"/><joint name="w" '
+                                'type="fixed"><parent link="world"/><child link="base"/></joint>'
+                                '<link name="base"/>'))
+    return str(path)
+
+
+@pytest.mark.parametrize("flags, message", [
+    (["--sensor-frame", "ft_sensor_frame"],
+     (r"^ftdrake calibrate: error: --sensor-frame: robot model '.*welded\.urdf' has no sensor "
+     r"frame named 'ft_sensor_frame'; its frames, closest to 'ft_sensor_frame' first: sensor, ")),
+    ([], (r"^ftdrake calibrate: error: calibrate --robot \S+welded\.urdf needs --sensor-frame "
+          r"NAME \(the frame S of the measured wrench in \S+\); its frames, sensor-like first: "
+          r"sensor, ")),
+    (["--sensor-frame", "sensor", "--base-frame", "bse"],
+     (r"--base-frame: robot model '.*welded\.urdf' has no base frame named 'bse'; its frames, "
+     r"closest to 'bse' first: base, ")),
+])
+def test_calibrate_checks_the_robots_frames_before_reading_data(welded_urdf, tmp_path, capsys,
+                                                                monkeypatch, flags, message):
+    """The frames are checked first (the data is never read); the message names the robot
+    file and lists its frames, the closest match first."""
+    import ftdrake.cli.calibrate as calibrate_cli
+
+    def never(*_):
+        raise AssertionError("the data was read before the robot's frames were checked")
+
+    monkeypatch.setattr(calibrate_cli, "read_frame", never)
+    data = csv(pd.DataFrame({"q_0": [0.0, 1.0]}), tmp_path)
+    assert main(["calibrate", "--data", data, "--robot", welded_urdf, *flags,
+                 "--out", str(tmp_path / "cal")]) == 2
+    err = capsys.readouterr().err
+    assert re.search(message, err), err
+
+
+def test_a_fitted_models_missing_frame_names_its_robot_file(welded_urdf):
+    model = PhysicsPayloadCompensator(mode="static", features="q", robot=welded_urdf,
+                                      sensor_frame="ft_sensor_frame")
+    with pytest.raises(RobotModelError, match=r"robot model 'welded\.urdf' \(embedded URDF, \d+ "
+                                              r"characters\) has no sensor frame named "
+                                              r"'ft_sensor_frame'; its frames, closest to "
+                                              r"'ft_sensor_frame' first: sensor, "):
+        model.fit(rows(), np.zeros((30, 6)))
+
+
+# -- velocity columns: the count, and recorded ones left unused (issue 42 item 2) ---------------
+def test_a_velocity_pattern_matching_too_many_columns_suggests_one_that_fits(tmp_path, capsys):
+    frame = motion()
+    for i in range(2):
+        frame[f"qd_est_{i}"] = frame[f"qd_{i}"]
+    path = csv(frame, tmp_path)
+    assert main(["train", "--data", path, "--velocities", "qd_*",
+                 "--out", str(tmp_path / "m.ftd"), *rf()]) == 2
+    err = capsys.readouterr().err
+    assert ("error: log.csv: --velocities 'qd_*' matched 4 columns (qd_0, qd_1, qd_est_0, "
+            "qd_est_1) for 2 positions (q_0, q_1); one velocity column per position is "
+            "needed: re:qd_\\d+ matches 2 (qd_0, qd_1): --velocities 're:qd_\\d+'") in err
+    assert main(["train", "--data", path, "--velocities", r"re:qd_\d+",
+                 "--out", str(tmp_path / "m.ftd"), *rf()]) == 0
+
+
+def test_recorded_derivatives_left_unused_are_named(tmp_path):
+    path = csv(motion(), tmp_path)
+    data = load_training_data(path)  # velocities and accelerations computed from q
+    assert data.derived == ["qd", "qdd"]
+    assert data.warnings == [
+        ("log.csv: the log records velocities qd_0..qd_1 (computed instead: Savitzky–Golay "
+        "derivative of q); accelerations qdd_0..qdd_1 (computed instead: Savitzky–Golay second "
+        "derivative of q); to use the recorded ones: velocities='re:qd_\\\\d+' "
+        "accelerations='re:qdd_\\\\d+' (to compute them and not see this: "
+        "velocities='derive' accelerations='derive')")]
+    from ftdrake.data.training import ReadOptions
+    used = load_training_data(path, ReadOptions(velocities=r"re:qd_\d+",
+                                                accelerations=r"re:qdd_\d+"))
+    derived = load_training_data(path, ReadOptions(velocities="derive", accelerations="derive"))
+    assert used.derived == [] and used.warnings == [] and derived.warnings == []
+    bare = load_training_data(csv(motion(derivatives=False), tmp_path, "bare.csv"))
+    assert bare.warnings == []
+
+
+# -- commands name their own flags (issue 42 item 20) -------------------------------------------
+def test_calibrate_on_a_motion_without_robot_names_calibrates_flags(tmp_path, capsys):
+    path = csv(motion(), tmp_path)
+    assert main(["calibrate", "--data", path, "--out", str(tmp_path / "cal")]) == 2
+    err = capsys.readouterr().err
+    assert err.strip() == (
+        f"ftdrake calibrate: error: {path} is a motion (a time column and moving joints): "
+        "calibrate fits it with the dynamic payload model, which needs --robot FILE "
+        "(URDF/SDF) with --sensor-frame NAME, or --robot ftdrake for the simulated arm")
+    assert "--kind" not in err
+
+
+def test_serve_on_ros2_without_its_config_names_the_flag(tmp_path, capsys):
+    model = RandomForestCompensator(n_estimators=2).fit(rows(), np.zeros((30, 6)))
+    save_model(model, tmp_path / "m.ftd")
+    assert main(["serve", "--ros2", "--model", str(tmp_path / "m.ftd")]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("ftdrake serve: error: --ros2 needs --ros2-config FILE (a Ros2Config "
+                          "YAML; the defaults used without it fall short): ros2.joint_names: "
+                          "list the model's joints"), err
+
+
+# -- a residual that is an offset (issue 42 item 6) ---------------------------------------------
+def test_evaluate_warns_of_a_residual_offset_as_a_bias_or_payload_change(tmp_path, capsys):
+    """After a payload change Fy reads 12 N more: its residual's mean is many of its std from
+    zero, which evaluate names (the variance score alone hides it); the log the model was
+    trained on gives no such warning."""
+    frame = motion()
+    model = str(tmp_path / "m.ftd")
+    assert main(["train", "--data", csv(frame, tmp_path), "--out", model, *rf()]) == 0
+    assert main(["evaluate", "--model", model, "--data", csv(frame, tmp_path), "--quiet"]) == 0
+    assert "constant offset" not in capsys.readouterr().err
+    changed = frame.assign(meas_Fy=frame["meas_Fy"] + 12.0)
+    json_path = tmp_path / "e.json"
+    assert main(["evaluate", "--model", model, "--data", csv(changed, tmp_path, "new.csv"),
+                 "--json", str(json_path), "--quiet"]) == 0
+    err = capsys.readouterr().err
+    result = yaml.safe_load(json_path.read_text())
+    assert list(result["offsets"]) == ["meas_Fy"]
+    offset = result["offsets"]["meas_Fy"]
+    # Independently: the residual's mean and std on the changed log.
+    from ftdrake.compensation.persistence import load_model
+    from ftdrake.data.training import load_training_data as load
+    data = load(csv(changed, tmp_path, "new.csv"))
+    e = data.Y[:, 1] - load_model(model).predict(data.X)[:, 1]
+    assert offset["mean"] == pytest.approx(e.mean()) and offset["std"] == pytest.approx(e.std())
+    assert offset["mean"] == pytest.approx(12.0, abs=0.5)
+    line = next(x for x in err.splitlines() if x.startswith("warning: meas_Fy:"))
+    assert line.startswith(f"warning: meas_Fy: the residual's mean {offset['mean']:+.4g} N is "
+                           f"{offset['mean'] / offset['std']:.1f} × its std "
+                           f"({offset['std']:.4g} N) from zero: a constant offset, not the "
+                           "model's scatter — a sensor bias or re-tare, or a payload changed "
+                           "since the training data")
+
+
+def test_train_checks_the_robots_frames_before_reading_data(welded_urdf, tmp_path, capsys,
+                                                            monkeypatch):
+    """``train`` too: a frame that is not in the robot is named before the data is read."""
+    import ftdrake.training.pipeline as pipeline
+
+    def never(*_args, **_kwargs):
+        raise AssertionError("the data was read before the robot's frames were checked")
+
+    monkeypatch.setattr(pipeline, "load_training_data", never)
+    data = csv(pd.DataFrame({"q_0": [0.0, 1.0]}), tmp_path)
+    assert main(["train", "--data", data, "--kind", "physics", "--robot", welded_urdf,
+                 "--sensor-frame", "ft_sensor_frame", "--out", str(tmp_path / "m.ftd")]) == 2
+    err = capsys.readouterr().err
+    assert re.search(r"has no sensor frame named 'ft_sensor_frame'; its frames, closest to "
+                     r"'ft_sensor_frame' first: sensor, ", err), err

@@ -106,8 +106,10 @@ def test_a_model_file_loads_and_predicts_elsewhere_after_the_urdf_is_gone(robot_
     before = model.predict(Q)
     path = save(model, tmp_path / "m.ftd")
     manifest = read_manifest(path)
-    assert manifest["robot"] == {"source": str(urdf), "portable": True,
+    # The file keeps the robot file's name, not the folder it was in (issue 42 item 15).
+    assert manifest["robot"] == {"source": "little_arm.urdf", "portable": True,
                                  "sha256": hashlib.sha256(URDF.encode()).hexdigest()}
+    assert model.robot == str(urdf)  # the model in memory keeps its parameter
     shutil.rmtree(robot_dir)  # the URDF moved away, or the file went to another computer
     elsewhere = tmp_path / "elsewhere"
     elsewhere.mkdir()
@@ -119,6 +121,23 @@ def test_a_model_file_loads_and_predicts_elsewhere_after_the_urdf_is_gone(robot_
         os.chdir(cwd)
     np.testing.assert_array_equal(loaded.predict(Q), before)
     assert loaded.robot_portable_
+    assert loaded.robot == "little_arm.urdf"
+    assert str(robot_dir) not in str(loaded.get_params())
+
+
+def test_a_file_that_kept_the_robots_full_path_still_loads(robot_dir, tmp_path, monkeypatch):
+    """Files written before model files kept only the robot file's name hold its whole path:
+    they load and predict as before, after the URDF is gone."""
+    model, Q = fit_static(robot_dir / "little_arm.urdf")
+    before = model.predict(Q)
+    monkeypatch.setattr(persistence, "file_name_only", lambda robot: robot)  # the old writer
+    path = save(model, tmp_path / "m.ftd")
+    monkeypatch.undo()
+    assert read_manifest(path)["robot"]["source"] == str(robot_dir / "little_arm.urdf")
+    shutil.rmtree(robot_dir)
+    loaded = load_model(path)
+    assert loaded.robot == str(robot_dir / "little_arm.urdf")
+    np.testing.assert_array_equal(loaded.predict(Q), before)
 
 
 def test_a_hybrids_physics_part_carries_its_robot(robot_dir, tmp_path):

@@ -3,6 +3,7 @@ log, and each one's share; on a replayed simulated log with the sensor's stream 
 finds that delay."""
 
 import json
+import re
 
 import numpy as np
 import pandas as pd
@@ -10,6 +11,7 @@ import pytest
 
 import ftdrake
 from ftdrake.cli.main import main
+from ftdrake.data.robot_log import resample_uniform
 from ftdrake.offline.residual_budget import SHARES, decompose, residual_budget
 
 PERIOD = 1e-3  # s
@@ -181,3 +183,137 @@ def test_the_resting_noise_is_measured_on_each_still_stretch_about_its_own_mean(
     noise, source = _resting_noise(frame, few, None, ftdrake.ScenarioConfig())
     assert source == "sensor config" and noise[2] == pytest.approx(np.hypot(1 / 20, 1 / 20
                                                                              / np.sqrt(12)))
+
+
+# -- a log whose time steps jitter (issue 42 item 3) --------------------------------------------
+def jittering_log(rows=1500, seed=4):
+    """A 7-joint log at 100 Hz whose steps jitter 7.7–12.1 ms (a real robot's driver), arm
+    moving, with one re-tare event."""
+    rng = np.random.default_rng(seed)
+    t = np.cumsum(rng.uniform(0.0077, 0.0121, rows))
+    frame = pd.DataFrame({"t": t})
+    for i in range(7):
+        frame[f"q_{i}"] = 0.4 * np.sin(0.8 * t + i)
+        frame[f"qd_{i}"] = 0.32 * np.cos(0.8 * t + i)
+    for c in [f"meas_{a}" for a in ftdrake.WRENCH_AXES]:
+        frame[c] = rng.normal(0, 0.05, rows)
+    frame["tared"] = 0
+    frame.loc[700, "tared"] = 1
+    return frame
+
+
+def small_model(tmp_path):
+    rng = np.random.default_rng(0)
+    X = rng.uniform(-1, 1, (200, 21))
+    model = ftdrake.RandomForestCompensator(features="q", n_estimators=2).fit(X, X[:, :6] * 0.1)
+    ftdrake.save_model(model, tmp_path / "m.ftd", target_names=ftdrake.WRENCH_AXES,
+                       target_units=ftdrake.WRENCH_UNITS)
+    return model, str(tmp_path / "m.ftd")
+
+
+def test_a_jittering_log_is_refused_before_the_replay_with_the_tolerance_and_the_fix(
+        tmp_path, capsys, monkeypatch):
+    import ftdrake.cli.replay as replay_cli
+    import ftdrake.offline.residual_budget as budget_module
+
+    def never(*_, **__):
+        raise AssertionError("replayed a log the budget refuses")
+
+    monkeypatch.setattr(budget_module, "replay", never)
+    monkeypatch.setattr(replay_cli, "replay", never)
+    frame = jittering_log()
+    model, path = small_model(tmp_path)
+    message = (r"residual_budget: the log is not sampled uniformly: \d+ of 1499 time steps are "
+               r"more than 5% off the median 9\.\d+ ms \(steps 7\.\d+–12\.\d+ ms\); the delay and "
+               r"filter are fitted in samples of one period\. Resample it onto a uniform grid at "
+               r"the median period: ")
+    with pytest.raises(ftdrake.LogError, match=message + r"residual_budget\(\.\.\., "
+                                                         r"resample=True\)"):
+        residual_budget(model, frame)
+    frame.to_csv(tmp_path / "log.csv", index=False)
+    assert main(["replay", "--model", path, "--log", str(tmp_path / "log.csv"), "--out",
+                 str(tmp_path / "out.csv"), "--budget"]) == 2
+    err = capsys.readouterr().err
+    assert re.search(message + r"--resample$", err.strip()), err
+
+
+def test_resample_puts_a_jittering_log_on_a_uniform_grid_and_keeps_its_events(tmp_path, capsys):
+    frame = jittering_log()
+    frame["line"] = 3.0 * frame["t"] - 1.0  # linear in t: interpolated exactly
+    grid = resample_uniform(frame)
+    steps = np.diff(grid["t"])
+    period = np.median(np.diff(frame["t"]))
+    np.testing.assert_allclose(steps, period, rtol=1e-9)
+    assert grid["t"].iloc[0] == frame["t"].iloc[0] and grid["t"].iloc[-1] <= frame["t"].iloc[-1]
+    np.testing.assert_allclose(grid["line"], 3.0 * grid["t"] - 1.0, atol=1e-12)
+    event = frame["t"][frame["tared"] == 1].iloc[0]
+    assert grid["tared"].sum() == 1
+    assert abs(grid["t"][grid["tared"] == 1].iloc[0] - event) <= period / 2 + 1e-12
+    # The command's --resample: the budget runs on the resampled log.
+    _, path = small_model(tmp_path)
+    frame.drop(columns="line").to_csv(tmp_path / "log.csv", index=False)
+    assert main(["replay", "--model", path, "--log", str(tmp_path / "log.csv"), "--out",
+                 str(tmp_path / "out.csv"), "--budget", "--resample"]) == 0
+    captured = capsys.readouterr()
+    assert f"note: --resample: 1500 rows onto a uniform grid of {len(grid)} at" in captured.err
+    report = json.loads(captured.out.strip().splitlines()[-1])
+    assert report["rows"] == len(grid) and report["residual_budget"]["rows"]["motion"] > 1000
+
+
+def test_replay_budget_says_which_noise_it_judges_against(tmp_path, capsys):
+    """Without rest in the log the budget's σ is the scenario sensor's: a warning says so and
+    names --noise-std, which then sets σ (issue 42 item 4)."""
+    frame = resample_uniform(jittering_log())
+    frame.to_csv(tmp_path / "log.csv", index=False)
+    _, path = small_model(tmp_path)
+    command = ["replay", "--model", path, "--log", str(tmp_path / "log.csv"), "--out",
+               str(tmp_path / "out.csv"), "--budget"]
+    assert main(command) == 0
+    captured = capsys.readouterr()
+    spec = ftdrake.ScenarioConfig().sensor.spec()
+    sigma = np.sqrt(np.asarray(spec.noise_std) ** 2 + np.asarray(spec.resolution) ** 2 / 12)
+    assert ("warning: --budget: the log has 0 rows at rest, too few to measure the noise on "
+            f"(200 needed): its σ ({', '.join(f'{v:.3g}' for v in sigma)}, N and N·m) is the "
+            "scenario sensor's, not necessarily yours; give yours with --noise-std S[,S...]"
+            ) in captured.err
+    assert json.loads(captured.out.splitlines()[-1])["residual_budget"]["noise_source"] == \
+        "sensor config"
+    assert main([*command, "--noise-std", "0.05"]) == 0
+    captured = capsys.readouterr()
+    assert ("note: --budget: in units of the resting noise σ of --noise-std (0.05, 0.05, 0.05, "
+            "0.05, 0.05, 0.05)") in captured.err
+    budget = json.loads(captured.out.splitlines()[-1])["residual_budget"]
+    assert budget["noise_source"] == "given"
+    assert set(budget["noise_std"].values()) == {0.05}
+    assert main([*command, "--noise-std", "0.05,0.1"]) == 2
+    assert "--noise-std gives 2 values: give one, or six" in capsys.readouterr().err
+
+
+def test_negative_shares_and_a_negative_delay_are_explained():
+    """A wrench stream leading the joint states by 10 samples on five axes, Tz in step: the
+    shared delay comes out negative and costs Tz; the budget says what both mean (issue 42
+    item 5) and prints no −0.0."""
+    t = np.arange(0, 20, PERIOD)
+    P = predicted_wrench(t)
+    reading = P.copy()
+    reading[:-10, :5] = P[10:, :5]
+    reading[-10:, :5] = P[-1, :5]
+    r = reading - P + np.random.default_rng(1).standard_normal(P.shape) * NOISE
+    budget = decompose(r, P, t, np.ones(len(t), bool), NOISE)
+    assert budget.delay_s < -5 * PERIOD
+    negative = [(name, axis) for name in SHARES
+                for axis, v in zip(ftdrake.WRENCH_AXES, budget.shares[name], strict=True)
+                if round(float(v), 3) < 0]
+    assert ("delay", "Tz") in negative
+    report = budget.as_dict()
+    shares_note, delay_note = report["notes"]
+    assert shares_note.startswith("negative shares (" + ", ".join(
+        f"{n} {a} {round(float(budget.shares[n][ftdrake.WRENCH_AXES.index(a)]), 3):g}"
+        for n, a in negative) + "): correcting that part made that axis's in-motion residual "
+        "larger, not smaller")
+    assert delay_note == (f"delay_s {budget.delay_s * 1e3:.3g} ms is negative: the wrench "
+                          "stream leads the joint states (delay_s > 0 when the wrench lags), "
+                          "or the model's error follows the motion's rate and reads as a lead")
+    assert "-0.0," not in json.dumps(report) and "-0.0}" not in json.dumps(report)
+    in_step = decompose(*[injected(15)[i] for i in (2, 1, 0)], np.ones(20000, bool), NOISE)
+    assert in_step.as_dict()["notes"] == []

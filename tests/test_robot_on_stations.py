@@ -84,7 +84,7 @@ def test_the_live_station_computes_gravity_on_the_models_robot(model):
             station.spin_once(0)
             station.lcm.handle(0)
         g_S = gravity.get_output_port_gravity_S().Eval(
-            gravity.GetMyContextFromRoot(station.context))
+            gravity.GetMyContextFromRoot(station.chain_context()))
         np.testing.assert_allclose(g_S, drake_g_S(q), rtol=0, atol=1e-9)
 
 

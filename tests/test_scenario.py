@@ -80,6 +80,42 @@ def test_bad_yaml_names_the_problem(tmp_path, text, message):
         build_station(config)
 
 
+@pytest.mark.parametrize(
+    "text, message",
+    [
+        ("sensor: {noise_std: -1.0}",
+         r"^--config \S+: scenario\.sensor\.noise_std: must be a non-negative number, got -1\.0$"),
+        ("detector: {force_on: high}",
+         r"^--config \S+: scenario\.detector\.force_on: must be a number, got 'high'$"),
+        ("trajectory: {seed: 1.5}", r"scenario\.trajectory\.seed: must be a whole number"),
+        ("cable: {enabled: 3}", r"scenario\.cable\.enabled: must be true or false, got 3"),
+        ("sensor: {mounting_rpy_deg: 1.0}",
+         (r"scenario\.sensor\.mounting_rpy_deg: must be a list of 3 numbers, got the single "
+          r"number 1\.0")),
+        ("sensor: {bias: [0, 0, x, 0, 0, 0]}",
+         r"scenario\.sensor\.bias: entries must be numbers, got 'x'"),
+        ("sensor: 0.1", r"scenario\.sensor: must be a mapping of fields"),
+    ],
+)
+def test_a_mistyped_value_names_its_field(tmp_path, text, message):
+    """A value of the wrong type names the field and what it must be (not Python's 'float
+    object is not iterable' or 'could not convert string to float' with no field)."""
+    from ftdrake.cli.args import load_scenario
+
+    path = tmp_path / "bad.yaml"
+    path.write_text(text)
+    with pytest.raises(ConfigError, match=message):
+        load_scenario(type("Args", (), {"config": str(path)})())
+
+
+@pytest.mark.parametrize("field", ["noise_std", "bias", "range", "drift_std"])
+def test_a_single_number_for_a_per_axis_list_means_every_axis(field):
+    config = parse_config(f"sensor: {{{field}: 0.25}}")
+    assert getattr(config.sensor, field) == [0.25] * 6
+    listed = parse_config(f"sensor: {{{field}: [0.25, 0.25, 0.25, 0.25, 0.25, 0.25]}}")
+    assert dump_config(config) == dump_config(listed)
+
+
 def test_missing_config_file_is_a_clear_error(tmp_path):
     with pytest.raises(ConfigError, match="cannot read config"):
         load_config(tmp_path / "nope.yaml")
@@ -361,3 +397,41 @@ def test_contact_target_is_checked_against_the_task_on_load():
                           "trajectory: {contact_target: shelf}")
     assert config.task.surfaces == {"table": "table_top", "wall": "wall_face",
                                     "shelf": "shelf_top"}
+
+
+def test_a_press_whose_moves_need_more_time_is_planned_within_the_limits(geometry):
+    """A 20 mm press into the wall turns the wrist roll fast on the last 5 mm: with the moves'
+    default durations joint_r reached 4.1046 rad/s² against its 4 rad/s² (issue 42 item 24).
+    The planner lengthens that move instead (the free motion before it gives up the time), and
+    the press still starts when it did."""
+    _, g, limits = geometry
+    config = ScenarioConfig()  # the defaults (other tests change the fixture's config)
+    trajectory = dc.replace(config.trajectory, kind="contact", contact_target="wall",
+                            press_depth_m=0.020, seed=6110)
+    traj = make_trajectory(trajectory, config.home_q, limits, g)
+    # Independently of check_limits: q̈ and q̇ on a 1 ms grid.
+    t = np.arange(traj.start_time(), traj.end_time(), 1e-3)
+    qdd = np.hstack([traj.EvalDerivative(ti, 2) for ti in t]).T
+    qd = np.hstack([traj.EvalDerivative(ti, 1) for ti in t]).T
+    assert np.all(np.abs(qdd) <= limits.acceleration * (1 + 1e-9))
+    assert np.all(np.abs(qd) <= limits.velocity * (1 + 1e-9))
+    assert np.abs(qdd).max() > 0.9 * limits.acceleration[0]  # close to the limit, not slowed
+    # The press pose is held from the same time as with the default moves (10 s before the
+    # end: ascend 1.5 s, back 1.5 s, the 3 s press ... only the moves before it grew).
+    _, _, press = g.press_poses("wall", 0.020, config.home_q)
+    press_start = config.trajectory.duration_s - 1.5 - 1.5 - trajectory.press_duration_s
+    np.testing.assert_allclose(traj.value(press_start + 0.5).ravel(), press, atol=1e-6)
+
+
+@pytest.mark.parametrize(("section", "field", "value", "message"), [
+    ("sensor", "noise_std", 0.1, (r"scenario\.sensor\.noise_std: must be a list of 6 numbers "
+                                 r"\(one per axis Fx\.\.Tz\), got 0\.1")),
+    ("sensor", "bias", 0.5, r"scenario\.sensor\.bias: must be a list of 6 numbers, got 0\.5"),
+    (None, "home_q", 0.3, r"scenario\.home_q: must be a list of numbers, got 0\.3"),
+])
+def test_a_scalar_set_in_python_where_a_list_is_meant_names_the_field(section, field, value,
+                                                                      message):
+    config = ScenarioConfig()
+    setattr(config if section is None else getattr(config, section), field, value)
+    with pytest.raises(ConfigError, match=message):
+        config.validate()

@@ -41,11 +41,13 @@ def small_forest(seed=0):
 
 
 def tracking_scenario():
-    """Every output port: the tracker with the payload and its change monitor."""
-    scenario = ScenarioConfig()
-    scenario.bias_tracker.track_payload = True
-    scenario.bias_tracker.payload_change.enabled = True
-    return scenario.validate()
+    """Every output port: the tracker with the payload and its change monitor (a forest
+    carries no robot: joint-state gravity on the simulated arm)."""
+    config = ftdrake.ChainConfig()
+    config.bias_tracker.track_payload = True
+    config.bias_tracker.payload_change.enabled = True
+    config.robot.file = "ftdrake"
+    return config.validate()
 
 
 def test_every_output_port_of_the_chain_has_one_row_and_its_names_are_unique():

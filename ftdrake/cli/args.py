@@ -79,6 +79,18 @@ jobs = number(int, lambda v: v >= 1 or v == -1,
               "must be a number of processes >= 1, or -1 for all cores")
 
 
+def noise_values(text: str) -> list[float]:
+    """An argument type: positive numbers ``S`` or ``S,S,...`` (noise std per target)."""
+    try:
+        values = [float(v) for v in text.split(",")]
+    except ValueError:
+        values = []
+    if not values or not all(math.isfinite(v) and v > 0 for v in values):
+        raise argparse.ArgumentTypeError(f"expected positive numbers S or S,S,...; got "
+                                         f"{text!r}")
+    return values
+
+
 def existing_file(text: str) -> Path:
     """An argument type: the path of a file that exists."""
     path = Path(text)

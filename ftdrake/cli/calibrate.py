@@ -33,6 +33,7 @@ from ..compensation.orientation_model import OrientationPayloadCompensator
 from ..compensation.persistence import save_model
 from ..compensation.physics import ExcitationWarning
 from ..compensation.registry import make_estimator
+from ..compensation.robot_file import check_robot_frames
 from ..conventions import MEASURED, TEMPERATURE, TIME, WRENCH_AXES, WRENCH_UNITS
 from ..data.logs import expand_columns, option_spelling, read_frame, time_columns
 from ..data.training import ReadOptions, load_training_data
@@ -141,6 +142,8 @@ def run_calibrate(args) -> int:
     prior = _prior(args)
     if args.robot not in (None, "ftdrake") and not Path(args.robot).is_file():
         raise LogError(f"--robot {args.robot}: no such file")
+    if args.robot not in (None, "ftdrake"):  # its frames, before the data is read
+        check_robot_frames(args.robot, args.sensor_frame, args.base_frame, command="calibrate")
     frame = read_frame(args.data)
     known = _known_payload(args)
     # Any time-like column (t, time, stamp …) with moving joints is a motion; reading it then
@@ -231,6 +234,11 @@ def _read_options(args, temperature: bool):
 def _time_series(args, prior, temperature: bool) -> int:
     """A motion log: read as `train` reads it, fitted by the dynamic physics model (with the
     temperature column, if the log has one)."""
+    if args.robot is None:  # said before the log is read, in calibrate's words
+        raise ConfigError(
+            f"{args.data} is a motion (a time column and moving joints): calibrate fits it "
+            "with the dynamic payload model, which needs --robot FILE (URDF/SDF) with "
+            "--sensor-frame NAME, or --robot ftdrake for the simulated arm")
     data = load_training_data(args.data, _read_options(args, temperature))
     robot = RobotOptions(args.robot, args.sensor_frame, args.base_frame, data.scenario_yaml,
                          joints=args.joints, fixed_joints=args.fixed_joints)

@@ -8,14 +8,12 @@ outside it, with the trust flags of :mod:`ftdrake.compensation.trust`.
 
 from __future__ import annotations
 
-import argparse
 import json
-import math
 import sys
 from pathlib import Path
 
 from ..compensation.build import same_targets
-from ..compensation.evaluation import evaluate_model
+from ..compensation.evaluation import MIN_REST_RUN, REST_SPEED, evaluate_model
 from ..compensation.persistence import load_model, read_manifest
 from ..conventions import TEMPERATURE
 from ..data.bag import is_bag
@@ -45,7 +43,7 @@ def register(subparsers) -> None:
     p.add_argument("--data", type=a.existing_path, required=True, metavar="FILE",
                    help="CSV/Parquet table, ROS 1 .bag file or ROS 2 bag folder")
     add_read_flags(p)
-    p.add_argument("--noise-std", type=noise_values, metavar="S[,S...]",
+    p.add_argument("--noise-std", type=a.noise_values, metavar="S[,S...]",
                    help="the sensor's noise std, one value or one per target (the targets' "
                         "units): errors are also given in σ units (≈1 at the noise floor); "
                         "without it, estimated from resting rows when the log has them")
@@ -53,18 +51,6 @@ def register(subparsers) -> None:
                    help="also write the results as JSON")
     a.add_quiet(p)
     p.set_defaults(run=run_evaluate)
-
-
-def noise_values(text: str) -> list[float]:
-    """An argument type: positive numbers ``S`` or ``S,S,...`` (noise std per target)."""
-    try:
-        values = [float(v) for v in text.split(",")]
-    except ValueError:
-        values = []
-    if not values or not all(math.isfinite(v) and v > 0 for v in values):
-        raise argparse.ArgumentTypeError(f"expected positive numbers S or S,S,...; got "
-                                         f"{text!r}")
-    return values
 
 
 def stored_read_options(manifest: dict, path: Path) -> ReadOptions:
@@ -113,13 +99,35 @@ def run_evaluate(args) -> int:
         **{key: scores[key] for key in ("std", "metrics", "min_subset_rows", "noise",
                                         "trust")},
     }
+    result["offsets"] = scores["offsets"]
     print_evaluation(result)
     for line in scores["trust"]["warnings"]:
+        warn(line)
+    for line in offset_warnings(result):
         warn(line)
     if args.json is not None:
         atomic_write_text(args.json, json.dumps(result, indent=2))
         say(f"wrote {args.json}")
     return 0
+
+
+def offset_warnings(result: dict) -> list[str]:
+    """A warning per target whose residual's mean is many of its std from zero (a bias or a
+    payload change, not the model's scatter), with the scores that hide or show it."""
+    lines = []
+    for name, o in result.get("offsets", {}).items():
+        unit = result["target_units"].get(name, "")
+        row = result["metrics"]["all"][name]
+        lines.append(
+            f"warning: {name}: the residual's mean {o['mean']:+.4g} {unit} is "
+            f"{abs(o['mean']) / o['std'] if o['std'] > 0 else float('inf'):.1f} × its std "
+            f"({o['std']:.4g} {unit}) from zero: a constant offset, not the model's scatter — "
+            "a sensor bias or re-tare, or a payload changed since the training data; the "
+            f"variance score ({_num(row['variance_score'], 0, '.3f')}) ignores a constant, the "
+            f"nmse ({_num(row['nmse'], 0, '.3f')}) counts it. A new payload: identify it "
+            "(ftdrake calibrate) or retrain; a bias: the bias tracker removes it (replay, "
+            "serve)")
+    return lines
 
 
 def _check_compatible(manifest: dict, data: TrainingData, args) -> None:
@@ -187,6 +195,11 @@ def print_evaluation(result: dict, file=None) -> None:
         print("  rms/σ: RMS error in units of the sensor's noise std σ (≈1 at the noise "
               f"floor); σ {', '.join(f'{v:.3g}' for v in noise['std'])} from "
               f"{noise['source']}", file=file)
+    else:
+        print(f"  no rms/σ column: the log holds no stretch at rest to measure the sensor's "
+              f"noise σ on (≥ {2 * MIN_REST_RUN} rows in runs of ≥ {MIN_REST_RUN} with every "
+              f"|q̇| < {REST_SPEED:g} rad/s; a table of static poses has none); give σ with "
+              "--noise-std S[,S...]", file=file)
     print(file=file)
     if result.get("std"):
         rows = m["in_domain"] or m["all"]

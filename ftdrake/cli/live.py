@@ -39,7 +39,10 @@ class Status:
     """The throttled status line: message rates per stream, counts, the current state. The
     rates are measured also when `quiet` (the summary reports the last ones)."""
 
-    def __init__(self, station, stream=sys.stderr, quiet: bool = False):
+    def __init__(self, station, stream=None, quiet: bool = False):
+        # sys.stderr when called, not when this module was imported (the command line imports
+        # it on first use, and a caller may have replaced sys.stderr in between).
+        stream = sys.stderr if stream is None else stream
         self.station, self.stream, self.quiet = station, stream, quiet
         self.tty = stream.isatty() and not quiet
         self.last = time.monotonic()

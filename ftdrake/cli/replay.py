@@ -2,7 +2,8 @@
 
     ftdrake replay --model FILE --log FILE --out FILE [--config YAML] [--robot FILE
                    --sensor-frame NAME] [--pairing row|simulated]
-                   [--view aligned|held] [--delay S | --align] [--budget]
+                   [--view aligned|held] [--delay S | --align] [--budget [--noise-std S]]
+                   [--resample]
                    [--calibrate-detector YAML]
 
 Writes the chain's outputs per row (:func:`ftdrake.offline.replay.replay`: compensated and
@@ -24,6 +25,7 @@ import json
 import sys
 
 from ..config import save_config
+from ..conventions import TIME
 from ..errors import ConfigError, LogError
 from . import args as a
 from .hardware import add_transport_flags, hardware_from_args
@@ -53,6 +55,14 @@ def register(sub) -> None:
     p.add_argument("--budget", action="store_true",
                    help="also split the in-motion residual into offset, drift, stream delay, "
                         "the sensor's filter and what is left, in units of the resting noise")
+    p.add_argument("--noise-std", type=a.noise_values, metavar="S[,S...]",
+                   help="--budget: the sensor's resting noise std (N, N·m), one value or six; "
+                        "default: measured on the log's rows at rest, else the chain config "
+                        "sensor's (a warning says so)")
+    p.add_argument("--resample", action="store_true",
+                   help="put the log on a uniform time grid at its median period first "
+                        "(linear interpolation; events kept): what --budget needs of a log "
+                        "whose time steps jitter by more than 5 %%")
     p.add_argument("--calibrate-detector", type=a.output_file, metavar="YAML",
                    help="also write the chain config (--config's, the log's or the "
                         "defaults) with the detector's thresholds set for its false-positive "
@@ -61,7 +71,9 @@ def register(sub) -> None:
                         "hybrid or GP model)")
     p.add_argument("--wrench-topic", metavar="TOPIC", help="a ROS bag's WrenchStamped topic")
     for flag, default, what in (("--positions", "q_*", "joint position columns (rad)"),
-                                ("--velocities", "qd_*", "joint velocity columns (rad/s)"),
+                                ("--velocities", "qd_*", ("joint velocity columns (rad/s), or "
+                                 "'derive' to compute them from q as train does (so done when "
+                                 "the log has no qd_* columns)")),
                                 ("--targets", "meas_*", "the sensor's wrench columns (N, N·m)")):
         p.add_argument(flag, metavar="PAT", help=f"tables: {what}, default '{default}'; a glob, "
                        "a comma-separated list or a regular expression after 're:'")
@@ -77,13 +89,12 @@ def run_replay(args) -> int:
     from ..data.logs import write_log
     from ..data.stream_delay import estimate_stream_delay
     from ..offline.replay import chain_config_of, replay, summary
-    from ..offline.residual_budget import residual_budget
 
     _check_flags(args)
     with a.naming("--model", args.model):
         model = load_model(args.model)
     with a.naming("--log", args.log):
-        frame = _read_log(args)
+        frame = _prepared_log(args)
     config = a.load_chain(args) if _chain_given(args) else None
     delay, estimate = args.delay, None
     if args.align:
@@ -104,7 +115,7 @@ def run_replay(args) -> int:
     if estimate is not None:
         report["delay_estimate"] = estimate.as_dict()
     if args.budget:
-        report["residual_budget"] = residual_budget(model, frame, config, result=result).as_dict()
+        report["residual_budget"] = _budget(args, model, frame, config, result)
     if args.calibrate_detector is not None:
         report["detector"] = _write_calibrated(args.calibrate_detector, result, model,
                                                chain_config_of(frame, config))
@@ -112,9 +123,42 @@ def run_replay(args) -> int:
     return 0
 
 
+def _budget(args, model, frame, config, result) -> dict:
+    """The residual budget of the replay, and on stderr which resting noise it is in units of
+    (--noise-std, the log's rows at rest, or the chain config sensor's: then a warning)."""
+    import numpy as np
+
+    from ..offline.residual_budget import MIN_REST_ROWS, REST_SPEED, residual_budget
+
+    noise = None if args.noise_std is None else np.broadcast_to(args.noise_std, (6,))
+    budget = residual_budget(model, frame, config, result=result, noise_std=noise)
+    sigma = ", ".join(f"{v:.3g}" for v in budget.noise_std)
+    if budget.noise_source == "given":
+        line = f"note: --budget: in units of the resting noise σ of --noise-std ({sigma})"
+    elif budget.noise_source == "rest rows":
+        line = (f"note: --budget: in units of the resting noise σ ({sigma}) measured on the "
+                f"log's {budget.rows['rest']} rows at rest (every joint ≤ {REST_SPEED:g} rad/s)")
+    else:
+        line = (f"warning: --budget: the log has {budget.rows['rest']} rows at rest, too few "
+                f"to measure the noise on ({MIN_REST_ROWS} needed): its σ ({sigma}, N and N·m) "
+                "is the chain config sensor's, not necessarily yours; give yours with --noise-std "
+                "S[,S...]")
+    if not args.quiet or line.startswith("warning"):
+        print(line, file=sys.stderr)
+    for note in [] if args.quiet else budget.notes():
+        print(f"note: --budget: {note}", file=sys.stderr)
+    return budget.as_dict()
+
+
 def _check_flags(args) -> None:
     if args.out.suffix not in (".csv", ".parquet"):
         raise LogError(f"--out {args.out}: give a .csv or .parquet file name")
+    if args.noise_std is not None and not args.budget:
+        raise ConfigError("--noise-std is the noise --budget judges the residual against: add "
+                          "--budget")
+    if args.noise_std is not None and len(args.noise_std) not in (1, 6):
+        raise ConfigError(f"--noise-std gives {len(args.noise_std)} values: give one, or six "
+                          "(Fx Fy Fz in N, Tx Ty Tz in N·m)")
     if args.calibrate_detector is not None and (args.delay is not None or args.align):
         raise ConfigError("--calibrate-detector with --delay/--align: serve corrects only the "
                           "delay the model was trained with, so thresholds set on a corrected "
@@ -135,6 +179,25 @@ def _write_calibrated(path, result, model, chain) -> dict:
     detector = calibrated_detector(result, model, chain)
     save_config(chain.replace(detector=detector), path)
     return {"file": str(path), **dc.asdict(detector)}
+
+
+def _prepared_log(args):
+    """The log read, resampled with --resample, and checked for what --budget needs before
+    the replay (which takes minutes on a long log)."""
+    from ..data.robot_log import resample_uniform
+    from ..offline.residual_budget import check_uniform_sampling
+
+    frame = _read_log(args)
+    if args.resample:
+        rows = len(frame)
+        frame = resample_uniform(frame)
+        if not args.quiet:
+            print(f"note: --resample: {rows} rows onto a uniform grid of {len(frame)} at "
+                  f"{(frame[TIME].iloc[1] - frame[TIME].iloc[0]) * 1e3:.4g} ms",
+                  file=sys.stderr)
+    if args.budget:
+        check_uniform_sampling(frame[TIME].to_numpy(float))
+    return frame
 
 
 def _read_log(args):

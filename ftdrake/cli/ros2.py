@@ -17,7 +17,6 @@ second, each fault and recovery (stderr), and on Ctrl-C or after ``--duration`` 
 
 from __future__ import annotations
 
-import contextlib
 import json
 import sys
 import time
@@ -52,7 +51,13 @@ def config_from_args(args, live=None):
             config = load_config(path, schema=Ros2Config)
     if args.ros2_domain is not None:
         config.domain_id = args.ros2_domain
-    with a.naming("--ros2-config", path) if path else contextlib.nullcontext():
+    if path is None:
+        try:
+            return config.validate()
+        except ConfigError as e:
+            raise ConfigError(f"--ros2 needs --ros2-config FILE (a Ros2Config YAML; the "
+                              f"defaults used without it fall short): {e}") from None
+    with a.naming("--ros2-config", path):
         return config.validate()
 
 

@@ -219,7 +219,7 @@ class StaticCalibration:
         lines.append("  residual RMS (Fx..Tz): "
                      + ", ".join(f"{r:.3g}" for r in self.residual_rms))
         if self.choice is not None:
-            lines.extend(_choice_lines(self.choice))
+            lines.extend(_choice_lines(self.choice, self.correction))
         if self.correction is not None:
             lines.extend(self.correction.summary())
         lines.append(f"  note: {NOT_IDENTIFIABLE}")
@@ -447,12 +447,22 @@ def _calibrate_joint_angles(frame, joint_cols, Y, temperature, robot, sensor_fra
 # -- helpers -------------------------------------------------------------------------------
 
 
-def _choice_lines(choice: dict) -> list[str]:
-    """How the default chose the correction, as lines a user reads."""
+def _choice_lines(choice: dict, correction=None) -> list[str]:
+    """How the default chose the correction, as lines a user reads; when the chosen
+    correction's entries are not all determined, what the choice rests on."""
     lines = [f"  correction chosen from the data: {choice['choice']} ({choice['why']})"]
     for name, rms in choice.get("cv_rms", {}).items():
         lines.append(f"    cross-validated RMS (Fx..Tz), {name:5s}: "
                      + ", ".join(f"{r:.3g}" for r in rms))
+    free = None if correction is None else correction.free_entries()
+    if free is not None and free.any():
+        fixed = (correction.sensor_std_errors == 0) & (correction.sensor_matrix == 0)
+        lines.append(
+            f"    chosen for what these poses determine — the correction's effect on this "
+            f"payload's readings, which the cross-validation scored — not for its entries one "
+            f"by one: {int(free.sum())} of {int((~fixed).sum())} are not determined (below, "
+            "'free'). It corrects readings of this payload; for other loads, calibrate with "
+            "poses of other known loads")
     return lines
 
 

@@ -239,8 +239,10 @@ def identify_correction(W_S, Y, structure="block", temperature=None,
     if undetermined:
         warnings.warn(
             "the poses do not determine the whole gain/cross-talk correction: "
-            + "; ".join(undetermined) + ". Those directions are left uncorrected (standard "
-            "error ∞); poses with other known loads (columns known_mass, known_com_x/y/z) "
+            + "; ".join(undetermined) + ". The correction leaves those directions as they are "
+            "(the least change; their entries print as 'free'), which does not change these "
+            "poses' readings: it still corrects this payload's readings, not necessarily other "
+            "loads'; poses with other known loads (columns known_mass, known_com_x/y/z) "
             "determine them", ExcitationWarning, stacklevel=3)
     return CalibrationCorrection(
         structure=structure, matrix=C, std_errors=C_se, sensor_matrix=M,

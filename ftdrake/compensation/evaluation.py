@@ -30,6 +30,9 @@ MIN_SUBSET_ROWS = 30
 #: Resting rows: |q̇| below this (rad/s) on every joint, in runs of at least
 #: :data:`MIN_REST_RUN` rows; the wrench's spread about each run's mean is the noise.
 REST_SPEED = 1e-3
+#: A residual whose mean is more than this many of its own standard deviations from zero is
+#: an offset (a sensor bias, a re-tare, a payload change since training), not scatter.
+OFFSET_STDS = 2.0
 MIN_REST_RUN = 20
 
 
@@ -102,7 +105,22 @@ def evaluate_model(model, X, Y, *, target_names, training_ranges: Mapping | None
         "min_subset_rows": MIN_SUBSET_ROWS,
         "noise": noise,
         "trust": trust,
+        "offsets": residual_offsets(Y, prediction, names),
     }
+
+
+def residual_offsets(Y, prediction, names) -> dict:
+    """Per target whose residual e = Y − prediction has a mean more than :data:`OFFSET_STDS`
+    of its own standard deviation from zero: ``{"mean": …, "std": …}`` (targets' units).
+    Such a residual is a constant offset, not the model's scatter: a sensor bias or re-tare,
+    or a payload changed since the training data. Empty on fewer than 2 rows."""
+    e = np.asarray(Y, float) - np.asarray(prediction, float)
+    if len(e) < 2:
+        return {}
+    mean, std = e.mean(axis=0), e.std(axis=0)
+    return {name: {"mean": float(m), "std": float(sd)}
+            for name, m, sd in zip(names, mean, std, strict=True)
+            if abs(m) > OFFSET_STDS * sd}
 
 
 def _noise(noise_std, X, Y, model) -> dict | None:

@@ -11,15 +11,18 @@ on an explicit list, inside an envelope that records what the model is::
 
 The manifest names the model class, the joint count, the feature set, target names and
 units, the sensor frame, the training range of every input column, the ftdrake and
-scikit-learn versions, and the payload's size and SHA-256. The checksums catch corruption,
-truncation and careless edits; they are not a signature (anyone can recompute them), which is
-why loading also refuses types off the list and checks every decision tree's node indices.
+scikit-learn versions, and the payload's size and SHA-256. A model built on a robot file
+carries the robot's text and keeps only the file's name, not the folder it was in. The
+checksums catch corruption, truncation and careless edits; they are not a signature (anyone
+can recompute them), which is why loading also refuses types off the list and checks every
+decision tree's node indices.
 
 Every problem with a file raises :class:`ModelFileError` naming it.
 """
 
 from __future__ import annotations
 
+import contextlib
 import hashlib
 import json
 import warnings
@@ -40,7 +43,7 @@ from .base import Compensator
 from .build import is_wrench
 from .features import feature_names
 from .registry import trusted_types
-from .robot_file import CarriesRobot
+from .robot_file import CarriesRobot, file_name_only
 
 MAGIC = b"FTDRAKE-MODEL\n"
 # 2: the physics model takes a robot description instead of embedding a scenario; the
@@ -72,8 +75,9 @@ def save_model(
     the targets are expressed in; `extra` is any JSON-serialisable dict kept in the manifest.
     """
     target_names, target_units = _default_targets(model, target_names, target_units)
-    manifest = _manifest(model, target_names, target_units, sensor_frame, extra)
-    payload = sio.dumps(model, compression=zipfile.ZIP_DEFLATED)
+    with _robot_file_names_only(model):
+        manifest = _manifest(model, target_names, target_units, sensor_frame, extra)
+        payload = sio.dumps(model, compression=zipfile.ZIP_DEFLATED)
     # Refuse to write a file that load_model would refuse to read.
     untrusted = _untrusted(payload)
     if untrusted:
@@ -190,6 +194,25 @@ def _robot_parts(model) -> list:
     """The parts of `model` built on a robot (a hybrid's physics part, or the model)."""
     return [part for part in (model, getattr(model, "physics_", None))
             if isinstance(part, CarriesRobot)]
+
+
+@contextlib.contextmanager
+def _robot_file_names_only(model):
+    """Within the block, every part of `model` that embeds its robot's text names its robot
+    file by the file's name alone (:func:`~.robot_file.file_name_only`), as the file then
+    stores it; restored after."""
+    changed = []
+    for part in _robot_parts(model):
+        if getattr(part, "robot_model_", None) is not None:
+            name = file_name_only(part.robot)
+            if name != part.robot:
+                changed.append((part, part.robot))
+                part.robot = name
+    try:
+        yield
+    finally:
+        for part, robot in changed:
+            part.robot = robot
 
 
 def _robot_manifest(model) -> dict | None:

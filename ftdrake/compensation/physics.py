@@ -53,6 +53,7 @@ from __future__ import annotations
 import copy
 import warnings
 import weakref
+from pathlib import Path
 
 import numpy as np
 
@@ -569,7 +570,8 @@ class PhysicsPayloadCompensator(CarriesRobot, Compensator):
                                   "measured wrench)")
         model, package_xmls = self._robot_source()
         return RobotDescription(model, self.sensor_frame, self.base_frame, package_xmls,
-                                self._joint_columns(), fixed_joint_values(self.fixed_joints))
+                                self._joint_columns(), fixed_joint_values(self.fixed_joints),
+                                name=Path(str(self.robot)).name)
 
     def _joint_columns(self) -> tuple[str, ...]:
         return joint_names(getattr(self, "joints", None))  # None in models saved before it

@@ -1,7 +1,8 @@
 """The robot a physics-based compensator was fitted on, carried inside the fitted model.
 
 A compensator built on a robot description (the payload model, the whole-arm model) names its
-robot by a path (its ``robot`` parameter, stored as given). When it is fitted the robot's text
+robot by a path (its ``robot`` parameter; a model file keeps only the file's name,
+:func:`file_name_only`). When it is fitted the robot's text
 is embedded (``robot_model_``, :func:`~ftdrake.physics.robot.embed_model`), so that a saved
 model loads and predicts on another computer, from another folder, or after the URDF moved.
 ``robot_portable_`` says whether the embedded text needs nothing else (model directives that
@@ -11,9 +12,52 @@ add files outside ftdrake's models do).
 from __future__ import annotations
 
 import hashlib
+from pathlib import Path
+
+from pydrake.multibody.plant import MultibodyPlant
 
 from ..errors import RobotModelError
-from ..physics.robot import embed_model
+from ..physics.robot import (
+    DIRECTIVES_PREFIX,
+    RobotDescription,
+    add_robot_model,
+    embed_model,
+    frames_closest_first,
+)
+
+
+def check_robot_frames(robot: str, sensor_frame: str | None, base_frame: str | None = None,
+                       package_xmls=(), command: str = "train") -> None:
+    """Before any data is read: the robot file `robot` (``--robot``) loads and has the frames
+    ``--sensor-frame`` and ``--base-frame`` name. RobotModelError names the file, the flag and
+    the model's frames, those closest to the name given first (none given: the frames by
+    name)."""
+    if not sensor_frame:
+        plant = MultibodyPlant(0.0)
+        add_robot_model(plant, str(robot), tuple(package_xmls))
+        plant.Finalize()
+        raise RobotModelError(
+            f"{command} --robot {robot} needs --sensor-frame NAME (the frame S of the measured "
+            f"wrench in {robot}); "
+            f"{frames_closest_first(plant, 'sensor', heading='its frames, sensor-like first')}")
+    description = RobotDescription(str(robot), sensor_frame, base_frame, tuple(package_xmls))
+    try:
+        description.build_plant()
+    except RobotModelError as e:
+        flag = "--base-frame" if "no base frame" in str(e) else "--sensor-frame"
+        raise RobotModelError(f"{flag}: {e}") from None
+
+
+def file_name_only(robot):
+    """What a model file keeps of a `robot` parameter whose text the model embeds: a file
+    path's name alone (``/home/me/arm.urdf`` → ``arm.urdf``: a user's folders do not travel
+    with the files they share); ``package://`` URLs, model text and None as they are."""
+    if robot is None:
+        return None
+    text = str(robot)
+    if "://" in text or "\n" in text or text.lstrip().startswith(("<", DIRECTIVES_PREFIX)):
+        return robot
+    return Path(text).name
 
 
 class CarriesRobot:

@@ -16,6 +16,8 @@ def non_negative(v, name):
 
 
 def vector(values, n, name):
+    if values is not None and not isinstance(values, (list, tuple)):
+        raise ConfigError(f"{name}: must be a list of {n} numbers, got {values!r}")
     if values is None or len(values) != n:
         got = 0 if values is None else len(values)
         raise ConfigError(f"{name}: must have {n} entries, got {got}")
@@ -23,6 +25,8 @@ def vector(values, n, name):
 
 
 def finite(values, name):
+    if not isinstance(values, (list, tuple)):
+        raise ConfigError(f"{name}: must be a list of numbers, got {values!r}")
     for v in values:
         if not (isinstance(v, (int, float)) and math.isfinite(v)):
             raise ConfigError(f"{name}: entries must be finite numbers, got {v!r}")

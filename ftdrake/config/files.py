@@ -3,6 +3,7 @@
 # No `from __future__ import annotations`: Drake's YAML loader needs real type objects.
 
 import dataclasses as dc
+import typing
 import warnings
 from importlib import resources
 from pathlib import Path
@@ -38,9 +39,9 @@ def load_config(path: "str | Path | None" = None, schema=ScenarioConfig):
 def parse_config(text: str, schema=ScenarioConfig, source: str = "<string>"):
     """Parses YAML text into `schema`, naming the bad field on error."""
     data = _mapping(text, source)
-    if schema is ScenarioConfig and _moved_chain_sections(data, source):
-        text = pyyaml.safe_dump(data, sort_keys=False)
-    _check_fields(data, schema, _where(schema))
+    moved = schema is ScenarioConfig and _moved_chain_sections(data, source)
+    if _check_fields(data, schema, _where(schema)) or moved:
+        text = pyyaml.safe_dump(data, sort_keys=False)  # moved sections, widened scalars
     try:
         from pydrake.common.yaml import yaml_load_typed  # noqa: PLC0415 (see _DRAKE_ON_USE)
 
@@ -155,13 +156,95 @@ def _where(schema) -> str:
     return {ScenarioConfig: "scenario", ChainConfig: "chain"}.get(schema, schema.__name__)
 
 
-def _check_fields(data: dict, schema, where: str) -> None:
-    """Names unknown fields with their full path (Drake's loader names only the leaf)."""
+def _check_fields(data: dict, schema, where: str) -> bool:
+    """Names unknown fields and mistyped values with their full path (Drake's loader names
+    only the leaf, or nothing); widens a single number given for a per-axis list (a field of
+    six entries, one per wrench axis) to that list, in place. Returns whether it widened any."""
     fields = {f.name: f for f in dc.fields(schema)}
+    hints = typing.get_type_hints(schema)
+    widened = False
     for key, value in data.items():
         if key not in fields:
             raise ConfigError(f"{where}.{key}: unknown field; known fields: {sorted(fields)}")
-        sub = fields[key].default_factory if fields[key].default_factory is not dc.MISSING else None
-        if sub is not None and dc.is_dataclass(sub) and isinstance(value, dict):
-            _check_fields(value, sub, f"{where}.{key}")
+        field, hint = fields[key], hints.get(key)
+        sub = field.default_factory if field.default_factory is not dc.MISSING else None
+        if sub is not None and dc.is_dataclass(sub):
+            if not isinstance(value, dict):
+                raise ConfigError(f"{where}.{key}: must be a mapping of fields "
+                                  f"({sorted(f.name for f in dc.fields(sub))}), got {value!r}")
+            widened |= _check_fields(value, sub, f"{where}.{key}")
+            continue
+        widen = _check_value(value, hint, field, f"{where}.{key}")
+        if widen is not None:
+            data[key] = widen
+            widened = True
+    return widened
 
+
+def _is_number(value) -> bool:
+    """A number as Drake's loader reads one: an int or float, or text such as ``1.7e5`` (which
+    YAML 1.1, and so PyYAML, leaves a string)."""
+    if isinstance(value, str):
+        try:
+            float(value)
+        except ValueError:
+            return False
+        return True
+    return isinstance(value, (int, float)) and not isinstance(value, bool)
+
+
+def _entries(field) -> "int | None":
+    """How many entries a list field holds, when its definition says: `metadata["entries"]`,
+    else the length of its default list."""
+    if "entries" in field.metadata:
+        return int(field.metadata["entries"])
+    if field.default_factory is not dc.MISSING:
+        default = field.default_factory()
+        if isinstance(default, list) and default:
+            return len(default)
+    return None
+
+
+#: What a value of each scalar type must be: (test, the words that say so).
+_SCALARS = {
+    float: (_is_number, "a number"),
+    int: (lambda v: isinstance(v, int) and not isinstance(v, bool), "a whole number"),
+    bool: (lambda v: isinstance(v, bool), "true or false"),
+    str: (lambda v: isinstance(v, str), "a string"),
+}
+
+
+def _check_value(value, hint, field, name: str):
+    """Raises ConfigError naming `name` when `value` does not fit the type `hint`; returns the
+    widened list when a single number was given for a per-axis (six-entry) list, else None."""
+    if typing.get_origin(hint) is typing.Union and type(None) in typing.get_args(hint):
+        if value is None:
+            return None
+        hint = next(a for a in typing.get_args(hint) if a is not type(None))
+    if hint in _SCALARS:
+        ok, words = _SCALARS[hint]
+        if not ok(value):
+            raise ConfigError(f"{name}: must be {words}, got {value!r}")
+    elif typing.get_origin(hint) is dict and not isinstance(value, dict):
+        raise ConfigError(f"{name}: must be a mapping, got {value!r}")
+    elif typing.get_origin(hint) is list:
+        return _check_list(value, (typing.get_args(hint) or (None,))[0], _entries(field), name)
+    return None
+
+
+def _check_list(value, item, n: "int | None", name: str):
+    """`_check_value` for a list of `item`s (`n` of them, when known)."""
+    if item is float and _is_number(value):
+        if n == 6:
+            return [float(value)] * 6  # one value for every wrench axis
+        count = f"{n} numbers" if n else "numbers"
+        raise ConfigError(f"{name}: must be a list of {count}, got the single number {value!r}")
+    if not isinstance(value, list):
+        raise ConfigError(f"{name}: must be a list, got {value!r}")
+    if item in _SCALARS:
+        ok, words = _SCALARS[item]
+        for v in value:
+            if not ok(v):
+                plural = words[2:] + "s" if words.startswith("a ") else words
+                raise ConfigError(f"{name}: entries must be {plural}, got {v!r}")
+    return None

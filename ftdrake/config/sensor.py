@@ -64,9 +64,9 @@ class SensorConfig:
 
     preset: str = "ati_gamma"
     rate_hz: Optional[float] = None
-    range: Optional[list[float]] = None
-    resolution: Optional[list[float]] = None
-    noise_std: Optional[list[float]] = None
+    range: Optional[list[float]] = dc.field(default=None, metadata={"entries": 6})
+    resolution: Optional[list[float]] = dc.field(default=None, metadata={"entries": 6})
+    noise_std: Optional[list[float]] = dc.field(default=None, metadata={"entries": 6})
     bandwidth_hz: Optional[float] = None
     # Constant offset of the reading (N, N·m); a real sensor is tared, never perfectly.
     bias: list[float] = dc.field(default_factory=lambda: [0.6, -0.4, 1.2, 0.02, -0.015, 0.01])
@@ -108,8 +108,14 @@ class SensorConfig:
     seed: int = 0  # noise and drift of this run
     calibration_seed: int = 0  # the cross-talk matrix: a property of the physical sensor
 
-    def spec(self) -> SensorSpec:
-        """The resolved numbers: preset values with this config's overrides applied."""
+    def spec(self, where: str = "sensor") -> SensorSpec:
+        """The resolved numbers: preset values with this config's overrides applied (a
+        ConfigError names an override that is not a list, as ``where.field``)."""
+        for name in ("range", "resolution", "noise_std"):
+            value = getattr(self, name)
+            if value is not None and not isinstance(value, (list, tuple)):
+                raise ConfigError(f"{where}.{name}: must be a list of 6 numbers (one per "
+                                  f"axis Fx..Tz), got {value!r}")
         if self.preset not in SENSOR_PRESETS:
             raise ConfigError(
                 f"sensor.preset: unknown preset {self.preset!r}; "
@@ -132,7 +138,7 @@ class SensorConfig:
         return tuple(self.drift_std)
 
     def validate(self, where: str = "sensor") -> None:
-        spec = self.spec()
+        spec = self.spec(where)
         positive(spec.rate_hz, f"{where}.rate_hz")
         positive(spec.bandwidth_hz, f"{where}.bandwidth_hz")
         for name, values, allow_zero in (

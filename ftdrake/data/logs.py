@@ -11,6 +11,7 @@ converts), velocities in rad/s, accelerations in rad/s²; targets as logged.
 
 from __future__ import annotations
 
+import difflib
 import fnmatch
 import re
 from collections.abc import Sequence
@@ -21,7 +22,7 @@ import pandas as pd
 import pyarrow as pa
 import pyarrow.parquet as pq
 
-from ..conventions import LOG_FORMAT, MEASURED, TIME, legacy_renames
+from ..conventions import LOG_FORMAT, MEASURED, QD, QDD, TIME, Q, legacy_renames
 from ..errors import LogError
 from ..io import atomic_path
 from ..signals import DEFAULT_ACCELERATION_CUTOFF_HZ
@@ -144,6 +145,69 @@ def _warn_if_mixed_kinds(found: list[str], what: str, label: str, option: str | 
     warn_log(f"{what}: {label} matches {len(several)} kinds of columns ({groups}), "
              f"{len(found)} columns in all; if only one kind is meant, narrow it: {fix}",
              depth=1)
+
+
+def _span(names: Sequence[str]) -> str:
+    """``q_0..q_6`` for a run of indexed names, else the names."""
+    return f"{names[0]}..{names[-1]}" if len(names) > 2 else ", ".join(names)
+
+
+def _indexed_kinds(names: Sequence[str]) -> dict[str, list[str]]:
+    """Names grouped by their stem before a trailing index (``qd_`` → qd_0, qd_1 …)."""
+    kinds: dict[str, list[str]] = {}
+    for name in names:
+        indexed = re.fullmatch(r"(.*?[^\d])(\d+)", name)
+        kinds.setdefault(indexed.group(1) if indexed else name, []).append(name)
+    return kinds
+
+
+_SINGULAR = {"velocities": "velocity", "accelerations": "acceleration"}
+
+
+def count_mismatch_message(label: str, what: str, spec, found: Sequence[str],
+                           positions: Sequence[str]) -> str:
+    """The error for a `what` option (``"velocities"``) that selects a number of columns other
+    than the positions': the columns it matched, grouped, and a pattern that matches one per
+    position when the log has such a group (``re:qd_\\d+`` among qd_0.. and qdd_0..)."""
+    spec_text = spec.pattern if isinstance(spec, re.Pattern) else spec
+    kinds = _indexed_kinds(found)
+    groups = ", ".join(_span(v) for v in kinds.values())
+    message = (f"{label}: {option_hint(what, spec_text)} matched {len(found)} columns "
+               f"({groups}) for {len(positions)} positions ({_span(positions)}); "
+               f"one {_SINGULAR[what]} column per position is needed")
+    fits = [stem for stem, v in kinds.items() if len(v) == len(positions)]
+    if not fits:
+        return f"{message}: choose them with {option_hint(what, 'PATTERN')}"
+    literal = str(spec_text).rstrip("*?[")
+    stem = max(fits, key=lambda k: difflib.SequenceMatcher(None, literal, k).ratio())
+    regex = "re:" + re.escape(stem) + r"\d+"
+    return (f"{message}: {regex} matches {len(positions)} ({_span(kinds[stem])}): "
+            f"{option_hint(what, regex)}")
+
+
+#: The names a log's recorded velocities and accelerations usually have, by the positions'
+#: stem: ``q_0..`` → ``qd_0..``, ``qdd_0..`` (ftdrake's own, :mod:`~ftdrake.conventions`).
+_DERIVATIVE_STEMS = {"velocities": (QD,), "accelerations": (QDD,)}
+
+
+def recorded_derivatives(columns: Sequence[str], positions: Sequence[str]) -> dict:
+    """{``"velocities"``/``"accelerations"``: (regex option, names)} for the derivatives a table
+    records under the usual names of its `positions` (one column per position, same index)."""
+    kinds = _indexed_kinds(positions)
+    if len(kinds) != 1:
+        return {}
+    stem, = kinds
+    if not stem.startswith(Q):
+        return {}
+    indices = [p[len(stem):] for p in positions]
+    found = {}
+    for what, stems in _DERIVATIVE_STEMS.items():
+        for other in stems:
+            names = [other + stem[len(Q):] + i for i in indices]
+            if all(n in columns for n in names):
+                found[what] = ("re:" + re.escape(other + stem[len(Q):]) + r"\d+", names)
+                break
+    return found
 
 
 _TIME_NAMES = ("t", "time", "times", "timestamp", "timestamps", "stamp", "time_s", "sec",
@@ -307,11 +371,10 @@ def read_table(
     """
     frame, label, cols, selected = _select_columns(
         source, label, positions, velocities, accelerations, targets, temperature)
-    n = len(selected["positions"])
-    for what in ("velocities", "accelerations"):
-        if what in selected and len(selected[what]) != n:
-            raise LogError(f"{label}: {len(selected[what])} {what} columns "
-                           f"{selected[what]} for {n} positions {selected['positions']}")
+    for what, spec in (("velocities", velocities), ("accelerations", accelerations)):
+        if what in selected and len(selected[what]) != len(selected["positions"]):
+            raise LogError(count_mismatch_message(label, what, spec, selected[what],
+                                                  selected["positions"]))
 
     t0 = 0.0
     if time is None:

@@ -191,6 +191,20 @@ def _short_segments_message(source, short, n_segments, polyorder) -> str:
             f"); {option_hint('sg_polyorder', lowest)} fits every segment with that order")
 
 
+def velocities_from_positions(t, q, source: str, *, sg_window: float = 0.1,
+                              sg_polyorder: int = 4, gap_factor: float = 3.0) -> np.ndarray:
+    """q̇ (N, n) rad/s from q (N, n) rad at strictly increasing times `t` (s), as every
+    reader computes missing velocities (:func:`assemble_log`): Savitzky–Golay, separately
+    between gaps (reported, as are segments too short for the order)."""
+    t, q = np.asarray(t, float), np.asarray(q, float).reshape(len(t), -1)
+    breaks = _gaps(t, gap_factor, source)
+    short = []
+    qd = _piecewise_derivative(q, t, breaks, 1, sg_window, sg_polyorder, short)
+    if short:
+        warn_log(_short_segments_message(source, short, len(breaks) + 1, sg_polyorder))
+    return qd
+
+
 def _piecewise_causal(qd, t, breaks, cutoff_hz):
     """The loop's causal q̈ estimate from `qd`, restarted (q̈ = 0) after every gap."""
     dt = float(np.median(np.diff(t)))
@@ -345,3 +359,44 @@ def check_joint_units(q, qd, qd_from_q, joint_names, source):
             f"or compute them from q ({option_hint('velocities', None)}), or pass "
             f"{option_hint('check_units', False)}"
         )
+
+
+# --- A uniform time grid ----------------------------------------------------------------------
+
+
+def resample_uniform(frame: pd.DataFrame, time: str = TIME,
+                     period: float | None = None) -> pd.DataFrame:
+    """`frame` (a table with a strictly increasing time column `time`, s) on the uniform grid
+    t₀ + k·`period` (default: the median time step) that spans it: numeric columns linearly
+    interpolated; 0/1 columns (flags, one-row events such as ``tared``) and any others take
+    the nearest row's value, and every row flagged 1 flags its nearest grid row, so that no
+    event is lost. ``attrs`` are kept. Raises LogError for fewer than two rows or times that
+    do not increase."""
+    t = frame[time].to_numpy(dtype=float)
+    if len(t) < 2 or not np.all(np.diff(t) > 0):
+        raise LogError(f"resampling needs a time column {time!r} that increases strictly, with "
+                       "at least two rows")
+    period = float(np.median(np.diff(t))) if period is None else float(period)
+    grid = t[0] + period * np.arange(int(np.floor((t[-1] - t[0]) / period + 1e-9)) + 1)
+    nearest = np.clip(np.searchsorted(t, grid), 1, len(t) - 1)
+    nearest -= (grid - t[nearest - 1]) < (t[nearest] - grid)
+    out = {}
+    for name in frame.columns:
+        values = frame[name].to_numpy()
+        flag = pd.api.types.is_numeric_dtype(values) and np.isin(values, (0, 1)).all()
+        if name == time:
+            out[name] = grid
+        elif flag:
+            kept = values[nearest].copy()
+            onto = np.clip(np.rint((t[values == 1] - t[0]) / period).astype(int), 0,
+                           len(grid) - 1)
+            kept[onto] = 1
+            out[name] = kept
+        elif pd.api.types.is_numeric_dtype(values) and not pd.api.types.is_bool_dtype(values):
+            out[name] = np.interp(grid, t, values.astype(float))
+        else:
+            out[name] = values[nearest]
+    resampled = pd.DataFrame(out)
+    resampled.attrs = dict(frame.attrs)
+    return resampled
+

@@ -46,6 +46,8 @@ from .logs import (
     read_frame,
     read_static_table,
     read_table,
+    recorded_derivatives,
+    warn_log,
 )
 
 TABLE_DEFAULTS = {"positions": f"{Q}_*", "targets": f"{MEASURED}_*", "time": TIME}
@@ -332,10 +334,30 @@ def _table_data(frame: pd.DataFrame, name: str, options: ReadOptions,
             raise LogError(f"{name}: only {rows} usable rows in {len(ids)} trajectories; "
                            f"need at least {MIN_ROWS}")
     data = _stack(logs, ids, name)
+    _note_recorded_derivatives(data.joint_names, frame.columns, options, name)
     data.rows["in_file"] = len(frame)
     data.scenario_yaml = scenario
     data.options = dc.replace(options, acceleration_cutoff_hz=cutoff)
     return data
+
+
+def _note_recorded_derivatives(positions, columns, options: ReadOptions, label: str) -> None:
+    """A LogWarning when the table records velocities or accelerations under the usual names
+    (qd_0.., qdd_0..) that are computed from q instead because no option chose them (the
+    option ``derive`` chooses computing them, and silences this)."""
+    recorded = recorded_derivatives([str(c) for c in columns], positions)
+    unused = {w: v for w, v in recorded.items() if getattr(options, w) is None}
+    if not unused:
+        return
+    how = {"velocities": "Savitzky–Golay derivative of q",
+           "accelerations": ("causal estimate from q̇" if options.qdd_estimate == "causal"
+                             else "Savitzky–Golay second derivative of q")}
+    said = "; ".join(f"{w} {v[1][0]}..{v[1][-1]} (computed instead: {how[w]})"
+                     for w, v in unused.items())
+    use = " ".join(option_hint(w, v[0]) for w, v in unused.items())
+    keep = " ".join(option_hint(w, DERIVED) for w in unused)
+    warn_log(f"{label}: the log records {said}; to use the recorded ones: {use} (to compute "
+             f"them and not see this: {keep})")
 
 
 def _read_static(frame, name: str, options: ReadOptions, cutoff: float) -> TrainingData:

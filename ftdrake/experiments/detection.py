@@ -185,7 +185,8 @@ def model_result(detector: DetectorConfig, rows: list[dict]) -> dict:
     free = [r for r in rows if r["kind"] != "contact" or not r["true_contacts"]]
     presses = [r for r in rows if r["kind"] == "contact" and r["true_contacts"]]
     return {"detector": dc.asdict(detector), **summarise(free, presses),
-            "free_runs": free, "presses": presses, "skipped": skipped}
+            "runs_not_made": len(skipped), "free_runs": free, "presses": presses,
+            "skipped": skipped}
 
 
 def summarise(free: list[dict], presses: list[dict]) -> dict:
@@ -281,8 +282,9 @@ def markdown(results: dict, plan: DetectionPlan) -> str:
              f"{', '.join(f'{b:g}' for b in budgets)} false positive per hour)")
     lines = [title, "",
              ("| model | thresholds | free motion | false positives | presses missed | "
-              "smallest force detected (and every larger one) | worst delay, presses ≥ 5 N |"),
-             "| --- | --- | --- | --- | --- | --- | --- |"]
+              "smallest force detected (and every larger one) | worst delay, presses ≥ 5 N | "
+              "runs not made |"),
+             "| --- | --- | --- | --- | --- | --- | --- | --- |"]
     for name, r in results.items():
         d = r["detector"]
         delay = r["max_delay_s_presses_from_5n"]
@@ -292,7 +294,8 @@ def markdown(results: dict, plan: DetectionPlan) -> str:
             f"| {r['free_motion_s'] / 60:.1f} min | {r['false_positives']} "
             f"| {r['missed']} of {r['press_count']} "
             f"| {'–' if smallest is None else f'{smallest:.2f} N'} "
-            f"| {'–' if delay is None else f'{delay * 1000:.0f} ms'} |")
+            f"| {'–' if delay is None else f'{delay * 1000:.0f} ms'} "
+            f"| {_not_made(r)} |")
     for name, r in results.items():
         for run in r.get("skipped", []):
             lines.append(f"\n{name}: run not made ({run['kind']}, {run.get('surface', '')} "
@@ -306,6 +309,16 @@ def markdown(results: dict, plan: DetectionPlan) -> str:
                          f"| {p['force_n']:.2f} N | {'yes' if p['detected'] else '**no**'} "
                          f"| {delay} |")
     return "\n".join(lines) + "\n" + domain_markdown(results)
+
+
+def _not_made(result: dict) -> str:
+    """The runs of a model's plan that could not be made, as the table's cell: how many and
+    of which kinds (the reasons follow the table); 0 when all were made."""
+    skipped = result.get("skipped", [])
+    if not skipped:
+        return "0"
+    kinds = sorted({f"{r['kind']} {r.get('surface', '')}".strip() for r in skipped})
+    return f"**{len(skipped)}** ({', '.join(kinds)})"
 
 
 def plot_detection_rate(results: dict, path: Path) -> None:

@@ -52,6 +52,7 @@ from __future__ import annotations
 
 import dataclasses as dc
 import math
+import re
 from pathlib import Path
 
 import numpy as np
@@ -67,7 +68,10 @@ from ..data.logs import (
     missing_time_message,
     option_hint,
     read_frame,
+    warn_log,
 )
+from ..data.robot_log import velocities_from_positions
+from ..data.training import DERIVED
 from ..errors import LogError, spelled
 from ..runtime.chain import CompensationChain
 from .recorder import UpdateRecorder, output_columns
@@ -113,7 +117,7 @@ def replay(model, log, config: ChainConfig | None = None, *, pairing: str = "row
         raise LogError(f"replay: pairing must be one of {PAIRINGS}, got {pairing!r}")
     if view not in VIEWS:
         raise LogError(f"replay: view must be one of {VIEWS}, got {view!r}")
-    frame = log if isinstance(log, pd.DataFrame) else read_replay_log(log)
+    frame = to_replay_layout(log if isinstance(log, pd.DataFrame) else read_replay_log(log))
     config = chain_config_of(frame, config)
     n = int(model.n_joints_)
     inputs = replay_inputs(frame, n, wrench=wrench,
@@ -167,8 +171,8 @@ def replay_inputs(frame: pd.DataFrame, n: int, *, wrench: str = col.MEASURED,
     needed = {col.TIME: "the sample time in s",
               **{c: "joint positions (rad): the robot's joint-state stream"
                  for c in col.joint_columns(col.Q, n)},
-              **{c: "joint velocities (rad/s): the robot's joint-state stream (a log without "
-                 "them: read it with ftdrake's readers, which differentiate q)"
+              **{c: "joint velocities (rad/s): the robot's joint-state stream (replay "
+                 "computes them from q when the log has none)"
                  for c in col.joint_columns(col.QD, n)},
               **{c: "the sensor's reading (N, N·m) from the F/T stream"
                  for c in col.wrench_columns(wrench)}}
@@ -204,23 +208,28 @@ def to_replay_layout(frame: pd.DataFrame, *, positions=None, velocities=None, ta
     ``re:`` patterns; :func:`~ftdrake.data.logs.expand_columns`) renamed into the replay
     layout: ``t``, ``q_i``, ``qd_i``, ``meas_Fx … meas_Tz``; other columns are kept. The
     defaults are that layout's own (``t``, ``q_*``, ``qd_*``, ``meas_*``); with none given
-    `frame` is returned as it is. Errors name the option (``--positions`` …) that fixes them."""
-    if positions is None and velocities is None and targets is None and time is None:
-        return frame
+    `frame` is returned as it is. Velocities ``"derive"``, or none given on a log with
+    positions and without ``qd_*`` columns, are computed from the positions as ``train`` and
+    ``evaluate`` compute them (:func:`~ftdrake.data.robot_log.velocities_from_positions`; a
+    LogWarning says so).
+    Errors name the option (``--positions`` …) that fixes them."""
     columns = [str(c) for c in frame.columns]
+    def has(prefix):
+        return any(re.fullmatch(rf"{prefix}_\d+", c) for c in columns)
+
+    # Computed when asked for, or when a log with positions has no velocities (a log in
+    # another layout altogether is named by replay_inputs, with every option to choose it).
+    derive = velocities == DERIVED or (velocities is None and not has(col.QD)
+                                       and (positions is not None or has(col.Q)))
+    if not derive and all(v is None for v in (positions, velocities, targets, time)):
+        return frame
     time = time or col.TIME
     if time not in columns:
         raise LogError("replay: " + missing_time_message("the log", time, columns))
-    chosen = {}
-    for what, spec, default in (("positions", positions, f"{col.Q}_*"),
-                                ("velocities", velocities, rf"re:{col.QD}_\d+"),
-                                ("targets", targets, f"{col.MEASURED}_*")):
-        try:
-            chosen[what] = expand_columns(spec or default, columns, f"replay {what}",
-                                          option=what)
-        except LogError as e:
-            raise LogError(f"{e}; choose them with {option_hint(what, 'PATTERN')}") from None
+    chosen = _chosen_columns(columns, positions, velocities, targets, derive)
     n = len(chosen["positions"])
+    if derive:
+        chosen["velocities"] = [f"{col.QD}_{i}" for i in range(n)]  # computed below
     if len(chosen["velocities"]) != n or len(chosen["targets"]) != 6:
         raise LogError(f"replay: {n} positions {chosen['positions']} need as many velocities "
                        f"(got {chosen['velocities']}) and 6 wrench columns (got "
@@ -230,12 +239,51 @@ def to_replay_layout(frame: pd.DataFrame, *, positions=None, velocities=None, ta
                **dict(zip(chosen["positions"], col.joint_columns(col.Q, n), strict=True)),
                **dict(zip(chosen["velocities"], col.joint_columns(col.QD, n), strict=True)),
                **dict(zip(chosen["targets"], col.wrench_columns(col.MEASURED), strict=True))}
-    others = [c for c in columns if c not in renamed and c not in renamed.values()]
-    out = pd.DataFrame({new: frame[old].to_numpy() for old, new in renamed.items()})
-    for c in others:
-        out[c] = frame[c].to_numpy()
+    out = pd.DataFrame({new: frame[old].to_numpy() for old, new in renamed.items()
+                        if not (derive and new.startswith(f"{col.QD}_"))})
+    if derive:
+        qd = _derived_velocities(frame, time, chosen["positions"],
+                                 "the log has no velocity columns" if velocities is None
+                                 else option_hint("velocities", DERIVED))
+        for name, values in zip(col.joint_columns(col.QD, n), qd.T, strict=True):
+            out[name] = values
+    for c in columns:
+        if c not in renamed and c not in out.columns:
+            out[c] = frame[c].to_numpy()
     out.attrs = dict(frame.attrs)
     return out
+
+
+def _chosen_columns(columns, positions, velocities, targets, derive: bool
+                    ) -> dict[str, list[str]]:
+    """{what: the columns chosen} for the positions, targets and (unless `derive`: computed
+    from q) velocities."""
+    chosen = {}
+    for what, spec, default in (("positions", positions, f"{col.Q}_*"),
+                                ("velocities", velocities, rf"re:{col.QD}_\d+"),
+                                ("targets", targets, f"{col.MEASURED}_*")):
+        if what == "velocities" and derive:
+            continue
+        try:
+            chosen[what] = expand_columns(spec or default, columns, f"replay {what}",
+                                          option=what)
+        except LogError as e:
+            raise LogError(f"{e}; choose them with {option_hint(what, 'PATTERN')}") from None
+    return chosen
+
+
+def _derived_velocities(frame: pd.DataFrame, time: str, positions: list[str], why: str
+                        ) -> np.ndarray:
+    """(N, n) q̇ of `positions` computed as the readers compute missing velocities; says so
+    (and `why`)."""
+    t = frame[time].to_numpy(dtype=float)
+    if len(t) < 2 or not np.all(np.diff(t) > 0):
+        raise LogError("replay: the log's time column must increase strictly, with at least "
+                       "two rows (one log at a time: split a dataset by its trajectory column)")
+    warn_log(f"replay: {why}; q̇ computed from {positions[0]}.."
+             f"{positions[-1]} as train and evaluate compute it (Savitzky–Golay, 0.1 s "
+             f"window, order 4; {option_hint('velocities', 'PAT')} chooses recorded ones)")
+    return velocities_from_positions(t, frame[positions].to_numpy(dtype=float), "replay")
 
 
 def read_replay_log(path, *, wrench_topic: str | None = None,

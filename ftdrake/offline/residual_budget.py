@@ -38,6 +38,12 @@ to 1):
   orders; for slow motion the split goes as d : 1/(2π f_c));
 * ``remainder``: what is left — the model's error and the sensor noise.
 
+A share can be negative: the delay and the filter are fitted to all six axes together (and
+the offset and drift with them), so correcting them can make one axis's residual larger while
+the others' shrink; each axis's shares still add up to 1. A negative delay means the wrench
+stream leads the joint states (or a model error that follows the motion's rate reads as a
+lead). :meth:`ResidualBudget.notes` says so in the report.
+
 Delay and filter are told apart only when the motion has content near f_c; for slower motion
 the fit can trade one for the other (the sum of their shares is then still right). A model
 error that follows the wrench's rate (e.g. a payload model fitted on too little motion) also
@@ -58,7 +64,8 @@ from scipy.signal import lfilter
 from .. import conventions as col
 from ..compensation.physics import PhysicsPayloadCompensator
 from ..config import ChainConfig
-from ..errors import LogError
+from ..data.robot_log import resample_uniform
+from ..errors import LogError, spelled
 from .replay import chain_config_of, read_replay_log, replay
 
 SHARES = ("offset", "drift", "delay", "filter", "remainder")
@@ -70,6 +77,9 @@ REST_SPEED = 0.01
 FILTER_MIN_GAIN = 0.05
 #: Rows at rest needed to measure the resting noise from the log itself.
 MIN_REST_ROWS = 200
+#: How far (relative) a time step may stray from the median step for the log to count as
+#: uniformly sampled: the delay and the filter are fitted in whole and fractional samples.
+UNIFORM_RTOL = 0.05
 
 
 @dc.dataclass(frozen=True)
@@ -97,11 +107,33 @@ class ResidualBudget:
         """What is left, in units of the resting noise."""
         return self.remainder_rms / self.noise_std
 
+    def notes(self) -> list[str]:
+        """What negative shares or a negative delay in this budget mean, one sentence each
+        (none when nothing is negative)."""
+        said = []
+        low = [f"{name} {a} {round(float(v), 3):g}" for name in SHARES
+               for a, v in zip(col.WRENCH_AXES, self.shares[name], strict=True)
+               if round(float(v), 3) < 0]
+        if low:
+            said.append(
+                f"negative shares ({', '.join(low)}): correcting that part made that axis's "
+                "in-motion residual larger, not smaller — the delay and the filter are fitted "
+                "to all six axes together (the offset and drift along with them), so an axis "
+                "can lose what the others gain; each axis's shares still add up to 1, and one "
+                "near 0 of either sign is within the fit's scatter")
+        if self.delay_s < 0:
+            said.append(
+                f"delay_s {self.delay_s * 1e3:.3g} ms is negative: the wrench stream leads the "
+                "joint states (delay_s > 0 when the wrench lags), or the model's error follows "
+                "the motion's rate and reads as a lead")
+        return said
+
     def as_dict(self) -> dict:
-        """Plain numbers per axis (for JSON reports)."""
+        """Plain numbers per axis (for JSON reports), and the :meth:`notes` on what negative
+        values mean."""
         def axes(values, digits=4):
-            return dict(zip(col.WRENCH_AXES, np.round(np.asarray(values, float), digits)
-                            .tolist(), strict=True))
+            return dict(zip(col.WRENCH_AXES, (np.round(np.asarray(values, float), digits)
+                                              + 0.0).tolist(), strict=True))  # no −0.0
         return {"noise_std": axes(self.noise_std, 5), "noise_source": self.noise_source,
                 "motion_rms": axes(self.motion_rms, 5),
                 "motion_over_noise": axes(self.motion_over_noise, 2),
@@ -111,13 +143,13 @@ class ResidualBudget:
                 "drift_per_s": axes(self.drift_per_s, 6), "delay_s": self.delay_s,
                 "filter_cutoff_hz": (None if not np.isfinite(self.filter_cutoff_hz)
                                      else round(self.filter_cutoff_hz, 2)),
-                "rows": self.rows}
+                "rows": self.rows, "notes": self.notes()}
 
 
 def residual_budget(model, log, config: ChainConfig | None = None, *,
                     pairing: str = "row", noise_std=None, rest_speed: float = REST_SPEED,
                     max_lag_s: float = 0.05, result: pd.DataFrame | None = None,
-                    **replay_options) -> ResidualBudget:
+                    resample: bool = False, **replay_options) -> ResidualBudget:
     """Replays `log` through the runtime chain of `model` and splits its in-motion residual
     (module docstring).
 
@@ -127,9 +159,15 @@ def residual_budget(model, log, config: ChainConfig | None = None, *,
     `rest_speed` rad/s; each still stretch's own mean removed) when it has at least
     ``MIN_REST_ROWS`` of them, else the chain config sensor's ``sqrt(noise_std² +
     resolution²/12)``. `max_lag_s`: the largest delay tried either way (s). `result`: the
-    replay of `log` when it was run already (``ftdrake replay --budget``).
+    replay of `log` when it was run already (``ftdrake replay --budget``). The log must be
+    sampled uniformly (:func:`check_uniform_sampling`, checked before the replay); `resample`
+    puts it on a uniform grid first (:func:`~ftdrake.data.robot_log.resample_uniform`; a
+    given `result` must then be the replay of the resampled log).
     """
     frame = log if isinstance(log, pd.DataFrame) else read_replay_log(log)
+    if resample:
+        frame = resample_uniform(frame)
+    check_uniform_sampling(frame[col.TIME].to_numpy(float))  # before the replay, which is long
     config = chain_config_of(frame, config)
     if result is None:
         result = replay(model, frame, config, pairing=pairing, **replay_options)
@@ -155,6 +193,28 @@ def residual_budget(model, log, config: ChainConfig | None = None, *,
                       rows={"motion": int(motion.sum()), "rest": int((~moving & settle).sum())})
 
 
+def check_uniform_sampling(t) -> None:
+    """Raises LogError unless every time step of `t` (s) is within ``UNIFORM_RTOL`` of the
+    median step: the message gives the steps' range, how many stray, and the fix (resample
+    onto a uniform grid: ``--resample``, ``resample=True``)."""
+    t = np.asarray(t, float)
+    dt = np.diff(t)
+    period = float(np.median(dt)) if len(dt) else float("nan")
+    if len(dt) and period > 0 and np.all(np.abs(dt - period) <= UNIFORM_RTOL * period):
+        return
+    if not (len(dt) and period > 0 and np.all(dt > 0)):
+        raise LogError("residual_budget: the log's time column must increase (one row per "
+                       "sample; split a dataset by its trajectory column)")
+    stray = int(np.count_nonzero(np.abs(dt - period) > UNIFORM_RTOL * period))
+    raise LogError(
+        f"residual_budget: the log is not sampled uniformly: {stray} of {len(dt)} time steps "
+        f"are more than {UNIFORM_RTOL:.0%} off the median {period * 1e3:.4g} ms (steps "
+        f"{dt.min() * 1e3:.4g}–{dt.max() * 1e3:.4g} ms); the delay and filter are fitted in "
+        "samples of one period. Resample it onto a uniform grid at the median period: "
+        + spelled("residual_budget(..., resample=True) or "
+                  "ftdrake.data.robot_log.resample_uniform(frame)", "--resample"))
+
+
 def decompose(residual, predicted, t, motion, noise_std, *, transform=None,
               max_lag_s: float = 0.05, cutoffs_hz=None) -> ResidualBudget:
     """The budget of :func:`residual_budget` on arrays: `residual` r and `predicted` P (N, 6)
@@ -164,10 +224,8 @@ def decompose(residual, predicted, t, motion, noise_std, *, transform=None,
     sample rate)."""
     r, P = np.asarray(residual, float), np.asarray(predicted, float)
     t, motion = np.asarray(t, float), np.asarray(motion, bool)
+    check_uniform_sampling(t)
     period = float(np.median(np.diff(t)))
-    if not period > 0 or not np.allclose(np.diff(t), period, rtol=0.05, atol=0):
-        raise LogError("residual_budget: the log must be sampled uniformly (one row per "
-                       "sample; split a dataset by its trajectory column)")
     max_lag = max(1, round(max_lag_s / period))
     rows = np.flatnonzero(motion)
     rows = rows[(rows >= max_lag) & (rows < len(t) - max_lag)]

@@ -20,6 +20,7 @@ from __future__ import annotations
 import contextlib
 import contextvars
 import dataclasses as dc
+import difflib
 import hashlib
 import logging
 import warnings
@@ -29,6 +30,7 @@ import numpy as np
 import yaml
 from pydrake.math import RigidTransform
 from pydrake.multibody.plant import MultibodyPlant
+from pydrake.multibody.tree import FrameIndex
 
 from ..assets import offline_parser
 from ..errors import RobotModelError, option_name, spelled
@@ -62,6 +64,8 @@ class RobotDescription:
     package_xmls: tuple[str, ...] = ()
     joints: tuple[str, ...] = ()
     fixed_joints: tuple[tuple[str, float], ...] = ()
+    #: What messages call the model when it is held as text (the file it was read from).
+    name: str | None = dc.field(default=None, compare=False)
 
     def build_plant(self) -> tuple[MultibodyPlant, object]:
         """A finalized kinematics-only plant of the robot and its frame S.
@@ -80,7 +84,8 @@ class RobotDescription:
     @property
     def label(self) -> str:
         """A short name for messages (directives text is not one)."""
-        return model_label(self.model)
+        label = model_label(self.model)
+        return f"{self.name!r} {label}" if self.name and label.startswith("(") else label
 
     def _frame(self, plant, name: str, what: str):
         model, _, frame = name.rpartition("::")
@@ -90,8 +95,35 @@ class RobotDescription:
             return plant.GetFrameByName(frame)
         except RuntimeError:
             raise RobotModelError(
-                f"robot model {self.label} has no {what} named {name!r}"
+                f"robot model {self.label} has no {what} named {name!r}; "
+                f"{frames_closest_first(plant, name)}"
             ) from None
+
+
+def frame_names(plant) -> list[str]:
+    """The frames of `plant` by the names a sensor or base frame is given by: the frame's own
+    name when it is unique in the plant, else ``model::frame`` (Drake's internal
+    ``__model__`` frames and the world left out)."""
+    frames = [plant.get_frame(FrameIndex(i)) for i in range(plant.num_frames())]
+    frames = [f for f in frames if not f.name().startswith("__") and f.name() != "world"]
+    counts: dict[str, int] = {}
+    for f in frames:
+        counts[f.name()] = counts.get(f.name(), 0) + 1
+    return [f.name() if counts[f.name()] == 1
+            else f"{plant.GetModelInstanceName(f.model_instance())}::{f.name()}" for f in frames]
+
+
+def frames_closest_first(plant, name: str, shown: int = 12,
+                         heading: str | None = None) -> str:
+    """``"its frames, closest to NAME first: a, b, …"``: the frames of `plant`, those most
+    like `name` first (difflib's ratio), at most `shown` of them; `heading` replaces the words
+    before the colon."""
+    names = frame_names(plant)
+    ranked = sorted(names, key=lambda n: -difflib.SequenceMatcher(
+        None, name.lower(), n.lower()).ratio())
+    more = f", … ({len(ranked) - shown} more)" if len(ranked) > shown else ""
+    heading = heading or f"its frames, closest to {name!r} first"
+    return f"{heading}: {', '.join(ranked[:shown])}{more}"
 
 
 def arm_directives(arm: str, tool: str, arm_base_frame: str, flange_frame: str,

@@ -242,30 +242,81 @@ def study_motion(duration: float, seed: int) -> PiecewisePolynomial:
 # ----------------------------------------------------------------------------------------------
 # The contact scenario.
 # ----------------------------------------------------------------------------------------------
-def _contact(config, depth, home_q, robot):
-    """The contact motion, reaching `depth` m into the target surface (< 0: above it)."""
+#: The contact motion's rest-to-rest moves (s): fast to 5 cm off the surface, slowly to 5 mm
+#: off it, then press; after the press up and home. A move whose joints would exceed their
+#: speed or acceleration limit in this time takes longer (:func:`_move_durations`).
+_MOVES_S = {"approach": 2.0, "descend": 1.0, "touch": 1.0, "ascend": 1.5, "back": 1.5}
+#: Peak |q̇|·T/Δq and |q̈|·T²/Δq of a min-jerk move of Δq in T (15/8 and 10/√3).
+_MIN_JERK_PEAK_SPEED, _MIN_JERK_PEAK_ACCELERATION = 1.875, 10 / np.sqrt(3)
+#: Headroom of a move's duration over the min-jerk bound: the spline through its samples
+#: overshoots the analytic peaks a little.
+_MOVE_MARGIN = 1.02
+
+
+def _contact(config, depth, home_q, robot, limits=None):
+    """The contact motion, reaching `depth` m into the target surface (< 0: above it). With
+    `limits`, each move lasts long enough to stay within the joints' speed and acceleration
+    limits (the free motion before it gives up the time); TrajectoryError when that leaves
+    less than 2 s of free motion."""
     hover, near, press = robot.press_poses(config.contact_target, depth, home_q)
-    # Fast to 5 cm off the surface, slowly to 5 mm off it, then press: a careful approach.
-    approach, descend, touch, ascend, back = 2.0, 1.0, 1.0, 1.5, 1.5
-    fixed = approach + descend + touch + config.press_duration_s + ascend + back
+    waypoints = np.array([home_q, home_q, hover, near, press, press, hover, home_q])
+    moves = _move_durations(waypoints, limits)
+    for _ in range(4):  # lengthen the moves until the spline through them is within limits
+        traj = _contact_spline(config, home_q, waypoints, moves)
+        if limits is None or _moves_within(traj, limits):
+            break
+        moves = {k: v * 1.05 for k, v in moves.items()}
+    return traj  # make_trajectory checks its limits
+
+
+def _move_durations(waypoints, limits) -> dict:
+    """Each move's duration: the default, or longer where its min-jerk profile would exceed
+    a joint's speed or acceleration limit (with :data:`_MOVE_MARGIN`)."""
+    moves = dict(_MOVES_S)
+    if limits is None:
+        return moves
+    # waypoints: home, home, hover, near, press, press, hover, home; the press is not a move.
+    steps = {"approach": (1, 2), "descend": (2, 3), "touch": (3, 4), "ascend": (5, 6),
+             "back": (6, 7)}
+    for name, (a, b) in steps.items():
+        dq = np.abs(waypoints[b] - waypoints[a])
+        needed = max(float(np.max(_MIN_JERK_PEAK_SPEED * dq / limits.velocity)),
+                     float(np.max(np.sqrt(_MIN_JERK_PEAK_ACCELERATION * dq
+                                          / limits.acceleration))))
+        moves[name] = max(moves[name], _MOVE_MARGIN * needed)
+    return moves
+
+
+def _moves_within(traj, limits) -> bool:
+    try:
+        check_limits(traj, limits)
+        return True
+    except TrajectoryError:
+        return False
+
+
+def _contact_spline(config, home_q, waypoints, moves):
+    fixed = (moves["approach"] + moves["descend"] + moves["touch"] + config.press_duration_s
+             + moves["ascend"] + moves["back"])
     free = config.duration_s - fixed
     if free < 2.0:
         raise TrajectoryError(
             f"trajectory.duration_s: {config.duration_s} s leaves {free:.1f} s of free motion "
-            f"before the press; need at least {fixed + 2.0:.1f} s"
+            f"before the press (its moves take {fixed - config.press_duration_s:.1f} s within "
+            f"the joints' limits); need at least {fixed + 2.0:.1f} s"
         )
     rng = np.random.default_rng(config.seed)
     # Short free phases fade in and out faster, so their amplitude shrinks with (free / 4 s)².
     amplitude = 0.5 * _REFERENCE_AMPLITUDE[: len(home_q)] * min(1.0, (free / 4.0) ** 2)
     wiggle = _fourier(free, home_q, amplitude, 0.15, 2, rng)
-    times = np.cumsum([0, free, approach, descend, touch, config.press_duration_s, ascend, back])
-    waypoints = np.array([home_q, home_q, hover, near, press, press, hover, home_q])
+    times = np.cumsum([0, free, moves["approach"], moves["descend"], moves["touch"],
+                       config.press_duration_s, moves["ascend"], moves["back"]])
     path = _min_jerk_path(times[1:], waypoints[1:])
 
     def q(t):
         return wiggle(t) if t < free else path(t)
 
-    return _spline(q, config.duration_s)  # make_trajectory checks its limits
+    return _spline(q, config.duration_s)
 
 
 class RobotGeometry:

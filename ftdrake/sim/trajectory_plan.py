@@ -46,7 +46,7 @@ def make_trajectory(config: TrajectoryConfig, home_q, limits: JointLimits, robot
         if robot is None:
             raise TrajectoryError(f"the {config.kind} kind needs the robot's geometry for IK")
         depth = config.press_depth_m if config.kind == "contact" else -config.rehearsal_height_m
-        traj = _contact(config, depth, home_q, robot)
+        traj = _contact(config, depth, home_q, robot, limits)
     elif config.kind == "task_covering":
         traj = task_covering(config, home_q, limits, robot)
         if not (_within_limits(traj, limits, config.speed_fraction)

@@ -20,13 +20,14 @@ import pandas as pd
 from sklearn.base import clone
 
 from ..compensation import registry
-from ..compensation.build import RobotOptions, is_wrench
+from ..compensation.build import BUILTIN_ROBOT, RobotOptions, is_wrench
 from ..compensation.calibration import static_table_hint
 from ..compensation.domain import MIN_GROUPS
 from ..compensation.domain_calibrated import DomainCalibratedHybrid
 from ..compensation.features import check_feature_set
 from ..compensation.hybrid import HybridCompensator
 from ..compensation.persistence import save_model
+from ..compensation.robot_file import check_robot_frames
 from ..compensation.tuning import segment_groups, tune
 from ..conventions import WRENCH_UNITS
 from ..data.stream_delay import align_training_data, estimate_training_delay
@@ -89,6 +90,9 @@ def train(data, options: TrainOptions | None = None, *, progress: Say | None = N
     """
     options = dc.replace(options, **fields) if options is not None else TrainOptions(**fields)
     say = progress or _silent
+    if options.robot and options.robot != BUILTIN_ROBOT and options.sensor_frame:
+        # Frames are checked before the data is read: a long read would be thrown away.
+        check_robot_frames(options.robot, options.sensor_frame, options.base_frame)
     source = data
     data = _read(source, options, say, warn)
     kind, estimator = _estimator(options, data, say)
