@@ -213,14 +213,14 @@ def small_model(tmp_path):
 
 def test_a_jittering_log_is_refused_before_the_replay_with_the_tolerance_and_the_fix(
         tmp_path, capsys, monkeypatch):
-    import ftdrake.cli.replay as replay_cli
+    import ftdrake.offline.replay as replay_module
     import ftdrake.offline.residual_budget as budget_module
 
     def never(*_, **__):
         raise AssertionError("replayed a log the budget refuses")
 
     monkeypatch.setattr(budget_module, "replay", never)
-    monkeypatch.setattr(replay_cli, "replay", never)
+    monkeypatch.setattr(replay_module, "replay", never)  # the command imports it when it runs
     frame = jittering_log()
     model, path = small_model(tmp_path)
     message = (r"residual_budget: the log is not sampled uniformly: \d+ of 1499 time steps are "
