@@ -24,6 +24,8 @@ The sections, one module each:
   :class:`DetectorConfig`, :class:`PayloadChangeConfig`.
 * :mod:`.transmission` — compliant joints (motor, gearbox spring and damper):
   :class:`TransmissionConfig`, off by default.
+* :mod:`.encoders` — the joint encoders' zero offsets and gravity sag:
+  :class:`EncoderConfig`, off by default.
 * :mod:`.contour` — the hole-cutting task and its tool-side measurements (the two-part
   feedforward experiment).
 * :mod:`.scenario` — :class:`ScenarioConfig`, the root.
@@ -31,6 +33,7 @@ The sections, one module each:
 """
 
 from ..errors import ConfigError
+from .encoders import EncoderConfig
 from .files import default_scenario_path, dump_config, load_config, parse_config, save_config
 from .plant import CableConfig, ControllerConfig, FrictionConfig, ModelsConfig
 from .runtime import (
@@ -56,6 +59,7 @@ __all__ = [
     "ConfigError",
     "ControllerConfig",
     "DetectorConfig",
+    "EncoderConfig",
     "EventsConfig",
     "FrictionConfig",
     "ModelsConfig",
