@@ -10,8 +10,13 @@ import pytest
 from scipy.signal import lfilter
 from scipy.spatial.transform import Rotation
 
+from ftdrake import RandomForestCompensator
 from ftdrake.compensation.joint_identifiability import gravity_torques
-from ftdrake.compensation.joint_offsets import HELD_OUT_GAIN, identify_joint_offsets
+from ftdrake.compensation.joint_offsets import (
+    HELD_OUT_GAIN,
+    identify_joint_offsets,
+    kinematics_budget,
+)
 from ftdrake.compensation.payload_identification import full_layout
 from ftdrake.compensation.physics import PhysicsPayloadCompensator
 from ftdrake.errors import ConfigError
@@ -168,9 +173,11 @@ def test_standard_errors_match_the_scatter_over_seeds_with_correlated_rows():
     assert np.all((ratio > 0.5) & (ratio < 2.0)), ratio
 
 
-def test_dynamic_rows_recover_offsets_with_the_inertia():
+def dynamic_rows(seed, offsets):
+    """A smooth motion of every joint ([q, q̇, q̈] as the encoders read them) and the readings
+    of a payload with inertia turned by the true angles."""
     model = PhysicsPayloadCompensator(mode="dynamic")
-    rng = np.random.default_rng(9)
+    rng = np.random.default_rng(seed)
     t = np.arange(1500)[:, None] * 0.004
     w = rng.uniform(0.3, 1.0, (1, 7)) * 2 * np.pi
     q = HOME + 0.6 * SPREAD * np.sin(w * t)
@@ -179,10 +186,37 @@ def test_dynamic_rows_recover_offsets_with_the_inertia():
     theta = np.r_[PAYLOAD, 0.004, 0.0, 0.0, 0.005, 0.0, 0.003, BIAS]
     Y = model.regressor(X_true) @ theta + rng.standard_normal((len(t), 6)) * SIGMA
     X = X_true.copy()
-    X[:, :7] -= INJECTED
+    X[:, :7] -= offsets
+    return model, X, Y
+
+
+def test_dynamic_rows_recover_offsets_with_the_inertia():
+    model, X, Y = dynamic_rows(9, INJECTED)
     dut = identify_joint_offsets(X, Y, model, include="all")
     for name, i in (("joint_l", 1), ("joint_b", 5)):
         assert abs(dut.offsets_deg[name] - np.degrees(INJECTED[i])) <= 0.05, dut.summary()
+
+
+def test_the_budgets_kinematics_line_is_what_the_offsets_remove():
+    _, X, Y = dynamic_rows(10, INJECTED)
+    fitted = PhysicsPayloadCompensator(mode="dynamic", identify_mounting=True).fit(X, Y)
+    line = kinematics_budget(fitted, X, Y)
+    assert set(line["offsets_deg"]) == {"joint_l", "joint_b"}
+    assert line["not_identifiable"] == ["joint_s", "joint_t"]
+    # Independently: the payload model refitted on the corrected angles leaves the noise.
+    X_fixed = X.copy()
+    X_fixed[:, :7] += np.radians([0, line["offsets_deg"]["joint_l"], 0, 0, 0,
+                                  line["offsets_deg"]["joint_b"], 0])
+    before = np.mean((Y - fitted.predict(X)) ** 2, axis=0)
+    refit = PhysicsPayloadCompensator(mode="dynamic", identify_mounting=True).fit(X_fixed, Y)
+    after = np.mean((Y - refit.predict(X_fixed)) ** 2, axis=0)
+    np.testing.assert_allclose(list(line["share"].values()), 1 - after / before, atol=0.01)
+    assert min(line["share"].values()) > 0.5
+    _, X, Y = dynamic_rows(11, np.zeros(7))
+    line = kinematics_budget(PhysicsPayloadCompensator(mode="dynamic").fit(X, Y), X, Y)
+    assert line["offsets_deg"] == {} and max(line["share"].values()) == 0.0
+    forest = RandomForestCompensator(features="q", n_estimators=2).fit(X, Y)
+    assert kinematics_budget(forest, X, Y) is None
 
 
 def test_bad_input_is_named():

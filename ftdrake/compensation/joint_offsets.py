@@ -57,6 +57,7 @@ import dataclasses as dc
 import numpy as np
 from scipy.optimize import least_squares
 from scipy.spatial.transform import Rotation
+from threadpoolctl import threadpool_limits
 
 from ..conventions import WRENCH_AXES
 from ..errors import ConfigError
@@ -71,7 +72,7 @@ from .payload_identification import BIASES, full_layout
 from .regression import correlated_variance_ratio
 
 __all__ = ["HELD_OUT_FOLDS", "HELD_OUT_GAIN", "INCLUDE", "JointOffsets",
-           "identify_joint_offsets"]
+           "identify_joint_offsets", "kinematics_budget"]
 
 #: Folds of the cross-validation that chooses the offsets (blocks of consecutive rows).
 HELD_OUT_FOLDS = 5
@@ -81,6 +82,8 @@ HELD_OUT_GAIN = 0.95
 #: How the offsets to fit are chosen: by held-out error, every identifiable joint's, or none
 #: (the payload, biases and mounting alone: the comparison).
 INCLUDE = ("auto", "all", "none")
+#: Rows at most the budget's kinematics line identifies the offsets on (every k-th row).
+BUDGET_ROWS = 1000
 #: Step (rad) of the central differences of the readings in an offset or rotation angle.
 STEP = 1e-6
 
@@ -205,6 +208,12 @@ def identify_joint_offsets(X, Y, model=None, *, include="auto",
     """
     if include not in INCLUDE:
         raise ConfigError(f"include must be one of {list(INCLUDE)}, got {include!r}")
+    # Hundreds of small products (rows × p): a BLAS thread pool costs more than it gains.
+    with threadpool_limits(limits=1):
+        return _identify(X, Y, model, include, folds)
+
+
+def _identify(X, Y, model, include, folds) -> JointOffsets:
     problem = OffsetProblem.build(X, Y, model)
     base = problem.fit(())
     status = analyse(problem, base)
@@ -235,6 +244,36 @@ def identify_joint_offsets(X, Y, model=None, *, include="auto",
         candidate_std_errors_deg={names[j]: float(np.degrees(s))
                                   for j, s in zip(candidates, cand_se, strict=True)},
         standard_error_factor=factor, rows=len(problem.Y), choice=choice)
+
+
+def kinematics_budget(model, X, Y) -> dict | None:
+    """``replay --budget``'s "kinematics" line: per axis, the share of the in-motion mean
+    square of the payload model's residual (its physics part refitted on these rows) that
+    joint zero offsets remove, the offsets kept by held-out error (``include="auto"``), and
+    the joints the rows cannot determine. `X`: the model's rows ``[q, q̇, q̈]`` (and the
+    temperature, whose fitted drift is taken off `Y` first) in motion; `Y` the readings
+    there. At most :data:`BUDGET_ROWS` rows are used (every k-th). None for a model without
+    a physics part."""
+    from .physics import PhysicsPayloadCompensator  # noqa: PLC0415 (cycle)
+
+    physics = getattr(model, "physics_", model)
+    if not isinstance(physics, PhysicsPayloadCompensator):
+        return None
+    X, Y = np.asarray(X, float), np.asarray(Y, float)
+    if getattr(physics, "temperature_in_", False):
+        if getattr(physics, "temperature_reference_", None) is not None:
+            Y = Y - np.outer(X[:, -1] - physics.temperature_reference_,
+                             physics.temperature_coefficients_)
+        X = X[:, :-1]
+    step = max(1, len(X) // BUDGET_ROWS)
+    result = identify_joint_offsets(X[::step], Y[::step], physics)
+    share = 1.0 - result.residual_rms ** 2 / np.maximum(result.residual_rms_without ** 2,
+                                                        1e-300)
+    return {"share": dict(zip(WRENCH_AXES, np.round(share, 3).tolist(), strict=True)),
+            "offsets_deg": {k: round(v, 4) for k, v in result.offsets_deg.items()},
+            "not_identifiable": sorted(result.unidentifiable),
+            "meaning": ("share of the in-motion mean square of the payload model's residual "
+                        "(refitted on these rows) that joint zero offsets remove")}
 
 
 def _full_phi(theta, phys) -> np.ndarray:
