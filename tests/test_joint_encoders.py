@@ -149,3 +149,22 @@ def test_offsets_injected_in_the_rig_are_recovered_from_its_wrench():
     for name in ("joint_e", "joint_u", "joint_r"):
         assert abs(dut.offsets_deg[name]) <= 0.05, dut.summary()
     assert set(dut.unidentifiable) == {"joint_s", "joint_t"}
+
+
+def test_a_sag_in_the_rig_is_reported_as_offset_or_sag():
+    """A compliance on the shoulder pitch L alone, whose gravity torque keeps its sign: the
+    identification finds an 'offset' on L alone, names it as offset or sag, and its value is
+    a sag the torques over the rows give (−τ/k, within their range)."""
+    config = ScenarioConfig()
+    config.cable.enabled = False
+    k = 1000.0
+    config.encoders = EncoderConfig(enabled=True, sag_stiffness=[0.0, k, 0, 0, 0, 0, 0])
+    station = build_station(config.validate(), trajectory=held_poses(config))
+    log = simulate(station, progress=False).log
+    X = np.hstack([log[col.joint_columns(p, 7)].to_numpy() for p in (col.Q, col.QD, col.QDD)])
+    Y = log[col.wrench_columns(col.IDEAL)].to_numpy()
+    dut = identify_joint_offsets(X[::10], Y[::10], PhysicsPayloadCompensator(mode="dynamic"))
+    assert dut.included == ("joint_l",), dut.summary()
+    assert "keeps its sign" in dut.confounded_with_sag["joint_l"]
+    low, high = dut.identifiability.gravity_torque_range["joint_l"]
+    assert np.degrees(-high / k) <= dut.offsets_deg["joint_l"] <= np.degrees(-low / k)
