@@ -249,11 +249,11 @@ def _identify(X, Y, model, include, folds) -> JointOffsets:
 def kinematics_budget(model, X, Y) -> dict | None:
     """``replay --budget``'s "kinematics" line: per axis, the share of the in-motion mean
     square of the payload model's residual (its physics part refitted on these rows) that
-    joint zero offsets remove, the offsets kept by held-out error (``include="auto"``), and
-    the joints the rows cannot determine. `X`: the model's rows ``[q, q̇, q̈]`` (and the
-    temperature, whose fitted drift is taken off `Y` first) in motion; `Y` the readings
-    there. At most :data:`BUDGET_ROWS` rows are used (every k-th). None for a model without
-    a physics part."""
+    joint zero offsets remove, the offsets kept by held-out error (``include="auto"``) with
+    their standard errors, and the joints the rows cannot determine. `X`: the model's rows
+    ``[q, q̇, q̈]`` (and the temperature, whose fitted drift is taken off `Y` first) in
+    motion; `Y` the readings there. At most :data:`BUDGET_ROWS` rows are used (every k-th).
+    None for a model without a physics part."""
     from .physics import PhysicsPayloadCompensator  # noqa: PLC0415 (cycle)
 
     physics = getattr(model, "physics_", model)
@@ -271,6 +271,7 @@ def kinematics_budget(model, X, Y) -> dict | None:
                                                         1e-300)
     return {"share": dict(zip(WRENCH_AXES, np.round(share, 3).tolist(), strict=True)),
             "offsets_deg": {k: round(v, 4) for k, v in result.offsets_deg.items()},
+            "std_errors_deg": {k: round(v, 4) for k, v in result.std_errors_deg.items()},
             "not_identifiable": sorted(result.unidentifiable),
             "meaning": ("share of the in-motion mean square of the payload model's residual "
                         "(refitted on these rows) that joint zero offsets remove")}
