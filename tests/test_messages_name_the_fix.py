@@ -471,7 +471,7 @@ def test_evaluate_warns_of_a_residual_offset_as_a_bias_or_payload_change(tmp_pat
 def test_train_checks_the_robots_frames_before_reading_data(welded_urdf, tmp_path, capsys,
                                                             monkeypatch):
     """``train`` too: a frame that is not in the robot is named before the data is read."""
-    import ftdrake.training.pipeline as pipeline
+    from ftdrake.training import pipeline
 
     def never(*_args, **_kwargs):
         raise AssertionError("the data was read before the robot's frames were checked")

@@ -81,6 +81,8 @@ def instances():
     config.chain.bias_tracker.track_payload_motion = True  # ... and SensorGravity's motion_S
     config.chain.bias_tracker.payload_change.enabled = True  # the PayloadChangeMonitor inside
     config.controller.adapt_to_payload = True  # PayloadFeedforward
+    config.encoders.enabled = True  # JointEncoders
+    config.encoders.sag_stiffness = [0.0, 1e4, 0.0, 0.0, 0.0, 0.0, 0.0]
     model = temperature_forest()
     feedforward = TimeIndexedFeedforward(np.zeros((10, N)), 0.01)
     station = build_station(config, model, meshcat=Meshcat(), feedforward=feedforward)
@@ -114,7 +116,7 @@ def test_the_walk_finds_the_runtime_and_the_rig():
             "JointStateGravity", "ForceTorqueSensor", "NoisyForceTorqueSensor",
             "SensorGravity", "ToolPush", "ContactTruth", "DiscreteInverseDynamicsController",
             "JointFriction", "LearnedFeedforward", "TimeIndexedFeedforward",
-            "WrenchArrows", "DelayLine", "MotorSide"} <= names
+            "WrenchArrows", "DelayLine", "MotorSide", "JointEncoders"} <= names
 
 
 @pytest.mark.parametrize("cls", SYSTEM_CLASSES, ids=lambda c: c.__name__)

@@ -85,8 +85,8 @@ def test_bad_yaml_names_the_problem(tmp_path, text, message):
     [
         ("sensor: {noise_std: -1.0}",
          r"^--config \S+: scenario\.sensor\.noise_std: must be a non-negative number, got -1\.0$"),
-        ("detector: {force_on: high}",
-         r"^--config \S+: scenario\.detector\.force_on: must be a number, got 'high'$"),
+        ("chain: {detector: {force_on: high}}",
+         r"^--config \S+: scenario\.chain\.detector\.force_on: must be a number, got 'high'$"),
         ("trajectory: {seed: 1.5}", r"scenario\.trajectory\.seed: must be a whole number"),
         ("cable: {enabled: 3}", r"scenario\.cable\.enabled: must be true or false, got 3"),
         ("sensor: {mounting_rpy_deg: 1.0}",

@@ -60,6 +60,7 @@ def _full_scenario():
     config = ScenarioConfig()
     config.events.retare_at_s, config.events.grasp_at_s, config.events.push_at_s = 1.0, 1.5, 2.0
     config.friction.enabled = True
+    config.encoders.enabled = True
     config.chain.bias_tracker.track_payload = True
     config.chain.bias_tracker.track_payload_motion = True
     return config

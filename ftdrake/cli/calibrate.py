@@ -8,6 +8,7 @@ the sensor's orientation comes from joint angles) a model file ``evaluate`` and 
     ftdrake calibrate --data log.parquet --time-series --robot ftdrake --out cal/
     ftdrake calibrate --data poses.csv --correction full --known-mass 1.5 \
                       --known-com 0.02,0.0067,0.0867 --out cal/   # + gain/cross-talk matrix
+    ftdrake calibrate --data poses.csv --robot ftdrake --joint-offsets auto --out cal/
 
 A table of static poses (one pose and one wrench a row; no time column needed) is calibrated
 by :func:`ftdrake.compensation.calibration.calibrate_table`. A time series (``--time-series``,
@@ -29,11 +30,13 @@ import yaml
 from ..compensation.build import RobotOptions
 from ..compensation.calibration import ORIENTATIONS, calibrate_table, orientation_kind
 from ..compensation.consistent import PayloadPrior
+from ..compensation.joint_offsets import identify_joint_offsets
 from ..compensation.orientation_model import OrientationPayloadCompensator
 from ..compensation.persistence import save_model
 from ..compensation.physics import ExcitationWarning
 from ..compensation.registry import make_estimator
 from ..compensation.robot_file import check_robot_frames
+from ..compensation.static_table import joint_layout
 from ..conventions import MEASURED, TEMPERATURE, TIME, WRENCH_AXES, WRENCH_UNITS
 from ..data.logs import expand_columns, option_spelling, read_frame, time_columns
 from ..data.training import ReadOptions, load_training_data
@@ -94,6 +97,11 @@ def register(subparsers) -> None:
                         "load it is the general linear model of that load); none = gravity + "
                         "bias only; auto = the one that lowers the cross-validated error over "
                         "the poses, else none. Static poses only")
+    p.add_argument("--joint-offsets", choices=("none", "auto", "all"), default="none",
+                   help="also identify the joints' zero offsets from the wrench, with the "
+                        "payload (joint-angle input): auto = those that lower the held-out "
+                        "error, all = every joint the data determine; joints they cannot "
+                        "determine are named with the reason (calibration.yaml: joint_offsets)")
     p.add_argument("--known-mass", type=a.positive_float, metavar="KG",
                    help="the tool's known mass (weighed), for --correction: fixes the force "
                         "gain the mass would otherwise absorb")
@@ -137,6 +145,19 @@ def _print_warnings(caught, category) -> None:
             warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
 
 
+def _table_joint_offsets(args, cal, frame, say):
+    """--joint-offsets on a table of static poses (None with ``none``)."""
+    if args.joint_offsets == "none":
+        return None
+    if cal.model is None:
+        raise ConfigError("--joint-offsets needs joint angles (columns --positions) and a "
+                          "robot (--robot); this table gives the orientation directly")
+    X = joint_layout(frame, list(cal.positions), cal.position_unit)
+    Y = frame[expand_columns(args.targets, list(frame.columns))].to_numpy(dtype=float)
+    temperature = frame[TEMPERATURE].to_numpy(dtype=float) if TEMPERATURE in frame else None
+    return _joint_offsets(args, cal.model, X, Y, temperature, say)
+
+
 def run_calibrate(args) -> int:
     say = _printer(args.quiet)
     prior = _prior(args)
@@ -168,6 +189,7 @@ def run_calibrate(args) -> int:
                 known_payload=known, joints=args.joints, fixed_joints=args.fixed_joints)
     say(cal.summary())
     _print_warnings(caught, ExcitationWarning)
+    offsets = _table_joint_offsets(args, cal, frame, say)
     model, options = cal.model, None
     if model is None:  # the orientation given directly: its columns are the model's input
         model, options = orientation_model(cal, frame, args)
@@ -180,6 +202,7 @@ def run_calibrate(args) -> int:
                 "a known payload per row); the correction is in calibration.yaml (apply it "
                 "to readings: wrench = C·(reading − bias))")
     written = _write_yaml(args.out / "calibration.yaml", {"calibration": cal.to_dict(),
+                                                         **offsets_section(offsets),
                                                          "data": str(args.data)})
     if options is None:
         options = _read_options(args, model.temperature_in_)
@@ -250,12 +273,36 @@ def _time_series(args, prior, temperature: bool) -> int:
     model.fit(data.X, data.Y)
     if not args.quiet:
         print(model.summary())
+    offsets = None
+    if args.joint_offsets != "none":
+        offsets = _joint_offsets(args, model, data.X[:, :3 * data.n_joints], data.Y,
+                                 data.X[:, -1] if temperature else None, _printer(args.quiet))
     table = json.loads(json.dumps(model.identified(), default=float))
     written = _write_yaml(args.out / "calibration.yaml", {"calibration": table,
+                                                         **offsets_section(offsets),
                                                          "data": str(args.data)})
     written.append(_save(model, args, data.n_joints, data.options))
     print("wrote " + ", ".join(str(p) for p in written))
     return 0
+
+
+def _joint_offsets(args, model, X, Y, temperature, say):
+    """The joints' zero offsets of rows X and readings Y with fitted `model`'s robot and mode
+    (:func:`~ftdrake.compensation.joint_offsets.identify_joint_offsets`), printed; the
+    model's zero drift with `temperature` (°C) taken off the readings first."""
+    if temperature is not None and getattr(model, "temperature_reference_", None) is not None:
+        Y = Y - np.outer(temperature - model.temperature_reference_,
+                         model.temperature_coefficients_)
+    result = identify_joint_offsets(X, Y, model, include=args.joint_offsets)
+    say(result.summary())
+    say("note: model.ftd does not apply the joint offsets: add them to the joint angles at "
+        "their source (q_true = q_measured + offset) or recalibrate the encoders")
+    return result
+
+
+def offsets_section(offsets) -> dict:
+    """calibration.yaml's ``joint_offsets`` section ({} without one)."""
+    return {} if offsets is None else {"joint_offsets": offsets.to_dict()}
 
 
 def _write_yaml(path: Path, table: dict) -> list[Path]:

@@ -27,6 +27,8 @@ The sections, one module each:
   ``CompensationChain``, the live stations and ``replay`` are built from.
 * :mod:`.transmission` — compliant joints (motor, gearbox spring and damper):
   :class:`TransmissionConfig`, off by default.
+* :mod:`.encoders` — the joint encoders' zero offsets and gravity sag:
+  :class:`EncoderConfig`, off by default.
 * :mod:`.contour` — the hole-cutting task and its tool-side measurements (the two-part
   feedforward experiment).
 * :mod:`.scenario` — :class:`ScenarioConfig`, the simulation's root (it contains a
@@ -36,6 +38,7 @@ The sections, one module each:
 
 from ..errors import ConfigError
 from .chain import ChainConfig, RobotConfig, SensorStreamConfig
+from .encoders import EncoderConfig
 from .files import (
     ConfigLayoutWarning,
     default_scenario_path,
@@ -71,6 +74,7 @@ __all__ = [
     "ConfigLayoutWarning",
     "ControllerConfig",
     "DetectorConfig",
+    "EncoderConfig",
     "EventsConfig",
     "FrictionConfig",
     "ModelsConfig",

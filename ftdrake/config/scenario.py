@@ -7,6 +7,7 @@ import dataclasses as dc
 from ..errors import ConfigError
 from .chain import ChainConfig
 from .checks import finite, positive, vector
+from .encoders import EncoderConfig
 from .plant import CableConfig, ControllerConfig, FrictionConfig, ModelsConfig
 from .sensor import SensorConfig
 from .task import EventsConfig, TaskConfig, TrajectoryConfig
@@ -36,6 +37,7 @@ class ScenarioConfig:
     events: EventsConfig = dc.field(default_factory=EventsConfig)
     friction: FrictionConfig = dc.field(default_factory=FrictionConfig)
     transmission: TransmissionConfig = dc.field(default_factory=TransmissionConfig)
+    encoders: EncoderConfig = dc.field(default_factory=EncoderConfig)
 
     def validate(self) -> "ScenarioConfig":
         positive(self.time_step, "scenario.time_step")
@@ -65,6 +67,11 @@ class ScenarioConfig:
         self.events.validate("scenario.events")
         self.friction.validate("scenario.friction")
         self.transmission.validate("scenario.transmission")
+        self.encoders.validate("scenario.encoders")
+        if self.encoders.enabled and self.encoders.sags() and self.transmission.enabled:
+            raise ConfigError("scenario.encoders.sag_stiffness: the compliant transmissions "
+                              "(scenario.transmission.enabled) already let the links sag from "
+                              "the motors; set the sag stiffnesses to 0 or [] with them")
         rate = self.sensor.spec().rate_hz
         ratio = 1.0 / (rate * self.time_step)
         if abs(ratio - round(ratio)) > 1e-6 or round(ratio) < 1:

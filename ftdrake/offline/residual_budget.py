@@ -62,6 +62,7 @@ from scipy.optimize import minimize_scalar
 from scipy.signal import lfilter
 
 from .. import conventions as col
+from ..compensation.joint_offsets import kinematics_budget
 from ..compensation.physics import PhysicsPayloadCompensator
 from ..config import ChainConfig
 from ..data.robot_log import resample_uniform
@@ -96,6 +97,10 @@ class ResidualBudget:
     delay_s: float  # the fitted stream delay d (s; > 0: the wrench lags)
     filter_cutoff_hz: float  # the fitted first-order cut-off (inf: no filter found)
     rows: dict  # {"motion": n, "rest": n}
+    #: What joint zero offsets explain of the refitted payload model's in-motion residual
+    #: (:func:`~ftdrake.compensation.joint_offsets.kinematics_budget`), apart from the
+    #: shares; None for a model without a physics part.
+    kinematics: dict | None = None
 
     @property
     def motion_over_noise(self) -> np.ndarray:
@@ -143,13 +148,15 @@ class ResidualBudget:
                 "drift_per_s": axes(self.drift_per_s, 6), "delay_s": self.delay_s,
                 "filter_cutoff_hz": (None if not np.isfinite(self.filter_cutoff_hz)
                                      else round(self.filter_cutoff_hz, 2)),
-                "rows": self.rows, "notes": self.notes()}
+                "rows": self.rows, "notes": self.notes(),
+                **({} if self.kinematics is None else {"kinematics": self.kinematics})}
 
 
 def residual_budget(model, log, config: ChainConfig | None = None, *,
                     pairing: str = "row", noise_std=None, rest_speed: float = REST_SPEED,
                     max_lag_s: float = 0.05, result: pd.DataFrame | None = None,
-                    resample: bool = False, **replay_options) -> ResidualBudget:
+                    resample: bool = False, joint_offsets: bool = True,
+                    **replay_options) -> ResidualBudget:
     """Replays `log` through the runtime chain of `model` and splits its in-motion residual
     (module docstring).
 
@@ -163,6 +170,8 @@ def residual_budget(model, log, config: ChainConfig | None = None, *,
     sampled uniformly (:func:`check_uniform_sampling`, checked before the replay); `resample`
     puts it on a uniform grid first (:func:`~ftdrake.data.robot_log.resample_uniform`; a
     given `result` must then be the replay of the resampled log).
+    `joint_offsets`: also the ``kinematics`` line, for a model with a physics part
+    (:func:`~ftdrake.compensation.joint_offsets.kinematics_budget`).
     """
     frame = log if isinstance(log, pd.DataFrame) else read_replay_log(log)
     if resample:
@@ -189,7 +198,10 @@ def residual_budget(model, log, config: ChainConfig | None = None, *,
     budget = decompose(result[col.wrench_columns(col.WRENCH_CONTACT)].to_numpy(float),
                        predicted, t, motion, noise, transform=transform,
                        max_lag_s=max_lag_s)
-    return dc.replace(budget, noise_source=source,
+    X = _physics_rows(model, frame)
+    kinematics = None if X is None or not joint_offsets else kinematics_budget(
+        model, X[motion], frame[col.wrench_columns(col.MEASURED)].to_numpy(float)[motion])
+    return dc.replace(budget, noise_source=source, kinematics=kinematics,
                       rows={"motion": int(motion.sum()), "rest": int((~moving & settle).sum())})
 
 
@@ -349,6 +361,13 @@ def _motion_prediction(model, frame):
     """The prediction of `model`'s physics part (a hybrid's ``physics_``, a physics model
     itself) from [q, q̇, central-difference q̈] (and the temperature), in the reading's frame;
     None for a model without one."""
+    X = _physics_rows(model, frame)
+    return None if X is None else np.asarray(getattr(model, "physics_", model).predict(X), float)
+
+
+def _physics_rows(model, frame):
+    """[q, q̇, central-difference q̈] (and the temperature) for `model`'s physics part; None
+    for a model without one."""
     physics = getattr(model, "physics_", model)
     if not isinstance(physics, PhysicsPayloadCompensator):
         return None
@@ -359,7 +378,7 @@ def _motion_prediction(model, frame):
               np.gradient(qd, t, axis=0)]
     if getattr(physics, "temperature_in_", False):
         blocks.append(frame[[col.TEMPERATURE]].to_numpy(float))
-    return np.asarray(physics.predict(np.hstack(blocks)), float)
+    return np.hstack(blocks)
 
 
 def _ms(values, rows):

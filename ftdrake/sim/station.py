@@ -36,6 +36,7 @@ from ..offline.recorder import add_output_loggers
 from ..runtime.chain import CompensationChain
 from ..systems.contact_truth import ContactTruth
 from ..systems.controller import DiscreteInverseDynamicsController
+from ..systems.encoders import JointEncoders
 from ..systems.friction import JointFriction, check_explicit_stability
 from ..systems.ft_sensor import ForceTorqueSensor
 from ..systems.noisy_sensor import NoisyForceTorqueSensor
@@ -115,6 +116,9 @@ class Station:
     motor_state_log: VectorLogSink | None = None
     # With controller.adapt_to_payload: the torque for the tracker's payload estimate.
     payload_feedforward: PayloadFeedforward | None = None
+    # With scenario.encoders.enabled: the encoders' reading (offsets, sag) that the
+    # controller, the runtime chain and the state logger get instead of the joint state.
+    encoders: JointEncoders | None = None
 
     @property
     def plant(self) -> MultibodyPlant:
@@ -154,8 +158,10 @@ def build_station(config: ScenarioConfig, compensator=None, *, meshcat=None,
         "trajectory", TrajectorySource(placeholder, output_derivative_order=1))
     vd_source = builder.AddNamedSystem(
         "trajectory_acceleration", TrajectorySource(placeholder.derivative(2)))
-    controller, friction, transmission, payload_ff = _add_control(
+    controller, friction, transmission, payload_ff, encoders = _add_control(
         builder, config, scene, q_source, vd_source, feedforward)
+    joint_state = (plant.get_state_output_port(scene.arm) if encoders is None
+                   else encoders.get_output_port_measured_state())
 
     sensor = builder.AddNamedSystem("ft_sensor", ForceTorqueSensor(plant, scene.sensor_joint))
     builder.Connect(plant.get_reaction_forces_output_port(),
@@ -179,7 +185,7 @@ def build_station(config: ScenarioConfig, compensator=None, *, meshcat=None,
         return LogVectorOutput(port, builder, period)
 
     loggers = Loggers(
-        state=log(plant.get_state_output_port(scene.arm)),
+        state=log(joint_state),
         acceleration=log(plant.get_generalized_acceleration_output_port(scene.arm)),
         ideal=log(sensor.get_output_port_wrench()),
         measured=log(events.reading),
@@ -197,7 +203,8 @@ def build_station(config: ScenarioConfig, compensator=None, *, meshcat=None,
     compensation = arrows = None
     if compensator is not None:
         compensation = _add_compensation(builder, config, compensator, scene, events, period,
-                                         noisy.get_output_port_temperature())
+                                         noisy.get_output_port_temperature(),
+                                         joint_state)
         if payload_ff is not None:  # adaptive computed torque: the tracker's payload
             if not compensation.chain.HasOutputPort("payload"):
                 raise ConfigError("controller.adapt_to_payload: the payload comes from the "
@@ -222,14 +229,15 @@ def build_station(config: ScenarioConfig, compensator=None, *, meshcat=None,
     vd_source.UpdateTrajectory(trajectory.derivative(2))
     return Station(config, diagram, scene, trajectory, controller, sensor, noisy, truth,
                    loggers, compensation, arrows, events, friction, feedforward, feedforward_log,
-                   transmission, motor_state_log, payload_ff)
+                   transmission, motor_state_log, payload_ff, encoders)
 
 
 def _add_control(builder, config: ScenarioConfig, scene: Scene, q_source, vd_source,
                  feedforward):
     """trajectory → controller (→ + feedforward) (→ − joint friction) → the plant's actuation,
     or the motors' with compliant transmissions. Returns the controller, the friction system
-    (None unless ``friction.enabled``) and the motors (None unless ``transmission.enabled``)."""
+    (None unless ``friction.enabled``), the motors (None unless ``transmission.enabled``),
+    the payload feedforward and the encoders (None unless ``encoders.enabled``)."""
     plant = scene.plant
     c = config.controller
     controller = builder.AddNamedSystem(
@@ -250,6 +258,12 @@ def _add_control(builder, config: ScenarioConfig, scene: Scene, q_source, vd_sou
         builder.Connect(transmission.get_output_port_motor_state(),
                         plant.get_desired_state_input_port(scene.arm))
         encoder_state = transmission.get_output_port_motor_state()
+    encoders = None
+    if config.encoders.enabled:  # their zero offsets and gravity sag
+        encoders = builder.AddNamedSystem("joint_encoders",
+                                          JointEncoders(config.encoders, plant, scene.arm))
+        builder.Connect(encoder_state, encoders.get_input_port_state())
+        encoder_state = encoders.get_output_port_measured_state()
     builder.Connect(encoder_state, controller.get_input_port_estimated_state())
     builder.Connect(q_source.get_output_port(), controller.get_input_port_desired_state())
     builder.Connect(vd_source.get_output_port(), controller.get_input_port_desired_acceleration())
@@ -277,7 +291,7 @@ def _add_control(builder, config: ScenarioConfig, scene: Scene, q_source, vd_sou
         builder.Connect(actuation, transmission.get_input_port_motor_torque())
     else:
         builder.Connect(actuation, plant.get_actuation_input_port(scene.arm))
-    return controller, friction, transmission, payload_ff
+    return controller, friction, transmission, payload_ff, encoders
 
 
 def _add_payload_feedforward(builder, config, scene, encoder_state, vd_source, actuation):
@@ -310,7 +324,7 @@ def _add_arrows(builder, meshcat, scene: Scene, events: EventSignals,
 
 
 def _add_compensation(builder, config, model, scene, events: EventSignals, period,
-                      temperature) -> Compensation:
+                      temperature, joint_state) -> Compensation:
     """The runtime chain in the loop: the sensor's reading and the arm's state in; the
     tracker's payload regressor from the plant's own kinematics (SensorGravity)."""
     plant = scene.plant
@@ -318,7 +332,7 @@ def _add_compensation(builder, config, model, scene, events: EventSignals, perio
         model, config.chain_config(), period=period, n_joints=plant.num_positions(scene.arm),
         gravity="input"))
     builder.Connect(events.reading, chain.get_input_port_wrench_measured())
-    builder.Connect(plant.get_state_output_port(scene.arm), chain.get_input_port_joint_state())
+    builder.Connect(joint_state, chain.get_input_port_joint_state())
     if chain.needs_temperature:  # a model trained with the sensor temperature (°C)
         builder.Connect(temperature, chain.get_input_port_temperature())
     if events.tared is not None and chain.HasInputPort("tared"):
