@@ -32,7 +32,7 @@ from ftdrake.compensation.physics import ExcitationWarning
 from ftdrake.config import ScenarioConfig
 from ftdrake.data.dataset import joint_state_layout, wrench_targets
 from ftdrake.experiments import demo
-from ftdrake.runtime.thresholds import chi2_on_for_false_positive_rate
+from ftdrake.offline.thresholds import chi2_on_for_false_positive_rate
 
 AXES = ("Fx", "Fy", "Fz", "Tx", "Ty", "Tz")
 

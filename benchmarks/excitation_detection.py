@@ -44,8 +44,8 @@ from ftdrake.experiments.detection import (
     run_row,
     thresholds_from_held_out,
 )
-from ftdrake.runtime.replay import replay
-from ftdrake.runtime.thresholds import threshold_text
+from ftdrake.offline.replay import replay
+from ftdrake.offline.thresholds import threshold_text
 from ftdrake.sim.collection import collect
 from ftdrake.sim.simulate import simulate
 from ftdrake.sim.station import build_station

@@ -7,7 +7,7 @@ random-walk and thermal drift) with the wrench stream lagging the joint states b
 cable weight + residual forest) is trained on Fourier runs and rehearsals collected with the
 same sensor, then each held-out run (a Fourier run and a rehearsal, whose stops give rest
 rows) is replayed through the whole chain (bias tracker included) and split by
-:func:`ftdrake.experiments.residual_budget.residual_budget`. Three models:
+:func:`ftdrake.offline.residual_budget.residual_budget`. Three models:
 
 * ``as_logged``: trained on the log as it is (the delay not corrected);
 * ``aligned``: the delay estimated on the training data and corrected (training rows
@@ -37,7 +37,7 @@ import pandas as pd
 import ftdrake
 from ftdrake.compensation.physics import ExcitationWarning
 from ftdrake.data.stream_delay import delay_between, shift_wrench
-from ftdrake.experiments.residual_budget import residual_budget
+from ftdrake.offline.residual_budget import residual_budget
 
 EVERY = 4  # the demo trains on every 4th row of its 1 kHz logs
 

@@ -24,7 +24,7 @@ from ftdrake.compensation.hybrid import HybridCompensator
 from ftdrake.compensation.physics import ExcitationWarning, PhysicsPayloadCompensator
 from ftdrake.config import ScenarioConfig
 from ftdrake.data.dataset import joint_state_layout, wrench_targets
-from ftdrake.runtime.thresholds import thresholds_for_false_positive_rate
+from ftdrake.offline.thresholds import thresholds_for_false_positive_rate
 from ftdrake.sim.collection import collect
 
 KINDS = ("random", "z_rich", "reference")

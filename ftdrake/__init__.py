@@ -1,7 +1,10 @@
 """ftdrake: learned compensation of wrist force/torque sensors, on Drake's systems framework.
 
-Everything a user needs is importable from here; examples never import a submodule. The
-layers, from the bottom up (a module imports only from its own layer or those below):
+Everything a user needs is importable from here; examples never import a submodule. Each
+name loads its module on first use (PEP 562): ``import ftdrake`` alone loads nothing else,
+and importing one part (``ftdrake.hardware.station`` on a live robot) loads only what that
+part imports. The layers, from the bottom up (a module imports only from its own layer or
+those below):
 
 1. ``conventions``, ``errors``, ``config``, ``signals``, ``io``, ``assets``: names, units, the
    typed YAML tree, shared signal processing.
@@ -9,79 +12,98 @@ layers, from the bottom up (a module imports only from its own layer or those be
 3. ``data``: datasets and robot logs (tables, bags, LCM logs).
 4. ``compensation``: estimators, their registry, compiled predictors, persistence, ONNX.
 5. ``runtime``: the product, :class:`CompensationChain` (compensator → bias tracker →
-  detector) that both stations add; ``training``: :func:`train`, the training pipeline.
-  ``offline``: the one recorder of the chain's signals (:func:`add_recorder`), beside it.
-6. ``systems``: the simulation rig's LeafSystems (sensor model, contact truth, controller, ...).
-7. ``sim`` (scene, trajectories, station, simulate, evaluation, collection) and ``hardware``
+   detector) that both stations add; ``training``: :func:`train`, the training pipeline.
+6. ``offline``: tools around the product: the recorder of the chain's signals
+   (:func:`add_recorder`), the chain replayed over a log, the detector's thresholds from a
+   false-positive budget, the residual budget.
+7. ``systems``: the simulation rig's LeafSystems (sensor model, contact truth, controller, ...).
+8. ``sim`` (scene, trajectories, station, simulate, evaluation, collection) and ``hardware``
    (live LCM transport around the runtime chain; imports nothing of ``sim`` or ``systems``).
-8. ``experiments`` (demo, study, feedforward) and ``cli``.
+9. ``experiments`` (demo, study, feedforward) and ``cli``.
 """
+
+import importlib
+import importlib.util
 
 from .version import ftdrake_version
 
 __version__ = ftdrake_version()
 
-from .compensation.build import RobotOptions
-from .compensation.calibration import calibrate_table
-from .compensation.domain_calibrated import DomainCalibratedHybrid
-from .compensation.evaluation import evaluate_model, target_ranges
-from .compensation.forest import RandomForestCompensator
-from .compensation.gpr import GPRCompensator
-from .compensation.hybrid import HybridCompensator
-from .compensation.persistence import load_model, save_model
-from .compensation.physics import PhysicsPayloadCompensator
-from .compensation.registry import make_estimator
-from .compensation.svr import SVRCompensator
-from .config import (
-    BiasTrackerConfig,
-    CableConfig,
-    ChainConfig,
-    CompensatorConfig,
-    ConfigLayoutWarning,
-    ControllerConfig,
-    DetectorConfig,
-    EventsConfig,
-    RobotConfig,
-    ScenarioConfig,
-    SensorConfig,
-    SensorStreamConfig,
-    TaskConfig,
-    TrajectoryConfig,
-    load_chain_config,
-    load_config,
-    save_config,
-)
-from .conventions import WRENCH_AXES, WRENCH_UNITS
-from .data.dataset import joint_state_layout, load_dataset, save_dataset, wrench_targets
-from .data.training import ReadOptions, load_training_data
-from .errors import (
-    ConfigError,
-    FtdrakeError,
-    LogError,
-    ModelFileError,
-    RobotModelError,
-    TrajectoryError,
-)
-from .hardware.config import HardwareConfig
-from .hardware.station import HardwareStation
-from .offline.recorder import Recorder, add_recorder
-from .runtime.bias_tracker import OnlineBiasTracker
-from .runtime.chain import CompensationChain
-from .runtime.compensator import CompensatorSystem
-from .runtime.detector import ContactDetector
-from .runtime.joint_gravity import JointStateGravity
-from .runtime.replay import replay
-from .runtime.thresholds import thresholds_for_false_positive_rate
-from .sim.collection import collect
-from .sim.evaluation import evaluate_detection
-from .sim.scene import Scene, add_scene, make_control_plant
-from .sim.simulate import SimResult, simulate
-from .sim.station import Station, build_station
-from .systems.contact_truth import ContactTruth
-from .systems.controller import DiscreteInverseDynamicsController
-from .systems.ft_sensor import ForceTorqueSensor
-from .systems.noisy_sensor import NoisyForceTorqueSensor
-from .training import TrainOptions, TrainResult, train
+# Each public name → the module (below ``ftdrake``) that defines it: imported on first use
+# (PEP 562), so that importing one part of the package loads only what that part imports.
+_EXPORTS = {
+    "RobotOptions": "compensation.build",
+    "calibrate_table": "compensation.calibration",
+    "DomainCalibratedHybrid": "compensation.domain_calibrated",
+    "evaluate_model": "compensation.evaluation",
+    "target_ranges": "compensation.evaluation",
+    "RandomForestCompensator": "compensation.forest",
+    "GPRCompensator": "compensation.gpr",
+    "HybridCompensator": "compensation.hybrid",
+    "load_model": "compensation.persistence",
+    "save_model": "compensation.persistence",
+    "PhysicsPayloadCompensator": "compensation.physics",
+    "make_estimator": "compensation.registry",
+    "SVRCompensator": "compensation.svr",
+    "BiasTrackerConfig": "config",
+    "CableConfig": "config",
+    "ChainConfig": "config",
+    "CompensatorConfig": "config",
+    "ConfigLayoutWarning": "config",
+    "ControllerConfig": "config",
+    "DetectorConfig": "config",
+    "EventsConfig": "config",
+    "RobotConfig": "config",
+    "ScenarioConfig": "config",
+    "SensorConfig": "config",
+    "SensorStreamConfig": "config",
+    "TaskConfig": "config",
+    "TrajectoryConfig": "config",
+    "load_chain_config": "config",
+    "load_config": "config",
+    "save_config": "config",
+    "WRENCH_AXES": "conventions",
+    "WRENCH_UNITS": "conventions",
+    "joint_state_layout": "data.dataset",
+    "load_dataset": "data.dataset",
+    "save_dataset": "data.dataset",
+    "wrench_targets": "data.dataset",
+    "ReadOptions": "data.training",
+    "load_training_data": "data.training",
+    "ConfigError": "errors",
+    "FtdrakeError": "errors",
+    "LogError": "errors",
+    "ModelFileError": "errors",
+    "RobotModelError": "errors",
+    "TrajectoryError": "errors",
+    "HardwareConfig": "hardware.config",
+    "HardwareStation": "hardware.station",
+    "Recorder": "offline.recorder",
+    "add_recorder": "offline.recorder",
+    "replay": "offline.replay",
+    "thresholds_for_false_positive_rate": "offline.thresholds",
+    "OnlineBiasTracker": "runtime.bias_tracker",
+    "CompensationChain": "runtime.chain",
+    "CompensatorSystem": "runtime.compensator",
+    "ContactDetector": "runtime.detector",
+    "JointStateGravity": "runtime.joint_gravity",
+    "collect": "sim.collection",
+    "evaluate_detection": "sim.evaluation",
+    "Scene": "sim.scene",
+    "add_scene": "sim.scene",
+    "make_control_plant": "sim.scene",
+    "SimResult": "sim.simulate",
+    "simulate": "sim.simulate",
+    "Station": "sim.station",
+    "build_station": "sim.station",
+    "ContactTruth": "systems.contact_truth",
+    "DiscreteInverseDynamicsController": "systems.controller",
+    "ForceTorqueSensor": "systems.ft_sensor",
+    "NoisyForceTorqueSensor": "systems.noisy_sensor",
+    "TrainOptions": "training",
+    "TrainResult": "training",
+    "train": "training",
+}
 
 __all__ = [
     "WRENCH_AXES",
@@ -157,3 +179,21 @@ __all__ = [
     "train",
     "wrench_targets",
 ]
+
+
+def __getattr__(name: str):
+    """A public name (its module imported on first use, then kept), or a submodule
+    (``ftdrake.sim`` after a bare ``import ftdrake``)."""
+    module = _EXPORTS.get(name)
+    if module is not None:
+        value = getattr(importlib.import_module(f".{module}", __name__), name)
+    elif not name.startswith("_") and importlib.util.find_spec(f"{__name__}.{name}"):
+        value = importlib.import_module(f".{name}", __name__)
+    else:
+        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+    globals()[name] = value
+    return value
+
+
+def __dir__() -> list[str]:
+    return sorted(set(globals()) | set(_EXPORTS))

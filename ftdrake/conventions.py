@@ -20,6 +20,11 @@ STANDARD_GRAVITY = 9.81
 #: m/s²: gravity in the world frame W (z up), as the plant has it.
 GRAVITY_W = (0.0, 0.0, -STANDARD_GRAVITY)
 
+#: The loop's default cut-off for its q̈ estimate (Hz; ``compensator.acceleration_cutoff_hz``):
+#: the white-noise gain of the first-order low-pass at 25 Hz it replaced, without its lag on a
+#: q̈ ramp (the figures: docs/results/demo.md).
+DEFAULT_ACCELERATION_CUTOFF_HZ = 12.0
+
 N_JOINTS = 7
 WRENCH_AXES = ("Fx", "Fy", "Fz", "Tx", "Ty", "Tz")
 WRENCH_UNITS = ("N", "N", "N", "N*m", "N*m", "N*m")

@@ -16,6 +16,10 @@ import numba
 import numpy as np
 from scipy.signal import savgol_filter
 
+# The loop's default q̈ cut-off: defined with the shared constants, so that the config reads
+# it without this module's numba and scipy; imported from here by the loop and the readers.
+from .conventions import DEFAULT_ACCELERATION_CUTOFF_HZ  # noqa: F401
+
 
 def savgol_derivative(
     x: np.ndarray, dt: float, deriv: int, window_s: float = 0.1, polyorder: int = 4
@@ -44,12 +48,6 @@ def savgol_derivative(
             f"{n_rows} samples are too few for a Savitzky–Golay fit of order {polyorder}"
         )
     return savgol_filter(x, window, polyorder, deriv=deriv, delta=dt, axis=0)
-
-
-#: The loop's default cut-off for its q̈ estimate (Hz; ``compensator.acceleration_cutoff_hz``):
-#: the white-noise gain of the first-order low-pass at 25 Hz it replaced, without its lag on a
-#: q̈ ramp (the figures: docs, Derivations).
-DEFAULT_ACCELERATION_CUTOFF_HZ = 12.0
 
 
 def acceleration_filter_gains(cutoff_hz: float, period: float) -> tuple[float, float]:

@@ -19,12 +19,12 @@ from ftdrake.config import (
     parse_config,
 )
 from ftdrake.errors import ConfigError
-from ftdrake.runtime.detector import ContactDetector, chi2_threshold, detect_chi2
-from ftdrake.runtime.thresholds import (
+from ftdrake.offline.thresholds import (
     chi2_on_for_false_positive_rate,
     detectable_force,
     thresholds_for_false_positive_rate,
 )
+from ftdrake.runtime.detector import ContactDetector, chi2_threshold, detect_chi2
 
 RATE_HZ = 1000.0
 # 3600 per hour at 1 kHz: p = 1e-3 per sample, 1000 expected in 10⁶ samples (Poisson σ 32).

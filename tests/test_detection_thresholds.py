@@ -1,4 +1,4 @@
-"""Detector thresholds from a false-positive budget (runtime.thresholds)."""
+"""Detector thresholds from a false-positive budget (offline.thresholds)."""
 
 import numpy as np
 import pytest
@@ -6,7 +6,7 @@ from scipy.stats import chi2
 
 from ftdrake.config import DetectorConfig, parse_config
 from ftdrake.errors import ConfigError
-from ftdrake.runtime.thresholds import (
+from ftdrake.offline.thresholds import (
     armed,
     thresholds_for_false_positive_rate,
     thresholds_from_quantile,

@@ -8,7 +8,8 @@ from ftdrake.config import ScenarioConfig
 from ftdrake.errors import TrajectoryError
 from ftdrake.sim import excitation
 from ftdrake.sim.station import robot_geometry
-from ftdrake.sim.trajectories import JointLimits, check_limits, make_trajectory
+from ftdrake.sim.trajectories import JointLimits, check_limits
+from ftdrake.sim.trajectory_plan import make_trajectory
 
 DURATION_S = 14.0  # the scenario's default duration
 SEEDS = (0, 1)

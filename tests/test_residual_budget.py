@@ -12,7 +12,7 @@ import pytest
 import ftdrake
 from ftdrake.cli.main import main
 from ftdrake.data.robot_log import resample_uniform
-from ftdrake.experiments.residual_budget import SHARES, decompose, residual_budget
+from ftdrake.offline.residual_budget import SHARES, decompose, residual_budget
 
 PERIOD = 1e-3  # s
 NOISE = np.array([0.03, 0.03, 0.05, 1e-3, 1e-3, 1e-3])  # N, N·m
@@ -167,7 +167,7 @@ def test_replay_budget_prints_the_functions_budget(delayed_replay, tmp_path, cap
 
 
 def test_the_resting_noise_is_measured_on_each_still_stretch_about_its_own_mean():
-    from ftdrake.experiments.residual_budget import _resting_noise
+    from ftdrake.offline.residual_budget import _resting_noise
     rng = np.random.default_rng(3)
     n = 3000
     still = np.zeros(n, bool)
@@ -213,14 +213,14 @@ def small_model(tmp_path):
 
 def test_a_jittering_log_is_refused_before_the_replay_with_the_tolerance_and_the_fix(
         tmp_path, capsys, monkeypatch):
-    import ftdrake.cli.replay as replay_cli
-    import ftdrake.experiments.residual_budget as budget_module
+    import ftdrake.offline.replay as replay_module
+    import ftdrake.offline.residual_budget as budget_module
 
     def never(*_, **__):
         raise AssertionError("replayed a log the budget refuses")
 
     monkeypatch.setattr(budget_module, "replay", never)
-    monkeypatch.setattr(replay_cli, "replay", never)
+    monkeypatch.setattr(replay_module, "replay", never)  # the command imports it when it runs
     frame = jittering_log()
     model, path = small_model(tmp_path)
     message = (r"residual_budget: the log is not sampled uniformly: \d+ of 1499 time steps are "

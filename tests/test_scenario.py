@@ -22,7 +22,8 @@ from ftdrake.config import (
     parse_config,
 )
 from ftdrake.sim.station import plan_trajectory, robot_geometry
-from ftdrake.sim.trajectories import JointLimits, check_limits, make_trajectory, trajectory_extent
+from ftdrake.sim.trajectories import JointLimits, check_limits, trajectory_extent
+from ftdrake.sim.trajectory_plan import make_trajectory
 
 
 def test_shipped_default_yaml_equals_defaults_and_round_trips(tmp_path):

@@ -9,7 +9,7 @@ import ftdrake
 from ftdrake import ScenarioConfig, replay
 from ftdrake.conventions import wrench_columns
 from ftdrake.data.stream_delay import estimate_stream_delay, fit_aligned, shift_wrench
-from ftdrake.runtime.replay import chain_config_of
+from ftdrake.offline.replay import chain_config_of
 
 PERIOD = 1e-3
 PHYSICS = ["--model", "physics", "--robot", "ftdrake"]

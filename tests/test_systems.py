@@ -14,9 +14,9 @@ from ftdrake.compensation.forest import RandomForestCompensator
 from ftdrake.compensation.persistence import load_model, save_model
 from ftdrake.config import DetectorConfig
 from ftdrake.data.dataset import joint_state_layout, wrench_targets
+from ftdrake.offline.thresholds import thresholds_from_quantile
 from ftdrake.runtime.compensator import CompensatorSystem
 from ftdrake.runtime.detector import ContactDetector
-from ftdrake.runtime.thresholds import thresholds_from_quantile
 from ftdrake.sim.collection import collect
 
 PERIOD = 1e-3

@@ -18,7 +18,7 @@ from ftdrake.conventions import BIAS, PAYLOAD, WRENCH_CONTACT
 from ftdrake.data.dataset import joint_state_layout, wrench_targets
 from ftdrake.errors import ConfigError
 from ftdrake.experiments.tracking import EventPlan, event_configs, push_metrics, run_events
-from ftdrake.runtime.thresholds import thresholds_from_quantile
+from ftdrake.offline.thresholds import thresholds_from_quantile
 from ftdrake.sim.collection import collect
 from ftdrake.sim.events import with_point_mass
 from ftdrake.sim.simulate import simulate

@@ -69,15 +69,31 @@ def public_names() -> list[tuple[str, str]]:
 
     pkg = griffe.load("ftdrake", search_paths=[str(ROOT)], resolve_aliases=True,
                       resolve_external=False)
+    lazy = _lazy_exports()
     names = []
     for name in pkg.exports or []:
         name = str(name)
-        member = pkg.get_member(name) if name in pkg.members else None
-        if member is None or name.startswith("__"):
+        if name.startswith("__"):
+            continue
+        if name in lazy:  # given by the facade's __getattr__ (PEP 562): not a member for griffe
+            member = pkg.get_member(lazy[name])
+        else:
+            member = pkg.get_member(name) if name in pkg.members else None
+        if member is None:
             continue
         target = member.final_target if member.is_alias else member
         names.append((name, target.path, _summary(target)))
     return names
+
+
+def _lazy_exports() -> dict[str, str]:
+    """{name: path below ``ftdrake``} of the facade's ``_EXPORTS`` (name → module)."""
+    for node in ast.parse((PACKAGE / "__init__.py").read_text(encoding="utf-8")).body:
+        if (isinstance(node, ast.Assign)
+                and any(isinstance(t, ast.Name) and t.id == "_EXPORTS" for t in node.targets)):
+            return {name: f"{module}.{name}"
+                    for name, module in ast.literal_eval(node.value).items()}
+    return {}
 
 
 def _summary(obj) -> str:

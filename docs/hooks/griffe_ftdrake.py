@@ -20,7 +20,9 @@ are not Markdown and are rewritten here, once per loaded package, before renderi
 
 from __future__ import annotations
 
+import ast
 import re
+from pathlib import Path
 
 import griffe
 
@@ -39,10 +41,26 @@ class FtdrakeDocstrings(griffe.Extension):
     def on_package(self, *, pkg: griffe.Module, loader, **kwargs) -> None:  # noqa: ARG002
         if pkg.name != "ftdrake":
             return
+        for name, path in facade_exports(pkg.filepath).items():
+            if name not in pkg.members:  # ftdrake.replay → ftdrake.offline.replay.replay
+                pkg.set_member(name, griffe.Alias(name, path, parent=pkg))
         for obj in _walk(pkg):
             if obj.docstring is not None:
                 text = _roles(obj.docstring.value, obj, loader)
                 obj.docstring.value = _blocks(text, obj)
+
+
+def facade_exports(init_path) -> dict[str, str]:
+    """{public name: the path of the object it is} for the names ``ftdrake/__init__.py`` gives
+    lazily (PEP 562, its ``_EXPORTS`` mapping of name → module), which griffe's static view of
+    the package does not see."""
+    tree = ast.parse(Path(init_path).read_text(encoding="utf-8"))
+    for node in tree.body:
+        targets = node.targets if isinstance(node, ast.Assign) else [getattr(node, "target", None)]
+        if any(isinstance(t, ast.Name) and t.id == "_EXPORTS" for t in targets):
+            return {name: f"ftdrake.{module}.{name}"
+                    for name, module in ast.literal_eval(node.value).items()}
+    return {}
 
 
 def _walk(obj):

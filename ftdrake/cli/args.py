@@ -46,9 +46,7 @@ from ..config import (
     load_chain_config,
     load_config,
 )
-from ..data.logs import option_spelling
 from ..errors import ConfigError, FtdrakeError, command_line_front_end
-from ..physics.robot import show_parser_warnings
 
 
 # -- argument types -----------------------------------------------------------------------------
@@ -79,6 +77,18 @@ holdout_share = number(float, lambda v: 0 < v < 0.5,
 seed = number(int, lambda v: 0 <= v < 2**32, "must be a whole number in [0, 2**32)")
 jobs = number(int, lambda v: v >= 1 or v == -1,
               "must be a number of processes >= 1, or -1 for all cores")
+
+
+def noise_values(text: str) -> list[float]:
+    """An argument type: positive numbers ``S`` or ``S,S,...`` (noise std per target)."""
+    try:
+        values = [float(v) for v in text.split(",")]
+    except ValueError:
+        values = []
+    if not values or not all(math.isfinite(v) and v > 0 for v in values):
+        raise argparse.ArgumentTypeError(f"expected positive numbers S or S,S,...; got "
+                                         f"{text!r}")
+    return values
 
 
 def existing_file(text: str) -> Path:
@@ -339,6 +349,9 @@ def run(args) -> int:
     """Runs a parsed command. A :class:`FtdrakeError` (a problem the user can fix: its message
     names the flag or field) prints as ``ftdrake CMD: error: MESSAGE`` and exits with 2, like
     argparse's own errors. Any other exception is a bug in ftdrake and keeps its traceback."""
+    from ..data.logs import option_spelling
+    from ..physics.robot import show_parser_warnings
+
     with (command_line_front_end(), option_spelling(flag_hint), one_line_warnings(),
           show_parser_warnings(getattr(args, "verbose", False))):
         try:

@@ -8,9 +8,7 @@ outside it, with the trust flags of :mod:`ftdrake.compensation.trust`.
 
 from __future__ import annotations
 
-import argparse
 import json
-import math
 import sys
 from pathlib import Path
 
@@ -45,7 +43,7 @@ def register(subparsers) -> None:
     p.add_argument("--data", type=a.existing_path, required=True, metavar="FILE",
                    help="CSV/Parquet table, ROS 1 .bag file or ROS 2 bag folder")
     add_read_flags(p)
-    p.add_argument("--noise-std", type=noise_values, metavar="S[,S...]",
+    p.add_argument("--noise-std", type=a.noise_values, metavar="S[,S...]",
                    help="the sensor's noise std, one value or one per target (the targets' "
                         "units): errors are also given in σ units (≈1 at the noise floor); "
                         "without it, estimated from resting rows when the log has them")
@@ -53,18 +51,6 @@ def register(subparsers) -> None:
                    help="also write the results as JSON")
     a.add_quiet(p)
     p.set_defaults(run=run_evaluate)
-
-
-def noise_values(text: str) -> list[float]:
-    """An argument type: positive numbers ``S`` or ``S,S,...`` (noise std per target)."""
-    try:
-        values = [float(v) for v in text.split(",")]
-    except ValueError:
-        values = []
-    if not values or not all(math.isfinite(v) and v > 0 for v in values):
-        raise argparse.ArgumentTypeError(f"expected positive numbers S or S,S,...; got "
-                                         f"{text!r}")
-    return values
 
 
 def stored_read_options(manifest: dict, path: Path) -> ReadOptions:

@@ -19,8 +19,6 @@ import dataclasses as dc
 import logging
 from pathlib import Path
 
-from ..experiments import contour
-from ..experiments import feedforward as experiment
 from . import args as a
 
 
@@ -64,6 +62,8 @@ def register(subparsers) -> None:
 
 
 def run_command(args) -> int:
+    from ..experiments import feedforward as experiment
+
     logging.basicConfig(level=logging.WARNING, format="%(levelname)s %(name)s: %(message)s")
     if args.two_part:
         return _run_two_part(args)
@@ -90,6 +90,8 @@ def run_command(args) -> int:
 
 
 def _run_two_part(args) -> int:
+    from ..experiments import contour
+
     plan = contour.ContourPlan(iterations=args.iterations, seed=args.seed)
     measured = ("timed", "contour") if args.measurement == "both" else (args.measurement,)
     plan = dc.replace(

@@ -22,17 +22,16 @@ import contextlib
 import json
 import sys
 import time
+from typing import TYPE_CHECKING
 
-from ..compensation.persistence import load_model
 from ..config import load_config
-from ..hardware.config import HardwareConfig
-from ..hardware.live_config import LiveConfig
-from ..hardware.recording import read_lcm_log, table_from_messages, write_table
-from ..hardware.station import HardwareStation
-from ..hardware.transport import open_lcm
 from . import args as a
 from . import ros2
 from .live import load_live, serve_until_stopped, stop_on_signals
+
+if TYPE_CHECKING:
+    from ..hardware.config import HardwareConfig
+    from ..hardware.live_config import LiveConfig
 
 
 def register(sub) -> None:
@@ -77,6 +76,8 @@ def add_transport_flags(p, lcm_help: str = "LCM URL, e.g. 'udpm://239.255.76.67:
 def hardware_from_args(args, live: LiveConfig | None = None) -> HardwareConfig:
     """The HardwareConfig of --hardware (else the live config's ``lcm:`` section, else the
     defaults) with --lcm applied."""
+    from ..hardware.config import HardwareConfig
+
     if args.hardware is None:
         config = live.lcm if live is not None else HardwareConfig()
     else:
@@ -89,6 +90,8 @@ def hardware_from_args(args, live: LiveConfig | None = None) -> HardwareConfig:
 
 
 def open_transport(args, hardware: HardwareConfig):
+    from ..hardware.transport import open_lcm
+
     where = (f"--lcm {args.lcm}" if args.lcm
              else f"--hardware {args.hardware}" if args.hardware else "hardware.lcm_url")
     return open_lcm(hardware.lcm_url, where=where)
@@ -111,6 +114,9 @@ def describe_channels(hardware) -> str:
 def run_serve(args) -> int:
     if args.ros2:
         return ros2.serve(args)
+    from ..compensation.persistence import load_model
+    from ..hardware.station import HardwareStation
+
     live = load_live(args)
     hardware = hardware_from_args(args, live)
     with a.naming("--model", args.model):
@@ -133,6 +139,8 @@ def run_serve(args) -> int:
 def run_record(args) -> int:
     if args.ros2:
         return ros2.record(args)
+    from ..hardware.recording import read_lcm_log, table_from_messages, write_table
+
     hardware = hardware_from_args(args)
     if args.from_log is not None:
         with a.naming("--from-log", args.from_log):

@@ -8,9 +8,12 @@ import math
 import signal
 import sys
 import time
+from typing import TYPE_CHECKING
 
-from ..hardware.live_config import LiveConfig, load_live_config
 from . import args as a
+
+if TYPE_CHECKING:
+    from ..hardware.live_config import LiveConfig
 
 STATUS_PERIOD_S = 0.5  # status line rate: 2 Hz
 
@@ -36,7 +39,10 @@ class Status:
     """The throttled status line: message rates per stream, counts, the current state. The
     rates are measured also when `quiet` (the summary reports the last ones)."""
 
-    def __init__(self, station, stream=sys.stderr, quiet: bool = False):
+    def __init__(self, station, stream=None, quiet: bool = False):
+        # sys.stderr when called, not when this module was imported (the command line imports
+        # it on first use, and a caller may have replaced sys.stderr in between).
+        stream = sys.stderr if stream is None else stream
         self.station, self.stream, self.quiet = station, stream, quiet
         self.tty = stream.isatty() and not quiet
         self.last = time.monotonic()
@@ -94,6 +100,8 @@ def serve_until_stopped(station, duration_s: float | None, quiet: bool,
 def load_live(args) -> LiveConfig:
     """The LiveConfig of --config (chain and transports) with the robot flags applied to its
     chain; errors name --config."""
+    from ..hardware.live_config import load_live_config
+
     with a.naming("--config", args.config) if args.config else contextlib.nullcontext():
         live = load_live_config(args.config)
     live.chain = a.with_robot_flags(live.chain, args)

@@ -6,15 +6,15 @@
                    [--resample]
                    [--calibrate-detector YAML]
 
-Writes the chain's outputs per row (:func:`ftdrake.runtime.replay.replay`: compensated and
+Writes the chain's outputs per row (:func:`ftdrake.offline.replay.replay`: compensated and
 contact wrench, std, bias, out-of-domain, fault and contact flags, contact force) as CSV or
 Parquet (by the suffix of --out) and prints a JSON summary. --log is a CSV/Parquet table, a
 ROS bag (with --wrench-topic) or an LCM log (read with --hardware's channels). --budget adds
 what the in-motion residual is made of (offset, drift, stream delay, the sensor's filter,
-remainder: :func:`ftdrake.experiments.residual_budget.residual_budget`) to the summary.
+remainder: :func:`ftdrake.offline.residual_budget.residual_budget`) to the summary.
 --calibrate-detector writes the chain config with its detector's thresholds set for its budget
 from the log, which must be contact-free motion the model was not trained on
-(:func:`ftdrake.runtime.replay.calibrated_detector`); ``serve`` and ``replay`` take it as
+(:func:`ftdrake.offline.replay.calibrated_detector`); ``serve`` and ``replay`` take it as
 --config.
 """
 
@@ -24,33 +24,10 @@ import dataclasses as dc
 import json
 import sys
 
-import numpy as np
-
-from ..compensation.persistence import load_model
 from ..config import save_config
 from ..conventions import TIME
-from ..data.bag import is_bag
-from ..data.logs import is_table, write_log
-from ..data.robot_log import resample_uniform
-from ..data.stream_delay import estimate_stream_delay
 from ..errors import ConfigError, LogError
-from ..experiments.residual_budget import (
-    MIN_REST_ROWS,
-    REST_SPEED,
-    check_uniform_sampling,
-    residual_budget,
-)
-from ..hardware.recording import read_lcm_log
-from ..runtime.replay import (
-    calibrated_detector,
-    chain_config_of,
-    read_replay_log,
-    replay,
-    summary,
-    to_replay_layout,
-)
 from . import args as a
-from .evaluate import noise_values
 from .hardware import add_transport_flags, hardware_from_args
 
 
@@ -78,7 +55,7 @@ def register(sub) -> None:
     p.add_argument("--budget", action="store_true",
                    help="also split the in-motion residual into offset, drift, stream delay, "
                         "the sensor's filter and what is left, in units of the resting noise")
-    p.add_argument("--noise-std", type=noise_values, metavar="S[,S...]",
+    p.add_argument("--noise-std", type=a.noise_values, metavar="S[,S...]",
                    help="--budget: the sensor's resting noise std (N, N·m), one value or six; "
                         "default: measured on the log's rows at rest, else the chain config "
                         "sensor's (a warning says so)")
@@ -108,6 +85,11 @@ def register(sub) -> None:
 
 
 def run_replay(args) -> int:
+    from ..compensation.persistence import load_model
+    from ..data.logs import write_log
+    from ..data.stream_delay import estimate_stream_delay
+    from ..offline.replay import chain_config_of, replay, summary
+
     _check_flags(args)
     with a.naming("--model", args.model):
         model = load_model(args.model)
@@ -144,6 +126,10 @@ def run_replay(args) -> int:
 def _budget(args, model, frame, config, result) -> dict:
     """The residual budget of the replay, and on stderr which resting noise it is in units of
     (--noise-std, the log's rows at rest, or the chain config sensor's: then a warning)."""
+    import numpy as np
+
+    from ..offline.residual_budget import MIN_REST_ROWS, REST_SPEED, residual_budget
+
     noise = None if args.noise_std is None else np.broadcast_to(args.noise_std, (6,))
     budget = residual_budget(model, frame, config, result=result, noise_std=noise)
     sigma = ", ".join(f"{v:.3g}" for v in budget.noise_std)
@@ -188,6 +174,8 @@ def _chain_given(args) -> bool:
 def _write_calibrated(path, result, model, chain) -> dict:
     """Writes the chain config `chain` with the detector calibrated on `result`; returns the
     detector."""
+    from ..offline.replay import calibrated_detector
+
     detector = calibrated_detector(result, model, chain)
     save_config(chain.replace(detector=detector), path)
     return {"file": str(path), **dc.asdict(detector)}
@@ -196,6 +184,9 @@ def _write_calibrated(path, result, model, chain) -> dict:
 def _prepared_log(args):
     """The log read, resampled with --resample, and checked for what --budget needs before
     the replay (which takes minutes on a long log)."""
+    from ..data.robot_log import resample_uniform
+    from ..offline.residual_budget import check_uniform_sampling
+
     frame = _read_log(args)
     if args.resample:
         rows = len(frame)
@@ -210,6 +201,11 @@ def _prepared_log(args):
 
 
 def _read_log(args):
+    from ..data.bag import is_bag
+    from ..data.logs import is_table
+    from ..hardware.recording import read_lcm_log
+    from ..offline.replay import read_replay_log, to_replay_layout
+
     if is_table(args.log):
         return to_replay_layout(read_replay_log(args.log), positions=args.positions,
                                 velocities=args.velocities, targets=args.targets,

@@ -21,14 +21,8 @@ import json
 import sys
 import time
 
-from ..compensation.persistence import load_model
 from ..config import load_config
 from ..errors import ConfigError
-from ..hardware.recording import write_table
-from ..hardware.ros2.config import Ros2Config
-from ..hardware.ros2.recording import Ros2Recorder
-from ..hardware.ros2.station import Ros2Station
-from ..sim.ros2_publisher import arm_joint_names, simulate_on_ros2
 from . import args as a
 from .live import load_live, serve_until_stopped, stop_on_signals
 
@@ -47,6 +41,8 @@ def add_options(p) -> None:
 def config_from_args(args, live=None):
     """The Ros2Config of --ros2-config (else the live config's ``ros2:`` section, else the
     defaults) with --ros2-domain applied."""
+    from ..hardware.ros2.config import Ros2Config
+
     path = args.ros2_config
     if path is None:
         config = live.ros2 if live is not None else Ros2Config()
@@ -77,6 +73,9 @@ def describe_topics(config) -> str:
 
 def serve(args) -> int:
     """``ftdrake serve --ros2``."""
+    from ..compensation.persistence import load_model
+    from ..hardware.ros2.station import Ros2Station
+
     live = load_live(args)
     config = config_from_args(args, live)
     with a.naming("--model", args.model):
@@ -102,6 +101,9 @@ def record(args) -> int:
     if getattr(args, "from_log", None) is not None:
         raise ConfigError("--from-log reads an LCM log; a ROS 2 bag needs no conversion: "
                           "train and evaluate read it directly")
+    from ..hardware.recording import write_table
+    from ..hardware.ros2.recording import Ros2Recorder
+
     config = config_from_args(args)
     recorder = Ros2Recorder(config)
     print(f"ftdrake record: {describe_topics(config).splitlines()[1].strip()} → {args.out}",
@@ -122,6 +124,8 @@ def record(args) -> int:
 
 def simulate(args, station):
     """``ftdrake simulate --ros2``: the simulated robot on ROS 2; returns the SimResult."""
+    from ..sim.ros2_publisher import arm_joint_names, simulate_on_ros2
+
     config = config_from_args_for_simulation(args, station, arm_joint_names)
     print(f"ftdrake simulate: publishing {describe_topics(config).splitlines()[1]}"
           .replace("  in:  ", ""), file=sys.stderr, flush=True)
@@ -131,6 +135,8 @@ def simulate(args, station):
 
 def config_from_args_for_simulation(args, station, arm_joint_names):
     """As config_from_args; without joint_names in the file, the simulated arm's."""
+    from ..hardware.ros2.config import Ros2Config
+
     if args.ros2_config is None:
         config = Ros2Config(joint_names=arm_joint_names(station))
         if args.ros2_domain is not None:

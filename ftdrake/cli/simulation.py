@@ -11,18 +11,10 @@ from __future__ import annotations
 import json
 import sys
 
-from pydrake.geometry import Meshcat
-
 from .. import conventions as col
-from .. import plots
-from ..data.dataset import save_dataset
-from ..data.logs import write_log
+from ..config.task import FREE_KINDS
 from ..errors import FtdrakeError
 from ..io import atomic_path, staged_outputs
-from ..sim import station as sim_station
-from ..sim.collection import FREE_KINDS, collect
-from ..sim.lcm_publisher import simulate_on_lcm
-from ..sim.simulate import simulate
 from . import args as a
 from . import ros2
 from .hardware import add_transport_flags, describe_channels, hardware_from_args, open_transport
@@ -77,6 +69,14 @@ def register(sub) -> None:
 
 
 def run_simulate(args) -> int:
+    from pydrake.geometry import Meshcat
+
+    from .. import plots
+    from ..data.logs import write_log
+    from ..sim import station as sim_station
+    from ..sim.lcm_publisher import simulate_on_lcm
+    from ..sim.simulate import simulate
+
     config = a.scenario_from_args(args, args.trajectory)
     meshcat = Meshcat() if args.html else None
     station = sim_station.build_station(config, meshcat=meshcat)
@@ -122,6 +122,9 @@ def run_simulate(args) -> int:
 
 
 def run_collect(args) -> int:
+    from ..data.dataset import save_dataset
+    from ..sim.collection import collect
+
     config = a.load_scenario(args)
     try:
         frame = collect(config, args.trajectories, seed=args.seed, kind=args.trajectory,

@@ -9,13 +9,14 @@ from importlib import resources
 from pathlib import Path
 
 import yaml as pyyaml
-from pydrake.common.yaml import yaml_dump_typed, yaml_load_typed
 
 from ..errors import ConfigError
 from ..io import atomic_write_text
 from .chain import ChainConfig
 from .scenario import ScenarioConfig
 
+# _DRAKE_ON_USE: Drake's YAML reader and writer are imported where a file is read or written,
+# so that importing the configuration (the command line's flags and help) loads no pydrake.
 
 # ----------------------------------------------------------------------------------------------
 # YAML in and out.
@@ -42,6 +43,8 @@ def parse_config(text: str, schema=ScenarioConfig, source: str = "<string>"):
     if _check_fields(data, schema, _where(schema)) or moved:
         text = pyyaml.safe_dump(data, sort_keys=False)  # moved sections, widened scalars
     try:
+        from pydrake.common.yaml import yaml_load_typed  # noqa: PLC0415 (see _DRAKE_ON_USE)
+
         config = yaml_load_typed(schema=schema, data=text)
     except (RuntimeError, ValueError, TypeError) as e:
         raise ConfigError(f"{source}: {e}") from None
@@ -85,6 +88,8 @@ def save_config(config, path: "str | Path") -> None:
 
 
 def dump_config(config) -> str:
+    from pydrake.common.yaml import yaml_dump_typed  # noqa: PLC0415 (see _DRAKE_ON_USE)
+
     return yaml_dump_typed(config)
 
 

@@ -5,8 +5,8 @@
 import dataclasses as dc
 import math
 
+from ..conventions import DEFAULT_ACCELERATION_CUTOFF_HZ
 from ..errors import ConfigError
-from ..signals import DEFAULT_ACCELERATION_CUTOFF_HZ
 from .checks import finite, non_negative, positive, vector
 
 
@@ -200,7 +200,7 @@ class DetectorConfig:
     # acceleration filter settle first (a real detector arms after the sensor is tared).
     arm_after_s: float = 0.05
     # The false-positive budget (per hour of free motion) that thresholds are calibrated for
-    # (ftdrake.runtime.thresholds.thresholds_for_false_positive_rate); the detector itself
+    # (ftdrake.offline.thresholds.thresholds_for_false_positive_rate); the detector itself
     # reads only the thresholds.
     false_positives_per_hour: float = 1.0
     # "auto" (chi2 for a model with a std of a reading once calibrated, else norm; above),
@@ -241,7 +241,7 @@ class DetectorConfig:
     def for_model(self, model, *, calibrating: bool = False) -> "DetectorConfig":
         """This config with ``test: "auto"`` resolved for `model` (see the class docstring);
         `calibrating`: the thresholds are about to be set from held-out free motion
-        (:func:`~ftdrake.runtime.thresholds.thresholds_for_false_positive_rate`). A concrete
+        (:func:`~ftdrake.offline.thresholds.thresholds_for_false_positive_rate`). A concrete
         test is returned as it is."""
         if self.test != "auto":
             return self

@@ -10,6 +10,9 @@ from .checks import non_negative, positive, six, vector
 
 TRAJECTORY_KINDS = ("random", "fourier", "reference", "z_rich", "contact", "rehearsal", "study",
                     "task_covering")
+#: The contact-free kinds (what ``collect`` runs); ``rehearsal`` is the contact motion stopping
+#: ``trajectory.rehearsal_height_m`` above the surface.
+FREE_KINDS = tuple(kind for kind in TRAJECTORY_KINDS if kind != "contact")
 
 
 @dc.dataclass

@@ -19,7 +19,7 @@
    (``domain_coverage``). One rehearsal and one run of each free-motion kind are held out;
    each model's detector thresholds follow from its residual there (the samples the detector
    judges) and the scenario's false-positive budget, ``detector.false_positives_per_hour``
-   (:func:`~ftdrake.runtime.thresholds.thresholds_for_false_positive_rate`).
+   (:func:`~ftdrake.offline.thresholds.thresholds_for_false_positive_rate`).
 3. Run the same contact scenario, trajectory seed and sensor noise not seen in training, with
    each model and its detector in the loop at the sensor rate, and score both against the
    plant's ground truth. The summary says which did better and why.
@@ -51,8 +51,8 @@ from ..config import ScenarioConfig
 from ..data.dataset import joint_state_layout, wrench_targets
 from ..data.logs import write_log
 from ..io import atomic_path, staged_outputs
+from ..offline.thresholds import armed, threshold_text, thresholds_for_false_positive_rate
 from ..plots import plot_contact_comparison
-from ..runtime.thresholds import armed, threshold_text, thresholds_for_false_positive_rate
 from ..sim.collection import collect
 from ..sim.evaluation import evaluate_detection
 from ..sim.simulate import simulate

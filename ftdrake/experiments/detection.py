@@ -5,7 +5,7 @@ For each compensator:
 1. **Thresholds** from the false-positive budget (``detector.false_positives_per_hour``):
    held-out rehearsals of
    the task and held-out runs of each free-motion kind give the residual, and
-   :func:`~ftdrake.runtime.thresholds.thresholds_for_false_positive_rate` the thresholds
+   :func:`~ftdrake.offline.thresholds.thresholds_for_false_positive_rate` the thresholds
    (the norm test's, or with ``detector.test: chi2`` the χ² test's on the residual whitened
    by the model's std).
 2. **False positives**: long free motion (default 10 simulated minutes) of several trajectory
@@ -54,8 +54,8 @@ from ..config import (
 from ..data.dataset import joint_state_layout, wrench_targets
 from ..errors import TrajectoryError
 from ..io import atomic_path, staged_outputs
+from ..offline.thresholds import armed, threshold_text, thresholds_for_false_positive_rate
 from ..plots import plt
-from ..runtime.thresholds import armed, threshold_text, thresholds_for_false_positive_rate
 from ..sim.collection import collect
 from ..sim.evaluation import TOUCHDOWN_S, evaluate_detection
 from ..sim.simulate import simulate

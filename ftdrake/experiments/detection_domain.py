@@ -7,7 +7,7 @@ the evaluation (every :data:`STRIDE`-th judged sample) :func:`free_motion_sample
 the model's distance d to its training inputs (``domain_distance``, in training stds) and
 the std the chain gave the detector there; :func:`detectable_force_vs_domain` turns them
 into the force each test needs
-(:func:`~ftdrake.runtime.thresholds.detectable_force`: on a zero residual, along the least
+(:func:`~ftdrake.offline.thresholds.detectable_force`: on a zero residual, along the least
 favourable force axis) per distance bin of
 :data:`~ftdrake.compensation.domain.DISTANCE_BINS` and as a curve (equal-count bins of d:
 median and 5–95 % band), and :func:`plot_detectable_force_vs_domain` draws the curves.
@@ -25,8 +25,8 @@ from .. import conventions as col
 from ..compensation.domain import DISTANCE_BINS
 from ..config import DetectorConfig
 from ..data.dataset import joint_state_layout
+from ..offline.thresholds import armed, detectable_force
 from ..plots import plt
-from ..runtime.thresholds import armed, detectable_force
 
 #: Every k-th judged free-motion sample (10 ms at 1 kHz: the std changes slowly).
 STRIDE = 10

@@ -5,7 +5,7 @@ tracker's or detector's outputs back to the controller or the plant — so a run
 contacts and sensor stream are the same whichever model is in the loop. :func:`run_plan_by_
 replay` therefore simulates each run of a :class:`~.detection.DetectionPlan` once, without a
 compensator, and replays each model's chain over the log
-(:func:`ftdrake.runtime.replay.replay` with the simulated station's pairing), which gives the
+(:func:`ftdrake.offline.replay.replay` with the simulated station's pairing), which gives the
 in-loop chain's numbers exactly (tests/test_replay.py, to 1e-12). The held-out motion that
 sets the thresholds is collected once for all models too.
 
@@ -24,7 +24,7 @@ from tqdm.auto import tqdm
 
 from ..config import ScenarioConfig, dump_config, parse_config
 from ..errors import TrajectoryError
-from ..runtime.replay import replay
+from ..offline.replay import replay
 from ..sim.simulate import simulate
 from ..sim.station import build_station
 from .detection import (

@@ -3,7 +3,7 @@
 
 Every log of the chain's outputs is made here, whoever runs the chain: the simulated station
 (:func:`add_output_loggers`, read by :func:`ftdrake.sim.simulate.simulate`),
-:func:`~ftdrake.runtime.replay.replay` and the live stations (:class:`UpdateRecorder`, one row
+:func:`~ftdrake.offline.replay.replay` and the live stations (:class:`UpdateRecorder`, one row
 per update), and a user's own diagram (:func:`add_recorder`). The columns of each output port
 are :data:`ftdrake.conventions.CHAIN_OUTPUTS`' (``wrench_internal_*``, ``wrench_contact_*``,
 ``contact`` …; :func:`output_columns`), so the four agree by construction.
@@ -103,7 +103,7 @@ def logged_values(loggers: dict, root_context, t=None) -> dict[str, np.ndarray]:
 
 class UpdateRecorder:
     """The chain's outputs after each update, one row per :meth:`record` call: what
-    :func:`~ftdrake.runtime.replay.replay` returns and what a live station keeps
+    :func:`~ftdrake.offline.replay.replay` returns and what a live station keeps
     (:meth:`~ftdrake.hardware.core.StationCore.start_recording`).
 
     `chain`: the :class:`~ftdrake.runtime.chain.CompensationChain` whose output ports are

@@ -3,11 +3,10 @@
 :class:`CompensationChain` (``chain``) wires the :class:`CompensatorSystem` (``compensator``),
 the :class:`OnlineBiasTracker` (``bias_tracker``) and the :class:`ContactDetector`
 (``detector``), with :class:`JointStateGravity` (``joint_gravity``) for the tracker's payload
-estimate on a robot without a plant. :func:`replay` (``replay``) runs the chain offline over
-a log (its recorder, :func:`~ftdrake.offline.recorder.add_recorder`, is in ``ftdrake.offline``),
-and :class:`DelayLine` (``delay_line``) corrects a delay between the joint-state and wrench
-streams. ``sim.station`` and ``hardware.station`` both add the
-chain; nothing here imports the simulation rig (``systems``, ``sim``).
+estimate on a robot without a plant, and :class:`DelayLine` (``delay_line``) corrects a delay
+between the joint-state and wrench streams. ``sim.station`` and ``hardware.station`` both add
+the chain; nothing here imports the simulation rig (``systems``, ``sim``) or the tools around
+it (``offline``: replay, the recorder, thresholds).
 """
 
 from .bias_tracker import OnlineBiasTracker
@@ -16,7 +15,6 @@ from .compensator import CompensatorSystem
 from .delay_line import DelayLine
 from .detector import ContactDetector
 from .joint_gravity import JointStateGravity
-from .replay import replay
 
 __all__ = [
     "CompensationChain",
@@ -25,5 +23,4 @@ __all__ = [
     "DelayLine",
     "JointStateGravity",
     "OnlineBiasTracker",
-    "replay",
 ]

@@ -19,13 +19,10 @@ from tqdm.auto import tqdm
 
 from .. import conventions as col
 from ..config import ConfigError, ScenarioConfig, dump_config, parse_config
+from ..config.task import FREE_KINDS
 from ..parallel import dask_backend
 from .simulate import simulate
 from .station import build_station
-
-# Contact-free kinds; `rehearsal` is the contact motion stopping trajectory.rehearsal_height_m
-# above the surface.
-FREE_KINDS = ("random", "fourier", "reference", "z_rich", "rehearsal", "study", "task_covering")
 
 
 def trajectory_config(base: ScenarioConfig, index: int, seed: int) -> ScenarioConfig:

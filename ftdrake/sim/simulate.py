@@ -36,7 +36,7 @@ runtime chain, named as :data:`ftdrake.conventions.CHAIN_OUTPUTS` says (``wrench
 ``wrench_compensated_*``, ``wrench_contact_*``, ``wrench_std_*``, ``out_of_domain``,
 ``fault``, ``contact``, ``contact_force``, and with the bias tracker ``bias_*``,
 ``tracker_std_*``, ``payload_dm`` …, ``payload_change``), recorded by
-:mod:`ftdrake.offline.recorder` as :func:`~ftdrake.runtime.replay.replay` records them.
+:mod:`ftdrake.offline.recorder` as :func:`~ftdrake.offline.replay.replay` records them.
 
 The plant's sampled output ports read zero before its first step, so the row at t = 0 is
 dropped (and only that row): every log starts at the first sensor sample after t = 0.

@@ -46,7 +46,8 @@ from ..systems.transmission import MotorSide
 from ..systems.wrench_arrows import WrenchArrows
 from .events import EventSignals, add_sensor_events
 from .scene import CONTROL_SENSOR_FRAME, Scene, add_scene, make_control_plant
-from .trajectories import JointLimits, RobotGeometry, make_trajectory
+from .trajectories import JointLimits, RobotGeometry
+from .trajectory_plan import make_trajectory
 
 
 @dc.dataclass

@@ -6,7 +6,8 @@ derivatives. Every trajectory is checked against the joint position, speed and a
 limits before use (:func:`check_limits`), and free-motion kinds also against collisions with
 the environment (the motion is scaled down until the tool clears the table and wall).
 
-Kinds (``TrajectoryConfig.kind``):
+Kinds (``TrajectoryConfig.kind``; :func:`ftdrake.sim.trajectory_plan.make_trajectory` builds
+the one a scenario names):
 
 * ``random``    smooth random waypoints (min-jerk between them) around the home pose.
 * ``fourier``   a sum of sines per joint (finite Fourier series, as for dynamic
@@ -42,7 +43,6 @@ from pydrake.trajectories import PiecewisePolynomial
 from scipy.optimize import brentq
 from scipy.special import gammaln
 
-from ..config import TrajectoryConfig
 from ..errors import TrajectoryError
 
 SAMPLE_RATE_HZ = 200.0
@@ -90,41 +90,6 @@ def check_limits(traj: PiecewisePolynomial, limits: JointLimits, dt: float = 0.0
                 f"trajectory exceeds the {what} limit of {limits.names[j]} at t = {t[k]:.3f} s: "
                 f"{values[k, j]:.4f} {unit} not in [{lo[j]:.4f}, {hi[j]:.4f}]"
             )
-
-
-def make_trajectory(config: TrajectoryConfig, home_q, limits: JointLimits, robot=None):
-    """Builds and checks the trajectory `config.kind` starting and ending at `home_q`.
-
-    `robot` (a :class:`RobotGeometry`) is needed for the contact kinds (inverse kinematics)
-    and used to keep free motion clear of the environment. `config` is taken as valid (it is
-    checked with its scenario, where that is loaded).
-    """
-    home_q = np.asarray(home_q, dtype=float)
-    if np.any(home_q < limits.lower) or np.any(home_q > limits.upper):
-        raise TrajectoryError(f"home_q {home_q.round(3).tolist()} is outside the joint limits")
-    if config.kind == "study":
-        traj = study_motion(config.duration_s, config.seed)
-        if robot is not None and not robot.clear_of_environment(traj, dt=1.0):
-            raise TrajectoryError("the study's motion hits the environment; use a scene "
-                                  "without obstacles in its reach (see study_motion)")
-    elif config.kind in CONTACT_KINDS:
-        if robot is None:
-            raise TrajectoryError(f"the {config.kind} kind needs the robot's geometry for IK")
-        depth = config.press_depth_m if config.kind == "contact" else -config.rehearsal_height_m
-        traj = _contact(config, depth, home_q, robot, limits)
-    elif config.kind == "task_covering":
-        # Imported here: the planner builds on this module's helpers and geometry.
-        from .excitation import task_covering  # noqa: PLC0415
-
-        traj = task_covering(config, home_q, limits, robot)
-        if not (_within_limits(traj, limits, config.speed_fraction)
-                and robot.clear_of_environment(traj)):
-            raise TrajectoryError("the task_covering plan leaves the speed limits or the "
-                                  "clearance between its samples; lower trajectory.speed_fraction")
-    else:
-        traj = _free_motion(config, home_q, limits, robot)
-    check_limits(traj, limits)
-    return traj
 
 
 # ----------------------------------------------------------------------------------------------
@@ -528,7 +493,6 @@ __all__ = [
     "RobotGeometry",
     "TrajectoryError",
     "check_limits",
-    "make_trajectory",
     "model_to_study",
     "study_motion",
     "study_to_model",

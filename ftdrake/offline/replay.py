@@ -73,8 +73,8 @@ from ..data.logs import (
 from ..data.robot_log import velocities_from_positions
 from ..data.training import DERIVED
 from ..errors import LogError, spelled
-from ..offline.recorder import UpdateRecorder, output_columns
-from .chain import CompensationChain
+from ..runtime.chain import CompensationChain
+from .recorder import UpdateRecorder, output_columns
 from .thresholds import armed, thresholds_for_false_positive_rate
 
 PAIRINGS = ("row", "simulated")
@@ -325,7 +325,7 @@ def calibrated_detector(result: pd.DataFrame, model, config: ChainConfig) -> Det
     replay `result` (:func:`replay`'s output) of contact-free motion the model was not
     trained on: the contact wrench the detector judges, and with the χ² test the model's
     std, on the rows it judges (``arm_after_s`` from the log's start), at the log's median
-    sample rate (:func:`~ftdrake.runtime.thresholds.thresholds_for_false_positive_rate`).
+    sample rate (:func:`~ftdrake.offline.thresholds.thresholds_for_false_positive_rate`).
     The test is the one ``detector.test`` gives `model` when calibrating (``auto``: χ² for
     a model with a std of a reading); debounce, hysteresis and arming are kept."""
     t = result[col.TIME].to_numpy(float)

@@ -15,7 +15,7 @@ import numpy as np
 from scipy.stats import chi2
 
 from ..config import DetectorConfig
-from .detector import chi2_threshold
+from ..runtime.detector import chi2_threshold
 
 
 def armed(times, arm_after_s: float = DetectorConfig.arm_after_s) -> np.ndarray:

@@ -67,7 +67,7 @@ from ..compensation.physics import PhysicsPayloadCompensator
 from ..config import ChainConfig
 from ..data.robot_log import resample_uniform
 from ..errors import LogError, spelled
-from ..runtime.replay import chain_config_of, read_replay_log, replay
+from .replay import chain_config_of, read_replay_log, replay
 
 SHARES = ("offset", "drift", "delay", "filter", "remainder")
 #: Joint speed (rad/s) at or below which every joint counts as at rest.
