@@ -123,7 +123,7 @@ def test_replay_computes_missing_velocities_as_train_does(tmp_path, capsys):
     bare, given = (pd.read_csv(tmp_path / f"{n}_out.csv") for n in ("bare", "given"))
     np.testing.assert_allclose(bare.to_numpy(), given.to_numpy(), rtol=0, atol=1e-12)
     # The model predicts q̇_0 as Fx: its prediction follows the computed q̇.
-    assert np.corrcoef(bare["pred_Fx"], qd[:, 0])[0, 1] > 0.8
+    assert np.corrcoef(bare["wrench_internal_Fx"], qd[:, 0])[0, 1] > 0.8
 
 
 @pytest.mark.parametrize("delay", [0.0, 1.0, 2.4, 3.75])

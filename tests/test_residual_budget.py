@@ -261,8 +261,8 @@ def test_resample_puts_a_jittering_log_on_a_uniform_grid_and_keeps_its_events(tm
 
 
 def test_replay_budget_says_which_noise_it_judges_against(tmp_path, capsys):
-    """Without rest in the log the budget's σ is the scenario sensor's: a warning says so and
-    names --noise-std, which then sets σ (issue 42 item 4)."""
+    """Without rest in the log the budget's σ is the chain config sensor's: a warning says so
+    and names --noise-std, which then sets σ (issue 42 item 4)."""
     frame = resample_uniform(jittering_log())
     frame.to_csv(tmp_path / "log.csv", index=False)
     _, path = small_model(tmp_path)
@@ -270,11 +270,11 @@ def test_replay_budget_says_which_noise_it_judges_against(tmp_path, capsys):
                str(tmp_path / "out.csv"), "--budget"]
     assert main(command) == 0
     captured = capsys.readouterr()
-    spec = ftdrake.ScenarioConfig().sensor.spec()
+    spec = ftdrake.ChainConfig().sensor.spec()
     sigma = np.sqrt(np.asarray(spec.noise_std) ** 2 + np.asarray(spec.resolution) ** 2 / 12)
     assert ("warning: --budget: the log has 0 rows at rest, too few to measure the noise on "
             f"(200 needed): its σ ({', '.join(f'{v:.3g}' for v in sigma)}, N and N·m) is the "
-            "scenario sensor's, not necessarily yours; give yours with --noise-std S[,S...]"
+            "chain config sensor's, not necessarily yours; give yours with --noise-std S[,S...]"
             ) in captured.err
     assert json.loads(captured.out.splitlines()[-1])["residual_budget"]["noise_source"] == \
         "sensor config"
