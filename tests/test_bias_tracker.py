@@ -284,7 +284,7 @@ def brisk_arm_motion():
     from ftdrake.physics.rigid_body import sensor_kinematics
     from ftdrake.physics.scenario_robot import robot_description
 
-    plant, frame_S = robot_description(ScenarioConfig()).build_plant()
+    plant, frame_S = robot_description(ScenarioConfig().models).build_plant()
     t = times(6.0)
     rng = np.random.default_rng(11)
     q0 = np.array([0.0, 0.6, 0.0, -1.2, 0.0, 1.0, 0.0])

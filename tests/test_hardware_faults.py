@@ -171,7 +171,7 @@ def hold_poses_and_grasp(dut, config, scenario, n_poses, announce: bool):
     contact = []
     dut.lcm.subscribe(config.output_channel("contact"),
                       lambda d: contact.append(decode_contact_state(d)))
-    plant, frame_S = robot_description(scenario).build_plant()
+    plant, frame_S = robot_description(scenario.models).build_plant()
     context = plant.CreateDefaultContext()
     k = 0
     for pose in np.array(scenario.home_q) + GRASP_POSES[:n_poses]:

@@ -15,7 +15,7 @@ PERIOD = 0.001
 
 @pytest.fixture(scope="module")
 def robot():
-    plant, frame_S = robot_description(ScenarioConfig()).build_plant()
+    plant, frame_S = robot_description(ScenarioConfig().models).build_plant()
     return plant, frame_S, SerialChain.from_plant(plant, frame_S)
 
 

@@ -180,7 +180,7 @@ def test_the_simulations_robot_description_has_the_scenes_kinematics():
     """The physics model needs no scenario: the scene describes its arm as model directives,
     and that description's sensor-frame motion equals the simulated plant's to round-off."""
     config = ScenarioConfig()
-    description = robot_description(config)
+    description = robot_description(config.models)
     assert description == ftdrake_arm()  # robot=None means exactly this arm
     scene = add_scene(DiagramBuilder(), config)
     plant, frame_S = description.build_plant()
@@ -193,7 +193,7 @@ def test_the_simulations_robot_description_has_the_scenes_kinematics():
         np.testing.assert_allclose(getattr(got, name), getattr(expected, name), atol=1e-12)
     # A scenario with the arm based elsewhere gets its own description, same sensor frame.
     config.models.p_WArmBase = [0.1, 0.0, 0.8]
-    moved = robot_description(config)
+    moved = robot_description(config.models)
     assert moved != ftdrake_arm() and "[0.1, 0.0, 0.8]" in moved.model
     assert moved.sensor_frame == description.sensor_frame
 

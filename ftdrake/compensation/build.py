@@ -77,7 +77,7 @@ class RobotOptions:
         """The arm of the scenario that made the data (`scenario_yaml`), else ftdrake's
         default arm."""
         if self.scenario_yaml:
-            return robot_description(parse_config(self.scenario_yaml))
+            return robot_description(parse_config(self.scenario_yaml).models)
         return ftdrake_arm()
 
     def robot_file(self) -> str:

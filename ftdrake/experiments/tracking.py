@@ -181,7 +181,7 @@ def sensor_regressor(log, config: ScenarioConfig) -> np.ndarray:
     (:func:`~ftdrake.compensation.payload_identification.payload_regressor`), from the
     plant's true q, q̇, q̈ (columns ``q_i``, ``qd_i``, ``qdd_i``): S's motion in S."""
     q, v, vdot = (log[col.joint_columns(prefix)].to_numpy() for prefix in ("q", "qd", "qdd"))
-    kin = kinematics_for(robot_description(config), col.GRAVITY_W).evaluate(q, v, vdot)
+    kin = kinematics_for(robot_description(config.models), col.GRAVITY_W).evaluate(q, v, vdot)
     return payload_regressor(kin.w_WS_S, kin.alpha_WS_S, kin.a_WSo_S - kin.g_S)
 
 

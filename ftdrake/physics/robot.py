@@ -12,7 +12,8 @@ not needed (a kinematics-only plant registers no geometry).
 
 ftdrake's simulated arm is described by :func:`ftdrake_arm` (the SDA10D-like arm with the
 sensor and tool welded to its flange, as :func:`ftdrake.sim.scene.add_scene` builds it);
-``physics.scenario_robot.robot_description(config)`` gives the description of any scenario's arm.
+``physics.scenario_robot.robot_description(config.models)`` gives the description of any
+scenario's arm.
 """
 
 from __future__ import annotations

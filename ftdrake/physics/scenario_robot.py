@@ -11,7 +11,7 @@ from pydrake.multibody.plant import MultibodyPlant
 from pydrake.multibody.tree import ModelInstanceIndex, WeldJoint
 
 from ..assets import offline_parser
-from ..config import ModelsConfig, ScenarioConfig
+from ..config import ModelsConfig
 from ..errors import ConfigError
 from .robot import RobotDescription, arm_directives
 
@@ -42,11 +42,10 @@ def add_model(parser: Parser, url: str, field: str) -> ModelInstanceIndex:
     return instances[0]
 
 
-def robot_description(config: ScenarioConfig) -> RobotDescription:
-    """The kinematics of the scenario's robot — arm, base pose, flange weld, sensor and tool —
-    as a robot description a physics compensator can identify its payload on. Frame S is the
-    sensor weld's child frame, as in the simulation."""
-    models = config.models
+def robot_description(models: ModelsConfig) -> RobotDescription:
+    """The kinematics of a scenario's robot (its ``models`` section) — arm, base pose, flange
+    weld, sensor and tool — as a robot description a physics compensator can identify its
+    payload on. Frame S is the sensor weld's child frame, as in the simulation."""
     plant = MultibodyPlant(0.0)
     tool = add_model(make_parser(plant, models), models.tool, "tool")
     joint = sensor_weld(plant, models.sensor_joint, tool)
