@@ -11,14 +11,14 @@ import numpy as np
 import pandas as pd
 import pytest
 from scipy.spatial.transform import Rotation
-from test_calibration_correction import KNOWN_COM, KNOWN_MASS, LOADS, WRENCH, sensor_poses
 
 import ftdrake
 from ftdrake.cli.main import main
-from ftdrake.compensation.calibration import calibrate_table
+from ftdrake.compensation.calibration import KNOWN_COM, KNOWN_MASS, calibrate_table
 from ftdrake.compensation.orientation_model import OrientationPayloadCompensator
 from ftdrake.compensation.persistence import load_model
 from ftdrake.compensation.physics import ExcitationWarning
+from tests.helpers import LOADS, WRENCH, sensor_poses
 
 G_W = np.array([0.0, 0.0, -9.81])
 

@@ -8,10 +8,10 @@ import warnings
 
 import numpy as np
 import pytest
-from test_calibration_correction import KNOWN_COM, KNOWN_MASS, LOADS, WRENCH, sensor_poses
 
-from ftdrake.compensation.calibration import calibrate_table
+from ftdrake.compensation.calibration import KNOWN_COM, KNOWN_MASS, calibrate_table
 from ftdrake.compensation.physics import ExcitationWarning
+from tests.helpers import LOADS, WRENCH, sensor_poses
 
 
 @pytest.fixture(scope="module")

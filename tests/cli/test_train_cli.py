@@ -10,7 +10,6 @@ the bars leave a margin for other library versions.
 from __future__ import annotations
 
 import json
-from pathlib import Path
 
 import numpy as np
 import pandas as pd
@@ -19,17 +18,12 @@ from threadpoolctl import threadpool_limits
 
 from ftdrake.cli.main import main as train_cli
 from ftdrake.compensation.persistence import read_manifest
+from tests.helpers import UR3_DATA, failure, refused, train
 
-UR3 = Path(__file__).parent / "data" / "ur3"
+UR3 = UR3_DATA
 BAG = UR3 / "ur3_2019-11-27-11-55-35.bag"
 TORQUES = ["--targets", "tau_*", "--velocities", "qd_*"]
 TARGETS = [f"tau_{i}" for i in range(6)]
-
-
-def train(ftdrake, data, out, *options):
-    code, _, err = ftdrake("train", "--data", data, "--out", out, *options)
-    assert code == 0, err
-    return read_manifest(out)
 
 
 def evaluate(ftdrake, model, data, tmp_path, *options):
@@ -42,24 +36,6 @@ def evaluate(ftdrake, model, data, tmp_path, *options):
 
 def variance_scores(result, rows="all"):
     return np.array([m["variance_score"] for m in result["metrics"][rows].values()])
-
-
-def refused(capsys, *argv) -> str:
-    """The error line of a command line argparse must refuse before running (exit code 2)."""
-    with pytest.raises(SystemExit) as exit_:
-        train_cli([str(a) for a in argv])
-    assert exit_.value.code == 2
-    return capsys.readouterr().err.strip().splitlines()[-1]
-
-
-def failure(ftdrake, *argv) -> str:
-    """stderr of a command that must fail with exit code 2 and a one-line error."""
-    code, _, err = ftdrake(*argv)
-    assert code == 2
-    lines = err.strip().splitlines()
-    assert lines[-1].startswith(f"ftdrake {argv[0]}: error: "), err
-    assert sum("error" in line for line in lines) == 1, err
-    return lines[-1]
 
 
 @pytest.fixture(scope="module")
@@ -200,9 +176,10 @@ def test_physics_extrapolates_where_a_forest_cannot(ftdrake, tmp_path):
 
     # --identify-mounting: the sensor is mounted (1.5, -2, 1) deg off its model by default.
     # From this one 2 s run, with the cable and cross-talk on, it comes out (2.7, 0.7, 1.5):
-    # too little data to separate them (tests/test_misalignment.py checks the recovery on
-    # clean data, tests/test_demo.py on the demo's). Here: the flag reaches the model file,
-    # and the model still extrapolates like the plain one (NMSE 0.002-0.057, Tz 0.085).
+    # too little data to separate them (tests/compensation/test_misalignment.py checks the
+    # recovery on clean data, tests/experiments/test_demo.py on the demo's). Here: the flag
+    # reaches the model file, and the model still extrapolates like the plain one (NMSE
+    # 0.002-0.057, Tz 0.085).
     path = tmp_path / "mounted.ftd"
     train(ftdrake, tmp_path / "run0.parquet", path, "--kind", "physics", "--robot", "ftdrake",
           "--preset", "none", "--identify-mounting")

@@ -3,9 +3,9 @@ calibrated where models are trained from the command line."""
 
 import numpy as np
 import pytest
-from test_train_cli import failure, refused, train
 
 from ftdrake.compensation.persistence import load_model
+from tests.helpers import failure, refused, train
 
 
 @pytest.fixture(scope="module")
@@ -73,7 +73,7 @@ def test_calibration_on_another_log_and_the_refusals(ftdrake, logs, tmp_path):
 def test_the_demos_calibration_from_the_command_line(ftdrake, logs, tmp_path):
     """--domain-shared-growth --domain-level held_out: the level next to the data from the
     held-out runs too, never below the residual's training error (as the demo calibrates;
-    the shared level's arithmetic: test_domain_calibration.py)."""
+    the shared level's arithmetic: tests/compensation/test_domain_calibration.py)."""
     path = tmp_path / "d.ftd"
     manifest = train(ftdrake, logs / "runs.parquet", path, "--kind", "hybrid", "--robot",
                      "ftdrake", "--preset", "none", "--domain-holdout", "0.3",

@@ -16,10 +16,9 @@ from ftdrake.compensation.consistent import is_physically_consistent
 from ftdrake.errors import RobotModelError
 from ftdrake.physics.arm_dynamics import ArmDynamics, ArmModel
 from ftdrake.physics.robot import ftdrake_arm
+from tests.helpers import FRICTION, ROOT, UR3_DATA, UR3_URDF, arm_torques
 
-ROOT = Path(__file__).resolve().parents[1]
-UR3 = str(ROOT / "models" / "ur3.urdf")
-UR3_DATA = ROOT / "tests" / "data" / "ur3"
+UR3 = UR3_URDF
 
 
 @pytest.fixture(scope="module")
@@ -75,15 +74,6 @@ def test_ur3_urdf_matches_the_published_dh_kinematics(ur3):
     np.testing.assert_allclose(masses, dh.MASS)
 
 
-def _synthetic(ur3, rng, rows, truth, friction, gains, noise):
-    q = rng.uniform(-np.pi, np.pi, (rows, 6))
-    v = rng.uniform(-2, 2, (rows, 6))
-    vd = rng.uniform(-4, 4, (rows, 6))
-    tau = ur3.regressor(q, v, vd) @ truth + friction[0] * v + friction[1] * np.tanh(v / 0.02)
-    Y = gains * tau + noise * rng.standard_normal(tau.shape)
-    return np.hstack([q, v, vd]), Y
-
-
 def _perturbed_truth(ur3):
     """The UR3's file values with every mass 20 % heavier (centres of mass kept)."""
     phi = ur3.model_parameters().copy()
@@ -91,15 +81,12 @@ def _perturbed_truth(ur3):
     return phi
 
 
-FRICTION = (np.array([3.0, 3.0, 2.0, 0.8, 0.8, 0.5]), np.array([2.0, 2.0, 1.5, 0.6, 0.6, 0.4]))
-
-
 @pytest.mark.parametrize("identification", ["least_squares", "consistent"])
 def test_identification_recovers_friction_and_predicts_new_states(ur3, identification):
     rng = np.random.default_rng(3)
     truth = _perturbed_truth(ur3)
-    X, Y = _synthetic(ur3, rng, 400, truth, FRICTION, np.ones(6), 0.05)
-    Xt, Yt = _synthetic(ur3, rng, 200, truth, FRICTION, np.ones(6), 0.0)
+    X, Y = arm_torques(ur3, rng, 400, truth, FRICTION, np.ones(6), 0.05)
+    Xt, Yt = arm_torques(ur3, rng, 200, truth, FRICTION, np.ones(6), 0.0)
     model = ArmDynamicsCompensator(robot=UR3, identification=identification).fit(X, Y)
     params = model.identified()
     for j, name in enumerate(model.dynamics().joint_names):
@@ -122,8 +109,8 @@ def test_drive_gains_are_identified_with_their_signs(ur3):
     rng = np.random.default_rng(4)
     gains = np.array([-0.5, -1.4, -1.35, -1.7, -3.0, -11.0])
     truth = ur3.model_parameters()
-    X, Y = _synthetic(ur3, rng, 400, truth, FRICTION, gains, 0.02)
-    Xt, Yt = _synthetic(ur3, rng, 200, truth, FRICTION, gains, 0.0)
+    X, Y = arm_torques(ur3, rng, 400, truth, FRICTION, gains, 0.02)
+    Xt, Yt = arm_torques(ur3, rng, 200, truth, FRICTION, gains, 0.0)
     model = ArmDynamicsCompensator(robot=UR3, drive_gains="identify").fit(X, Y)
     np.testing.assert_allclose(model.gains_, gains, rtol=0.1)
     assert model.physically_consistent_

@@ -10,60 +10,14 @@ import numpy as np
 import pandas as pd
 import pytest
 import yaml
-from pydrake.systems.analysis import Simulator
-from pydrake.systems.framework import DiagramBuilder
-from pydrake.systems.primitives import LogVectorOutput, TrajectorySource
-from pydrake.trajectories import PiecewisePolynomial
 
 from ftdrake import SensorConfig
 from ftdrake.cli.main import main
 from ftdrake.compensation.calibration import KNOWN_COM, KNOWN_MASS, calibrate_table, true_wrench
 from ftdrake.compensation.physics import ExcitationWarning
-from ftdrake.conventions import WRENCH_AXES
 from ftdrake.errors import ConfigError
-from ftdrake.systems.noisy_sensor import NoisyForceTorqueSensor
 from ftdrake.testing import SIGMA
-
-WRENCH = [f"meas_{a}" for a in WRENCH_AXES]
-# A sensor whose calibration is off: 1.5–3 % gains and 2 % cross-talk (force to torque up to
-# 0.4 N per N·m), no mounting rotation (the orientation is given as gravity in S).
-SENSOR = {"crosstalk": 0.02, "gain_error": [0.03, -0.02, 0.015, 0.025, -0.03, 0.02],
-          "mounting_rpy_deg": [0.0] * 3, "calibration_seed": 3, "temperature_rise_c": 0.0}
-# Three loads whose centres of mass are not on one line (kg; m from So in S).
-LOADS = [(1.5, (0.02, 0.0067, 0.0867)), (0.8, (-0.06, 0.04, 0.03)), (2.0, (0.05, -0.05, 0.12))]
-
-
-def gravity_directions(rng, n):
-    v = rng.normal(size=(n, 3))
-    return 9.81 * v / np.linalg.norm(v, axis=1, keepdims=True)
-
-
-def sensor_poses(seed, n, load, hold=100, keep=50):
-    """The simulated sensor (noise, bias, random walk, filter, quantization) holding a load in
-    `n` random orientations, 0.1 s each; a table row per pose: the mean of its last 50
-    samples (as a calibration averages a held pose), gravity in S, the known payload."""
-    rng = np.random.default_rng(seed)
-    mass, com = load
-    g_S = gravity_directions(rng, n)
-    ideal = true_wrench(g_S, np.r_[mass, mass * np.asarray(com)])
-    dt = 1e-3
-    breaks = np.arange(n + 1) * hold * dt
-    builder = DiagramBuilder()
-    source = builder.AddSystem(TrajectorySource(
-        PiecewisePolynomial.ZeroOrderHold(breaks, np.vstack([ideal, ideal[-1:]]).T)))
-    dut = builder.AddSystem(NoisyForceTorqueSensor(SensorConfig(seed=seed, **SENSOR)))
-    builder.Connect(source.get_output_port(), dut.get_input_port_wrench_ideal())
-    logger = LogVectorOutput(dut.get_output_port_wrench_measured(), builder, dt)
-    simulator = Simulator(builder.Build())
-    simulator.AdvanceTo(breaks[-1] - dt / 2)
-    log = logger.FindLog(simulator.get_context())
-    sample = np.round(log.sample_times() / dt).astype(int)
-    held = sample % hold >= hold - keep
-    Y = np.array([log.data().T[held & (sample // hold == p)].mean(axis=0) for p in range(n)])
-    frame = pd.DataFrame({"gx": g_S[:, 0], "gy": g_S[:, 1], "gz": g_S[:, 2],
-                          **dict(zip(WRENCH, Y.T, strict=True)), KNOWN_MASS: mass,
-                          **dict(zip(KNOWN_COM, com, strict=True))})
-    return frame, dut.calibration_matrix
+from tests.helpers import LOADS, WRENCH, sensor_poses
 
 
 def skew(v):

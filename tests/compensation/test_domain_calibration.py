@@ -6,13 +6,12 @@ import warnings
 
 import numpy as np
 import pytest
-from test_domain_uncertainty import poses
-from test_uncertainty import static_readings
 
 from ftdrake.compensation import domain
 from ftdrake.compensation.hybrid import HybridCompensator
 from ftdrake.compensation.metrics import coverage
 from ftdrake.compensation.physics import PhysicsPayloadCompensator
+from tests.helpers import poses, static_readings
 
 
 def runs(rng, regions, n=300):

@@ -7,7 +7,6 @@ import warnings
 
 import numpy as np
 import pytest
-from test_uncertainty import static_readings
 
 from ftdrake.compensation.compiled.kdtree import build_kdtree, nearest_distances
 from ftdrake.compensation.hybrid import HybridCompensator
@@ -15,16 +14,8 @@ from ftdrake.compensation.metrics import coverage
 from ftdrake.compensation.persistence import load_model, save_model
 from ftdrake.compensation.physics import PhysicsPayloadCompensator
 from ftdrake.conventions import WRENCH_AXES, WRENCH_UNITS
-from ftdrake.testing import HOME, SIGMA
-
-JOINTS = [1, 3, 5]
-
-
-def poses(rng, n, lo, hi):
-    """`n` static poses, joints 1, 3, 5 moved from HOME by uniform offsets in [lo, hi] rad."""
-    q = np.tile(HOME, (n, 1))
-    q[:, JOINTS] += rng.uniform(lo, hi, (n, len(JOINTS)))
-    return np.hstack([q, np.zeros((n, 14))])
+from ftdrake.testing import SIGMA
+from tests.helpers import poses, static_readings
 
 
 @pytest.fixture(scope="module")

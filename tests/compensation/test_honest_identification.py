@@ -8,11 +8,12 @@ import warnings
 
 import numpy as np
 import pytest
-from test_arm_dynamics import FRICTION, UR3, _synthetic
 
 from ftdrake.compensation.arm import ArmDynamicsCompensator, DriveGainWarning
 from ftdrake.compensation.consistent import is_physically_consistent, physical_violations
 from ftdrake.physics.arm_dynamics import ArmDynamics, ArmModel
+from tests.helpers import FRICTION, arm_torques
+from tests.helpers import UR3_URDF as UR3
 
 
 @pytest.fixture(scope="module")
@@ -23,7 +24,7 @@ def ur3():
 @pytest.fixture(scope="module")
 def torques(ur3):
     """Joint torques (gains 1) of the UR3 at random states, 0.05 N·m noise."""
-    return _synthetic(ur3, np.random.default_rng(3), 300, ur3.model_parameters(), FRICTION,
+    return arm_torques(ur3, np.random.default_rng(3), 300, ur3.model_parameters(), FRICTION,
                       np.ones(6), 0.05)
 
 
@@ -94,7 +95,7 @@ def test_implausible_drive_gains_warn_and_name_the_flag(ur3, torques):
 
 def test_gains_of_a_current_log_do_not_warn(ur3):
     gains = np.array([-0.5, -1.4, -1.35, -1.7, -3.0, -11.0])  # currents: far from 1, real
-    X, Y = _synthetic(ur3, np.random.default_rng(4), 300, ur3.model_parameters(), FRICTION,
+    X, Y = arm_torques(ur3, np.random.default_rng(4), 300, ur3.model_parameters(), FRICTION,
                       gains, 0.02)
     with warnings.catch_warnings():
         warnings.simplefilter("error", DriveGainWarning)

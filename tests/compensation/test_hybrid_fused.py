@@ -2,7 +2,6 @@
 own predict / predict_std, against the two-call row it replaced, and in CompensatorSystem."""
 
 import warnings
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -17,8 +16,9 @@ from ftdrake.compensation.forest import RandomForestCompensator
 from ftdrake.compensation.hybrid import HybridCompensator
 from ftdrake.compensation.physics import PhysicsPayloadCompensator
 from ftdrake.runtime.compensator import CompensatorSystem
+from tests.helpers import DATA
 
-USER_ARM = str(Path(__file__).parent / "data" / "prismatic_arm.urdf")  # 6 joints, one prismatic
+USER_ARM = str(DATA / "prismatic_arm.urdf")  # 6 joints, one prismatic
 # [m, m·c, I_So, biases] of a tool, in S.
 PHI = np.array([1.5, 0.03, 0.01, 0.13, 0.012, 0.0, 0.001, 0.012, 0.0, 0.004,
                 0.6, -0.4, 1.2, 0.01, -0.02, 0.005])

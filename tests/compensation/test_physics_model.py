@@ -26,6 +26,7 @@ from ftdrake.physics.scenario_robot import robot_description
 from ftdrake.sim.collection import collect
 from ftdrake.sim.scene import add_scene
 from ftdrake.testing import split_by_trajectory
+from tests.helpers import DATA
 
 TRUE_MASS = 1.5
 TRUE_COM = np.array([0.02, 0.2 / 30, 0.26 / 3])  # m, from ft_sensor_tool.sdf
@@ -199,7 +200,7 @@ def test_the_simulations_robot_description_has_the_scenes_kinematics():
 
 
 # -- the compiled row path ------------------------------------------------------------------
-USER_ARM = str(__import__("pathlib").Path(__file__).parent / "data" / "prismatic_arm.urdf")
+USER_ARM = str(DATA / "prismatic_arm.urdf")
 
 
 def drake_prediction(model, X, plant, frame_S, instance=None):

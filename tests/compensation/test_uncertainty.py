@@ -12,17 +12,8 @@ from ftdrake.compensation.gpr import GPRCompensator
 from ftdrake.compensation.hybrid import HybridCompensator
 from ftdrake.compensation.metrics import coverage, report
 from ftdrake.compensation.physics import ExcitationWarning, PhysicsPayloadCompensator
-from ftdrake.testing import SIGMA, THETA, readings, sinusoids, static_poses
-
-
-def static_readings(X, rng):
-    """Gravity on the payload + a smooth pose-dependent 'cable' term of 4σ + noise."""
-    q = X[:, :7]
-    cable = 4 * SIGMA * np.column_stack([
-        np.sin(2 * q[:, 0] + q[:, 3]), np.cos(q[:, 1]), np.sin(2 * q[:, 5]),
-        np.cos(q[:, 4] + q[:, 2]), np.sin(q[:, 3]), np.cos(2 * q[:, 6])])
-    gravity = PhysicsPayloadCompensator(mode="static", features="q").regressor(X) @ THETA
-    return gravity + cable + rng.normal(size=(len(X), 6)) * SIGMA
+from ftdrake.testing import readings, sinusoids, static_poses
+from tests.helpers import static_readings
 
 
 def assert_calibrated(model, X, Y):

@@ -10,7 +10,6 @@ or predictions say the model is guessing; the `quick` SVR grid follows the numbe
 from __future__ import annotations
 
 import json
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -25,8 +24,9 @@ from ftdrake.compensation.metrics import (
     report,
     uncertain_fraction,
 )
+from tests.helpers import UR3_DATA
 
-UR3 = Path(__file__).parent / "data" / "ur3"
+UR3 = UR3_DATA
 TORQUES = ["--targets", "tau_*", "--velocities", "qd_*"]
 
 

@@ -2,7 +2,6 @@
 
 import dataclasses as dc
 import json
-from pathlib import Path
 
 import numpy as np
 import pandas as pd
@@ -23,6 +22,7 @@ from ftdrake.config import (
 )
 from ftdrake.sim.station import plan_trajectory, robot_geometry
 from ftdrake.sim.trajectories import JointLimits, check_limits, make_trajectory, trajectory_extent
+from tests.helpers import DATA
 
 
 def test_shipped_default_yaml_equals_defaults_and_round_trips(tmp_path):
@@ -219,7 +219,6 @@ def test_atomic_outputs_get_the_usual_permissions(tmp_path):
 # ----------------------------------------------------------------------------------------------
 # The task's geometry comes from the models' frames (scenario.task), not from constants.
 # ----------------------------------------------------------------------------------------------
-DATA = Path(__file__).parent / "data"
 # What trajectories.py used to copy from the SDF files (TABLE_TOP_Z, WALL_FACE_X, P_STIP).
 OLD_TABLE = ([0.5, 0.0, 0.75], [0.0, 0.0, 1.0])
 OLD_WALL = ([0.95, 0.0, 1.2], [-1.0, 0.0, 0.0])

@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import re
 import warnings
-from pathlib import Path
 
 import numpy as np
 import pandas as pd
@@ -16,8 +15,9 @@ from ftdrake.conventions import wrench_columns
 from ftdrake.data.bag import read_bag
 from ftdrake.data.logs import LogError, LogWarning, expand_columns, read_table
 from ftdrake.signals import savgol_derivative
+from tests.helpers import UR3_DATA
 
-UR3 = Path(__file__).parent / "data" / "ur3"
+UR3 = UR3_DATA
 UR3_BAG = UR3 / "ur3_2019-11-27-11-55-35.bag"
 UR3_JOINTS = ["Base", "Shoulder", "Elbow", "Wrist 1", "Wrist 2", "Wrist 3"]
 

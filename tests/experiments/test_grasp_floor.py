@@ -10,7 +10,6 @@ fits), the same noise in both runs, as the experiment's runs have.
 import numpy as np
 import pandas as pd
 import pytest
-from test_bias_tracker import SIGMA, brisk_arm_motion, noise, point_mass_wrench
 
 from ftdrake import ScenarioConfig
 from ftdrake import conventions as col
@@ -22,6 +21,8 @@ from ftdrake.experiments.tracking import (
     run_events,
     settled_metrics,
 )
+from tests.helpers import SENSOR_SIGMA as SIGMA
+from tests.helpers import brisk_arm_motion, noise, point_mass_wrench
 
 GRASP_AT, JUDGED_FROM = 1.0, 3.0
 MASS, P = 0.5, np.array([0.0, 0.02, 0.12])

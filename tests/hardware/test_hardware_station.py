@@ -120,7 +120,7 @@ def test_the_simulated_robot_announces_its_re_tare_and_grasp_once():
     """``events.retare_at_s`` and ``grasp_at_s`` in the simulation: the driver's zero offset
     jumps, a payload is added; the simulated robot sends one message on the tare and one on
     the payload channel, stamped with those times, which the station receives (its tracker
-    then re-initialises the bias or payload; tests/test_hardware_faults)."""
+    then re-initialises the bias or payload; tests/hardware/test_hardware_faults)."""
     from ftdrake.hardware.messages import PAYLOAD_COORD, TARE_COORD, decode_event
 
     scenario = ScenarioConfig()

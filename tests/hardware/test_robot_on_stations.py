@@ -7,7 +7,6 @@ ftdrake's simulated arm (which has 7 joints too, so nothing else would complain)
 reference is Drake's own plant of the URDF, built here without ftdrake.
 """
 
-from pathlib import Path
 
 import numpy as np
 import pandas as pd
@@ -19,8 +18,9 @@ import ftdrake
 from ftdrake import conventions as col
 from ftdrake.hardware import HardwareConfig, HardwareStation
 from ftdrake.hardware.messages import encode_joint_state, encode_wrench
+from tests.helpers import DATA
 
-URDF = Path(__file__).resolve().parent / "data" / "seven_joint_arm.urdf"
+URDF = DATA / "seven_joint_arm.urdf"
 N = 7
 G_W = np.array([0.0, 0.0, -9.81])
 TOOL_MASS, TOOL_COM = 1.1, np.array([0.01, -0.015, 0.08])  # the URDF's tool, in S

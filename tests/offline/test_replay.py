@@ -9,7 +9,6 @@ from pydrake.systems.analysis import Simulator
 from pydrake.systems.framework import DiagramBuilder
 from pydrake.systems.primitives import LogVectorOutput, TrajectorySource
 from pydrake.trajectories import PiecewisePolynomial
-from test_hardware_station import fit_forest
 
 import ftdrake
 from ftdrake import LogError, ScenarioConfig, replay, save_model
@@ -19,6 +18,7 @@ from ftdrake.runtime.delay_line import DelayLine
 from ftdrake.signals import causal_acceleration
 from ftdrake.sim.simulate import simulate
 from ftdrake.sim.station import build_station
+from ftdrake.testing import fit_forest
 
 CHAIN_COLUMNS = [*wrench_columns("wrench_internal"), *wrench_columns("wrench_compensated"),
                  *wrench_columns("wrench_contact"), *wrench_columns("wrench_std"),

@@ -1,6 +1,5 @@
 """The compiled serial chain against Drake's Jacobians (``sensor_kinematics``), to 1e-12."""
 
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -15,8 +14,8 @@ from ftdrake.physics.chain import SerialChain, sensor_kinematics_row
 from ftdrake.physics.rigid_body import sensor_kinematics
 from ftdrake.physics.robot import RobotDescription, ftdrake_arm
 from ftdrake.sim.scene import add_scene
+from tests.helpers import DATA
 
-DATA = Path(__file__).parent / "data"
 USER_URDF = DATA / "prismatic_arm.urdf"  # 5 joints on the path (one prismatic), 1 off it
 FIELDS = ("R_WS", "w_WS_S", "alpha_WS_S", "a_WSo_S", "g_S")
 TOL = 1e-12

@@ -15,8 +15,9 @@ from ftdrake.cli.main import main
 from ftdrake.compensation.persistence import load_model, save_model
 from ftdrake.compensation.physics import FixedJointsWarning
 from ftdrake.physics.robot import fixed_joint_values
+from tests.helpers import DATA
 
-ARM = Path(__file__).parent / "data" / "three_link_arm.urdf"
+ARM = DATA / "three_link_arm.urdf"
 TORSO = 0.2  # rad: the torso pitches the whole arm, so it changes gravity seen in S
 MASS, COM = 0.9, np.array([0.012, -0.006, 0.065])  # the gripper of three_link_arm.urdf
 LINK = ('<link name="{0}"><inertial><mass value="0.1"/><inertia ixx="1e-4" iyy="1e-4" '

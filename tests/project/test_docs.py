@@ -18,8 +18,8 @@ import pytest
 from pydrake.systems.framework import PortDataType, System
 
 import ftdrake
+from tests.helpers import ROOT
 
-ROOT = Path(__file__).resolve().parents[1]
 DOCS = ROOT / "docs"
 
 

@@ -10,8 +10,9 @@ import numpy as np
 import pytest
 
 import ftdrake
+from tests.helpers import ROOT
 
-EXAMPLES = Path(__file__).resolve().parents[1] / "examples"
+EXAMPLES = ROOT / "examples"
 
 
 def run(name: str, cwd: Path, *args: str, timeout: float = 300) -> str:
@@ -37,7 +38,7 @@ def number(pattern: str, text: str) -> float:
 def test_every_example_is_run_by_a_test():
     """Here (by ``run``), or by a test file of its own that names the example's path."""
     tested = set(re.findall(r'run\("(\w+\.py)"', Path(__file__).read_text()))
-    for test in Path(__file__).parent.glob("test_*.py"):
+    for test in (ROOT / "tests").rglob("test_*.py"):
         tested |= set(re.findall(r'"examples"\s*/\s*"(\w+\.py)"', test.read_text()))
     assert {p.name for p in EXAMPLES.glob("*.py")} == tested
 

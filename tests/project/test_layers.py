@@ -20,7 +20,9 @@ from pathlib import Path
 
 import pytest
 
-PACKAGE = Path(__file__).resolve().parents[1] / "ftdrake"
+from tests.helpers import ROOT
+
+PACKAGE = ROOT / "ftdrake"
 
 # Top-level module or package of ftdrake → layer (higher may import lower and its own).
 LAYERS = {

@@ -14,7 +14,6 @@ InverseDynamicsController on its own model of the arm). With only ftdrake's publ
 """
 
 import shutil
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -30,8 +29,9 @@ from pydrake.trajectories import PiecewisePolynomial
 
 import ftdrake
 from ftdrake.compensation.payload_kinematics import kinematics_for
+from tests.helpers import DATA
 
-URDF = Path(__file__).resolve().parent / "data" / "three_link_arm.urdf"
+URDF = DATA / "three_link_arm.urdf"
 PERIOD = 1e-3  # s: the sensor's rate
 MASS, COM = 0.9, np.array([12.0, -6.0, 65.0])  # kg, mm in S: the URDF's gripper
 PRESS_N = np.array([0.0, 0.0, -6.0])  # N, world: a hand pressing down on the gripper

@@ -4,7 +4,6 @@ URDF, identifies its gripper, runs the chain in the loop, and the replay equals 
 import json
 import subprocess
 import sys
-from pathlib import Path
 
 import numpy as np
 import pandas as pd
@@ -13,8 +12,9 @@ import pytest
 import ftdrake
 from ftdrake.conventions import QD, QDD_EST, joint_columns
 from ftdrake.signals import DEFAULT_ACCELERATION_CUTOFF_HZ, causal_acceleration
+from tests.helpers import ROOT
 
-EXAMPLE = Path(__file__).resolve().parents[1] / "examples" / "record_your_diagram.py"
+EXAMPLE = ROOT / "examples" / "record_your_diagram.py"
 
 
 @pytest.mark.slow

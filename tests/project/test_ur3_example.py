@@ -8,12 +8,13 @@ The expected table is what ``ftdrake train --targets 'tau_*' --velocities 'qd_*'
 
 import subprocess
 import sys
-from pathlib import Path
 
 import numpy as np
 import pytest
 
-EXAMPLE = Path(__file__).resolve().parents[1] / "examples" / "ur3_torque_models.py"
+from tests.helpers import ROOT
+
+EXAMPLE = ROOT / "examples" / "ur3_torque_models.py"
 EXPECTED = """\
 | model | tau_0 | tau_1 | tau_2 | tau_3 | tau_4 | tau_5 | 95 % coverage |
 | --- | --- | --- | --- | --- | --- | --- | --- |

@@ -19,7 +19,8 @@ from pathlib import Path
 
 import pytest
 
-ROOT = Path(__file__).resolve().parents[1]
+from tests.helpers import ROOT
+
 BUILD_INPUTS = ("pyproject.toml", "README.md", "MANIFEST.in", "LICENSE", "ftdrake", "models")
 MODEL_PATTERNS = ("package.xml", "*.sdf", "*.urdf", "*.dmd.yaml", "*.obj", "*.mtl")
 

@@ -14,29 +14,28 @@ from pydrake.systems.framework import DiagramBuilder
 from pydrake.systems.primitives import ConstantVectorSource, LogVectorOutput, TrajectorySource
 from pydrake.trajectories import PiecewisePolynomial
 
-from ftdrake import ScenarioConfig
 from ftdrake.config import DetectorConfig
 from ftdrake.errors import ConfigError
 from ftdrake.runtime.bias_tracker import BiasTrackerConfig, OnlineBiasTracker
 from ftdrake.runtime.detector import ContactDetector
+from tests.helpers import (
+    SENSOR,
+    SENSOR_PERIOD,
+    SENSOR_SIGMA,
+    brisk_arm_motion,
+    noise,
+    point_mass_wrench,
+    times,
+)
 
-SENSOR = ScenarioConfig().sensor
-PERIOD = 1.0 / SENSOR.spec().rate_hz
-SIGMA = np.asarray(SENSOR.spec().noise_std)
+PERIOD = SENSOR_PERIOD
+SIGMA = SENSOR_SIGMA
 TAU = BiasTrackerConfig().time_constant_s
 # The rate bound the tracker documents: 3·drift_std/√τ (N/s, N·m/s).
 RATE = 3.0 * np.asarray(SENSOR.drift_std) / math.sqrt(TAU)
 BIAS = np.array([0.6, -0.4, 1.2, 0.02, -0.015, 0.01])
 STEP = np.array([5.0, 5.0, 5.0, 0.2, 0.2, 0.2])
 G = 9.80665
-
-
-def times(duration):
-    return np.arange(round(duration / PERIOD) + 1) * PERIOD
-
-
-def noise(n, seed=0):
-    return np.random.default_rng(seed).normal(size=(n, 6)) * SIGMA
 
 
 def zoh(values):
@@ -276,36 +275,6 @@ def test_grasp_identified_while_rotating(bias_known):
 @pytest.fixture(scope="module")
 def arm_motion():
     return brisk_arm_motion()
-
-
-def brisk_arm_motion():
-    """S's motion along 6 s of brisk multi-sine joint motion of the scenario's arm, from Drake
-    (S's Jacobian and bias acceleration): g_S − a_So, [ω; α] (in S). |α| reaches ~10 rad/s²."""
-    from ftdrake.physics.rigid_body import sensor_kinematics
-    from ftdrake.physics.scenario_robot import robot_description
-
-    plant, frame_S = robot_description(ScenarioConfig()).build_plant()
-    t = times(6.0)
-    rng = np.random.default_rng(11)
-    q0 = np.array([0.0, 0.6, 0.0, -1.2, 0.0, 1.0, 0.0])
-    amp, freq, phase = (rng.uniform(0.3, 0.6, (2, 7)), np.array([[0.23], [0.61]]),
-                        rng.uniform(0, 2 * np.pi, (2, 7)))
-    arg = 2 * np.pi * freq[:, None] * t[None, :, None] + phase[:, None]  # (2, N, 7)
-    w = 2 * np.pi * freq[:, None]
-    q = q0 + (amp[:, None] * np.sin(arg)).sum(0)
-    v = (amp[:, None] * w * np.cos(arg)).sum(0)
-    vdot = -(amp[:, None] * w**2 * np.sin(arg)).sum(0)
-    kin = sensor_kinematics(plant, plant.CreateDefaultContext(), frame_S, q, v, vdot)
-    return t, kin
-
-
-def point_mass_wrench(mass, p, kin):
-    """What a particle `mass` at p (So to P, in S) adds to the reading, by Newton's law for the
-    particle alone: F = m (g − a_P), a_P = a_So + α × p + ω × (ω × p); T = p × F (about So)."""
-    w, alpha = kin.w_WS_S, kin.alpha_WS_S
-    a_P = kin.a_WSo_S + np.cross(alpha, p) + np.cross(w, np.cross(w, p))
-    force = mass * (kin.g_S - a_P)
-    return np.hstack([force, np.cross(p, force)])
 
 
 #: The grasp of the arm-motion tests: 0.5 kg at (0, 20, 120) mm from So, signalled at 1 s.

@@ -11,10 +11,6 @@ import warnings
 import numpy as np
 import pytest
 from pydrake.systems.analysis import Simulator
-from test_chain import PERIOD as CHAIN_PERIOD
-from test_chain import configs as chain_configs
-from test_chain import forest as chain_forest
-from test_chain import stream as chain_stream
 
 from ftdrake import CompensationChain
 from ftdrake.compensation.forest import RandomForestCompensator
@@ -37,6 +33,7 @@ from ftdrake.runtime.step import ChainStep
 from ftdrake.sim.simulate import simulate
 from ftdrake.sim.station import build_station
 from ftdrake.testing import push_scenario
+from tests.helpers import CHAIN_PERIOD, chain_configs, chain_forest, chain_stream
 
 N = 7
 TARE_AT, GRASP_AT = (5, 1700), 1800  # samples where a tared / payload_changed pulse starts

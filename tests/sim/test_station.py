@@ -1,5 +1,5 @@
 """The station: one diagram from one config, typed handles, a returned result (the named port
-accessors of every system: test_ports.py)."""
+accessors of every system: tests/systems/test_ports.py)."""
 
 import numpy as np
 import pytest

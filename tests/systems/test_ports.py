@@ -129,7 +129,7 @@ def test_a_system_is_defined_in_runtime_or_systems_one_a_module(cls):
 @pytest.mark.parametrize("cls", SYSTEM_CLASSES, ids=lambda c: c.__name__)
 def test_every_port_has_a_named_accessor_that_returns_it(cls, instances):
     assert instances.get(cls), (f"no {cls.__name__} to check: add one to the rig or beside it "
-                                "in tests/test_ports.py's `instances` fixture")
+                                "in tests/systems/test_ports.py's `instances` fixture")
     names = accessors(cls)
     for dut in instances[cls]:
         for kind, count, get in (("input", dut.num_input_ports(), dut.get_input_port),

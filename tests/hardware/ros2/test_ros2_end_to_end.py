@@ -22,8 +22,6 @@ import numpy as np
 import pytest
 
 pytest.importorskip("cyclonedds")
-from test_hardware_station import fit_forest, push_scenario
-
 from ftdrake import save_model
 from ftdrake.config import save_config
 from ftdrake.conventions import WRENCH_AXES, WRENCH_UNITS
@@ -39,6 +37,7 @@ from ftdrake.hardware.ros2.messages import (
 from ftdrake.sim.ros2_publisher import arm_joint_names
 from ftdrake.sim.simulate import simulate
 from ftdrake.sim.station import build_station
+from ftdrake.testing import fit_forest, push_scenario
 
 DOMAIN = 1 + os.getpid() % 99  # distinct between concurrent test runs
 
