@@ -7,8 +7,6 @@ search. Same seeds, same numbers: bit for bit.
 
 from __future__ import annotations
 
-from pathlib import Path
-
 import numpy as np
 import pandas as pd
 import pytest
@@ -18,8 +16,9 @@ from ftdrake.cli.main import main as train_cli
 from ftdrake.compensation.persistence import load_model, read_manifest
 from ftdrake.data.logs import read_table
 from ftdrake.sim.collection import collect
+from tests.helpers import UR3_DATA
 
-UR3 = Path(__file__).parent / "data" / "ur3"
+UR3 = UR3_DATA
 
 pytestmark = pytest.mark.slow
 

@@ -5,7 +5,6 @@ the earlier release (tests/data/*_eb9851c.*: a simulated contact log saved with
 both by the code of commit eb9851c)."""
 
 import importlib.util
-from pathlib import Path
 
 import numpy as np
 import pandas as pd
@@ -27,9 +26,8 @@ from ftdrake.hardware.messages import (
 )
 from ftdrake.hardware.ros2.config import OUTPUTS as ROS2_OUTPUTS
 from ftdrake.runtime.chain import CompensationChain
+from tests.helpers import DATA, ROOT
 
-DATA = Path(__file__).parent / "data"
-ROOT = Path(__file__).resolve().parents[1]
 N = 7
 
 

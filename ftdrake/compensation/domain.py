@@ -164,9 +164,9 @@ def calibrate(d, target, predicted, in_var, far_var, parameter_var, *,
     axis whose physics part errs more in training errs more away from it), and with
     ``"held_out"`` one excess in units of each axis' floor, aₐ = λ · `in_var`ₐ (the same
     argument next to the data); default one per axis. Per axis suits many independent
-    held-out poses (``tests/test_domain_uncertainty``: the synthetic error's growth differs
-    per axis; shared leaves Fx at 0.66 coverage out of domain); the shared terms carried
-    over better on the demo's few held-out runs (the guide)."""
+    held-out poses (``tests/compensation/test_domain_uncertainty``: the synthetic error's
+    growth differs per axis; shared leaves Fx at 0.66 coverage out of domain); the shared
+    terms carried over better on the demo's few held-out runs (the guide)."""
     if in_domain not in IN_DOMAIN_SOURCES:
         raise ValueError(f"in_domain must be one of {IN_DOMAIN_SOURCES}; got {in_domain!r}")
     fit_level = in_domain == "held_out"

@@ -6,7 +6,7 @@ contacts and sensor stream are the same whichever model is in the loop. :func:`r
 replay` therefore simulates each run of a :class:`~.detection.DetectionPlan` once, without a
 compensator, and replays each model's chain over the log
 (:func:`ftdrake.offline.replay.replay` with the simulated station's pairing), which gives the
-in-loop chain's numbers exactly (tests/test_replay.py, to 1e-12). The held-out motion that
+in-loop chain's numbers exactly (tests/offline/test_replay.py, to 1e-12). The held-out motion that
 sets the thresholds is collected once for all models too.
 
 A run goes through the loop (:func:`.detection._closed_loop_run`) instead when its replay

@@ -19,7 +19,7 @@ message advances a (non-realtime) Simulator to (k + ½)·period, so exactly the 
 k·period fires (diagram time is processed-message index × period, not the message's
 timestamp; they agree while no message is rejected). By default that update is made by a
 :class:`~ftdrake.runtime.step.ChainStep` (the same systems' code on arrays, without the
-Simulator's per-update overhead; its outputs equal the diagram's, tests/test_chain_step.py);
+Simulator's per-update overhead; its outputs equal the diagram's, tests/runtime/test_chain_step.py);
 :meth:`StationCore.use_diagram` drives the diagram itself instead, for checking.
 
 Per F/T sample the transport publishes the wrench (``_publish_wrench``) only when the inputs

@@ -17,8 +17,9 @@ The diagram is :class:`~ftdrake.runtime.chain.CompensationChain`, the one
 ``sensor``, ``robot``); with ``track_payload`` the tracker's ``gravity_S`` and ``motion_S``
 come from the joint state through the serial chain of the robot embedded in the model (or of
 ``chain.robot``; :class:`~ftdrake.runtime.joint_gravity.JointStateGravity`). The same
-messages therefore give the same numbers as in simulation (``tests/test_live_end_to_end.py``
-checks it to 1e-9). This module imports nothing of the simulation.
+messages therefore give the same numbers as in simulation
+(``tests/hardware/test_live_end_to_end.py`` checks it to 1e-9). This module imports nothing of
+the simulation.
 
 The message-driven loop, its checks, fault episodes and counts are
 :class:`~ftdrake.hardware.core.StationCore`'s (shared with the ROS 2 station); this class adds

@@ -10,7 +10,7 @@ numpy arrays and calls each system's own array method (``CompensatorSystem.compe
 ``OnlineBiasTracker.track``, ``ContactDetector.detect``, ``PayloadChangeMonitor.monitor``,
 ``DelayLine.delayed``/``remember``) and JointStateGravity's compiled kernel with the same
 inputs and state as the diagram's update at that sample, so its outputs equal the
-diagram's; the diagram stays the reference (tests/test_chain_step.py compares them sample
+diagram's; the diagram stays the reference (tests/runtime/test_chain_step.py compares them sample
 by sample).
 
 What one update reproduces — Drake's discrete update semantics: every system's update at

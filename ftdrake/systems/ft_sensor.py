@@ -1,6 +1,6 @@
 """Force/torque sensors as Drake systems.
 
-Convention (used everywhere in ftdrake; tested in tests/test_sensor_physics.py):
+Convention (used everywhere in ftdrake; tested in tests/systems/test_sensor_physics.py):
 
 * A wrench is ``[Fx, Fy, Fz, Tx, Ty, Tz]`` in N and N·m (force first, as ROS WrenchStamped and
   the study). Drake's ``SpatialForce`` is ``[torque; force]``; the conversion happens in

@@ -7,7 +7,7 @@ ROS 2 distributions, parsed by rosbags); nothing here spells a field by hand. Ea
 mapping to DDS"), with the fields in their declared order and types (``byte`` → octet,
 ``char`` → uint8, ``string<=N>`` → bounded string, ``T[N]`` → array, ``T[]``/``T[<=N]`` →
 sequence), so Cyclone serialises it as ROS 2's middleware does: XCDR1 (plain CDR) with the
-4-byte encapsulation header. ``tests/test_ros2_messages.py`` checks the bytes against
+4-byte encapsulation header. ``tests/hardware/ros2/test_ros2_messages.py`` checks the bytes against
 rosbags' own CDR serialiser.
 
 :func:`ros2_type` returns the generated class (cached); :data:`TYPES` names the ones ftdrake

@@ -1,0 +1,1 @@
+"""Tests of ftdrake.cli: the commands, run in-process."""

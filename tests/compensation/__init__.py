@@ -1,0 +1,1 @@
+"""Tests of ftdrake.compensation: the models, their identification, evaluation and files."""

@@ -1,0 +1,1 @@
+"""Tests of ftdrake.hardware: the live LCM station, its messages and recordings."""

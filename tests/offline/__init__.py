@@ -1,0 +1,2 @@
+"""Tests of ftdrake.offline: replay, the recorder, threshold calibration, the residual
+budget."""

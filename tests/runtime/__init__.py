@@ -1,0 +1,1 @@
+"""Tests of ftdrake.runtime: the chain and its systems."""
