@@ -22,8 +22,8 @@ from ftdrake.compensation.persistence import load_model, read_manifest
 from ftdrake.compensation.tuning import tune
 from ftdrake.data.training import ReadOptions
 from ftdrake.errors import ConfigError
+from tests.helpers import DATA
 
-DATA = Path(__file__).parent / "data"
 UR3_ID1 = DATA / "ur3" / "id1.csv"
 TORQUES = ReadOptions(targets="tau_*", velocities="qd_*")
 # Written by `ftdrake train` at eb9851c (the release before the training pipeline became a

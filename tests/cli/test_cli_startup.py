@@ -16,7 +16,7 @@ import pytest
 
 from ftdrake.cli.main import COMMANDS, build_parser, commands_named
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 HEAVY = ("pydrake", "sklearn", "pandas", "numba", "scipy", "matplotlib", "dask",
          "ftdrake.compensation", "ftdrake.sim", "ftdrake.systems", "ftdrake.experiments")
 

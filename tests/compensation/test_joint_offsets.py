@@ -3,7 +3,6 @@ offsets recovered, the joints the data cannot determine named with their reason,
 gravity sag named where they fit alike, standard errors against the scatter over seeds, and
 the held-out choice that keeps no offset when there is none."""
 
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -20,6 +19,7 @@ from ftdrake.compensation.joint_offsets import (
 from ftdrake.compensation.payload_identification import full_layout
 from ftdrake.compensation.physics import PhysicsPayloadCompensator
 from ftdrake.errors import ConfigError
+from tests.helpers import DATA
 
 HOME = np.array([0.0, 0.55, 0.0, 1.45, 0.0, 1.14, 0.0])
 SPREAD = np.array([1.5, 0.5, 1.0, 0.6, 1.5, 1.0, 1.5])  # rad, about HOME
@@ -29,7 +29,7 @@ PAYLOAD = np.r_[1.2, 1.2 * np.array([0.01, -0.02, 0.06])]  # m (kg), m·c (kg·m
 BIAS = np.array([0.5, -0.3, 1.0, 0.02, -0.01, 0.03])  # N, N·m
 MOUNTING = Rotation.from_rotvec(np.radians([0.3, -0.2, 0.5])).as_matrix()  # R_SSm
 SIGMA = np.array([0.05, 0.05, 0.05, 0.002, 0.002, 0.002])
-USER_ARM = str(Path(__file__).parent / "data" / "prismatic_arm.urdf")
+USER_ARM = str(DATA / "prismatic_arm.urdf")
 
 
 def static_model(**kw):
