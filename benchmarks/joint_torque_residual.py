@@ -63,7 +63,8 @@ CANDIDATES = {f"q,qd,qdd, leaf {leaf}, {trees} trees, {points or 'default'} supp
     leaf, "q,qd,qdd", True, trees, points)
     for leaf, trees, points in ((5, 25, None), (10, 25, None), (20, 25, None), (40, 25, None),
                                 (10, 50, None), (20, 50, None), (20, 25, 4000))}
-VARIANTS = {"factors": FACTORS, "candidates": CANDIDATES}
+VARIANTS = {"factors": FACTORS, "candidates": CANDIDATES,
+            "eb9851c": {k: v for k, v in FACTORS.items() if k.startswith("eb9851c")}}
 #: Keys of each recording's arrays: time, q, q̇, measured torque.
 KEYS = {"id1": ("mt", "mq", "mdq", "mtorque"), "id2": ("mt", "mq", "mdq", "mtorque"),
         "prbs": ("time", "q", "d_q", "m_torque")}
@@ -161,7 +162,7 @@ def main():
     parser.add_argument("--splits", default="id1,id2,prbs,id1>id2,id2>id1")
     parser.add_argument("--every", type=int, default=1, help="keep every k-th training row")
     parser.add_argument("--variants", default="factors,candidates",
-                        help="which residuals: factors, candidates or both")
+                        help="which residuals: factors, candidates, eb9851c (comma-separated)")
     parser.add_argument("--validation", action="store_true",
                         help="score on the validation split inside each training part "
                              "instead of the held-out test rows")
