@@ -37,8 +37,7 @@ IDENTIFY_GAINS = {"drive_gains": "identify"}
 MODELS = {
     "rf": ("rf", {}),
     "arm": ("arm", {"robot": UR3, "options": IDENTIFY_GAINS}),
-    "hybrid (residual on q,qd,qdd: default)": ("hybrid", {"robot": UR3,
-                                                           "options": IDENTIFY_GAINS}),
+    "hybrid (default, on q,qd,qdd)": ("hybrid", {"robot": UR3, "options": IDENTIFY_GAINS}),
     "hybrid (residual on q)": ("hybrid", {"robot": UR3, "options": IDENTIFY_GAINS,
                                           "features": "q"}),
 }
