@@ -8,7 +8,8 @@ as ``ftdrake evaluate`` scores them (``evaluate_model``) — for
 * ``arm``: the UR3's rigid-body dynamics from ``models/ur3.urdf`` (Universal Robots' published
   DH parameters and masses) + joint friction, identified physically consistent, with a drive
   gain per joint (``drive_gains="identify"``: the logged efforts are not N·m);
-* ``hybrid``: ``arm`` + a forest on its residual (on q, and on q, q̇, q̈);
+* ``hybrid``: ``arm`` + a forest on its residual: the joint-torque default (on q, q̇, q̈,
+  :func:`ftdrake.compensation.hybrid.joint_torque_residual`), and the same forest on q alone;
 
 and prints one markdown table of variance scores per joint (and the 95 % coverage of the
 models' std). By default it reads the 6 s copies in ``tests/data/ur3``; ``--source DIR``
@@ -36,9 +37,9 @@ IDENTIFY_GAINS = {"drive_gains": "identify"}
 MODELS = {
     "rf": ("rf", {}),
     "arm": ("arm", {"robot": UR3, "options": IDENTIFY_GAINS}),
-    "hybrid (residual on q)": ("hybrid", {"robot": UR3, "options": IDENTIFY_GAINS}),
-    "hybrid (residual on q,qd,qdd)": ("hybrid", {"robot": UR3, "options": IDENTIFY_GAINS,
-                                                  "features": "q,qd,qdd"}),
+    "hybrid (default, on q,qd,qdd)": ("hybrid", {"robot": UR3, "options": IDENTIFY_GAINS}),
+    "hybrid (residual on q)": ("hybrid", {"robot": UR3, "options": IDENTIFY_GAINS,
+                                          "features": "q"}),
 }
 # The logs' columns: joint torques tau_*, measured velocities qd_* (q̈ is differentiated).
 READ = ftdrake.ReadOptions(targets="tau_*", velocities="qd_*")

@@ -41,6 +41,7 @@ from sklearn.base import clone
 from sklearn.utils.validation import check_is_fitted
 
 from . import domain
+from .arm import ArmDynamicsCompensator
 from .base import Compensator
 from .compiled.forest import CompiledForest
 from .compiled.hybrid import CompiledHybrid, hybrid_row
@@ -55,12 +56,19 @@ class HybridCompensator(Compensator):
 
     Parameters
     ----------
-    physics : a PhysicsPayloadCompensator (default: dynamic, ftdrake's arm).
-    residual : any compensator (default: :func:`default_residual`, a forest on ``q``).
+    physics : a PhysicsPayloadCompensator (default: dynamic, ftdrake's arm) on a wrench, or an
+        :class:`~.arm.ArmDynamicsCompensator` on joint torques.
+    residual : any compensator (default: :func:`default_residual`, a forest on ``q``, with a
+        payload model; :func:`joint_torque_residual`, a forest on ``q, q̇, q̈``, with an arm
+        model).
     features : always "q,qd,qdd" (the parts select their own features).
     identification, prior : if not None, override the physics part's (see
         :class:`~.physics.PhysicsPayloadCompensator`), so that a registry default or a config
         reaches it.
+    support_points : the most training rows the residual's support keeps (every k-th row,
+        :func:`.domain.fit_support`); None: :data:`.domain.SUPPORT_POINTS` with a payload
+        model; with an arm model :data:`JOINT_TORQUE_SUPPORT_POINTS`, and at most every
+        :data:`JOINT_TORQUE_SUPPORT_STRIDE`-th row.
 
     Fitted attributes: ``physics_``, ``residual_`` (fitted clones), ``residual_noise_var_``
     (6,) σ²_in, the residual's error variance per axis where it has data: cross-validated,
@@ -78,12 +86,13 @@ class HybridCompensator(Compensator):
     CROSS_FIT_BLOCKS = 10
 
     def __init__(self, physics=None, residual=None, features="q,qd,qdd", identification=None,
-                 prior=None):
+                 prior=None, support_points=None):
         super().__init__(features=features)
         self.physics = physics
         self.residual = residual
         self.identification = identification
         self.prior = prior
+        self.support_points = support_points
 
     def _fit(self, Z, Y):
         if self.features != "q,qd,qdd":
@@ -92,7 +101,7 @@ class HybridCompensator(Compensator):
         physics = clone(physics).set_params(**{
             k: v for k, v in (("identification", self.identification), ("prior", self.prior))
             if v is not None})
-        residual = self.residual if self.residual is not None else default_residual()
+        residual = self._residual()
         self.physics_ = clone(physics).fit(Z, Y)
         target = Y - self._physics(Z)
         self.residual_ = clone(residual).fit(Z, target)
@@ -104,7 +113,8 @@ class HybridCompensator(Compensator):
         self.domain_growth_ = np.zeros(Y.shape[1])
         self.domain_excess_var_ = np.zeros(Y.shape[1])
         self.domain_parameter_scale_ = 1.0
-        self.domain_support_ = domain.fit_support(self._domain_inputs(Z))
+        self.domain_support_ = domain.fit_support(self._domain_inputs(Z),
+                                                  self._support_points(len(Z)))
         self.domain_calibration_ = None  # DomainCalibratedHybrid's record
         self.residual_cross_fit_var_ = None
         if not self._residual_std_is_calibrated():
@@ -116,6 +126,26 @@ class HybridCompensator(Compensator):
                                                        axis=0)
                 self.domain_length_, self.residual_noise_var_ = domain.fit_in_domain(
                     *cross_fit, self.domain_far_var_)
+
+    def _on_joint_torques(self) -> bool:
+        """Whether the physics part is the whole arm's torque model (the targets are joint
+        torques, not a wrench)."""
+        return isinstance(self.physics, ArmDynamicsCompensator)
+
+    def _residual(self):
+        """The residual to fit: the given one, else the default for the physics part."""
+        if self.residual is not None:
+            return self.residual
+        return joint_torque_residual() if self._on_joint_torques() else default_residual()
+
+    def _support_points(self, rows: int) -> int:
+        """The most rows the support of `rows` training rows keeps."""
+        points = getattr(self, "support_points", None)
+        if points is not None:
+            return int(points)
+        if self._on_joint_torques():
+            return min(JOINT_TORQUE_SUPPORT_POINTS, -(-rows // JOINT_TORQUE_SUPPORT_STRIDE))
+        return domain.SUPPORT_POINTS
 
     def _residual_std_is_calibrated(self) -> bool:
         part = self.residual_
@@ -143,7 +173,9 @@ class HybridCompensator(Compensator):
             part = clone(residual).fit(Z[train], target[train])
             predicted[~train] = np.asarray(part.predict(Z[~train])).reshape((~train).sum(), -1)
             distance[~train] = domain.distances(inputs[~train],
-                                                domain.fit_support(inputs[train]))
+                                                domain.fit_support(
+                                                    inputs[train],
+                                                    self._support_points(int(train.sum()))))
         return distance, target, predicted
 
     def domain_distance(self, X) -> np.ndarray:
@@ -347,3 +379,30 @@ def default_residual() -> RandomForestCompensator:
     """
     return RandomForestCompensator(features="q", per_output=False, n_estimators=50,
                                    min_samples_leaf=40, random_state=0)
+
+
+#: The most training rows a joint-torque hybrid's support keeps (``support_points=None``),
+#: and the least stride between them: its residual's inputs are q, q̇, q̈, three times a
+#: wrench residual's q, so that a support of every third row holds no more numbers than the
+#: wrench's of every row; at 100–1000 Hz neighbouring rows are near copies.
+JOINT_TORQUE_SUPPORT_POINTS = 1000
+JOINT_TORQUE_SUPPORT_STRIDE = 3
+
+
+def joint_torque_residual() -> RandomForestCompensator:
+    """The residual a hybrid on joint torques gets by default (physics: the arm's model,
+    :class:`~.arm.ArmDynamicsCompensator`): one multi-output forest of 25 trees on
+    ``q, q̇, q̈``, at least 20 training rows in a leaf.
+
+    Why not :func:`default_residual` (a forest on ``q``): what the arm's rigid-body model
+    and its friction terms miss in joint torques depends on the motion (friction that is not
+    viscous plus Coulomb, its dependence on load and position, the drives' dynamics), which a
+    function of ``q`` alone cannot hold. Its size: 25 trees of 20 rows a leaf have as many
+    nodes as the wrench residual's 50 of 40, and the support (:data:`JOINT_TORQUE_SUPPORT_POINTS`,
+    :data:`JOINT_TORQUE_SUPPORT_STRIDE`) holds no more numbers than the wrench's, so the model
+    file is no larger than with :func:`default_residual` on the same data.
+    ``benchmarks/joint_torque_residual.py`` measures the accuracy and the size, and how the
+    leaf size and trees were chosen (``docs/results/torque-models.md``).
+    """
+    return RandomForestCompensator(features="q,qd,qdd", per_output=False, n_estimators=25,
+                                   min_samples_leaf=20, random_state=0)

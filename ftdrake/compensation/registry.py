@@ -213,7 +213,8 @@ def make_estimator(kind: str, *, features: str | None = None, seed: int = 0, tar
       kind: a registry name (:func:`names`: ``rf``, ``svr``, ``gpr``, ``physics``,
         ``hybrid``, ``arm``, and any registered since).
       features: ``q``, ``q,qd`` or ``q,qd,qdd``; None: the entry's default (physics: q is
-        static, q,qd,qdd dynamic; hybrid: the residual forest's, default q).
+        static, q,qd,qdd dynamic; hybrid: the residual forest's, default q on a wrench and
+        q,qd,qdd on joint torques).
       seed: random state of the models that have one.
       target_names: the data's targets; a wrench-only model refuses others, a robot-based
         one builds the arm's torque model on them.

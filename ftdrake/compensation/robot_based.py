@@ -24,7 +24,7 @@ from .build import (
     options_named,
     wrench_only_error,
 )
-from .hybrid import HybridCompensator, default_residual
+from .hybrid import HybridCompensator, default_residual, joint_torque_residual
 from .physics import PhysicsPayloadCompensator
 
 #: ``train``'s arguments of each (the registry's defaults).
@@ -80,17 +80,20 @@ def make_physics(request: BuildRequest):
 
 def make_hybrid(request: BuildRequest):
     """Physics (the payload model, dynamic; or the arm's model on joint torques) plus a
-    forest on its residual, on `request.features` (default q)."""
+    forest on its residual, on `request.features` (default: q on a wrench, q,qd,qdd on joint
+    torques)."""
     _refuse_wrench_options_on_torques(request)
     if not request.on_wrench:
         physics = make_arm(request)
+        base = joint_torque_residual()
     elif not is_wrench(request.target_names):
         raise wrench_only_error(request.kind, request.target_names)
     else:
         physics = payload_model(request, "q,qd,qdd")
+        base = default_residual()
     # The library's default residual (one source for `train` and Python), on the features asked.
-    residual = default_residual().set_params(features=request.features or "q",
-                                             random_state=request.seed)
+    residual = base.set_params(features=request.features or base.features,
+                               random_state=request.seed)
     return HybridCompensator(**{**HYBRID_DEFAULTS, "physics": physics, "residual": residual})
 
 

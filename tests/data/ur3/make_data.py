@@ -6,6 +6,9 @@
   identification trajectories id1.mat and id2.mat, as columns ``t`` (s), ``q_0..q_5`` (rad),
   ``qd_0..qd_5`` (rad/s), ``tau_0..tau_5`` (N·m, measured joint torques); values rounded to
   1e-6, the precision the robot reports.
+* ``prbs.csv``: the same columns, the first ``ROWS`` samples of the pseudo-random binary
+  trajectory prbs.mat (keys ``time``, ``q``, ``d_q``, ``m_torque``; its ``d_d_q`` is left out,
+  as in the other copies: a reader differentiates q̇).
 * ``ur3_2019-11-27-11-55-35.bag``: the whole ROS 1 bag (2179 messages, 17.4 s), every
   message copied byte for byte (same topic ``/arm``, type, definition, receive times) into
   BZ2-compressed chunks: 158 kB instead of 655 kB.
@@ -29,10 +32,15 @@ BAG = "ur3_2019-11-27-11-55-35.bag"
 ROWS = 750  # 6 s at 125 Hz
 
 
-def write_csv(mat: Path, out: Path) -> None:
+#: Each recording's keys: time, q, q̇, measured torque.
+KEYS = {"id": ("mt", "mq", "mdq", "mtorque"), "prbs": ("time", "q", "d_q", "m_torque")}
+
+
+def write_csv(mat: Path, out: Path, keys=KEYS["id"]) -> None:
     d = loadmat(mat)
-    blocks = {"q": d["mq"], "qd": d["mdq"], "tau": d["mtorque"]}
-    frame = pd.DataFrame({"t": d["mt"].ravel()[:ROWS]})
+    time, q, qd, tau = keys
+    blocks = {"q": d[q], "qd": d[qd], "tau": d[tau]}
+    frame = pd.DataFrame({"t": d[time].ravel()[:ROWS]})
     for prefix, values in blocks.items():
         for j in range(values.shape[1]):
             frame[f"{prefix}_{j}"] = values[:ROWS, j]
@@ -57,6 +65,7 @@ def write_bag(src: Path, out: Path) -> None:
 def main(source: Path = SOURCE) -> None:
     write_csv(source / "id1.mat", HERE / "id1.csv")
     write_csv(source / "id2.mat", HERE / "id2.csv")
+    write_csv(source / "prbs.mat", HERE / "prbs.csv", KEYS["prbs"])
     write_bag(source / BAG, HERE / BAG)
     shutil.copyfile(source / "LICENSE", HERE / "LICENSE")
     for f in sorted(HERE.iterdir()):
