@@ -22,7 +22,7 @@ from ftdrake.compensation.hybrid import (
 )
 from ftdrake.compensation.metrics import nmse
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 UR3 = ftdrake.RobotOptions(robot=str(ROOT / "models" / "ur3.urdf"))
 PRBS = ROOT / "tests" / "data" / "ur3" / "prbs.csv"
 READ = ftdrake.ReadOptions(targets="tau_*", velocities="qd_*")
