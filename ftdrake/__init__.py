@@ -21,16 +21,16 @@ from .version import ftdrake_version
 
 __version__ = ftdrake_version()
 
-from .compensation.build import RobotOptions
-from .compensation.calibration import calibrate_table
-from .compensation.evaluation import evaluate_model, target_ranges
-from .compensation.forest import RandomForestCompensator
-from .compensation.gpr import GPRCompensator
-from .compensation.hybrid import HybridCompensator
-from .compensation.persistence import load_model, save_model
-from .compensation.physics import PhysicsPayloadCompensator
-from .compensation.registry import make_estimator
-from .compensation.svr import SVRCompensator
+from .compensation.calibration.calibration import calibrate_table
+from .compensation.estimators.build import RobotOptions
+from .compensation.estimators.forest import RandomForestCompensator
+from .compensation.estimators.gpr import GPRCompensator
+from .compensation.estimators.hybrid import HybridCompensator
+from .compensation.estimators.physics import PhysicsPayloadCompensator
+from .compensation.estimators.registry import make_estimator
+from .compensation.estimators.svr import SVRCompensator
+from .compensation.evaluation.evaluation import evaluate_model, target_ranges
+from .compensation.files.persistence import load_model, save_model
 from .config import (
     BiasTrackerConfig,
     CableConfig,

@@ -15,10 +15,10 @@ from test_calibration_correction import KNOWN_COM, KNOWN_MASS, LOADS, WRENCH, se
 
 import ftdrake
 from ftdrake.cli.main import main
-from ftdrake.compensation.calibration import calibrate_table
-from ftdrake.compensation.orientation_model import OrientationPayloadCompensator
-from ftdrake.compensation.persistence import load_model
-from ftdrake.compensation.physics import ExcitationWarning
+from ftdrake.compensation.calibration.calibration import calibrate_table
+from ftdrake.compensation.calibration.orientation_model import OrientationPayloadCompensator
+from ftdrake.compensation.estimators.physics import ExcitationWarning
+from ftdrake.compensation.files.persistence import load_model
 
 G_W = np.array([0.0, 0.0, -9.81])
 

@@ -17,8 +17,13 @@ from pydrake.trajectories import PiecewisePolynomial
 
 from ftdrake import SensorConfig
 from ftdrake.cli.main import main
-from ftdrake.compensation.calibration import KNOWN_COM, KNOWN_MASS, calibrate_table, true_wrench
-from ftdrake.compensation.physics import ExcitationWarning
+from ftdrake.compensation.calibration.calibration import (
+    KNOWN_COM,
+    KNOWN_MASS,
+    calibrate_table,
+    true_wrench,
+)
+from ftdrake.compensation.estimators.physics import ExcitationWarning
 from ftdrake.conventions import WRENCH_AXES
 from ftdrake.errors import ConfigError
 from ftdrake.systems.noisy_sensor import NoisyForceTorqueSensor

@@ -10,8 +10,8 @@ import numpy as np
 import pytest
 from test_calibration_correction import KNOWN_COM, KNOWN_MASS, LOADS, WRENCH, sensor_poses
 
-from ftdrake.compensation.calibration import calibrate_table
-from ftdrake.compensation.physics import ExcitationWarning
+from ftdrake.compensation.calibration.calibration import calibrate_table
+from ftdrake.compensation.estimators.physics import ExcitationWarning
 
 
 @pytest.fixture(scope="module")

@@ -1,5 +1,5 @@
 """Where the support term gets its calibration: runs of the training data held out because
-they lie farthest from the others (compensation.domain.farthest_groups,
+they lie farthest from the others (compensation.estimators.domain.farthest_groups,
 HybridCompensator.fit_calibrated)."""
 
 import warnings
@@ -9,10 +9,10 @@ import pytest
 from test_domain_uncertainty import poses
 from test_uncertainty import static_readings
 
-from ftdrake.compensation import domain
-from ftdrake.compensation.hybrid import HybridCompensator
-from ftdrake.compensation.metrics import coverage
-from ftdrake.compensation.physics import PhysicsPayloadCompensator
+from ftdrake.compensation.estimators import domain
+from ftdrake.compensation.estimators.hybrid import HybridCompensator
+from ftdrake.compensation.estimators.physics import PhysicsPayloadCompensator
+from ftdrake.compensation.evaluation.metrics import coverage
 
 
 def runs(rng, regions, n=300):

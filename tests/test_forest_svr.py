@@ -10,9 +10,9 @@ from sklearn.metrics import explained_variance_score
 from sklearn.model_selection import GridSearchCV, KFold
 from sklearn.utils.estimator_checks import check_estimator
 
+from ftdrake.compensation.estimators.forest import RandomForestCompensator
+from ftdrake.compensation.estimators.svr import SVRCompensator
 from ftdrake.compensation.features import FEATURE_SETS
-from ftdrake.compensation.forest import RandomForestCompensator
-from ftdrake.compensation.svr import SVRCompensator
 
 # -- synthetic free-motion data ------------------------------------------------------------
 # A 7-joint arm whose joints alternate z/y axes carries a 1.2 kg tool; the sensor reads the

@@ -14,7 +14,7 @@ from test_bias_tracker import SIGMA, brisk_arm_motion, noise, point_mass_wrench
 
 from ftdrake import ScenarioConfig
 from ftdrake import conventions as col
-from ftdrake.compensation.payload_identification import payload_regressor
+from ftdrake.compensation.identification.payload_identification import payload_regressor
 from ftdrake.experiments.tracking import (
     EventPlan,
     constant_payload_floor,

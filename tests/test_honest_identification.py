@@ -10,8 +10,11 @@ import numpy as np
 import pytest
 from test_arm_dynamics import FRICTION, UR3, _synthetic
 
-from ftdrake.compensation.arm import ArmDynamicsCompensator, DriveGainWarning
-from ftdrake.compensation.consistent import is_physically_consistent, physical_violations
+from ftdrake.compensation.estimators.arm import ArmDynamicsCompensator, DriveGainWarning
+from ftdrake.compensation.identification.consistent import (
+    is_physically_consistent,
+    physical_violations,
+)
 from ftdrake.physics.arm_dynamics import ArmDynamics, ArmModel
 
 
@@ -132,8 +135,8 @@ def test_the_solvers_rounding_is_projected_onto_physical_bodies(ur3):
     """A consistent fit a hair outside J ⪰ 0 (the solver's last rounding, which made the
     summary say 'consistent, NOT physically consistent') is moved onto it, by about that
     much."""
-    from ftdrake.compensation.arm import _onto_bodies
-    from ftdrake.compensation.consistent import pseudo_inertia
+    from ftdrake.compensation.estimators.arm import _onto_bodies
+    from ftdrake.compensation.identification.consistent import pseudo_inertia
 
     prior = ur3.model_parameters()
     theta = prior.copy()

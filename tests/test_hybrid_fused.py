@@ -13,9 +13,9 @@ from pydrake.trajectories import PiecewisePolynomial
 from scipy.spatial.transform import Rotation
 
 from ftdrake.compensation.compiled.hybrid import CompiledHybrid
-from ftdrake.compensation.forest import RandomForestCompensator
-from ftdrake.compensation.hybrid import HybridCompensator
-from ftdrake.compensation.physics import PhysicsPayloadCompensator
+from ftdrake.compensation.estimators.forest import RandomForestCompensator
+from ftdrake.compensation.estimators.hybrid import HybridCompensator
+from ftdrake.compensation.estimators.physics import PhysicsPayloadCompensator
 from ftdrake.runtime.compensator import CompensatorSystem
 
 USER_ARM = str(Path(__file__).parent / "data" / "prismatic_arm.urdf")  # 6 joints, one prismatic

@@ -132,8 +132,8 @@ def test_no_module_imports_from_a_layer_above_it():
     ("ftdrake.hardware.station", "ftdrake", "facade"),
     ("ftdrake.sim.lcm_publisher", "ftdrake.hardware.station", "only"),
     ("ftdrake.sim.lcm_publisher", "ftdrake.hardware.messages", None),
-    ("ftdrake.compensation.physics", "ftdrake.data.logs", None),
-    ("ftdrake.data.logs", "ftdrake.compensation.physics", "above"),
+    ("ftdrake.compensation.estimators.physics", "ftdrake.data.logs", None),
+    ("ftdrake.data.logs", "ftdrake.compensation.estimators.physics", "above"),
     ("ftdrake.cli.main", "ftdrake.experiments.demo", None),
 ])
 def test_the_rules_themselves(importer, imported, expected):

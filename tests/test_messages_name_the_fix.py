@@ -13,10 +13,10 @@ from pydrake.multibody.plant import MultibodyPlant
 from ftdrake import LogError, PhysicsPayloadCompensator, RobotModelError, calibrate_table
 from ftdrake.cli.args import flag_hint
 from ftdrake.cli.main import main
-from ftdrake.compensation.arm import ArmDynamicsCompensator
-from ftdrake.compensation.forest import RandomForestCompensator
-from ftdrake.compensation.persistence import read_manifest, save_model
-from ftdrake.compensation.physics import ExcitationWarning
+from ftdrake.compensation.estimators.arm import ArmDynamicsCompensator
+from ftdrake.compensation.estimators.forest import RandomForestCompensator
+from ftdrake.compensation.estimators.physics import ExcitationWarning
+from ftdrake.compensation.files.persistence import read_manifest, save_model
 from ftdrake.data.logs import LogWarning, option_spelling, read_table
 from ftdrake.data.training import load_training_data
 from ftdrake.errors import ConfigError

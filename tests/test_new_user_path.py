@@ -29,7 +29,7 @@ from pydrake.systems.primitives import TrajectorySource
 from pydrake.trajectories import PiecewisePolynomial
 
 import ftdrake
-from ftdrake.compensation.payload_kinematics import kinematics_for
+from ftdrake.compensation.identification.payload_kinematics import kinematics_for
 
 URDF = Path(__file__).resolve().parent / "data" / "three_link_arm.urdf"
 PERIOD = 1e-3  # s: the sensor's rate

@@ -18,7 +18,7 @@ import pytest
 from threadpoolctl import threadpool_limits
 
 from ftdrake.cli.main import main as train_cli
-from ftdrake.compensation.persistence import read_manifest
+from ftdrake.compensation.files.persistence import read_manifest
 
 UR3 = Path(__file__).parent / "data" / "ur3"
 BAG = UR3 / "ur3_2019-11-27-11-55-35.bag"
@@ -206,7 +206,7 @@ def test_physics_extrapolates_where_a_forest_cannot(ftdrake, tmp_path):
     path = tmp_path / "mounted.ftd"
     train(ftdrake, tmp_path / "run0.parquet", path, "--kind", "physics", "--robot", "ftdrake",
           "--preset", "none", "--identify-mounting")
-    from ftdrake.compensation.persistence import load_model
+    from ftdrake.compensation.files.persistence import load_model
 
     loaded = load_model(path)
     mounted = loaded[0] if isinstance(loaded, tuple) else loaded

@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 from test_train_cli import failure, refused, train
 
-from ftdrake.compensation.persistence import load_model
+from ftdrake.compensation.files.persistence import load_model
 
 
 @pytest.fixture(scope="module")

@@ -10,9 +10,9 @@ the sensor's orientation comes from joint angles) a model file ``evaluate`` and 
                       --known-com 0.02,0.0067,0.0867 --out cal/   # + gain/cross-talk matrix
 
 A table of static poses (one pose and one wrench a row; no time column needed) is calibrated
-by :func:`ftdrake.compensation.calibration.calibrate_table`. A time series (``--time-series``,
-or a table with a time column and no orientation columns and not all velocities zero) is read
-like ``train`` does and fitted by the physics model (dynamic, physically consistent).
+by :func:`ftdrake.compensation.calibration.calibration.calibrate_table`. A time series
+(``--time-series``, or a table with a time column and no orientation columns and not all velocities
+zero) is read like ``train`` does and fitted by the physics model (dynamic, physically consistent).
 """
 
 from __future__ import annotations
@@ -26,13 +26,13 @@ from pathlib import Path
 import numpy as np
 import yaml
 
-from ..compensation.build import RobotOptions
-from ..compensation.calibration import ORIENTATIONS, calibrate_table, orientation_kind
-from ..compensation.consistent import PayloadPrior
-from ..compensation.orientation_model import OrientationPayloadCompensator
-from ..compensation.persistence import save_model
-from ..compensation.physics import ExcitationWarning
-from ..compensation.registry import make_estimator
+from ..compensation.calibration.calibration import ORIENTATIONS, calibrate_table, orientation_kind
+from ..compensation.calibration.orientation_model import OrientationPayloadCompensator
+from ..compensation.estimators.build import RobotOptions
+from ..compensation.estimators.physics import ExcitationWarning
+from ..compensation.estimators.registry import make_estimator
+from ..compensation.files.persistence import save_model
+from ..compensation.identification.consistent import PayloadPrior
 from ..conventions import MEASURED, TEMPERATURE, TIME, WRENCH_AXES, WRENCH_UNITS
 from ..data.logs import expand_columns, option_spelling, read_frame, time_columns
 from ..data.training import ReadOptions, load_training_data

@@ -7,7 +7,7 @@ detection measured on unseen seeds.
 
 from __future__ import annotations
 
-from ..compensation.persistence import load_model
+from ..compensation.files.persistence import load_model
 from ..experiments.demo import print_table, run_demo
 from ..experiments.detection import DetectionPlan, markdown, run_detection_evaluation, run_plan
 from ..experiments.detection_replay import run_plan_by_replay

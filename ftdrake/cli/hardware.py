@@ -23,7 +23,7 @@ import json
 import sys
 import time
 
-from ..compensation.persistence import load_model
+from ..compensation.files.persistence import load_model
 from ..config import load_config
 from ..hardware.config import HardwareConfig
 from ..hardware.live_config import LiveConfig

@@ -23,7 +23,7 @@ import dataclasses as dc
 import json
 import sys
 
-from ..compensation.persistence import load_model
+from ..compensation.files.persistence import load_model
 from ..config import save_config
 from ..data.bag import is_bag
 from ..data.logs import is_table, write_log

@@ -22,7 +22,7 @@ import json
 import sys
 import time
 
-from ..compensation.persistence import load_model
+from ..compensation.files.persistence import load_model
 from ..config import load_config
 from ..errors import ConfigError
 from ..hardware.recording import write_table

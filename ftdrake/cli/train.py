@@ -17,7 +17,7 @@ of the same kind, table or bag). ``--t-start``/``--t-end`` keep the rows in a ti
 
 `train` tunes the model with the ``quick`` grid and grouped CV (``--preset none`` fits the
 defaults), locally or on a Dask cluster (``--cluster ADDRESS``), saves it with
-:func:`~ftdrake.compensation.persistence.save_model` and prints the file's size. The
+:func:`~ftdrake.compensation.files.persistence.save_model` and prints the file's size. The
 manifest's ``extra`` records the data file and its ReadOptions, the columns used and how the
 computed ones were derived, the training ranges of time and targets (those of the inputs are
 the manifest's ``input_range``), the row counts (in the file, dropped by the reader, outside
@@ -40,16 +40,16 @@ from pathlib import Path
 import numpy as np
 from sklearn.base import clone
 
-from ..compensation import registry
-from ..compensation.build import BUILTIN_ROBOT, RobotOptions, is_wrench
-from ..compensation.calibration import static_table_hint
-from ..compensation.domain import IN_DOMAIN_SOURCES, MIN_GROUPS
-from ..compensation.evaluation import target_ranges
+from ..compensation.calibration.calibration import static_table_hint
+from ..compensation.estimators import registry
+from ..compensation.estimators.build import BUILTIN_ROBOT, RobotOptions, is_wrench
+from ..compensation.estimators.domain import IN_DOMAIN_SOURCES, MIN_GROUPS
+from ..compensation.estimators.hybrid import HybridCompensator
+from ..compensation.estimators.tuning import segment_groups, tune
+from ..compensation.evaluation.evaluation import target_ranges
+from ..compensation.evaluation.metrics import coverage
 from ..compensation.features import check_feature_set
-from ..compensation.hybrid import HybridCompensator
-from ..compensation.metrics import coverage
-from ..compensation.persistence import save_model
-from ..compensation.tuning import segment_groups, tune
+from ..compensation.files.persistence import save_model
 from ..conventions import WRENCH_UNITS
 from ..data.logs import QDD_ESTIMATES, option_spelling
 from ..data.stream_delay import align_training_data, estimate_training_delay
@@ -149,8 +149,8 @@ def register(subparsers) -> None:
 
 def _add_domain_flags(p) -> None:
     """--domain-holdout / --domain-calibration: where the hybrid's out-of-domain std is
-    calibrated (:meth:`~ftdrake.compensation.hybrid.HybridCompensator.fit_calibrated`,
-    :meth:`~ftdrake.compensation.hybrid.HybridCompensator.calibrate_domain`)."""
+    calibrated (:meth:`~ftdrake.compensation.estimators.hybrid.HybridCompensator.fit_calibrated`,
+    :meth:`~ftdrake.compensation.estimators.hybrid.HybridCompensator.calibrate_domain`)."""
     group = p.add_mutually_exclusive_group()
     group.add_argument(
         "--domain-holdout", type=a.holdout_share, metavar="SHARE",

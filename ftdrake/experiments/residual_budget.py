@@ -56,7 +56,7 @@ from scipy.optimize import minimize_scalar
 from scipy.signal import lfilter
 
 from .. import conventions as col
-from ..compensation.physics import PhysicsPayloadCompensator
+from ..compensation.estimators.physics import PhysicsPayloadCompensator
 from ..config import ChainConfig
 from ..errors import LogError
 from ..runtime.replay import chain_config_of, read_replay_log, replay

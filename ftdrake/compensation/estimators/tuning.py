@@ -28,12 +28,12 @@ from sklearn.base import clone
 from sklearn.model_selection import GroupKFold, ParameterGrid, RepeatedKFold
 from tqdm.auto import tqdm
 
+from ..features import check_feature_set, joints_in_layout
 from .base import Compensator, describe_nonfinite
-from .features import check_feature_set, joints_in_layout
 from .registry import REGISTRY, entry_for
 
 #: Names of the tuning presets; each registered compensator may have a grid for each
-#: (:attr:`~ftdrake.compensation.registry.CompensatorEntry.presets`).
+#: (:attr:`~ftdrake.compensation.estimators.registry.CompensatorEntry.presets`).
 PRESET_NAMES = ("paper", "quick")
 
 #: With ``groups=None`` the rows are cut into this many contiguous segments per fold.

@@ -31,17 +31,18 @@ The protocol a compensator follows to run in a control loop and leave Python:
   have one; it takes the 3n joint row only, so a model trained with the temperature has none.
 * ``robot_description()`` – the robot the model was trained on (physics and hybrid models
   carry it in their file), or None: the chain computes gravity at the sensor on it.
-* ``onnx_parts()`` – what :mod:`ftdrake.compensation.onnx_export` writes as a graph, or
+* ``onnx_parts()`` – what :mod:`ftdrake.compensation.files.onnx_export` writes as a graph, or
   TypeError for models that have no ONNX form.
 * ``reading_to_model_frame()`` – None, or the 6 × 6 matrix T that turns ``measured −
   predicted`` (a wrench as the sensor reads it) into the model's frame S: the inverse of
   an identified mounting rotation or gain/cross-talk correction (physics and hybrid).
   ``CompensatorSystem`` applies it to the external wrench.
 
-:mod:`.contract` declares this protocol (``LoopModel``) and checks a model against it once.
+:mod:`..contract` declares this protocol (``LoopModel``) and checks a model against it once.
 
 A new compensator is one module (a subclass, with its own ``make`` and train options when the
-registry's defaults do not build it) and one entry in :mod:`ftdrake.compensation.registry`.
+registry's defaults do not build it) and one entry in
+:mod:`ftdrake.compensation.estimators.registry`.
 """
 
 from __future__ import annotations
@@ -50,8 +51,8 @@ import numpy as np
 from sklearn.base import BaseEstimator, RegressorMixin
 from sklearn.utils.validation import check_is_fitted, validate_data
 
-from .compiled.forest import FlatForest, forest_accumulate_with_std
-from .features import check_feature_set, joints_in_layout, select_features
+from ..compiled.forest import FlatForest, forest_accumulate_with_std
+from ..features import check_feature_set, joints_in_layout, select_features
 
 
 def describe_nonfinite(a: np.ndarray, name: str) -> str | None:
@@ -90,7 +91,7 @@ class Compensator(RegressorMixin, BaseEstimator):
     #: True when ``predict_std`` is the std of a new reading (noise included; see above).
     std_includes_noise = False
     # Defaults of fitted attributes that models saved before them lack (the loop contract,
-    # :mod:`.contract`): no temperature input; the wrench stream in step with the joints.
+    # :mod:`..contract`): no temperature input; the wrench stream in step with the joints.
     temperature_in_ = False
     wrench_delay_s_ = 0.0
 
@@ -192,7 +193,7 @@ class Compensator(RegressorMixin, BaseEstimator):
         alone, e.g. a forest, knows no robot)."""
 
     def onnx_parts(self):
-        """The compiled form :func:`~ftdrake.compensation.onnx_export.build_onnx` writes."""
+        """The compiled form :func:`~ftdrake.compensation.files.onnx_export.build_onnx` writes."""
         raise TypeError(
             f"{type(self).__name__} has no ONNX export; forests and SVRs have one"
         )

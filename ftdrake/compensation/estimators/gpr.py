@@ -66,8 +66,8 @@ from sklearn.gaussian_process import GaussianProcessRegressor
 from sklearn.gaussian_process.kernels import RBF, ConstantKernel, WhiteKernel
 from sklearn.utils import check_random_state
 
+from ..compiled.gp import CompiledGaussianProcess
 from .base import Compensator
-from .compiled.gp import CompiledGaussianProcess
 
 SUBSETS = ("greedy", "random", "all")
 # Bounds in standardised units: inputs and targets have unit variance.

@@ -27,11 +27,11 @@ from __future__ import annotations
 import numpy as np
 import pandas as pd
 
-from ..conventions import GRAVITY_W
-from ..errors import ConfigError
-from .base import Compensator
-from .consistent import identify_consistent
-from .payload_identification import payload_regressor, project_out
+from ...conventions import GRAVITY_W
+from ...errors import ConfigError
+from ..estimators.base import Compensator
+from ..identification.consistent import identify_consistent
+from ..identification.payload_identification import payload_regressor, project_out
 from .static_table import ORIENTATIONS, gravity_in_sensor
 
 #: The static parameters' columns of the payload regressor: m, m·c, biases.

@@ -12,8 +12,8 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from ..errors import ConfigError
-from ..physics.robot import ftdrake_arm
+from ...errors import ConfigError
+from ...physics.robot import ftdrake_arm
 from .arm import ArmDynamicsCompensator
 from .build import BUILTIN_ROBOT, BuildRequest, TrainOption, is_wrench, wrench_only_error
 from .hybrid import HybridCompensator, default_residual

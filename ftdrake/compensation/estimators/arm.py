@@ -23,8 +23,8 @@ from the prior (the model file's values) instead of being set to zero:
 * ``identification="consistent"`` (default): the same fit constrained to physically possible
   bodies (each group's pseudo-inertia ⪰ 0, so masses > 0 and the triangle inequalities hold)
   and to non-negative friction, with the prior as a weak pull (``prior_weight``, in the metric
-  of :mod:`ftdrake.compensation.consistent`), solved as one semidefinite program with Drake's
-  ``MathematicalProgram`` and Clarabel (or SCS).
+  of :mod:`ftdrake.compensation.identification.consistent`), solved as one semidefinite program with
+  Drake's ``MathematicalProgram`` and Clarabel (or SCS).
 
 Predictive std: the parameter covariance (weighted residual variance × (AᵀWA)⁺, in the
 identified directions) propagated to each torque, plus the per-joint residual variance (so it
@@ -39,17 +39,17 @@ import warnings
 import numpy as np
 from pydrake.solvers import MathematicalProgram, SolverOptions
 
-from ..conventions import GRAVITY_W
-from ..errors import ConfigError, RobotModelError
-from ..physics.arm_dynamics import INERTIAL_NAMES, INERTIAL_UNITS, ArmDynamics, ArmModel
-from .base import Compensator
-from .consistent_program import IdentificationError, pick_solver, prior_precision
-from .inertial import (
+from ...conventions import GRAVITY_W
+from ...errors import ConfigError, RobotModelError
+from ...physics.arm_dynamics import INERTIAL_NAMES, INERTIAL_UNITS, ArmDynamics, ArmModel
+from ..identification.consistent_program import IdentificationError, pick_solver, prior_precision
+from ..identification.inertial import (
     from_pseudo_inertia,
     is_physically_consistent,
     physical_violations,
     pseudo_inertia,
 )
+from .base import Compensator
 from .robot_file import CarriesRobot
 
 IDENTIFICATIONS = ("least_squares", "consistent")

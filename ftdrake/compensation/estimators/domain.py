@@ -21,7 +21,7 @@ grows linearly with the distance, as a random walk's: an error that decorrelates
 show: on the coverage test's sub-region model the Fx error's variance is ~3σ² per unit of d
 from d = 0.3 to 6).
 The distance runs on a k-d tree of at most :data:`SUPPORT_POINTS` training rows
-(:mod:`.compiled.kdtree`).
+(:mod:`..compiled.kdtree`).
 
 ℓ and σ²_in are calibrated when the hybrid is fitted, on its cross-fit (the residual refitted
 on alternate blocks of rows and scored on the others, whose rows lie at many distances from
@@ -39,7 +39,7 @@ from __future__ import annotations
 import numpy as np
 from scipy.optimize import nnls
 
-from .compiled.kdtree import build_kdtree, nearest_distances
+from ..compiled.kdtree import build_kdtree, nearest_distances
 
 #: The most training rows the support's k-d tree keeps (every k-th row: neighbouring samples
 #: of a trajectory are nearly copies). Its query costs ~1 µs at this size.
@@ -68,7 +68,7 @@ DISTANCE_BINS = {"in_domain": (0.0, 1.0), "edge": (1.0, 2.0), "out_of_domain": (
 
 def fit_support(Zd: np.ndarray, max_points: int = SUPPORT_POINTS) -> dict:
     """The support of training inputs `Zd` (N, d): ``center``, ``scale`` (d,) and the k-d
-    tree's ``points``, ``nodes``, ``splits`` (standardised rows, :mod:`.compiled.kdtree`)."""
+    tree's ``points``, ``nodes``, ``splits`` (standardised rows, :mod:`..compiled.kdtree`)."""
     Zd = np.asarray(Zd, dtype=float)
     center = Zd.mean(axis=0)
     scale = np.maximum(Zd.std(axis=0), MIN_SCALE)

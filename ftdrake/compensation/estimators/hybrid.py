@@ -40,14 +40,14 @@ import numpy as np
 from sklearn.base import clone
 from sklearn.utils.validation import check_is_fitted
 
+from ..compiled.forest import CompiledForest
+from ..compiled.hybrid import CompiledHybrid, hybrid_row
+from ..compiled.loop import compensate_with_hybrid
+from ..evaluation.metrics import coverage
+from ..features import check_feature_set
 from . import domain
 from .base import Compensator
-from .compiled.forest import CompiledForest
-from .compiled.hybrid import CompiledHybrid, hybrid_row
-from .compiled.loop import compensate_with_hybrid
-from .features import check_feature_set
 from .forest import RandomForestCompensator
-from .metrics import coverage
 from .physics import PhysicsPayloadCompensator
 
 
@@ -296,7 +296,7 @@ class HybridCompensator(Compensator):
         return CompiledHybrid(payload, residual.flat, self.n_joints_, self._domain_arrays())
 
     def _domain_arrays(self) -> tuple:
-        """The support term's arrays in :func:`~.compiled.hybrid.hybrid_row`'s order."""
+        """The support term's arrays in :func:`~..compiled.hybrid.hybrid_row`'s order."""
         support = getattr(self, "domain_support_", None)
         d = self._domain_inputs(np.zeros((1, 3 * self.n_joints_))).shape[1]
         if support is None:

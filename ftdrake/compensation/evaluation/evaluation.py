@@ -12,7 +12,7 @@ from collections.abc import Mapping
 
 import numpy as np
 
-from .features import feature_names
+from ..features import feature_names
 from .metrics import report
 from .trust import assess_trust, trust_references
 

@@ -20,8 +20,8 @@ from sklearn.preprocessing import MinMaxScaler
 from sklearn.svm import SVR
 from sklearn.utils.validation import check_is_fitted
 
+from ..compiled.kernel import FastKernelModel
 from .base import Compensator
-from .compiled.kernel import FastKernelModel
 
 
 class SVRCompensator(Compensator):

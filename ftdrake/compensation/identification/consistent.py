@@ -3,8 +3,8 @@
 The sensor's reading is linear in ``θ = [φ; b]``: the payload's 10 inertial parameters
 ``φ = [m, m·cx, m·cy, m·cz, Ixx, Ixy, Ixz, Iyy, Iyz, Izz]`` (mass, first moment ``h = m·c``,
 inertia matrix entries about the sensor origin So; all expressed in S) and 6 biases — the
-model and regressor of :mod:`ftdrake.compensation.physics` (``reading = A·θ``, ``A`` of shape
-(N, 6, 16); (N, 6, 20) with a weight carried without inertia, whose 4 parameters are
+model and regressor of :mod:`ftdrake.compensation.estimators.physics` (``reading = A·θ``, ``A`` of
+shape (N, 6, 16); (N, 6, 20) with a weight carried without inertia, whose 4 parameters are
 unconstrained like the biases). Plain least squares does not know that ``φ`` describes a
 body: with poor excitation it returns a negative mass or an inertia no body has. Here the fit
 is constrained to the set of bodies that exist: those whose pseudo-inertia is positive
@@ -24,7 +24,8 @@ What is here:
   :func:`is_physically_consistent`), importable from here too.
 
 Model files name :class:`PayloadPrior` and :class:`ConsistentIdentification` by this module's
-path. This module imports nothing from :mod:`ftdrake.compensation.physics` (which calls it).
+path. This module imports nothing from :mod:`ftdrake.compensation.estimators.physics` (which calls
+it).
 """
 
 from __future__ import annotations
@@ -34,7 +35,7 @@ import dataclasses as dc
 import numpy as np
 from scipy.optimize import lsq_linear
 
-from ..errors import ConfigError
+from ...errors import ConfigError
 from .consistent_program import (
     WEIGHT_MASS,
     IdentificationError,
@@ -63,8 +64,8 @@ __all__ = [  # the names model code and files use from here, wherever they are d
 ]
 
 #: θ's entries: payload φ (10), biases (6) and, with a weight carried without inertia, its
-#: mass and first moment (4; :mod:`ftdrake.compensation.physics`), then a tether's stiffness
-#: and stiffness × rest length (2; :mod:`ftdrake.compensation.tether`).
+#: mass and first moment (4; :mod:`ftdrake.compensation.estimators.physics`), then a tether's
+#: stiffness and stiffness × rest length (2; :mod:`ftdrake.compensation.identification.tether`).
 PARAMETER_NAMES = ("m", "mcx", "mcy", "mcz", "Ixx", "Ixy", "Ixz", "Iyy", "Iyz", "Izz",
                    "bFx", "bFy", "bFz", "bTx", "bTy", "bTz", "mw", "mwcx", "mwcy", "mwcz",
                    "k", "kl0")
@@ -148,8 +149,8 @@ class ConsistentIdentification:
     theta : (16,) the estimate ``[φ; b]`` (SI units). A static fit leaves the inertia at 0.
     standard_errors : (16,) from the weighted residual variance σ² and the normal matrix,
         ``σ²·(AᵀWA + P)⁻¹`` (``P`` the prior's precision, pseudo-inverse without a prior), as
-        in :func:`ftdrake.compensation.physics.weighted_least_squares`. When a constraint is
-        active they are the unconstrained (linearised) approximation: they ignore that the
+        in :func:`ftdrake.compensation.estimators.physics.weighted_least_squares`. When a constraint
+        is active they are the unconstrained (linearised) approximation: they ignore that the
         estimate sits on a boundary. Without a prior, ∞ for parameters in a null direction of
         the data (the pseudo-inverse would say 0); NaN for parameters a static fit does not
         identify.

@@ -31,7 +31,7 @@ import numpy as np
 from scipy.optimize import least_squares
 from scipy.spatial.transform import Rotation
 
-from ..errors import ConfigError
+from ...errors import ConfigError
 
 #: The frame name of an anchor on the world (a cable to a cabinet or a boom).
 WORLD = "world"

@@ -61,8 +61,8 @@ _SVR_PRESETS = {
 _GP_KERNELS = tuple(f"sklearn.gaussian_process.kernels.{k}"
                     for k in ("ConstantKernel", "Product", "RBF", "Sum", "WhiteKernel"))
 # What a physics model keeps from its identification (the result and a prior).
-_PHYSICS_TYPES = ("ftdrake.compensation.consistent.ConsistentIdentification",
-                  "ftdrake.compensation.consistent.PayloadPrior")
+_PHYSICS_TYPES = ("ftdrake.compensation.identification.consistent.ConsistentIdentification",
+                  "ftdrake.compensation.identification.consistent.PayloadPrior")
 
 
 @dc.dataclass(frozen=True)
@@ -133,9 +133,9 @@ DEFAULT_KIND_WITH_ROBOT = "hybrid"
 
 #: Types a model file may hold beyond the registry's classes and skops's defaults.
 COMMON_TRUSTED_TYPES: tuple[str, ...] = (
-    "ftdrake.compensation.tuning.PerOutputCompensator",  # what per-axis tuning returns
+    "ftdrake.compensation.estimators.tuning.PerOutputCompensator",  # what per-axis tuning returns
     # calibrate's model of a table whose orientation is given directly (no robot).
-    "ftdrake.compensation.orientation_model.OrientationPayloadCompensator",
+    "ftdrake.compensation.calibration.orientation_model.OrientationPayloadCompensator",
     # scikit-learn's tree node storage. sklearn follows its node indices without bounds
     # checks, so every loaded tree is checked before the model is returned.
     "sklearn.tree._tree.Tree",

@@ -23,10 +23,10 @@ import numpy as np
 import pandas as pd
 from pydrake.math import RollPitchYaw
 
-from ..conventions import GRAVITY_W
-from ..data.logs import expand_columns, is_table, read_frame, time_columns
-from ..errors import ConfigError, LogError
-from .consistent import PayloadPrior
+from ...conventions import GRAVITY_W
+from ...data.logs import expand_columns, is_table, read_frame, time_columns
+from ...errors import ConfigError, LogError
+from ..identification.consistent import PayloadPrior
 
 #: Orientation column sets, in the order they are looked for.
 ORIENTATIONS = {

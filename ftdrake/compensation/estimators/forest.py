@@ -19,9 +19,9 @@ import numpy as np
 from sklearn.ensemble import RandomForestRegressor
 from sklearn.utils.validation import check_is_fitted
 
+from ..compiled.forest import CompiledForest, flatten_forests
+from ..compiled.loop import compensate_with_forest
 from .base import Compensator
-from .compiled.forest import CompiledForest, flatten_forests
-from .compiled.loop import compensate_with_forest
 
 
 class RandomForestCompensator(Compensator):

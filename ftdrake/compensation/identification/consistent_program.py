@@ -15,7 +15,7 @@ import time
 import numpy as np
 from pydrake.solvers import ClarabelSolver, MathematicalProgram, ScsSolver, SolverOptions
 
-from ..errors import ConfigError, FtdrakeError
+from ...errors import ConfigError, FtdrakeError
 from .inertial import from_pseudo_inertia, physical_violations, pseudo_inertia
 from .regression import NULL_DIRECTION_TOL
 

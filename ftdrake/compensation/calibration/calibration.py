@@ -5,7 +5,7 @@ the wrench read there (velocities zero, nothing to differentiate, often no time 
 :mod:`.static_table` reads it). The sensor's orientation comes either
 
 * as **joint angles** with a robot description (URDF/SDF and the sensor frame): the
-  identified model is a static :class:`~ftdrake.compensation.physics.PhysicsPayloadCompensator`
+  identified model is a static :class:`~..estimators.physics.PhysicsPayloadCompensator`
   (gravity only), which also identifies the sensor's mounting rotation ``R_SSm`` (the frame the
   sensor measures in) and is saved as a model file ``evaluate`` and the station use; or
 * **directly as a rotation** (:data:`~.static_table.ORIENTATIONS`): the mounting rotation is
@@ -16,7 +16,7 @@ Static poses determine the mass, the first moment ``m·c`` (so the centre of mas
 biases — not the inertia, which only acceleration excites: a static calibration says so and
 leaves it out. With a ``temperature`` column (°C) the per-axis zero drift per kelvin is
 identified as well. Every parameter comes with its standard error; the fit is the physically
-consistent one (mass > 0; optional prior) of :mod:`ftdrake.compensation.consistent`.
+consistent one (mass > 0; optional prior) of :mod:`ftdrake.compensation.identification.consistent`.
 ``correction="block"`` or ``"full"`` also identifies the sensor's gain/cross-talk correction
 (:mod:`.correction`; several known loads: the table columns ``known_mass``,
 ``known_com_x/y/z`` per row).
@@ -34,10 +34,13 @@ import warnings
 import numpy as np
 import pandas as pd
 
-from ..conventions import GRAVITY_W, MEASURED, TEMPERATURE, WRENCH_AXES
-from ..data.logs import expand_columns, option_hint
-from ..errors import ConfigError, LogError
-from .consistent import PayloadPrior, identify_consistent, identify_least_squares
+from ...conventions import GRAVITY_W, MEASURED, TEMPERATURE, WRENCH_AXES
+from ...data.logs import expand_columns, option_hint
+from ...errors import ConfigError, LogError
+from ..estimators.physics import ExcitationWarning, PhysicsPayloadCompensator, payload_regressor
+from ..identification.consistent import PayloadPrior, identify_consistent, identify_least_squares
+from ..identification.payload_identification import project_out
+from ..identification.regression import correlated_variance_ratio
 from .correction import (
     CORRECTIONS,
     CalibrationCorrection,
@@ -46,9 +49,6 @@ from .correction import (
     true_wrench,
     uncorrected_rms,
 )
-from .payload_identification import project_out
-from .physics import ExcitationWarning, PhysicsPayloadCompensator, payload_regressor
-from .regression import correlated_variance_ratio
 from .static_table import (
     KNOWN_COM,
     KNOWN_MASS,
@@ -243,13 +243,13 @@ def calibrate_table(frame: pd.DataFrame, *, robot=None, sensor_frame=None, base_
     (`positions`, with `robot`/`sensor_frame`; ``robot="ftdrake"`` or None with joint columns
     present: ftdrake's simulated arm) or orientation columns (:data:`ORIENTATIONS`); a
     ``temperature`` column (°C) adds temperature coefficients. `prior`: a
-    :class:`~.consistent.PayloadPrior` or mapping (its mass must be positive).
+    :class:`~..identification.consistent.PayloadPrior` or mapping (its mass must be positive).
     `correction` (``"block"``, ``"full"``): also identify the sensor's gain/cross-talk
     correction (module docstring) against the wrench of a `known_payload` (mapping with
     ``mass`` kg and ``com`` m, in S; or the table's ``known_mass``, ``known_com_x/y/z``
     columns, one payload per row) or, without one, of the payload identified here.
     `joints`, `fixed_joints`: which joints of `robot` the position columns hold and where the
-    others stand (as :class:`~ftdrake.compensation.physics.PhysicsPayloadCompensator`'s).
+    others stand (as :class:`~ftdrake.compensation.estimators.physics.PhysicsPayloadCompensator`'s).
     Raises LogError/ConfigError/RobotModelError naming the column, field or frame at fault.
     """
     if correction is not None and correction not in (*CORRECTIONS, "auto"):

@@ -21,8 +21,8 @@ keeps the motion terms (16 parameters).
 
 Identification is weighted least squares (``identification="least_squares"``) or the same fit
 constrained to a physically possible body with an optional prior
-(``identification="consistent"``, :mod:`ftdrake.compensation.consistent`): each wrench
-axis is weighted by the inverse RMS of its residual from an ordinary first pass (forces in N
+(``identification="consistent"``, :mod:`ftdrake.compensation.identification.consistent`): each
+wrench axis is weighted by the inverse RMS of its residual from an ordinary first pass (forces in N
 and torques in N·m differ by orders of magnitude). Standard errors come from the weighted
 residual variance and (AᵀWA)⁻¹. The condition number of the column-normalised regressor says
 whether the data excites the parameters; a warning names the parameters the data cannot
@@ -41,7 +41,7 @@ static poses the columns are those of m and m·c (refused with ``mode="static"``
 A cable tethered to the tool, optional (``tether``, 2 parameters more after the weight's,
 which it needs: ``[k, k·ℓ0]``): the configuration-dependent pull of an elastic tether from a
 point on the tool to a point on a link or the world, whose geometry is identified first
-(nonlinear, :mod:`ftdrake.compensation.tether`) and then held fixed.
+(nonlinear, :mod:`ftdrake.compensation.identification.tether`) and then held fixed.
 
 Two more effects of a real sensor, optional: the rotation of the frame the sensor measures in
 (``identify_mounting``) and a linear zero drift with the sensor's temperature (a temperature
@@ -56,25 +56,30 @@ import weakref
 
 import numpy as np
 
-from ..conventions import GRAVITY_W
-from ..errors import ConfigError, RobotModelError, spelled
-from ..physics.robot import RobotDescription, fixed_joint_values, ftdrake_arm, joint_names
-from .base import Compensator
-from .compiled.payload import pack_payload_row, payload_mean_std, payload_predict
-from .consistent import DEFAULT_PRIOR_WEIGHT, PayloadPrior, is_possible
-from .consistent import PARAMETER_NAMES as CONSISTENT_NAMES
-from .consistent import STATIC_PARAMETERS as CONSISTENT_STATIC
-from .payload_identification import (
+from ...conventions import GRAVITY_W
+from ...errors import ConfigError, RobotModelError, spelled
+from ...physics.robot import RobotDescription, fixed_joint_values, ftdrake_arm, joint_names
+from ..compiled.payload import pack_payload_row, payload_mean_std, payload_predict
+from ..identification.consistent import DEFAULT_PRIOR_WEIGHT, PayloadPrior, is_possible
+from ..identification.consistent import PARAMETER_NAMES as CONSISTENT_NAMES
+from ..identification.consistent import STATIC_PARAMETERS as CONSISTENT_STATIC
+from ..identification.payload_identification import (
     BIASES,
     full_layout,
     identify_payload,
     payload_regressor,
     weighted_least_squares,
 )
-from .payload_kinematics import kinematics_for
-from .payload_report import PARAMETER_UNITS, excitation_message, identified_table, summary_text
+from ..identification.payload_kinematics import kinematics_for
+from ..identification.payload_report import (
+    PARAMETER_UNITS,
+    excitation_message,
+    identified_table,
+    summary_text,
+)
+from ..identification.tether import candidate_frames, fit_tether_geometry, tether_columns
+from .base import Compensator
 from .robot_file import CarriesRobot
-from .tether import candidate_frames, fit_tether_geometry, tether_columns
 
 __all__ = [  # with the identification's names that callers take from here
     "BIASES", "IDENTIFICATIONS", "PARAMETER_NAMES", "PARAMETER_UNITS", "STATIC_PARAMETERS",
@@ -87,12 +92,13 @@ STATIC_PARAMETERS = list(CONSISTENT_STATIC)
 #: The weight carried without inertia (``weight_without_inertia``): θ[16:20].
 WEIGHT_PARAMETERS = [16, 17, 18, 19]
 #: How the parameters are identified: plain weighted least squares, or constrained to a
-#: physically possible body (pseudo-inertia ⪰ 0, m > 0; :mod:`.consistent`) with a prior.
+#: physically possible body (pseudo-inertia ⪰ 0, m > 0; :mod:`..identification.consistent`) with a
+#: prior.
 IDENTIFICATIONS = ("least_squares", "consistent")
 
 
-#: The excitation warning's advice (:func:`~.payload_report.excitation_message`) and what it
-#: becomes for a command-line user.
+#: The excitation warning's advice (:func:`~..identification.payload_report.excitation_message`) and
+#: what it becomes for a command-line user.
 _PYTHON_ADVICE = ("give a prior (identification='consistent', prior=PayloadPrior(...)) or "
                   "use a richer trajectory (e.g. kind 'fourier' or 'z_rich')")
 _CLI_ADVICE = ("record a log in which every joint moves, faster and through more of its "
@@ -135,11 +141,12 @@ class PhysicsPayloadCompensator(CarriesRobot, Compensator):
     package_xmls : extra package.xml files for `robot`'s package:// URLs.
     identification : "least_squares" (weighted least squares, any 10 numbers) or "consistent"
         (the same fit constrained to a physically possible body — m > 0, pseudo-inertia ⪰ 0 —
-        solved as a small SDP, :func:`~.consistent.identify_consistent`; the unconstrained
-        estimate is kept in ``identified()["least_squares"]``).
-    prior : a :class:`~.consistent.PayloadPrior` (mass, CoM, inertia about the CoM, in S;
-        e.g. CAD values) or a mapping of its fields, for ``identification="consistent"``: it
-        decides the directions the data do not excite; ``identified()`` says by how much.
+        solved as a small SDP, :func:`~..identification.consistent.identify_consistent`; the
+        unconstrained estimate is kept in ``identified()["least_squares"]``).
+    prior : a :class:`~..identification.consistent.PayloadPrior` (mass, CoM, inertia about
+        the CoM, in S; e.g. CAD values) or a mapping of its fields, for
+        ``identification="consistent"``: it decides the directions the data do not excite;
+        ``identified()`` says by how much.
     prior_weight : the prior's precision (default 100: it counts as ±10 %, 1σ).
     weight_without_inertia : also identify a weight the tool carries without its inertia
         (``m_w``, ``m_w·c_w``: a hanging cable; see the module docstring). Needs motion data
@@ -152,17 +159,19 @@ class PhysicsPayloadCompensator(CarriesRobot, Compensator):
         matrix becomes ``M = (I + E)·R_SmS`` with E off-diagonal (the gains are the
         calibration's: the payload absorbs a common scale), each entry given a prior of ±2 %
         (relative; ±0.4 N per N·m and ±1 mm, i.e. N·m per N, between force and torque axes),
-        alternated with the linear fit (:func:`~.payload_identification.fit_crosstalk`).
-        Fitted: ``crosstalk_`` (E) and ``reading_matrix_`` (M), with which the model predicts
-        the reading. A contact is still mapped into S by the mounting rotation alone
+        alternated with the linear fit
+        (:func:`~..identification.payload_identification.fit_crosstalk`). Fitted:
+        ``crosstalk_`` (E) and ``reading_matrix_`` (M), with which the model predicts the
+        reading. A contact is still mapped into S by the mounting rotation alone
         (:meth:`reading_to_model_frame`). Needs ``mode="dynamic"``.
-    tether : also identify a cable tethered to the tool (:mod:`.tether`): ``"auto"`` finds
-        the frame its other end is fixed in among every moving joint's frame and the world,
-        a joint name (or ``"world"``) takes that frame; None (default): no tether. Needs
-        ``weight_without_inertia`` (a cable's hanging weight) and ``mode="dynamic"``; θ then
-        has 22 entries. Fitted: ``tether_frame_``, ``tether_anchor_`` (P in that frame, m),
-        ``tether_attach_`` (Q in S, m) and ``tether_search_`` (per frame tried, the share of
-        the weighted residual sum of squares left, against no tether).
+    tether : also identify a cable tethered to the tool (:mod:`..identification.tether`):
+        ``"auto"`` finds the frame its other end is fixed in among every moving joint's frame
+        and the world, a joint name (or ``"world"``) takes that frame; None (default): no
+        tether. Needs ``weight_without_inertia`` (a cable's hanging weight) and
+        ``mode="dynamic"``; θ then has 22 entries. Fitted: ``tether_frame_``,
+        ``tether_anchor_`` (P in that frame, m), ``tether_attach_`` (Q in S, m) and
+        ``tether_search_`` (per frame tried, the share of the weighted residual sum of squares
+        left, against no tether).
 
     The sensor temperature (°C), given as X's last column (``[q, q̇, q̈, T]``), adds a linear
     zero drift per axis, ``k·(T − T_ref)`` (``temperature_coefficients_``, N/K and N·m/K in
@@ -173,8 +182,8 @@ class PhysicsPayloadCompensator(CarriesRobot, Compensator):
     ``standard_errors_`` (same; ∞ where nothing determines a parameter), ``covariance_``,
     ``condition_number_``,
     ``residual_rms_`` (6), ``physically_consistent_``, ``identification_`` (the full
-    :class:`~.consistent.ConsistentIdentification`). An :class:`ExcitationWarning` names the
-    parameters the data cannot determine.
+    :class:`~..identification.consistent.ConsistentIdentification`). An
+    :class:`ExcitationWarning` names the parameters the data cannot determine.
 
     Predictive standard deviation (``predict_std``, the loop's ``wrench_std``): the std of a
     new reading around the prediction, per axis,
@@ -305,9 +314,9 @@ class PhysicsPayloadCompensator(CarriesRobot, Compensator):
         self._identify(A, Y, prior, temperature)
 
     def _fit_tether_geometry(self, A, X, Y, temperature, frames) -> None:
-        """The tether's geometry from the fit without it (module :mod:`.tether`; A its
-        regressor): readings and the model's columns in S, weighted by that fit's residual
-        per axis."""
+        """The tether's geometry from the fit without it (module
+        :mod:`..identification.tether`; A its regressor): readings and the model's columns in S,
+        weighted by that fit's residual per axis."""
         block_S = np.linalg.inv(self.reading_matrix())
         reference = getattr(self, "temperature_reference_", None)
         if temperature is not None and reference is not None:
@@ -336,8 +345,8 @@ class PhysicsPayloadCompensator(CarriesRobot, Compensator):
 
     def _identify(self, A, Y, prior, temperature=None, crosstalk=None):
         """Sets the fitted attributes from the (N, 6, p) regressor and the readings
-        (:func:`~.payload_identification.identify_payload`); `crosstalk`: whether to
-        identify it (default: ``identify_crosstalk``)."""
+        (:func:`~..identification.payload_identification.identify_payload`); `crosstalk`:
+        whether to identify it (default: ``identify_crosstalk``)."""
         static = self.mode == "static"
         vars(self).update(identify_payload(
             A, Y, static=static, identification=self.identification, prior=prior,
@@ -435,7 +444,8 @@ class PhysicsPayloadCompensator(CarriesRobot, Compensator):
 
     def with_correction(self, correction) -> PhysicsPayloadCompensator:
         """A copy that predicts readings through a gain/cross-talk correction identified on
-        static poses (:class:`~ftdrake.compensation.calibration.CalibrationCorrection`):
+        static poses
+        (:class:`~ftdrake.compensation.calibration.calibration.CalibrationCorrection`):
         ``M·W_S(payload) + b + k·ΔT`` with the correction's M, bias, temperature coefficients
         and payload (it must have one payload for every row). The parameters' covariance stays
         the rigid fit's (an approximation: M's own uncertainty is not propagated). A weight
@@ -539,7 +549,7 @@ class PhysicsPayloadCompensator(CarriesRobot, Compensator):
     # -- reporting --------------------------------------------------------------------------
     def identified(self) -> dict:
         """Identified parameters with standard errors and units, plus derived CoM (m)
-        (:func:`~.payload_report.identified_table`)."""
+        (:func:`~..identification.payload_report.identified_table`)."""
         return identified_table(self)
 
     def summary(self) -> str:

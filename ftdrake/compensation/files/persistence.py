@@ -32,21 +32,21 @@ import skops.io as sio
 from sklearn.base import BaseEstimator
 from sklearn.utils.validation import check_is_fitted
 
-from ..conventions import TEMPERATURE, WRENCH_AXES, WRENCH_UNITS
-from ..errors import ConfigError, ModelFileError, RobotModelError
-from ..io import atomic_write_bytes
-from ..version import ftdrake_version
-from .base import Compensator
-from .build import is_wrench
-from .features import feature_names
-from .registry import trusted_types
-from .robot_file import CarriesRobot
+from ...conventions import TEMPERATURE, WRENCH_AXES, WRENCH_UNITS
+from ...errors import ConfigError, ModelFileError, RobotModelError
+from ...io import atomic_write_bytes
+from ...version import ftdrake_version
+from ..estimators.base import Compensator
+from ..estimators.build import is_wrench
+from ..estimators.registry import trusted_types
+from ..estimators.robot_file import CarriesRobot
+from ..features import feature_names
 
 MAGIC = b"FTDRAKE-MODEL\n"
 # 2: the physics model takes a robot description instead of embedding a scenario; the
 # trusted types come from the compensator registry. 3: a model built on a robot carries the
-# robot's text (compensation.robot_file) and the manifest its SHA-256. Version 2 files still
-# load: their robot is embedded on loading when its path is there.
+# robot's text (compensation.estimators.robot_file) and the manifest its SHA-256. Version 2 files
+# still load: their robot is embedded on loading when its path is there.
 FORMAT_VERSION = 3
 READABLE_VERSIONS = (2, 3)
 _DIGEST = 32  # bytes of SHA-256
@@ -79,7 +79,7 @@ def save_model(
     if untrusted:
         raise ValueError(
             f"model contains types the model-file loader does not trust: {untrusted}; "
-            "register them in ftdrake/compensation/registry.py"
+            "register them in ftdrake/compensation/estimators/registry.py"
         )
     manifest["payload_bytes"] = len(payload)
     manifest["payload_sha256"] = hashlib.sha256(payload).hexdigest()
@@ -110,7 +110,7 @@ def _manifest(model, target_names, target_units, sensor_frame, extra) -> dict:
     check_is_fitted(model)
     if _qualified_name(type(model)) not in trusted_types():
         raise ValueError(f"{_qualified_name(type(model))} is not a registered compensator; "
-                         "add it to ftdrake/compensation/registry.py")
+                         "add it to ftdrake/compensation/estimators/registry.py")
     target_names = [str(t) for t in target_names]
     target_units = [str(u) for u in target_units]
     if not len(target_names) == len(target_units) == model.n_outputs_:

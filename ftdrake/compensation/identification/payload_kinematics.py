@@ -13,9 +13,9 @@ import functools
 
 import numpy as np
 
-from ..errors import RobotModelError
-from ..physics.chain import SerialChain, joint_frames_in_sensor_batch
-from ..physics.robot import (
+from ...errors import RobotModelError
+from ...physics.chain import SerialChain, joint_frames_in_sensor_batch
+from ...physics.robot import (
     RobotDescription,
     check_joint_names,
     floating_base_hint,

@@ -1,8 +1,8 @@
 """What a compensator is built from for training: the targets, a robot description and the
 options its registry entry offers.
 
-A registry entry (:mod:`ftdrake.compensation.registry`) builds its unfitted compensator from
-a :class:`BuildRequest`: the feature set, a random seed, the names of the targets (a wrench
+A registry entry (:mod:`ftdrake.compensation.estimators.registry`) builds its unfitted compensator
+from a :class:`BuildRequest`: the feature set, a random seed, the names of the targets (a wrench
 or joint torques, see :func:`is_wrench`), a :class:`RobotOptions` and the values of the
 entry's own :class:`TrainOption` s, which ``ftdrake train`` offers as flags. Errors name the
 ``train`` flag that fixes them.
@@ -16,17 +16,17 @@ from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
-from ..config import parse_config
-from ..conventions import WRENCH_AXES
-from ..errors import ConfigError, RobotModelError
-from ..physics.robot import (
+from ...config import parse_config
+from ...conventions import WRENCH_AXES
+from ...errors import ConfigError, RobotModelError
+from ...physics.robot import (
     RobotDescription,
     fixed_joint_values,
     ftdrake_arm,
     joint_mapping_file,
     joint_names,
 )
-from ..physics.scenario_robot import robot_description
+from ...physics.scenario_robot import robot_description
 
 BUILTIN_ROBOT = "ftdrake"  # RobotOptions.robot naming ftdrake's simulated arm
 

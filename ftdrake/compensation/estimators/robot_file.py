@@ -12,8 +12,8 @@ from __future__ import annotations
 
 import hashlib
 
-from ..errors import RobotModelError
-from ..physics.robot import embed_model
+from ...errors import RobotModelError
+from ...physics.robot import embed_model
 
 
 class CarriesRobot:

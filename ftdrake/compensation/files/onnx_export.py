@@ -30,10 +30,10 @@ import numpy as np
 import onnx
 from onnx import TensorProto, helper, numpy_helper
 
-from ..io import atomic_write_bytes
-from .compiled.forest import FlatForest, flatten_forests
-from .compiled.kernel import FastKernelModel
-from .compiled.rows import joints_for
+from ...io import atomic_write_bytes
+from ..compiled.forest import FlatForest, flatten_forests
+from ..compiled.kernel import FastKernelModel
+from ..compiled.rows import joints_for
 
 OPSET = 21  # default domain
 ML_OPSET = 5  # ai.onnx.ml: TreeEnsemble with double thresholds and outputs

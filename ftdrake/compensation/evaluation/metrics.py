@@ -10,8 +10,8 @@ from __future__ import annotations
 import numpy as np
 from scipy.stats import norm
 
-from ..conventions import WRENCH_AXES
-from .base import describe_nonfinite
+from ...conventions import WRENCH_AXES
+from ..estimators.base import describe_nonfinite
 
 
 def _as_columns(a, name: str) -> np.ndarray:

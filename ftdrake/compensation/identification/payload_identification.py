@@ -5,7 +5,7 @@ The reading of a sensor carrying a rigid tool is linear in ``θ = [φ; b]`` (and
 carried without inertia, when identified): ``reading = A·θ`` with A from
 :func:`payload_regressor`. :func:`identify_payload` fits θ (least squares, or physically
 consistent: :mod:`.consistent`) and returns the fitted attributes of
-:class:`~.physics.PhysicsPayloadCompensator`.
+:class:`~..estimators.physics.PhysicsPayloadCompensator`.
 """
 
 from __future__ import annotations
@@ -14,7 +14,7 @@ import numpy as np
 from scipy.optimize import least_squares
 from scipy.spatial.transform import Rotation
 
-from ..physics.rigid_body import inertia_map, skew
+from ...physics.rigid_body import inertia_map, skew
 from .consistent import STATIC_PARAMETERS, identify_consistent, identify_least_squares
 from .regression import correlated_variance_ratio, correlation_length
 
@@ -35,7 +35,7 @@ def identify_payload(A, Y, *, static: bool, identification: str, prior, prior_we
                      identify_mounting: bool, temperature=None, identify_crosstalk=False
                      ) -> dict:
     """The payload model's fitted attributes from the (N, 6, p) regressor and the readings
-    (:class:`~.physics.PhysicsPayloadCompensator`'s, by name, but ``residual_rms_`` and
+    (:class:`~..estimators.physics.PhysicsPayloadCompensator`'s, by name, but ``residual_rms_`` and
     ``physically_consistent_``, which need the model's prediction).
 
     With a temperature, its per-axis coefficient is eliminated first (Frisch–Waugh–Lovell:

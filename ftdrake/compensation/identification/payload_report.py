@@ -1,7 +1,7 @@
 """What a fitted payload model identified, as a table and as lines a user reads, and the
 warning when the data do not excite its parameters.
 
-The functions take a fitted :class:`~.physics.PhysicsPayloadCompensator` (its
+The functions take a fitted :class:`~..estimators.physics.PhysicsPayloadCompensator` (its
 ``identified()``, ``summary()`` and fit call them).
 """
 
