@@ -15,7 +15,9 @@ scikit-learn versions, and the payload's size and SHA-256. The checksums catch c
 truncation and careless edits; they are not a signature (anyone can recompute them), which is
 why loading also refuses types off the list and checks every decision tree's node indices.
 
-Every problem with a file raises :class:`ModelFileError` naming it.
+Every problem with a file raises :class:`ModelFileError` naming it. Files written before
+``compensation/`` was split into sub-packages name their types by the old module paths; they
+are read through :mod:`.moved_names`'s table.
 """
 
 from __future__ import annotations
@@ -41,6 +43,7 @@ from ..estimators.build import is_wrench
 from ..estimators.registry import trusted_types
 from ..estimators.robot_file import CarriesRobot
 from ..features import feature_names
+from .moved_names import current_name, current_payload
 
 MAGIC = b"FTDRAKE-MODEL\n"
 # 2: the physics model takes a robot description instead of embedding a scenario; the
@@ -167,6 +170,7 @@ def load_model(path, *, expect_n_joints: int | None = None, expect_features: str
     """
     manifest, payload = _unpack(Path(path).read_bytes(), path)
     _check_expectations(manifest, path, expect_n_joints, expect_features)
+    payload = current_payload(payload)  # a file from before the split names old module paths
     untrusted = _untrusted(payload)
     if untrusted:
         raise ModelFileError(f"{path}: refusing to load types no registered compensator "
@@ -283,7 +287,7 @@ def _check_expectations(manifest, path, expect_n_joints, expect_features) -> Non
 def _check_model(model, manifest: dict, path) -> None:
     """The rebuilt object is the model the manifest describes, and its trees are sound."""
     name = _qualified_name(type(model))
-    if name != manifest.get("model_class") or not isinstance(model, Compensator):
+    if name != current_name(str(manifest.get("model_class"))) or not isinstance(model, Compensator):
         raise ModelFileError(
             f"{path}: payload holds {name}, manifest says {manifest.get('model_class')}"
         )
