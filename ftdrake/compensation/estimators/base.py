@@ -52,21 +52,12 @@ from sklearn.base import BaseEstimator, RegressorMixin
 from sklearn.utils.validation import check_is_fitted, validate_data
 
 from ..compiled.forest import FlatForest, forest_accumulate_with_std
-from ..features import check_feature_set, joints_in_layout, select_features
-
-
-def describe_nonfinite(a: np.ndarray, name: str) -> str | None:
-    """A message naming how many rows of `a` hold NaN/inf and the first one, or None."""
-    bad = ~np.isfinite(a)
-    if a.ndim > 1:
-        bad = bad.any(axis=tuple(range(1, a.ndim)))
-    if not bad.any():
-        return None
-    rows = np.flatnonzero(bad)
-    return (
-        f"Input {name} contains NaN or infinity in {rows.size} of {a.shape[0]} rows "
-        f"(first at row {rows[0]}); clean or drop them explicitly before fitting"
-    )
+from ..features import (  # describe_nonfinite: also taken from here
+    check_feature_set,
+    describe_nonfinite,
+    joints_in_layout,
+    select_features,
+)
 
 
 class Compensator(RegressorMixin, BaseEstimator):

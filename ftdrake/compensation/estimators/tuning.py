@@ -28,8 +28,8 @@ from sklearn.base import clone
 from sklearn.model_selection import GroupKFold, ParameterGrid, RepeatedKFold
 from tqdm.auto import tqdm
 
-from ..features import check_feature_set, joints_in_layout
-from .base import Compensator, describe_nonfinite
+from ..features import check_feature_set, describe_nonfinite, joints_in_layout
+from .base import Compensator
 from .registry import REGISTRY, entry_for
 
 #: Names of the tuning presets; each registered compensator may have a grid for each

@@ -11,7 +11,7 @@ import numpy as np
 from scipy.stats import norm
 
 from ...conventions import WRENCH_AXES
-from ..estimators.base import describe_nonfinite
+from ..features import describe_nonfinite
 
 
 def _as_columns(a, name: str) -> np.ndarray:
