@@ -18,9 +18,9 @@ b. ``"block"`` fits forces from forces and torques from torques (two 3 × 3 bloc
 
 Directions the data leave free are kept at the identity (no correction: the least-change
 solution) and their entries get an infinite standard error; an
-:class:`~..estimators.physics.ExcitationWarning` names them. The standard errors of C come from
-those of M by the delta method (``dC = −C·dM·C``), rows of M independent, the payload taken as
-exact.
+:class:`~..identification.payload_report.ExcitationWarning` names them. The standard errors of
+C come from those of M by the delta method (``dC = −C·dM·C``), rows of M independent, the
+payload taken as exact.
 :mod:`.calibration` calls :func:`identify_correction` for ``calibrate --correction``.
 """
 
@@ -33,7 +33,7 @@ import numpy as np
 
 from ...conventions import WRENCH_AXES
 from ...errors import ConfigError
-from ..estimators.physics import ExcitationWarning
+from ..identification.payload_report import ExcitationWarning
 
 #: Structures of the gain/cross-talk correction C: two 3 × 3 blocks, or all of the 6 × 6.
 CORRECTIONS = ("block", "full")

@@ -24,8 +24,11 @@ of :data:`~.static_table.ORIENTATIONS`) with ``qd_*`` zero.
 
 from __future__ import annotations
 
+from typing import ClassVar
+
 import numpy as np
 import pandas as pd
+from sklearn.utils._param_validation import StrOptions
 
 from ...conventions import GRAVITY_W
 from ...errors import ConfigError
@@ -57,6 +60,12 @@ class OrientationPayloadCompensator(Compensator):
 
     provides_std = True
     std_includes_noise = True
+
+    _parameter_constraints: ClassVar[dict] = {
+        **Compensator._parameter_constraints,
+        "orientation": [StrOptions(set(ORIENTATIONS))],
+        "gravity": ["array-like"],
+    }
 
     def __init__(self, features="q", orientation="quaternion", gravity=GRAVITY_W):
         super().__init__(features=features)

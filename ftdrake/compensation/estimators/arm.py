@@ -34,10 +34,14 @@ is the std of a new measurement; ``std_includes_noise``).
 from __future__ import annotations
 
 import functools
+import os
 import warnings
+from numbers import Real
+from typing import ClassVar
 
 import numpy as np
 from pydrake.solvers import MathematicalProgram, SolverOptions
+from sklearn.utils._param_validation import Interval, StrOptions
 
 from ...conventions import GRAVITY_W
 from ...errors import ConfigError, RobotModelError
@@ -112,6 +116,20 @@ class ArmDynamicsCompensator(CarriesRobot, Compensator):
 
     provides_std = True
     std_includes_noise = True
+    _parameter_constraints: ClassVar[dict] = {
+        "features": [StrOptions({"q,qd,qdd"})],  # τ needs q̇ and q̈
+        "robot": [str, os.PathLike, None],
+        "base_frame": [str, None],
+        "package_xmls": ["array-like"],
+        "gravity": ["array-like"],
+        "identification": [StrOptions(set(IDENTIFICATIONS))],
+        "prior": [StrOptions({"model"}), None],
+        "prior_weight": [Interval(Real, 0, None, closed="neither")],
+        "friction": ["boolean"],
+        "coulomb_velocity": [Interval(Real, 0, None, closed="neither")],
+        "offsets": ["boolean"],
+        "drive_gains": [StrOptions({"fixed", "identify"})],
+    }
 
     def __init__(self, features="q,qd,qdd", robot=None, base_frame=None, package_xmls=(),
                  gravity=GRAVITY_W, identification="consistent", prior="model",
@@ -161,13 +179,6 @@ class ArmDynamicsCompensator(CarriesRobot, Compensator):
 
     # -- fitting ----------------------------------------------------------------------------
     def _fit(self, Z, Y):
-        if self.features != "q,qd,qdd":
-            raise ValueError("ArmDynamicsCompensator takes features='q,qd,qdd' (τ needs q̇, q̈)")
-        if self.identification not in IDENTIFICATIONS:
-            raise ConfigError(f"identification must be one of {list(IDENTIFICATIONS)}, got "
-                              f"{self.identification!r}")
-        if self.prior not in ("model", None):
-            raise ConfigError(f"prior must be 'model' or None, got {self.prior!r}")
         if getattr(self, "temperature_in_", False):
             raise ValueError("ArmDynamicsCompensator takes no temperature column")
         self._embed_robot()
@@ -189,9 +200,6 @@ class ArmDynamicsCompensator(CarriesRobot, Compensator):
         if self.prior == "model":
             prior[:p_rb] = dyn.model_parameters()
         self.model_parameters_ = prior
-        if self.drive_gains not in ("fixed", "identify"):
-            raise ConfigError(f"drive_gains must be 'fixed' or 'identify', got "
-                              f"{self.drive_gains!r}")
         gains = np.ones(dyn.n)
         if self.drive_gains == "identify":
             gains = self._initial_gains(A, Y, prior, p_rb)

@@ -40,6 +40,11 @@ The protocol a compensator follows to run in a control loop and leave Python:
 
 :mod:`..contract` declares this protocol (``LoopModel``) and checks a model against it once.
 
+Parameters are declared and validated the scikit-learn way: each class's
+``_parameter_constraints`` (``sklearn.utils._param_validation``'s ``Interval``,
+``StrOptions``, ...) is checked at the start of ``fit``, and a value they refuse raises
+:class:`ParameterError` naming the parameter and what it may be.
+
 A new compensator is one module (a subclass, with its own ``make`` and train options when the
 registry's defaults do not build it) and one entry in
 :mod:`ftdrake.compensation.estimators.registry`.
@@ -47,17 +52,28 @@ registry's defaults do not build it) and one entry in
 
 from __future__ import annotations
 
+from typing import ClassVar
+
 import numpy as np
 from sklearn.base import BaseEstimator, RegressorMixin
+from sklearn.utils._param_validation import InvalidParameterError, StrOptions
 from sklearn.utils.validation import check_is_fitted, validate_data
 
+from ...errors import ConfigError
 from ..compiled.forest import FlatForest, forest_accumulate_with_std
 from ..features import (  # describe_nonfinite: also taken from here
+    FEATURE_SETS,
     check_feature_set,
     describe_nonfinite,
     joints_in_layout,
     select_features,
 )
+
+
+class ParameterError(ConfigError, InvalidParameterError):
+    """A compensator's parameter holds a value its ``_parameter_constraints`` refuse:
+    scikit-learn's InvalidParameterError (a ValueError), and a ConfigError for ftdrake's
+    command line."""
 
 
 class Compensator(RegressorMixin, BaseEstimator):
@@ -85,13 +101,16 @@ class Compensator(RegressorMixin, BaseEstimator):
     # :mod:`..contract`): no temperature input; the wrench stream in step with the joints.
     temperature_in_ = False
     wrench_delay_s_ = 0.0
+    #: What each parameter may be; subclasses extend it (``{**Compensator._parameter_
+    #: constraints, ...}``) with one entry per parameter of theirs.
+    _parameter_constraints: ClassVar[dict] = {"features": [StrOptions(set(FEATURE_SETS))]}
 
     def __init__(self, features: str = "q,qd,qdd"):
         self.features = features
 
     # -- the sklearn API -------------------------------------------------------------------
     def fit(self, X, y):
-        check_feature_set(self.features)
+        self._validate_params()
         X, y = validate_data(
             self, X, y, multi_output=True, y_numeric=True, ensure_all_finite=False,
             dtype=np.float64,
@@ -109,6 +128,14 @@ class Compensator(RegressorMixin, BaseEstimator):
         self.input_max_ = X.max(axis=0)
         self._fit(self._select(X), Y)
         return self
+
+    def _validate_params(self) -> None:
+        """The parameters against ``_parameter_constraints``; a ParameterError naming the
+        first one they refuse."""
+        try:
+            super()._validate_params()
+        except InvalidParameterError as e:
+            raise ParameterError(str(e)) from None
 
     def predict(self, X):
         Y = self._predict(self._validated_features(X))

@@ -15,6 +15,8 @@ the GP, physics and hybrid models give calibrated ones.
 
 from __future__ import annotations
 
+from typing import ClassVar
+
 import numpy as np
 from sklearn.ensemble import RandomForestRegressor
 from sklearn.utils.validation import check_is_fitted
@@ -57,6 +59,13 @@ class RandomForestCompensator(Compensator):
 
     #: The spread across trees; not a calibrated std of a reading (``std_includes_noise``).
     provides_std = True
+    #: The forests' parameters as scikit-learn's RandomForestRegressor declares them.
+    _parameter_constraints: ClassVar[dict] = {
+        **Compensator._parameter_constraints,
+        **{name: RandomForestRegressor._parameter_constraints[name] for name in (
+            "n_estimators", "max_features", "min_samples_leaf", "random_state", "n_jobs")},
+        "per_output": ["boolean"],
+    }
 
     def __init__(
         self,

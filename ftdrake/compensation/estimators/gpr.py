@@ -56,6 +56,8 @@ std grows towards the prior std √(s + n) away from the training data.
 from __future__ import annotations
 
 import warnings
+from numbers import Integral, Real
+from typing import ClassVar
 
 import numpy as np
 from scipy.linalg import cho_solve, cholesky, solve_triangular
@@ -65,6 +67,7 @@ from sklearn.exceptions import ConvergenceWarning
 from sklearn.gaussian_process import GaussianProcessRegressor
 from sklearn.gaussian_process.kernels import RBF, ConstantKernel, WhiteKernel
 from sklearn.utils import check_random_state
+from sklearn.utils._param_validation import Interval, StrOptions
 
 from ..compiled.gp import CompiledGaussianProcess
 from .base import Compensator
@@ -181,6 +184,18 @@ class GPRCompensator(Compensator):
     """
 
     provides_std = True
+    _parameter_constraints: ClassVar[dict] = {
+        **Compensator._parameter_constraints,
+        "max_points": [Interval(Integral, 1, None, closed="left")],
+        "subset": [StrOptions(set(SUBSETS))],
+        "length_scale": [Interval(Real, 0, None, closed="neither")],
+        "noise_level": [Interval(Real, 0, None, closed="neither")],
+        "n_restarts_optimizer": [Interval(Integral, 0, None, closed="left")],
+        "optimize_points": [Interval(Integral, 0, None, closed="left")],
+        "shared_kernel": ["boolean"],
+        "include_noise": ["boolean"],
+        "random_state": ["random_state"],
+    }
 
     @property
     def std_includes_noise(self) -> bool:
@@ -213,13 +228,6 @@ class GPRCompensator(Compensator):
 
     # -- fitting --------------------------------------------------------------------------
     def _fit(self, Z: np.ndarray, Y: np.ndarray) -> None:
-        if self.subset not in SUBSETS:
-            raise ValueError(f"subset must be one of {SUBSETS}; got {self.subset!r}")
-        if self.max_points < 1 or self.optimize_points < 0:
-            raise ValueError(
-                f"need max_points >= 1 and optimize_points >= 0; "
-                f"got {self.max_points} and {self.optimize_points}"
-            )
         rng = check_random_state(self.random_state)
         self.input_mean_, self.input_scale_ = Z.mean(axis=0), _scale(Z.std(axis=0))
         self.target_mean_, self.target_scale_ = Y.mean(axis=0), _scale(Y.std(axis=0))

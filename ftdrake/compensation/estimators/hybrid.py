@@ -36,8 +36,12 @@ residual was fitted to the physics part's errors.
 
 from __future__ import annotations
 
+from collections.abc import Mapping
+from typing import ClassVar
+
 import numpy as np
 from sklearn.base import clone
+from sklearn.utils._param_validation import HasMethods, StrOptions
 from sklearn.utils.validation import check_is_fitted
 
 from ..compiled.forest import CompiledForest
@@ -45,10 +49,11 @@ from ..compiled.hybrid import CompiledHybrid, hybrid_row
 from ..compiled.loop import compensate_with_hybrid
 from ..evaluation.metrics import coverage
 from ..features import check_feature_set
+from ..identification.consistent import PayloadPrior
 from . import domain
 from .base import Compensator
 from .forest import RandomForestCompensator
-from .physics import PhysicsPayloadCompensator
+from .physics import IDENTIFICATIONS, PhysicsPayloadCompensator
 
 
 class HybridCompensator(Compensator):
@@ -74,6 +79,13 @@ class HybridCompensator(Compensator):
     std_includes_noise = True
     #: Alternating blocks of rows in the cross-fit that estimates ``residual_noise_var_``.
     CROSS_FIT_BLOCKS = 10
+    _parameter_constraints: ClassVar[dict] = {
+        "physics": [HasMethods(["fit", "predict"]), None],  # the payload or arm model
+        "residual": [HasMethods(["fit", "predict"]), None],
+        "features": [StrOptions({"q,qd,qdd"})],  # the parts select their own
+        "identification": [StrOptions(set(IDENTIFICATIONS)), None],
+        "prior": [PayloadPrior, Mapping, None],
+    }
 
     def __init__(self, physics=None, residual=None, features="q,qd,qdd", identification=None,
                  prior=None):
@@ -84,8 +96,6 @@ class HybridCompensator(Compensator):
         self.prior = prior
 
     def _fit(self, Z, Y):
-        if self.features != "q,qd,qdd":
-            raise ValueError("HybridCompensator takes features='q,qd,qdd'; its parts select")
         physics = self.physics if self.physics is not None else PhysicsPayloadCompensator()
         physics = clone(physics).set_params(**{
             k: v for k, v in (("identification", self.identification), ("prior", self.prior))

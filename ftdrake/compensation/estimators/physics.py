@@ -51,13 +51,18 @@ column in X).
 from __future__ import annotations
 
 import copy
+import os
 import warnings
 import weakref
+from collections.abc import Mapping
+from numbers import Real
+from typing import ClassVar
 
 import numpy as np
+from sklearn.utils._param_validation import Interval, StrOptions
 
 from ...conventions import GRAVITY_W
-from ...errors import ConfigError, RobotModelError, spelled
+from ...errors import ConfigError, RobotModelError
 from ...physics.robot import RobotDescription, fixed_joint_values, ftdrake_arm, joint_names
 from ..compiled.payload import pack_payload_row, payload_mean_std, payload_predict
 from ..identification.consistent import DEFAULT_PRIOR_WEIGHT, PayloadPrior, is_possible
@@ -73,9 +78,10 @@ from ..identification.payload_identification import (
 from ..identification.payload_kinematics import kinematics_for
 from ..identification.payload_report import (
     PARAMETER_UNITS,
-    excitation_message,
+    ExcitationWarning,
     identified_table,
     summary_text,
+    warn_if_poorly_excited,
 )
 from ..identification.tether import candidate_frames, fit_tether_geometry, tether_columns
 from .base import Compensator
@@ -92,23 +98,9 @@ STATIC_PARAMETERS = list(CONSISTENT_STATIC)
 #: The weight carried without inertia (``weight_without_inertia``): θ[16:20].
 WEIGHT_PARAMETERS = [16, 17, 18, 19]
 #: How the parameters are identified: plain weighted least squares, or constrained to a
-#: physically possible body (pseudo-inertia ⪰ 0, m > 0; :mod:`..identification.consistent`) with a
-#: prior.
+#: physically possible body (pseudo-inertia ⪰ 0, m > 0; :mod:`..identification.consistent`)
+#: with a prior.
 IDENTIFICATIONS = ("least_squares", "consistent")
-
-
-#: The excitation warning's advice (:func:`~..identification.payload_report.excitation_message`) and
-#: what it becomes for a command-line user.
-_PYTHON_ADVICE = ("give a prior (identification='consistent', prior=PayloadPrior(...)) or "
-                  "use a richer trajectory (e.g. kind 'fourier' or 'z_rich')")
-_CLI_ADVICE = ("record a log in which every joint moves, faster and through more of its "
-               "range, so that the tool turns through more orientations; or identify the "
-               "mass and centre of mass from static poses with `ftdrake calibrate` (a prior "
-               "with --prior-mass/--prior-com)")
-
-
-class ExcitationWarning(UserWarning):
-    """The data does not determine some payload parameters well."""
 
 
 class FixedJointsWarning(UserWarning):
@@ -143,10 +135,9 @@ class PhysicsPayloadCompensator(CarriesRobot, Compensator):
         (the same fit constrained to a physically possible body — m > 0, pseudo-inertia ⪰ 0 —
         solved as a small SDP, :func:`~..identification.consistent.identify_consistent`; the
         unconstrained estimate is kept in ``identified()["least_squares"]``).
-    prior : a :class:`~..identification.consistent.PayloadPrior` (mass, CoM, inertia about
-        the CoM, in S; e.g. CAD values) or a mapping of its fields, for
-        ``identification="consistent"``: it decides the directions the data do not excite;
-        ``identified()`` says by how much.
+    prior : a :class:`PayloadPrior` (mass, CoM, inertia about the CoM, in S;
+        e.g. CAD values) or a mapping of its fields, for ``identification="consistent"``: it
+        decides the directions the data do not excite; ``identified()`` says by how much.
     prior_weight : the prior's precision (default 100: it counts as ±10 %, 1σ).
     weight_without_inertia : also identify a weight the tool carries without its inertia
         (``m_w``, ``m_w·c_w``: a hanging cable; see the module docstring). Needs motion data
@@ -182,8 +173,8 @@ class PhysicsPayloadCompensator(CarriesRobot, Compensator):
     ``standard_errors_`` (same; ∞ where nothing determines a parameter), ``covariance_``,
     ``condition_number_``,
     ``residual_rms_`` (6), ``physically_consistent_``, ``identification_`` (the full
-    :class:`~..identification.consistent.ConsistentIdentification`). An
-    :class:`ExcitationWarning` names the parameters the data cannot determine.
+    :class:`ConsistentIdentification`). An :class:`ExcitationWarning` names the
+    parameters the data cannot determine.
 
     Predictive standard deviation (``predict_std``, the loop's ``wrench_std``): the std of a
     new reading around the prediction, per axis,
@@ -210,6 +201,20 @@ class PhysicsPayloadCompensator(CarriesRobot, Compensator):
     weight_without_inertia = False
     tether = None
     identify_crosstalk = False
+    _parameter_constraints: ClassVar[dict] = {
+        **Compensator._parameter_constraints,
+        "mode": [StrOptions({"dynamic", "static"})],
+        "robot": [str, os.PathLike, None],
+        **{name: [str, None] for name in ("sensor_frame", "base_frame", "tether")},
+        **{name: ["array-like"] for name in ("gravity", "package_xmls")},
+        "identification": [StrOptions(set(IDENTIFICATIONS))],
+        "prior": [PayloadPrior, Mapping, None],
+        "prior_weight": [Interval(Real, 0, None, closed="neither")],
+        **{name: ["boolean"] for name in ("identify_mounting", "weight_without_inertia",
+                                          "identify_crosstalk")},
+        "joints": [str, "array-like", None],
+        "fixed_joints": [Mapping, str, "array-like", None],
+    }
 
     def __init__(self, features="q,qd,qdd", mode="dynamic", robot=None, sensor_frame=None,
                  base_frame=None, gravity=GRAVITY_W, package_xmls=(),
@@ -271,11 +276,6 @@ class PhysicsPayloadCompensator(CarriesRobot, Compensator):
         return self._kinematics().anchor_frame_names()
 
     def _fit(self, Z, Y):
-        if self.mode not in ("dynamic", "static"):
-            raise ValueError(f"mode must be 'dynamic' or 'static', got {self.mode!r}")
-        if self.identification not in IDENTIFICATIONS:
-            raise ConfigError(f"identification must be one of {list(IDENTIFICATIONS)}, got "
-                              f"{self.identification!r}")
         prior = PayloadPrior.coerce(self.prior)
         if prior is not None and self.identification != "consistent":
             raise ConfigError("prior needs identification='consistent' (least squares has no "
@@ -358,7 +358,7 @@ class PhysicsPayloadCompensator(CarriesRobot, Compensator):
         # A possible payload: a body (a positive mass, static) and a weight without inertia
         # that weighs something or nothing.
         self.physically_consistent_ = is_possible(self.parameters_, static)
-        self._warn_if_poorly_excited()
+        warn_if_poorly_excited(self, stacklevel=3)
 
     def _predict_from(self, A, temperature=None):
         """Readings in Sm: ``R_SmS ⊗ (A_φ φ [+ A_w w]) + b + k·(T − T_ref)``."""
@@ -444,8 +444,7 @@ class PhysicsPayloadCompensator(CarriesRobot, Compensator):
 
     def with_correction(self, correction) -> PhysicsPayloadCompensator:
         """A copy that predicts readings through a gain/cross-talk correction identified on
-        static poses
-        (:class:`~ftdrake.compensation.calibration.calibration.CalibrationCorrection`):
+        static poses (:class:`CalibrationCorrection`):
         ``M·W_S(payload) + b + k·ΔT`` with the correction's M, bias, temperature coefficients
         and payload (it must have one payload for every row). The parameters' covariance stays
         the rigid fit's (an approximation: M's own uncertainty is not propagated). A weight
@@ -555,13 +554,6 @@ class PhysicsPayloadCompensator(CarriesRobot, Compensator):
     def summary(self) -> str:
         """The identified parameters with standard errors, as lines a user reads."""
         return summary_text(self)
-
-    def _warn_if_poorly_excited(self):
-        message = excitation_message(self)
-        if message is not None:
-            # The command line has no prior and no simulator kinds: it gets its own advice.
-            message = message.replace(_PYTHON_ADVICE, spelled(_PYTHON_ADVICE, _CLI_ADVICE))
-            warnings.warn(message, ExcitationWarning, stacklevel=4)
 
     # -- kinematics -------------------------------------------------------------------------
     def _kinematics(self):

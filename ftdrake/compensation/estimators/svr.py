@@ -15,9 +15,12 @@ deviation" on every axis. ``scale_targets=False`` reproduces the study exactly.
 
 from __future__ import annotations
 
+from typing import ClassVar
+
 import numpy as np
 from sklearn.preprocessing import MinMaxScaler
 from sklearn.svm import SVR
+from sklearn.utils._param_validation import StrOptions
 from sklearn.utils.validation import check_is_fitted
 
 from ..compiled.kernel import FastKernelModel
@@ -52,6 +55,15 @@ class SVRCompensator(Compensator):
     target_mean_, target_scale_ : (n_outputs,) arrays
         ``y = target_mean_ + target_scale_ * svr_output``; 0 and 1 if not ``scale_targets``.
     """
+
+    #: The SVRs' parameters as scikit-learn's SVR declares them; the kernels ftdrake compiles.
+    _parameter_constraints: ClassVar[dict] = {
+        **Compensator._parameter_constraints,
+        "kernel": [StrOptions({"rbf", "linear", "poly", "sigmoid"})],
+        **{name: SVR._parameter_constraints[name] for name in ("C", "gamma", "epsilon",
+                                                                "degree")},
+        "scale_targets": ["boolean"],
+    }
 
     def __init__(
         self,

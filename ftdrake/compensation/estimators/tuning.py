@@ -21,6 +21,7 @@ Typical use::
 from __future__ import annotations
 
 from dataclasses import asdict, dataclass
+from typing import ClassVar
 
 import numpy as np
 from joblib import Parallel, delayed, parallel_config
@@ -334,6 +335,11 @@ class PerOutputCompensator(Compensator):
     -----------------
     estimators_ : list of fitted Compensator, each predicting one column.
     """
+
+    _parameter_constraints: ClassVar[dict] = {
+        **Compensator._parameter_constraints,
+        "estimators": [list, tuple],
+    }
 
     def __init__(self, estimators, features: str = "q,qd,qdd"):
         self.estimators = estimators

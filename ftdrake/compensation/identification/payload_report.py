@@ -1,5 +1,5 @@
 """What a fitted payload model identified, as a table and as lines a user reads, and the
-warning when the data do not excite its parameters.
+warning when the data do not excite its parameters (:class:`ExcitationWarning`).
 
 The functions take a fitted :class:`~..estimators.physics.PhysicsPayloadCompensator` (its
 ``identified()``, ``summary()`` and fit call them).
@@ -7,10 +7,26 @@ The functions take a fitted :class:`~..estimators.physics.PhysicsPayloadCompensa
 
 from __future__ import annotations
 
+import warnings
+
 import numpy as np
 from pydrake.math import RollPitchYaw, RotationMatrix
 
+from ...errors import spelled
 from .consistent import PARAMETER_NAMES, STATIC_PARAMETERS
+
+#: The excitation warning's advice (:func:`excitation_message`) and what it becomes for a
+#: command-line user.
+_PYTHON_ADVICE = ("give a prior (identification='consistent', prior=PayloadPrior(...)) or "
+                  "use a richer trajectory (e.g. kind 'fourier' or 'z_rich')")
+_CLI_ADVICE = ("record a log in which every joint moves, faster and through more of its "
+               "range, so that the tool turns through more orientations; or identify the "
+               "mass and centre of mass from static poses with `ftdrake calibrate` (a prior "
+               "with --prior-mass/--prior-com)")
+
+
+class ExcitationWarning(UserWarning):
+    """The data does not determine some payload parameters well."""
 
 #: The unit of each entry of θ (:data:`~.consistent.PARAMETER_NAMES`).
 PARAMETER_UNITS = (["kg", "kg*m", "kg*m", "kg*m"] + ["kg*m^2"] * 6 + ["N"] * 3 + ["N*m"] * 3
@@ -182,9 +198,19 @@ def excitation_message(model) -> str | None:
                             if n in PARAMETER_NAMES[:10])
         how = f"the prior decided (share of each estimate): {decided or 'none'}"
     else:
-        how = ("give a prior (identification='consistent', prior=PayloadPrior(...)) or "
-               "use a richer trajectory (e.g. kind 'fourier' or 'z_rich')")
+        how = _PYTHON_ADVICE
     return (f"the data does not excite the payload parameters well (condition number "
             f"{model.condition_number_:.3g}); not determined by the data (a null direction of "
             f"the regressor, or standard error > 25% of its group's scale): "
             f"{', '.join(poor) or 'none'}; {how}")
+
+
+def warn_if_poorly_excited(model, stacklevel: int) -> None:
+    """Warns (:class:`ExcitationWarning`, :func:`excitation_message`) when the data do not
+    excite the fitted `model`'s parameters well; `stacklevel` as ``warnings.warn``'s, counted
+    from the caller."""
+    message = excitation_message(model)
+    if message is not None:
+        # The command line has no prior and no simulator kinds: it gets its own advice.
+        message = message.replace(_PYTHON_ADVICE, spelled(_PYTHON_ADVICE, _CLI_ADVICE))
+        warnings.warn(message, ExcitationWarning, stacklevel=stacklevel + 1)
