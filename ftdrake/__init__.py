@@ -7,7 +7,9 @@ layers, from the bottom up (a module imports only from its own layer or those be
    typed YAML tree, shared signal processing.
 2. ``physics``: rigid-body kinematics and dynamics, robot descriptions.
 3. ``data``: datasets and robot logs (tables, bags, LCM logs).
-4. ``compensation``: estimators, their registry, compiled predictors, persistence, ONNX.
+4. ``compensation``: the input layout and loop contract; compiled predictors, the payload's
+   identification and the metrics; the estimators with their registry; the static-pose
+   calibration and the model files (persistence, ONNX), in that order.
 5. ``runtime``: the product, :class:`CompensationChain` (compensator → bias tracker →
    detector) that both stations add.
    ``offline``: the one recorder of the chain's signals (:func:`add_recorder`), beside it.
