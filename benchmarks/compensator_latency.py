@@ -63,15 +63,15 @@ from sklearn.ensemble import RandomForestRegressor
 
 from ftdrake.compensation.compiled import CompiledForest, CompiledGaussianProcess
 from ftdrake.compensation.compiled.hybrid import hybrid_row
-from ftdrake.compensation.forest import RandomForestCompensator
-from ftdrake.compensation.gpr import GPRCompensator
-from ftdrake.compensation.hybrid import HybridCompensator
-from ftdrake.compensation.onnx_export import export_onnx
-from ftdrake.compensation.physics import (
+from ftdrake.compensation.estimators.forest import RandomForestCompensator
+from ftdrake.compensation.estimators.gpr import GPRCompensator
+from ftdrake.compensation.estimators.hybrid import HybridCompensator
+from ftdrake.compensation.estimators.physics import (
     ExcitationWarning,
     PhysicsPayloadCompensator,
     payload_regressor,
 )
+from ftdrake.compensation.files.onnx_export import export_onnx
 from ftdrake.config import DetectorConfig
 from ftdrake.experiments import demo
 from ftdrake.physics.rigid_body import sensor_kinematics

@@ -26,9 +26,9 @@ import warnings
 
 import numpy as np
 
-from ftdrake.compensation.domain import DISTANCE_BINS
-from ftdrake.compensation.domain_calibrated import DomainCalibratedHybrid
-from ftdrake.compensation.physics import ExcitationWarning
+from ftdrake.compensation.estimators.domain import DISTANCE_BINS
+from ftdrake.compensation.estimators.domain_calibrated import DomainCalibratedHybrid
+from ftdrake.compensation.estimators.physics import ExcitationWarning
 from ftdrake.config import ScenarioConfig
 from ftdrake.data.dataset import joint_state_layout, wrench_targets
 from ftdrake.experiments import demo

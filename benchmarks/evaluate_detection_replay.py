@@ -25,7 +25,7 @@ import warnings
 import numpy as np
 
 from ftdrake import HybridCompensator, RandomForestCompensator, ScenarioConfig
-from ftdrake.compensation.physics import PhysicsPayloadCompensator
+from ftdrake.compensation.estimators.physics import PhysicsPayloadCompensator
 from ftdrake.data.dataset import joint_state_layout, wrench_targets
 from ftdrake.experiments.detection import DetectionPlan, run_plan
 from ftdrake.experiments.detection_replay import run_plan_by_replay

@@ -31,8 +31,8 @@ import warnings
 import pandas as pd
 from joblib import Parallel, delayed
 
-from ftdrake.compensation.hybrid import HybridCompensator
-from ftdrake.compensation.physics import ExcitationWarning, PhysicsPayloadCompensator
+from ftdrake.compensation.estimators.hybrid import HybridCompensator
+from ftdrake.compensation.estimators.physics import ExcitationWarning, PhysicsPayloadCompensator
 from ftdrake.config import ScenarioConfig, parse_config
 from ftdrake.data.dataset import joint_state_layout, wrench_targets
 from ftdrake.experiments.detection import (

@@ -32,7 +32,7 @@ import time
 import numpy as np
 from scipy.spatial import cKDTree
 
-from ftdrake.compensation.gpr import GPRCompensator
+from ftdrake.compensation.estimators.gpr import GPRCompensator
 from ftdrake.config import ScenarioConfig
 from ftdrake.experiments.feedforward import FeedforwardPlan, Tracker, task_scenario
 from ftdrake.systems.friction import JointFriction

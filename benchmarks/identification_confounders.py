@@ -19,7 +19,7 @@ import warnings
 
 import numpy as np
 
-from ftdrake.compensation.physics import ExcitationWarning, PhysicsPayloadCompensator
+from ftdrake.compensation.estimators.physics import ExcitationWarning, PhysicsPayloadCompensator
 from ftdrake.config import ScenarioConfig
 from ftdrake.data.dataset import joint_state_layout, wrench_targets
 from ftdrake.sim.collection import collect

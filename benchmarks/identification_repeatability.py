@@ -25,7 +25,7 @@ import pandas as pd
 from joblib import Parallel, delayed
 
 from ftdrake import ScenarioConfig
-from ftdrake.compensation.physics import ExcitationWarning, PhysicsPayloadCompensator
+from ftdrake.compensation.estimators.physics import ExcitationWarning, PhysicsPayloadCompensator
 from ftdrake.config import dump_config
 from ftdrake.data.dataset import joint_state_layout, wrench_targets
 from ftdrake.sim.collection import simulate_one, trajectory_config

@@ -3,8 +3,8 @@ model file's size, one factor of the residual at a time.
 
 The hybrid on joint torques is the arm's rigid-body model (``ArmDynamicsCompensator``, drive
 gains identified) plus a forest on its residual, predicting ``arm + w · residual`` with the
-support weight w (:mod:`ftdrake.compensation.domain`: the residual *fades* to 0 away from its
-training inputs). Factors compared against the arm alone:
+support weight w (:mod:`ftdrake.compensation.estimators.domain`: the residual *fades* to 0 away from
+its training inputs). Factors compared against the arm alone:
 
 * leaf size: ``min_samples_leaf`` 5 (the default residual before it kept 40 rows a leaf) or 40;
 * fading: the support weight as fitted, or off (``domain_length_ = ∞``: w = 1 everywhere, the
@@ -40,8 +40,8 @@ import pandas as pd
 from scipy.io import loadmat
 
 import ftdrake
-from ftdrake.compensation.arm import ArmDynamicsCompensator, ExcitationWarning
-from ftdrake.compensation.metrics import nmse
+from ftdrake.compensation.estimators.arm import ArmDynamicsCompensator, ExcitationWarning
+from ftdrake.compensation.evaluation.metrics import nmse
 
 ROOT = Path(__file__).resolve().parents[1]
 UR3 = ftdrake.RobotOptions(robot=str(ROOT / "models" / "ur3.urdf"))

@@ -45,8 +45,8 @@ import numpy as np
 from pydrake.systems.analysis import Simulator
 
 from ftdrake import ChainConfig, CompensationChain
-from ftdrake.compensation.hybrid import HybridCompensator
-from ftdrake.compensation.physics import PhysicsPayloadCompensator
+from ftdrake.compensation.estimators.hybrid import HybridCompensator
+from ftdrake.compensation.estimators.physics import PhysicsPayloadCompensator
 from ftdrake.hardware import HardwareConfig
 from ftdrake.hardware.messages import encode_joint_state, encode_wrench
 from ftdrake.hardware.station import HardwareStation

@@ -26,7 +26,7 @@ import numpy as np
 import pandas as pd
 
 import ftdrake
-from ftdrake.compensation.physics import ExcitationWarning
+from ftdrake.compensation.estimators.physics import ExcitationWarning
 from ftdrake.experiments.demo import OTHER_KINDS
 
 EVERY = 4

@@ -35,7 +35,7 @@ import numpy as np
 import pandas as pd
 
 import ftdrake
-from ftdrake.compensation.physics import ExcitationWarning
+from ftdrake.compensation.estimators.physics import ExcitationWarning
 from ftdrake.data.stream_delay import delay_between, shift_wrench
 from ftdrake.offline.residual_budget import residual_budget
 

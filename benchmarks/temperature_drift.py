@@ -27,7 +27,7 @@ from pydrake.systems.primitives import LogVectorOutput, TrajectorySource
 from pydrake.trajectories import PiecewisePolynomial
 
 from ftdrake import SensorConfig
-from ftdrake.compensation.physics import (
+from ftdrake.compensation.estimators.physics import (
     ExcitationWarning,
     PhysicsPayloadCompensator,
 )

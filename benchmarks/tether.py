@@ -29,8 +29,8 @@ import warnings
 import numpy as np
 
 from ftdrake import ScenarioConfig
-from ftdrake.compensation.hybrid import HybridCompensator
-from ftdrake.compensation.physics import ExcitationWarning, PhysicsPayloadCompensator
+from ftdrake.compensation.estimators.hybrid import HybridCompensator
+from ftdrake.compensation.estimators.physics import ExcitationWarning, PhysicsPayloadCompensator
 from ftdrake.data.dataset import joint_state_layout, wrench_targets
 from ftdrake.io import atomic_write_text
 from ftdrake.sim.collection import collect

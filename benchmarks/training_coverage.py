@@ -20,8 +20,8 @@ import warnings
 import numpy as np
 import pandas as pd
 
-from ftdrake.compensation.hybrid import HybridCompensator
-from ftdrake.compensation.physics import ExcitationWarning, PhysicsPayloadCompensator
+from ftdrake.compensation.estimators.hybrid import HybridCompensator
+from ftdrake.compensation.estimators.physics import ExcitationWarning, PhysicsPayloadCompensator
 from ftdrake.config import ScenarioConfig
 from ftdrake.data.dataset import joint_state_layout, wrench_targets
 from ftdrake.offline.thresholds import thresholds_for_false_positive_rate

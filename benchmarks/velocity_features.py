@@ -46,18 +46,18 @@ from pathlib import Path
 import numpy as np
 from scipy.stats import norm
 
-from ftdrake.compensation.forest import RandomForestCompensator
-from ftdrake.compensation.gpr import GPRCompensator
-from ftdrake.compensation.metrics import nmse
-from ftdrake.compensation.svr import SVRCompensator
-from ftdrake.compensation.tuning import segment_groups, tune
+from ftdrake.compensation.estimators.forest import RandomForestCompensator
+from ftdrake.compensation.estimators.gpr import GPRCompensator
+from ftdrake.compensation.estimators.svr import SVRCompensator
+from ftdrake.compensation.estimators.tuning import segment_groups, tune
+from ftdrake.compensation.evaluation.metrics import nmse
 from ftdrake.data.training import ReadOptions, load_training_data
 
 REPO = Path(__file__).resolve().parents[1]
 UR3 = Path("/work/shared/realdata/ur3")
 SMALL = REPO / "tests" / "data" / "ur3"
-STD_FACTOR = 2.0  # as ftdrake.compensation.metrics.UNCERTAIN_STD_FACTOR
-RANGE_MARGIN = 0.1  # as ftdrake.compensation.metrics.TARGET_RANGE_MARGIN
+STD_FACTOR = 2.0  # as ftdrake.compensation.evaluation.metrics.UNCERTAIN_STD_FACTOR
+RANGE_MARGIN = 0.1  # as ftdrake.compensation.evaluation.metrics.TARGET_RANGE_MARGIN
 READ = ReadOptions(targets="tau_*", velocities="qd_*")
 
 
@@ -171,7 +171,7 @@ def svr_grid(runs: dict, features: str = "q,qd") -> list[dict]:
     """Grouped 5-fold CV nMSE inside id1 against nMSE on id2, for an SVR C × gamma grid."""
     from sklearn.model_selection import ParameterGrid
 
-    from ftdrake.compensation.tuning import cv_splits
+    from ftdrake.compensation.estimators.tuning import cv_splits
 
     (Xa, Ya, groups), (Xb, Yb) = scenarios(runs)["id1→id2"]
     splits = cv_splits(len(Xa), groups=segment_groups(groups))

@@ -10,7 +10,9 @@ those below):
    typed YAML tree, shared signal processing.
 2. ``physics``: rigid-body kinematics and dynamics, robot descriptions.
 3. ``data``: datasets and robot logs (tables, bags, LCM logs).
-4. ``compensation``: estimators, their registry, compiled predictors, persistence, ONNX.
+4. ``compensation``: the input layout and loop contract; compiled predictors, the payload's
+   identification and the metrics; the estimators with their registry; the static-pose
+   calibration and the model files (persistence, ONNX), in that order.
 5. ``runtime``: the product, :class:`CompensationChain` (compensator → bias tracker →
    detector) that both stations add; ``training``: :func:`train`, the training pipeline.
 6. ``offline``: tools around the product: the recorder of the chain's signals
@@ -32,19 +34,19 @@ __version__ = ftdrake_version()
 # Each public name → the module (below ``ftdrake``) that defines it: imported on first use
 # (PEP 562), so that importing one part of the package loads only what that part imports.
 _EXPORTS = {
-    "RobotOptions": "compensation.build",
-    "calibrate_table": "compensation.calibration",
-    "DomainCalibratedHybrid": "compensation.domain_calibrated",
-    "evaluate_model": "compensation.evaluation",
-    "target_ranges": "compensation.evaluation",
-    "RandomForestCompensator": "compensation.forest",
-    "GPRCompensator": "compensation.gpr",
-    "HybridCompensator": "compensation.hybrid",
-    "load_model": "compensation.persistence",
-    "save_model": "compensation.persistence",
-    "PhysicsPayloadCompensator": "compensation.physics",
-    "make_estimator": "compensation.registry",
-    "SVRCompensator": "compensation.svr",
+    "RobotOptions": "compensation.estimators.build",
+    "calibrate_table": "compensation.calibration.calibration",
+    "DomainCalibratedHybrid": "compensation.estimators.domain_calibrated",
+    "evaluate_model": "compensation.evaluation.evaluation",
+    "target_ranges": "compensation.evaluation.evaluation",
+    "RandomForestCompensator": "compensation.estimators.forest",
+    "GPRCompensator": "compensation.estimators.gpr",
+    "HybridCompensator": "compensation.estimators.hybrid",
+    "load_model": "compensation.files.persistence",
+    "save_model": "compensation.files.persistence",
+    "PhysicsPayloadCompensator": "compensation.estimators.physics",
+    "make_estimator": "compensation.estimators.registry",
+    "SVRCompensator": "compensation.estimators.svr",
     "BiasTrackerConfig": "config",
     "CableConfig": "config",
     "ChainConfig": "config",

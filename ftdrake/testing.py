@@ -25,10 +25,10 @@ import warnings
 import numpy as np
 import pandas as pd
 
-from .compensation.consistent import PayloadPrior
-from .compensation.forest import RandomForestCompensator
-from .compensation.hybrid import HybridCompensator
-from .compensation.physics import PhysicsPayloadCompensator
+from .compensation.estimators.forest import RandomForestCompensator
+from .compensation.estimators.hybrid import HybridCompensator
+from .compensation.estimators.physics import PhysicsPayloadCompensator
+from .compensation.identification.consistent import PayloadPrior
 from .config import ScenarioConfig
 from .conventions import MEASURED, QD, QDD, Q, joint_columns, wrench_columns
 from .data.dataset import joint_state_layout, wrench_targets

@@ -33,9 +33,9 @@ from pydrake.trajectories import PiecewisePolynomial
 
 from ftdrake import RandomForestCompensator, ScenarioConfig, SensorConfig
 from ftdrake.cli.main import main as cli_main
-from ftdrake.compensation.calibration import KNOWN_COM, KNOWN_MASS, true_wrench
-from ftdrake.compensation.persistence import read_manifest
-from ftdrake.compensation.physics import PhysicsPayloadCompensator
+from ftdrake.compensation.calibration.calibration import KNOWN_COM, KNOWN_MASS, true_wrench
+from ftdrake.compensation.estimators.physics import PhysicsPayloadCompensator
+from ftdrake.compensation.files.persistence import read_manifest
 from ftdrake.conventions import WRENCH_AXES
 from ftdrake.physics.rigid_body import sensor_kinematics
 from ftdrake.physics.scenario_robot import robot_description

@@ -13,7 +13,7 @@ import pytest
 
 from ftdrake import ScenarioConfig
 from ftdrake.cli.main import main as train_cli
-from ftdrake.compensation.persistence import load_model, read_manifest
+from ftdrake.compensation.files.persistence import load_model, read_manifest
 from ftdrake.data.logs import read_table
 from ftdrake.sim.collection import collect
 from tests.helpers import UR3_DATA

@@ -11,9 +11,9 @@ the sensor's orientation comes from joint angles) a model file ``evaluate`` and 
     ftdrake calibrate --data poses.csv --robot ftdrake --joint-offsets auto --out cal/
 
 A table of static poses (one pose and one wrench a row; no time column needed) is calibrated
-by :func:`ftdrake.compensation.calibration.calibrate_table`. A time series (``--time-series``,
-or a table with a time column and no orientation columns and not all velocities zero) is read
-like ``train`` does and fitted by the physics model (dynamic, physically consistent).
+by :func:`ftdrake.compensation.calibration.calibration.calibrate_table`. A time series
+(``--time-series``, or a table with a time column and no orientation columns and not all velocities
+zero) is read like ``train`` does and fitted by the physics model (dynamic, physically consistent).
 """
 
 from __future__ import annotations
@@ -27,16 +27,16 @@ from pathlib import Path
 import numpy as np
 import yaml
 
-from ..compensation.build import RobotOptions
-from ..compensation.calibration import ORIENTATIONS, calibrate_table, orientation_kind
-from ..compensation.consistent import PayloadPrior
-from ..compensation.joint_offsets import identify_joint_offsets
-from ..compensation.orientation_model import OrientationPayloadCompensator
-from ..compensation.persistence import save_model
-from ..compensation.physics import ExcitationWarning
-from ..compensation.registry import make_estimator
-from ..compensation.robot_file import check_robot_frames
-from ..compensation.static_table import joint_layout
+from ..compensation.calibration.calibration import ORIENTATIONS, calibrate_table, orientation_kind
+from ..compensation.calibration.orientation_model import OrientationPayloadCompensator
+from ..compensation.calibration.static_table import joint_layout
+from ..compensation.estimators.build import RobotOptions
+from ..compensation.estimators.physics import ExcitationWarning
+from ..compensation.estimators.registry import make_estimator
+from ..compensation.estimators.robot_file import check_robot_frames
+from ..compensation.files.persistence import save_model
+from ..compensation.identification.consistent import PayloadPrior
+from ..compensation.identification.joint_offsets import identify_joint_offsets
 from ..conventions import MEASURED, TEMPERATURE, TIME, WRENCH_AXES, WRENCH_UNITS
 from ..data.logs import expand_columns, option_spelling, read_frame, time_columns
 from ..data.training import ReadOptions, load_training_data
@@ -288,8 +288,8 @@ def _time_series(args, prior, temperature: bool) -> int:
 
 def _joint_offsets(args, model, X, Y, temperature, say):
     """The joints' zero offsets of rows X and readings Y with fitted `model`'s robot and mode
-    (:func:`~ftdrake.compensation.joint_offsets.identify_joint_offsets`), printed; the
-    model's zero drift with `temperature` (°C) taken off the readings first."""
+    (:func:`~ftdrake.compensation.identification.joint_offsets.identify_joint_offsets`), printed;
+    the model's zero drift with `temperature` (°C) taken off the readings first."""
     if temperature is not None and getattr(model, "temperature_reference_", None) is not None:
         Y = Y - np.outer(temperature - model.temperature_reference_,
                          model.temperature_coefficients_)

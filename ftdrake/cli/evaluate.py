@@ -3,7 +3,7 @@
 It reads the log as `train` does (:mod:`ftdrake.cli.train`: the same read flags; those not
 given are the ones the model was trained with), and reports per-target MSE, NMSE and variance
 score on all rows, on the rows inside the training range of every input, and on the rows
-outside it, with the trust flags of :mod:`ftdrake.compensation.trust`.
+outside it, with the trust flags of :mod:`ftdrake.compensation.evaluation.trust`.
 """
 
 from __future__ import annotations
@@ -12,9 +12,9 @@ import json
 import sys
 from pathlib import Path
 
-from ..compensation.build import same_targets
-from ..compensation.evaluation import MIN_REST_RUN, REST_SPEED, evaluate_model
-from ..compensation.persistence import load_model, read_manifest
+from ..compensation.estimators.build import same_targets
+from ..compensation.evaluation.evaluation import MIN_REST_RUN, REST_SPEED, evaluate_model
+from ..compensation.files.persistence import load_model, read_manifest
 from ..conventions import TEMPERATURE
 from ..data.bag import is_bag
 from ..data.training import ReadOptions, TrainingData

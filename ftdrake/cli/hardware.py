@@ -24,6 +24,7 @@ import sys
 import time
 from typing import TYPE_CHECKING
 
+from ..compensation.files.persistence import load_model
 from ..config import load_config
 from . import args as a
 from . import ros2
@@ -114,7 +115,6 @@ def describe_channels(hardware) -> str:
 def run_serve(args) -> int:
     if args.ros2:
         return ros2.serve(args)
-    from ..compensation.persistence import load_model
     from ..hardware.station import HardwareStation
 
     live = load_live(args)

@@ -19,7 +19,7 @@ of the same kind, table or bag). ``--t-start``/``--t-end`` keep the rows in a ti
 field's name with dashes; ``--delay`` is ``delay_s``), calls :func:`ftdrake.train` — which
 tunes the model with the ``quick`` grid and grouped CV (``--preset none`` fits the
 defaults), locally or on a Dask cluster (``--cluster ADDRESS``) — saves the result with
-:func:`~ftdrake.compensation.persistence.save_model` and prints the file's size. The
+:func:`~ftdrake.compensation.files.persistence.save_model` and prints the file's size. The
 manifest's ``extra`` records the data file and its ReadOptions, the columns used and how the
 computed ones were derived, the training ranges of time and targets (those of the inputs are
 the manifest's ``input_range``), the row counts (in the file, dropped by the reader, outside
@@ -37,10 +37,10 @@ import argparse
 import dataclasses as dc
 import sys
 
-from ..compensation import registry
-from ..compensation.build import BUILTIN_ROBOT
-from ..compensation.calibration import static_table_hint
-from ..compensation.domain import IN_DOMAIN_SOURCES
+from ..compensation.calibration.calibration import static_table_hint
+from ..compensation.estimators import registry
+from ..compensation.estimators.build import BUILTIN_ROBOT
+from ..compensation.estimators.domain import IN_DOMAIN_SOURCES
 from ..data.logs import QDD_ESTIMATES, option_spelling
 from ..data.training import ReadOptions, TrainingData, load_training_data
 from ..errors import ConfigError, LogError, option_names
@@ -138,7 +138,8 @@ def register(subparsers) -> None:
 
 def _add_domain_flags(p) -> None:
     """--domain-holdout / --domain-calibration: where the hybrid's out-of-domain std is
-    calibrated (:class:`~ftdrake.compensation.domain_calibrated.DomainCalibratedHybrid`)."""
+    calibrated
+    (:class:`~ftdrake.compensation.estimators.domain_calibrated.DomainCalibratedHybrid`)."""
     group = p.add_mutually_exclusive_group()
     group.add_argument(
         "--domain-holdout", type=a.holdout_share, metavar="SHARE",

@@ -1,6 +1,6 @@
 """The loop contract: what the runtime chain needs of a fitted model, declared once.
 
-:class:`LoopModel` is the protocol (every :class:`~ftdrake.compensation.base.Compensator`
+:class:`LoopModel` is the protocol (every :class:`~ftdrake.compensation.estimators.base.Compensator`
 follows it; the base class declares each member's default). :func:`loop_view` checks a model
 against it once, when a chain or a ``CompensatorSystem`` is built, and resolves what the loop
 reads into a :class:`LoopView`: the runtime reads the view and never probes the model.
@@ -19,7 +19,8 @@ from .features import check_feature_set
 
 @runtime_checkable
 class LoopModel(Protocol):
-    """A fitted wrench compensator as the loop uses it (see :mod:`.base` for each member).
+    """A fitted wrench compensator as the loop uses it (see :mod:`.estimators.base` for each
+    member).
 
     features: the feature set (``"q"``, ``"q,qd"``, ``"q,qd,qdd"``).
     n_joints_, n_outputs_ (6): the fitted layout. temperature_in_: the sensor temperature

@@ -6,6 +6,9 @@ rad/s²). A compensator's ``features`` parameter picks which blocks it actually 
 * ``"q"``          – joint positions only (n features)
 * ``"q,qd"``       – positions and velocities (2n)
 * ``"q,qd,qdd"``   – positions, velocities and accelerations (3n)
+
+:func:`describe_nonfinite` names the rows of an input that hold NaN or infinity (the message
+fitting and scoring refuse them with).
 """
 
 from __future__ import annotations
@@ -56,3 +59,17 @@ def stack_layout(q: np.ndarray, qd: np.ndarray | None = None, qdd: np.ndarray | 
     if not (q.shape == qd.shape == qdd.shape):
         raise ValueError(f"q, qd, qdd shapes differ: {q.shape}, {qd.shape}, {qdd.shape}")
     return np.hstack([q, qd, qdd])
+
+
+def describe_nonfinite(a: np.ndarray, name: str) -> str | None:
+    """A message naming how many rows of `a` hold NaN/inf and the first one, or None."""
+    bad = ~np.isfinite(a)
+    if a.ndim > 1:
+        bad = bad.any(axis=tuple(range(1, a.ndim)))
+    if not bad.any():
+        return None
+    rows = np.flatnonzero(bad)
+    return (
+        f"Input {name} contains NaN or infinity in {rows.size} of {a.shape[0]} rows "
+        f"(first at row {rows[0]}); clean or drop them explicitly before fitting"
+    )

@@ -14,11 +14,11 @@
    plus a forest on its residual, its std growing out of domain: the support term and the
    in-domain level are calibrated on the training runs farthest from the others
    (``DOMAIN_HOLDOUT_SHARE`` of the rows, held out for it), then the hybrid is refitted on
-   every run (:class:`~ftdrake.compensation.domain_calibrated.DomainCalibratedHybrid`); the
-   summary reports its coverage in and out of domain on the held-out runs below
-   (``domain_coverage``). One rehearsal and one run of each free-motion kind are held out;
-   each model's detector thresholds follow from its residual there (the samples the detector
-   judges) and the scenario's false-positive budget, ``detector.false_positives_per_hour``
+   every run (:class:`~ftdrake.compensation.estimators.domain_calibrated.DomainCalibratedHybrid`);
+   the summary reports its coverage in and out of domain on the held-out runs below
+   (``domain_coverage``). One rehearsal and one run of each free-motion kind are held out; each
+   model's detector thresholds follow from its residual there (the samples the detector judges) and
+   the scenario's false-positive budget, ``detector.false_positives_per_hour``
    (:func:`~ftdrake.offline.thresholds.thresholds_for_false_positive_rate`).
 3. Run the same contact scenario, trajectory seed and sensor noise not seen in training, with
    each model and its detector in the loop at the sensor rate, and score both against the
@@ -39,14 +39,14 @@ from pydrake.geometry import Meshcat
 from pydrake.math import RollPitchYaw, RotationMatrix
 
 from .. import conventions as col
-from ..compensation.domain import DISTANCE_BINS
-from ..compensation.domain_calibrated import DomainCalibratedHybrid
-from ..compensation.forest import RandomForestCompensator
-from ..compensation.hybrid import HybridCompensator
-from ..compensation.metrics import coverage
-from ..compensation.persistence import save_model
-from ..compensation.physics import ExcitationWarning, PhysicsPayloadCompensator
-from ..compensation.tuning import segment_groups, tune
+from ..compensation.estimators.domain import DISTANCE_BINS
+from ..compensation.estimators.domain_calibrated import DomainCalibratedHybrid
+from ..compensation.estimators.forest import RandomForestCompensator
+from ..compensation.estimators.hybrid import HybridCompensator
+from ..compensation.estimators.physics import ExcitationWarning, PhysicsPayloadCompensator
+from ..compensation.estimators.tuning import segment_groups, tune
+from ..compensation.evaluation.metrics import coverage
+from ..compensation.files.persistence import save_model
 from ..config import ScenarioConfig
 from ..data.dataset import joint_state_layout, wrench_targets
 from ..data.logs import write_log
@@ -209,8 +209,8 @@ def demo_hybrid() -> HybridCompensator:
 
 def domain_coverage(model, X, Y) -> dict:
     """The hybrid's 95 % coverage per axis on rows `X`, `Y` (held out, contact-free) in each
-    distance bin of :data:`~ftdrake.compensation.domain.DISTANCE_BINS` (in domain, its edge,
-    out of domain), with the bin's rows and their median distance d."""
+    distance bin of :data:`~ftdrake.compensation.estimators.domain.DISTANCE_BINS` (in domain, its
+    edge, out of domain), with the bin's rows and their median distance d."""
     mean, std = model.predict(X), model.predict_std(X)
     d = model.domain_distance(X)
     out = {}

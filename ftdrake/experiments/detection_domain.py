@@ -9,7 +9,7 @@ the std the chain gave the detector there; :func:`detectable_force_vs_domain` tu
 into the force each test needs
 (:func:`~ftdrake.offline.thresholds.detectable_force`: on a zero residual, along the least
 favourable force axis) per distance bin of
-:data:`~ftdrake.compensation.domain.DISTANCE_BINS` and as a curve (equal-count bins of d:
+:data:`~ftdrake.compensation.estimators.domain.DISTANCE_BINS` and as a curve (equal-count bins of d:
 median and 5–95 % band), and :func:`plot_detectable_force_vs_domain` draws the curves.
 Only models with a support (the hybrid) have a d.
 """
@@ -22,7 +22,7 @@ import numpy as np
 import pandas as pd
 
 from .. import conventions as col
-from ..compensation.domain import DISTANCE_BINS
+from ..compensation.estimators.domain import DISTANCE_BINS
 from ..config import DetectorConfig
 from ..data.dataset import joint_state_layout
 from ..offline.thresholds import armed, detectable_force

@@ -27,7 +27,7 @@ from pydrake.trajectories import PiecewisePolynomial
 from tqdm.auto import tqdm
 
 from .. import conventions as col
-from ..compensation.persistence import save_model
+from ..compensation.files.persistence import save_model
 from ..config import ScenarioConfig
 from ..control.ilc import ilc_update
 from ..errors import ConfigError

@@ -32,8 +32,8 @@ from joblib import Parallel, delayed
 from tqdm.auto import tqdm
 
 from .. import conventions as col
-from ..compensation.payload_identification import payload_regressor
-from ..compensation.payload_kinematics import kinematics_for
+from ..compensation.identification.payload_identification import payload_regressor
+from ..compensation.identification.payload_kinematics import kinematics_for
 from ..config import ScenarioConfig, dump_config, parse_config
 from ..physics.scenario_robot import robot_description
 from ..runtime.chain import model_payload_map
@@ -178,8 +178,8 @@ def settled_metrics(with_event, reference, sigma, judged_from_s: float,
 
 def sensor_regressor(log, config: ScenarioConfig) -> np.ndarray:
     """(N, 6, 16) rigid-payload regressor of `log`'s samples, ``[payload (10) | bias (6)]``
-    (:func:`~ftdrake.compensation.payload_identification.payload_regressor`), from the
-    plant's true q, q̇, q̈ (columns ``q_i``, ``qd_i``, ``qdd_i``): S's motion in S."""
+    (:func:`~ftdrake.compensation.identification.payload_identification.payload_regressor`), from
+    the plant's true q, q̇, q̈ (columns ``q_i``, ``qd_i``, ``qdd_i``): S's motion in S."""
     q, v, vdot = (log[col.joint_columns(prefix)].to_numpy() for prefix in ("q", "qd", "qdd"))
     kin = kinematics_for(robot_description(config.models), col.GRAVITY_W).evaluate(q, v, vdot)
     return payload_regressor(kin.w_WS_S, kin.alpha_WS_S, kin.a_WSo_S - kin.g_S)

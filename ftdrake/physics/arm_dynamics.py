@@ -6,8 +6,8 @@ in each moving body B's 10 inertial parameters
     φ_B = [m, m·cx, m·cy, m·cz, Ixx, Ixy, Ixz, Iyy, Iyz, Izz]
 
 (mass, first moment ``h = m·c`` and inertia about the body origin Bo, all expressed in B; the
-layout of :mod:`ftdrake.compensation.consistent`), so ``τ = Y(q, q̇, q̈)·φ`` with φ all bodies'
-parameters stacked. The regressor is built by Newton–Euler, body by body:
+layout of :mod:`ftdrake.compensation.identification.consistent`), so ``τ = Y(q, q̇, q̈)·φ`` with φ
+all bodies' parameters stacked. The regressor is built by Newton–Euler, body by body:
 
 * the wrench B needs to move as it does under gravity g, about Bo in B,
   ``f = m (a − g) + ([α]× + [ω]×[ω]×) h``,  ``n = I α + ω × I ω + h × (a − g)``

@@ -7,7 +7,6 @@ import math
 import numpy as np
 from pydrake.systems.framework import LeafSystem
 
-from ..compensation.base import generic_row_predictor
 from ..compensation.compiled.loop import (
     FAULT,
     FAULT_CHANGED,
@@ -17,6 +16,7 @@ from ..compensation.compiled.loop import (
     prepare_row,
 )
 from ..compensation.contract import loop_view
+from ..compensation.estimators.base import generic_row_predictor
 from ..errors import ConfigError
 from ..signals import DEFAULT_ACCELERATION_CUTOFF_HZ, acceleration_filter_gains, estimator_size
 
@@ -53,7 +53,7 @@ class CompensatorSystem(LeafSystem):
     (:class:`~ftdrake.compensation.contract.LoopModel`; a ConfigError lists what it lacks)
     and predicts 6 outputs. `n_joints`, if given, must match the model (e.g.
     ``plant.num_positions(arm)``). Each sample runs the model's ``row_predictor()`` (the
-    compensator protocol, :mod:`ftdrake.compensation.base`); a model whose
+    compensator protocol, :mod:`ftdrake.compensation.estimators.base`); a model whose
     ``fused_loop_update()`` gives a compiled update (a forest, a hybrid with a forest
     residual) runs the input checks, the acceleration estimate and its prediction in that one
     compiled call (:mod:`ftdrake.compensation.compiled.loop`). ``fast=False`` goes

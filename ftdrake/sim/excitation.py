@@ -21,7 +21,7 @@ task itself:
        J = log10 cond(Ā) + gap / COVERAGE_SCALE_RAD
 
    where ``Ā`` is the payload regressor (the physics compensator's 6 × 16 rows: 10 inertial
-   parameters and 6 biases, :func:`~ftdrake.compensation.payload_identification.
+   parameters and 6 biases, :func:`~ftdrake.compensation.identification.payload_identification.
    payload_regressor`) stacked over the trajectory so far plus the move, torque rows scaled by
    ``TORQUE_ROW_SCALE`` and columns normalised (as the identification does); and ``gap`` the
    RMS over the task's configurations of the distance (rad, Euclidean in q) to the nearest
@@ -45,7 +45,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..compensation.payload_identification import payload_regressor
+from ..compensation.identification.payload_identification import payload_regressor
 from ..errors import TrajectoryError
 from ..physics.chain import SerialChain
 from .trajectories import (
@@ -104,8 +104,9 @@ def task_approach_configurations(config, home_q, robot: RobotGeometry,
 class RegressorStack:
     """The payload regressor of a sequence of moves, as its 16 × 16 Gram matrix ĀᵀĀ.
 
-    Rows are those of :func:`~ftdrake.compensation.payload_identification.payload_regressor`
-    (reading = A·[m, m·c, I_So, biases]) with the torque rows scaled by ``TORQUE_ROW_SCALE``.
+    Rows are those of
+    :func:`~ftdrake.compensation.identification.payload_identification.payload_regressor` (reading =
+    A·[m, m·c, I_So, biases]) with the torque rows scaled by ``TORQUE_ROW_SCALE``.
     """
 
     def __init__(self, robot: RobotGeometry):

@@ -16,7 +16,7 @@ correction is right, τ_fb → 0 and y stops changing.
 
 Data subset (the paper's "selecting data subsets for more efficient learning"): the GP keeps
 ``max_points`` rows chosen by greedy farthest-point selection in the standardised input
-space (:func:`ftdrake.compensation.gpr.farthest_point_subset`): each new row is the one
+space (:func:`ftdrake.compensation.estimators.gpr.farthest_point_subset`): each new row is the one
 farthest from those already kept — for an RBF kernel, a stand-in for "the row with the
 largest predictive variance" — so the subset covers the trajectory evenly instead of piling
 up where the arm moved slowly. Hyperparameters (ARD length scales, signal and noise
@@ -43,7 +43,7 @@ from pydrake.common.value import AbstractValue
 from pydrake.systems.framework import BasicVector, LeafSystem, ValueProducer
 
 from ..compensation.compiled.gp import CompiledGaussianProcess, _gp_predict_one
-from ..compensation.gpr import GPRCompensator
+from ..compensation.estimators.gpr import GPRCompensator
 from ..errors import FtdrakeError
 
 logger = logging.getLogger(__name__)

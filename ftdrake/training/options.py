@@ -16,8 +16,8 @@ from typing import Any
 
 import numpy as np
 
-from ..compensation import registry
-from ..compensation.domain import IN_DOMAIN_SOURCES
+from ..compensation.estimators import registry
+from ..compensation.estimators.domain import IN_DOMAIN_SOURCES
 from ..compensation.features import FEATURE_SETS
 from ..data.training import ReadOptions
 from ..errors import ConfigError, option_name
@@ -44,9 +44,10 @@ class TrainOptions:
       the others fit their parameters from data) or ``none`` (the kind's own parameters).
     robot, sensor_frame, base_frame, joints, fixed_joints: the robot description a
       robot-based kind (physics, hybrid, arm) identifies its model on
-      (:class:`~ftdrake.compensation.build.RobotOptions`: a URDF/SDF file or ``"ftdrake"``).
+      (:class:`~ftdrake.compensation.estimators.build.RobotOptions`: a URDF/SDF file or
+      ``"ftdrake"``).
     model_options: values of the registry entries' options by name (``identify_mounting``,
-      ``drive_gains``, ...; :func:`~ftdrake.compensation.registry.train_options`).
+      ``drive_gains``, ...; :func:`~ftdrake.compensation.estimators.registry.train_options`).
     target_units: one unit per target (a sequence or one comma-separated string); None:
       N/N·m for wrench axes, else N·m.
     seed: random state of the kinds that have one. jobs: parallel CV fits (-1: all cores).

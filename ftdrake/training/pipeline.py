@@ -19,16 +19,16 @@ import numpy as np
 import pandas as pd
 from sklearn.base import clone
 
-from ..compensation import registry
-from ..compensation.build import BUILTIN_ROBOT, RobotOptions, is_wrench
-from ..compensation.calibration import static_table_hint
-from ..compensation.domain import MIN_GROUPS
-from ..compensation.domain_calibrated import DomainCalibratedHybrid
+from ..compensation.calibration.calibration import static_table_hint
+from ..compensation.estimators import registry
+from ..compensation.estimators.build import BUILTIN_ROBOT, RobotOptions, is_wrench
+from ..compensation.estimators.domain import MIN_GROUPS
+from ..compensation.estimators.domain_calibrated import DomainCalibratedHybrid
+from ..compensation.estimators.hybrid import HybridCompensator
+from ..compensation.estimators.robot_file import check_robot_frames
+from ..compensation.estimators.tuning import segment_groups, tune
 from ..compensation.features import check_feature_set
-from ..compensation.hybrid import HybridCompensator
-from ..compensation.persistence import save_model
-from ..compensation.robot_file import check_robot_frames
-from ..compensation.tuning import segment_groups, tune
+from ..compensation.files.persistence import save_model
 from ..conventions import WRENCH_UNITS
 from ..data.stream_delay import align_training_data, estimate_training_delay
 from ..data.subsample import OVERSAMPLE, covering_rows
@@ -46,7 +46,7 @@ Say = Callable[[str], None]
 class TrainResult:
     """A fitted model and what its file keeps about how it was made.
 
-    model: the fitted compensator (a :class:`~ftdrake.compensation.domain_calibrated.
+    model: the fitted compensator (a :class:`~ftdrake.compensation.estimators.domain_calibrated.
     DomainCalibratedHybrid` around the hybrid with a domain calibration). provenance: the
     manifest's ``extra`` (data file and read options, columns, ranges, row counts, reader
     warnings, parameters, tuning, and the subsample, domain calibration and stream delay when
@@ -65,7 +65,7 @@ class TrainResult:
     summary: str | None = None
 
     def save(self, path) -> Path:
-        """Writes the model file (:func:`~ftdrake.compensation.persistence.save_model`)."""
+        """Writes the model file (:func:`~ftdrake.compensation.files.persistence.save_model`)."""
         path = Path(path)
         path.parent.mkdir(parents=True, exist_ok=True)
         return save_model(self.model, path, target_names=self.target_names,
@@ -264,7 +264,7 @@ def fit(estimator, data: TrainingData, *, needs_robot: bool, holdout: float | No
         shared_growth: bool = False, in_domain: str = "cross_fit",
         wrench_delay_s: float | None = None):
     """Fits `estimator` on `data` (with `holdout`, a
-    :class:`~ftdrake.compensation.domain_calibrated.DomainCalibratedHybrid` around it,
+    :class:`~ftdrake.compensation.estimators.domain_calibrated.DomainCalibratedHybrid` around it,
     calibrated on that share of the runs). A robot-based model's ValueErrors are about the
     robot description (joint count, frames); they name the options that choose it."""
     def run():

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from ..compensation.evaluation import target_ranges
+from ..compensation.evaluation.evaluation import target_ranges
 from ..data.training import TrainingData
 
 

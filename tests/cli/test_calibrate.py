@@ -7,9 +7,9 @@ import pytest
 import yaml
 
 from ftdrake.cli.main import main
-from ftdrake.compensation.calibration import calibrate_table
-from ftdrake.compensation.persistence import load_model
-from ftdrake.compensation.physics import PhysicsPayloadCompensator
+from ftdrake.compensation.calibration.calibration import calibrate_table
+from ftdrake.compensation.estimators.physics import PhysicsPayloadCompensator
+from ftdrake.compensation.files.persistence import load_model
 from ftdrake.conventions import WRENCH_AXES
 from ftdrake.errors import ConfigError, LogError, RobotModelError
 from ftdrake.testing import SIGMA, THETA, pose_tables, static_poses

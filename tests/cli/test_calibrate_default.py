@@ -14,10 +14,10 @@ from scipy.spatial.transform import Rotation
 
 import ftdrake
 from ftdrake.cli.main import main
-from ftdrake.compensation.calibration import KNOWN_COM, KNOWN_MASS, calibrate_table
-from ftdrake.compensation.orientation_model import OrientationPayloadCompensator
-from ftdrake.compensation.persistence import load_model
-from ftdrake.compensation.physics import ExcitationWarning
+from ftdrake.compensation.calibration.calibration import KNOWN_COM, KNOWN_MASS, calibrate_table
+from ftdrake.compensation.calibration.orientation_model import OrientationPayloadCompensator
+from ftdrake.compensation.estimators.physics import ExcitationWarning
+from ftdrake.compensation.files.persistence import load_model
 from tests.helpers import LOADS, WRENCH, sensor_poses
 
 G_W = np.array([0.0, 0.0, -9.81])

@@ -12,7 +12,7 @@ import pytest
 from ftdrake import conventions as col
 from ftdrake import save_model
 from ftdrake.cli.main import main
-from ftdrake.compensation.gpr import GPRCompensator
+from ftdrake.compensation.estimators.gpr import GPRCompensator
 
 
 def user_error(capsys, argv) -> str:

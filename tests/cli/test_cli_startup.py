@@ -67,7 +67,7 @@ def test_a_command_that_runs_loads_what_it_needs():
     with a file that is not a model gets as far as reading it, with the library."""
     status, modules, _ = loaded_by(["export", "--model", __file__, "--out", "x.onnx"])
     assert status == 2  # the model file is refused, naming --model
-    assert "ftdrake.compensation.persistence" in modules
+    assert "ftdrake.compensation.files.persistence" in modules
 
 
 def test_each_module_registers_the_commands_the_table_gives_it():

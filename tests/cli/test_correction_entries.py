@@ -9,8 +9,8 @@ import warnings
 import numpy as np
 import pytest
 
-from ftdrake.compensation.calibration import KNOWN_COM, KNOWN_MASS, calibrate_table
-from ftdrake.compensation.physics import ExcitationWarning
+from ftdrake.compensation.calibration.calibration import KNOWN_COM, KNOWN_MASS, calibrate_table
+from ftdrake.compensation.estimators.physics import ExcitationWarning
 from tests.helpers import LOADS, WRENCH, sensor_poses
 
 

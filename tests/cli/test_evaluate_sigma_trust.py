@@ -10,14 +10,14 @@ import numpy as np
 import pytest
 
 from ftdrake.cli.evaluate import print_evaluation
-from ftdrake.compensation.evaluation import (
+from ftdrake.compensation.estimators.forest import RandomForestCompensator
+from ftdrake.compensation.estimators.physics import ExcitationWarning, PhysicsPayloadCompensator
+from ftdrake.compensation.evaluation.evaluation import (
     MIN_SUBSET_ROWS,
     evaluate_model,
     noise_from_resting_rows,
     target_ranges,
 )
-from ftdrake.compensation.forest import RandomForestCompensator
-from ftdrake.compensation.physics import ExcitationWarning, PhysicsPayloadCompensator
 from ftdrake.conventions import WRENCH_AXES
 
 TRUTH = np.r_[1.2, 1.2 * np.array([0.01, -0.02, 0.06]), 0.004, 0.0, 0.0, 0.005, 0.0, 0.003,

@@ -14,10 +14,10 @@ from pydrake.multibody.plant import MultibodyPlant
 from ftdrake import LogError, PhysicsPayloadCompensator, RobotModelError, calibrate_table
 from ftdrake.cli.args import flag_hint
 from ftdrake.cli.main import main
-from ftdrake.compensation.arm import ArmDynamicsCompensator
-from ftdrake.compensation.forest import RandomForestCompensator
-from ftdrake.compensation.persistence import read_manifest, save_model
-from ftdrake.compensation.physics import ExcitationWarning
+from ftdrake.compensation.estimators.arm import ArmDynamicsCompensator
+from ftdrake.compensation.estimators.forest import RandomForestCompensator
+from ftdrake.compensation.estimators.physics import ExcitationWarning
+from ftdrake.compensation.files.persistence import read_manifest, save_model
 from ftdrake.data.logs import LogWarning, option_spelling, read_table
 from ftdrake.data.training import load_training_data
 from ftdrake.errors import ConfigError
@@ -454,7 +454,7 @@ def test_evaluate_warns_of_a_residual_offset_as_a_bias_or_payload_change(tmp_pat
     assert list(result["offsets"]) == ["meas_Fy"]
     offset = result["offsets"]["meas_Fy"]
     # Independently: the residual's mean and std on the changed log.
-    from ftdrake.compensation.persistence import load_model
+    from ftdrake.compensation.files.persistence import load_model
     from ftdrake.data.training import load_training_data as load
     data = load(csv(changed, tmp_path, "new.csv"))
     e = data.Y[:, 1] - load_model(model).predict(data.X)[:, 1]

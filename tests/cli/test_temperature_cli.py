@@ -12,8 +12,8 @@ import pandas as pd
 import pytest
 
 from ftdrake.cli.main import main
-from ftdrake.compensation.persistence import load_model, read_manifest, save_model
-from ftdrake.compensation.physics import ExcitationWarning, PhysicsPayloadCompensator
+from ftdrake.compensation.estimators.physics import ExcitationWarning, PhysicsPayloadCompensator
+from ftdrake.compensation.files.persistence import load_model, read_manifest, save_model
 from ftdrake.conventions import WRENCH_AXES
 from ftdrake.data.training import ReadOptions, load_training_data
 from ftdrake.errors import LogError

@@ -17,7 +17,7 @@ import pytest
 from threadpoolctl import threadpool_limits
 
 from ftdrake.cli.main import main as train_cli
-from ftdrake.compensation.persistence import read_manifest
+from ftdrake.compensation.files.persistence import read_manifest
 from tests.helpers import UR3_DATA, failure, refused, train
 
 UR3 = UR3_DATA
@@ -183,7 +183,7 @@ def test_physics_extrapolates_where_a_forest_cannot(ftdrake, tmp_path):
     path = tmp_path / "mounted.ftd"
     train(ftdrake, tmp_path / "run0.parquet", path, "--kind", "physics", "--robot", "ftdrake",
           "--preset", "none", "--identify-mounting")
-    from ftdrake.compensation.persistence import load_model
+    from ftdrake.compensation.files.persistence import load_model
 
     loaded = load_model(path)
     mounted = loaded[0] if isinstance(loaded, tuple) else loaded

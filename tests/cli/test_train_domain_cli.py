@@ -4,7 +4,7 @@ calibrated where models are trained from the command line."""
 import numpy as np
 import pytest
 
-from ftdrake.compensation.persistence import load_model
+from ftdrake.compensation.files.persistence import load_model
 from tests.helpers import failure, refused, train
 
 

@@ -11,8 +11,8 @@ import numpy as np
 import pytest
 from sklearn.metrics import explained_variance_score
 
-from ftdrake.compensation.arm import ArmDynamicsCompensator
-from ftdrake.compensation.consistent import is_physically_consistent
+from ftdrake.compensation.estimators.arm import ArmDynamicsCompensator
+from ftdrake.compensation.identification.consistent import is_physically_consistent
 from ftdrake.errors import RobotModelError
 from ftdrake.physics.arm_dynamics import ArmDynamics, ArmModel
 from ftdrake.physics.robot import ftdrake_arm

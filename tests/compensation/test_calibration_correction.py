@@ -13,8 +13,13 @@ import yaml
 
 from ftdrake import SensorConfig
 from ftdrake.cli.main import main
-from ftdrake.compensation.calibration import KNOWN_COM, KNOWN_MASS, calibrate_table, true_wrench
-from ftdrake.compensation.physics import ExcitationWarning
+from ftdrake.compensation.calibration.calibration import (
+    KNOWN_COM,
+    KNOWN_MASS,
+    calibrate_table,
+    true_wrench,
+)
+from ftdrake.compensation.estimators.physics import ExcitationWarning
 from ftdrake.errors import ConfigError
 from ftdrake.testing import SIGMA
 from tests.helpers import LOADS, WRENCH, sensor_poses

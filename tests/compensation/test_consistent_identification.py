@@ -7,19 +7,19 @@ from hypothesis import strategies as st
 from hypothesis.extra.numpy import arrays
 from scipy.spatial.transform import Rotation
 
-from ftdrake.compensation import consistent
-from ftdrake.compensation.consistent import (
+from ftdrake.compensation.estimators.physics import (
+    PARAMETER_NAMES,
+    payload_regressor,
+    weighted_least_squares,
+)
+from ftdrake.compensation.identification import consistent
+from ftdrake.compensation.identification.consistent import (
     STATIC_PARAMETERS,
     IdentificationError,
     identify_consistent,
     is_physically_consistent,
     physical_violations,
     pseudo_inertia,
-)
-from ftdrake.compensation.physics import (
-    PARAMETER_NAMES,
-    payload_regressor,
-    weighted_least_squares,
 )
 
 BIAS = np.array([0.6, -0.4, 1.2, 0.02, -0.01, 0.03])

@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 from scipy.signal import lfilter
 
-from ftdrake.compensation.physics import ExcitationWarning, PhysicsPayloadCompensator
+from ftdrake.compensation.estimators.physics import ExcitationWarning, PhysicsPayloadCompensator
 
 TRUTH = np.r_[1.2, 1.2 * np.array([0.01, -0.02, 0.06]), 0.004, 0.0, 0.0, 0.005, 0.0, 0.003,
               0.5, -0.3, 1.0, 0.02, -0.01, 0.03]

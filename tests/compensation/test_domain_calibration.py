@@ -7,11 +7,11 @@ import warnings
 import numpy as np
 import pytest
 
-from ftdrake.compensation import domain
-from ftdrake.compensation.domain_calibrated import DomainCalibratedHybrid
-from ftdrake.compensation.hybrid import HybridCompensator
-from ftdrake.compensation.metrics import coverage
-from ftdrake.compensation.physics import PhysicsPayloadCompensator
+from ftdrake.compensation.estimators import domain
+from ftdrake.compensation.estimators.domain_calibrated import DomainCalibratedHybrid
+from ftdrake.compensation.estimators.hybrid import HybridCompensator
+from ftdrake.compensation.estimators.physics import PhysicsPayloadCompensator
+from ftdrake.compensation.evaluation.metrics import coverage
 from tests.helpers import poses, static_readings
 
 

@@ -1,5 +1,5 @@
-"""The hybrid's std grows where its inputs leave the training data (compensation.domain): a
-model trained on a sub-region of the configuration space, its support term calibrated on
+"""The hybrid's std grows where its inputs leave the training data (compensation.estimators.domain):
+a model trained on a sub-region of the configuration space, its support term calibrated on
 held-out runs that leave it, covers held-out readings in and out of that region."""
 
 import warnings
@@ -8,11 +8,11 @@ import numpy as np
 import pytest
 
 from ftdrake.compensation.compiled.kdtree import build_kdtree, nearest_distances
-from ftdrake.compensation.domain_calibrated import DomainCalibratedHybrid
-from ftdrake.compensation.hybrid import HybridCompensator
-from ftdrake.compensation.metrics import coverage
-from ftdrake.compensation.persistence import load_model, save_model
-from ftdrake.compensation.physics import PhysicsPayloadCompensator
+from ftdrake.compensation.estimators.domain_calibrated import DomainCalibratedHybrid
+from ftdrake.compensation.estimators.hybrid import HybridCompensator
+from ftdrake.compensation.estimators.physics import PhysicsPayloadCompensator
+from ftdrake.compensation.evaluation.metrics import coverage
+from ftdrake.compensation.files.persistence import load_model, save_model
 from ftdrake.conventions import WRENCH_AXES, WRENCH_UNITS
 from ftdrake.testing import SIGMA
 from tests.helpers import poses, static_readings

@@ -25,11 +25,11 @@ from ftdrake.compensation.compiled import (
 )
 from ftdrake.compensation.compiled import forest as compiled_forest
 from ftdrake.compensation.compiled import kernel as compiled_kernel
+from ftdrake.compensation.estimators.forest import RandomForestCompensator
+from ftdrake.compensation.estimators.gpr import GPRCompensator
+from ftdrake.compensation.estimators.physics import PhysicsPayloadCompensator
+from ftdrake.compensation.estimators.svr import SVRCompensator
 from ftdrake.compensation.features import FEATURE_SETS, select_features
-from ftdrake.compensation.forest import RandomForestCompensator
-from ftdrake.compensation.gpr import GPRCompensator
-from ftdrake.compensation.physics import PhysicsPayloadCompensator
-from ftdrake.compensation.svr import SVRCompensator
 
 RTOL = ATOL = 1e-9
 FEATURES = st.sampled_from(sorted(FEATURE_SETS))

@@ -18,9 +18,9 @@ from sklearn.model_selection import GridSearchCV, KFold
 from sklearn.utils.estimator_checks import check_estimator
 from threadpoolctl import threadpool_limits
 
-import ftdrake.compensation.base as base_module
+import ftdrake.compensation.estimators.base as base_module
 import ftdrake.compensation.features as features_module
-from ftdrake.compensation.gpr import GPRCompensator, farthest_point_subset
+from ftdrake.compensation.estimators.gpr import GPRCompensator, farthest_point_subset
 
 N_JOINTS = 7
 AXES = "zyzyzyz"  # joint axes of an iiwa-like arm
@@ -250,7 +250,8 @@ def test_shapes_for_every_feature_set(features, d, shared_kernel):
 def test_prediction_in_chunks_matches_one_block(fitted, split, monkeypatch):
     X_test = split[2][:300]
     mean, std = fitted.predict(X_test), fitted.predict_std(X_test)
-    monkeypatch.setattr("ftdrake.compensation.gpr.CHUNK_ENTRIES", 64 * 800)  # 64 rows a chunk
+    # 64 rows a chunk
+    monkeypatch.setattr("ftdrake.compensation.estimators.gpr.CHUNK_ENTRIES", 64 * 800)
     np.testing.assert_allclose(fitted.predict(X_test), mean, rtol=1e-12)
     np.testing.assert_allclose(fitted.predict_std(X_test), std, rtol=1e-12)
 

@@ -9,8 +9,11 @@ import warnings
 import numpy as np
 import pytest
 
-from ftdrake.compensation.arm import ArmDynamicsCompensator, DriveGainWarning
-from ftdrake.compensation.consistent import is_physically_consistent, physical_violations
+from ftdrake.compensation.estimators.arm import ArmDynamicsCompensator, DriveGainWarning
+from ftdrake.compensation.identification.consistent import (
+    is_physically_consistent,
+    physical_violations,
+)
 from ftdrake.physics.arm_dynamics import ArmDynamics, ArmModel
 from tests.helpers import FRICTION, arm_torques
 from tests.helpers import UR3_URDF as UR3
@@ -134,8 +137,8 @@ def test_the_solvers_rounding_is_projected_onto_physical_bodies(ur3):
     """A consistent fit a hair outside J ⪰ 0 (the solver's last rounding, which made the
     summary say 'consistent, NOT physically consistent') is moved onto it, by about that
     much."""
-    from ftdrake.compensation.arm import _onto_bodies
-    from ftdrake.compensation.consistent import pseudo_inertia
+    from ftdrake.compensation.estimators.arm import _onto_bodies
+    from ftdrake.compensation.identification.consistent import pseudo_inertia
 
     prior = ur3.model_parameters()
     theta = prior.copy()

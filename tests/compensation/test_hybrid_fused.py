@@ -12,9 +12,9 @@ from pydrake.trajectories import PiecewisePolynomial
 from scipy.spatial.transform import Rotation
 
 from ftdrake.compensation.compiled.hybrid import CompiledHybrid
-from ftdrake.compensation.forest import RandomForestCompensator
-from ftdrake.compensation.hybrid import HybridCompensator
-from ftdrake.compensation.physics import PhysicsPayloadCompensator
+from ftdrake.compensation.estimators.forest import RandomForestCompensator
+from ftdrake.compensation.estimators.hybrid import HybridCompensator
+from ftdrake.compensation.estimators.physics import PhysicsPayloadCompensator
 from ftdrake.runtime.compensator import CompensatorSystem
 from tests.helpers import DATA
 

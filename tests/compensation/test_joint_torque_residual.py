@@ -1,7 +1,7 @@
 """The hybrid's residual on joint torques: the residual ``train`` builds for an arm model
-(:func:`~ftdrake.compensation.hybrid.joint_torque_residual`, a forest on q, q̇, q̈) against the
-wrench's (:func:`~ftdrake.compensation.hybrid.default_residual`, a forest on q), on a real
-UR3 recording, and the wrench's default left as it was."""
+(:func:`~ftdrake.compensation.estimators.hybrid.joint_torque_residual`, a forest on q, q̇, q̈)
+against the wrench's (:func:`~ftdrake.compensation.estimators.hybrid.default_residual`, a forest on
+q), on a real UR3 recording, and the wrench's default left as it was."""
 
 from __future__ import annotations
 
@@ -12,15 +12,15 @@ import numpy as np
 import pytest
 
 import ftdrake
-from ftdrake.compensation import domain
-from ftdrake.compensation.arm import ArmDynamicsCompensator, ExcitationWarning
-from ftdrake.compensation.hybrid import (
+from ftdrake.compensation.estimators import domain
+from ftdrake.compensation.estimators.arm import ArmDynamicsCompensator, ExcitationWarning
+from ftdrake.compensation.estimators.hybrid import (
     JOINT_TORQUE_SUPPORT_POINTS,
     HybridCompensator,
     default_residual,
     joint_torque_residual,
 )
-from ftdrake.compensation.metrics import nmse
+from ftdrake.compensation.evaluation.metrics import nmse
 
 ROOT = Path(__file__).resolve().parents[2]
 UR3 = ftdrake.RobotOptions(robot=str(ROOT / "models" / "ur3.urdf"))

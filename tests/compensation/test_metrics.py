@@ -10,7 +10,7 @@ from hypothesis import given
 from hypothesis import strategies as st
 from hypothesis.extra.numpy import arrays
 
-from ftdrake.compensation import metrics
+from ftdrake.compensation.evaluation import metrics
 
 # Two axes, three rows; every value below is worked out by hand.
 Y_TRUE = np.array([[1.0, 10.0], [2.0, 10.0], [3.0, 40.0]])

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from ftdrake import SensorConfig
-from ftdrake.compensation.physics import ExcitationWarning, PhysicsPayloadCompensator
+from ftdrake.compensation.estimators.physics import ExcitationWarning, PhysicsPayloadCompensator
 from ftdrake.systems.noisy_sensor import NoisyForceTorqueSensor
 from ftdrake.testing import SIGMA, THETA, sinusoids
 

@@ -22,8 +22,8 @@ from ftdrake import (
     load_model,
     save_model,
 )
-from ftdrake.compensation import persistence
-from ftdrake.compensation.persistence import read_manifest
+from ftdrake.compensation.files import persistence
+from ftdrake.compensation.files.persistence import read_manifest
 from ftdrake.conventions import WRENCH_AXES, WRENCH_UNITS
 
 # A 3-joint arm with a sensor frame at its wrist; its meshes are not shipped with it (a user's

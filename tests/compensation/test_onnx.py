@@ -1,4 +1,4 @@
-"""ONNX export (ftdrake.compensation.onnx_export) run by ONNX Runtime against scikit-learn.
+"""ONNX export (ftdrake.compensation.files.onnx_export) run by ONNX Runtime against scikit-learn.
 
 Tolerance: |onnxruntime − sklearn| ≤ 1e-9 · (1 + |sklearn|) element-wise; the graphs are
 double throughout (trees compare float32(x), as scikit-learn does), so the differences are
@@ -22,10 +22,10 @@ from sklearn.preprocessing import MinMaxScaler
 from sklearn.svm import SVR
 
 from ftdrake.compensation.compiled import CompiledForest
+from ftdrake.compensation.estimators.forest import RandomForestCompensator
+from ftdrake.compensation.estimators.svr import SVRCompensator
 from ftdrake.compensation.features import FEATURE_SETS, select_features
-from ftdrake.compensation.forest import RandomForestCompensator
-from ftdrake.compensation.onnx_export import export_onnx
-from ftdrake.compensation.svr import SVRCompensator
+from ftdrake.compensation.files.onnx_export import export_onnx
 
 FEATURES = st.sampled_from(sorted(FEATURE_SETS))
 

@@ -14,14 +14,19 @@ import skops.io as sio
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from ftdrake.compensation import persistence
-from ftdrake.compensation.forest import RandomForestCompensator
-from ftdrake.compensation.gpr import GPRCompensator
-from ftdrake.compensation.hybrid import HybridCompensator
-from ftdrake.compensation.persistence import ModelFileError, load_model, read_manifest, save_model
-from ftdrake.compensation.physics import PhysicsPayloadCompensator
-from ftdrake.compensation.svr import SVRCompensator
-from ftdrake.compensation.tuning import PerOutputCompensator
+from ftdrake.compensation.estimators.forest import RandomForestCompensator
+from ftdrake.compensation.estimators.gpr import GPRCompensator
+from ftdrake.compensation.estimators.hybrid import HybridCompensator
+from ftdrake.compensation.estimators.physics import PhysicsPayloadCompensator
+from ftdrake.compensation.estimators.svr import SVRCompensator
+from ftdrake.compensation.estimators.tuning import PerOutputCompensator
+from ftdrake.compensation.files import persistence
+from ftdrake.compensation.files.persistence import (
+    ModelFileError,
+    load_model,
+    read_manifest,
+    save_model,
+)
 from ftdrake.conventions import WRENCH_AXES, WRENCH_UNITS
 
 N_JOINTS = 7
@@ -76,7 +81,8 @@ def test_round_trip_predicts_identically(make, data, tmp_path):
 def test_manifest_describes_the_model(forest_file, data):
     model, path = forest_file
     manifest = read_manifest(path)
-    assert manifest["model_class"] == "ftdrake.compensation.forest.RandomForestCompensator"
+    assert manifest["model_class"] == ("ftdrake.compensation.estimators.forest."
+                                       "RandomForestCompensator")
     assert manifest["n_joints"] == N_JOINTS and manifest["features"] == "q,qd"
     assert manifest["target_names"] == list(WRENCH_AXES)
     assert manifest["target_units"] == list(WRENCH_UNITS)

@@ -6,10 +6,10 @@ import warnings
 import numpy as np
 import pytest
 
-from ftdrake.compensation.consistent import PayloadPrior, is_physically_consistent
-from ftdrake.compensation.hybrid import HybridCompensator
-from ftdrake.compensation.physics import ExcitationWarning, PhysicsPayloadCompensator
-from ftdrake.compensation.registry import entry
+from ftdrake.compensation.estimators.hybrid import HybridCompensator
+from ftdrake.compensation.estimators.physics import ExcitationWarning, PhysicsPayloadCompensator
+from ftdrake.compensation.estimators.registry import entry
+from ftdrake.compensation.identification.consistent import PayloadPrior, is_physically_consistent
 from ftdrake.errors import ConfigError
 from ftdrake.testing import MASS, SIGMA, THETA, TRUE_PAYLOAD, readings, sinusoids
 

@@ -11,9 +11,9 @@ from pydrake.systems.framework import DiagramBuilder
 
 from ftdrake import ScenarioConfig
 from ftdrake import conventions as col
-from ftdrake.compensation.forest import RandomForestCompensator
-from ftdrake.compensation.hybrid import HybridCompensator
-from ftdrake.compensation.physics import (
+from ftdrake.compensation.estimators.forest import RandomForestCompensator
+from ftdrake.compensation.estimators.hybrid import HybridCompensator
+from ftdrake.compensation.estimators.physics import (
     ExcitationWarning,
     PhysicsPayloadCompensator,
     payload_regressor,

@@ -33,13 +33,13 @@ from ftdrake import (
     save_model,
 )
 from ftdrake.cli.main import main as ftdrake_cli
-from ftdrake.compensation import registry
-from ftdrake.compensation.base import Compensator
-from ftdrake.compensation.build import TrainOption
 from ftdrake.compensation.compiled.loop import fused_update
-from ftdrake.compensation.onnx_export import export_onnx
-from ftdrake.compensation.registry import CompensatorEntry
-from ftdrake.compensation.tuning import param_grid
+from ftdrake.compensation.estimators import registry
+from ftdrake.compensation.estimators.base import Compensator
+from ftdrake.compensation.estimators.build import TrainOption
+from ftdrake.compensation.estimators.registry import CompensatorEntry
+from ftdrake.compensation.estimators.tuning import param_grid
+from ftdrake.compensation.files.onnx_export import export_onnx
 from ftdrake.physics.chain import SerialChain, sensor_kinematics_row
 from ftdrake.physics.robot import RobotDescription, ftdrake_arm
 

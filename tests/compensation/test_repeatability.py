@@ -5,7 +5,7 @@ import warnings
 
 import numpy as np
 
-from ftdrake.compensation.physics import ExcitationWarning, PhysicsPayloadCompensator
+from ftdrake.compensation.estimators.physics import ExcitationWarning, PhysicsPayloadCompensator
 from ftdrake.testing import (
     COM,
     COM_SPREAD_GOAL_MM,

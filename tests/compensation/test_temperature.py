@@ -11,9 +11,9 @@ from pydrake.trajectories import PiecewisePolynomial
 
 from ftdrake import SensorConfig
 from ftdrake import conventions as col
-from ftdrake.compensation.forest import RandomForestCompensator
-from ftdrake.compensation.hybrid import HybridCompensator
-from ftdrake.compensation.physics import ExcitationWarning, PhysicsPayloadCompensator
+from ftdrake.compensation.estimators.forest import RandomForestCompensator
+from ftdrake.compensation.estimators.hybrid import HybridCompensator
+from ftdrake.compensation.estimators.physics import ExcitationWarning, PhysicsPayloadCompensator
 from ftdrake.systems.noisy_sensor import NoisyForceTorqueSensor
 from ftdrake.testing import THETA, sinusoids
 

@@ -1,5 +1,5 @@
-"""The tethered cable (compensation/tether.py): its frames and columns against Drake, its
-identification against a cable injected into the simulated plant, its compiled row, its file.
+"""The tethered cable (compensation/identification/tether.py): its frames and columns against Drake,
+its identification against a cable injected into the simulated plant, its compiled row, its file.
 
 The simulated cable is a Drake ``LinearSpringDamper`` from a point on a link to a point on
 the tool plus a hanging weight (sim/cable.py); the sensor's ``ideal_*`` columns are the
@@ -15,14 +15,14 @@ import numpy as np
 import pytest
 
 from ftdrake import CompensationChain, ScenarioConfig
-from ftdrake.compensation.payload_identification import (
+from ftdrake.compensation.estimators.physics import ExcitationWarning, PhysicsPayloadCompensator
+from ftdrake.compensation.files.persistence import load_model, save_model
+from ftdrake.compensation.identification.payload_identification import (
     CROSSTALK_LENGTH_M,
     CROSSTALK_PRIOR,
     fit_crosstalk,
 )
-from ftdrake.compensation.persistence import load_model, save_model
-from ftdrake.compensation.physics import ExcitationWarning, PhysicsPayloadCompensator
-from ftdrake.compensation.tether import WORLD, tether_columns
+from ftdrake.compensation.identification.tether import WORLD, tether_columns
 from ftdrake.conventions import WRENCH_AXES
 from ftdrake.data.dataset import joint_state_layout, wrench_targets
 from ftdrake.errors import ConfigError
@@ -230,7 +230,7 @@ def test_tether_options_are_checked():
 def test_hybrids_compiled_row_keeps_the_tether(cable_b_runs):
     """The hybrid's fused kernel (payload row with the tether, forest, support term) equals
     its Python prediction."""
-    from ftdrake.compensation.hybrid import HybridCompensator
+    from ftdrake.compensation.estimators.hybrid import HybridCompensator
 
     train, held_out = cable_b_runs
     X, Y = joint_state_layout(train)[::8], wrench_targets(train)[::8]

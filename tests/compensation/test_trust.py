@@ -1,8 +1,8 @@
-"""The trust analysis of predictions (compensation/trust.py), counted by hand."""
+"""The trust analysis of predictions (compensation/evaluation/trust.py), counted by hand."""
 
 import numpy as np
 
-from ftdrake.compensation.trust import assess_trust, trust_references
+from ftdrake.compensation.evaluation.trust import assess_trust, trust_references
 
 
 class _Model:

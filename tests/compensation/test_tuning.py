@@ -7,9 +7,9 @@ import json
 import numpy as np
 import pytest
 
-from ftdrake.compensation.forest import RandomForestCompensator
-from ftdrake.compensation.svr import SVRCompensator
-from ftdrake.compensation.tuning import (
+from ftdrake.compensation.estimators.forest import RandomForestCompensator
+from ftdrake.compensation.estimators.svr import SVRCompensator
+from ftdrake.compensation.estimators.tuning import (
     PerOutputCompensator,
     cv_splits,
     grid_size,

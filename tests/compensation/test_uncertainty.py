@@ -7,11 +7,11 @@ import warnings
 import numpy as np
 import pytest
 
-from ftdrake.compensation.forest import RandomForestCompensator
-from ftdrake.compensation.gpr import GPRCompensator
-from ftdrake.compensation.hybrid import HybridCompensator
-from ftdrake.compensation.metrics import coverage, report
-from ftdrake.compensation.physics import ExcitationWarning, PhysicsPayloadCompensator
+from ftdrake.compensation.estimators.forest import RandomForestCompensator
+from ftdrake.compensation.estimators.gpr import GPRCompensator
+from ftdrake.compensation.estimators.hybrid import HybridCompensator
+from ftdrake.compensation.estimators.physics import ExcitationWarning, PhysicsPayloadCompensator
+from ftdrake.compensation.evaluation.metrics import coverage, report
 from ftdrake.testing import readings, sinusoids, static_poses
 from tests.helpers import static_readings
 

@@ -16,8 +16,8 @@ import pytest
 from threadpoolctl import threadpool_limits
 
 from ftdrake.cli.main import main as train_cli
-from ftdrake.compensation.gpr import GPRCompensator
-from ftdrake.compensation.metrics import (
+from ftdrake.compensation.estimators.gpr import GPRCompensator
+from ftdrake.compensation.evaluation.metrics import (
     UNCERTAIN_STD_FACTOR,
     nmse,
     outside_range_fraction,
@@ -107,8 +107,8 @@ def test_quick_svr_with_acceleration_features_does_not_blow_up_on_a_faster_run()
     Measured: nMSE 0.36 / 0.33 with gamma from sklearn's 'scale'/'auto' rules; 4.6 / 5.4 with
     the former fixed gammas 0.03 and 0.1 (2.5-20× smaller), whose nearly linear kernels
     extrapolate the velocity columns far past the data."""
-    from ftdrake.compensation.svr import SVRCompensator
-    from ftdrake.compensation.tuning import segment_groups, tune
+    from ftdrake.compensation.estimators.svr import SVRCompensator
+    from ftdrake.compensation.estimators.tuning import segment_groups, tune
 
     X, Y = path_log(3000, seed=0, speed=1.0)
     X_fast, Y_fast = path_log(2000, seed=1, speed=1.5)

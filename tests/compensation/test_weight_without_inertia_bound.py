@@ -9,8 +9,8 @@ import warnings
 import numpy as np
 import pytest
 
-from ftdrake.compensation.consistent import is_physically_consistent
-from ftdrake.compensation.physics import ExcitationWarning, PhysicsPayloadCompensator
+from ftdrake.compensation.estimators.physics import ExcitationWarning, PhysicsPayloadCompensator
+from ftdrake.compensation.identification.consistent import is_physically_consistent
 
 TRUTH = np.r_[1.2, 1.2 * np.array([0.01, -0.02, 0.06]), 0.004, 0.0, 0.0, 0.005, 0.0, 0.003,
               0.5, -0.3, 1.0, 0.02, -0.01, 0.03, -0.25, 0.0, 0.0, -0.25 * 0.1]

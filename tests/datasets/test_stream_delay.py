@@ -95,7 +95,7 @@ def test_the_chain_applies_a_model_s_delay_like_the_offline_correction(free_log,
 @pytest.mark.slow
 def test_train_aligns_the_streams_and_the_model_keeps_the_delay(free_log, tmp_path, capsys):
     from ftdrake.cli.main import main as train_cli
-    from ftdrake.compensation.persistence import read_manifest
+    from ftdrake.compensation.files.persistence import read_manifest
 
     found = {}
     for name, injected in (("as_simulated", 0.0), ("delayed", 0.010)):

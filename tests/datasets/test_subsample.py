@@ -44,7 +44,7 @@ def test_covering_rows_keeps_recordings_apart_and_short_logs_whole():
 def test_train_max_rows_fits_on_the_cover_and_says_so(tmp_path, capsys):
     import ftdrake
     from ftdrake.cli.main import main as train_cli
-    from ftdrake.compensation.persistence import read_manifest
+    from ftdrake.compensation.files.persistence import read_manifest
 
     runs = {}
     for seed in (1, 2):

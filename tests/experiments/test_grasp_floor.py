@@ -13,7 +13,7 @@ import pytest
 
 from ftdrake import ScenarioConfig
 from ftdrake import conventions as col
-from ftdrake.compensation.payload_identification import payload_regressor
+from ftdrake.compensation.identification.payload_identification import payload_regressor
 from ftdrake.experiments.tracking import (
     EventPlan,
     constant_payload_floor,

@@ -12,8 +12,8 @@ from pydrake.multibody.plant import MultibodyPlant
 from ftdrake import PhysicsPayloadCompensator, RobotModelError
 from ftdrake.assets import offline_parser
 from ftdrake.cli.main import main
-from ftdrake.compensation.persistence import load_model, save_model
-from ftdrake.compensation.physics import FixedJointsWarning
+from ftdrake.compensation.estimators.physics import FixedJointsWarning
+from ftdrake.compensation.files.persistence import load_model, save_model
 from ftdrake.physics.robot import fixed_joint_values
 from tests.helpers import DATA
 

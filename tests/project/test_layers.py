@@ -9,6 +9,11 @@ use it, it uses nothing of the simulation. Within the sim / hardware layer, ``ha
 (the live robot) imports nothing of ``sim`` or ``systems``; ``sim`` may use the hardware's
 wire modules (messages, transport, config) to publish a simulated robot.
 
+Inside ``compensation`` the same holds for its parts (``compensation/__init__.py`` documents
+them): features → contract / compiled / identification / evaluation → estimators → calibration /
+files, a part importing only parts of a lower layer (not even one of its own layer), so no import
+goes up and none goes round in a circle.
+
 Checked statically on every import statement (inside functions too) of every module, and at
 run time, in a fresh interpreter: what importing a live station or an offline tool loads,
 through the lazy facade as a user imports it and with the facade replaced by a bare package.
@@ -59,6 +64,16 @@ FORBIDDEN_IN_LAYER = {
 }
 FORBIDDEN_BELOW = {"hardware": ("systems",)}  # the live robot runs no simulation rig
 
+# The parts of compensation (a module at its top or a sub-package) → layer; a part imports only
+# parts of a lower layer.
+COMPENSATION_LAYERS = {
+    "": 0,  # the package itself (a docstring)
+    "features": 0,  # the input layout every compensator takes
+    **dict.fromkeys(("contract", "compiled", "identification", "evaluation"), 1),
+    "estimators": 2,
+    **dict.fromkeys(("calibration", "files"), 3),
+}
+
 
 def module_name(path: Path) -> str:
     parts = list(path.relative_to(PACKAGE.parent).with_suffix("").parts)
@@ -95,9 +110,19 @@ def imported_modules(module: str, path: Path):
                 yield node.lineno, submodule if submodule in MODULES else source
 
 
+def compensation_part(module: str) -> str | None:
+    """The part of compensation a module belongs to ("" for the package), None outside it."""
+    parts = module.split(".")
+    if parts[1:2] != ["compensation"]:
+        return None
+    return parts[2] if len(parts) > 2 else ""
+
+
 def violation(importer: str, imported: str) -> str | None:
     """Why `importer` may not import `imported`, or None."""
     a, b = part(importer), part(imported)
+    if a == b == "compensation":
+        return compensation_violation(importer, imported)
     if a == b:
         return None
     if LAYERS[b] > LAYERS[a]:
@@ -112,9 +137,28 @@ def violation(importer: str, imported: str) -> str | None:
     return None
 
 
+def compensation_violation(importer: str, imported: str) -> str | None:
+    """Why `importer` may not import `imported`, both in compensation, or None."""
+    a, b = compensation_part(importer), compensation_part(imported)
+    if a == b:
+        return None
+    la, lb = COMPENSATION_LAYERS[a], COMPENSATION_LAYERS[b]
+    if lb > la:
+        return f"compensation.{b} (layer {lb}) is above compensation.{a} ({la})"
+    if lb == la:
+        return f"compensation.{b} is in the layer of compensation.{a} ({la})"
+    return None
+
+
 def test_every_part_of_the_package_has_a_layer():
     parts = {part(m) for m in MODULES}
     assert parts <= set(LAYERS), f"give {sorted(parts - set(LAYERS))} a layer in LAYERS"
+
+
+def test_every_part_of_compensation_has_a_layer():
+    parts = {compensation_part(m) for m in MODULES} - {None}
+    assert parts <= set(COMPENSATION_LAYERS), (
+        f"give {sorted(parts - set(COMPENSATION_LAYERS))} a layer in COMPENSATION_LAYERS")
 
 
 def test_no_module_imports_from_a_layer_above_it():
@@ -137,8 +181,8 @@ def test_no_module_imports_from_a_layer_above_it():
     ("ftdrake.hardware.station", "ftdrake", "facade"),
     ("ftdrake.sim.lcm_publisher", "ftdrake.hardware.station", "only"),
     ("ftdrake.sim.lcm_publisher", "ftdrake.hardware.messages", None),
-    ("ftdrake.compensation.physics", "ftdrake.data.logs", None),
-    ("ftdrake.data.logs", "ftdrake.compensation.physics", "above"),
+    ("ftdrake.compensation.estimators.physics", "ftdrake.data.logs", None),
+    ("ftdrake.data.logs", "ftdrake.compensation.estimators.physics", "above"),
     ("ftdrake.cli.main", "ftdrake.experiments.demo", None),
     ("ftdrake.runtime.chain", "ftdrake.offline.replay", "above"),
     ("ftdrake.offline.replay", "ftdrake.systems.ft_sensor", "above"),
@@ -146,10 +190,38 @@ def test_no_module_imports_from_a_layer_above_it():
     ("ftdrake.offline.residual_budget", "ftdrake.experiments.demo", "above"),
     ("ftdrake.offline.replay", "ftdrake.runtime.chain", None),
     ("ftdrake.hardware.station", "ftdrake.offline.replay", None),
+    ("ftdrake.compensation.estimators.physics", "ftdrake.compensation.identification.consistent",
+     None),
+    ("ftdrake.compensation.identification.consistent", "ftdrake.compensation.estimators.physics",
+     "above"),
+    ("ftdrake.compensation.evaluation.metrics", "ftdrake.compensation.estimators.base", "above"),
+    ("ftdrake.compensation.evaluation.metrics", "ftdrake.compensation.identification.inertial",
+     "in the layer"),
+    ("ftdrake.compensation.estimators.hybrid", "ftdrake.compensation.evaluation.metrics", None),
+    ("ftdrake.compensation.files.persistence", "ftdrake.compensation.calibration.static_table",
+     "in the layer"),
+    ("ftdrake.compensation.compiled.rows", "ftdrake.compensation.features", None),
+    ("ftdrake.compensation.features", "ftdrake.compensation.compiled.rows", "above"),
+    ("ftdrake.compensation.estimators.base", "ftdrake.compensation.estimators.forest", None),
 ])
 def test_the_rules_themselves(importer, imported, expected):
     why = violation(importer, imported)
     assert (why is None) if expected is None else (expected in why), why
+
+
+def test_compensations_modules_import_one_another_in_no_circle():
+    """Modules that import none of the others left, or that none of them imports, are dropped
+    until none is; what is left imports round in circles."""
+    graph = {m: {i for _, i in imported_modules(m, p) if i in MODULES and i != m}
+             for m, p in MODULES.items() if compensation_part(m) is not None}
+    graph = {m: deps & graph.keys() for m, deps in graph.items()}
+    while True:
+        imported = set().union(*graph.values())
+        ends = {m for m, deps in graph.items() if not deps or m not in imported}
+        if not ends:
+            break
+        graph = {m: deps - ends for m, deps in graph.items() if m not in ends}
+    assert not graph, f"modules importing round in a circle: {sorted(graph)}"
 
 
 def test_relative_imports_resolve_to_modules():

@@ -28,7 +28,7 @@ from pydrake.systems.primitives import TrajectorySource
 from pydrake.trajectories import PiecewisePolynomial
 
 import ftdrake
-from ftdrake.compensation.payload_kinematics import kinematics_for
+from ftdrake.compensation.identification.payload_kinematics import kinematics_for
 from tests.helpers import DATA
 
 URDF = DATA / "three_link_arm.urdf"

@@ -23,7 +23,7 @@ from pydrake.trajectories import PiecewisePolynomial
 from scipy.spatial.transform import Rotation
 
 from ftdrake import ChainConfig, CompensationChain
-from ftdrake.compensation.physics import PhysicsPayloadCompensator
+from ftdrake.compensation.estimators.physics import PhysicsPayloadCompensator
 from ftdrake.testing import HOME, SIGMA, THETA, static_poses
 
 N = 7

@@ -13,9 +13,9 @@ import pytest
 from pydrake.systems.analysis import Simulator
 
 from ftdrake import CompensationChain
-from ftdrake.compensation.forest import RandomForestCompensator
-from ftdrake.compensation.hybrid import HybridCompensator
-from ftdrake.compensation.physics import PhysicsPayloadCompensator
+from ftdrake.compensation.estimators.forest import RandomForestCompensator
+from ftdrake.compensation.estimators.hybrid import HybridCompensator
+from ftdrake.compensation.estimators.physics import PhysicsPayloadCompensator
 from ftdrake.conventions import MEASURED, QD, QDD, Q, joint_columns, wrench_columns
 from ftdrake.errors import ConfigError
 from ftdrake.hardware import HardwareConfig

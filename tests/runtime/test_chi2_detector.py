@@ -137,7 +137,7 @@ def test_config_names_bad_tests_and_the_chain_refuses_a_model_without_std():
     with pytest.raises(ConfigError, match=r"detector\.chi2_on"):
         parse_config("chain: {detector: {chi2_on: -1.0}}")
     assert parse_config("chain: {detector: {test: chi2}}").chain.detector.test == "chi2"
-    from ftdrake.compensation.forest import RandomForestCompensator
+    from ftdrake.compensation.estimators.forest import RandomForestCompensator
     from ftdrake.config import ScenarioConfig
     from ftdrake.runtime.chain import CompensationChain
 
@@ -151,7 +151,7 @@ def test_config_names_bad_tests_and_the_chain_refuses_a_model_without_std():
 
 def fitted_physics():
     """A physics model of the scenario's arm on generated rows (only its kind matters)."""
-    from ftdrake.compensation.physics import PhysicsPayloadCompensator
+    from ftdrake.compensation.estimators.physics import PhysicsPayloadCompensator
     rng = np.random.default_rng(3)
     X = np.hstack([rng.uniform(-1, 1, (300, 7)), rng.normal(0, 0.3, (300, 14))])
     with warnings.catch_warnings():
@@ -160,7 +160,7 @@ def fitted_physics():
 
 
 def test_auto_is_the_calibrated_chi2_test_for_a_model_with_a_reading_std_else_norm():
-    from ftdrake.compensation.forest import RandomForestCompensator
+    from ftdrake.compensation.estimators.forest import RandomForestCompensator
     from ftdrake.config import ScenarioConfig
     from ftdrake.runtime.chain import CompensationChain
 

@@ -9,9 +9,9 @@ from pydrake.trajectories import PiecewisePolynomial
 
 from ftdrake import ScenarioConfig, build_station, evaluate_detection, simulate
 from ftdrake import conventions as col
-from ftdrake.compensation.base import Compensator
-from ftdrake.compensation.forest import RandomForestCompensator
-from ftdrake.compensation.persistence import load_model, save_model
+from ftdrake.compensation.estimators.base import Compensator
+from ftdrake.compensation.estimators.forest import RandomForestCompensator
+from ftdrake.compensation.files.persistence import load_model, save_model
 from ftdrake.config import DetectorConfig
 from ftdrake.data.dataset import joint_state_layout, wrench_targets
 from ftdrake.offline.thresholds import thresholds_from_quantile
@@ -237,7 +237,7 @@ def test_forest_in_the_loop_detects_contact_on_held_out_run(task_data):
 def test_hybrid_in_the_loop_compensates_to_the_noise_floor(task_data):
     import warnings
 
-    from ftdrake.compensation.hybrid import HybridCompensator
+    from ftdrake.compensation.estimators.hybrid import HybridCompensator
 
     X, Y, _ = task_data
     residual = RandomForestCompensator(features="q", n_estimators=30, per_output=False,
@@ -272,7 +272,7 @@ def test_meshcat_replay_holds_the_wrench_arrows(forest):
 
 
 def _svr_compensator():
-    from ftdrake.compensation.svr import SVRCompensator
+    from ftdrake.compensation.estimators.svr import SVRCompensator
 
     rng = np.random.default_rng(1)
     X = rng.uniform(-1, 1, size=(150, 3 * N))
@@ -302,9 +302,9 @@ def test_fault_and_out_of_domain_clear_when_inputs_recover(forest, kind):
 def test_gp_in_the_diagram_outputs_its_predict_and_predict_std(hybrid):
     import warnings
 
-    from ftdrake.compensation.gpr import GPRCompensator
-    from ftdrake.compensation.hybrid import HybridCompensator
-    from ftdrake.compensation.physics import PhysicsPayloadCompensator
+    from ftdrake.compensation.estimators.gpr import GPRCompensator
+    from ftdrake.compensation.estimators.hybrid import HybridCompensator
+    from ftdrake.compensation.estimators.physics import PhysicsPayloadCompensator
 
     rng = np.random.default_rng(3)
     X = rng.uniform(-0.5, 0.5, size=(120, 3 * N))

@@ -13,9 +13,9 @@ from pydrake.systems.primitives import ConstantVectorSource
 
 from ftdrake import CompensatorSystem, ScenarioConfig, build_station, simulate
 from ftdrake import conventions as col
-from ftdrake.compensation.forest import RandomForestCompensator
-from ftdrake.compensation.hybrid import HybridCompensator
-from ftdrake.compensation.physics import ExcitationWarning, PhysicsPayloadCompensator
+from ftdrake.compensation.estimators.forest import RandomForestCompensator
+from ftdrake.compensation.estimators.hybrid import HybridCompensator
+from ftdrake.compensation.estimators.physics import ExcitationWarning, PhysicsPayloadCompensator
 from ftdrake.conventions import WRENCH_INTERNAL, WRENCH_STD
 from ftdrake.errors import ConfigError
 from ftdrake.testing import THETA, static_poses

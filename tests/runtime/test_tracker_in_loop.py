@@ -13,7 +13,7 @@ from pydrake.math import RigidTransform
 
 from ftdrake import ScenarioConfig, replay
 from ftdrake import conventions as col
-from ftdrake.compensation.physics import PhysicsPayloadCompensator
+from ftdrake.compensation.estimators.physics import PhysicsPayloadCompensator
 from ftdrake.conventions import BIAS, PAYLOAD, WRENCH_CONTACT
 from ftdrake.data.dataset import joint_state_layout, wrench_targets
 from ftdrake.errors import ConfigError

@@ -96,7 +96,7 @@ def test_task_covering_goes_where_the_task_goes(scene):
 def test_condition_number_agrees_with_the_identifications_regressor(scene):
     """The planner's condition number equals one computed from the physics compensator's own
     regressor (Drake-checked elsewhere), rows scaled and columns normalised by hand."""
-    from ftdrake.compensation.physics import PhysicsPayloadCompensator
+    from ftdrake.compensation.estimators.physics import PhysicsPayloadCompensator
 
     _, g, _, _ = scene
     traj = _plan(scene, "fourier", 0)

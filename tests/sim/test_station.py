@@ -8,7 +8,7 @@ from pydrake.multibody.parsing import Parser
 import ftdrake
 from ftdrake import ScenarioConfig, SimResult, build_station, simulate
 from ftdrake import conventions as col
-from ftdrake.compensation.physics import PhysicsPayloadCompensator
+from ftdrake.compensation.estimators.physics import PhysicsPayloadCompensator
 from ftdrake.conventions import (
     BIAS,
     WRENCH_COMPENSATED,

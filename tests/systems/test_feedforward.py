@@ -113,7 +113,7 @@ def test_latency_path_equals_batch_path(model):
 
 @pytest.mark.slow
 def test_learning_in_the_loop_beats_ilc_on_a_new_trajectory(tmp_path):
-    from ftdrake.compensation.persistence import load_model
+    from ftdrake.compensation.files.persistence import load_model
     from ftdrake.experiments.feedforward import FeedforwardPlan, run_feedforward_experiment
 
     # 6 s: a 3 s Fourier run fades in so fast that its first run's tracking error takes the

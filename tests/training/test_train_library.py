@@ -17,9 +17,9 @@ from sklearn.utils.validation import check_is_fitted
 
 import ftdrake
 from ftdrake.cli.main import main as cli_main
-from ftdrake.compensation import domain
-from ftdrake.compensation.persistence import load_model, read_manifest
-from ftdrake.compensation.tuning import tune
+from ftdrake.compensation.estimators import domain
+from ftdrake.compensation.estimators.tuning import tune
+from ftdrake.compensation.files.persistence import load_model, read_manifest
 from ftdrake.data.training import ReadOptions
 from ftdrake.errors import ConfigError
 from tests.helpers import DATA
@@ -234,7 +234,7 @@ def test_a_held_out_calibration_fits_clones_and_keeps_the_calibrated_terms(runs,
 def test_a_gp_says_how_many_rows_it_keeps_and_what_they_weigh(monkeypatch):
     """A GP keeps at most max_points rows (a covering subset); training says so, and how big
     the m × m factors its file holds are."""
-    from ftdrake.compensation import registry
+    from ftdrake.compensation.estimators import registry
 
     monkeypatch.setitem(registry.entry("gpr").defaults, "max_points", 100)
     monkeypatch.setitem(registry.entry("gpr").defaults, "optimize_points", 0)

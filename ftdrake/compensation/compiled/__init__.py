@@ -26,7 +26,7 @@ All have ``predict(X)`` for (N, 3n) → (N, k) and ``predict_one(x, out=None)`` 
 (3n,) → (k,); all raise ``ValueError`` on a wrong column count or a NaN/inf input. They
 always return 2-D / 1-D k-vectors, also for a model fitted on a 1-D target (k = 1).
 A compensator builds its own with ``compiled_predictor()`` (the compensator protocol, see
-:mod:`ftdrake.compensation.base`).
+:mod:`ftdrake.compensation.estimators.base`).
 """
 
 from .forest import CompiledForest, FlatForest, flatten_forests, forest_accumulate

@@ -158,7 +158,7 @@ def forest_accumulate(x, nodes, leaf_values, trees, n_trees, out):
 def forest_accumulate_with_std(x, nodes, leaf_values, trees, n_trees, out, std):
     """:func:`forest_accumulate` into `out` (the same sums, bit-equal), and into `std` (k,)
     each output's spread across its trees, √(mean of squares − mean²), in the same walk (not
-    a calibrated uncertainty; see :mod:`ftdrake.compensation.forest`).
+    a calibrated uncertainty; see :mod:`ftdrake.compensation.estimators.forest`).
 
     The lockstep walk is written out again here rather than shared with forest_accumulate:
     a shared inlined helper was slower.
@@ -240,7 +240,7 @@ class CompiledForest:
         self.predict_one_with_std(np.zeros(3 * self.n_joints))
 
     def onnx_parts(self) -> FlatForest:
-        """The flattened forests: the form :mod:`ftdrake.compensation.onnx_export` writes."""
+        """The flattened forests: the form :mod:`ftdrake.compensation.files.onnx_export` writes."""
         return self.flat
 
     def predict(self, X) -> np.ndarray:

@@ -10,9 +10,9 @@ spread is not the hybrid's std):
 
 with w = exp(−(d/ℓ)²) the residual's support at the row, d its distance to the training
 inputs (:func:`.kdtree.nearest_distance` on the standardised leading columns; see
-:mod:`ftdrake.compensation.domain`), equal to the hybrid's ``predict`` and ``predict_std`` to
-round-off. ``CompensatorSystem``
-calls :func:`hybrid_row` inside its own fused update.
+:mod:`ftdrake.compensation.estimators.domain`), equal to the hybrid's ``predict`` and
+``predict_std`` to round-off. ``CompensatorSystem`` calls :func:`hybrid_row` inside its own
+fused update.
 """
 
 from __future__ import annotations

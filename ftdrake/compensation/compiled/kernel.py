@@ -89,7 +89,7 @@ class FastKernelModel:
         return len(self.input_scale)
 
     def onnx_parts(self) -> FastKernelModel:
-        """Itself: the form :mod:`ftdrake.compensation.onnx_export` writes."""
+        """Itself: the form :mod:`ftdrake.compensation.files.onnx_export` writes."""
         return self
 
     @classmethod

@@ -11,7 +11,7 @@ signature::
 that checks the inputs (:func:`prepare_row`), predicts the internal wrench and its std into
 `internal` and `std`, and writes ``external = to_S · (wrench − internal)``
 (:func:`external_wrench`). A compensator offers one through its ``fused_loop_update()``
-(the compensator protocol, :mod:`ftdrake.compensation.base`), returning ``(update,
+(the compensator protocol, :mod:`ftdrake.compensation.estimators.base`), returning ``(update,
 arrays)``: the forest's and the hybrid's are below; :func:`fused_update` builds one from any
 compiled row kernel ``kernel(row (3n), *arrays, mean (6), std (6))``.
 

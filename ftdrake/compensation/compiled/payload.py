@@ -6,8 +6,8 @@ A numba call pays for unboxing each array argument before it does any work; with
 the parameters and the covariance factor as eleven arrays that would cost more than this
 kernel's arithmetic. :func:`pack_payload_row` puts them into one float64 and one int64 array
 once; :func:`payload_mean_var` unpacks views of them inside the kernel.
-:class:`~ftdrake.compensation.physics.PhysicsPayloadCompensator` and the hybrid's fused row
-(:mod:`.hybrid`) use it; the estimators fill it, this module knows nothing of them.
+:class:`~ftdrake.compensation.estimators.physics.PhysicsPayloadCompensator` and the hybrid's fused
+row (:mod:`.hybrid`) use it; the estimators fill it, this module knows nothing of them.
 
 Packed layout (m moving joints, n joints in the row, r columns of the covariance factor)::
 
@@ -20,7 +20,8 @@ with X_pre, kinds, axes, q_index, v_index :class:`~ftdrake.physics.chain.SerialC
 arrays, block_T (6 × 6) rotating a wrench from S into the measuring frame Sm, θ = [φ; b],
 F Fᵀ the parameters' covariance and σ² a variance added per axis; ``rotated`` is 0 when
 block_T is the identity (no mounting rotation: the kernel skips the product). The bracketed
-entries are there when p = 22: the tether's geometry (:mod:`~ftdrake.compensation.tether`).
+entries are there when p = 22: the tether's geometry
+(:mod:`~ftdrake.compensation.identification.tether`).
 """
 
 from __future__ import annotations
@@ -216,7 +217,8 @@ def weight_columns(g, A):
 def tether_columns_row(X_SF, p_FP, p_SQ, A):
     """Columns 20–21 of the regressor: a tether of unit k and unit k·ℓ0 from Q (p_SQ, in S) to
     P (p_FP in the frame F posed by X_SF (3 × 4) in S): ``[d; Q×d]`` and ``[−u; −Q×u]``,
-    d = p_SP − p_SQ, u = d / |d| (:func:`ftdrake.compensation.tether.tether_columns`)."""
+    d = p_SP − p_SQ, u = d / |d|
+    (:func:`ftdrake.compensation.identification.tether.tether_columns`)."""
     d = np.empty(3)
     for i in range(3):
         d[i] = (X_SF[i, 0] * p_FP[0] + X_SF[i, 1] * p_FP[1] + X_SF[i, 2] * p_FP[2]

@@ -9,8 +9,8 @@ import numpy as np
 from sklearn.model_selection import ParameterGrid
 
 from ... import conventions as col
+from ...compensation.estimators.tuning import param_grid
 from ...compensation.features import FEATURE_SETS
-from ...compensation.tuning import param_grid
 from ...sim.trajectories import STUDY_DURATION_S
 from .layout import AXES
 from .protocols import HELDOUT, HELDOUT_S, QUICK_TRAIN_ROWS

@@ -17,7 +17,7 @@ from joblib import parallel_config
 from sklearn.model_selection import ParameterGrid
 
 from ... import conventions as col
-from ...compensation.tuning import param_grid
+from ...compensation.estimators.tuning import param_grid
 from ...config import ScenarioConfig
 from ...io import atomic_path
 from .layout import AXES, FEATURES

@@ -28,8 +28,8 @@ import pandas as pd
 from joblib import Parallel, delayed
 
 from ... import conventions as col
-from ...compensation.metrics import report
-from ...compensation.tuning import segment_groups
+from ...compensation.estimators.tuning import segment_groups
+from ...compensation.evaluation.metrics import report
 from ...config import ScenarioConfig, dump_config
 from ...data.dataset import joint_state_layout, wrench_targets
 from ...parallel import dask_backend

@@ -21,11 +21,11 @@ from sklearn.base import clone
 from threadpoolctl import threadpool_limits
 
 from ... import conventions as col
+from ...compensation.estimators.physics import ExcitationWarning
+from ...compensation.estimators.registry import entry
+from ...compensation.estimators.tuning import segment_groups, tune
+from ...compensation.evaluation.metrics import report
 from ...compensation.features import check_feature_set, feature_names
-from ...compensation.metrics import report
-from ...compensation.physics import ExcitationWarning
-from ...compensation.registry import entry
-from ...compensation.tuning import segment_groups, tune
 from ...config import ScenarioConfig, dump_config
 from ...data.dataset import joint_state_layout, wrench_targets
 from ...io import atomic_path, staged_outputs
@@ -68,7 +68,7 @@ def run_study(out_dir, *, preset="quick", trajectories: int = TRAJECTORIES,
               faithful: bool | None = None) -> dict:
     """Collects both datasets, trains and tests every method × feature set, writes the outputs.
 
-    `preset` is a name in :data:`~ftdrake.compensation.tuning.PRESET_NAMES` or a dict
+    `preset` is a name in :data:`~ftdrake.compensation.estimators.tuning.PRESET_NAMES` or a dict
     ``{"rf": grid, "svr": grid}`` (registry names; the class names
     ``"RandomForestCompensator"``, ``"SVRCompensator"`` work too). Each dataset has
     `trajectories` free-motion runs of `duration` s, the last `test_trajectories` held out.

@@ -1,5 +1,5 @@
 """The faithful study's hyper-parameter search, per wrench axis as the study tuned: an
-exhaustive grid (:func:`~ftdrake.compensation.tuning.tune`) or scikit-learn's successive
+exhaustive grid (:func:`~ftdrake.compensation.estimators.tuning.tune`) or scikit-learn's successive
 halving over the same grid (the ``--paper`` path), with the study's SVR capped in libsvm
 iterations so that non-converging candidates end.
 """
@@ -14,9 +14,9 @@ from sklearn.experimental import enable_halving_search_cv  # noqa: F401 (enables
 from sklearn.model_selection import GroupKFold, HalvingGridSearchCV, KFold
 
 from ... import conventions as col
+from ...compensation.estimators.registry import entry
+from ...compensation.estimators.tuning import PerOutputCompensator, param_grid, tune
 from ...compensation.features import feature_names
-from ...compensation.registry import entry
-from ...compensation.tuning import PerOutputCompensator, param_grid, tune
 from .layout import AXES
 
 

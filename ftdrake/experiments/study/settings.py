@@ -3,9 +3,9 @@
 from __future__ import annotations
 
 from ... import conventions as col
+from ...compensation.estimators.registry import entry
+from ...compensation.estimators.tuning import grid_size, param_grid
 from ...compensation.features import FEATURE_SETS
-from ...compensation.registry import entry
-from ...compensation.tuning import grid_size, param_grid
 from .layout import FEATURES
 
 #: The methods tuned by grid search, by their compensator's registry name (its grids).
