@@ -46,6 +46,7 @@ from ..config import ChainConfig
 from ..offline.recorder import UpdateRecorder, chain_outputs
 from ..runtime.chain import CompensationChain
 from ..runtime.step import ChainStep
+from .live_checks import RateCheck, joint_bounds
 from .live_inputs import StreamMonitor
 from .messages import ContactState
 
@@ -92,15 +93,18 @@ class StationCore:
     model needs the temperature.
     `events`: the tracker event inputs fed by messages (``"tared"``, ``"payload_changed"``).
     `clock` gives arrival times in s (monotonic). `on_event(FaultEvent)` is called on every
-    fault change. A subclass implements ``_check_sources(chain)`` (raise ConfigError when the
-    chain needs a stream it has not configured), ``_publish_wrench(t)`` and
-    ``_publish_contact(t, fault)``.
+    fault change, `on_warning(str)` on every warning (kept in ``warnings``: a driver's rate
+    far from ``chain.sensor.rate_hz``, ...). `joint_names` label the joints in messages.
+    Joint states radians cannot be (degrees?) fault the inputs
+    (:func:`~ftdrake.hardware.live_checks.joint_bounds`). A subclass implements
+    ``_check_sources(chain)`` (raise ConfigError when the chain needs a stream it has not
+    configured), ``_publish_wrench(t)`` and ``_publish_contact(t, fault)``.
     """
 
     def __init__(self, model, chain: ChainConfig | None, *, n_joints: int,
                  sensor_timeout_s: float, joint_state_timeout_s: float,
                  temperature_timeout_s: float, events=(), clock=time.monotonic,
-                 on_event=None, max_events: int = 10_000):
+                 on_event=None, max_events: int = 10_000, on_warning=None, joint_names=None):
         self.n_joints = int(n_joints)
         self._build(model, chain)
         self.period = self.chain.period
@@ -123,9 +127,14 @@ class StationCore:
         # Each F/T sample updates the chain by the step (use_diagram(): by the diagram); the
         # step keeps its own state, written into `context` by chain_context().
         self._step = ChainStep(self.chain, self.context)
+        self.joint_bounds = joint_bounds(model, self.n_joints, joint_names)
         self.monitor = StreamMonitor(
             self.n_joints, sensor_timeout_s, joint_state_timeout_s,
-            temperature_timeout_s if self._temperature_in is not None else None)
+            temperature_timeout_s if self._temperature_in is not None else None,
+            joint_check=self.joint_bounds.check)
+        self.rate_check = RateCheck(1.0 / self.period)
+        self.warnings: list[str] = []
+        self.on_warning = on_warning
         self.clock = clock
         self.on_event = on_event
         self.started = clock()
@@ -195,9 +204,10 @@ class StationCore:
                             self.output("out_of_domain")[0] > 0.5, bool(changed))
 
     # -- samples ------------------------------------------------------------------------------
-    def on_joint_sample(self, sample, arrival: float) -> None:
-        """A joint-state sample (JointSample, None when it failed to decode)."""
-        self.monitor.on_joint(sample, arrival)
+    def on_joint_sample(self, sample, arrival: float, problem=None) -> None:
+        """A joint-state sample (JointSample, None when it failed to decode; `problem`: the
+        transport's (reason, detail) for it, see StreamMonitor.on_joint)."""
+        self.monitor.on_joint(sample, arrival, problem)
         self._note(None)
 
     def on_temperature_sample(self, sample, arrival: float) -> None:
@@ -214,11 +224,15 @@ class StationCore:
         signal.received += 1
         signal.pending = True
 
-    def on_wrench_sample(self, sample, arrival: float) -> None:
-        """An F/T sample (WrenchSample, None when it failed to decode): checks, one diagram
-        update when fresh, the wrench published when fault-free, the contact state always."""
-        fresh = self.monitor.on_wrench(sample, arrival)
+    def on_wrench_sample(self, sample, arrival: float, problem=None) -> None:
+        """An F/T sample (WrenchSample, None when it failed to decode; `problem`: the
+        transport's (reason, detail) for a message it refused): checks, one diagram update
+        when fresh, the wrench published when fault-free, the contact state always."""
+        accepted = self.monitor.accepted["ft"]
+        fresh = self.monitor.on_wrench(sample, arrival, problem)
         t = sample.t if sample is not None and np.isfinite(sample.t) else self._stream_time()
+        if self.monitor.accepted["ft"] > accepted and self.rate_check.measured_hz is None:
+            self.warn(self.rate_check.on_sample(t))
         if fresh:
             if self._step is not None:
                 self._step_chain()
@@ -270,6 +284,26 @@ class StationCore:
                                f"{self.processed} times by the step; call it before the first "
                                "F/T sample")
         self._step = None
+
+    def warn(self, warning: str | None) -> None:
+        """Keeps `warning` (None: nothing) in ``warnings`` and passes it to `on_warning`."""
+        if warning is None:
+            return
+        self.warnings.append(warning)
+        if self.on_warning is not None:
+            self.on_warning(warning)
+
+    def flag_missing(self, stream: str, reason: str, detail: str) -> None:
+        """Faults the inputs because `stream` ("ft", "joint") has no message yet for a cause
+        a transport found outside any message (e.g. a publisher of another type on its
+        topic); said until the stream's first accepted message."""
+        m = self.monitor
+        if m.last_time(stream) is not None or m.missing.get(stream) == (reason, detail):
+            return
+        m.missing[stream] = (reason, detail)
+        if m.reason in ("no_data", reason):
+            m.fault, m.reason, m.detail = True, reason, detail
+            self._note(None)
 
     def check_timeouts(self) -> None:
         """Raises the fault when a stream went silent, publishing it at once."""
@@ -331,4 +365,6 @@ class StationCore:
                         for name, signal in self._signals.items()},
             "latency_ms": {"p50": p50 * 1e3, "p99": p99 * 1e3},
             "fault": bool(m.fault), "reason": m.reason,
+            "rate_hz": {"configured": 1.0 / self.period, "measured": self.rate_check.measured_hz},
+            "warnings": list(self.warnings),
         }

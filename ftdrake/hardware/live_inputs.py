@@ -35,8 +35,12 @@ from .messages import JointSample, WrenchSample
 #: counts a position or velocity message that never met its partner; it is not a fault by
 #: itself (nothing stale is used; a silent pair stream faults by timeout). ``joint_names``
 #: (joint states by name, ROS 2): a configured joint missing or an unknown one present.
+#: ``degrees`` / ``joint_range``: joint positions radians cannot be (live_checks.JointBounds);
+#: ``wrong_type``: a message of another type on an input channel or topic; ``frame_id``: a
+#: wrench in another frame than the configured sensor frame (ROS 2).
 REASONS = ("sensor_timeout", "joint_timeout", "temperature_timeout", "out_of_order",
-           "duplicate", "not_finite", "joint_count", "malformed", "unpaired", "joint_names")
+           "duplicate", "not_finite", "joint_count", "malformed", "unpaired", "joint_names",
+           "degrees", "joint_range", "wrong_type", "frame_id")
 
 
 class StreamMonitor:
@@ -48,8 +52,10 @@ class StreamMonitor:
     """
 
     def __init__(self, n_joints: int, sensor_timeout_s: float, joint_state_timeout_s: float,
-                 temperature_timeout_s: float | None = None):
+                 temperature_timeout_s: float | None = None, joint_check=None):
         self.n = int(n_joints)
+        # joint_check(q) → None or (reason, detail): positions radians cannot be (degrees?).
+        self.joint_check = joint_check
         # None: no temperature stream (the model needs none); else its staleness limit, s.
         self.temperature_timeout_s = temperature_timeout_s
         self.temperature = np.nan  # °C, the last accepted
@@ -68,6 +74,9 @@ class StreamMonitor:
         self._last_t = {"ft": None, "joint": None, "temperature": None}
         self._last_arrival = {"ft": None, "joint": None, "temperature": None}
         self._joint_bad = None  # (reason, detail) of a rejected joint message not yet made good
+        # stream → (reason, detail): why it has no message yet, when a transport knows
+        # (another type published on its topic); said instead of "no_data".
+        self.missing: dict[str, tuple[str, str]] = {}
 
     # -- bookkeeping --------------------------------------------------------------------------
     def _reject(self, stream: str, reason: str, detail: str) -> bool:
@@ -110,11 +119,14 @@ class StreamMonitor:
                                 f"({(t - last) * 1e3:.3f} ms)")
 
     # -- messages -----------------------------------------------------------------------------
-    def on_joint(self, sample: JointSample | None, arrival: float) -> bool:
-        """One joint-state message (None if it failed to decode). Returns True if accepted."""
+    def on_joint(self, sample: JointSample | None, arrival: float,
+                 problem: tuple[str, str] | None = None) -> bool:
+        """One joint-state message (None if it failed to decode; `problem`: the transport's
+        (reason, detail) for it). Returns True if accepted."""
         self.received["joint"] += 1
         if sample is None:
-            return self._reject("joint", "malformed", "joint-state message failed to decode")
+            return self._reject("joint", *(problem or (
+                "malformed", "joint-state message failed to decode")))
         nv = None if sample.v is None else len(sample.v)
         if len(sample.q) != self.n or nv != self.n:
             return self._reject("joint", "joint_count", (
@@ -124,6 +136,9 @@ class StreamMonitor:
                 and np.isfinite(sample.t)):
             return self._reject("joint", "not_finite", "joint state holds NaN or inf")
         bad = self._check_time("joint", sample.t)
+        if bad:
+            return self._reject("joint", *bad)
+        bad = self.joint_check(sample.q) if self.joint_check is not None else None
         if bad:
             return self._reject("joint", *bad)
         self.joint_state[:self.n], self.joint_state[self.n:] = sample.q, sample.v
@@ -162,12 +177,16 @@ class StreamMonitor:
                 f"message (timeout {self.temperature_timeout_s:g} s)")
         return None
 
-    def on_wrench(self, sample: WrenchSample | None, arrival: float) -> bool:
-        """One F/T message. Returns True if it is accepted *and* the inputs are fault-free,
-        i.e. the compensator may run on it and its result is fresh."""
+    def on_wrench(self, sample: WrenchSample | None, arrival: float,
+                  problem: tuple[str, str] | None = None) -> bool:
+        """One F/T message (None if it failed to decode; `problem`: the transport's (reason,
+        detail) for a message it refused, e.g. another frame_id). Returns True if it is
+        accepted *and* the inputs are fault-free, i.e. the compensator may run on it and its
+        result is fresh."""
         self.received["ft"] += 1
-        if sample is None:
-            return self._reject("ft", "malformed", "F/T message failed to decode")
+        if sample is None or problem is not None:
+            problem = problem or ("malformed", "F/T message failed to decode")
+            return self._reject("ft", *problem)
         if not (np.isfinite(sample.wrench).all() and np.isfinite(sample.t)):
             return self._reject("ft", "not_finite", f"F/T message at {sample.t:.6f} s holds "
                                 "NaN or inf")
@@ -183,7 +202,9 @@ class StreamMonitor:
             self.reason, self.detail = self._joint_bad
             return False
         if joint is None:
-            self.fault, self.reason, self.detail = True, "no_data", "no joint state received yet"
+            self.fault = True
+            self.reason, self.detail = self.missing.get(
+                "joint", ("no_data", "no joint state received yet"))
             return False
         if arrival - joint > self.joint_state_timeout_s:
             self.fault, self.reason = True, "joint_timeout"

@@ -45,8 +45,9 @@ import numpy as np
 from ..config import ChainConfig
 from ..conventions import OUTPUTS, PUBLISHED
 from ..errors import ConfigError
-from .config import HardwareConfig
+from .config import JOINT_STATE_TYPES, HardwareConfig
 from .core import FaultEvent, StationCore  # noqa: F401 (FaultEvent: its home before core)
+from .live_checks import check_joint_count, lcm_decode_problem, lcm_type_found
 from .live_inputs import RobotStatePairer
 from .messages import (
     PAYLOAD_COORD,
@@ -70,12 +71,18 @@ class HardwareStation(StationCore):
     detector, sensor-stream and robot settings (the stream's rate sets the update period;
     the tracker reads its drift). `lcm`: an LCM URL, an
     ``lcm.LCM``, a ``DrakeLcm`` or a transport (default: ``config.lcm_url``). `clock` gives
-    arrival times in s (monotonic). `on_event(FaultEvent)` is called on every fault change.
+    arrival times in s (monotonic). `on_event(FaultEvent)` is called on every fault change,
+    `on_warning(str)` on every warning. A message that does not decode as the configured type
+    faults the inputs with ``wrong_type``, naming the channel, the type found and the one
+    expected; ``config.n_joints`` other than the model's is a ConfigError naming the key.
     """
 
     def __init__(self, config: HardwareConfig, model, chain: ChainConfig | None = None,
-                 lcm=None, *, clock=time.monotonic, on_event=None, max_events: int = 10_000):
+                 lcm=None, *, clock=time.monotonic, on_event=None, max_events: int = 10_000,
+                 on_warning=None):
         self.config = config.validate()
+        check_joint_count(model, config.n_joints, "lcm.n_joints",
+                          "the robot's joint count (the model's joints, in its order)")
         self.lcm = open_lcm(lcm if lcm is not None else config.lcm_url)
         self._coords = {name: coord for name, coord, channel in self._event_channels()
                         if channel}
@@ -84,7 +91,7 @@ class HardwareStation(StationCore):
                          joint_state_timeout_s=config.joint_state_timeout_s,
                          temperature_timeout_s=config.temperature_timeout_s,
                          events=tuple(self._coords), clock=clock, on_event=on_event,
-                         max_events=max_events)
+                         max_events=max_events, on_warning=on_warning)
         # The published outputs (conventions.PUBLISHED) with an LCM message of their own; the
         # others are values of the contact state (_publish_contact).
         self._own_channel = [port for port in PUBLISHED if self.has_output(port)
@@ -121,14 +128,29 @@ class HardwareStation(StationCore):
     # -- message callbacks ------------------------------------------------------------------
     def _on_joint(self, data: bytes):
         arrival = self.clock()
-        self.on_joint_sample(_decoded(decode_joint_state, self.config.joint_state_type, data),
-                             arrival)
+        sample = _decoded(decode_joint_state, self.config.joint_state_type, data)
+        self.on_joint_sample(sample, arrival, None if sample is not None else self._joint_problem(
+            self.config.joint_state_channel, "joint_state_channel", data))
+
+    def _joint_problem(self, channel: str, key: str, data: bytes):
+        """(reason, detail) of a joint-state message that did not decode (see live_checks);
+        another joint-state type than the configured one names lcm.joint_state_type."""
+        kind = self.config.joint_state_type
+        reason, detail = lcm_decode_problem("joint-state", channel, f"drake.lcmt_{kind}",
+                                            f"lcm.{key}", data)
+        found = lcm_type_found(data)
+        other = found[len("drake.lcmt_"):] if found else None
+        if reason == "wrong_type" and other in JOINT_STATE_TYPES:
+            detail += f" (or, if it is this robot's, set lcm.joint_state_type: {other})"
+        return reason, detail
 
     def _on_half(self, half: str, data: bytes):
         arrival = self.clock()
         sample = _decoded(decode_joint_state, "robot_state", data)
         if sample is None:
-            self.on_joint_sample(None, arrival)
+            key = "joint_state_channel" if half == "q" else "velocity_channel"
+            self.on_joint_sample(None, arrival, self._joint_problem(
+                getattr(self.config, key), key, data))
             return
         joined = self._pairer.add(half, sample)
         for detail in self._pairer.dropped:
@@ -151,7 +173,13 @@ class HardwareStation(StationCore):
 
     def _on_wrench(self, data: bytes):
         arrival = self.clock()
-        self.on_wrench_sample(_decoded(decode_wrench, data), arrival)
+        sample = _decoded(decode_wrench, data)
+        if sample is None:
+            self.on_wrench_sample(None, arrival, lcm_decode_problem(
+                "F/T", self.config.ft_channel, "drake.lcmt_force_torque", "lcm.ft_channel",
+                data))
+            return
+        self.on_wrench_sample(sample, arrival)
 
     def _publish_wrench(self, t: float) -> None:
         """The published outputs of their own channel (wrenches, the payload) the chain has."""

@@ -35,6 +35,9 @@ class Ros2Config:
         ``joint_count`` with the names in the detail. Velocities are required.
       `wrench_topic`: ``geometry_msgs/msg/WrenchStamped`` (N, N·m) in the sensor frame, as
         ``force_torque_sensor_broadcaster`` publishes it; each message runs the chain once.
+      `wrench_frame_id`: the sensor frame the model compensates readings in (the
+        broadcaster's ``frame_id``); a wrench with another ``header.frame_id`` faults the
+        inputs (``frame_id``, naming both). "" (the default) accepts any.
       `temperature_topic` (only for a model trained with the sensor temperature):
         ``sensor_msgs/msg/Temperature`` (°C).
       `tare_topic`, `payload_topic` (optional, for ``chain.bias_tracker``):
@@ -72,6 +75,7 @@ class Ros2Config:
     joint_state_qos: str = "reliable"
     wrench_topic: str = "/force_torque_sensor_broadcaster/wrench"
     wrench_qos: str = "reliable"
+    wrench_frame_id: str = ""
     temperature_topic: str = ""
     temperature_timeout_s: float = 1.0
     tare_topic: str = ""
@@ -99,6 +103,9 @@ class Ros2Config:
         self._check_joint_names(where)
         self._check_topics(where)
         self._check_numbers(where)
+        if not isinstance(self.wrench_frame_id, str):
+            raise ConfigError(f"{where}.wrench_frame_id: the sensor frame's name (a string; "
+                              f"'' accepts any), got {self.wrench_frame_id!r}")
         if not (isinstance(self.dds_config, str) and self.dds_config):
             raise ConfigError(f"{where}.dds_config: 'loopback', 'environment', Cyclone XML "
                               "or a file:// URL")

@@ -161,6 +161,7 @@ class Ros2Node:
         self._waitset = WaitSet(self.participant)
         self._topics: dict[str, object] = {}
         self._readers, self._writers, self._conditions, self._handlers = [], [], [], []
+        self._builtin: list = []
 
     def _topic(self, name: str, msgtype: str):
         from cyclonedds.topic import Topic  # noqa: PLC0415 (cyclonedds only for ROS 2)
@@ -253,6 +254,32 @@ class Ros2Node:
             handler(sample, self.clock())
         return len(due)
 
+    def publications(self):
+        """A function returning the (DDS topic, DDS type name) of every publication DDS
+        discovery knows now (other participants' writers, this node's too), e.g.
+        ``("rt/joint_states", "sensor_msgs::msg::dds_::JointState_")``."""
+        from cyclonedds.builtin import (  # noqa: PLC0415 (cyclonedds only for ROS 2)
+            BuiltinDataReader,
+            BuiltinTopicDcpsPublication,
+        )
+        from cyclonedds.core import InstanceState  # noqa: PLC0415 (as above)
+
+        reader = BuiltinDataReader(self.participant, BuiltinTopicDcpsPublication)
+        self._builtin.append(reader)  # not in matched(): it matches no topic of ours
+        known: dict = {}
+
+        def publications() -> list[tuple[str, str]]:
+            while samples := reader.take(N=100):
+                for sample in samples:
+                    key = getattr(sample, "key", None)
+                    if sample.sample_info.instance_state != InstanceState.Alive:
+                        known.pop(key, None)
+                    elif getattr(sample, "topic_name", None) is not None:
+                        known[key] = (sample.topic_name, sample.type_name)
+            return list(known.values())
+
+        return publications
+
     def matched(self) -> dict[str, int]:
         """Matched remote endpoints per DDS topic: writers' readers and readers' writers."""
         counts = {}
@@ -284,7 +311,8 @@ class Ros2Node:
             return
         self.participant.__del__()  # Entity's own deletion (dds_delete); idempotent after
         self.participant = self._waitset = None
-        for entities in (self._readers, self._writers, self._conditions, self._handlers):
+        for entities in (self._readers, self._writers, self._conditions, self._handlers,
+                         self._builtin):
             entities.clear()
         self._topics.clear()
 
