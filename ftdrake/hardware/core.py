@@ -49,6 +49,7 @@ from ..runtime.step import ChainStep
 from .live_checks import RateCheck, joint_bounds
 from .live_inputs import StreamMonitor
 from .messages import ContactState
+from .overload import LoadMonitor
 
 
 @dc.dataclass
@@ -96,7 +97,10 @@ class StationCore:
     fault change, `on_warning(str)` on every warning (kept in ``warnings``: a driver's rate
     far from ``chain.sensor.rate_hz``, ...). `joint_names` label the joints in messages.
     Joint states radians cannot be (degrees?) fault the inputs
-    (:func:`~ftdrake.hardware.live_checks.joint_bounds`). A subclass implements
+    (:func:`~ftdrake.hardware.live_checks.joint_bounds`). When the F/T stream outruns the
+    processing by more than `max_backlog_s` (s), the oldest messages are dropped and the
+    inputs faulted (``overload``, naming the input and the sustained rates;
+    :class:`~ftdrake.hardware.overload.LoadMonitor`, ``load``). A subclass implements
     ``_check_sources(chain)`` (raise ConfigError when the chain needs a stream it has not
     configured), ``_publish_wrench(t)`` and ``_publish_contact(t, fault)``.
     """
@@ -104,7 +108,8 @@ class StationCore:
     def __init__(self, model, chain: ChainConfig | None, *, n_joints: int,
                  sensor_timeout_s: float, joint_state_timeout_s: float,
                  temperature_timeout_s: float, events=(), clock=time.monotonic,
-                 on_event=None, max_events: int = 10_000, on_warning=None, joint_names=None):
+                 on_event=None, max_events: int = 10_000, on_warning=None, joint_names=None,
+                 max_backlog_s: float = 0.1):
         self.n_joints = int(n_joints)
         self._build(model, chain)
         self.period = self.chain.period
@@ -133,6 +138,7 @@ class StationCore:
             temperature_timeout_s if self._temperature_in is not None else None,
             joint_check=self.joint_bounds.check)
         self.rate_check = RateCheck(1.0 / self.period)
+        self.load = LoadMonitor(self.period, max_backlog_s)
         self.warnings: list[str] = []
         self.on_warning = on_warning
         self.clock = clock
@@ -209,6 +215,7 @@ class StationCore:
         transport's (reason, detail) for it, see StreamMonitor.on_joint)."""
         self.monitor.on_joint(sample, arrival, problem)
         self._note(None)
+        self.load.busy(self.clock() - arrival)
 
     def on_temperature_sample(self, sample, arrival: float) -> None:
         """A temperature sample ``(t s, °C)`` (None when it failed to decode)."""
@@ -229,6 +236,9 @@ class StationCore:
         transport's (reason, detail) for a message it refused): checks, one diagram update
         when fresh, the wrench published when fault-free, the contact state always."""
         accepted = self.monitor.accepted["ft"]
+        timed = problem is None and sample is not None and np.isfinite(sample.t)
+        if timed and self.load.on_ft(sample.t, arrival):  # too far behind: drop the oldest
+            problem = ("overload", self.load.detail())
         fresh = self.monitor.on_wrench(sample, arrival, problem)
         t = sample.t if sample is not None and np.isfinite(sample.t) else self._stream_time()
         if self.monitor.accepted["ft"] > accepted and self.rate_check.measured_hz is None:
@@ -250,6 +260,9 @@ class StationCore:
                 self.published += 1
         self.contact_published += bool(self._publish_contact(t, self.monitor.fault))
         self._note(t)
+        self.load.busy(self.clock() - arrival)
+        if fresh:
+            self.load.processed()
 
     def _step_chain(self) -> None:
         """One update of the chain by the ChainStep, from the monitor's held inputs."""
@@ -367,4 +380,5 @@ class StationCore:
             "fault": bool(m.fault), "reason": m.reason,
             "rate_hz": {"configured": 1.0 / self.period, "measured": self.rate_check.measured_hz},
             "warnings": list(self.warnings),
+            "load": self.load.summary(),
         }

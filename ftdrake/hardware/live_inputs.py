@@ -37,10 +37,11 @@ from .messages import JointSample, WrenchSample
 #: (joint states by name, ROS 2): a configured joint missing or an unknown one present.
 #: ``degrees`` / ``joint_range``: joint positions radians cannot be (live_checks.JointBounds);
 #: ``wrong_type``: a message of another type on an input channel or topic; ``frame_id``: a
-#: wrench in another frame than the configured sensor frame (ROS 2).
+#: wrench in another frame than the configured sensor frame (ROS 2); ``overload``: an F/T
+#: message dropped because the station is too far behind the stream (overload.LoadMonitor).
 REASONS = ("sensor_timeout", "joint_timeout", "temperature_timeout", "out_of_order",
            "duplicate", "not_finite", "joint_count", "malformed", "unpaired", "joint_names",
-           "degrees", "joint_range", "wrong_type", "frame_id")
+           "degrees", "joint_range", "wrong_type", "frame_id", "overload")
 
 
 class StreamMonitor:

@@ -48,7 +48,7 @@ from ..errors import ConfigError
 from .config import JOINT_STATE_TYPES, HardwareConfig
 from .core import FaultEvent, StationCore  # noqa: F401 (FaultEvent: its home before core)
 from .live_checks import check_joint_count, lcm_decode_problem, lcm_type_found
-from .live_inputs import RobotStatePairer
+from .live_inputs import REASONS, RobotStatePairer
 from .messages import (
     PAYLOAD_COORD,
     TARE_COORD,
@@ -59,6 +59,7 @@ from .messages import (
     encode_contact_state,
     encode_joint_state,
     encode_payload,
+    encode_status,
     encode_wrench,
 )
 from .transport import open_lcm
@@ -90,8 +91,12 @@ class HardwareStation(StationCore):
                          sensor_timeout_s=config.sensor_timeout_s,
                          joint_state_timeout_s=config.joint_state_timeout_s,
                          temperature_timeout_s=config.temperature_timeout_s,
-                         events=tuple(self._coords), clock=clock, on_event=on_event,
-                         max_events=max_events, on_warning=on_warning)
+                         events=tuple(self._coords), clock=clock,
+                         on_event=self._on_fault_change, max_events=max_events,
+                         on_warning=on_warning, max_backlog_s=config.max_backlog_s)
+        self._user_on_event = on_event
+        self.status_published = 0
+        self._last_status = self.clock()
         # The published outputs (conventions.PUBLISHED) with an LCM message of their own; the
         # others are values of the contact state (_publish_contact).
         self._own_channel = [port for port in PUBLISHED if self.has_output(port)
@@ -193,13 +198,39 @@ class HardwareStation(StationCore):
                          encode_contact_state(self.contact_state(t, fault)))
         return True
 
+    def _on_fault_change(self, event) -> None:
+        self.publish_status()
+        if self._user_on_event is not None:
+            self._user_on_event(event)
+
+    def status(self) -> dict:
+        """The values of the status message now (messages.STATUS_COORDS)."""
+        m, load = self.monitor, self.load
+        reason = (0 if not m.fault else -1 if m.reason not in REASONS
+                  else REASONS.index(m.reason) + 1)
+        return {"fault": m.fault, "reason": reason, "overload": load.overloaded,
+                "input_hz": load.input_hz, "sustained_hz": load.sustained_hz,
+                "backlog_ms": load.backlog_s * 1e3, "lost_ft": load.lost,
+                "dropped_ft": load.dropped, "processed": self.processed,
+                "published": self.published}
+
+    def publish_status(self) -> None:
+        """Publishes the status message now, stamped on the streams' clock."""
+        self.lcm.publish(self.config.status_channel,
+                         encode_status(self._stream_time(), self.status()))
+        self.status_published += 1
+
     # -- running ------------------------------------------------------------------------------
     def spin_once(self, timeout_ms: int = 1) -> int:
         """Handles pending messages (waiting up to `timeout_ms` for one), then checks the
-        timeouts, publishing the fault at once when a stream went silent. Returns the number
-        of messages handled."""
+        timeouts, publishing the fault at once when a stream went silent, and publishes the
+        periodic status. Returns the number of messages handled."""
         handled = self.lcm.handle(timeout_ms)
         self.check_timeouts()
+        now = self.clock()
+        if now - self._last_status >= self.config.status_period_s:
+            self._last_status = now
+            self.publish_status()
         return handled
 
 

@@ -61,6 +61,11 @@ class Ros2Config:
       payload_change, message rates, counts).
     `queue_depth`: samples a subscription (and each of ftdrake's writers) keeps while the
       station lags (1 s at 1 kHz); a lag beyond it loses the oldest.
+    `max_backlog_s`: behind the wrench stream by more than this (s), the station drops the
+      oldest wrenches (not run through the chain) until it has caught up, faulting the inputs
+      as ``overload`` with the input rate and the rate it sustains
+      (:mod:`ftdrake.hardware.overload`); the diagnostics carry ``lost_ft``, ``dropped_ft``,
+      ``backlog_ms`` and ``sustained_hz``.
     `reorder_window_s`: 0 hands messages to the station as they arrive (lowest latency, as
       on LCM); > 0 holds them that long and hands them over in publication order, so a joint
       state retransmitted after a lost datagram still precedes the wrench published after it
@@ -86,6 +91,7 @@ class Ros2Config:
     sensor_timeout_s: float = 0.005
     joint_state_timeout_s: float = 0.02
     queue_depth: int = 1000
+    max_backlog_s: float = 0.1
     reorder_window_s: float = 0.0
     domain_id: int = 0
     dds_config: str = "loopback"
@@ -142,7 +148,7 @@ class Ros2Config:
 
     def _check_numbers(self, where: str) -> None:
         for field in ("sensor_timeout_s", "joint_state_timeout_s", "temperature_timeout_s",
-                      "diagnostics_period_s"):
+                      "diagnostics_period_s", "max_backlog_s"):
             value = getattr(self, field)
             if not (isinstance(value, (int, float)) and value > 0 and math.isfinite(value)):
                 raise ConfigError(f"{where}.{field}: must be a positive number of seconds, "

@@ -56,6 +56,14 @@ WRENCH_TOPICS = tuple(name for name, msgtype in OUTPUTS.items()
                       if msgtype == "geometry_msgs/msg/WrenchStamped")
 
 
+def _load_values(load) -> dict:
+    """The LoadMonitor's counts and rates as diagnostic values."""
+    rate = {k: "" if v is None else f"{v:.1f}" for k, v in (
+        ("input_hz", load.input_hz), ("sustained_hz", load.sustained_hz))}
+    return {"overload": load.overloaded, "lost_ft": load.lost, "dropped_ft": load.dropped,
+            "backlog_ms": f"{load.backlog_s * 1e3:.1f}", **rate}
+
+
 class Ros2Station(StationCore):
     """StationCore fed by ROS 2 topics (see the module and Ros2Config).
 
@@ -85,7 +93,8 @@ class Ros2Station(StationCore):
                          joint_state_timeout_s=c.joint_state_timeout_s,
                          temperature_timeout_s=c.temperature_timeout_s, events=events,
                          clock=clock, on_event=self._on_fault_change, max_events=max_events,
-                         on_warning=self._on_warning, joint_names=c.joint_names)
+                         on_warning=self._on_warning, joint_names=c.joint_names,
+                         max_backlog_s=c.max_backlog_s)
         self.node = node if node is not None else Ros2Node(
             c.domain_id, c.dds_config, clock=clock, reorder_window_s=c.reorder_window_s)
         self._index = {name: k for k, name in enumerate(c.joint_names)}
@@ -268,6 +277,7 @@ class Ros2Station(StationCore):
                   **{f"received_{k}": v for k, v in m.received.items()},
                   **{f"rejected_{k}": v for k, v in m.rejected.items()},
                   "processed": self.processed, "published": self.published,
+                  **_load_values(self.load),
                   "latency_p50_ms": f"{p50 * 1e3:.3f}", "latency_p99_ms": f"{p99 * 1e3:.3f}"}
         return types["status"](
             level=level, name=DIAGNOSTIC_NAME, message=message,
