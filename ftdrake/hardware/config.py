@@ -73,8 +73,12 @@ class HardwareConfig:
     # Overload (ftdrake.hardware.overload): behind the F/T stream by more than this (s), the
     # station drops the oldest messages and says so; the status channel (output_prefix +
     # STATUS) carries the counts and rates every status_period_s and at each fault change.
-    max_backlog_s: float = 0.1
+    max_backlog_s: float = 0.5
     status_period_s: float = 1.0
+    # Each F/T sample is paired with the joint state whose stamp is within this (s) of its
+    # own (live_inputs.StreamMonitor); none within it: a fault, never judged. 0: by arrival
+    # only (drivers whose stamps are on different clocks).
+    pair_tolerance_s: float = 0.005
 
     def output_channel(self, port: str) -> str:
         """The LCM channel of the chain output `port` (a port of
@@ -118,6 +122,10 @@ class HardwareConfig:
             if not (isinstance(value, (int, float)) and value > 0 and math.isfinite(value)):
                 raise ConfigError(f"{where}.{field}: must be a positive number of seconds, "
                                   f"got {value!r}")
+        if not (isinstance(self.pair_tolerance_s, (int, float)) and self.pair_tolerance_s >= 0
+                and math.isfinite(self.pair_tolerance_s)):
+            raise ConfigError(f"{where}.pair_tolerance_s: seconds ≥ 0 (0: pair by arrival), "
+                              f"got {self.pair_tolerance_s!r}")
         if not (isinstance(self.n_joints, int) and self.n_joints >= 1):
             raise ConfigError(f"{where}.n_joints: must be a positive integer, got "
                               f"{self.n_joints!r}")

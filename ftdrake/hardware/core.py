@@ -100,7 +100,8 @@ class StationCore:
     (:func:`~ftdrake.hardware.live_checks.joint_bounds`). When the F/T stream outruns the
     processing by more than `max_backlog_s` (s), the oldest messages are dropped and the
     inputs faulted (``overload``, naming the input and the sustained rates;
-    :class:`~ftdrake.hardware.overload.LoadMonitor`, ``load``). A subclass implements
+    :class:`~ftdrake.hardware.overload.LoadMonitor`, ``load``). `pair_tolerance_s` > 0 pairs
+    each F/T sample with a joint state by stamp (StreamMonitor). A subclass implements
     ``_check_sources(chain)`` (raise ConfigError when the chain needs a stream it has not
     configured), ``_publish_wrench(t)`` and ``_publish_contact(t, fault)``.
     """
@@ -109,7 +110,7 @@ class StationCore:
                  sensor_timeout_s: float, joint_state_timeout_s: float,
                  temperature_timeout_s: float, events=(), clock=time.monotonic,
                  on_event=None, max_events: int = 10_000, on_warning=None, joint_names=None,
-                 max_backlog_s: float = 0.1):
+                 max_backlog_s: float = 0.5, pair_tolerance_s: float = 0.0):
         self.n_joints = int(n_joints)
         self._build(model, chain)
         self.period = self.chain.period
@@ -136,7 +137,7 @@ class StationCore:
         self.monitor = StreamMonitor(
             self.n_joints, sensor_timeout_s, joint_state_timeout_s,
             temperature_timeout_s if self._temperature_in is not None else None,
-            joint_check=self.joint_bounds.check)
+            joint_check=self.joint_bounds.check, pair_tolerance_s=pair_tolerance_s)
         self.rate_check = RateCheck(1.0 / self.period)
         self.load = LoadMonitor(self.period, max_backlog_s)
         self.warnings: list[str] = []

@@ -13,7 +13,12 @@ message or timeout until the inputs are good again:
 * a rejected joint-state message (wrong joint count, NaN, time going back, ...) faults until
   the next accepted joint-state message *and* then an accepted F/T message: the joint state
   held from before the bad message is stale, so no wrench is computed from it;
-* a silent stream (``check_timeouts``) faults until its next accepted message.
+* a silent stream (``check_timeouts``) faults until its next accepted message;
+* with `pair_tolerance_s` > 0, each F/T sample is paired with a joint state by their stamps:
+  the newest joint state when its stamp is within the tolerance of the wrench's, else the
+  nearest-stamped of the last :data:`JOINT_HISTORY` joint states within it; with none within
+  it the F/T sample faults (``stamp_gap``) and is never judged (a wrench paired with a stale
+  joint state would read as contact). 0 pairs by arrival only (the newest joint state).
 
 ``reason`` names the cause (one of :data:`REASONS`) and ``detail`` says it in words for a
 person ("joint state has 6 joints, expected 7"). While ``fault`` is True the held values are
@@ -39,9 +44,13 @@ from .messages import JointSample, WrenchSample
 #: ``wrong_type``: a message of another type on an input channel or topic; ``frame_id``: a
 #: wrench in another frame than the configured sensor frame (ROS 2); ``overload``: an F/T
 #: message dropped because the station is too far behind the stream (overload.LoadMonitor).
+#: ``stamp_gap``: no joint state stamped within the pairing tolerance of an F/T sample.
 REASONS = ("sensor_timeout", "joint_timeout", "temperature_timeout", "out_of_order",
            "duplicate", "not_finite", "joint_count", "malformed", "unpaired", "joint_names",
-           "degrees", "joint_range", "wrong_type", "frame_id", "overload")
+           "degrees", "joint_range", "wrong_type", "frame_id", "overload",
+           "stamp_gap")
+#: Joint states kept to pair an F/T sample with by stamp.
+JOINT_HISTORY = 64
 
 
 class StreamMonitor:
@@ -53,8 +62,11 @@ class StreamMonitor:
     """
 
     def __init__(self, n_joints: int, sensor_timeout_s: float, joint_state_timeout_s: float,
-                 temperature_timeout_s: float | None = None, joint_check=None):
+                 temperature_timeout_s: float | None = None, joint_check=None,
+                 pair_tolerance_s: float = 0.0):
         self.n = int(n_joints)
+        self.pair_tolerance_s = float(pair_tolerance_s)
+        self._history = collections.deque(maxlen=JOINT_HISTORY)  # (t, [q; v]) accepted
         # joint_check(q) → None or (reason, detail): positions radians cannot be (degrees?).
         self.joint_check = joint_check
         # None: no temperature stream (the model needs none); else its staleness limit, s.
@@ -143,6 +155,8 @@ class StreamMonitor:
         if bad:
             return self._reject("joint", *bad)
         self.joint_state[:self.n], self.joint_state[self.n:] = sample.q, sample.v
+        if self.pair_tolerance_s > 0:
+            self._history.append((sample.t, self.joint_state.copy()))
         self._last_t["joint"], self._last_arrival["joint"] = sample.t, arrival
         self.accepted["joint"] += 1
         self._joint_bad = None
@@ -212,12 +226,32 @@ class StreamMonitor:
             self.detail = (f"last joint state arrived {(arrival - joint) * 1e3:.1f} ms before "
                            f"this F/T message (timeout {self.joint_state_timeout_s * 1e3:g} ms)")
             return False
-        problem = self._temperature_problem(arrival)
+        problem = self._temperature_problem(arrival) or self._pair(sample.t)
         if problem is not None:
             self.fault, (self.reason, self.detail) = True, problem
             return False
         self.fault, self.reason, self.detail = False, "", ""
         return True
+
+    def _pair(self, t: float) -> tuple[str, str] | None:
+        """Puts into ``joint_state`` the joint state paired with an F/T sample stamped `t`
+        (see the module); (reason, detail) when none is within the tolerance."""
+        tol = self.pair_tolerance_s
+        if tol <= 0 or not self._history:
+            return None
+        newest_t, newest = self._history[-1]
+        if abs(newest_t - t) <= tol:
+            self.joint_state[:] = newest
+            return None
+        nearest_t, nearest = min(self._history, key=lambda item: abs(item[0] - t))
+        if abs(nearest_t - t) <= tol:
+            self.joint_state[:] = nearest
+            return None
+        return "stamp_gap", (
+            f"no joint state stamped within {tol * 1e3:g} ms of the F/T sample at {t:.6f} s "
+            f"(the nearest of the last {len(self._history)} is {(nearest_t - t) * 1e3:+.1f} ms "
+            "away): the wrench is not judged. Fix: the drivers' clocks or stamps, or "
+            "pair_tolerance_s")
 
     def check_timeouts(self, now: float) -> bool:
         """Call periodically (same clock as the arrivals, s). Raises the fault when a stream

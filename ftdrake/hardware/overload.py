@@ -6,8 +6,9 @@ Measured per F/T message, on any transport (the station's clock and the messages
   counts the periods skipped (a network or a kernel buffer dropped them, or the driver
   skipped them; the station never saw them).
 * ``backlog_s``: how far the station lags the stream: the message's lag (handled at − stamp)
-  minus the smallest lag seen so far. A station that keeps up handles each message a constant
-  time after its stamp; one that does not falls further behind with every message. (The
+  minus the smallest lag of a message run through the chain so far. A station that keeps up
+  handles each message a constant time after its stamp; one that does not falls further
+  behind with every message. (The
   driver's clock drifting against this machine's reads as a slow backlog, ≈ 1 ms per 10 s at
   100 ppm.)
 * ``sustained_hz``: F/T messages per second of the station's busy time (the handlers of every
@@ -43,6 +44,7 @@ class LoadMonitor:
         self.max_backlog_seen_s = 0.0
         self.overloaded = False
         self._min_lag = None
+        self._lag = 0.0
         self._last_t = None
         self._busy = collections.deque(maxlen=WINDOW)  # s of handler time per F/T message
         self._pending_busy = 0.0  # handler time since the last F/T message (joint states …)
@@ -62,9 +64,8 @@ class LoadMonitor:
         if self._last_t is None or t > self._last_t:
             self._last_t = t
             self._stamps.append(t)
-        lag = handled_at - t
-        self._min_lag = lag if self._min_lag is None else min(self._min_lag, lag)
-        self.backlog_s = lag - self._min_lag
+        self._lag = lag = handled_at - t
+        self.backlog_s = 0.0 if self._min_lag is None else max(0.0, lag - self._min_lag)
         self.max_backlog_seen_s = max(self.max_backlog_seen_s, self.backlog_s)
         if self.backlog_s > self.max_backlog_s:
             self.overloaded = True
@@ -75,9 +76,12 @@ class LoadMonitor:
         return self.overloaded
 
     def processed(self) -> None:
-        """Closes the F/T message just run through the chain: its handler time (and the
-        handlers' since the previous one: joint states, dropped or faulted messages) enters
-        the sustained rate."""
+        """Closes the F/T message just run through the chain: its lag may lower the
+        baseline (only such messages do: a faulted one, e.g. stamped far from the joint
+        states, does not move it), and its handler time (and the handlers' since the
+        previous one: joint states, dropped or faulted messages) enters the sustained
+        rate."""
+        self._min_lag = self._lag if self._min_lag is None else min(self._min_lag, self._lag)
         self._busy.append(self._pending_busy)
         self._pending_busy = 0.0
 

@@ -93,7 +93,8 @@ class HardwareStation(StationCore):
                          temperature_timeout_s=config.temperature_timeout_s,
                          events=tuple(self._coords), clock=clock,
                          on_event=self._on_fault_change, max_events=max_events,
-                         on_warning=on_warning, max_backlog_s=config.max_backlog_s)
+                         on_warning=on_warning, max_backlog_s=config.max_backlog_s,
+                         pair_tolerance_s=config.pair_tolerance_s)
         self._user_on_event = on_event
         self.status_published = 0
         self._last_status = self.clock()

@@ -66,6 +66,10 @@ class Ros2Config:
       as ``overload`` with the input rate and the rate it sustains
       (:mod:`ftdrake.hardware.overload`); the diagnostics carry ``lost_ft``, ``dropped_ft``,
       ``backlog_ms`` and ``sustained_hz``.
+    `pair_tolerance_s`: each wrench is paired with the joint state whose ``header.stamp`` is
+      within this (s) of its own: the newest when it is, else the nearest of the last 64; none
+      within it faults the inputs (``stamp_gap``) and the wrench is not judged. 0 pairs by
+      arrival only (the newest joint state).
     `reorder_window_s`: 0 hands messages to the station as they arrive (lowest latency, as
       on LCM); > 0 holds them that long and hands them over in publication order, so a joint
       state retransmitted after a lost datagram still precedes the wrench published after it
@@ -91,7 +95,8 @@ class Ros2Config:
     sensor_timeout_s: float = 0.005
     joint_state_timeout_s: float = 0.02
     queue_depth: int = 1000
-    max_backlog_s: float = 0.1
+    max_backlog_s: float = 0.5
+    pair_tolerance_s: float = 0.005
     reorder_window_s: float = 0.0
     domain_id: int = 0
     dds_config: str = "loopback"
@@ -157,6 +162,10 @@ class Ros2Config:
                 0 <= self.reorder_window_s < 1):
             raise ConfigError(f"{where}.reorder_window_s: seconds in [0, 1), got "
                               f"{self.reorder_window_s!r}")
+        if not (isinstance(self.pair_tolerance_s, (int, float)) and self.pair_tolerance_s >= 0
+                and math.isfinite(self.pair_tolerance_s)):
+            raise ConfigError(f"{where}.pair_tolerance_s: seconds ≥ 0 (0: pair by arrival), "
+                              f"got {self.pair_tolerance_s!r}")
         if not (isinstance(self.queue_depth, int) and self.queue_depth >= 1):
             raise ConfigError(f"{where}.queue_depth: must be a positive integer, got "
                               f"{self.queue_depth!r}")

@@ -94,7 +94,7 @@ class Ros2Station(StationCore):
                          temperature_timeout_s=c.temperature_timeout_s, events=events,
                          clock=clock, on_event=self._on_fault_change, max_events=max_events,
                          on_warning=self._on_warning, joint_names=c.joint_names,
-                         max_backlog_s=c.max_backlog_s)
+                         max_backlog_s=c.max_backlog_s, pair_tolerance_s=c.pair_tolerance_s)
         self.node = node if node is not None else Ros2Node(
             c.domain_id, c.dds_config, clock=clock, reorder_window_s=c.reorder_window_s)
         self._index = {name: k for k, name in enumerate(c.joint_names)}
