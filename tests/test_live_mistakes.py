@@ -298,3 +298,45 @@ def test_ros2_joint_names_of_another_length_name_the_key(ros2, tmp_path, capsys)
                  str(tmp_path / "live.yaml"), "--duration", "0.1", "--quiet"])
     assert code != 0
     assert "ros2.joint_names: 6 joints" in capsys.readouterr().err
+
+
+def test_ros2_a_best_effort_driver_on_a_reliable_subscription_names_the_qos_key(ros2):
+    """A driver publishing with SensorDataQoS (best effort) never matches ftdrake's default
+    reliable subscription: the station says so and names ros2.wrench_qos and its fix."""
+    del ros2  # for cyclonedds and the closing of what it made
+    from ftdrake.hardware.ros2.config import Ros2Config
+    from ftdrake.hardware.ros2.dds import Ros2Node
+    from ftdrake.hardware.ros2.station import Ros2Station
+
+    domain = 100 + (os.getpid() + 61) % 100
+    config = Ros2Config(joint_names=[f"j{k}" for k in range(N)], domain_id=domain,
+                        wrench_topic="/ft_best_effort/wrench")
+    dut, driver = Ros2Station(config, forest(), chain()), Ros2Node(domain)
+    try:
+        driver.publisher(config.wrench_topic, "geometry_msgs/msg/WrenchStamped",
+                         profile="sensor_data")
+
+        def named():
+            dut.spin_once(0)
+            return dut.monitor.reason == "qos"
+
+        wait_for(named, "the station to name the QoS")
+        assert ("a publisher on /ft_best_effort/wrench offers a QoS that ros2.wrench_qos "
+                "'reliable' cannot match" in dut.monitor.detail)
+        assert "Fix: set ros2.wrench_qos: sensor_data" in dut.monitor.detail
+    finally:
+        dut.close()
+        driver.close()
+
+
+def test_a_sensor_data_reader_keeps_the_queue_depth():
+    """A best-effort reader keeps queue_depth samples (its history is its own), not the
+    writers' keep-last-5 that would lose samples between two spins at 1 kHz."""
+    pytest.importorskip("cyclonedds")
+    from cyclonedds.qos import Policy
+
+    from ftdrake.hardware.ros2.dds import qos
+
+    assert qos("sensor_data", 1000)[Policy.History] == Policy.History.KeepLast(1000)
+    assert qos("sensor_data", 1000, writer=True)[Policy.History] == Policy.History.KeepLast(5)
+    assert qos("sensor_data", 1000)[Policy.Reliability] == Policy.Reliability.BestEffort

@@ -314,8 +314,9 @@ class StationCore:
         m = self.monitor
         if m.last_time(stream) is not None or m.missing.get(stream) == (reason, detail):
             return
+        flagged = {r for r, _ in m.missing.values()}
         m.missing[stream] = (reason, detail)
-        if m.reason in ("no_data", reason):
+        if m.reason == "no_data" or m.reason in flagged:
             m.fault, m.reason, m.detail = True, reason, detail
             self._note(None)
 

@@ -44,11 +44,12 @@ from .messages import JointSample, WrenchSample
 #: ``wrong_type``: a message of another type on an input channel or topic; ``frame_id``: a
 #: wrench in another frame than the configured sensor frame (ROS 2); ``overload``: an F/T
 #: message dropped because the station is too far behind the stream (overload.LoadMonitor).
-#: ``stamp_gap``: no joint state stamped within the pairing tolerance of an F/T sample.
+#: ``stamp_gap``: no joint state stamped within the pairing tolerance of an F/T sample;
+#: ``qos``: a publisher on an input topic whose QoS the subscription cannot match (ROS 2).
 REASONS = ("sensor_timeout", "joint_timeout", "temperature_timeout", "out_of_order",
            "duplicate", "not_finite", "joint_count", "malformed", "unpaired", "joint_names",
            "degrees", "joint_range", "wrong_type", "frame_id", "overload",
-           "stamp_gap")
+           "stamp_gap", "qos")
 #: Joint states kept to pair an F/T sample with by stamp.
 JOINT_HISTORY = 64
 

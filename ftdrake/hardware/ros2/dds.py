@@ -23,8 +23,11 @@ Topic and type names follow ROS 2's mapping onto DDS (ros2/design, "Topic and Se
 mapping to DDS"): the ROS topic ``/joint_states`` is the DDS topic ``rt/joint_states``, the
 type ``sensor_msgs/msg/JointState`` is ``sensor_msgs::msg::dds_::JointState_``
 (:mod:`.messages`). QoS profiles (:data:`QOS_PROFILES`): ``reliable`` is rclcpp's default
-(reliable, volatile, keep last `depth`), ``sensor_data`` its ``SensorDataQoS`` (best effort,
-keep last 5). Writers use plain CDR (XCDR1), ROS 2's encoding.
+(reliable, volatile, keep last `depth`; what ros2_control's broadcasters publish with,
+``SystemDefaultsQoS``), ``sensor_data`` its ``SensorDataQoS`` (best effort, keep last 5 for a
+writer). A reader keeps `depth` samples in either profile: its history is its own (QoS
+matching does not look at it), and keep-last-5 would lose samples at 1 kHz whenever a spin
+comes more than 5 ms after the last. Writers use plain CDR (XCDR1), ROS 2's encoding.
 
 :class:`Ros2Node` delivers the messages of all its subscriptions in the order they were
 published, across topics: :meth:`Ros2Node.spin` waits on a DDS WaitSet (without holding
@@ -128,7 +131,8 @@ def qos(profile: str, depth: int = 10, *, writer: bool = False):
         policies = [Policy.Reliability.Reliable(max_blocking_time=duration(milliseconds=100)),
                     Policy.History.KeepLast(depth)]
     elif profile == "sensor_data":
-        policies = [Policy.Reliability.BestEffort, Policy.History.KeepLast(5)]
+        policies = [Policy.Reliability.BestEffort,
+                    Policy.History.KeepLast(5 if writer else depth)]
     else:
         raise ConfigError(f"QoS profile {profile!r} is not one of {', '.join(QOS_PROFILES)}")
     policies.append(Policy.Durability.Volatile)
@@ -279,6 +283,15 @@ class Ros2Node:
             return list(known.values())
 
         return publications
+
+    def incompatible_qos(self) -> dict[str, int]:
+        """Per DDS topic of a subscription: how many publishers DDS found whose QoS it could
+        not match (e.g. a best-effort publisher for a reliable subscription)."""
+        counts = {}
+        for reader in self._readers:
+            status = reader.get_requested_incompatible_qos_status()
+            counts[reader.topic.name] = counts.get(reader.topic.name, 0) + status.total_count
+        return counts
 
     def matched(self) -> dict[str, int]:
         """Matched remote endpoints per DDS topic: writers' readers and readers' writers."""

@@ -240,8 +240,9 @@ class Ros2Station(StationCore):
             self._user_on_warning(warning)
 
     def check_input_types(self) -> None:
-        """Faults the inputs (``wrong_type``) when a stream has no message yet and DDS
-        discovery shows a publisher of another type on its topic, naming both types."""
+        """Faults the inputs when a stream has no message yet and DDS discovery shows a
+        publisher of another type on its topic (``wrong_type``, naming both types) or one
+        whose QoS its subscription cannot match (``qos``, naming the key)."""
         for (topic, dds_type) in self._publications():
             stream, expected, key = self._inputs.get(topic, (None, None, None))
             found = ros2_type_name(dds_type)
@@ -252,6 +253,18 @@ class Ros2Station(StationCore):
                 f"{ros_topic} carries {found} (a publisher found by DDS discovery), ftdrake "
                 f"reads {expected} there. Fix: publish {expected} on {ros_topic}, or set "
                 f"ros2.{key} to the topic that carries it"))
+        for topic, count in self.node.incompatible_qos().items():
+            stream, _, key = self._inputs.get(topic, (None, None, None))
+            if stream is None or not count or stream in self.monitor.missing:
+                continue
+            field = key.replace("_topic", "_qos")
+            have = getattr(self.config, field)
+            other = "sensor_data" if have == "reliable" else "reliable"
+            ros_topic = "/" + topic[len("rt/"):]
+            self.flag_missing(stream, "qos", (
+                f"a publisher on {ros_topic} offers a QoS that ros2.{field} {have!r} cannot "
+                "match (a best-effort publisher never matches a reliable subscription). "
+                f"Fix: set ros2.{field}: {other}"))
 
     def diagnostic_status(self):
         """The DiagnosticStatus of now (see Ros2Config: level, message, key values)."""
