@@ -10,6 +10,7 @@ import pytest
 
 from ftdrake import ChainConfig, RandomForestCompensator
 from ftdrake.hardware import HardwareConfig, HardwareStation
+from ftdrake.hardware.core import SETTLE_AFTER_DROP_S
 from ftdrake.hardware.messages import (
     decode_status,
     decode_wrench,
@@ -51,6 +52,7 @@ class SlowRig:
             return update(*args, **kwargs)
 
         self.dut._step.update = slowed
+        self.recorder = self.dut.start_recording()  # every update of the chain
         self.wrenches, self.status = [], []
         lcm = self.dut.lcm
         lcm.subscribe(self.config.output_channel("wrench_compensated"),
@@ -112,12 +114,20 @@ def test_what_is_dropped_is_counted_and_the_rest_processed(slow):
 
 def test_the_newest_is_processed_not_the_oldest(slow):
     """Between drops the station resumes with messages newer than the dropped ones: the
-    published stamps jump forward, never back, and the last message of the stream is
-    processed once the driver stops (the station catches up)."""
-    stamps = [w.t for w in slow.wrenches]
-    assert stamps == sorted(stamps) and len(set(stamps)) == len(stamps)
+    stamps of the chain's updates jump forward, never back, and the last message of the
+    stream is processed once the driver stops (the station catches up). After a drop the
+    chain settles (SETTLE_AFTER_DROP_S) before a wrench is published again."""
+    stamps = slow.recorder.to_frame()["t"].to_numpy()
+    assert len(stamps) == slow.dut.processed
+    assert (np.diff(stamps) > 0).all()
     assert max(np.diff(stamps)) > 10 * PERIOD  # a run of the oldest was skipped
     assert stamps[-1] == pytest.approx(slow.sent * PERIOD)
+    published = np.array([w.t for w in slow.wrenches])
+    first_drop = stamps[np.argmax(np.diff(stamps) > 1.5 * PERIOD) + 1]
+    settle = round(SETTLE_AFTER_DROP_S / PERIOD)
+    after = stamps[stamps >= first_drop]
+    assert not np.isin(after[:settle], published).any()  # settling: nothing judged
+    assert len(published) < slow.dut.processed
 
 
 def test_the_lcm_status_channel_says_overload_and_the_sustained_rate(slow):

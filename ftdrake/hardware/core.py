@@ -51,6 +51,12 @@ from .live_inputs import StreamMonitor
 from .messages import ContactState
 from .overload import LoadMonitor
 
+#: After messages were dropped (overload), the chain runs this long (s of samples) on the
+#: messages that follow before its results are published again: its velocity and
+#: acceleration filters and the detector's window saw a gap (the contact state says fault
+#: meanwhile; nothing is judged).
+SETTLE_AFTER_DROP_S = 0.1
+
 
 @dc.dataclass
 class EventSignal:
@@ -139,6 +145,7 @@ class StationCore:
             temperature_timeout_s if self._temperature_in is not None else None,
             joint_check=self.joint_bounds.check, pair_tolerance_s=pair_tolerance_s)
         self.rate_check = RateCheck(1.0 / self.period)
+        self._settling = 0  # updates left whose results are not published (after drops)
         self.load = LoadMonitor(self.period, max_backlog_s)
         self.warnings: list[str] = []
         self.on_warning = on_warning
@@ -240,6 +247,8 @@ class StationCore:
         timed = problem is None and sample is not None and np.isfinite(sample.t)
         if timed and self.load.on_ft(sample.t, arrival):  # too far behind: drop the oldest
             problem = ("overload", self.load.detail())
+            # After the gap the chain's filters settle before anything is judged again.
+            self._settling = max(1, round(SETTLE_AFTER_DROP_S / self.period))
         fresh = self.monitor.on_wrench(sample, arrival, problem)
         t = sample.t if sample is not None and np.isfinite(sample.t) else self._stream_time()
         if self.monitor.accepted["ft"] > accepted and self.rate_check.measured_hz is None:
@@ -255,11 +264,15 @@ class StationCore:
                     {name: self.output(name) for name in self.recorder.ports}, t,
                     self.monitor.joint_state, self.monitor.wrench,
                     self.monitor.temperature if self._temperature_in is not None else None)
-            if self.output("fault")[0] <= 0.5:
+            settling = self._settling > 0
+            self._settling -= settling
+            if self.output("fault")[0] <= 0.5 and not settling:
                 self._publish_wrench(t)
                 self.latencies.append(self.clock() - arrival)
                 self.published += 1
-        self.contact_published += bool(self._publish_contact(t, self.monitor.fault))
+        else:
+            settling = False
+        self.contact_published += bool(self._publish_contact(t, self.monitor.fault or settling))
         self._note(t)
         self.load.busy(self.clock() - arrival)
         if fresh:
