@@ -13,7 +13,8 @@ Measured per F/T message, on any transport (the station's clock and the messages
   100 ppm.)
 * ``sustained_hz``: F/T messages per second of the station's busy time (the handlers of every
   stream, decode to publish), over the last :data:`WINDOW` F/T messages: the rate it can
-  sustain on this machine now; ``input_hz`` the stream's rate by its stamps, as averaged.
+  sustain on this machine now, an upper bound (the transport's own threads and the wait
+  loop are not in it); ``input_hz`` the stream's rate by its stamps, as averaged.
 
 **What is dropped when the input outruns the processing:** the oldest. While ``backlog_s``
 exceeds `max_backlog_s`, F/T messages are counted as ``dropped`` and not run through the chain
