@@ -120,13 +120,17 @@ def run_serve(args) -> int:
     live = load_live(args)
     hardware = hardware_from_args(args, live)
     with a.naming("--model", args.model):
-        model = load_model(args.model, expect_n_joints=hardware.n_joints)
+        model = load_model(args.model)  # its joint count against lcm.n_joints: the station's
     transport = open_transport(args, hardware)
 
     def on_event(event) -> None:
         print(f"ftdrake serve: {event}", file=sys.stderr, flush=True)
 
-    station = HardwareStation(hardware, model, live.chain, transport, on_event=on_event)
+    def on_warning(warning: str) -> None:
+        print(f"ftdrake serve: warning: {warning}", file=sys.stderr, flush=True)
+
+    station = HardwareStation(hardware, model, live.chain, transport, on_event=on_event,
+                              on_warning=on_warning)
     if not args.quiet:
         print(f"ftdrake serve: {type(model).__name__} from {args.model}, "
               f"{1 / station.period:g} Hz updates\n{describe_channels(hardware)}",

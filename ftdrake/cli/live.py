@@ -62,10 +62,11 @@ class Status:
         s = self.station
         m = s.monitor
         state = f"FAULT {m.reason}" if m.fault else "ok"
-        contact = s._out["contact"].Eval(s.context)[0] > 0.5
+        contact = s.output("contact")[0] > 0.5
         line = (f"joint {self.rates['joint']:6.0f} Hz  F/T {self.rates['ft']:6.0f} Hz  "
                 f"processed {s.processed}  published {s.published}  "
-                f"rejected {sum(m.rejected.values())}  {state}  "
+                f"rejected {sum(m.rejected.values())}  lost {s.load.lost}  "
+                f"dropped {s.load.dropped}  behind {s.load.backlog_s * 1e3:.0f} ms  {state}  "
                 f"contact {'YES' if contact else 'no'}")
         end = "\r" if self.tty else "\n"
         print(line.ljust(100), end=end, file=self.stream, flush=True)

@@ -79,12 +79,15 @@ def serve(args) -> int:
     live = load_live(args)
     config = config_from_args(args, live)
     with a.naming("--model", args.model):
-        model = load_model(args.model, expect_n_joints=config.n_joints)
+        model = load_model(args.model)  # its joints against ros2.joint_names: the station's
 
     def on_event(event) -> None:
         print(f"ftdrake serve: {event}", file=sys.stderr, flush=True)
 
-    station = Ros2Station(config, model, live.chain, on_event=on_event)
+    def on_warning(warning: str) -> None:
+        print(f"ftdrake serve: warning: {warning}", file=sys.stderr, flush=True)
+
+    station = Ros2Station(config, model, live.chain, on_event=on_event, on_warning=on_warning)
     print(f"ftdrake serve: {type(model).__name__} from {args.model}, "
           f"{1 / station.period:g} Hz updates\n{describe_topics(config)}",
           file=sys.stderr, flush=True)

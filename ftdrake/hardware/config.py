@@ -70,6 +70,15 @@ class HardwareConfig:
     sensor_timeout_s: float = 0.005
     joint_state_timeout_s: float = 0.02
     n_joints: int = 7
+    # Overload (ftdrake.hardware.overload): behind the F/T stream by more than this (s), the
+    # station drops the oldest messages and says so; the status channel (output_prefix +
+    # STATUS) carries the counts and rates every status_period_s and at each fault change.
+    max_backlog_s: float = 0.5
+    status_period_s: float = 1.0
+    # Each F/T sample is paired with the joint state whose stamp is within this (s) of its
+    # own (live_inputs.StreamMonitor); none within it: a fault, never judged. 0: by arrival
+    # only (drivers whose stamps are on different clocks).
+    pair_tolerance_s: float = 0.005
 
     def output_channel(self, port: str) -> str:
         """The LCM channel of the chain output `port` (a port of
@@ -81,6 +90,12 @@ class HardwareConfig:
         legacy = {"WRENCH_COMPENSATED": self.external_wrench_channel,
                   "CONTACT_STATE": self.contact_channel}.get(channel)
         return legacy or self.output_prefix + channel
+
+    @property
+    def status_channel(self) -> str:
+        """The station's status channel (:func:`~ftdrake.hardware.messages.encode_status`):
+        `output_prefix` + ``STATUS``."""
+        return self.output_prefix + "STATUS"
 
     def output_channels(self) -> dict[str, str]:
         """{LCM channel: the published ports on it}, e.g. ``{"FT_CONTACT_STATE": "contact,
@@ -101,11 +116,16 @@ class HardwareConfig:
             raise ConfigError(f"{where}.velocity_channel: required when joint_state_type is "
                               "'robot_state' (that message carries positions only)")
         self._check_channels(where)
-        for field in ("sensor_timeout_s", "joint_state_timeout_s", "temperature_timeout_s"):
+        for field in ("sensor_timeout_s", "joint_state_timeout_s", "temperature_timeout_s",
+                      "max_backlog_s", "status_period_s"):
             value = getattr(self, field)
             if not (isinstance(value, (int, float)) and value > 0 and math.isfinite(value)):
                 raise ConfigError(f"{where}.{field}: must be a positive number of seconds, "
                                   f"got {value!r}")
+        if not (isinstance(self.pair_tolerance_s, (int, float)) and self.pair_tolerance_s >= 0
+                and math.isfinite(self.pair_tolerance_s)):
+            raise ConfigError(f"{where}.pair_tolerance_s: seconds ≥ 0 (0: pair by arrival), "
+                              f"got {self.pair_tolerance_s!r}")
         if not (isinstance(self.n_joints, int) and self.n_joints >= 1):
             raise ConfigError(f"{where}.n_joints: must be a positive integer, got "
                               f"{self.n_joints!r}")
@@ -130,6 +150,7 @@ class HardwareConfig:
                   for field in ("joint_state_channel", "ft_channel", *optional)}
         fields.update({f"output_prefix ({ports})": channel
                        for channel, ports in self.output_channels().items()})
+        fields["output_prefix (status)"] = self.status_channel
         names = {}
         for field, value in fields.items():
             if not (isinstance(value, str) and value):

@@ -46,8 +46,16 @@ from ..config import ChainConfig
 from ..offline.recorder import UpdateRecorder, chain_outputs
 from ..runtime.chain import CompensationChain
 from ..runtime.step import ChainStep
+from .live_checks import RateCheck, joint_bounds
 from .live_inputs import StreamMonitor
 from .messages import ContactState
+from .overload import LoadMonitor
+
+#: After messages were dropped (overload), the chain runs this long (s of samples) on the
+#: messages that follow before its results are published again: its velocity and
+#: acceleration filters and the detector's window saw a gap (the contact state says fault
+#: meanwhile; nothing is judged).
+SETTLE_AFTER_DROP_S = 0.1
 
 
 @dc.dataclass
@@ -92,15 +100,23 @@ class StationCore:
     model needs the temperature.
     `events`: the tracker event inputs fed by messages (``"tared"``, ``"payload_changed"``).
     `clock` gives arrival times in s (monotonic). `on_event(FaultEvent)` is called on every
-    fault change. A subclass implements ``_check_sources(chain)`` (raise ConfigError when the
-    chain needs a stream it has not configured), ``_publish_wrench(t)`` and
-    ``_publish_contact(t, fault)``.
+    fault change, `on_warning(str)` on every warning (kept in ``warnings``: a driver's rate
+    far from ``chain.sensor.rate_hz``, ...). `joint_names` label the joints in messages.
+    Joint states radians cannot be (degrees?) fault the inputs
+    (:func:`~ftdrake.hardware.live_checks.joint_bounds`). When the F/T stream outruns the
+    processing by more than `max_backlog_s` (s), the oldest messages are dropped and the
+    inputs faulted (``overload``, naming the input and the sustained rates;
+    :class:`~ftdrake.hardware.overload.LoadMonitor`, ``load``). `pair_tolerance_s` > 0 pairs
+    each F/T sample with a joint state by stamp (StreamMonitor). A subclass implements
+    ``_check_sources(chain)`` (raise ConfigError when the chain needs a stream it has not
+    configured), ``_publish_wrench(t)`` and ``_publish_contact(t, fault)``.
     """
 
     def __init__(self, model, chain: ChainConfig | None, *, n_joints: int,
                  sensor_timeout_s: float, joint_state_timeout_s: float,
                  temperature_timeout_s: float, events=(), clock=time.monotonic,
-                 on_event=None, max_events: int = 10_000):
+                 on_event=None, max_events: int = 10_000, on_warning=None, joint_names=None,
+                 max_backlog_s: float = 0.5, pair_tolerance_s: float = 0.0):
         self.n_joints = int(n_joints)
         self._build(model, chain)
         self.period = self.chain.period
@@ -123,9 +139,16 @@ class StationCore:
         # Each F/T sample updates the chain by the step (use_diagram(): by the diagram); the
         # step keeps its own state, written into `context` by chain_context().
         self._step = ChainStep(self.chain, self.context)
+        self.joint_bounds = joint_bounds(model, self.n_joints, joint_names)
         self.monitor = StreamMonitor(
             self.n_joints, sensor_timeout_s, joint_state_timeout_s,
-            temperature_timeout_s if self._temperature_in is not None else None)
+            temperature_timeout_s if self._temperature_in is not None else None,
+            joint_check=self.joint_bounds.check, pair_tolerance_s=pair_tolerance_s)
+        self.rate_check = RateCheck(1.0 / self.period)
+        self._settling = 0  # updates left whose results are not published (after drops)
+        self.load = LoadMonitor(self.period, max_backlog_s)
+        self.warnings: list[str] = []
+        self.on_warning = on_warning
         self.clock = clock
         self.on_event = on_event
         self.started = clock()
@@ -195,10 +218,12 @@ class StationCore:
                             self.output("out_of_domain")[0] > 0.5, bool(changed))
 
     # -- samples ------------------------------------------------------------------------------
-    def on_joint_sample(self, sample, arrival: float) -> None:
-        """A joint-state sample (JointSample, None when it failed to decode)."""
-        self.monitor.on_joint(sample, arrival)
+    def on_joint_sample(self, sample, arrival: float, problem=None) -> None:
+        """A joint-state sample (JointSample, None when it failed to decode; `problem`: the
+        transport's (reason, detail) for it, see StreamMonitor.on_joint)."""
+        self.monitor.on_joint(sample, arrival, problem)
         self._note(None)
+        self.load.busy(self.clock() - arrival)
 
     def on_temperature_sample(self, sample, arrival: float) -> None:
         """A temperature sample ``(t s, °C)`` (None when it failed to decode)."""
@@ -214,11 +239,20 @@ class StationCore:
         signal.received += 1
         signal.pending = True
 
-    def on_wrench_sample(self, sample, arrival: float) -> None:
-        """An F/T sample (WrenchSample, None when it failed to decode): checks, one diagram
-        update when fresh, the wrench published when fault-free, the contact state always."""
-        fresh = self.monitor.on_wrench(sample, arrival)
+    def on_wrench_sample(self, sample, arrival: float, problem=None) -> None:
+        """An F/T sample (WrenchSample, None when it failed to decode; `problem`: the
+        transport's (reason, detail) for a message it refused): checks, one diagram update
+        when fresh, the wrench published when fault-free, the contact state always."""
+        accepted = self.monitor.accepted["ft"]
+        timed = problem is None and sample is not None and np.isfinite(sample.t)
+        if timed and self.load.on_ft(sample.t, arrival):  # too far behind: drop the oldest
+            problem = ("overload", self.load.detail())
+            # After the gap the chain's filters settle before anything is judged again.
+            self._settling = max(1, round(SETTLE_AFTER_DROP_S / self.period))
+        fresh = self.monitor.on_wrench(sample, arrival, problem)
         t = sample.t if sample is not None and np.isfinite(sample.t) else self._stream_time()
+        if self.monitor.accepted["ft"] > accepted and self.rate_check.measured_hz is None:
+            self.warn(self.rate_check.on_sample(t))
         if fresh:
             if self._step is not None:
                 self._step_chain()
@@ -230,12 +264,19 @@ class StationCore:
                     {name: self.output(name) for name in self.recorder.ports}, t,
                     self.monitor.joint_state, self.monitor.wrench,
                     self.monitor.temperature if self._temperature_in is not None else None)
-            if self.output("fault")[0] <= 0.5:
+            settling = self._settling > 0
+            self._settling -= settling
+            if self.output("fault")[0] <= 0.5 and not settling:
                 self._publish_wrench(t)
                 self.latencies.append(self.clock() - arrival)
                 self.published += 1
-        self.contact_published += bool(self._publish_contact(t, self.monitor.fault))
+        else:
+            settling = False
+        self.contact_published += bool(self._publish_contact(t, self.monitor.fault or settling))
         self._note(t)
+        self.load.busy(self.clock() - arrival)
+        if fresh:
+            self.load.processed()
 
     def _step_chain(self) -> None:
         """One update of the chain by the ChainStep, from the monitor's held inputs."""
@@ -270,6 +311,27 @@ class StationCore:
                                f"{self.processed} times by the step; call it before the first "
                                "F/T sample")
         self._step = None
+
+    def warn(self, warning: str | None) -> None:
+        """Keeps `warning` (None: nothing) in ``warnings`` and passes it to `on_warning`."""
+        if warning is None:
+            return
+        self.warnings.append(warning)
+        if self.on_warning is not None:
+            self.on_warning(warning)
+
+    def flag_missing(self, stream: str, reason: str, detail: str) -> None:
+        """Faults the inputs because `stream` ("ft", "joint") has no message yet for a cause
+        a transport found outside any message (e.g. a publisher of another type on its
+        topic); said until the stream's first accepted message."""
+        m = self.monitor
+        if m.last_time(stream) is not None or m.missing.get(stream) == (reason, detail):
+            return
+        flagged = {r for r, _ in m.missing.values()}
+        m.missing[stream] = (reason, detail)
+        if m.reason == "no_data" or m.reason in flagged:
+            m.fault, m.reason, m.detail = True, reason, detail
+            self._note(None)
 
     def check_timeouts(self) -> None:
         """Raises the fault when a stream went silent, publishing it at once."""
@@ -331,4 +393,7 @@ class StationCore:
                         for name, signal in self._signals.items()},
             "latency_ms": {"p50": p50 * 1e3, "p99": p99 * 1e3},
             "fault": bool(m.fault), "reason": m.reason,
+            "rate_hz": {"configured": 1.0 / self.period, "measured": self.rate_check.measured_hz},
+            "warnings": list(self.warnings),
+            "load": self.load.summary(),
         }

@@ -13,7 +13,12 @@ message or timeout until the inputs are good again:
 * a rejected joint-state message (wrong joint count, NaN, time going back, ...) faults until
   the next accepted joint-state message *and* then an accepted F/T message: the joint state
   held from before the bad message is stale, so no wrench is computed from it;
-* a silent stream (``check_timeouts``) faults until its next accepted message.
+* a silent stream (``check_timeouts``) faults until its next accepted message;
+* with `pair_tolerance_s` > 0, each F/T sample is paired with a joint state by their stamps:
+  the newest joint state when its stamp is within the tolerance of the wrench's, else the
+  nearest-stamped of the last :data:`JOINT_HISTORY` joint states within it; with none within
+  it the F/T sample faults (``stamp_gap``) and is never judged (a wrench paired with a stale
+  joint state would read as contact). 0 pairs by arrival only (the newest joint state).
 
 ``reason`` names the cause (one of :data:`REASONS`) and ``detail`` says it in words for a
 person ("joint state has 6 joints, expected 7"). While ``fault`` is True the held values are
@@ -35,8 +40,18 @@ from .messages import JointSample, WrenchSample
 #: counts a position or velocity message that never met its partner; it is not a fault by
 #: itself (nothing stale is used; a silent pair stream faults by timeout). ``joint_names``
 #: (joint states by name, ROS 2): a configured joint missing or an unknown one present.
+#: ``degrees`` / ``joint_range``: joint positions radians cannot be (live_checks.JointBounds);
+#: ``wrong_type``: a message of another type on an input channel or topic; ``frame_id``: a
+#: wrench in another frame than the configured sensor frame (ROS 2); ``overload``: an F/T
+#: message dropped because the station is too far behind the stream (overload.LoadMonitor).
+#: ``stamp_gap``: no joint state stamped within the pairing tolerance of an F/T sample;
+#: ``qos``: a publisher on an input topic whose QoS the subscription cannot match (ROS 2).
 REASONS = ("sensor_timeout", "joint_timeout", "temperature_timeout", "out_of_order",
-           "duplicate", "not_finite", "joint_count", "malformed", "unpaired", "joint_names")
+           "duplicate", "not_finite", "joint_count", "malformed", "unpaired", "joint_names",
+           "degrees", "joint_range", "wrong_type", "frame_id", "overload",
+           "stamp_gap", "qos")
+#: Joint states kept to pair an F/T sample with by stamp.
+JOINT_HISTORY = 64
 
 
 class StreamMonitor:
@@ -48,8 +63,13 @@ class StreamMonitor:
     """
 
     def __init__(self, n_joints: int, sensor_timeout_s: float, joint_state_timeout_s: float,
-                 temperature_timeout_s: float | None = None):
+                 temperature_timeout_s: float | None = None, joint_check=None,
+                 pair_tolerance_s: float = 0.0):
         self.n = int(n_joints)
+        self.pair_tolerance_s = float(pair_tolerance_s)
+        self._history = collections.deque(maxlen=JOINT_HISTORY)  # (t, [q; v]) accepted
+        # joint_check(q) → None or (reason, detail): positions radians cannot be (degrees?).
+        self.joint_check = joint_check
         # None: no temperature stream (the model needs none); else its staleness limit, s.
         self.temperature_timeout_s = temperature_timeout_s
         self.temperature = np.nan  # °C, the last accepted
@@ -68,6 +88,9 @@ class StreamMonitor:
         self._last_t = {"ft": None, "joint": None, "temperature": None}
         self._last_arrival = {"ft": None, "joint": None, "temperature": None}
         self._joint_bad = None  # (reason, detail) of a rejected joint message not yet made good
+        # stream → (reason, detail): why it has no message yet, when a transport knows
+        # (another type published on its topic); said instead of "no_data".
+        self.missing: dict[str, tuple[str, str]] = {}
 
     # -- bookkeeping --------------------------------------------------------------------------
     def _reject(self, stream: str, reason: str, detail: str) -> bool:
@@ -110,11 +133,14 @@ class StreamMonitor:
                                 f"({(t - last) * 1e3:.3f} ms)")
 
     # -- messages -----------------------------------------------------------------------------
-    def on_joint(self, sample: JointSample | None, arrival: float) -> bool:
-        """One joint-state message (None if it failed to decode). Returns True if accepted."""
+    def on_joint(self, sample: JointSample | None, arrival: float,
+                 problem: tuple[str, str] | None = None) -> bool:
+        """One joint-state message (None if it failed to decode; `problem`: the transport's
+        (reason, detail) for it). Returns True if accepted."""
         self.received["joint"] += 1
         if sample is None:
-            return self._reject("joint", "malformed", "joint-state message failed to decode")
+            return self._reject("joint", *(problem or (
+                "malformed", "joint-state message failed to decode")))
         nv = None if sample.v is None else len(sample.v)
         if len(sample.q) != self.n or nv != self.n:
             return self._reject("joint", "joint_count", (
@@ -126,7 +152,12 @@ class StreamMonitor:
         bad = self._check_time("joint", sample.t)
         if bad:
             return self._reject("joint", *bad)
+        bad = self.joint_check(sample.q) if self.joint_check is not None else None
+        if bad:
+            return self._reject("joint", *bad)
         self.joint_state[:self.n], self.joint_state[self.n:] = sample.q, sample.v
+        if self.pair_tolerance_s > 0:
+            self._history.append((sample.t, self.joint_state.copy()))
         self._last_t["joint"], self._last_arrival["joint"] = sample.t, arrival
         self.accepted["joint"] += 1
         self._joint_bad = None
@@ -162,12 +193,16 @@ class StreamMonitor:
                 f"message (timeout {self.temperature_timeout_s:g} s)")
         return None
 
-    def on_wrench(self, sample: WrenchSample | None, arrival: float) -> bool:
-        """One F/T message. Returns True if it is accepted *and* the inputs are fault-free,
-        i.e. the compensator may run on it and its result is fresh."""
+    def on_wrench(self, sample: WrenchSample | None, arrival: float,
+                  problem: tuple[str, str] | None = None) -> bool:
+        """One F/T message (None if it failed to decode; `problem`: the transport's (reason,
+        detail) for a message it refused, e.g. another frame_id). Returns True if it is
+        accepted *and* the inputs are fault-free, i.e. the compensator may run on it and its
+        result is fresh."""
         self.received["ft"] += 1
-        if sample is None:
-            return self._reject("ft", "malformed", "F/T message failed to decode")
+        if sample is None or problem is not None:
+            problem = problem or ("malformed", "F/T message failed to decode")
+            return self._reject("ft", *problem)
         if not (np.isfinite(sample.wrench).all() and np.isfinite(sample.t)):
             return self._reject("ft", "not_finite", f"F/T message at {sample.t:.6f} s holds "
                                 "NaN or inf")
@@ -183,19 +218,41 @@ class StreamMonitor:
             self.reason, self.detail = self._joint_bad
             return False
         if joint is None:
-            self.fault, self.reason, self.detail = True, "no_data", "no joint state received yet"
+            self.fault = True
+            self.reason, self.detail = self.missing.get(
+                "joint", ("no_data", "no joint state received yet"))
             return False
         if arrival - joint > self.joint_state_timeout_s:
             self.fault, self.reason = True, "joint_timeout"
             self.detail = (f"last joint state arrived {(arrival - joint) * 1e3:.1f} ms before "
                            f"this F/T message (timeout {self.joint_state_timeout_s * 1e3:g} ms)")
             return False
-        problem = self._temperature_problem(arrival)
+        problem = self._temperature_problem(arrival) or self._pair(sample.t)
         if problem is not None:
             self.fault, (self.reason, self.detail) = True, problem
             return False
         self.fault, self.reason, self.detail = False, "", ""
         return True
+
+    def _pair(self, t: float) -> tuple[str, str] | None:
+        """Puts into ``joint_state`` the joint state paired with an F/T sample stamped `t`
+        (see the module); (reason, detail) when none is within the tolerance."""
+        tol = self.pair_tolerance_s
+        if tol <= 0 or not self._history:
+            return None
+        newest_t, newest = self._history[-1]
+        if abs(newest_t - t) <= tol:
+            self.joint_state[:] = newest
+            return None
+        nearest_t, nearest = min(self._history, key=lambda item: abs(item[0] - t))
+        if abs(nearest_t - t) <= tol:
+            self.joint_state[:] = nearest
+            return None
+        return "stamp_gap", (
+            f"no joint state stamped within {tol * 1e3:g} ms of the F/T sample at {t:.6f} s "
+            f"(the nearest of the last {len(self._history)} is {(nearest_t - t) * 1e3:+.1f} ms "
+            "away): the wrench is not judged. Fix: the drivers' clocks or stamps, or "
+            "pair_tolerance_s")
 
     def check_timeouts(self, now: float) -> bool:
         """Call periodically (same clock as the arrivals, s). Raises the fault when a stream

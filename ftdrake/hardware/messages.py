@@ -54,6 +54,13 @@ PAYLOAD_COORD = "payload_changed"
 CONTACT_COORDS = tuple(o.lcm_field for o in CHAIN_OUTPUTS if o.lcm_channel == "CONTACT_STATE")
 #: The message before it carried ``payload_change``; still decoded (the flag then False).
 CONTACT_COORDS_V1 = ("contact", "contact_force", "fault", "out_of_domain")
+#: Names of the values in the station's status message (:func:`encode_status`, on
+#: ``HardwareConfig.status_channel``): the fault flag and its reason (the index in
+#: ``live_inputs.REASONS`` + 1; 0 without a fault, -1 for "no_data"), the overload flag, the
+#: F/T input rate and the rate the station sustains (Hz), how far behind the stream it is
+#: (ms), F/T messages lost (stamp gaps) and dropped (overload), processed and published.
+STATUS_COORDS = ("fault", "reason", "overload", "input_hz", "sustained_hz", "backlog_ms",
+                 "lost_ft", "dropped_ft", "processed", "published")
 #: Names of the values in the payload message (:func:`encode_payload`): its log columns.
 PAYLOAD_COORDS = OUTPUTS["payload"].columns
 
@@ -183,6 +190,26 @@ def decode_payload(data: bytes) -> tuple[float, np.ndarray]:
     if tuple(msg.coord) != PAYLOAD_COORDS:
         raise ValueError(f"not a payload signal: coord {list(msg.coord)}")
     return msg.timestamp * 1e-6, np.array(msg.val, dtype=float)
+
+
+def encode_status(t: float, values: dict) -> bytes:
+    """``lcmt_drake_signal`` bytes of the station's status at t (s): `values` by
+    ``STATUS_COORDS`` (a missing or None value is sent as NaN)."""
+    msg = lcmt_drake_signal()
+    msg.timestamp = _utime(t)
+    msg.dim = len(STATUS_COORDS)
+    msg.coord = list(STATUS_COORDS)
+    msg.val = [float("nan") if values.get(k) is None else float(values[k])
+               for k in STATUS_COORDS]
+    return msg.encode()
+
+
+def decode_status(data: bytes) -> tuple[float, dict]:
+    """(t s, {name: value}) of :func:`encode_status`; ValueError for another signal."""
+    msg = lcmt_drake_signal.decode(data)
+    if tuple(msg.coord) != STATUS_COORDS:
+        raise ValueError(f"not a status signal: coord {list(msg.coord)}")
+    return msg.timestamp * 1e-6, dict(zip(STATUS_COORDS, msg.val, strict=True))
 
 
 def encode_temperature(t: float, celsius: float) -> bytes:

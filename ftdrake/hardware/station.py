@@ -46,9 +46,10 @@ import numpy as np
 from ..config import ChainConfig
 from ..conventions import OUTPUTS, PUBLISHED
 from ..errors import ConfigError
-from .config import HardwareConfig
+from .config import JOINT_STATE_TYPES, HardwareConfig
 from .core import FaultEvent, StationCore  # noqa: F401 (FaultEvent: its home before core)
-from .live_inputs import RobotStatePairer
+from .live_checks import check_joint_count, lcm_decode_problem, lcm_type_found
+from .live_inputs import REASONS, RobotStatePairer
 from .messages import (
     PAYLOAD_COORD,
     TARE_COORD,
@@ -59,6 +60,7 @@ from .messages import (
     encode_contact_state,
     encode_joint_state,
     encode_payload,
+    encode_status,
     encode_wrench,
 )
 from .transport import open_lcm
@@ -71,12 +73,18 @@ class HardwareStation(StationCore):
     detector, sensor-stream and robot settings (the stream's rate sets the update period;
     the tracker reads its drift). `lcm`: an LCM URL, an
     ``lcm.LCM``, a ``DrakeLcm`` or a transport (default: ``config.lcm_url``). `clock` gives
-    arrival times in s (monotonic). `on_event(FaultEvent)` is called on every fault change.
+    arrival times in s (monotonic). `on_event(FaultEvent)` is called on every fault change,
+    `on_warning(str)` on every warning. A message that does not decode as the configured type
+    faults the inputs with ``wrong_type``, naming the channel, the type found and the one
+    expected; ``config.n_joints`` other than the model's is a ConfigError naming the key.
     """
 
     def __init__(self, config: HardwareConfig, model, chain: ChainConfig | None = None,
-                 lcm=None, *, clock=time.monotonic, on_event=None, max_events: int = 10_000):
+                 lcm=None, *, clock=time.monotonic, on_event=None, max_events: int = 10_000,
+                 on_warning=None):
         self.config = config.validate()
+        check_joint_count(model, config.n_joints, "lcm.n_joints",
+                          "the robot's joint count (the model's joints, in its order)")
         self.lcm = open_lcm(lcm if lcm is not None else config.lcm_url)
         self._coords = {name: coord for name, coord, channel in self._event_channels()
                         if channel}
@@ -84,8 +92,13 @@ class HardwareStation(StationCore):
                          sensor_timeout_s=config.sensor_timeout_s,
                          joint_state_timeout_s=config.joint_state_timeout_s,
                          temperature_timeout_s=config.temperature_timeout_s,
-                         events=tuple(self._coords), clock=clock, on_event=on_event,
-                         max_events=max_events)
+                         events=tuple(self._coords), clock=clock,
+                         on_event=self._on_fault_change, max_events=max_events,
+                         on_warning=on_warning, max_backlog_s=config.max_backlog_s,
+                         pair_tolerance_s=config.pair_tolerance_s)
+        self._user_on_event = on_event
+        self.status_published = 0
+        self._last_status = self.clock()
         # The published outputs (conventions.PUBLISHED) with an LCM message of their own; the
         # others are values of the contact state (_publish_contact).
         self._own_channel = [port for port in PUBLISHED if self.has_output(port)
@@ -122,14 +135,29 @@ class HardwareStation(StationCore):
     # -- message callbacks ------------------------------------------------------------------
     def _on_joint(self, data: bytes):
         arrival = self.clock()
-        self.on_joint_sample(_decoded(decode_joint_state, self.config.joint_state_type, data),
-                             arrival)
+        sample = _decoded(decode_joint_state, self.config.joint_state_type, data)
+        self.on_joint_sample(sample, arrival, None if sample is not None else self._joint_problem(
+            self.config.joint_state_channel, "joint_state_channel", data))
+
+    def _joint_problem(self, channel: str, key: str, data: bytes):
+        """(reason, detail) of a joint-state message that did not decode (see live_checks);
+        another joint-state type than the configured one names lcm.joint_state_type."""
+        kind = self.config.joint_state_type
+        reason, detail = lcm_decode_problem("joint-state", channel, f"drake.lcmt_{kind}",
+                                            f"lcm.{key}", data)
+        found = lcm_type_found(data)
+        other = found[len("drake.lcmt_"):] if found else None
+        if reason == "wrong_type" and other in JOINT_STATE_TYPES:
+            detail += f" (or, if it is this robot's, set lcm.joint_state_type: {other})"
+        return reason, detail
 
     def _on_half(self, half: str, data: bytes):
         arrival = self.clock()
         sample = _decoded(decode_joint_state, "robot_state", data)
         if sample is None:
-            self.on_joint_sample(None, arrival)
+            key = "joint_state_channel" if half == "q" else "velocity_channel"
+            self.on_joint_sample(None, arrival, self._joint_problem(
+                getattr(self.config, key), key, data))
             return
         joined = self._pairer.add(half, sample)
         for detail in self._pairer.dropped:
@@ -152,7 +180,13 @@ class HardwareStation(StationCore):
 
     def _on_wrench(self, data: bytes):
         arrival = self.clock()
-        self.on_wrench_sample(_decoded(decode_wrench, data), arrival)
+        sample = _decoded(decode_wrench, data)
+        if sample is None:
+            self.on_wrench_sample(None, arrival, lcm_decode_problem(
+                "F/T", self.config.ft_channel, "drake.lcmt_force_torque", "lcm.ft_channel",
+                data))
+            return
+        self.on_wrench_sample(sample, arrival)
 
     def _publish_wrench(self, t: float) -> None:
         """The published outputs of their own channel (wrenches, the payload) the chain has."""
@@ -166,13 +200,39 @@ class HardwareStation(StationCore):
                          encode_contact_state(self.contact_state(t, fault)))
         return True
 
+    def _on_fault_change(self, event) -> None:
+        self.publish_status()
+        if self._user_on_event is not None:
+            self._user_on_event(event)
+
+    def status(self) -> dict:
+        """The values of the status message now (messages.STATUS_COORDS)."""
+        m, load = self.monitor, self.load
+        reason = (0 if not m.fault else -1 if m.reason not in REASONS
+                  else REASONS.index(m.reason) + 1)
+        return {"fault": m.fault, "reason": reason, "overload": load.overloaded,
+                "input_hz": load.input_hz, "sustained_hz": load.sustained_hz,
+                "backlog_ms": load.backlog_s * 1e3, "lost_ft": load.lost,
+                "dropped_ft": load.dropped, "processed": self.processed,
+                "published": self.published}
+
+    def publish_status(self) -> None:
+        """Publishes the status message now, stamped on the streams' clock."""
+        self.lcm.publish(self.config.status_channel,
+                         encode_status(self._stream_time(), self.status()))
+        self.status_published += 1
+
     # -- running ------------------------------------------------------------------------------
     def spin_once(self, timeout_ms: int = 1) -> int:
         """Handles pending messages (waiting up to `timeout_ms` for one), then checks the
-        timeouts, publishing the fault at once when a stream went silent. Returns the number
-        of messages handled."""
+        timeouts, publishing the fault at once when a stream went silent, and publishes the
+        periodic status. Returns the number of messages handled."""
         handled = self.lcm.handle(timeout_ms)
         self.check_timeouts()
+        now = self.clock()
+        if now - self._last_status >= self.config.status_period_s:
+            self._last_status = now
+            self.publish_status()
         return handled
 
 

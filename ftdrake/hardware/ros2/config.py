@@ -35,6 +35,9 @@ class Ros2Config:
         ``joint_count`` with the names in the detail. Velocities are required.
       `wrench_topic`: ``geometry_msgs/msg/WrenchStamped`` (N, N·m) in the sensor frame, as
         ``force_torque_sensor_broadcaster`` publishes it; each message runs the chain once.
+      `wrench_frame_id`: the sensor frame the model compensates readings in (the
+        broadcaster's ``frame_id``); a wrench with another ``header.frame_id`` faults the
+        inputs (``frame_id``, naming both). "" (the default) accepts any.
       `temperature_topic` (only for a model trained with the sensor temperature):
         ``sensor_msgs/msg/Temperature`` (°C).
       `tare_topic`, `payload_topic` (optional, for ``chain.bias_tracker``):
@@ -58,6 +61,15 @@ class Ros2Config:
       payload_change, message rates, counts).
     `queue_depth`: samples a subscription (and each of ftdrake's writers) keeps while the
       station lags (1 s at 1 kHz); a lag beyond it loses the oldest.
+    `max_backlog_s`: behind the wrench stream by more than this (s), the station drops the
+      oldest wrenches (not run through the chain) until it has caught up, faulting the inputs
+      as ``overload`` with the input rate and the rate it sustains
+      (:mod:`ftdrake.hardware.overload`); the diagnostics carry ``lost_ft``, ``dropped_ft``,
+      ``backlog_ms`` and ``sustained_hz``.
+    `pair_tolerance_s`: each wrench is paired with the joint state whose ``header.stamp`` is
+      within this (s) of its own: the newest when it is, else the nearest of the last 64; none
+      within it faults the inputs (``stamp_gap``) and the wrench is not judged. 0 pairs by
+      arrival only (the newest joint state).
     `reorder_window_s`: 0 hands messages to the station as they arrive (lowest latency, as
       on LCM); > 0 holds them that long and hands them over in publication order, so a joint
       state retransmitted after a lost datagram still precedes the wrench published after it
@@ -72,6 +84,7 @@ class Ros2Config:
     joint_state_qos: str = "reliable"
     wrench_topic: str = "/force_torque_sensor_broadcaster/wrench"
     wrench_qos: str = "reliable"
+    wrench_frame_id: str = ""
     temperature_topic: str = ""
     temperature_timeout_s: float = 1.0
     tare_topic: str = ""
@@ -82,6 +95,8 @@ class Ros2Config:
     sensor_timeout_s: float = 0.005
     joint_state_timeout_s: float = 0.02
     queue_depth: int = 1000
+    max_backlog_s: float = 0.5
+    pair_tolerance_s: float = 0.005
     reorder_window_s: float = 0.0
     domain_id: int = 0
     dds_config: str = "loopback"
@@ -99,6 +114,9 @@ class Ros2Config:
         self._check_joint_names(where)
         self._check_topics(where)
         self._check_numbers(where)
+        if not isinstance(self.wrench_frame_id, str):
+            raise ConfigError(f"{where}.wrench_frame_id: the sensor frame's name (a string; "
+                              f"'' accepts any), got {self.wrench_frame_id!r}")
         if not (isinstance(self.dds_config, str) and self.dds_config):
             raise ConfigError(f"{where}.dds_config: 'loopback', 'environment', Cyclone XML "
                               "or a file:// URL")
@@ -135,7 +153,7 @@ class Ros2Config:
 
     def _check_numbers(self, where: str) -> None:
         for field in ("sensor_timeout_s", "joint_state_timeout_s", "temperature_timeout_s",
-                      "diagnostics_period_s"):
+                      "diagnostics_period_s", "max_backlog_s"):
             value = getattr(self, field)
             if not (isinstance(value, (int, float)) and value > 0 and math.isfinite(value)):
                 raise ConfigError(f"{where}.{field}: must be a positive number of seconds, "
@@ -144,6 +162,10 @@ class Ros2Config:
                 0 <= self.reorder_window_s < 1):
             raise ConfigError(f"{where}.reorder_window_s: seconds in [0, 1), got "
                               f"{self.reorder_window_s!r}")
+        if not (isinstance(self.pair_tolerance_s, (int, float)) and self.pair_tolerance_s >= 0
+                and math.isfinite(self.pair_tolerance_s)):
+            raise ConfigError(f"{where}.pair_tolerance_s: seconds ≥ 0 (0: pair by arrival), "
+                              f"got {self.pair_tolerance_s!r}")
         if not (isinstance(self.queue_depth, int) and self.queue_depth >= 1):
             raise ConfigError(f"{where}.queue_depth: must be a positive integer, got "
                               f"{self.queue_depth!r}")

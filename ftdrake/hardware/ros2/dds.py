@@ -23,8 +23,11 @@ Topic and type names follow ROS 2's mapping onto DDS (ros2/design, "Topic and Se
 mapping to DDS"): the ROS topic ``/joint_states`` is the DDS topic ``rt/joint_states``, the
 type ``sensor_msgs/msg/JointState`` is ``sensor_msgs::msg::dds_::JointState_``
 (:mod:`.messages`). QoS profiles (:data:`QOS_PROFILES`): ``reliable`` is rclcpp's default
-(reliable, volatile, keep last `depth`), ``sensor_data`` its ``SensorDataQoS`` (best effort,
-keep last 5). Writers use plain CDR (XCDR1), ROS 2's encoding.
+(reliable, volatile, keep last `depth`; what ros2_control's broadcasters publish with,
+``SystemDefaultsQoS``), ``sensor_data`` its ``SensorDataQoS`` (best effort, keep last 5 for a
+writer). A reader keeps `depth` samples in either profile: its history is its own (QoS
+matching does not look at it), and keep-last-5 would lose samples at 1 kHz whenever a spin
+comes more than 5 ms after the last. Writers use plain CDR (XCDR1), ROS 2's encoding.
 
 :class:`Ros2Node` delivers the messages of all its subscriptions in the order they were
 published, across topics: :meth:`Ros2Node.spin` waits on a DDS WaitSet (without holding
@@ -128,7 +131,8 @@ def qos(profile: str, depth: int = 10, *, writer: bool = False):
         policies = [Policy.Reliability.Reliable(max_blocking_time=duration(milliseconds=100)),
                     Policy.History.KeepLast(depth)]
     elif profile == "sensor_data":
-        policies = [Policy.Reliability.BestEffort, Policy.History.KeepLast(5)]
+        policies = [Policy.Reliability.BestEffort,
+                    Policy.History.KeepLast(5 if writer else depth)]
     else:
         raise ConfigError(f"QoS profile {profile!r} is not one of {', '.join(QOS_PROFILES)}")
     policies.append(Policy.Durability.Volatile)
@@ -161,6 +165,7 @@ class Ros2Node:
         self._waitset = WaitSet(self.participant)
         self._topics: dict[str, object] = {}
         self._readers, self._writers, self._conditions, self._handlers = [], [], [], []
+        self._builtin: list = []
 
     def _topic(self, name: str, msgtype: str):
         from cyclonedds.topic import Topic  # noqa: PLC0415 (cyclonedds only for ROS 2)
@@ -253,6 +258,41 @@ class Ros2Node:
             handler(sample, self.clock())
         return len(due)
 
+    def publications(self):
+        """A function returning the (DDS topic, DDS type name) of every publication DDS
+        discovery knows now (other participants' writers, this node's too), e.g.
+        ``("rt/joint_states", "sensor_msgs::msg::dds_::JointState_")``."""
+        from cyclonedds.builtin import (  # noqa: PLC0415 (cyclonedds only for ROS 2)
+            BuiltinDataReader,
+            BuiltinTopicDcpsPublication,
+        )
+        from cyclonedds.core import InstanceState  # noqa: PLC0415 (as above)
+
+        reader = BuiltinDataReader(self.participant, BuiltinTopicDcpsPublication)
+        self._builtin.append(reader)  # not in matched(): it matches no topic of ours
+        known: dict = {}
+
+        def publications() -> list[tuple[str, str]]:
+            while samples := reader.take(N=100):
+                for sample in samples:
+                    key = getattr(sample, "key", None)
+                    if sample.sample_info.instance_state != InstanceState.Alive:
+                        known.pop(key, None)
+                    elif getattr(sample, "topic_name", None) is not None:
+                        known[key] = (sample.topic_name, sample.type_name)
+            return list(known.values())
+
+        return publications
+
+    def incompatible_qos(self) -> dict[str, int]:
+        """Per DDS topic of a subscription: how many publishers DDS found whose QoS it could
+        not match (e.g. a best-effort publisher for a reliable subscription)."""
+        counts = {}
+        for reader in self._readers:
+            status = reader.get_requested_incompatible_qos_status()
+            counts[reader.topic.name] = counts.get(reader.topic.name, 0) + status.total_count
+        return counts
+
     def matched(self) -> dict[str, int]:
         """Matched remote endpoints per DDS topic: writers' readers and readers' writers."""
         counts = {}
@@ -284,7 +324,8 @@ class Ros2Node:
             return
         self.participant.__del__()  # Entity's own deletion (dds_delete); idempotent after
         self.participant = self._waitset = None
-        for entities in (self._readers, self._writers, self._conditions, self._handlers):
+        for entities in (self._readers, self._writers, self._conditions, self._handlers,
+                         self._builtin):
             entities.clear()
         self._topics.clear()
 

@@ -39,19 +39,29 @@ import numpy as np
 from ...config import ChainConfig
 from ...errors import ConfigError
 from ..core import StationCore
+from ..live_checks import check_joint_count, joint_names_problem, ros2_type_name
 from ..messages import JointSample, WrenchSample
 from .config import OUTPUTS, Ros2Config
-from .dds import Ros2Node
+from .dds import Ros2Node, dds_topic
 from .messages import from_stamp, header, ros2_type, wrench_of, wrench_stamped
 
 #: ``diagnostic_msgs/msg/DiagnosticStatus`` levels.
 OK, WARN, ERROR = 0, 1, 2
 #: The DiagnosticStatus name ftdrake publishes.
 DIAGNOSTIC_NAME = "ftdrake: F/T compensation"
+_TYPE_CHECK_PERIOD_S = 0.2  # DDS discovery is asked this often while an input is silent
 _MIN_PAYLOAD_KG = 1e-3  # below this the payload's centre of mass is not published (0)
 #: The outputs published as WrenchStamped (with the input's frame_id and stamp).
 WRENCH_TOPICS = tuple(name for name, msgtype in OUTPUTS.items()
                       if msgtype == "geometry_msgs/msg/WrenchStamped")
+
+
+def _load_values(load) -> dict:
+    """The LoadMonitor's counts and rates as diagnostic values."""
+    rate = {k: "" if v is None else f"{v:.1f}" for k, v in (
+        ("input_hz", load.input_hz), ("sustained_hz", load.sustained_hz))}
+    return {"overload": load.overloaded, "lost_ft": load.lost, "dropped_ft": load.dropped,
+            "backlog_ms": f"{load.backlog_s * 1e3:.1f}", **rate}
 
 
 class Ros2Station(StationCore):
@@ -66,16 +76,25 @@ class Ros2Station(StationCore):
 
     def __init__(self, config: Ros2Config, model, chain: ChainConfig | None = None,
                  node: Ros2Node | None = None, *, clock=time.monotonic, on_event=None,
-                 max_events: int = 10_000):
+                 max_events: int = 10_000, on_warning=None):
         self.config = c = config.validate()
         events = tuple(name for name, topic in (("tared", c.tare_topic),
                                                 ("payload_changed", c.payload_topic)) if topic)
-        self._user_on_event = on_event
+        self._user_on_event, self._user_on_warning = on_event, on_warning
+        check_joint_count(model, c.n_joints, "ros2.joint_names",
+                          f"the model's {getattr(model, 'n_joints_', '')} joint names, in "
+                          "the model's order")
+        names = joint_names_problem(model, c.joint_names)
+        if names is not None and names[1]:
+            raise ConfigError(names[0])
+        self._diagnostics = None  # the writer, once the node exists
         super().__init__(model, chain, n_joints=c.n_joints,
                          sensor_timeout_s=c.sensor_timeout_s,
                          joint_state_timeout_s=c.joint_state_timeout_s,
                          temperature_timeout_s=c.temperature_timeout_s, events=events,
-                         clock=clock, on_event=self._on_fault_change, max_events=max_events)
+                         clock=clock, on_event=self._on_fault_change, max_events=max_events,
+                         on_warning=self._on_warning, joint_names=c.joint_names,
+                         max_backlog_s=c.max_backlog_s, pair_tolerance_s=c.pair_tolerance_s)
         self.node = node if node is not None else Ros2Node(
             c.domain_id, c.dds_config, clock=clock, reorder_window_s=c.reorder_window_s)
         self._index = {name: k for k, name in enumerate(c.joint_names)}
@@ -112,6 +131,15 @@ class Ros2Station(StationCore):
         self._last_diagnostics = self.clock()
         self._last_received = dict(self.monitor.received)
         self.rates_hz: dict[str, float] = {}
+        # DDS discovery's publications, to name another type published on an input topic.
+        self._inputs = {dds_topic(c.joint_state_topic): ("joint", "sensor_msgs/msg/JointState",
+                                                         "joint_state_topic"),
+                        dds_topic(c.wrench_topic): ("ft", "geometry_msgs/msg/WrenchStamped",
+                                                    "wrench_topic")}
+        self._publications = self.node.publications()
+        self._last_type_check = -np.inf
+        if names is not None:
+            self.warn(names[0])
 
     def _check_sources(self, chain) -> None:
         c = self.config
@@ -162,8 +190,14 @@ class Ros2Station(StationCore):
 
     def _on_wrench(self, msg, arrival: float) -> None:
         self._header = msg.header
+        frame, want = msg.header.frame_id, self.config.wrench_frame_id
+        problem = None if not want or frame == want else ("frame_id", (
+            f"wrench frame_id {frame!r} is not ros2.wrench_frame_id {want!r}: the model "
+            f"compensates readings in {want!r}. Fix: publish the sensor's own frame (the "
+            "broadcaster's frame_id parameter), or set ros2.wrench_frame_id to the frame "
+            "the model was trained in ('' accepts any)"))
         self.on_wrench_sample(WrenchSample(from_stamp(msg.header.stamp),
-                                           np.array(wrench_of(msg), float)), arrival)
+                                           np.array(wrench_of(msg), float)), arrival, problem)
 
     def _on_temperature(self, msg, arrival: float) -> None:
         self.on_temperature_sample((from_stamp(msg.header.stamp), msg.temperature), arrival)
@@ -199,6 +233,39 @@ class Ros2Station(StationCore):
         if self._user_on_event is not None:
             self._user_on_event(event)
 
+    def _on_warning(self, warning: str) -> None:
+        if self._diagnostics is not None:
+            self.publish_diagnostics()
+        if self._user_on_warning is not None:
+            self._user_on_warning(warning)
+
+    def check_input_types(self) -> None:
+        """Faults the inputs when a stream has no message yet and DDS discovery shows a
+        publisher of another type on its topic (``wrong_type``, naming both types) or one
+        whose QoS its subscription cannot match (``qos``, naming the key)."""
+        for (topic, dds_type) in self._publications():
+            stream, expected, key = self._inputs.get(topic, (None, None, None))
+            found = ros2_type_name(dds_type)
+            if stream is None or found == expected:
+                continue
+            ros_topic = "/" + topic[len("rt/"):]
+            self.flag_missing(stream, "wrong_type", (
+                f"{ros_topic} carries {found} (a publisher found by DDS discovery), ftdrake "
+                f"reads {expected} there. Fix: publish {expected} on {ros_topic}, or set "
+                f"ros2.{key} to the topic that carries it"))
+        for topic, count in self.node.incompatible_qos().items():
+            stream, _, key = self._inputs.get(topic, (None, None, None))
+            if stream is None or not count or stream in self.monitor.missing:
+                continue
+            field = key.replace("_topic", "_qos")
+            have = getattr(self.config, field)
+            other = "sensor_data" if have == "reliable" else "reliable"
+            ros_topic = "/" + topic[len("rt/"):]
+            self.flag_missing(stream, "qos", (
+                f"a publisher on {ros_topic} offers a QoS that ros2.{field} {have!r} cannot "
+                "match (a best-effort publisher never matches a reliable subscription). "
+                f"Fix: set ros2.{field}: {other}"))
+
     def diagnostic_status(self):
         """The DiagnosticStatus of now (see Ros2Config: level, message, key values)."""
         m, types = self.monitor, self._types
@@ -210,6 +277,8 @@ class Ros2Station(StationCore):
                        else "fault: the compensator's inputs hold NaN or inf")
         elif out_of_domain:
             level, message = WARN, "joint state outside the model's training range"
+        elif self.warnings:
+            level, message = WARN, self.warnings[-1]
         else:
             level, message = OK, "ok"
         p50, p99 = self.latency_percentiles()
@@ -221,6 +290,7 @@ class Ros2Station(StationCore):
                   **{f"received_{k}": v for k, v in m.received.items()},
                   **{f"rejected_{k}": v for k, v in m.rejected.items()},
                   "processed": self.processed, "published": self.published,
+                  **_load_values(self.load),
                   "latency_p50_ms": f"{p50 * 1e3:.3f}", "latency_p99_ms": f"{p99 * 1e3:.3f}"}
         return types["status"](
             level=level, name=DIAGNOSTIC_NAME, message=message,
@@ -246,6 +316,10 @@ class Ros2Station(StationCore):
         handled = self.node.spin(timeout_ms)
         self.check_timeouts()
         now = self.clock()
+        if (self.monitor.last_time("ft") is None or self.monitor.last_time("joint") is None) \
+                and now - self._last_type_check >= _TYPE_CHECK_PERIOD_S:
+            self._last_type_check = now
+            self.check_input_types()
         if now - self._last_diagnostics >= self.config.diagnostics_period_s:
             received = self.monitor.received
             dt = now - self._last_diagnostics

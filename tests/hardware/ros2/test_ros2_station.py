@@ -23,7 +23,7 @@ from ftdrake.hardware.ros2.messages import (
     wrench_of,
     wrench_stamped,
 )
-from ftdrake.hardware.ros2.station import ERROR, OK, Ros2Station
+from ftdrake.hardware.ros2.station import ERROR, OK, WARN, Ros2Station
 
 N = 7
 NAMES = [f"arm_joint_{k + 1}" for k in range(N)]
@@ -213,15 +213,18 @@ def test_silence_is_published_at_once(rig):
 
 def test_periodic_diagnostics_carry_rates(rig):
     n = len(rig.got["diagnostics"])
-    rig.step(1.0)  # the station started at 0: the periodic diagnostics are due
-    assert len(rig.got["diagnostics"]) == n + 1
+    # The stamps' first second closes: 6 F/T messages in 1 s, far from chain.sensor.rate_hz
+    # (1 kHz): a warning (published at once), then the periodic diagnostics are due.
+    rig.step(1.0)
+    assert len(rig.got["diagnostics"]) == n + 2
     assert rig.last_status()[1]["rate_ft_hz"] == "6.0"  # 6 F/T messages in 1 s
     rig.step(1.5)
-    assert len(rig.got["diagnostics"]) == n + 1
-    rig.step(2.0)
     assert len(rig.got["diagnostics"]) == n + 2
+    rig.step(2.0)
+    assert len(rig.got["diagnostics"]) == n + 3
     status, values = rig.last_status()
-    assert status.level == OK and values["rate_ft_hz"] == values["rate_joint_hz"] == "2.0"
+    assert status.level == WARN and "chain.sensor.rate_hz is 1000 Hz" in status.message
+    assert values["rate_ft_hz"] == values["rate_joint_hz"] == "2.0"
     assert values["processed"] == values["published"] == values["received_ft"] == "8"
 
 

@@ -1,0 +1,346 @@
+"""Live at the sensor's rate: ``ftdrake serve`` in its own process fed by a driver (this
+process) over loopback, at each rate of `--rates`, with the physics and the hybrid model, on
+a free-motion log.
+
+The models are trained as ``ftdrake train`` trains them (``make_estimator``) on `--train-s`
+s of simulated free motion on ftdrake's arm; a second free-motion simulation, resampled at
+each rate, is what the driver sends: a joint state and a wrench per sample, stamped k/rate,
+paced by the wall clock (at rates ≥ `--burst-at`, in batches of `--burst` samples, as
+SCHUNK's driver sends 16-sample batches). serve runs the live chain (compensator, bias
+tracker, detector; ``chain.sensor.rate_hz`` = the rate) on ROS 2 (Cyclone DDS on a
+loopback-only domain) or LCM (``udpm://239.255.76.67:<port>?ttl=0``: multicast that does not
+leave the host). Per rate and model:
+
+* sent (wrenches), received / processed / published (serve's summary), lost = sent −
+  processed, dropped (serve's overload drops) and lost by stamps (serve's),
+* cpu_us_per_msg: serve's process CPU time (user + system, /proc) over the timed messages
+  (after `--warmup` s) divided by their count; the ratio to the compensator's own
+  per-sample cost (its row predictor, timed in this process on the same rows),
+* serve p50/p99 (arrival → publication, serve's own), end-to-end p50/p99/p99.9 (this
+  process's write of a wrench → its receipt of serve's contact wrench),
+* false_contacts: contact episodes (rising edges of the published contact flag) on the
+  free-motion log.
+
+The machine's 1-minute load average before and after each run is printed: on a shared
+machine the rates a run sustains depend on what else runs. The last line is one JSON object
+``{"<rate>": {"<model>": {"sent", "received", "processed", "published", "lost",
+"cpu_us_per_msg", "p99_ms", "false_contacts", ...}}}``.
+
+    python benchmarks/live_rate.py [--transport ros2|lcm] [--rates 500,1000,2000,4000]
+                                   [--seconds 60] [--models physics,hybrid]
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import signal
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+from ftdrake import RobotOptions, ScenarioConfig, make_estimator, save_model
+from ftdrake.conventions import (
+    MEASURED,
+    QD,
+    QDD,
+    WRENCH_AXES,
+    WRENCH_UNITS,
+    Q,
+    joint_columns,
+    wrench_columns,
+)
+from ftdrake.sim.simulate import simulate
+from ftdrake.sim.station import build_station
+
+DOMAIN = 170 + os.getpid() % 30
+N = 7
+
+
+def free_motion(seconds: float, seed: int):
+    """(t, X [q, q̇, q̈], wrench) of `seconds` of simulated free motion on ftdrake's arm."""
+    scenario = ScenarioConfig()
+    scenario.trajectory.kind = "fourier"
+    scenario.trajectory.duration_s = seconds
+    scenario.trajectory.seed = seed
+    station = build_station(scenario)
+    log = simulate(station, progress=False).log
+    X = log[[*joint_columns(Q, N), *joint_columns(QD, N), *joint_columns(QDD, N)]].to_numpy()
+    return log["t"].to_numpy(), X, log[wrench_columns(MEASURED)].to_numpy(), station
+
+
+def resampled(t, X, W, rate: float, count: int):
+    """q, q̇ (n) and the wrench at k/rate, k = 1..count, linearly interpolated (the log
+    repeated when it is shorter)."""
+    span = t[-1] - t[0]
+    times = (np.arange(1, count + 1) / rate) % span + t[0]
+    q = np.column_stack([np.interp(times, t, X[:, j]) for j in range(N)])
+    v = np.column_stack([np.interp(times, t, X[:, N + j]) for j in range(N)])
+    w = np.column_stack([np.interp(times, t, W[:, j]) for j in range(6)])
+    return q, v, w
+
+
+def cpu_s(pid: int) -> float:
+    """User + system CPU time (s) of process `pid` so far (Linux /proc)."""
+    fields = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()
+    return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
+
+
+def compensator_us(model, X) -> float:
+    """The model's row predictor's cost per sample (µs), median of 5 runs over 2000 rows."""
+    predict = model.row_predictor()
+    rows = [np.ascontiguousarray(r) for r in X[:2000]]
+    for r in rows[:200]:
+        predict(r)
+    runs = []
+    for _ in range(5):
+        start = time.perf_counter()
+        for r in rows:
+            predict(r)
+        runs.append((time.perf_counter() - start) / len(rows) * 1e6)
+    return float(np.median(runs))
+
+
+class Ros2Driver:
+    """Writes the joint states and wrenches on DDS; collects serve's contact wrenches and
+    contact flags."""
+
+    def __init__(self, names):
+        from ftdrake.hardware.ros2.config import Ros2Config
+        from ftdrake.hardware.ros2.dds import Ros2Node
+        from ftdrake.hardware.ros2.messages import from_stamp, header, ros2_type, wrench_stamped
+
+        self.config = Ros2Config(joint_names=list(names), domain_id=DOMAIN,
+                                 queue_depth=20_000).validate()
+        self.node = Ros2Node(DOMAIN)
+        self.header, self.wrench_stamped = header, wrench_stamped
+        self.JointState = ros2_type("sensor_msgs/msg/JointState")
+        self.names = list(names)
+        self.back, self.contacts = {}, []
+        self.joints = self.node.publisher(self.config.joint_state_topic,
+                                          "sensor_msgs/msg/JointState", depth=20_000)
+        self.wrenches = self.node.publisher(self.config.wrench_topic,
+                                            "geometry_msgs/msg/WrenchStamped", depth=20_000)
+        self.node.subscribe(self.config.output_topic("wrench_contact"),
+                            "geometry_msgs/msg/WrenchStamped",
+                            lambda m, _arrival: self.back.setdefault(
+                                round(from_stamp(m.header.stamp) * 1e6), time.monotonic()),
+                            depth=200_000)
+        self.node.subscribe(self.config.output_topic("contact"), "std_msgs/msg/Bool",
+                            lambda m, _a: self.contacts.append(bool(m.data)), depth=200_000)
+        self.flags = ["--ros2"]
+
+    def live_section(self) -> dict:
+        return {"ros2": {"joint_names": self.names, "domain_id": DOMAIN, "queue_depth": 20_000,
+                         "sensor_timeout_s": 0.5, "joint_state_timeout_s": 0.5}}
+
+    def ready(self) -> bool:
+        return all(self.node.matched().values()) and len(self.node.matched()) >= 4
+
+    def send(self, t, q, v, w) -> None:
+        self.joints.write(self.JointState(header=self.header(t), name=self.names,
+                                          position=[float(x) for x in q],
+                                          velocity=[float(x) for x in v], effort=[]))
+        self.wrenches.write(self.wrench_stamped(self.header(t, "ft_sensor"), w))
+
+    def poll(self, timeout_ms: float = 0) -> None:
+        self.node.spin(timeout_ms)
+
+    def close(self) -> None:
+        self.node.close()
+
+
+class LcmDriver:
+    """The same on LCM (multicast with ttl=0: it stays on this host)."""
+
+    def __init__(self, port: int):
+        import lcm
+
+        from ftdrake.hardware.config import HardwareConfig
+        from ftdrake.hardware.messages import (
+            decode_contact_state,
+            decode_wrench,
+            encode_joint_state,
+            encode_wrench,
+        )
+
+        self.url = f"udpm://239.255.76.67:{port}?ttl=0"
+        self.config = HardwareConfig(lcm_url=self.url).validate()
+        self.lc = lcm.LCM(self.url)
+        self.encode_joint_state, self.encode_wrench = encode_joint_state, encode_wrench
+        self.back, self.contacts = {}, []
+
+        def on_wrench(_channel, data):
+            self.back.setdefault(round(decode_wrench(data).t * 1e6), time.monotonic())
+
+        def on_contact(_channel, data):
+            self.contacts.append(decode_contact_state(data).contact)
+
+        for channel, handler in ((self.config.output_channel("wrench_contact"), on_wrench),
+                                 (self.config.output_channel("contact"), on_contact)):
+            self.lc.subscribe(channel, handler).set_queue_capacity(200_000)
+        self.flags = ["--lcm", self.url]
+        self.started = None
+
+    def live_section(self) -> dict:
+        return {"lcm": {"sensor_timeout_s": 0.5, "joint_state_timeout_s": 0.5}}
+
+    def ready(self) -> bool:
+        return True
+
+    def send(self, t, q, v, w) -> None:
+        c = self.config
+        self.lc.publish(c.joint_state_channel, self.encode_joint_state("iiwa_status", t, q, v))
+        self.lc.publish(c.ft_channel, self.encode_wrench(t, w))
+
+    def poll(self, timeout_ms: float = 0) -> None:
+        while self.lc.handle_timeout(int(timeout_ms)) > 0:
+            timeout_ms = 0
+
+    def close(self) -> None:
+        pass
+
+
+def start_serve(model, rate, driver, folder: Path):
+    """serve in its own process on `driver`'s transport; returns the process once it
+    listens (and, on ROS 2, DDS discovery matched both ways)."""
+    import yaml
+
+    save_model(model, folder / "model.ftd", target_names=list(WRENCH_AXES),
+               target_units=list(WRENCH_UNITS))
+    live = {"chain": {"sensor": {"rate_hz": float(rate)}}, **driver.live_section()}
+    (folder / "live.yaml").write_text(yaml.safe_dump(live))
+    err_path = folder / "serve.err"
+    with open(err_path, "w") as err:
+        serve = subprocess.Popen(
+            [sys.executable, "-m", "ftdrake", "serve", *driver.flags, "--model",
+             folder / "model.ftd", "--config", folder / "live.yaml"],
+            stdout=subprocess.PIPE, stderr=err, text=True)
+    started = time.monotonic()
+    while not (driver.ready() and "out: " in err_path.read_text()):
+        if serve.poll() is not None:
+            raise RuntimeError(err_path.read_text())
+        driver.poll(10)
+        if time.monotonic() - started > 60:
+            raise RuntimeError("serve did not start (or DDS discovery did not complete) in 60 s")
+    time.sleep(0.5)
+    return serve
+
+
+def drive(driver, serve, rate, data, args) -> dict:
+    """Sends the messages paced by the wall clock; returns what was sent and measured."""
+    period = 1.0 / rate
+    warmup = round(args.warmup * rate)
+    count = warmup + round(args.seconds * rate)
+    q, v, w = resampled(*data, rate, count)
+    burst = args.burst if rate >= args.burst_at else 1
+    sent, load_before = {}, os.getloadavg()[0]
+    start = time.perf_counter()
+    cpu_start = cpu_s(serve.pid)
+    for k in range(count):
+        if k % burst == 0:
+            while time.perf_counter() < start + (k + burst - 1) * period:
+                driver.poll(0)
+        if k == warmup:
+            cpu_start = cpu_s(serve.pid)
+        t = (k + 1) * period
+        if k >= warmup:
+            sent[round(t * 1e6)] = time.monotonic()
+        driver.send(t, q[k], v[k], w[k])
+        driver.poll(0)
+    end = time.monotonic() + 10
+    while len(driver.back) < count and time.monotonic() < end:
+        driver.poll(10)
+    return {"count": count, "timed": count - warmup, "sent": sent,
+            "cpu_s": cpu_s(serve.pid) - cpu_start, "load_before": load_before,
+            "load_after": os.getloadavg()[0]}
+
+
+def run_one(model, rate, data, names, args, folder: Path) -> dict:
+    driver = (Ros2Driver(names) if args.transport == "ros2"
+              else LcmDriver(7700 + os.getpid() % 200))
+    serve = None
+    try:
+        serve = start_serve(model, rate, driver, folder)
+        run = drive(driver, serve, rate, data, args)
+        serve.send_signal(signal.SIGINT)
+        out, _ = serve.communicate(timeout=60)
+    finally:
+        if serve is not None and serve.poll() is None:
+            serve.kill()
+        driver.close()
+    summary = json.loads(out.strip().splitlines()[-1])
+    sent = run["sent"]
+    trip = np.array([driver.back[key] - sent[key] for key in sent if key in driver.back]) * 1e3
+    trip = trip if len(trip) else np.array([np.nan])
+    flags = np.array(driver.contacts, dtype=bool)
+    episodes = int(np.count_nonzero(flags[1:] & ~flags[:-1]) + bool(len(flags) and flags[0]))
+    load = summary.get("load", {})
+    return {"sent": run["count"], "received": summary["received"].get("ft", 0),
+            "processed": summary["processed"], "published": summary["published_wrench"],
+            "lost": run["count"] - summary["processed"], "dropped": load.get("dropped_ft"),
+            "lost_by_stamps": load.get("lost_ft"),
+            "cpu_us_per_msg": run["cpu_s"] / run["timed"] * 1e6,
+            "p50_ms": summary["latency_ms"]["p50"], "p99_ms": summary["latency_ms"]["p99"],
+            "e2e_p50_ms": float(np.percentile(trip, 50)),
+            "e2e_p99_ms": float(np.percentile(trip, 99)),
+            "e2e_p999_ms": float(np.percentile(trip, 99.9)),
+            "false_contacts": episodes, "sustained_hz": load.get("sustained_hz"),
+            "load_before": run["load_before"], "load_after": run["load_after"]}
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--transport", choices=("ros2", "lcm"), default="ros2")
+    parser.add_argument("--rates", default="500,1000,2000,4000", help="Hz, comma-separated")
+    parser.add_argument("--seconds", type=float, default=60.0, help="s per rate and model")
+    parser.add_argument("--warmup", type=float, default=1.0,
+                        help="s of messages first, not timed (serve compiles on them)")
+    parser.add_argument("--models", default="physics,hybrid")
+    parser.add_argument("--train-s", type=float, default=20.0, help="simulated training s")
+    parser.add_argument("--burst", type=int, default=16, help="samples per batch at high rates")
+    parser.add_argument("--burst-at", type=float, default=4000.0,
+                        help="rates from this one up are sent in batches of --burst")
+    args = parser.parse_args()
+    _, X, W, station = free_motion(args.train_s, seed=0)
+    replay = free_motion(max(10.0, args.train_s / 2), seed=1)[:3]
+    from ftdrake.sim.ros2_publisher import arm_joint_names
+
+    names = arm_joint_names(station)
+    robot = RobotOptions(robot="ftdrake")
+    makers = {
+        "physics": lambda: make_estimator("physics", robot=robot,
+                                          target_names=[f"meas_{a}" for a in WRENCH_AXES]),
+        "hybrid": lambda: make_estimator("hybrid", robot=robot,
+                                         target_names=[f"meas_{a}" for a in WRENCH_AXES]),
+    }
+    results, costs = {}, {}
+    for name in args.models.split(","):
+        model = makers[name]().fit(X, W)
+        costs[name] = compensator_us(model, replay[1])
+        for rate in (float(r) for r in args.rates.split(",")):
+            with tempfile.TemporaryDirectory() as folder:
+                row = run_one(model, rate, replay, names, args, Path(folder))
+            row["compensator_us"] = costs[name]
+            row["cpu_ratio_to_compensator"] = row["cpu_us_per_msg"] / costs[name]
+            results.setdefault(f"{rate:g}", {})[name] = row
+            print(f"{args.transport} {rate:6.0f} Hz {name:<8} sent {row['sent']:>7} "
+                  f"received {row['received']:>7} processed {row['processed']:>7} "
+                  f"published {row['published']:>7} lost {row['lost']:>6} "
+                  f"cpu {row['cpu_us_per_msg']:7.1f} µs/msg "
+                  f"({row['cpu_ratio_to_compensator']:.0f}× the compensator's "
+                  f"{costs[name]:.1f} µs)  serve p50/p99 {row['p50_ms']:.3f}/"
+                  f"{row['p99_ms']:.3f} ms  e2e p50/p99/p99.9 {row['e2e_p50_ms']:.2f}/"
+                  f"{row['e2e_p99_ms']:.2f}/{row['e2e_p999_ms']:.2f} ms  false contacts "
+                  f"{row['false_contacts']}  load {row['load_before']:.2f}→"
+                  f"{row['load_after']:.2f}", flush=True)
+    print(json.dumps(results))
+
+
+if __name__ == "__main__":
+    main()
