@@ -22,6 +22,7 @@ from ftdrake.hardware.messages import (
     encode_wrench,
 )
 from ftdrake.physics.robot import RobotDescription
+from tests.helpers import DATA
 
 N = 7
 
@@ -103,8 +104,7 @@ def test_the_robots_joint_limits_bound_a_joint():
     """With a robot whose joints have limits (the 7-joint arm's ±…), a value beyond them by
     more than the margin is faulted even under 2π; the limit is named."""
     model = forest()
-    robot = RobotDescription(model=os.path.join(os.path.dirname(__file__), "data",
-                                                "seven_joint_arm.urdf"),
+    robot = RobotDescription(model=str(DATA / "seven_joint_arm.urdf"),
                              sensor_frame="tool", base_frame="base")
     model.robot_description = lambda: robot
     bounds = joint_bounds(model, N)
@@ -281,7 +281,7 @@ def test_ros2_another_type_on_the_wrench_topic_names_both_types(ros2):
 
 
 def test_ros2_joint_names_of_another_length_name_the_key(ros2, tmp_path, capsys):
-    from ftdrake.compensation.persistence import save_model
+    from ftdrake.compensation.files.persistence import save_model
     from ftdrake.hardware.ros2.config import Ros2Config
     from ftdrake.hardware.ros2.station import Ros2Station
 
