@@ -158,7 +158,7 @@ def test_simulate_and_serve_over_dds(tmp_path):
     # Numbers: the in-simulation chain on the same scenario.
     log = simulate(build_station(scenario, model), progress=False).log
     assert len(log) == K
-    assert scenario.bias_tracker.enabled
+    assert scenario.chain.bias_tracker.enabled
     for port in ("wrench_contact", "wrench_compensated", "bias"):  # the LCM station's too
         assert len(got[port]) == K
         np.testing.assert_allclose([wrench_of(w) for w in got[port]],

@@ -281,6 +281,7 @@ def test_cli_errors_name_the_ros2_setting(tmp_path, capsys):
 def test_tare_and_payload_topics_reach_the_tracker_and_its_estimates_are_published():
     scenario = ScenarioConfig()
     scenario.chain.bias_tracker.track_payload = True
+    scenario.chain.robot.file = "ftdrake"  # a forest carries no robot: the simulated arm
     rig = Rig(scenario, tare_topic=f"/tare_{os.getpid()}", payload_topic=f"/grasp_{os.getpid()}")
     try:
         outputs = {"bias": [], "payload": []}
