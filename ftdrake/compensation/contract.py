@@ -26,6 +26,7 @@ class LoopModel(Protocol):
     n_joints_, n_outputs_ (6): the fitted layout. temperature_in_: the sensor temperature
     (°C) is its last input. input_min_, input_max_: the training range of every input.
     provides_std, std_includes_noise: whether ``predict_std`` is a std, and of a reading.
+    input_min_, input_max_: the training range of every input column (set by ``fit``).
     wrench_delay_s_: s, how long the wrench stream lagged the joint states in training.
     """
 
@@ -36,6 +37,8 @@ class LoopModel(Protocol):
     provides_std: bool
     std_includes_noise: bool
     wrench_delay_s_: float
+    input_min_: object
+    input_max_: object
 
     def predict(self, X): ...
 
@@ -54,8 +57,8 @@ class LoopModel(Protocol):
 
 #: The members :class:`LoopModel` declares, in the order an error lists them.
 LOOP_MEMBERS = ("features", "n_joints_", "n_outputs_", "temperature_in_", "provides_std",
-                "std_includes_noise", "wrench_delay_s_", "predict", "predict_std",
-                "row_predictor", "fused_loop_update", "reading_to_model_frame",
+                "std_includes_noise", "wrench_delay_s_", "input_min_", "input_max_", "predict",
+                "predict_std", "row_predictor", "fused_loop_update", "reading_to_model_frame",
                 "payload_reading_map", "robot_description")
 
 
@@ -116,9 +119,9 @@ def loop_view(model, n_joints: int | None = None) -> LoopView:
 
 
 def _training_box(model, used: int) -> tuple[np.ndarray, np.ndarray]:
-    """Lower/upper training range of the `used` inputs the model uses (empty if unknown:
-    a model fitted outside ftdrake's base class may not record it)."""
-    lo, hi = vars(model).get("input_min_"), vars(model).get("input_max_")
+    """Lower/upper training range of the `used` inputs the model uses (empty when the model
+    recorded none: None)."""
+    lo, hi = model.input_min_, model.input_max_
     if lo is None or hi is None:
         return np.empty(0), np.empty(0)
     return np.asarray(lo[:used], dtype=float), np.asarray(hi[:used], dtype=float)

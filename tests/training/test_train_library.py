@@ -211,6 +211,20 @@ def test_the_calibration_wraps_a_fitted_hybrid_and_leaves_it_as_it_was(runs, hyb
     assert ftdrake.CompensationChain(loaded).delay_line is not None
 
 
+def test_the_loop_reads_the_wrapped_hybrids_training_range(runs, hybrid):
+    """The chain's out-of-domain flag for the calibrated wrapper is the wrapped hybrid's: the
+    loop contract reads the training range through the wrapper (the demo's hybrid is one)."""
+    from ftdrake.compensation.contract import loop_view
+
+    _, _, Xc, Yc = runs
+    model = ftdrake.DomainCalibratedHybrid(hybrid, shared_growth=True).fit(Xc, Yc)
+    view, wrapped = loop_view(model), loop_view(hybrid)
+    assert view.lo.size == wrapped.lo.size == 3 * 7  # q, q̇, q̈ of 7 joints
+    np.testing.assert_array_equal(view.lo, wrapped.lo)
+    np.testing.assert_array_equal(view.hi, wrapped.hi)
+    np.testing.assert_array_equal(view.lo, hybrid.input_min_[:view.lo.size])
+
+
 def test_a_held_out_calibration_fits_clones_and_keeps_the_calibrated_terms(runs, hybrid):
     X, Y, _, _ = runs
     unfitted = ftdrake.HybridCompensator()
