@@ -91,16 +91,14 @@ from .robot_file import CarriesRobot
 __all__ = [  # with the identification's names that callers take from here
     "BIASES", "IDENTIFICATIONS", "PARAMETER_NAMES", "PARAMETER_UNITS", "STATIC_PARAMETERS",
     "WEIGHT_PARAMETERS", "ExcitationWarning", "PhysicsPayloadCompensator", "payload_regressor",
-    "weighted_least_squares",
-]
+    "weighted_least_squares"]
 
 PARAMETER_NAMES = list(CONSISTENT_NAMES)
 STATIC_PARAMETERS = list(CONSISTENT_STATIC)
 #: The weight carried without inertia (``weight_without_inertia``): θ[16:20].
 WEIGHT_PARAMETERS = [16, 17, 18, 19]
-#: How the parameters are identified: plain weighted least squares, or constrained to a
-#: physically possible body (pseudo-inertia ⪰ 0, m > 0; :mod:`..identification.consistent`)
-#: with a prior.
+#: How the parameters are identified: weighted least squares, or constrained to a physically
+#: possible body (pseudo-inertia ⪰ 0, m > 0; :mod:`..identification.consistent`), with a prior.
 IDENTIFICATIONS = ("least_squares", "consistent")
 
 
