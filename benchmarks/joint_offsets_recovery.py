@@ -15,8 +15,8 @@ import numpy as np
 
 from ftdrake import ScenarioConfig, build_station, simulate
 from ftdrake import conventions as col
+from ftdrake.compensation.calibration.joint_offsets import identify_joint_offsets
 from ftdrake.compensation.estimators.physics import PhysicsPayloadCompensator
-from ftdrake.compensation.identification.joint_offsets import identify_joint_offsets
 from ftdrake.config import EncoderConfig
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))

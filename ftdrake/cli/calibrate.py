@@ -28,6 +28,7 @@ import numpy as np
 import yaml
 
 from ..compensation.calibration.calibration import ORIENTATIONS, calibrate_table, orientation_kind
+from ..compensation.calibration.joint_offsets import identify_joint_offsets
 from ..compensation.calibration.orientation_model import OrientationPayloadCompensator
 from ..compensation.calibration.static_table import joint_layout
 from ..compensation.estimators.build import RobotOptions
@@ -36,7 +37,6 @@ from ..compensation.estimators.registry import make_estimator
 from ..compensation.estimators.robot_file import check_robot_frames
 from ..compensation.files.persistence import save_model
 from ..compensation.identification.consistent import PayloadPrior
-from ..compensation.identification.joint_offsets import identify_joint_offsets
 from ..conventions import MEASURED, TEMPERATURE, TIME, WRENCH_AXES, WRENCH_UNITS
 from ..data.logs import expand_columns, option_spelling, read_frame, time_columns
 from ..data.training import ReadOptions, load_training_data
@@ -288,7 +288,7 @@ def _time_series(args, prior, temperature: bool) -> int:
 
 def _joint_offsets(args, model, X, Y, temperature, say):
     """The joints' zero offsets of rows X and readings Y with fitted `model`'s robot and mode
-    (:func:`~ftdrake.compensation.identification.joint_offsets.identify_joint_offsets`), printed;
+    (:func:`~ftdrake.compensation.calibration.joint_offsets.identify_joint_offsets`), printed;
     the model's zero drift with `temperature` (°C) taken off the readings first."""
     if temperature is not None and getattr(model, "temperature_reference_", None) is not None:
         Y = Y - np.outer(temperature - model.temperature_reference_,

@@ -7,10 +7,6 @@ detection measured on unseen seeds.
 
 from __future__ import annotations
 
-from ..compensation.files.persistence import load_model
-from ..experiments.demo import print_table, run_demo
-from ..experiments.detection import DetectionPlan, markdown, run_detection_evaluation, run_plan
-from ..experiments.detection_replay import run_plan_by_replay
 from . import args as a
 
 
@@ -61,6 +57,7 @@ def register(sub) -> None:
 
 
 def run_demo_command(args) -> int:
+    from ..experiments.demo import print_table, run_demo
 
     config = a.load_scenario(args)
     summary = run_demo(args.out, config, fourier=args.trajectories, duration=args.duration,
@@ -73,6 +70,14 @@ def run_demo_command(args) -> int:
 
 
 def run_evaluate_detection(args) -> int:
+    from ..compensation.files.persistence import load_model
+    from ..experiments.detection import (
+        DetectionPlan,
+        markdown,
+        run_detection_evaluation,
+        run_plan,
+    )
+    from ..experiments.detection_replay import run_plan_by_replay
 
     config = a.load_scenario(args)
     models = {}

@@ -7,9 +7,6 @@ from __future__ import annotations
 
 import json
 
-from ..compensation.estimators.base import Compensator
-from ..compensation.files.onnx_export import export_onnx
-from ..compensation.files.persistence import load_model
 from ..errors import ModelFileError
 from . import args as a
 
@@ -25,6 +22,9 @@ def register(sub) -> None:
 
 
 def run_export(args) -> int:
+    from ..compensation.estimators.base import Compensator
+    from ..compensation.files.onnx_export import export_onnx
+    from ..compensation.files.persistence import load_model
 
     with a.naming("--model", args.model):
         model = load_model(args.model)

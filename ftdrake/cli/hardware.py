@@ -24,7 +24,6 @@ import sys
 import time
 from typing import TYPE_CHECKING
 
-from ..compensation.files.persistence import load_model
 from ..config import load_config
 from . import args as a
 from . import ros2
@@ -113,6 +112,7 @@ def describe_channels(hardware) -> str:
 
 
 def run_serve(args) -> int:
+    from ..compensation.files.persistence import load_model
     if args.ros2:
         return ros2.serve(args)
     from ..hardware.station import HardwareStation

@@ -24,7 +24,6 @@ import dataclasses as dc
 import json
 import sys
 
-from ..compensation.files.persistence import load_model
 from ..config import save_config
 from ..conventions import TIME
 from ..errors import ConfigError, LogError
@@ -86,6 +85,7 @@ def register(sub) -> None:
 
 
 def run_replay(args) -> int:
+    from ..compensation.files.persistence import load_model
     from ..data.logs import write_log
     from ..data.stream_delay import estimate_stream_delay
     from ..offline.replay import chain_config_of, replay, summary

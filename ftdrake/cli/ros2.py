@@ -21,7 +21,6 @@ import json
 import sys
 import time
 
-from ..compensation.files.persistence import load_model
 from ..config import load_config
 from ..errors import ConfigError
 from . import args as a
@@ -74,6 +73,7 @@ def describe_topics(config) -> str:
 
 def serve(args) -> int:
     """``ftdrake serve --ros2``."""
+    from ..compensation.files.persistence import load_model
     from ..hardware.ros2.station import Ros2Station
 
     live = load_live(args)

@@ -62,8 +62,8 @@ from scipy.optimize import minimize_scalar
 from scipy.signal import lfilter
 
 from .. import conventions as col
+from ..compensation.calibration.joint_offsets import kinematics_budget
 from ..compensation.estimators.physics import PhysicsPayloadCompensator
-from ..compensation.identification.joint_offsets import kinematics_budget
 from ..config import ChainConfig
 from ..data.robot_log import resample_uniform
 from ..errors import LogError, spelled
@@ -98,7 +98,7 @@ class ResidualBudget:
     filter_cutoff_hz: float  # the fitted first-order cut-off (inf: no filter found)
     rows: dict  # {"motion": n, "rest": n}
     #: What joint zero offsets explain of the refitted payload model's in-motion residual
-    #: (:func:`~ftdrake.compensation.identification.joint_offsets.kinematics_budget`), apart from
+    #: (:func:`~ftdrake.compensation.calibration.joint_offsets.kinematics_budget`), apart from
     #: the shares; None for a model without a physics part.
     kinematics: dict | None = None
 
@@ -171,7 +171,7 @@ def residual_budget(model, log, config: ChainConfig | None = None, *,
     puts it on a uniform grid first (:func:`~ftdrake.data.robot_log.resample_uniform`; a
     given `result` must then be the replay of the resampled log).
     `joint_offsets`: also the ``kinematics`` line, for a model with a physics part
-    (:func:`~ftdrake.compensation.identification.joint_offsets.kinematics_budget`).
+    (:func:`~ftdrake.compensation.calibration.joint_offsets.kinematics_budget`).
     """
     frame = log if isinstance(log, pd.DataFrame) else read_replay_log(log)
     if resample:

@@ -10,13 +10,13 @@ from scipy.signal import lfilter
 from scipy.spatial.transform import Rotation
 
 from ftdrake import RandomForestCompensator
-from ftdrake.compensation.estimators.physics import PhysicsPayloadCompensator
-from ftdrake.compensation.identification.joint_identifiability import gravity_torques
-from ftdrake.compensation.identification.joint_offsets import (
+from ftdrake.compensation.calibration.joint_offsets import (
     HELD_OUT_GAIN,
     identify_joint_offsets,
     kinematics_budget,
 )
+from ftdrake.compensation.estimators.physics import PhysicsPayloadCompensator
+from ftdrake.compensation.identification.joint_identifiability import gravity_torques
 from ftdrake.compensation.identification.payload_identification import full_layout
 from ftdrake.errors import ConfigError
 from tests.helpers import DATA

@@ -105,18 +105,36 @@ def test_causal_option_equals_signals_causal_acceleration(tmp_path):
 
 
 class _RowRecorder:
-    """A fitted-compensator stand-in for CompensatorSystem: records each row it is given."""
+    """A fitted-compensator stand-in for CompensatorSystem: records each row it is given. It
+    declares the whole loop contract (ftdrake.compensation.contract.LoopModel)."""
 
     features = "q,qd,qdd"
     n_joints_ = N_JOINTS
     n_outputs_ = 6
-    provides_std = False
+    provides_std = std_includes_noise = temperature_in_ = False
+    wrench_delay_s_ = 0.0
+    input_min_ = input_max_ = None
 
     def __init__(self):
         self.rows = []
 
     def predict(self, X):
         return np.zeros((len(X), 6))
+
+    def predict_std(self, X):
+        return np.zeros((len(X), 6))
+
+    def fused_loop_update(self):
+        return None
+
+    def reading_to_model_frame(self):
+        return None
+
+    def payload_reading_map(self):
+        return None
+
+    def robot_description(self):
+        return None
 
     def row_predictor(self):
         def predict(row):

@@ -9,8 +9,8 @@ from pydrake.systems.framework import DiagramBuilder
 
 from ftdrake import ScenarioConfig, build_station, simulate
 from ftdrake import conventions as col
+from ftdrake.compensation.calibration.joint_offsets import identify_joint_offsets
 from ftdrake.compensation.estimators.physics import PhysicsPayloadCompensator
-from ftdrake.compensation.identification.joint_offsets import identify_joint_offsets
 from ftdrake.config import EncoderConfig, dump_config, parse_config
 from ftdrake.errors import ConfigError
 from ftdrake.sim.scene import add_scene

@@ -37,11 +37,12 @@ residual was fitted to the physics part's errors.
 from __future__ import annotations
 
 from collections.abc import Mapping
+from numbers import Integral
 from typing import ClassVar
 
 import numpy as np
 from sklearn.base import clone
-from sklearn.utils._param_validation import HasMethods, StrOptions
+from sklearn.utils._param_validation import HasMethods, Interval, StrOptions
 from sklearn.utils.validation import check_is_fitted
 
 from ..compiled.forest import CompiledForest
@@ -95,6 +96,7 @@ class HybridCompensator(Compensator):
         "features": [StrOptions({"q,qd,qdd"})],  # the parts select their own
         "identification": [StrOptions(set(IDENTIFICATIONS)), None],
         "prior": [PayloadPrior, Mapping, None],
+        "support_points": [Interval(Integral, 1, None, closed="left"), None],
     }
 
     def __init__(self, physics=None, residual=None, features="q,qd,qdd", identification=None,

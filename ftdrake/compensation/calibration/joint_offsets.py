@@ -62,14 +62,15 @@ from threadpoolctl import threadpool_limits
 from ...conventions import WRENCH_AXES
 from ...errors import ConfigError
 from ...physics.robot import movable_joint_names
-from .joint_identifiability import (
+from ..estimators.physics import PhysicsPayloadCompensator
+from ..identification.joint_identifiability import (
     Identifiability,
     analyse,
     gravity_plant,
     least_squares_solution,
 )
-from .payload_identification import BIASES, full_layout
-from .regression import correlated_variance_ratio
+from ..identification.payload_identification import BIASES, full_layout
+from ..identification.regression import correlated_variance_ratio
 
 __all__ = ["HELD_OUT_FOLDS", "HELD_OUT_GAIN", "INCLUDE", "JointOffsets",
            "identify_joint_offsets", "kinematics_budget"]
@@ -254,8 +255,6 @@ def kinematics_budget(model, X, Y) -> dict | None:
     ``[q, q̇, q̈]`` (and the temperature, whose fitted drift is taken off `Y` first) in
     motion; `Y` the readings there. At most :data:`BUDGET_ROWS` rows are used (every k-th).
     None for a model without a physics part."""
-    from ..estimators.physics import PhysicsPayloadCompensator  # noqa: PLC0415 (cycle)
-
     physics = getattr(model, "physics_", model)
     if not isinstance(physics, PhysicsPayloadCompensator):
         return None
@@ -341,8 +340,6 @@ class OffsetProblem:
 
     @classmethod
     def build(cls, X, Y, model) -> OffsetProblem:
-        from ..estimators.physics import PhysicsPayloadCompensator  # noqa: PLC0415 (cycle)
-
         model = PhysicsPayloadCompensator(features="q", mode="static") if model is None \
             else model
         kinematics = model._kinematics()
