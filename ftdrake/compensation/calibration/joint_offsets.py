@@ -2,7 +2,8 @@
 
 An encoder whose zero is off by δ_j reports ``q_measured = q_true − δ_j``: the sensor turns
 with the true angles, so the gravity (and, in motion, the accelerations) it feels are those of
-``q_measured + δ``. The reading of the payload model (:mod:`.physics`) is then
+``q_measured + δ``. The reading of the payload model
+(:mod:`ftdrake.compensation.estimators.physics`) is then
 
     reading = R_SmS · A(q_measured + δ, q̇, q̈) φ + b
 
@@ -18,8 +19,8 @@ the readings does not change the cost).
 
 **Which offsets the data determine.** Before fitting, each joint's column of the Jacobian
 (the reading's change per radian of its offset, rows weighted) is compared with the others
-(:mod:`.joint_identifiability`). A joint is *not identifiable* — reported with the reason and
-given no number — when
+(:mod:`ftdrake.compensation.identification.joint_identifiability`). A joint is *not identifiable* —
+reported with the reason and given no number — when
 
 * its column is zero: a prismatic joint (it moves S without turning it), a joint not between
   the world and S, or a revolute joint whose axis stays along gravity in every row (the usual
@@ -39,7 +40,7 @@ data, so that an offset and a stiffness fit equally. Its number is then offset p
 **Standard errors** are those of the full nonlinear problem at the solution (offsets, mounting
 rotation, payload and biases together, so their correlation is accounted for), widened for a
 residual correlated over rows as the payload fit's are
-(:func:`~.regression.correlated_variance_ratio`).
+(:func:`~ftdrake.compensation.identification.regression.correlated_variance_ratio`).
 
 **Which offsets to keep** (``include="auto"``): as ``calibrate --correction auto`` chooses its
 correction, by held-out error. The offsets of all identifiable joints are fitted, ranked by
@@ -97,12 +98,13 @@ class JointOffsets:
     angles in degrees (rad for :meth:`corrected`'s rows; a prismatic joint is never given
     one). ``offsets_deg``/``std_errors_deg``: the joints the final fit holds (``included``),
     by name. ``identifiability``: per joint, whether the data determine its offset and why
-    not (:class:`~.joint_identifiability.Identifiability`). ``parameters``: the payload's
-    (φ, in S, as the payload model's θ[:10]) and biases (in Sm, N and N·m) of the final fit;
-    ``mounting_rotvec_deg``: the rotation vector of R_SSm (deg). ``residual_rms``: per axis,
-    with the offsets; ``residual_rms_without``: the same fit without offsets. ``choice``: the
-    held-out comparison (``include="auto"``) or None. ``candidate_offsets_deg`` and
-    ``candidate_std_errors_deg``: every identifiable joint's offset, fitted together.
+    not (:class:`~ftdrake.compensation.identification.joint_identifiability.Identifiability`).
+    ``parameters``: the payload's (φ, in S, as the payload model's θ[:10]) and biases (in Sm, N and
+    N·m) of the final fit; ``mounting_rotvec_deg``: the rotation vector of R_SSm (deg).
+    ``residual_rms``: per axis, with the offsets; ``residual_rms_without``: the same fit without
+    offsets. ``choice``: the held-out comparison (``include="auto"``) or None.
+    ``candidate_offsets_deg`` and ``candidate_std_errors_deg``: every identifiable joint's offset,
+    fitted together.
     """
 
     joints: tuple[str, ...]
@@ -201,11 +203,11 @@ def identify_joint_offsets(X, Y, model=None, *, include="auto",
     `X`: (N, n) joint positions (rad; m for a prismatic joint) or (N, 3n) ``[q, q̇, q̈]``
     rows in the robot's joint order; `Y`: (N, 6) readings ``[Fx Fy Fz Tx Ty Tz]`` (N, N·m,
     in the sensor's measuring frame). `model`: a
-    :class:`~.physics.PhysicsPayloadCompensator` (fitted or not) whose robot, sensor frame,
-    joints, gravity and mode (``"static"``: gravity only; ``"dynamic"``: needs the
-    ``[q, q̇, q̈]`` rows) are used; None: ftdrake's arm, static. `include`: ``"auto"``
-    (chosen by held-out error), ``"all"`` (every identifiable joint) or ``"none"``.
-    Raises ConfigError on a bad `include` or rows that do not fit the robot.
+    :class:`~ftdrake.compensation.estimators.physics.PhysicsPayloadCompensator` (fitted or not)
+    whose robot, sensor frame, joints, gravity and mode (``"static"``: gravity only; ``"dynamic"``:
+    needs the ``[q, q̇, q̈]`` rows) are used; None: ftdrake's arm, static. `include`: ``"auto"``
+    (chosen by held-out error), ``"all"`` (every identifiable joint) or ``"none"``. Raises
+    ConfigError on a bad `include` or rows that do not fit the robot.
     """
     if include not in INCLUDE:
         raise ConfigError(f"include must be one of {list(INCLUDE)}, got {include!r}")

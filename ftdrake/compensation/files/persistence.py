@@ -203,8 +203,9 @@ def _robot_parts(model) -> list:
 @contextlib.contextmanager
 def _robot_file_names_only(model):
     """Within the block, every part of `model` that embeds its robot's text names its robot
-    file by the file's name alone (:func:`~.robot_file.file_name_only`), as the file then
-    stores it; restored after."""
+    file by the file's name alone
+    (:func:`~ftdrake.compensation.estimators.robot_file.file_name_only`), as the file then stores
+    it; restored after."""
     changed = []
     for part in _robot_parts(model):
         if getattr(part, "robot_model_", None) is not None:

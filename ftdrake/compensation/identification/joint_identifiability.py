@@ -1,5 +1,5 @@
 """Which joint offsets a log of wrench readings determines, and why the others it does not
-(:mod:`.joint_offsets`).
+(:mod:`ftdrake.compensation.calibration.joint_offsets`).
 
 From the Jacobian of the weighted residual at the fit without offsets: each joint's column
 (the reading's change per radian of its offset) against the nuisance columns (the mounting
@@ -63,7 +63,8 @@ class Identifiability:
 
 def analyse(problem, fit) -> Identifiability:
     """The identifiability of every joint's offset in `problem` (a
-    :class:`~.joint_offsets.OffsetProblem`) at `fit` (its fit without offsets)."""
+    :class:`~ftdrake.compensation.calibration.joint_offsets.OffsetProblem`) at `fit` (its fit
+    without offsets)."""
     names = problem.names
     n = len(names)
     rows = int(fit.rows.sum())
