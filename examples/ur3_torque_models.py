@@ -9,7 +9,7 @@ as ``ftdrake evaluate`` scores them (``evaluate_model``) — for
   DH parameters and masses) + joint friction, identified physically consistent, with a drive
   gain per joint (``drive_gains="identify"``: the logged efforts are not N·m);
 * ``hybrid``: ``arm`` + a forest on its residual: the joint-torque default (on q, q̇, q̈,
-  :func:`ftdrake.compensation.estimators.hybrid.joint_torque_residual`), and the same forest on q
+  ``ftdrake.compensation.estimators.hybrid.joint_torque_residual``), and the same forest on q
   alone;
 
 and prints one markdown table of variance scores per joint (and the 95 % coverage of the
