@@ -44,8 +44,6 @@ def load_live_config(path: "str | Path | None") -> LiveConfig:
     if path is None:
         return LiveConfig()
     data = read_mapping(Path(path))
-    if set(data) <= {f.name for f in dc.fields(ChainConfig)}:
-        return LiveConfig(chain=load_chain_config(path))
-    if not set(data) <= {f.name for f in dc.fields(LiveConfig)}:
-        return LiveConfig(chain=load_chain_config(path))  # a scenario file (it warns)
-    return parse_config(Path(path).read_text(), LiveConfig, source=str(path))
+    if "chain" in data and set(data) <= {f.name for f in dc.fields(LiveConfig)}:
+        return parse_config(Path(path).read_text(), LiveConfig, source=str(path))
+    return LiveConfig(chain=load_chain_config(path))  # a chain file, or a scenario (it warns)
