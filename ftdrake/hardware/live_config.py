@@ -4,7 +4,8 @@
     lcm: {joint_state_channel: ..., ft_channel: ...}      # HardwareConfig (serve on LCM)
     ros2: {joint_names: [...], wrench_topic: ...}          # Ros2Config (serve --ros2)
 
-:func:`load_live_config` reads it; a file with only the chain's sections at its top (a
+:func:`load_live_config` reads it (any of the three sections may be left out: its defaults); a
+file with only the chain's sections at its top (a
 :class:`~ftdrake.config.ChainConfig`) is read as ``chain:`` alone, and a scenario file, until
 the next release, for its chain (:func:`~ftdrake.config.load_chain_config`, with a warning).
 Each section is validated where it is used: the chain when loaded, a transport when a station
@@ -44,6 +45,7 @@ def load_live_config(path: "str | Path | None") -> LiveConfig:
     if path is None:
         return LiveConfig()
     data = read_mapping(Path(path))
-    if "chain" in data and set(data) <= {f.name for f in dc.fields(LiveConfig)}:
+    sections = {f.name for f in dc.fields(LiveConfig)}
+    if data and set(data) <= sections:  # chain:, lcm:, ros2: (any of them)
         return parse_config(Path(path).read_text(), LiveConfig, source=str(path))
     return LiveConfig(chain=load_chain_config(path))  # a chain file, or a scenario (it warns)

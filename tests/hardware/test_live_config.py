@@ -45,6 +45,16 @@ def test_a_chain_file_alone_and_its_errors_name_the_field(tmp_path):
     assert load_live_config(path).chain.sensor.wrench_delay_s == 0.004
 
 
+def test_a_live_file_with_only_a_transport_keeps_the_default_chain(tmp_path):
+    path = tmp_path / "ros2_only.yaml"
+    path.write_text("ros2: {joint_names: [a, b], wrench_topic: /ft/w}\n")
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # no scenario-layout warning: it is a live file
+        live = load_live_config(path)
+    assert live.ros2.joint_names == ["a", "b"] and live.ros2.wrench_topic == "/ft/w"
+    assert live.chain.detector.force_on == ftdrake.ChainConfig().detector.force_on
+
+
 def test_a_scenario_file_still_loads_with_a_warning_naming_the_layout(tmp_path):
     path = tmp_path / "scenario.yaml"
     path.write_text("time_step: 0.001\nsensor: {rate_hz: 500.0}\n"
