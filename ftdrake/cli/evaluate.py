@@ -216,15 +216,21 @@ def print_evaluation(result: dict, file=None) -> None:
 
 
 def _print_trust(trust: dict, file) -> None:
-    """Per target: the share of rows flagged, and by which cause; then the rule."""
+    """Per target: the share of rows flagged, and by which cause; then what "untrusted"
+    means (the same for every model) and the branch of it that applied."""
     causes = trust.get("flagging_causes", list(trust["by_cause"]))
     short = {"inputs_outside_range": "inputs", "std_above_factor_x_residual": "std",
              "prediction_outside_target_range": "range"}
+    counted = [c for c in trust["by_cause"] if c not in causes]  # counted, flagging nothing
     print(f"  rows flagged as not to be trusted, per target ({', '.join(short[c] for c in causes)}"
           "):", file=file)
     for name, share in trust["untrusted_fraction"].items():
         detail = ", ".join(f"{short[c]} {100 * trust['by_cause'][c][name]:.0f} %" for c in causes)
+        detail += "".join(f"; {short[c]} {100 * trust['by_cause'][c][name]:.0f} % not flagging"
+                          for c in counted)
         print(f"  {name:<10}{100 * share:5.0f} %  ({detail})", file=file)
+    if "meaning" in trust:
+        print(f"  ({trust['meaning']})", file=file)
     if "explanation" in trust:
         print(f"  ({trust['explanation']})", file=file)
     print(file=file)

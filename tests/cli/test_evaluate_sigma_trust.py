@@ -126,3 +126,38 @@ def test_without_sigma_the_table_says_why_and_names_the_flag(fitted):
     assert ("no rms/σ column: the log holds no stretch at rest to measure the sensor's noise σ "
             "on (≥ 40 rows in runs of ≥ 20 with every |q̇| < 0.001 rad/s; a table of static "
             "poses has none); give σ with --noise-std S[,S...]") in text
+
+
+def test_untrusted_means_the_same_for_a_physics_and_a_hybrid_model(fitted):
+    """Issue 42 item 7: on the same held-out rows, with the same errors, a hybrid said 100 %
+    untrusted (every input outside the range flagged it) where its physics part said 0 %.
+    One meaning now: a model with a calibrated std is judged by its std against its own
+    in-domain std, whatever its kind; the output says what untrusted means."""
+    from ftdrake.compensation.estimators.hybrid import HybridCompensator
+    from ftdrake.compensation.evaluation.trust import MEANING
+
+    physics, kin, X_train, Y_train = fitted
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", ExcitationWarning)
+        hybrid = HybridCompensator().fit(X_train, Y_train)
+    rng = np.random.default_rng(6)
+    X = _states(rng, 300)
+    X[:, 0] = X_train[:, 0].max() + 0.05  # joint 0 just outside its range on every row
+    Y = kin.regressor(X) @ TRUTH + SIGMA * rng.standard_normal((300, 6))
+    ranges = target_ranges(Y_train, WRENCH_AXES)
+    results = {name: evaluate_model(m, X, Y, target_names=WRENCH_AXES, training_ranges=ranges)
+               for name, m in (("physics", physics), ("hybrid", hybrid))}
+    nmse = {name: np.array([r["metrics"]["all"][a]["nmse"] for a in WRENCH_AXES])
+            for name, r in results.items()}
+    np.testing.assert_allclose(nmse["hybrid"], nmse["physics"], rtol=0.5, atol=0.02)
+    for name, result in results.items():
+        trust = result["trust"]
+        assert set(trust["by_cause"]["inputs_outside_range"].values()) == {1.0}
+        assert "inputs_outside_range" not in trust["flagging_causes"], name
+        assert max(trust["untrusted_fraction"].values()) < 0.2, (name, trust)
+        assert trust["meaning"] == MEANING
+        text = _report(result, physics, X)
+        assert MEANING in text and "inputs 100 % not flagging" in text
+    # The hybrid's in-domain std is its residual's cross-fitted error (σ_in), near the noise.
+    np.testing.assert_allclose(results["hybrid"]["trust"]["residual_rms"]["Fx"], SIGMA[0],
+                               rtol=0.5)

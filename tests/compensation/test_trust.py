@@ -37,7 +37,8 @@ def test_rows_are_flagged_per_target_and_cause_as_counted_by_hand():
     assert dut["warnings"] == [
         ("warning: inputs outside the training range on 20 % of rows; each target's "
          "predictive std decides whether its predictions there are trusted"),
-        ("warning: predictive std > 2× the training residual (the model lacks data there) on "
+        ("warning: predictive std > 2× the RMS error on its training rows (the model lacks "
+         "data there) on "
          "a 20 %, b 20 % of rows"),
         "warning: predictions beyond the training range of the target (±10 %) on a 40 % of rows",
         ("warning: predictions on flagged rows cannot be trusted; see 'trust' in --json (share "

@@ -165,7 +165,7 @@ def test_evaluate_says_when_the_gp_is_guessing(ftdrake, tmp_path):
     new = json.loads(result.read_text())
     std_flags = new["trust"]["by_cause"]["std_above_factor_x_residual"]
     assert min(std_flags.values()) > 0.5
-    assert "predictive std > 2× the training residual" in err
+    assert "predictive std > 2× the RMS error on its training rows" in err
     assert "inputs outside the training range on 95 % of rows" in err
     assert "rows flagged as not to be trusted" in out
     # The fields evaluate had before are all still there.

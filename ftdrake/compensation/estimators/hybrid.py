@@ -342,6 +342,15 @@ class HybridCompensator(Compensator):
 
         return predict
 
+    def in_domain_std(self) -> np.ndarray:
+        """The hybrid's RMS error on its own training rows, per axis (k,): what the trust
+        analysis compares the predictive std with, as it does a physics model's
+        ``residual_rms_`` (:mod:`~ftdrake.compensation.evaluation.trust`). σ_in for a model
+        file from before that error was kept."""
+        check_is_fitted(self)
+        var = getattr(self, "residual_training_var_", None)
+        return np.sqrt(self._noise_var() if var is None else np.asarray(var, dtype=float))
+
     def _noise_var(self):
         var = getattr(self, "residual_noise_var_", None)
         if var is None:  # a model file from before the hybrid had a std: the physics part's
