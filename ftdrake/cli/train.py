@@ -45,6 +45,7 @@ from ..data.logs import QDD_ESTIMATES, option_spelling
 from ..data.training import ReadOptions, TrainingData, load_training_data
 from ..errors import ConfigError, LogError, option_names
 from ..training import TrainOptions, train
+from ..training.options import SEARCH_BUDGET_S
 from ..training.pipeline import describe
 from . import args as a
 from .args import flag_hint
@@ -123,6 +124,10 @@ def register(subparsers) -> None:
     a.add_jobs(p, "parallel CV fits (-1: all cores)")
     cluster = a.add_cluster(p, "run the grid search on this Dask scheduler")
     a.add_deprecated(p, "--dask", cluster)
+    p.add_argument("--search-budget", type=_budget, default=SEARCH_BUDGET_S, metavar="S",
+                   help="bound on the grid search's time (s): no candidate is started that "
+                        "would pass it, and the best of those scored is chosen (0: the first "
+                        "candidate only; inf: no bound)")
     p.add_argument("--out", type=a.output_file, required=True, metavar="MODEL",
                    help="the model file to write (e.g. m.ftd)")
     _add_domain_flags(p)
@@ -242,13 +247,19 @@ def run_train(args) -> int:
 
 
 #: TrainOptions fields whose flag is not the field's name with dashes.
-_FLAGS = {"delay_s": "--delay"}
+_FLAGS = {"delay_s": "--delay", "search_budget_s": "--search-budget"}
 
 
 def flag_of(option: str) -> str:
     """The flag of TrainOptions field `option` (``read.positions``: a read flag)."""
     name = option.removeprefix("read.")
     return _FLAGS.get(name, _flag_name(name))
+
+
+def _budget(text: str) -> float | None:
+    """--search-budget's value: seconds >= 0; 'inf' is no bound (None)."""
+    value = a.number(float, lambda v: v >= 0, "must be a number of seconds >= 0, or inf")(text)
+    return None if value == float("inf") else value
 
 
 def train_options(args) -> TrainOptions:
@@ -258,6 +269,7 @@ def train_options(args) -> TrainOptions:
         sensor_frame=args.sensor_frame, base_frame=args.base_frame, joints=args.joints,
         fixed_joints=args.fixed_joints, model_options=_model_options(args),
         target_units=args.target_units, seed=args.seed, jobs=args.jobs, cluster=args.cluster,
+        search_budget_s=args.search_budget,
         max_rows=args.max_rows, delay_s=args.delay, align=args.align,
         domain_holdout=args.domain_holdout, domain_calibration=args.domain_calibration,
         domain_shared_growth=args.domain_shared_growth, domain_level=args.domain_level,

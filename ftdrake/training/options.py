@@ -22,6 +22,11 @@ from ..compensation.features import FEATURE_SETS
 from ..data.training import ReadOptions
 from ..errors import ConfigError, option_name
 
+#: The default bound on the ``quick`` search's time (s, wall clock): on an idle machine the
+#: search of a few thousand rows takes a fraction of it; on a busy one it stops there and
+#: chooses among the candidates scored.
+SEARCH_BUDGET_S = 600.0
+
 #: The presets of :attr:`TrainOptions.preset`: ``quick`` tunes the kinds that have a grid
 #: (grouped CV), ``none`` fits the kind's own parameters.
 PRESETS = ("quick", "none")
@@ -52,6 +57,10 @@ class TrainOptions:
       N/N·m for wrench axes, else N·m.
     seed: random state of the kinds that have one. jobs: parallel CV fits (-1: all cores).
     cluster: a Dask scheduler's address to run the grid search on (None: local processes).
+    search_budget_s: a bound on the grid search's time (s, wall clock; None: none): no new
+      candidate is started when it would pass it, and the best of those scored is chosen
+      (:func:`~ftdrake.compensation.estimators.tuning.tune`); default
+      :data:`SEARCH_BUDGET_S`.
     max_rows: fit on at most this many rows covering the log's states
       (:func:`~ftdrake.data.subsample.covering_rows`); None: all rows.
     delay_s: the wrench stream's delay behind the joint states (s; negative: ahead),
@@ -81,6 +90,7 @@ class TrainOptions:
     seed: int = 0
     jobs: int | None = -1
     cluster: str | None = None
+    search_budget_s: float | None = SEARCH_BUDGET_S
     max_rows: int | None = None
     delay_s: float | None = None
     align: bool = False
@@ -122,6 +132,12 @@ class TrainOptions:
         if self.domain_holdout is not None and not 0 < self.domain_holdout < 0.5:
             raise ConfigError(f"{spelled_option('domain_holdout')}: must be a share in (0, 0.5) "
                               f"of the rows; got {self.domain_holdout!r}")
+        budget = self.search_budget_s
+        if budget is not None and (isinstance(budget, bool) or not isinstance(
+                budget, (int, float, np.integer, np.floating)) or not 0 <= budget < np.inf):
+            raise ConfigError(f"{spelled_option('search_budget_s')}: must be a non-negative "
+                              f"number of seconds (0: score only the first candidate); got "
+                              f"{budget!r}")
         if self.delay_s is not None and not np.isfinite(self.delay_s):
             raise ConfigError(f"{spelled_option('delay_s')}: must be a finite number of "
                               f"seconds; got {self.delay_s!r}")

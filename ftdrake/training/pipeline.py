@@ -207,7 +207,9 @@ def _tune_or_fit(options: TrainOptions, kind: str, estimator, data: TrainingData
             model, search = tune(estimator, data.X, data.Y, groups=segment_groups(data.groups),
                                  preset="quick", cv="grouped", target_names=data.target_names,
                                  n_jobs=options.jobs, progress=bar,
-                                 wrench_delay_s=delay)
+                                 wrench_delay_s=delay, time_budget_s=options.search_budget_s)
+        if search.stopped_early:
+            say(search_stopped_text(search))
         say(f"best {search.best_params[0]}, CV MSE {-search.mean_score[0]:.4g}")
         return model, search
     why = "" if options.preset == "none" else " (no grid: its parameters are fitted from data)"
@@ -218,6 +220,16 @@ def _tune_or_fit(options: TrainOptions, kind: str, estimator, data: TrainingData
                 in_domain=options.domain_level, wrench_delay_s=delay)
     say(f"fitted in {time.perf_counter() - started:.1f} s")
     return model, None
+
+
+def search_stopped_text(search) -> str:
+    """What a search the time budget stopped says: how far it got, and what to change."""
+    scored = min(search.scored)
+    return (f"the search stopped early: {scored} of {search.n_candidates} candidates scored "
+            f"in {search.stopped_after_s:.0f} s, and the next would have passed the time "
+            f"budget of {search.time_budget_s:g} s ({spelled_option('search_budget_s')}); "
+            f"the best of those {scored} was chosen. For the whole grid raise the budget, "
+            f"or fit on fewer rows ({spelled_option('max_rows')})")
 
 
 def _subsample(options: TrainOptions, data: TrainingData, estimator, say: Say):

@@ -229,3 +229,40 @@ def test_per_output_compensator_refuses_wider_members(log):
         dut.fit(X, Y)
     with pytest.raises(ValueError, match="2 estimators for 3"):
         PerOutputCompensator([RandomForestCompensator()] * 2).fit(X, Y)
+
+
+def test_a_time_budget_of_zero_scores_the_first_candidate_only_and_says_so(log):
+    """Issue 42 item 12: the search is bounded in time. A budget of 0 s scores the first
+    candidate (here the coarse one), chooses it, and the result says it stopped early; with
+    an ample budget the search is the unbounded one, score for score."""
+    X, Y, ids = log
+    groups = segment_groups(ids, 4)
+    est = RandomForestCompensator(features="q", random_state=0)
+    grid = {"n_estimators": [8], "min_samples_leaf": [150, 2]}  # the coarse one first
+    _, full = tune(est, X, Y, groups=groups, preset=grid, progress=False)
+    assert full.best_params == [{"min_samples_leaf": 2, "n_estimators": 8}]
+    assert full.scored == [2] and not full.stopped_early and full.time_budget_s is None
+
+    model, cut = tune(est, X, Y, groups=groups, preset=grid, progress=False, time_budget_s=0)
+    assert cut.scored == [1] and cut.stopped_early and cut.stopped_after_s >= 0
+    assert cut.best_params == [{"min_samples_leaf": 150, "n_estimators": 8}]
+    assert model.min_samples_leaf == 150
+    assert cut.mean_score == [full.candidates[0]["mean_score"][0]]
+    assert cut.candidates[0]["mean_score"][1] is None
+    json.dumps(cut.to_dict(), allow_nan=False)
+
+    _, ample = tune(est, X, Y, groups=groups, preset=grid, progress=False, time_budget_s=1e6)
+    assert ample.scored == [2] and not ample.stopped_early
+    assert ample.candidates == full.candidates and ample.best_params == full.best_params
+    with pytest.raises(ValueError, match="time_budget_s must be a non-negative"):
+        tune(est, X, Y, groups=groups, preset=grid, progress=False, time_budget_s=-1)
+
+
+def test_per_output_tuning_under_a_spent_budget_gives_every_axis_its_first_candidate(log):
+    X, Y, _ = log
+    grid = {"C": [0.01, 10.0], "gamma": [0.3]}
+    model, result = tune(SVRCompensator(features="q"), X, Y, preset=grid, per_output=True,
+                         target_names=["Fx", "Fy", "Tz"], progress=False, time_budget_s=0)
+    assert result.scored == [1, 1, 1] and result.stopped_early
+    assert all(p["C"] == 0.01 for p in result.best_params)
+    assert len(model.estimators_) == 3

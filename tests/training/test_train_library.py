@@ -325,3 +325,20 @@ def test_a_hybrid_reports_its_residual_s_held_out_gain_over_physics(physics_targ
     assert max(found["gain"]) <= 0.05 and found["physics_alone_as_good"]
     assert any("physics alone is as good" in line and "kind physics" in line
                for line in lines)
+
+
+def test_a_search_stopped_by_its_time_budget_says_so_and_what_it_chose():
+    """Issue 42 item 12: the quick search with a spent budget scores one candidate, says it
+    stopped early, how far it got and which option raises the bound; the provenance keeps it."""
+    lines = []
+    result = ftdrake.train(UR3_ID1, kind="rf", read=TORQUES, search_budget_s=0,
+                           progress=lines.append)
+    said = "\n".join(lines)
+    assert ("the search stopped early: 1 of 4 candidates scored in " in said
+            and "the next would have passed the time budget of 0 s (search_budget_s); the "
+            "best of those 1 was chosen" in said), said
+    tuning = result.provenance["tuning"]
+    assert tuning["scored"] == [1] and tuning["time_budget_s"] == 0.0
+    assert tuning["best_params"] == [tuning["candidates"][0]["params"][0]]
+    with pytest.raises(ConfigError, match="search_budget_s: must be a non-negative"):
+        ftdrake.train(UR3_ID1, kind="rf", read=TORQUES, search_budget_s=-1.0)

@@ -20,6 +20,7 @@ Typical use::
 
 from __future__ import annotations
 
+import time
 from dataclasses import asdict, dataclass
 from typing import ClassVar
 
@@ -164,7 +165,11 @@ class TuneResult:
 
     ``targets`` names each tuned problem: every target column if ``per_output``, else one
     entry ``"all"``. ``best_params``, ``mean_score``, ``std_score`` (over all folds of all
-    rounds) and ``candidates`` (every candidate's params, mean and std) follow that order.
+    rounds) and ``candidates`` (every candidate's params, mean and std; None for a candidate
+    not scored) follow that order. ``time_budget_s``: the search's time budget (s; None: no
+    bound); ``scored``: candidates scored per target (``n_candidates`` each unless the budget
+    stopped the search); ``stopped_after_s``: when the budget stopped it, the seconds it had
+    run (None otherwise): the best was chosen among the candidates scored.
     """
 
     estimator: str
@@ -178,6 +183,14 @@ class TuneResult:
     mean_score: list[float]
     std_score: list[float]
     candidates: list[dict]
+    time_budget_s: float | None = None
+    scored: list[int] | None = None
+    stopped_after_s: float | None = None
+
+    @property
+    def stopped_early(self) -> bool:
+        """Whether the time budget stopped the search before every candidate was scored."""
+        return self.stopped_after_s is not None
 
     def to_dict(self) -> dict:
         """JSON-ready copy."""
@@ -200,6 +213,7 @@ def tune(
     progress: bool = True,
     random_state: int = 0,
     wrench_delay_s: float | None = None,
+    time_budget_s: float | None = None,
 ):
     """Grid search with (grouped) repeated K-fold CV; returns ``(best_model, TuneResult)``.
 
@@ -208,7 +222,16 @@ def tune(
     of one tuned estimator per column. `preset` is a name in :data:`PRESET_NAMES` or a grid.
     See :func:`cv_splits` for `cv`, `groups`, `n_splits`, `n_repeats`. `wrench_delay_s`:
     the refitted model's (:meth:`~.base.Compensator.fit`).
+
+    `time_budget_s`: a bound on the search's time (s, wall clock; None: none). Candidates are
+    then scored one after the other, in the grid's order, each on all its folds; the next is
+    not started when the time so far plus the mean time of a candidate would pass the budget
+    (every target gets its first candidate, so 0 scores exactly one). The best is chosen among
+    the candidates scored; the result says how many (``scored``, ``stopped_after_s``).
     """
+    if time_budget_s is not None and not (np.isfinite(time_budget_s) and time_budget_s >= 0):
+        raise ValueError(f"time_budget_s must be a non-negative number of seconds (or None); "
+                         f"got {time_budget_s!r}")
     X, Y = _checked_data(X, y)
     blocks = check_feature_set(estimator.get_params()["features"])
     n_used = blocks * joints_in_layout(X.shape[1])
@@ -233,9 +256,13 @@ def tune(
         desc=f"tuning {type(estimator).__name__}",
         unit="fit",
     ) as bar:
-        scores = [_score_grid(estimator, X, t, candidates, splits, n_jobs, bar) for t in targets]
+        clock = _Budget(time_budget_s)
+        scores = [_score_grid(estimator, X, t, candidates, splits, n_jobs, bar, clock)
+                  for t in targets]
 
-    best = [int(np.argmax(s.mean(axis=1))) for s in scores]
+    scored = [np.isfinite(s).all(axis=1) for s in scores]
+    best = [int(np.flatnonzero(ok)[np.argmax(s[ok].mean(axis=1))])
+            for s, ok in zip(scores, scored, strict=True)]
     model = _refit(estimator, X, y, Y, [candidates[b] for b in best], per_output,
                    wrench_delay_s)
     result = TuneResult(
@@ -252,13 +279,45 @@ def tune(
         candidates=[
             {
                 "params": [_jsonable(p) for p in candidates],
-                "mean_score": s.mean(axis=1).tolist(),
-                "std_score": s.std(axis=1).tolist(),
+                "mean_score": _or_none(s.mean(axis=1)),
+                "std_score": _or_none(s.std(axis=1)),
             }
             for s in scores
         ],
+        time_budget_s=None if time_budget_s is None else float(time_budget_s),
+        scored=[int(ok.sum()) for ok in scored],
+        stopped_after_s=(round(clock.elapsed(), 1)
+                         if any(not ok.all() for ok in scored) else None),
     )
     return model, result
+
+
+class _Budget:
+    """The search's clock: whether another candidate fits in the time budget."""
+
+    def __init__(self, budget_s: float | None):
+        self.budget_s = budget_s
+        self.started = time.perf_counter()
+        self.candidates = 0
+
+    def elapsed(self) -> float:
+        return time.perf_counter() - self.started
+
+    def done(self) -> None:
+        self.candidates += 1
+
+    def allows_another(self) -> bool:
+        """True without a budget; else whether the time so far plus the mean candidate's
+        stays within it."""
+        if self.budget_s is None:
+            return True
+        elapsed = self.elapsed()
+        return elapsed + elapsed / max(self.candidates, 1) <= self.budget_s
+
+
+def _or_none(values: np.ndarray) -> list:
+    """A JSON-ready list; NaN (a candidate not scored) as None."""
+    return [None if not np.isfinite(v) else float(v) for v in values]
 
 
 def _checked_data(X, y) -> tuple[np.ndarray, np.ndarray]:
@@ -285,18 +344,32 @@ def _target_names(target_names, n: int) -> list[str]:
     return target_names
 
 
-def _score_grid(estimator, X, y, candidates, splits, n_jobs, bar) -> np.ndarray:
-    """(n_candidates, n_splits) array of negative MSE on the held-out rows."""
-    scores = np.empty((len(candidates), len(splits)))
+def _score_grid(estimator, X, y, candidates, splits, n_jobs, bar, clock=None) -> np.ndarray:
+    """(n_candidates, n_splits) array of negative MSE on the held-out rows; NaN rows for
+    candidates `clock` (a :class:`_Budget` with a budget) left unscored."""
+    scores = np.full((len(candidates), len(splits)), np.nan)
+    if clock is None or clock.budget_s is None:
+        _score_candidates(estimator, X, y, candidates, range(len(candidates)), splits, n_jobs,
+                          bar, scores)
+        return scores
+    for c in range(len(candidates)):
+        if c > 0 and not clock.allows_another():
+            break
+        _score_candidates(estimator, X, y, candidates, [c], splits, n_jobs, bar, scores)
+        clock.done()
+    return scores
+
+
+def _score_candidates(estimator, X, y, candidates, which, splits, n_jobs, bar, scores):
+    """Fills the rows `which` of `scores` (every fold of those candidates, in parallel)."""
     tasks = (
-        delayed(_fit_and_score)(estimator, params, X, y, train, test, (c, s))
-        for c, params in enumerate(candidates)
+        delayed(_fit_and_score)(estimator, candidates[c], X, y, train, test, (c, s))
+        for c in which
         for s, (train, test) in enumerate(splits)
     )
     for (c, s), score in Parallel(n_jobs=n_jobs, return_as="generator_unordered")(tasks):
         scores[c, s] = score
         bar.update()
-    return scores
 
 
 def _fit_and_score(estimator, params, X, y, train, test, key):
