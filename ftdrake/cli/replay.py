@@ -78,6 +78,10 @@ def register(sub) -> None:
         p.add_argument(flag, metavar="PAT", help=f"tables: {what}, default '{default}'; a glob, "
                        "a comma-separated list or a regular expression after 're:'")
     p.add_argument("--time", metavar="COL", help="tables: the time column (s), default 't'")
+    p.add_argument("--t-start", type=a.finite_float, metavar="S",
+                   help="replay only the rows from this time on (s, the log's time axis)")
+    p.add_argument("--t-end", type=a.finite_float, metavar="S",
+                   help="replay only the rows up to this time (s, the log's time axis)")
     add_transport_flags(p, lcm_help="unused by replay (an LCM log is read with --hardware's "
                                     "channels)")
     a.add_quiet(p, "no warnings on stderr; the JSON summary still prints")
@@ -110,6 +114,9 @@ def run_replay(args) -> int:
     result = replay(model, frame, config, pairing=args.pairing, view=args.view)
     write_log(result, args.out)
     report = {"out": str(args.out), **summary(result)}
+    if args.t_start is not None or args.t_end is not None:
+        report["time_window"] = {"t_start": args.t_start, "t_end": args.t_end,
+                                 "rows": len(frame)}
     if delay is not None:
         report["wrench_delay_s"] = delay
     if estimate is not None:
@@ -118,7 +125,7 @@ def run_replay(args) -> int:
         report["residual_budget"] = _budget(args, model, frame, config, result)
     if args.calibrate_detector is not None:
         report["detector"] = _write_calibrated(args.calibrate_detector, result, model,
-                                               chain_config_of(frame, config))
+                                               chain_config_of(frame, config), args.quiet)
     print(json.dumps(report))
     return 0
 
@@ -171,14 +178,25 @@ def _chain_given(args) -> bool:
                                        args.base_frame))
 
 
-def _write_calibrated(path, result, model, chain) -> dict:
+def _write_calibrated(path, result, model, chain, quiet: bool = False) -> dict:
     """Writes the chain config `chain` with the detector calibrated on `result`; returns the
-    detector."""
+    detector and the outliers its robust threshold left out (each also a warning line)."""
     from ..offline.replay import calibrated_detector
+    from ..offline.thresholds import ROBUST_FENCE, threshold_text
 
-    detector = calibrated_detector(result, model, chain)
+    detector, outliers = calibrated_detector(result, model, chain)
     save_config(chain.replace(detector=detector), path)
-    return {"file": str(path), **dc.asdict(detector)}
+    if outliers and not quiet:
+        print(f"warning: --calibrate-detector: {len(outliers)} stretch(es) of the log were left "
+              f"out of the threshold ({threshold_text(dc.asdict(detector))}): their peaks lie "
+              f"more than {ROBUST_FENCE:g} robust standard deviations above the log's other "
+              "peaks (a start transient, a knock, a contact?); the detector would fire there. "
+              "Calibrate on a log without them (--t-start/--t-end), or check them:",
+              file=sys.stderr)
+        for outlier in outliers:
+            print(f"  {outlier.text()}", file=sys.stderr)
+    return {"file": str(path), **dc.asdict(detector),
+            "ignored_outliers": [o.as_dict() for o in outliers]}
 
 
 def _prepared_log(args):
@@ -187,7 +205,7 @@ def _prepared_log(args):
     from ..data.robot_log import resample_uniform
     from ..offline.residual_budget import check_uniform_sampling
 
-    frame = _read_log(args)
+    frame = time_window(_read_log(args), args.t_start, args.t_end)
     if args.resample:
         rows = len(frame)
         frame = resample_uniform(frame)
@@ -198,6 +216,22 @@ def _prepared_log(args):
     if args.budget:
         check_uniform_sampling(frame[TIME].to_numpy(float))
     return frame
+
+
+def time_window(frame, t_start, t_end):
+    """The rows of `frame` with t_start ≤ t ≤ t_end (s, the log's time axis; None: open);
+    a LogError when fewer than two are left, naming the log's time span."""
+    if t_start is None and t_end is None:
+        return frame
+    t = frame[TIME].to_numpy(float)
+    keep = (t >= (-float("inf") if t_start is None else t_start)) & (
+        t <= (float("inf") if t_end is None else t_end))
+    if keep.sum() < 2:
+        raise LogError(f"--t-start/--t-end keep {int(keep.sum())} rows of the log, whose times "
+                       f"run from {t[0]:.6g} s to {t[-1]:.6g} s: choose a window inside it")
+    out = frame.loc[keep].reset_index(drop=True)
+    out.attrs = dict(frame.attrs)
+    return out
 
 
 def _read_log(args):

@@ -75,7 +75,7 @@ from ..data.training import DERIVED
 from ..errors import LogError, spelled
 from ..runtime.chain import CompensationChain
 from .recorder import UpdateRecorder, output_columns
-from .thresholds import armed, thresholds_for_false_positive_rate
+from .thresholds import Outlier, armed, calibrate_thresholds
 
 PAIRINGS = ("row", "simulated")
 VIEWS = ("aligned", "held")
@@ -320,14 +320,18 @@ def scenario_of(frame: pd.DataFrame) -> ScenarioConfig | None:
     return parse_config(scenario, source="the log's metadata") if scenario else None
 
 
-def calibrated_detector(result: pd.DataFrame, model, config: ChainConfig) -> DetectorConfig:
+def calibrated_detector(result: pd.DataFrame, model, config: ChainConfig
+                        ) -> tuple[DetectorConfig, list[Outlier]]:
     """``config.detector`` with its thresholds set for its false-positive budget from a
     replay `result` (:func:`replay`'s output) of contact-free motion the model was not
-    trained on: the contact wrench the detector judges, and with the χ² test the model's
-    std, on the rows it judges (``arm_after_s`` from the log's start), at the log's median
-    sample rate (:func:`~ftdrake.offline.thresholds.thresholds_for_false_positive_rate`).
-    The test is the one ``detector.test`` gives `model` when calibrating (``auto``: χ² for
-    a model with a std of a reading); debounce, hysteresis and arming are kept."""
+    trained on, and the stretches of it the thresholds leave out: the contact wrench the
+    detector judges, and with the χ² test the model's std, on the rows it judges
+    (``arm_after_s`` from the log's start), at the log's median sample rate, with the robust
+    largest-residual term (:func:`~ftdrake.offline.thresholds.calibrate_thresholds`,
+    ``tail="robust"``: a start transient or another short burst does not set the threshold;
+    it is returned as an :class:`~ftdrake.offline.thresholds.Outlier`, times on the log's
+    axis). The test is the one ``detector.test`` gives `model` when calibrating (``auto``:
+    χ² for a model with a std of a reading); debounce, hysteresis and arming are kept."""
     t = result[col.TIME].to_numpy(float)
     if len(t) < 2 or not np.all(np.diff(t) > 0):
         raise LogError("calibrating the detector needs a replay with increasing times")
@@ -338,11 +342,11 @@ def calibrated_detector(result: pd.DataFrame, model, config: ChainConfig) -> Det
     detector = config.detector
     kept = {"release_ratio": detector.release_ratio, "debounce_on": detector.debounce_on,
             "debounce_off": detector.debounce_off, "arm_after_s": detector.arm_after_s}
-    return thresholds_for_false_positive_rate(
+    return calibrate_thresholds(
         result[col.wrench_columns(col.WRENCH_CONTACT)].to_numpy()[judged],
         sample_rate_hz=1.0 / float(np.median(np.diff(t))),
         false_positives_per_hour=config.detector.false_positives_per_hour, test=test,
-        std=std, **kept)
+        std=std, tail="robust", times=t[judged], **kept)
 
 
 def summary(result: pd.DataFrame) -> dict:

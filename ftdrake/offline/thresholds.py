@@ -6,10 +6,13 @@ the data (the norm test, or with ``test="chi2"`` the χ² test's threshold on th
 whitened by the model's std); :func:`thresholds_from_quantile` from a quantile of the
 residual's norms. :func:`armed` selects the samples the detector judges, the only ones
 thresholds may come from. :func:`detectable_force` is the force a detector's test needs at a
-sample, given the model's std there.
+sample, given the model's std there. :func:`calibrate_thresholds` is the first with a robust
+largest-residual term (``tail="robust"``), and returns the stretches it left out.
 """
 
 from __future__ import annotations
+
+import dataclasses as dc
 
 import numpy as np
 from scipy.stats import chi2
@@ -26,6 +29,46 @@ def armed(times, arm_after_s: float = DetectorConfig.arm_after_s) -> np.ndarray:
     otherwise set the largest-residual term of
     :func:`thresholds_for_false_positive_rate`."""
     return np.asarray(times, dtype=float) >= arm_after_s
+
+
+#: The robust largest-residual term: the statistic's peak per window of this length (s;
+#: shorter on a short log, so that there are :data:`ROBUST_MIN_WINDOWS`) ...
+ROBUST_WINDOW_S = 1.0
+ROBUST_MIN_WINDOWS = 10
+#: ... and a window is an outlier when the log of its peak is more than this many robust
+#: standard deviations (1.4826 × the median absolute deviation) above the median of them.
+ROBUST_FENCE = 5.0
+#: The tails :func:`calibrate_thresholds` takes: the largest residual over all rows, or over
+#: the windows that are not outliers.
+TAILS = ("max", "robust")
+
+
+@dc.dataclass(frozen=True)
+class Outlier:
+    """A stretch the robust term left out, where the detector would fire on the very data
+    that set its thresholds: the `statistic` (``chi2``: Σ (rᵢ/σᵢ)²; ``force``: ‖F‖ in N;
+    ``torque``: ‖T‖ in N·m) above its `threshold` from `t_first` to `t_last` (s, on the times
+    given), on `rows` rows, its `peak` at `t_peak`."""
+
+    statistic: str
+    t_first: float
+    t_last: float
+    rows: int
+    peak: float
+    t_peak: float
+    threshold: float
+
+    def as_dict(self) -> dict:
+        """JSON-ready copy."""
+        return dc.asdict(self)
+
+    def text(self) -> str:
+        """One line: when, how long, how large (and how many times the threshold)."""
+        unit = {"force": " N", "torque": " N·m"}.get(self.statistic, "")
+        return (f"{self.statistic} above its threshold {self.threshold:.4g}{unit} from t = "
+                f"{self.t_first:.3f} s to {self.t_last:.3f} s ({self.rows} rows), peak "
+                f"{self.peak:.4g}{unit} at {self.t_peak:.3f} s "
+                f"({self.peak / self.threshold:.1f}× the threshold)")
 
 
 def thresholds_for_false_positive_rate(
@@ -59,6 +102,65 @@ def thresholds_for_false_positive_rate(
     torque_on are then the norm test's, kept for a switch back. ``test="auto"``: the χ²
     test when `std` is given, else the norm test; the returned config names the test used.
     """
+    return calibrate_thresholds(residual, sample_rate_hz=sample_rate_hz,
+                                false_positives_per_hour=false_positives_per_hour, std=std,
+                                test=test, tail="max", **overrides)[0]
+
+
+def calibrate_thresholds(
+        residual, *, sample_rate_hz: float,
+        false_positives_per_hour: float = DetectorConfig.false_positives_per_hour,
+        std=None, test: str = "norm", tail: str = "robust", times=None,
+        **overrides) -> tuple[DetectorConfig, list[Outlier]]:
+    """:func:`thresholds_for_false_positive_rate` with a choice of its largest-residual term;
+    returns ``(the detector config, the outliers left out)``.
+
+    ``tail="max"``: the largest residual over all rows (what that function does: a single
+    start transient then sets the threshold). ``tail="robust"``: the rows are cut into
+    windows of :data:`ROBUST_WINDOW_S` (shorter on a short log: at least
+    :data:`ROBUST_MIN_WINDOWS` of them) by `times` (s, one per row; default: row k at
+    k / `sample_rate_hz`); a window whose peak of the test's statistic lies more than
+    :data:`ROBUST_FENCE` robust standard deviations above the median of the windows' peaks
+    (on a log scale) is an outlier, and the term is the largest residual of the other
+    windows. Heavy tails spread over the motion raise many windows' peaks, and with them the
+    fence; a transient in a few windows does not. The outliers returned are the stretches of
+    the left-out windows where the statistic passes the threshold set (there the detector
+    would fire on this data); none with ``tail="max"``.
+    """
+    r, test, times = _checked(residual, sample_rate_hz, false_positives_per_hour, std, test,
+                              tail, times)
+    kept = (np.ones(len(r), bool) if tail == "max"
+            else _robust_rows(r, std, times, test, sample_rate_hz))
+    outliers = []
+    if test == "chi2":
+        chi2_on = chi2_on_for_false_positive_rate(
+            r, std, sample_rate_hz=sample_rate_hz,
+            false_positives_per_hour=false_positives_per_hour, rows=kept)
+        overrides = {**overrides, "test": "chi2", "chi2_on": chi2_on}
+        outliers = _stretches("chi2", _chi2(r, std), times, chi2_on, kept)
+    else:
+        overrides = {**overrides, "test": "norm"}
+    p = false_positives_per_hour / (3600.0 * sample_rate_hz) / 2.0
+    k = float(np.sqrt(chi2.isf(p, 3)))
+    rms = np.sqrt(np.mean(r**2, axis=0))
+    thresholds = []
+    for name, block in (("force", slice(0, 3)), ("torque", slice(3, 6))):
+        norms = np.linalg.norm(r[:, block], axis=1)
+        gaussian = k * rms[block].max()
+        observed = 1.05 * norms[kept].max()
+        thresholds.append(float(max(gaussian, observed)))
+        if test == "norm":
+            outliers += _stretches(name, norms, times, thresholds[-1], kept)
+    return DetectorConfig(force_on=thresholds[0], torque_on=thresholds[1],
+                          false_positives_per_hour=false_positives_per_hour,
+                          **overrides).validate(), outliers
+
+
+def _checked(residual, sample_rate_hz, false_positives_per_hour, std, test, tail, times):
+    """(the residual as an array, the test resolved, the times); ValueErrors name what is
+    wrong."""
+    if tail not in TAILS:
+        raise ValueError(f"tail must be one of {TAILS}; got {tail!r}")
     r = np.asarray(residual, dtype=float)
     if r.ndim != 2 or r.shape[1] != 6 or len(r) < 100:
         raise ValueError(f"residual must be N × 6 with N >= 100; got shape {r.shape}")
@@ -68,35 +170,66 @@ def thresholds_for_false_positive_rate(
         raise ValueError("false_positives_per_hour and sample_rate_hz must be positive")
     if test == "auto":  # as the chain resolves it: χ² when there is a std of a reading
         test = "chi2" if std is not None else "norm"
-    if test == "chi2":
-        overrides = {**overrides, "test": "chi2", "chi2_on": chi2_on_for_false_positive_rate(
-            r, std, sample_rate_hz=sample_rate_hz,
-            false_positives_per_hour=false_positives_per_hour)}
-    elif test == "norm":
-        overrides = {**overrides, "test": "norm"}
-    else:
+    if test not in ("norm", "chi2"):
         raise ValueError(f"test must be 'auto', 'norm' or 'chi2'; got {test!r}")
-    p = false_positives_per_hour / (3600.0 * sample_rate_hz) / 2.0
-    k = float(np.sqrt(chi2.isf(p, 3)))
-    rms = np.sqrt(np.mean(r**2, axis=0))
-    thresholds = []
-    for block in (slice(0, 3), slice(3, 6)):
-        gaussian = k * rms[block].max()
-        observed = 1.05 * np.linalg.norm(r[:, block], axis=1).max()
-        thresholds.append(float(max(gaussian, observed)))
-    return DetectorConfig(force_on=thresholds[0], torque_on=thresholds[1],
-                          false_positives_per_hour=false_positives_per_hour,
-                          **overrides).validate()
+    times = (np.arange(len(r)) / sample_rate_hz if times is None
+             else np.asarray(times, dtype=float).reshape(-1))
+    if len(times) != len(r):
+        raise ValueError(f"times has {len(times)} values for {len(r)} rows")
+    return r, test, times
+
+
+def _chi2(r: np.ndarray, std) -> np.ndarray:
+    return np.sum((r / np.asarray(std, dtype=float)) ** 2, axis=1)
+
+
+def _robust_rows(r, std, times, test: str, sample_rate_hz: float) -> np.ndarray:
+    """(N,) bool: the rows of the windows that are not outliers (see calibrate_thresholds),
+    judged on the test's statistics (χ²; or ‖F‖ and ‖T‖, a window out when either is)."""
+    chi2_ok = test == "chi2" and std is not None and np.shape(std) == r.shape
+    stats = ([_chi2(r, std)] if chi2_ok
+             else [np.linalg.norm(r[:, :3], axis=1), np.linalg.norm(r[:, 3:], axis=1)])
+    span = float(times[-1] - times[0]) + 1.0 / sample_rate_hz
+    window = min(ROBUST_WINDOW_S, span / ROBUST_MIN_WINDOWS)
+    label = np.floor((times - times[0]) / window).astype(int)
+    windows = np.unique(label)
+    kept = np.ones(len(r), bool)
+    if len(windows) < ROBUST_MIN_WINDOWS:
+        return kept
+    for stat in stats:
+        peaks = np.log(np.maximum([stat[label == w].max() for w in windows], 1e-300))
+        median = np.median(peaks)
+        spread = 1.4826 * np.median(np.abs(peaks - median))
+        out = windows[peaks > median + ROBUST_FENCE * max(spread, 1e-3)]
+        kept &= ~np.isin(label, out)
+    return kept
+
+
+def _stretches(name: str, stat, times, threshold: float, kept) -> list[Outlier]:
+    """Per run of left-out rows (not `kept`), the stretch where `stat` exceeds
+    `threshold` (none when it stays below)."""
+    over = (~kept) & (stat > threshold)
+    found = []
+    edges = np.flatnonzero(np.diff(np.r_[0, (~kept).astype(int), 0]))
+    for start, stop in zip(edges[::2], edges[1::2], strict=True):
+        rows = np.flatnonzero(over[start:stop]) + start
+        if len(rows):
+            peak = rows[np.argmax(stat[rows])]
+            found.append(Outlier(name, float(times[rows[0]]), float(times[rows[-1]]),
+                                 len(rows), float(stat[peak]), float(times[peak]),
+                                 float(threshold)))
+    return found
 
 
 def chi2_on_for_false_positive_rate(residual, std, *, sample_rate_hz: float,
-                                    false_positives_per_hour: float) -> float:
+                                    false_positives_per_hour: float, rows=None) -> float:
     """The χ² test's threshold from held-out free motion: max(the χ²₆ quantile at 1 − p,
     1.05 × the largest Σ (rᵢ/σᵢ)² seen on it), p = false_positives_per_hour /
     (3600 · sample_rate_hz) (one test: the budget is not split). `residual`, `std`: N × 6,
     measured − predicted and the model's predictive std on the same rows. The second term, as
     in the norm test, keeps the rows where the std did not grow enough (the model is unsure
-    there and does not say so) from firing on the very data that set the threshold."""
+    there and does not say so) from firing on the very data that set the threshold. `rows`:
+    a bool mask of the rows that largest value is taken over (None: all)."""
     r = np.asarray(residual, dtype=float)
     s = None if std is None else np.asarray(std, dtype=float)
     if s is None or s.shape != r.shape:
@@ -107,7 +240,8 @@ def chi2_on_for_false_positive_rate(residual, std, *, sample_rate_hz: float,
                          "needs a model with a predictive std (physics, hybrid, GP)")
     quantile = chi2_threshold(DetectorConfig(
         false_positives_per_hour=false_positives_per_hour), 1.0 / sample_rate_hz)
-    return float(max(quantile, 1.05 * np.max(np.sum((r / s) ** 2, axis=1))))
+    stat = np.sum((r / s) ** 2, axis=1)
+    return float(max(quantile, 1.05 * np.max(stat if rows is None else stat[rows])))
 
 
 def detectable_force(detector: DetectorConfig, std, period: float) -> np.ndarray:

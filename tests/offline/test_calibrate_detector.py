@@ -96,3 +96,65 @@ def test_a_delay_corrected_only_in_the_replay_is_refused_naming_the_fix(physics_
                       "--calibrate-detector", str(folder / "delayed.yaml")) != 0
     assert "train with --delay/--align" in capsys.readouterr().err
     assert not (folder / "delayed.yaml").exists()
+
+
+def test_a_start_transient_is_left_out_of_the_threshold_and_reported(physics_and_free_log,
+                                                                      capsys):
+    """Issue 42 item 13: a start transient set the χ² threshold 15× too high (the worst case
+    over the log). The robust term gives the log with a transient nearly the threshold of the
+    log without it, and the transient is reported (times, size)."""
+    folder = physics_and_free_log
+    free = pd.read_parquet(folder / "free.parquet")
+    t = free["t"].to_numpy() - free["t"].iloc[0]
+    start = ftdrake.ChainConfig().detector.arm_after_s
+    kick = np.where(t >= start, 8.0 * np.exp(-(t - start) / 0.03), 0.0)  # N, decays in ~0.1 s
+    free.assign(meas_Fx=free["meas_Fx"] + kick, meas_Ty=free["meas_Ty"] - 0.1 * kick
+                ).to_parquet(folder / "kicked.parquet")
+    chi2_on = {}
+    for name in ("free", "kicked"):
+        assert main(["replay", "--model", str(folder / "m.ftd"), "--log",
+                     str(folder / f"{name}.parquet"), "--out", str(folder / f"{name}.csv"),
+                     "--pairing", "simulated", "--calibrate-detector",
+                     str(folder / f"{name}.yaml")]) == 0
+        captured = capsys.readouterr()
+        report = json.loads(captured.out.strip().splitlines()[-1])["detector"]
+        chi2_on[name] = report["chi2_on"]
+        if name == "free":
+            assert report["ignored_outliers"] == []
+            continue
+        # Independent: the worst case over the judged rows, which the old rule took.
+        out = pd.read_csv(folder / "kicked.csv")
+        judged = (out["t"] - out["t"].iloc[0]).to_numpy() >= start
+        w = out[wrench_columns("wrench_contact")].to_numpy()[judged]
+        s = out[wrench_columns("wrench_std")].to_numpy()[judged]
+        worst = np.sum((w / s) ** 2, 1)
+        assert 1.05 * worst.max() > 5 * chi2_on["free"]  # the transient would have set it
+        [outlier] = report["ignored_outliers"]
+        assert outlier["statistic"] == "chi2"
+        assert outlier["peak"] == pytest.approx(worst.max(), rel=1e-9)
+        assert start <= outlier["t_first"] - out["t"].iloc[0] <= outlier["t_peak"] - out[
+            "t"].iloc[0] <= outlier["t_last"] - out["t"].iloc[0] < start + 1.0
+        assert ("warning: --calibrate-detector: 1 stretch(es) of the log were left out of the "
+                "threshold" in captured.err and "chi2 above its threshold" in captured.err)
+    assert chi2_on["kicked"] == pytest.approx(chi2_on["free"], rel=0.1)
+
+
+def test_replay_and_evaluate_take_a_time_window(physics_and_free_log, capsys):
+    """Issue 42 item 13: --t-start/--t-end (s, the log's time) choose the rows replayed and
+    evaluated."""
+    folder = physics_and_free_log
+    t = pd.read_parquet(folder / "free.parquet")["t"].to_numpy()
+    inside = int(((t >= 2.0) & (t <= 3.5)).sum())
+    assert 0 < inside < len(t)
+    assert replay_cli(folder, "--t-start", "2", "--t-end", "3.5") == 0
+    report = json.loads(capsys.readouterr().out.strip().splitlines()[-1])
+    out = pd.read_parquet(folder / "out.parquet")
+    assert report["rows"] == len(out) == inside == report["time_window"]["rows"]
+    assert out["t"].min() >= 2.0 and out["t"].max() <= 3.5
+    assert main(["evaluate", "--model", str(folder / "m.ftd"), "--data",
+                 str(folder / "free.parquet"), "--t-start", "2", "--t-end", "3.5",
+                 "--json", str(folder / "eval.json"), "--quiet"]) == 0
+    capsys.readouterr()
+    assert json.loads((folder / "eval.json").read_text())["rows"]["used"] == inside
+    assert replay_cli(folder, "--t-start", "100") != 0
+    assert "--t-start/--t-end keep 0 rows of the log" in capsys.readouterr().err
