@@ -78,6 +78,11 @@ def register(sub) -> None:
         p.add_argument(flag, metavar="PAT", help=f"tables: {what}, default '{default}'; a glob, "
                        "a comma-separated list or a regular expression after 're:'")
     p.add_argument("--time", metavar="COL", help="tables: the time column (s), default 't'")
+    p.add_argument("--gap-factor", type=a.number(float, lambda v: 1 < v < float("inf"),
+                                                 "must be a number above 1"),
+                   default=3.0, metavar="X",
+                   help="a time step longer than X × the median step is a gap: the chain "
+                        "restarts after it (bias tracker, q̇/q̈ estimates, detector)")
     p.add_argument("--t-start", type=a.finite_float, metavar="S",
                    help="replay only the rows from this time on (s, the log's time axis)")
     p.add_argument("--t-end", type=a.finite_float, metavar="S",
@@ -92,7 +97,7 @@ def run_replay(args) -> int:
     from ..compensation.files.persistence import load_model
     from ..data.logs import write_log
     from ..data.stream_delay import estimate_stream_delay
-    from ..offline.replay import chain_config_of, replay, summary
+    from ..offline.replay import chain_config_of, gaps_text, replay, summary
 
     _check_flags(args)
     with a.naming("--model", args.model):
@@ -111,7 +116,11 @@ def run_replay(args) -> int:
     if delay is not None:
         config = chain_config_of(frame, config)
         config.sensor.wrench_delay_s = delay
-    result = replay(model, frame, config, pairing=args.pairing, view=args.view)
+    result = replay(model, frame, config, pairing=args.pairing, view=args.view,
+                    gap_factor=args.gap_factor)
+    gaps = gaps_text(result.attrs["gaps"])
+    if gaps is not None and not args.quiet:
+        print(f"warning: replay: {gaps} (--gap-factor X sets the rule)", file=sys.stderr)
     write_log(result, args.out)
     report = {"out": str(args.out), **summary(result)}
     if args.t_start is not None or args.t_end is not None:

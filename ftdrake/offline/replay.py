@@ -42,6 +42,15 @@ port the chain has, named as :data:`ftdrake.conventions.CHAIN_OUTPUTS` says and 
 bias tracker ``bias_*``, ``tracker_std_*``, ``payload_dm``, ``payload_mcx..mcz`` (with
 ``track_payload``) and ``payload_change`` (with ``bias_tracker.payload_change.enabled``).
 
+Gaps: a time step longer than `gap_factor` × the median step (default
+:data:`GAP_FACTOR`, the readers' rule) is a gap in the log. The loop's state does not carry
+across one: the chain is restarted after each gap (a new chain on the rows up to the next, as
+if each stretch were a log of its own), so the bias tracker, the payload-change monitor, the
+q̇/q̈ estimates, the delay line and the detector's debouncing and arming start afresh instead
+of integrating or differentiating across the gap (a 15 s gap read as one 10 ms step made a
+q̈ spike, and a wrench of −95.8 N the row after it). The gaps are kept in the result's
+``attrs["gaps"]`` (:func:`find_gaps`) and :func:`summary` reports them.
+
 Log columns read (the layout ``collect``, ``simulate`` and :func:`ftdrake.add_recorder`
 write): ``t`` (s), ``q_i`` (rad), ``qd_i`` (rad/s), the wrench ``meas_Fx..meas_Tz`` (N, N·m),
 ``temperature`` (°C; only for a model trained with it), and optionally ``tared`` and
@@ -80,6 +89,8 @@ from .thresholds import Outlier, armed, calibrate_thresholds
 PAIRINGS = ("row", "simulated")
 VIEWS = ("aligned", "held")
 TARED, PAYLOAD_CHANGED = "tared", "payload_changed"
+#: A time step longer than this many median steps is a gap (the readers' ``gap_factor``).
+GAP_FACTOR = 3.0
 
 @dc.dataclass
 class ReplayInputs:
@@ -95,7 +106,7 @@ class ReplayInputs:
 
 def replay(model, log, config: ChainConfig | None = None, *, pairing: str = "row",
            view: str = "aligned", period: float | None = None, wrench: str = col.MEASURED,
-           robot=None) -> pd.DataFrame:
+           robot=None, gap_factor: float = GAP_FACTOR) -> pd.DataFrame:
     """Runs the runtime chain over `log`, one update per row; returns its outputs per row.
 
     `model`: a fitted compensator (``load_model``). `log`: a DataFrame in the layout of the
@@ -109,7 +120,9 @@ def replay(model, log, config: ChainConfig | None = None, *, pairing: str = "row
     log's median period). `wrench`: the prefix of the wrench columns. `robot`: the
     RobotDescription for the tracker's payload estimate (``track_payload``; default:
     ``config.robot``, else the robot embedded in the model). A delay between the streams is
-    ``config.sensor.wrench_delay_s`` (null: the model's own).
+    ``config.sensor.wrench_delay_s`` (null: the model's own). `gap_factor`: a step longer
+    than this × the median step is a gap, after which the chain restarts (module
+    docstring); the gaps are in the result's ``attrs["gaps"]``.
 
     Raises LogError naming a missing column and what produces it.
     """
@@ -123,15 +136,60 @@ def replay(model, log, config: ChainConfig | None = None, *, pairing: str = "row
     inputs = replay_inputs(frame, n, wrench=wrench,
                            temperature=bool(model.temperature_in_))
     period = period if period is not None else _period(inputs.t, config)
-    if pairing == "simulated":
-        inputs = dc.replace(inputs, wrench=np.vstack([np.zeros((1, 6)), inputs.wrench[:-1]]))
-    chain = CompensationChain(model, config, period=period, n_joints=n, gravity="joint_state",
-                              robot=robot)
-    outputs = run_chain(chain, inputs)
-    if view == "held":
-        outputs = {k: np.vstack([np.full((1, v.shape[1]), np.nan), v[:-1]])
-                   for k, v in outputs.items()}
-    return _frame(inputs.t, outputs)
+    gaps = find_gaps(inputs.t, gap_factor)
+    parts = []
+    for rows in np.split(np.arange(len(inputs.t)), [g["row"] for g in gaps["gaps"]]):
+        part = _rows_of(inputs, rows)
+        if pairing == "simulated":
+            part = dc.replace(part, wrench=np.vstack([np.zeros((1, 6)), part.wrench[:-1]]))
+        chain = CompensationChain(model, config, period=period, n_joints=n,
+                                  gravity="joint_state", robot=robot)
+        outputs = run_chain(chain, part)
+        if view == "held":
+            outputs = {k: np.vstack([np.full((1, v.shape[1]), np.nan), v[:-1]])
+                       for k, v in outputs.items()}
+        parts.append(outputs)
+    outputs = {k: np.vstack([o[k] for o in parts]) for k in parts[0]}
+    result = _frame(inputs.t, outputs)
+    result.attrs["gaps"] = gaps
+    return result
+
+
+def find_gaps(t, gap_factor: float = GAP_FACTOR) -> dict:
+    """The gaps of times `t` (s, increasing): steps longer than `gap_factor` × the median
+    step. Returns a JSON-ready dict: ``gap_factor``, ``median_step_s``, ``count`` and
+    ``gaps``, each ``{"row": the first row after it, "t_before", "t_after", "length_s"}``."""
+    if not gap_factor > 1:
+        raise LogError(f"replay: gap_factor must be above 1 (a step that many median steps "
+                       f"long is a gap); got {gap_factor!r}")
+    t = np.asarray(t, dtype=float)
+    dt = np.diff(t)
+    median = float(np.median(dt)) if len(dt) else 0.0
+    rows = np.flatnonzero(dt > gap_factor * median) + 1 if len(dt) else np.array([], int)
+    return {"gap_factor": float(gap_factor), "median_step_s": median, "count": len(rows),
+            "gaps": [{"row": int(k), "t_before": float(t[k - 1]), "t_after": float(t[k]),
+                      "length_s": float(t[k] - t[k - 1])} for k in rows]}
+
+
+def gaps_text(gaps: dict, limit: int = 5) -> str | None:
+    """One line on the gaps of :func:`find_gaps` (None without any): how many, the rule,
+    where and how long (the first `limit`), and that the chain restarted after each."""
+    if not gaps["count"]:
+        return None
+    listed = "; ".join(f"{g['length_s']:.4g} s after t = {g['t_before']:.6g} s"
+                       for g in gaps["gaps"][:limit])
+    more = f"; … {gaps['count'] - limit} more" if gaps["count"] > limit else ""
+    return (f"{gaps['count']} gap(s) in the log (a step longer than {gaps['gap_factor']:g} × "
+            f"the median step {gaps['median_step_s'] * 1e3:.4g} ms): {listed}{more}. The chain "
+            "restarted after each (bias tracker, payload-change monitor, q̇/q̈ estimates, "
+            "delay line, detector): each stretch replays as a log of its own")
+
+
+def _rows_of(inputs: ReplayInputs, rows: np.ndarray) -> ReplayInputs:
+    """`inputs` cut to `rows`."""
+    return ReplayInputs(**{f.name: (None if getattr(inputs, f.name) is None
+                                    else getattr(inputs, f.name)[rows])
+                           for f in dc.fields(ReplayInputs)})
 
 
 def run_chain(chain: CompensationChain, inputs: ReplayInputs) -> dict[str, np.ndarray]:
@@ -351,17 +409,19 @@ def calibrated_detector(result: pd.DataFrame, model, config: ChainConfig
 
 def summary(result: pd.DataFrame) -> dict:
     """Counts of a replay result: rows, samples in contact and contact episodes, samples out
-    of domain and faulted, RMS of the contact wrench (N, N·m) outside contact."""
+    of domain and faulted, RMS of the contact wrench (N, N·m) outside contact, and the log's
+    gaps (:func:`find_gaps`; the chain restarted after each) when the result has them."""
     detected = result[col.CONTACT].fillna(0).to_numpy() > 0.5
     onsets = int(np.count_nonzero(np.diff(np.r_[0, detected.astype(int)]) == 1))
     free = result.loc[~detected, col.wrench_columns(col.WRENCH_CONTACT)]
+    found = {"gaps": result.attrs["gaps"]} if "gaps" in result.attrs else {}
     return {"rows": len(result), "contact_samples": int(detected.sum()),
             "contact_episodes": onsets,
             "out_of_domain_samples": int((result[col.OUT_OF_DOMAIN].fillna(0) > 0.5).sum()),
             "fault_samples": int((result[col.FAULT].fillna(0) > 0.5).sum()),
             "free_rms": dict(zip(col.WRENCH_AXES,
                                  np.sqrt(np.nanmean(free.to_numpy() ** 2, axis=0)).round(6)
-                                 .tolist(), strict=True))}
+                                 .tolist(), strict=True)), **found}
 
 
 def _period(t: np.ndarray, config: ChainConfig) -> float:
