@@ -121,11 +121,11 @@ def calibrate_thresholds(
     :data:`ROBUST_MIN_WINDOWS` of them) by `times` (s, one per row; default: row k at
     k / `sample_rate_hz`); a window whose peak of the test's statistic lies more than
     :data:`ROBUST_FENCE` robust standard deviations above the median of the windows' peaks
-    (on a log scale) is an outlier, and the term is the largest residual of the other
-    windows. Heavy tails spread over the motion raise many windows' peaks, and with them the
-    fence; a transient in a few windows does not. The outliers returned are the stretches of
-    the left-out windows where the statistic passes the threshold set (there the detector
-    would fire on this data); none with ``tail="max"``.
+    (on a log scale) is an outlier, and the term (and the RMS of the Gaussian term) come from
+    the other windows. Heavy tails spread over the motion raise many windows' peaks, and with
+    them the fence; a transient in a few windows does not. The outliers returned are the
+    stretches of the left-out windows where the statistic passes the threshold set (there the
+    detector would fire on this data); none with ``tail="max"``.
     """
     r, test, times = _checked(residual, sample_rate_hz, false_positives_per_hour, std, test,
                               tail, times)
@@ -142,7 +142,7 @@ def calibrate_thresholds(
         overrides = {**overrides, "test": "norm"}
     p = false_positives_per_hour / (3600.0 * sample_rate_hz) / 2.0
     k = float(np.sqrt(chi2.isf(p, 3)))
-    rms = np.sqrt(np.mean(r**2, axis=0))
+    rms = np.sqrt(np.mean(r[kept] ** 2, axis=0))  # the outliers left out of the RMS too
     thresholds = []
     for name, block in (("force", slice(0, 3)), ("torque", slice(3, 6))):
         norms = np.linalg.norm(r[:, block], axis=1)
