@@ -61,6 +61,12 @@ class ImuPayloadCompensator(PhysicsPayloadCompensator):
                 f"{type(self).__name__} takes X = [q, qd, qdd, imu_acc (3), imu_gyro (3), "
                 f"imu_alpha (3)]: 3n + 9 columns; got shape {shape} (a temperature column is "
                 "not supported with the IMU)")
+        joints = self._kinematics().num_joints
+        if shape[1] != 3 * joints + IMU_WIDTH:
+            raise ValueError(
+                f"X has {shape[1]} columns; the robot's {joints} joints and the IMU take "
+                f"{3 * joints + IMU_WIDTH}: [q, qd, qdd] ({3 * joints}) and imu_acc (3), "
+                "imu_gyro (3), imu_alpha (3)")
         if self.mode != "dynamic":
             raise ConfigError("mode: the IMU model is 'dynamic' (it exists for the motion "
                               "terms); use PhysicsPayloadCompensator(mode='static') without "
