@@ -121,3 +121,15 @@ def test_predicts_only_rows_with_the_imu(rigid):
     np.testing.assert_allclose(mean, model.predict(X[10:11])[0])
     np.testing.assert_allclose(std, model.predict_std(X[10:11])[0])
     assert model.out_of_domain(X).sum() == 0
+
+
+def test_the_loop_refuses_it_with_the_way_out(rigid):
+    from ftdrake.compensation.contract import loop_view
+
+    _, log = rigid
+    _, X = _rows(log)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        model = ImuPayloadCompensator().fit(X, log[col.wrench_columns(col.MEASURED)].to_numpy())
+    with pytest.raises(ConfigError, match="runtime chain does not feed"):
+        loop_view(model)

@@ -52,6 +52,9 @@ class ImuPayloadCompensator(PhysicsPayloadCompensator):
     ω of S in S (rad/s) and α of S in S (rad/s²). Fitted attributes: the physics model's.
     """
 
+    #: Its X carries an IMU's nine columns (the loop contract refuses it: no chain feeds them).
+    needs_imu = True
+
     def fit(self, X, y, *, wrench_delay_s: float | None = None):
         """Fits on rows `X` (N, 3n + 9) ``[q, q̇, q̈, f_S, ω_S, α_S]`` and wrench targets `y`
         (N, 6); see the physics model's ``fit``."""
