@@ -69,5 +69,5 @@ def test_imu_columns_keep_their_units_and_give_the_imu_layout(tmp_path):
     X = imu_layout(loaded)
     np.testing.assert_array_equal(X[:, :21], joint_state_layout(loaded))
     np.testing.assert_array_equal(X[:, 21:], loaded[list(col.IMU_INPUTS)].to_numpy())
-    with pytest.raises(LogError, match="scenario.imu.enabled"):
+    with pytest.raises(LogError, match=r"scenario\.imu\.enabled"):
         imu_layout(loaded.drop(columns=["imu_gyro_y"]))
