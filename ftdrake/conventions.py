@@ -55,6 +55,24 @@ QD_EST, QDD_EST = "qd_est", "qdd_est"
 TORQUE = "tau"  # joint efforts read from a robot's JointState topic, N·m
 
 
+# -- An IMU at the sensor (``scenario.imu``; three columns each, see imu_columns) --------------
+# At So, axes along S. ``imu_acc``: the accelerometer's proper acceleration of So in S, m/s²
+# (Drake's convention: a − g, so +9.81 *up* at rest); ``imu_gyro``: ω of S in S, rad/s;
+# ``imu_alpha``: the angular acceleration of S in S, rad/s², the causal filtered derivative of
+# imu_gyro (derived, as qdd_est is from qd).
+IMU_ACC, IMU_GYRO, IMU_ALPHA = "imu_acc", "imu_gyro", "imu_alpha"
+IMU_AXES = ("x", "y", "z")
+
+
+def imu_columns(prefix: str) -> list[str]:
+    """``imu_acc`` → ``["imu_acc_x", "imu_acc_y", "imu_acc_z"]``."""
+    return [f"{prefix}_{a}" for a in IMU_AXES]
+
+
+#: The nine IMU columns a compensator with an IMU takes after ``[q, q̇, q̈]``, in order.
+IMU_INPUTS = (*imu_columns(IMU_ACC), *imu_columns(IMU_GYRO), *imu_columns(IMU_ALPHA))
+
+
 def joint_columns(prefix: str, n: int = N_JOINTS) -> list[str]:
     """``q`` → ``["q_0", ..., "q_{n-1}"]``."""
     return [f"{prefix}_{i}" for i in range(n)]

@@ -84,10 +84,11 @@ def _extra_instances(station, model) -> list:
     from pydrake.geometry import Meshcat, MeshcatParams  # noqa: PLC0415
 
     import ftdrake  # noqa: PLC0415
-    from ftdrake.config import PayloadChangeConfig, TransmissionConfig  # noqa: PLC0415
+    from ftdrake.config import ImuConfig, PayloadChangeConfig, TransmissionConfig  # noqa: PLC0415
     from ftdrake.runtime.delay_line import DelayLine  # noqa: PLC0415
     from ftdrake.runtime.payload_change import PayloadChangeMonitor  # noqa: PLC0415
     from ftdrake.sim.scene import CONTROL_SENSOR_FRAME, make_control_plant  # noqa: PLC0415
+    from ftdrake.systems.imu import ImuNoise  # noqa: PLC0415
     from ftdrake.systems.learned_feedforward import LearnedFeedforward  # noqa: PLC0415
     from ftdrake.systems.payload_feedforward import PayloadFeedforward  # noqa: PLC0415
     from ftdrake.systems.time_indexed_feedforward import TimeIndexedFeedforward  # noqa: PLC0415
@@ -110,6 +111,7 @@ def _extra_instances(station, model) -> list:
             WrenchArrows(meshcat, station.plant, station.scene),
             DelayLine(6, 2.5, config.time_step),
             MotorSide(TransmissionConfig(enabled=True), config.time_step),
+            ImuNoise(ImuConfig(), config.time_step),
             PayloadChangeMonitor(PayloadChangeConfig(enabled=True), config.sensor),
             PayloadFeedforward(control_plant, control_plant.GetFrameByName(CONTROL_SENSOR_FRAME))]
 

@@ -99,6 +99,12 @@ def loop_view(model, n_joints: int | None = None) -> LoopView:
             f"{type(model).__name__} is not a fitted ftdrake compensator: it lacks "
             f"{', '.join(missing)} (the loop contract, ftdrake.compensation.contract."
             "LoopModel; load a model with ftdrake.load_model or fit a compensator first)")
+    if getattr(model, "needs_imu", False):
+        raise ConfigError(
+            f"{type(model).__name__} takes an IMU's columns after [q, qd, qdd], which the "
+            "runtime chain does not feed yet: use it offline (predict on a log with the "
+            "imu_* columns, ftdrake.data.dataset.imu_layout), or fit a "
+            "PhysicsPayloadCompensator for the loop")
     used = check_feature_set(model.features)
     if int(model.n_outputs_) != 6:
         raise ConfigError(f"the model predicts {model.n_outputs_} outputs; a wrench needs 6 "

@@ -29,6 +29,8 @@ The sections, one module each:
   :class:`TransmissionConfig`, off by default.
 * :mod:`.encoders` — the joint encoders' zero offsets and gravity sag:
   :class:`EncoderConfig`, off by default.
+* :mod:`.imu` — an accelerometer and gyroscope at the sensor: :class:`ImuConfig`, off by
+  default.
 * :mod:`.contour` — the hole-cutting task and its tool-side measurements (the two-part
   feedforward experiment).
 * :mod:`.scenario` — :class:`ScenarioConfig`, the simulation's root (it contains a
@@ -48,6 +50,7 @@ from .files import (
     parse_config,
     save_config,
 )
+from .imu import ImuConfig
 from .plant import CableConfig, ControllerConfig, FrictionConfig, ModelsConfig
 from .runtime import (
     PAYLOAD_INERTIA_PRIOR_STD,
@@ -77,6 +80,7 @@ __all__ = [
     "EncoderConfig",
     "EventsConfig",
     "FrictionConfig",
+    "ImuConfig",
     "ModelsConfig",
     "PayloadChangeConfig",
     "RobotConfig",

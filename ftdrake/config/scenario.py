@@ -8,6 +8,7 @@ from ..errors import ConfigError
 from .chain import ChainConfig
 from .checks import finite, positive, vector
 from .encoders import EncoderConfig
+from .imu import ImuConfig
 from .plant import CableConfig, ControllerConfig, FrictionConfig, ModelsConfig
 from .sensor import SensorConfig
 from .task import EventsConfig, TaskConfig, TrajectoryConfig
@@ -38,6 +39,8 @@ class ScenarioConfig:
     friction: FrictionConfig = dc.field(default_factory=FrictionConfig)
     transmission: TransmissionConfig = dc.field(default_factory=TransmissionConfig)
     encoders: EncoderConfig = dc.field(default_factory=EncoderConfig)
+    # An IMU at the F/T sensor (off by default; see ImuConfig).
+    imu: ImuConfig = dc.field(default_factory=ImuConfig)
 
     def validate(self) -> "ScenarioConfig":
         positive(self.time_step, "scenario.time_step")
@@ -68,6 +71,7 @@ class ScenarioConfig:
         self.friction.validate("scenario.friction")
         self.transmission.validate("scenario.transmission")
         self.encoders.validate("scenario.encoders")
+        self.imu.validate("scenario.imu")
         if self.encoders.enabled and self.encoders.sags() and self.transmission.enabled:
             raise ConfigError("scenario.encoders.sag_stiffness: the compliant transmissions "
                               "(scenario.transmission.enabled) already let the links sag from "

@@ -45,7 +45,8 @@ class TransmissionConfig:
     With ``enabled``, each arm joint is driven through a spring ``k`` and damper ``d``
     from a motor of reflected inertia ``rotor_inertia · gear_ratio²``; the controller reads
     the motor angle divided by the gear ratio (the encoder is on the motor shaft) and
-    commands the motor torque (expressed at the output, N·m).
+    commands the motor torque (expressed at the output, N·m). With ``chain_reads_motors``
+    the F/T loop and the log read the motor side too (see the field's comment).
     """
 
     enabled: bool = False
@@ -56,8 +57,21 @@ class TransmissionConfig:
     rotor_inertia: list[float] = dc.field(  # kg·m² on the motor shaft
         default_factory=lambda: [1.6e-4, 1.6e-4, 0.9e-4, 0.9e-4, 0.3e-4, 0.3e-4, 0.15e-4])
     damping_ratio: float = 0.05  # of the motor-against-held-link mode
+    # The gearbox's kinematic (transmission) error, rad at the output, per joint (empty: none):
+    # the link end of the spring stands at φ + e·sin(c·N·φ), c cycles per motor revolution.
+    # A harmonic drive's is 1–1.5 arcmin (2.9–4.4·10⁻⁴ rad) peak to peak, twice per
+    # wave-generator turn (Harmonic Drive CSF/CSG catalogue, "Transmission accuracy"; Tuttle
+    # & Seering, "A nonlinear model of a harmonic drive gear transmission", 1996): a ripple
+    # whose frequency grows with speed, the usual source of a moving arm's vibration.
+    transmission_error: list[float] = dc.field(default_factory=list)
+    transmission_error_cycles: float = 2.0
     # Real controllers include the reflected rotor inertia in their dynamic model.
     controller_knows_rotor_inertia: bool = True
+    # The F/T loop's joint state (the runtime chain's input and the log's q, q̇, q̈ columns):
+    # False, the links' (the plant's state); True, the motor-side encoders' (φ, φ̇ and the
+    # motors' acceleration), as on an arm whose encoders sit on the motor shafts, so that
+    # the wrist's vibration on the gearbox springs is in the wrench but not in the joints.
+    chain_reads_motors: bool = False
 
     def validate(self, where: str = "scenario.transmission") -> "TransmissionConfig":
         n = len(self.gear_ratio)
@@ -66,14 +80,35 @@ class TransmissionConfig:
             if len(values) != n:
                 raise ConfigError(f"{where}.{name}: must have one entry per joint like "
                                   f"gear_ratio ({n}), got {len(values)}")
+        self._validate_transmission_error(where, n)
         for name in ("gear_ratio", "stiffness", "rotor_inertia"):
             for i, v in enumerate(getattr(self, name)):
                 if not (math.isfinite(v) and v > 0):
                     raise ConfigError(f"{where}.{name}[{i}]: must be finite and > 0, got {v}")
+        if self.chain_reads_motors and not self.enabled:
+            raise ConfigError(f"{where}.chain_reads_motors: needs {where}.enabled: true (the "
+                              "motor-side encoders exist only with the compliant joints)")
         if not (math.isfinite(self.damping_ratio) and self.damping_ratio >= 0):
             raise ConfigError(f"{where}.damping_ratio: must be finite and >= 0, got "
                               f"{self.damping_ratio}")
         return self
+
+    def _validate_transmission_error(self, where: str, n: int) -> None:
+        if self.transmission_error and len(self.transmission_error) != n:
+            raise ConfigError(f"{where}.transmission_error: must be empty or have one entry per "
+                              f"joint like gear_ratio ({n}), got {len(self.transmission_error)}")
+        for i, v in enumerate(self.transmission_error):
+            if not (math.isfinite(v) and v >= 0):
+                raise ConfigError(f"{where}.transmission_error[{i}]: must be finite and >= 0 "
+                                  f"(rad), got {v}")
+        if not (math.isfinite(self.transmission_error_cycles)
+                and self.transmission_error_cycles > 0):
+            raise ConfigError(f"{where}.transmission_error_cycles: must be finite and > 0, got "
+                              f"{self.transmission_error_cycles}")
+
+    def has_transmission_error(self) -> bool:
+        """Whether any joint has a gearbox kinematic error (``transmission_error``)."""
+        return any(v > 0 for v in self.transmission_error)
 
     def reflected_inertia(self) -> list[float]:
         """J_m · N² per joint (kg·m²): the motor's inertia seen at the output."""

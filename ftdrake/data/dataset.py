@@ -57,6 +57,10 @@ def load_dataset(path: str | Path) -> tuple[pd.DataFrame, ScenarioConfig | None]
     return frame, scenario
 
 
+#: Units of the IMU's columns (:mod:`ftdrake.systems.imu`), by prefix.
+IMU_UNITS = {col.IMU_ACC: "m/s^2", col.IMU_GYRO: "rad/s", col.IMU_ALPHA: "rad/s^2"}
+
+
 def column_units(columns) -> dict[str, str]:
     """Unit of each known column (used for the dataset's metadata and the README)."""
     units = {}
@@ -70,6 +74,8 @@ def column_units(columns) -> dict[str, str]:
             units[name] = "rad/s"
         elif prefix in (col.QDD, col.QDD_EST):
             units[name] = "rad/s^2"
+        elif prefix in IMU_UNITS and suffix in col.IMU_AXES:
+            units[name] = IMU_UNITS[prefix]
         elif suffix in col.WRENCH_AXES:
             units[name] = "N" if suffix.startswith("F") else "N*m"
         else:
@@ -90,6 +96,20 @@ def joint_state_layout(frame: pd.DataFrame, source: str = "est", n: int | None =
         raise LogError(f"dataset lacks columns {missing[:6]}{'...' if len(missing) > 6 else ''}"
                        f"{_layout_hint(frame, source, n)}")
     return np.hstack([frame[block].to_numpy(dtype=float) for block in blocks])
+
+
+def imu_layout(frame: pd.DataFrame, source: str = "est", n: int | None = None):
+    """``X = [q, q̇, q̈, imu_acc, imu_gyro, imu_alpha]`` (N × (3n + 9)) from a dataset, for
+    :class:`~ftdrake.compensation.estimators.imu_physics.ImuPayloadCompensator`; `source` as
+    in :func:`joint_state_layout`."""
+    missing = [c for c in col.IMU_INPUTS if c not in frame.columns]
+    if missing:
+        more = "..." if len(missing) > 3 else ""
+        raise LogError(f"dataset lacks the IMU columns {missing[:3]}{more}: simulate "
+                       "with scenario.imu.enabled: true (or log an IMU at the sensor "
+                       "under these names, ftdrake.conventions.IMU_INPUTS)")
+    return np.hstack([joint_state_layout(frame, source, n),
+                      frame[list(col.IMU_INPUTS)].to_numpy(dtype=float)])
 
 
 def _layout_hint(frame: pd.DataFrame, source: str, n: int) -> str:

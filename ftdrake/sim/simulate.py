@@ -4,9 +4,10 @@ Log columns (one row per sensor sample; units SI; wrenches in S about So):
 
 ======================  ============================================================
 ``t``                   time, s
-``q_i``                 joint i position, rad (plant state)
-``qd_i``                joint i velocity, rad/s (plant state)
-``qdd_i``               joint i acceleration, rad/s² (the plant's step)
+``q_i``                 joint i position, rad (plant state; the motors' φ with
+                        ``transmission.chain_reads_motors``, see :func:`motor_acceleration`)
+``qd_i``                joint i velocity, rad/s (plant state, or the motors' φ̇)
+``qdd_i``               joint i acceleration, rad/s² (the plant's step, or the motors')
 ``qd_est_i``            the velocity the loop uses: the joint state's own ``qd_i``
 ``qdd_est_i``           the loop's own q̈ estimate: :func:`ftdrake.signals.causal_acceleration`
                         of ``qd`` at ``compensator.acceleration_cutoff_hz``, row by row, as
@@ -25,6 +26,12 @@ Log columns (one row per sensor sample; units SI; wrenches in S about So):
 ``temperature``         the sensor's temperature, °C
 ``offset_*``            the sensor driver's zero offset (with a ``events.retare_at_s``)
 ``push_force``          ‖F‖ of the ``events`` push at the tool tip, N (with a push)
+``imu_acc_*``           with ``imu.enabled``: the IMU's proper acceleration of So in S,
+                        m/s² (+9.81 up at rest; :mod:`ftdrake.systems.imu`), x, y, z
+``imu_gyro_*``          with ``imu.enabled``: its angular velocity of S in S, rad/s
+``imu_alpha_*``         with ``imu.enabled``: the causal derivative of ``imu_gyro_*``
+                        (:func:`ftdrake.signals.causal_acceleration` at
+                        ``imu.alpha_cutoff_hz``), rad/s²
 ======================  ============================================================
 
 ``meas_*`` is the reading the compensator gets (after a re-tare's offset); ``external_true_*``
@@ -199,10 +206,14 @@ def assemble_log(station: Station, root_context) -> pd.DataFrame:
     t, x = _log_data(station.loggers.state, root_context)
     keep = t > 0.5 * station.config.time_step  # see module docstring: drop the t = 0 row
     series = _sampled_with_state(station.loggers, root_context, t)
+    if station.config.transmission.chain_reads_motors:
+        series["acceleration"] = motor_acceleration(x[:, n:], t)
     frame = {col.TIME: t[keep]}
     _add_joint_columns(frame, x[keep], series["acceleration"][keep], n, station.period,
                        station.config.chain.compensator.acceleration_cutoff_hz)
     _add_sensor_columns(frame, station, root_context, t, keep, series)
+    if station.loggers.imu is not None:
+        _add_imu_columns(frame, station, root_context, t, keep)
     if station.compensation is not None:
         try:
             outputs = logged_values(station.compensation.loggers, root_context, t)
@@ -210,6 +221,18 @@ def assemble_log(station: Station, root_context) -> pd.DataFrame:
             raise RuntimeError(f"compensation: {e}") from None
         frame.update(output_columns({port: values[keep] for port, values in outputs.items()}))
     return pd.DataFrame(frame)
+
+
+def motor_acceleration(qd, t) -> np.ndarray:
+    """(N, n) rad/s²: the motors' acceleration for the log's q̈ columns when the loop reads
+    the motor side (``transmission.chain_reads_motors``): the backward difference of the
+    logged φ̇, ``(φ̇_k − φ̇_{k−1}) / (t_k − t_{k−1})`` (the first row: 0). The motors step
+    φ̇ once per plant step, so at a sensor rate equal to the plant rate this is the
+    acceleration of the step that ended at sample k, as the plant's q̈ is; at a slower sensor
+    rate, the mean over the sensor period."""
+    out = np.zeros_like(qd)
+    out[1:] = np.diff(qd, axis=0) / np.diff(t)[:, None]
+    return out
 
 
 def _log_data(logger, root_context):
@@ -241,6 +264,19 @@ def _add_joint_columns(frame: dict, x, acceleration, n: int, period: float,
         (col.QD_EST, qd_est), (col.QDD_EST, qdd_est),
     ):
         frame.update(zip(col.joint_columns(prefix, n), values.T, strict=True))
+
+
+def _add_imu_columns(frame: dict, station: Station, root_context, t, keep) -> None:
+    """The IMU's reading (``imu_acc_*``, ``imu_gyro_*``) and the angular acceleration derived
+    from it (``imu_alpha_*``: causal derivative of the gyroscope at ``imu.alpha_cutoff_hz``)."""
+    ti, values = _log_data(station.loggers.imu, root_context)
+    if len(ti) != len(t) or not np.allclose(ti, t):
+        raise RuntimeError("logger 'imu' is not sampled with the state logger")
+    alpha = causal_acceleration(values[:, 3:], station.period,
+                                station.config.imu.alpha_cutoff_hz)
+    for prefix, block in ((col.IMU_ACC, values[:, :3]), (col.IMU_GYRO, values[:, 3:]),
+                          (col.IMU_ALPHA, alpha)):
+        frame.update(zip(col.imu_columns(prefix), block[keep].T, strict=True))
 
 
 def _add_sensor_columns(frame: dict, station: Station, root_context, t, keep, series) -> None:

@@ -39,6 +39,7 @@ from ..systems.controller import DiscreteInverseDynamicsController
 from ..systems.encoders import JointEncoders
 from ..systems.friction import JointFriction, check_explicit_stability
 from ..systems.ft_sensor import ForceTorqueSensor
+from ..systems.imu import ImuNoise, add_imu
 from ..systems.noisy_sensor import NoisyForceTorqueSensor
 from ..systems.payload_feedforward import PayloadFeedforward
 from ..systems.sensor_gravity import SensorGravity
@@ -64,6 +65,7 @@ class Loggers:
     offset: VectorLogSink | None = None  # the driver's zero offset (with a re-tare event)
     push: VectorLogSink | None = None  # the push's wrench at the sensor (with a push event)
     temperature: VectorLogSink | None = None  # the sensor's temperature, °C
+    imu: VectorLogSink | None = None  # with scenario.imu.enabled: [acc (m/s²), gyro (rad/s)], S
 
 
 @dc.dataclass
@@ -119,6 +121,8 @@ class Station:
     # With scenario.encoders.enabled: the encoders' reading (offsets, sag) that the
     # controller, the runtime chain and the state logger get instead of the joint state.
     encoders: JointEncoders | None = None
+    # With scenario.imu.enabled: the IMU at the sensor (systems/imu.py), its reading logged.
+    imu: ImuNoise | None = None
 
     @property
     def plant(self) -> MultibodyPlant:
@@ -162,6 +166,8 @@ def build_station(config: ScenarioConfig, compensator=None, *, meshcat=None,
         builder, config, scene, q_source, vd_source, feedforward)
     joint_state = (plant.get_state_output_port(scene.arm) if encoders is None
                    else encoders.get_output_port_measured_state())
+    if encoders is None and transmission is not None and config.transmission.chain_reads_motors:
+        joint_state = transmission.get_output_port_motor_state()  # the motor-side encoders
 
     sensor = builder.AddNamedSystem("ft_sensor", ForceTorqueSensor(plant, scene.sensor_joint))
     builder.Connect(plant.get_reaction_forces_output_port(),
@@ -196,6 +202,10 @@ def build_station(config: ScenarioConfig, compensator=None, *, meshcat=None,
         push=log(events.push.get_output_port_wrench_S()) if events.push is not None else None,
         temperature=log(noisy.get_output_port_temperature()),
     )
+    imu = None
+    if config.imu.enabled:
+        imu = add_imu(builder, plant, scene.sensor_frame, config.imu, period)
+        loggers.imu = log(imu.get_output_port_imu())
     feedforward_log = (log(feedforward.get_output_port_status()) if feedforward is not None
                        else None)
     motor_state_log = (log(transmission.get_output_port_motor_state())
@@ -229,7 +239,7 @@ def build_station(config: ScenarioConfig, compensator=None, *, meshcat=None,
     vd_source.UpdateTrajectory(trajectory.derivative(2))
     return Station(config, diagram, scene, trajectory, controller, sensor, noisy, truth,
                    loggers, compensation, arrows, events, friction, feedforward, feedforward_log,
-                   transmission, motor_state_log, payload_ff, encoders)
+                   transmission, motor_state_log, payload_ff, encoders, imu)
 
 
 def _add_control(builder, config: ScenarioConfig, scene: Scene, q_source, vd_source,
@@ -255,8 +265,10 @@ def _add_control(builder, config: ScenarioConfig, scene: Scene, q_source, vd_sou
             "transmission", MotorSide(config.transmission, config.time_step))
         builder.Connect(plant.get_state_output_port(scene.arm),
                         transmission.get_input_port_link_state())
-        builder.Connect(transmission.get_output_port_motor_state(),
-                        plant.get_desired_state_input_port(scene.arm))
+        spring_end = (transmission.get_output_port_link_reference()
+                      if config.transmission.has_transmission_error()
+                      else transmission.get_output_port_motor_state())
+        builder.Connect(spring_end, plant.get_desired_state_input_port(scene.arm))
         encoder_state = transmission.get_output_port_motor_state()
     encoders = None
     if config.encoders.enabled:  # their zero offsets and gravity sag

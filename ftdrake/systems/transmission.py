@@ -9,6 +9,13 @@ spring ``k`` and damper ``d`` (all at the output side, per joint)::
 ``φ`` is the motor angle divided by the gear ratio: what the encoder on the motor shaft
 reports, and what the controller feeds back. The tool moves with ``q``.
 
+With a gearbox kinematic error (``transmission_error`` e, ``transmission_error_cycles`` c),
+the spring's link end stands at ``φ + e·sin(c·N·φ)`` instead of ``φ`` (rate
+``φ̇·(1 + e·c·N·cos(c·N·φ))``): a ripple the motor-side encoder does not see, whose
+frequency ``c·N·φ̇`` grows with speed. The motor feels the spring's torque unscaled (the
+error's virtual-work factor ``1 + e·c·N·cos(·)`` on the motor's side is left out: it
+differs from 1 by at most ``e·c·N``, a few per cent for catalogue errors).
+
 How it is integrated at the scenario's 1 ms step, and why: the link side of the spring is
 Drake's PD-controlled joint actuator (``JointActuator.set_controller_gains``: Kp = k, Kd = d,
 desired state ``[φ, φ̇]`` on the plant's ``desired_state`` input), which the SAP solver treats
@@ -83,7 +90,10 @@ class MotorSide(LeafSystem):
     Output ports:
       motor_state (2n): ``[φ, φ̇]`` = motor angle / N (rad), its rate (rad/s): what the
         encoders report and the controller reads; also the plant's ``desired_state``
-        (the spring's motor end).
+        (the spring's motor end) without a transmission error.
+      link_reference (2n): the spring's link end ``[φ + e·sin(c·N·φ), its rate]`` (rad,
+        rad/s): the plant's ``desired_state`` with a transmission error (= motor_state
+        without one).
       deflection (n): ``φ − q`` (rad), the gearbox's twist.
       spring_torque (n): ``τ_s`` (N·m) the spring applies to the link.
     State: ``[φ, φ̇]`` (2n), discrete, updated every `period` s.
@@ -97,6 +107,10 @@ class MotorSide(LeafSystem):
         self.k = np.asarray(config.stiffness, dtype=float)
         self.d = np.asarray(config.damping(), dtype=float)
         self.J = np.asarray(config.reflected_inertia(), dtype=float)
+        self.has_error = config.has_transmission_error()
+        self.error = np.asarray(config.transmission_error or np.zeros(n), dtype=float)
+        self.error_rate = config.transmission_error_cycles * np.asarray(config.gear_ratio,
+                                                                        dtype=float)
         self.period = float(period)
         self._torque = self.DeclareVectorInputPort("motor_torque", n)
         self._link = self.DeclareVectorInputPort("link_state", 2 * n)
@@ -105,6 +119,8 @@ class MotorSide(LeafSystem):
         state = {self.discrete_state_ticket(self._state)}
         link = {self.input_port_ticket(self._link.get_index())}
         self.DeclareStateOutputPort("motor_state", self._state)
+        self.DeclareVectorOutputPort("link_reference", 2 * n, self._calc_link_reference,
+                                     prerequisites_of_calc=state)
         self.DeclareVectorOutputPort("deflection", n, self._calc_deflection,
                                      prerequisites_of_calc=state | link)
         self.DeclareVectorOutputPort("spring_torque", n, self._calc_spring,
@@ -119,17 +135,34 @@ class MotorSide(LeafSystem):
     def get_output_port_motor_state(self):
         return self.GetOutputPort("motor_state")
 
+    def get_output_port_link_reference(self):
+        return self.GetOutputPort("link_reference")
+
     def get_output_port_deflection(self):
         return self.GetOutputPort("deflection")
 
     def get_output_port_spring_torque(self):
         return self.GetOutputPort("spring_torque")
 
-    def spring_torque(self, motor_state, link_state) -> np.ndarray:
-        """τ_s (n,) for ``[φ, φ̇]`` and ``[q, q̇]``."""
+    def link_reference(self, motor_state) -> np.ndarray:
+        """The spring's link end (2n,) for ``[φ, φ̇]``: ``[φ + e·sin(c·N·φ), φ̇·(1 +
+        e·c·N·cos(c·N·φ))]``; `motor_state` itself without a transmission error."""
+        motor_state = np.asarray(motor_state, dtype=float)
+        if not self.has_error:
+            return motor_state
         n = self.n
-        return (self.k * (motor_state[:n] - link_state[:n])
-                + self.d * (motor_state[n:] - link_state[n:]))
+        phase = self.error_rate * motor_state[:n]
+        return np.concatenate([
+            motor_state[:n] + self.error * np.sin(phase),
+            motor_state[n:] * (1.0 + self.error * self.error_rate * np.cos(phase))])
+
+    def spring_torque(self, motor_state, link_state) -> np.ndarray:
+        """τ_s (n,) for ``[φ, φ̇]`` and ``[q, q̇]`` (with the transmission error, from the
+        spring's link end :meth:`link_reference`)."""
+        n = self.n
+        end = self.link_reference(motor_state)
+        return (self.k * (end[:n] - link_state[:n])
+                + self.d * (end[n:] - link_state[n:]))
 
     def static_motor_state(self, q, load_torque) -> np.ndarray:
         """``[φ, 0]`` holding the link at `q` against a static `load_torque` (N·m, the
@@ -148,6 +181,10 @@ class MotorSide(LeafSystem):
         tau_s = self.spring_torque(x, self._link.Eval(context))
         v = x[n:] + self.period * (self._torque.Eval(context) - tau_s) / self.J
         discrete_state.set_value(self._state, np.concatenate([x[:n] + self.period * v, v]))
+
+    def _calc_link_reference(self, context, output: BasicVector):
+        x = context.get_discrete_state(self._state).get_value()
+        output.SetFromVector(self.link_reference(x))
 
     def _calc_deflection(self, context, output: BasicVector):
         x = context.get_discrete_state(self._state).get_value()

@@ -48,3 +48,26 @@ def test_unreadable_dataset_is_a_clear_error(tmp_path):
         load_dataset(bad)
     with pytest.raises(FileNotFoundError, match="no dataset"):
         load_dataset(tmp_path / "missing.parquet")
+
+
+def test_imu_columns_keep_their_units_and_give_the_imu_layout(tmp_path):
+    from ftdrake import conventions as col
+    from ftdrake.data.dataset import imu_layout, joint_state_layout
+    from ftdrake.errors import LogError
+
+    config = ScenarioConfig()
+    config.sensor.preset = "robotiq_ft300"
+    config.imu.enabled = True
+    frame = collect(config, 1, kind="fourier", duration=0.5, n_jobs=1, progress=False)
+    path = tmp_path / "imu.parquet"
+    save_dataset(frame, path)
+    loaded, scenario = load_dataset(path)
+    assert scenario.imu.enabled
+    units = json.loads(pq.read_schema(path).metadata[b"ftdrake.units"])
+    assert (units["imu_acc_z"], units["imu_gyro_x"], units["imu_alpha_y"]) == (
+        "m/s^2", "rad/s", "rad/s^2")
+    X = imu_layout(loaded)
+    np.testing.assert_array_equal(X[:, :21], joint_state_layout(loaded))
+    np.testing.assert_array_equal(X[:, 21:], loaded[list(col.IMU_INPUTS)].to_numpy())
+    with pytest.raises(LogError, match=r"scenario\.imu\.enabled"):
+        imu_layout(loaded.drop(columns=["imu_gyro_y"]))

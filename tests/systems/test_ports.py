@@ -19,7 +19,8 @@ from pydrake.systems.framework import Diagram, InputPort, LeafSystem, OutputPort
 
 import ftdrake
 from ftdrake import CompensationChain, RandomForestCompensator, build_station
-from ftdrake.config import TransmissionConfig
+from ftdrake.config import ImuConfig, TransmissionConfig
+from ftdrake.systems.imu import ImuNoise
 from ftdrake.systems.learned_feedforward import LearnedFeedforward, fit_feedforward_gp
 from ftdrake.systems.time_indexed_feedforward import TimeIndexedFeedforward
 from ftdrake.systems.transmission import MotorSide
@@ -98,6 +99,7 @@ def instances():
         CompensationChain(model, chain, gravity="joint_state"),  # JointStateGravity inside
         CompensationChain(model, delayed),  # a DelayLine inside
         MotorSide(TransmissionConfig(enabled=True), config.time_step),  # compliant joints
+        ImuNoise(ImuConfig(), config.time_step),  # the IMU at the sensor
     ]
     systems = list(all_systems(station.diagram))
     for system in beside:
@@ -116,7 +118,7 @@ def test_the_walk_finds_the_runtime_and_the_rig():
             "JointStateGravity", "ForceTorqueSensor", "NoisyForceTorqueSensor",
             "SensorGravity", "ToolPush", "ContactTruth", "DiscreteInverseDynamicsController",
             "JointFriction", "LearnedFeedforward", "TimeIndexedFeedforward",
-            "WrenchArrows", "DelayLine", "MotorSide", "JointEncoders"} <= names
+            "WrenchArrows", "DelayLine", "MotorSide", "JointEncoders", "ImuNoise"} <= names
 
 
 @pytest.mark.parametrize("cls", SYSTEM_CLASSES, ids=lambda c: c.__name__)

@@ -137,3 +137,66 @@ def test_too_stiff_for_the_step_is_refused_with_the_fix():
 def test_per_joint_lists_must_agree():
     with pytest.raises(ConfigError, match="rotor_inertia"):
         TransmissionConfig(rotor_inertia=[1e-4] * 6).validate()
+
+
+def test_transmission_error_moves_the_springs_link_end():
+    """φ + e·sin(c·N·φ) and its rate φ̇·(1 + e·c·N·cos(c·N·φ)); none without an error."""
+    config = _scenario().transmission
+    motor_state = np.r_[np.linspace(-0.4, 0.5, 7), np.linspace(0.3, -0.6, 7)]
+    plain = MotorSide(config, 1e-3)
+    context = plain.CreateDefaultContext()
+    plain.set_motor_state(context, motor_state)
+    np.testing.assert_array_equal(plain.get_output_port_link_reference().Eval(context),
+                                  motor_state)
+    errors = [1e-4, 2e-4, 3e-4, 1e-4, 2e-4, 3e-4, 5e-5]
+    rippled = MotorSide(dc.replace(config, transmission_error=errors,
+                                   transmission_error_cycles=2.0), 1e-3)
+    context = rippled.CreateDefaultContext()
+    rippled.set_motor_state(context, motor_state)
+    end = rippled.get_output_port_link_reference().Eval(context)
+    phi, phid = motor_state[:7], motor_state[7:]
+    e, N = np.asarray(errors), np.asarray(config.gear_ratio)
+    np.testing.assert_allclose(end[:7], phi + e * np.sin(2 * N * phi), rtol=0, atol=1e-15)
+    # The rate is the derivative of the angle along the motion (central difference).
+    h = 1e-7
+    ahead = phi + h * phid + e * np.sin(2 * N * (phi + h * phid))
+    behind = phi - h * phid + e * np.sin(2 * N * (phi - h * phid))
+    np.testing.assert_allclose(end[7:], (ahead - behind) / (2 * h), rtol=1e-6, atol=1e-9)
+    # The spring pulls the link towards that end, not towards φ.
+    link = np.r_[phi, phid]
+    np.testing.assert_allclose(rippled.spring_torque(motor_state, link),
+                               rippled.k * (end[:7] - phi) + rippled.d * (end[7:] - phid))
+
+
+def test_the_loop_reads_the_motors_when_asked():
+    """chain_reads_motors: the log's q, q̇ are the motors' [φ, φ̇] and q̈ their steps'."""
+    config = _scenario(chain_reads_motors=True)
+    config = dc.replace(config, trajectory=dc.replace(config.trajectory, kind="fourier",
+                                                      duration_s=0.4))
+    station = build_station(config)
+    result = simulate(station, progress=False)
+    log = result.log
+    motors = station.motor_state_log.FindLog(result.context)
+    keep = motors.sample_times() > 0.5 * config.time_step
+    x = motors.data().T[keep]
+    q = log[[f"q_{i}" for i in range(7)]].to_numpy()
+    qd = log[[f"qd_{i}" for i in range(7)]].to_numpy()
+    qdd = log[[f"qdd_{i}" for i in range(7)]].to_numpy()
+    np.testing.assert_array_equal(q, x[:, :7])
+    np.testing.assert_array_equal(qd, x[:, 7:])
+    np.testing.assert_allclose(qdd[1:], np.diff(qd, axis=0) / config.time_step, rtol=1e-9,
+                               atol=1e-9)
+    # The links are elsewhere: by the gearboxes' twist.
+    plain = simulate(build_station(dc.replace(config, transmission=dc.replace(
+        config.transmission, chain_reads_motors=False))), progress=False).log
+    twist = np.abs(plain[[f"q_{i}" for i in range(7)]].to_numpy() - q).max()
+    assert twist > 1e-5
+
+
+def test_config_refuses_motor_reading_without_transmissions_and_bad_errors():
+    with pytest.raises(ConfigError, match="chain_reads_motors: needs"):
+        TransmissionConfig(chain_reads_motors=True).validate()
+    with pytest.raises(ConfigError, match=r"transmission_error: must be empty or have one"):
+        TransmissionConfig(enabled=True, transmission_error=[1e-4] * 3).validate()
+    with pytest.raises(ConfigError, match=r"transmission_error\[2\]"):
+        TransmissionConfig(enabled=True, transmission_error=[0, 0, -1e-4, 0, 0, 0, 0]).validate()

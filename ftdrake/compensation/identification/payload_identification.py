@@ -232,7 +232,8 @@ def weighted_least_squares(A, Y):
 
 
 def full_layout(Z, n):
-    """Pads selected features back to [q, q̇, q̈] with zeros (static models use only q)."""
-    X = np.zeros((len(Z), 3 * n))
+    """Pads selected features back to [q, q̇, q̈] with zeros (static models use only q);
+    columns after the 3n of the joint layout (an IMU's) are kept."""
+    X = np.zeros((len(Z), max(3 * n, Z.shape[1])))
     X[:, : Z.shape[1]] = Z
     return X
