@@ -153,3 +153,34 @@ def test_the_loop_publishes_the_motion_std(wrapped):
     expected = wrapped.noise_.std_at(np.linalg.norm(state[3:]), np.linalg.norm(acceleration))
     np.testing.assert_allclose(system.get_output_port_wrench_std().Eval(context), expected,
                                rtol=1e-12)
+
+
+def test_the_chi2_detector_whitens_by_the_motion_std(wrapped):
+    """The chain's χ² test with the motion std: a steady force that is far above the std at
+    rest, and well within it at speed, is contact at rest and not while moving."""
+    from ftdrake.config import ChainConfig
+    from ftdrake.runtime.chain import CompensationChain
+    from ftdrake.runtime.detector import chi2_threshold
+    from ftdrake.runtime.step import ChainStep
+
+    config = ChainConfig()
+    config.bias_tracker.enabled = False
+    config.detector.test = "chi2"
+    chain = CompensationChain(wrapped, config)
+    threshold = chi2_threshold(chain.config.detector, chain.period)
+    q = np.array([0.2, -0.1, 0.3])
+    speeds = {"rest": np.zeros(N), "moving": np.full(N, 0.9)}  # ‖q̇‖ 1.56 rad/s
+    sigma = {k: wrapped.noise_.std_at(np.linalg.norm(v), 0.0)[0] for k, v in speeds.items()}
+    force = np.sqrt(threshold * sigma["rest"] * sigma["moving"])  # between the two
+    contact = {}
+    for name, v in speeds.items():
+        step = ChainStep(chain)
+        internal = wrapped.predict(np.r_[q, v, np.zeros(N)][None])[0]
+        for k in range(200):
+            out = step.update(k * chain.period, internal + np.r_[force, 0, 0, 0, 0, 0],
+                              np.r_[q, v])
+        np.testing.assert_allclose(out["wrench_std"], wrapped.noise_.std_at(
+            np.linalg.norm(v), 0.0), rtol=1e-9, atol=1e-12)
+        contact[name] = out["contact"][0]
+    assert sigma["moving"] > 3 * sigma["rest"]
+    assert contact == {"rest": 1.0, "moving": 0.0}
