@@ -151,6 +151,11 @@ CHAIN_OUTPUTS = (
     _flag("payload_change", "/diagnostics.payload_change",
           "1 for a while after an unsignalled payload change (with "
           "bias_tracker.payload_change.enabled)"),
+    ChainOutput("payload_state", 1, ("payload_state",), None, None,
+                "the payload-change monitor's decision on a change of the contact wrench: 0 none, "
+                "1 undecided (the tool has not turned enough to tell a weight from a press), "
+                "2 payload change (not reported as contact), 3 contact (with "
+                "bias_tracker.payload_change.enabled)", "0–3 code"),
 )
 OUTPUTS = {o.port: o for o in CHAIN_OUTPUTS}
 #: The ports both live stations publish (LCM and ROS 2 alike).
@@ -160,8 +165,8 @@ PUBLISHED = tuple(o.port for o in CHAIN_OUTPUTS if o.lcm is not None and o.ros2 
 WRENCH_INTERNAL, WRENCH_COMPENSATED, WRENCH_CONTACT, WRENCH_STD, BIAS, TRACKER_STD = (
     "wrench_internal", "wrench_compensated", "wrench_contact", "wrench_std", "bias",
     "tracker_std")  # wrench prefixes (wrench_columns)
-OUT_OF_DOMAIN, FAULT, CONTACT, CONTACT_FORCE, PAYLOAD_CHANGE = (
-    "out_of_domain", "fault", "contact", "contact_force", "payload_change")
+OUT_OF_DOMAIN, FAULT, CONTACT, CONTACT_FORCE, PAYLOAD_CHANGE, PAYLOAD_STATE = (
+    "out_of_domain", "fault", "contact", "contact_force", "payload_change", "payload_state")
 PAYLOAD = OUTPUTS["payload"].columns  # Δm (kg) and Δ(m·c) (kg·m, about So in S)
 
 

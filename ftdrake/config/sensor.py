@@ -102,6 +102,14 @@ class SensorConfig:
     # pairs each reading with a later joint state (ftdrake.data.stream_delay's convention,
     # d > 0: the wrench lags). 0: no delay (the simulation's streams are in step).
     stream_delay_s: float = 0.0
+    # Vibration while the arm moves (a real wrist's, which the joint encoders do not see):
+    # extra white noise per axis whose σ grows with the arm's motion,
+    #   σ_vib = vibration_per_speed·‖q̇‖ + vibration_per_acceleration·‖q̈‖
+    # (N, N·m per rad/s and per rad/s²; ‖·‖ over the arm's joints), added to the reading
+    # beside noise_std and drawn from its own stream (the rest of the run's noise is unchanged).
+    # Zeros (the default): off, the sensor takes no joint inputs and every reading is as before.
+    vibration_per_speed: list[float] = dc.field(default_factory=lambda: [0.0] * 6)
+    vibration_per_acceleration: list[float] = dc.field(default_factory=lambda: [0.0] * 6)
     # Set False to get an ideal sensor (no noise, bias, drift, cross-talk, quantization, filter,
     # saturation); the sample rate still applies.
     imperfections: bool = True
@@ -133,6 +141,13 @@ class SensorConfig:
         )
 
     @property
+    def vibrates(self) -> bool:
+        """Whether the reading carries motion-dependent vibration (the sensor then reads the
+        arm's joint state and acceleration)."""
+        return any(float(v) != 0.0 for v in (*self.vibration_per_speed,
+                                              *self.vibration_per_acceleration))
+
+    @property
     def drift(self) -> tuple:
         """`drift_std` as a tuple (as :attr:`SensorStreamConfig.drift` gives it)."""
         return tuple(self.drift_std)
@@ -147,6 +162,8 @@ class SensorConfig:
             ("noise_std", spec.noise_std, True),
             ("bias", self.bias, None),
             ("drift_std", self.drift_std, True),
+            ("vibration_per_speed", self.vibration_per_speed, True),
+            ("vibration_per_acceleration", self.vibration_per_acceleration, True),
         ):
             six(values, f"{where}.{name}")
             if allow_zero is not None:

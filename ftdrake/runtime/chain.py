@@ -81,6 +81,10 @@ class CompensationChain(Diagram):
       payload_change (1; with ``bias_tracker.payload_change.enabled``): 1.0 for a while
         after a payload change nobody signalled was recognised
         (:class:`~ftdrake.runtime.payload_change.PayloadChangeMonitor`).
+      payload_state (1; with ``bias_tracker.payload_change.enabled``): the monitor's
+        decision on a change of the contact wrench: 0 none, 1 undecided (no rotation yet to
+        tell a weight from a press), 2 payload change (the detector then reports no contact),
+        3 contact.
 
     `model`: a fitted ftdrake compensator (``load_model``), following the loop contract
     (:class:`~ftdrake.compensation.contract.LoopModel`). `config`: a
@@ -229,6 +233,8 @@ class CompensationChain(Diagram):
         if self.payload_monitor is not None:
             builder.ExportOutput(self.payload_monitor.get_output_port_payload_change(),
                                  "payload_change")
+            builder.ExportOutput(self.payload_monitor.get_output_port_payload_state(),
+                                 "payload_state")
 
     def _wire_payload_monitor(self, builder, gravity: str) -> None:
         """The unsignalled payload change's monitor: it reads what the tracker reads (its
@@ -240,6 +246,10 @@ class CompensationChain(Diagram):
                         monitor.get_input_port_wrench_contact())
         builder.Connect(self.detector.get_output_port_contact(),
                         monitor.get_input_port_contact())
+        # A recognised payload change is not reported as contact (the detector reads the
+        # monitor's decision; both state outputs: no algebraic loop).
+        builder.Connect(monitor.get_output_port_payload_state(),
+                        self.detector.get_input_port_payload_state())
         if gravity == "input":
             builder.ConnectInput("gravity_S", monitor.get_input_port_gravity_S())
         else:
@@ -345,6 +355,9 @@ class CompensationChain(Diagram):
 
     def get_output_port_payload_change(self):
         return self.GetOutputPort("payload_change")
+
+    def get_output_port_payload_state(self):
+        return self.GetOutputPort("payload_state")
 
 
 def _checked_config(config) -> ChainConfig:

@@ -22,6 +22,9 @@ from ..errors import ConfigError
 
 #: Degrees of freedom of the χ² test: the six wrench axes.
 CHI2_DOF = 6
+#: The ``payload_state`` of a recognised payload change
+#: (:data:`ftdrake.runtime.payload_change.PAYLOAD_STATES`): no contact while it holds.
+PAYLOAD_DECIDED = 2.0
 
 
 def chi2_threshold(config: DetectorConfig, period: float) -> float:
@@ -45,6 +48,11 @@ class ContactDetector(LeafSystem):
       wrench_std_tracker (6, optional): the bias tracker's predictive std of what it
         subtracted (``OnlineBiasTracker.wrench_std``), N, N·m; added to wrench_std in
         quadrature when connected (independent errors).
+      payload_state (1, optional): the payload-change monitor's decision
+        (:class:`~ftdrake.runtime.payload_change.PayloadChangeMonitor`, a state output: the
+        previous sample's). While it is 2 (a payload change recognised, the tracker taking the
+        new payload over) the detector reports no contact and its counter restarts: a decided
+        payload change is not a contact. Unconnected: no effect.
     Output ports (updated every `period` s):
       contact (1): 1.0 while in contact.
       contact_force (1): ‖F‖ of the external wrench in N while in contact, else 0.
@@ -63,6 +71,7 @@ class ContactDetector(LeafSystem):
         self._wrench_port = self.DeclareVectorInputPort("wrench_contact", 6)
         self._std_port = self.DeclareVectorInputPort("wrench_std", 6)
         self._tracker_std_port = self.DeclareVectorInputPort("wrench_std_tracker", 6)
+        self._payload_state_port = self.DeclareVectorInputPort("payload_state", 1)
         self._flag = self.DeclareDiscreteState(1)
         self._force = self.DeclareDiscreteState(1)
         self._counter = self.DeclareDiscreteState(1)
@@ -92,6 +101,9 @@ class ContactDetector(LeafSystem):
     def get_input_port_wrench_std_tracker(self):
         return self.GetInputPort("wrench_std_tracker")
 
+    def get_input_port_payload_state(self):
+        return self.GetInputPort("payload_state")
+
     def get_output_port_contact(self):
         return self.GetOutputPort("contact")
 
@@ -106,15 +118,21 @@ class ContactDetector(LeafSystem):
                if self._uses_std and self._std_port.HasValue(context) else None)
         tracker_std = (self._tracker_std_port.Eval(context)
                        if std is not None and self._tracker_std_port.HasValue(context) else None)
+        payload_state = (self._payload_state_port.Eval(context)[0]
+                         if self._payload_state_port.HasValue(context) else 0.0)
         self.detect(self._wrench_port.Eval(context), std, tracker_std,
                     state.get_mutable_value(self._flag), state.get_mutable_value(self._counter),
-                    state.get_mutable_value(self._force))
+                    state.get_mutable_value(self._force), payload_state)
 
-    def detect(self, w, std, tracker_std, flag, counter, force) -> None:
+    def detect(self, w, std, tracker_std, flag, counter, force, payload_state=0.0) -> None:
         """One armed sample on plain arrays (what ``_update`` does with the context's): the
         contact wrench `w`, the compensator's `std` and the tracker's `tracker_std` (None
         where the input is not connected or not used), the state (flag, counter, force)
-        updated in place. :class:`~ftdrake.runtime.step.ChainStep` calls it too."""
+        updated in place; `payload_state` the monitor's decision (0 where unconnected).
+        :class:`~ftdrake.runtime.step.ChainStep` calls it too."""
+        if payload_state == PAYLOAD_DECIDED:
+            flag[0], counter[0], force[0] = 0.0, 0.0, 0.0
+            return
         if std is None:
             std = self._no_std
         elif tracker_std is not None:

@@ -23,6 +23,19 @@ stays high for ``signal_s``; the chain feeds it to the tracker's ``payload_chang
 input, which re-identifies the payload as after a signalled grasp. The window is cleared when
 the contact ends and after a decision (then nothing is collected for ``refractory_s``).
 
+**The decision** (``payload_state``, :data:`PAYLOAD_STATES`), at every sample:
+
+* 0 ``none``: the detector reports no contact (and no payload change is being taken over);
+* 1 ``undecided``: contact, but the window's gravity directions span less than
+  ``min_rotation_deg`` — without rotation a weight and a press look alike, so the change is
+  neither called a payload nor a contact;
+* 2 ``payload``: a payload change was recognised; held while ``payload_change`` is high and
+  for ``refractory_s`` (the tracker re-identifies the payload meanwhile; the chain's detector
+  reads this state and does not report the change as contact);
+* 3 ``contact``: the window has turned enough and the payload model does not explain it. It
+  is judged again at every sample with the window as it slides (a later window a weight
+  explains still becomes 2), and ends with the contact.
+
 **What it cannot tell apart.** A force that is constant in the *world* and parallel to
 gravity (pushing straight down on the tool) is, to the gravity part, a weight at its point of
 application: only its lack of inertia differs, which shows at accelerations comparable to g.
@@ -37,8 +50,13 @@ import numpy as np
 from pydrake.systems.framework import LeafSystem
 
 from ..config import PayloadChangeConfig, SensorConfig, SensorStreamConfig
+from .detector import PAYLOAD_DECIDED
 
-__all__ = ["PayloadChangeMonitor", "payload_change_statistics"]
+__all__ = ["PAYLOAD_STATES", "PayloadChangeMonitor", "payload_change_statistics"]
+
+#: ``payload_state`` values (module docstring, "The decision").
+PAYLOAD_STATES = {"none": 0.0, "undecided": 1.0, "payload": PAYLOAD_DECIDED, "contact": 3.0}
+_NONE, _UNDECIDED, _PAYLOAD, _CONTACT = PAYLOAD_STATES.values()
 
 #: Entries per window sample: the contact wrench (6) and g_S (3).
 _SAMPLE = 9
@@ -98,6 +116,8 @@ class PayloadChangeMonitor(LeafSystem):
       payload_change (1): 1.0 for ``signal_s`` after a payload change was recognised.
       payload_change_estimate (4): the last recognised change's [Δm (kg), Δ(m·c) (kg·m, about
         So, in S)] relative to what the tracker knew; 0 before any.
+      payload_state (1): the decision, 0 none / 1 undecided / 2 payload change / 3 contact
+        (module docstring, "The decision"; :data:`PAYLOAD_STATES`).
     State: the window (samples × [wrench (6), g_S (3)]), its fill count and write index, the
     refractory and signal timers (periods), the outputs.
     """
@@ -119,9 +139,11 @@ class PayloadChangeMonitor(LeafSystem):
         self._window = self.DeclareDiscreteState(self.capacity * _SAMPLE + 4)
         self._flag = self.DeclareDiscreteState(1)
         self._estimate = self.DeclareDiscreteState(4)
+        self._state = self.DeclareDiscreteState(1)
         self.DeclarePeriodicDiscreteUpdateEvent(self.period, 0.0, self._update)
         self.DeclareStateOutputPort("payload_change", self._flag)
         self.DeclareStateOutputPort("payload_change_estimate", self._estimate)
+        self.DeclareStateOutputPort("payload_state", self._state)
 
     def get_input_port_wrench_contact(self):
         return self.GetInputPort("wrench_contact")
@@ -138,16 +160,20 @@ class PayloadChangeMonitor(LeafSystem):
     def get_output_port_payload_change_estimate(self):
         return self.GetOutputPort("payload_change_estimate")
 
+    def get_output_port_payload_state(self):
+        return self.GetOutputPort("payload_state")
+
     def _update(self, context, state):
         self.monitor(self._wrench_port.Eval(context), self._gravity_port.Eval(context),
                      self._contact_port.Eval(context)[0], state.get_mutable_value(self._window),
-                     state.get_mutable_value(self._flag), state.get_mutable_value(self._estimate))
+                     state.get_mutable_value(self._flag), state.get_mutable_value(self._estimate),
+                     state.get_mutable_value(self._state))
 
-    def monitor(self, wrench, gravity, contact, x, flag, estimate) -> None:
+    def monitor(self, wrench, gravity, contact, x, flag, estimate, payload_state) -> None:
         """One sample on plain arrays (what ``_update`` does with the context's): the inputs
         `wrench` (6), `gravity` (3) and `contact` (the flag's value), the state (window with
-        its counters, ``payload_change``, ``payload_change_estimate``) updated in place.
-        :class:`~ftdrake.runtime.step.ChainStep` calls it too."""
+        its counters, ``payload_change``, ``payload_change_estimate``, ``payload_state``)
+        updated in place. :class:`~ftdrake.runtime.step.ChainStep` calls it too."""
         n = self.capacity * _SAMPLE
         count, index, refractory, signal = (int(v) for v in x[n:])
         signal = max(0, signal - 1)
@@ -156,19 +182,28 @@ class PayloadChangeMonitor(LeafSystem):
         finite = np.all(np.isfinite(wrench)) and np.all(np.isfinite(gravity))
         if refractory > 0 or not in_contact:
             # Waiting after a decision, or the contact ended: start the window afresh.
+            taking_over = refractory > 0 or signal > 0
+            payload_state[0] = _PAYLOAD if taking_over else _NONE
             x[n:] = (0, 0, max(0, refractory - 1), signal)
             return
         if finite:  # a non-finite sample is not evidence; the window keeps what it has
             x[index * _SAMPLE:(index + 1) * _SAMPLE] = np.concatenate([wrench, gravity])
             index, count = (index + 1) % self.capacity, min(count + 1, self.capacity)
-        if count >= 5 and self._decide(x[:count * _SAMPLE].reshape(count, _SAMPLE), estimate):
+        decision = (self._decide(x[:count * _SAMPLE].reshape(count, _SAMPLE), estimate)
+                    if count >= 5 else _UNDECIDED)
+        if decision == _PAYLOAD:
             count, index, refractory, signal = 0, 0, self._refractory, self._signal
             flag[0] = 1.0
+        payload_state[0] = decision
         x[n:] = (count, index, refractory, signal)
 
-    def _decide(self, samples: np.ndarray, estimate) -> bool:
+    def _decide(self, samples: np.ndarray, estimate) -> float:
+        """The window's decision (a :data:`PAYLOAD_STATES` value); `estimate` set for a
+        payload."""
         stats = payload_change_statistics(samples[:, :6], samples[:, 6:], self.noise_std)
+        if stats["rotation_deg"] < self.config.min_rotation_deg:
+            return _UNDECIDED
         if not is_payload_change(stats, self.config):
-            return False
+            return _CONTACT
         estimate[:] = stats["theta"]
-        return True
+        return _PAYLOAD

@@ -19,8 +19,9 @@ system's previous value) and the inputs at t; all states then change together. T
 systems' reads form cycles (tracker ↔ detector, tracker ↔ payload monitor), so the step
 keeps the two values that cross a cycle (the detector's contact flag, the monitor's
 payload-change flag) from before the update and runs the systems consumers first: the
-payload monitor, the detector, the tracker, the joint-state gravity, the compensator, the
-delay line's memory last (its output, direct feedthrough, is computed first).
+payload monitor, the detector (which reads the monitor's decision from before the update),
+the tracker, the joint-state gravity, the compensator, the delay line's memory last (its
+output, direct feedthrough, is computed first).
 
 Time: the k-th update (k = 0, 1, ...) is the diagram's periodic update at t = k·period, as
 a diagram started at time 0 fires them; `t` arms the detector (``arm_after_s``). The payload
@@ -133,8 +134,10 @@ class ChainStep:
             self.outputs["payload"] = self._payload
         if self._monitor is not None:
             m = self._monitor
-            self._monitor_state = [state(m, i) for i in (m._window, m._flag, m._estimate)]
+            self._monitor_state = [state(m, i) for i in (m._window, m._flag, m._estimate,
+                                                          m._state)]
             self.outputs["payload_change"] = self._monitor_state[1]
+            self.outputs["payload_state"] = self._monitor_state[3]
             self._monitor_every = _whole_periods(m.period, self.period)
             self._monitor_due = 0  # updates until its next sample (0: this one)
 
@@ -192,15 +195,17 @@ class ChainStep:
         if self._tracker.track_payload and self._gravity is None:
             g, motion = self._gravity_inputs(gravity_S, motion_S)
         corrected = self._tracker_state[1]
-        changed = float(payload_changed)
+        changed, decided = float(payload_changed), 0.0
         if self._monitor is not None:
-            window, flag, estimate = self._monitor_state
-            changed = max(changed, flag[0])  # the monitor's flag before it updates
+            window, flag, estimate, payload_state = self._monitor_state
+            # The monitor's flag and decision before it updates.
+            changed, decided = max(changed, flag[0]), payload_state[0]
             if self._monitor_due == 0:
-                self._monitor.monitor(corrected, g, flags[0], window, flag, estimate)
+                self._monitor.monitor(corrected, g, flags[0], window, flag, estimate,
+                                      payload_state)
             self._monitor_due = (self._monitor_due + 1) % self._monitor_every
         if t >= self._detector.arm_after_s:
-            self._detect(corrected, self._tracker_std)
+            self._detect(corrected, self._tracker_std, decided)
         _, ood, fault = self._comp_state[3:6]
         flags[1], flags[2], flags[3] = ood[0], fault[0], float(tared)
         flags[4] = changed if self._tracker.track_payload else 0.0
@@ -222,11 +227,11 @@ class ChainStep:
         motion = np.asarray(motion_S, dtype=float) if self._motion_used else self._no_motion
         return g, motion
 
-    def _detect(self, wrench_contact, tracker_std) -> None:
+    def _detect(self, wrench_contact, tracker_std, payload_state=0.0) -> None:
         detector = self._detector
         std = self.outputs["wrench_std"] if detector.uses_std else None
         detector.detect(wrench_contact, std, tracker_std if std is not None else None,
-                        self._flag, self._counter, self._force)
+                        self._flag, self._counter, self._force, payload_state)
 
     def _compensate(self, wrench, x, temperature) -> None:
         estimator, internal, external, std, ood, fault = self._comp_state

@@ -172,8 +172,13 @@ def build_station(config: ScenarioConfig, compensator=None, *, meshcat=None,
     sensor = builder.AddNamedSystem("ft_sensor", ForceTorqueSensor(plant, scene.sensor_joint))
     builder.Connect(plant.get_reaction_forces_output_port(),
                     sensor.get_input_port_reaction_forces())
-    noisy = builder.AddNamedSystem("noisy_ft_sensor", NoisyForceTorqueSensor(config.sensor))
+    noisy = builder.AddNamedSystem("noisy_ft_sensor", NoisyForceTorqueSensor(
+        config.sensor, n_joints=plant.num_velocities(scene.arm)))
     builder.Connect(sensor.get_output_port_wrench(), noisy.get_input_port_wrench_ideal())
+    if noisy.HasInputPort("joint_state"):  # vibration grows with the arm's true motion
+        builder.Connect(plant.get_state_output_port(scene.arm), noisy.get_input_port_joint_state())
+        builder.Connect(plant.get_generalized_acceleration_output_port(scene.arm),
+                        noisy.get_input_port_joint_acceleration())
 
     period = noisy.period
     events = add_sensor_events(builder, config.events, scene,

@@ -17,6 +17,10 @@ from pydrake.math import RollPitchYaw
 from pydrake.systems.framework import LeafSystem
 
 from ..config import SensorConfig
+from ..errors import ConfigError
+
+#: No vibration: nothing is added to the sample (NoisyForceTorqueSensor without it).
+_NO_SHAKE = np.zeros(6)
 
 
 class NoisyForceTorqueSensor(LeafSystem):
@@ -24,6 +28,10 @@ class NoisyForceTorqueSensor(LeafSystem):
 
     Input ports:
       wrench_ideal (6): ``[Fx Fy Fz Tx Ty Tz]`` in N, N·m, sensor frame S (the model's).
+      joint_state (2n; only with vibration, ``config.vibrates``): the arm's ``[q; v]``, rad,
+        rad/s (the plant's state port of the arm).
+      joint_acceleration (n; only with vibration): the arm's v̇, rad/s² (the plant's
+        generalized acceleration port of the arm).
     Output ports:
       wrench_measured (6): in the frame Sm the sensor really measures in (S rotated by the
         mounting error, ``config.mounting_rpy_deg``), N, N·m; held between samples.
@@ -45,11 +53,16 @@ class NoisyForceTorqueSensor(LeafSystem):
     ``T(t) = T_ambient + ΔT·(1 − exp(−t/τ))`` (the wrist warming up from t = 0). Noise is a
     pure function of (seed, sample index), so a run is reproducible from its seed and
     contexts can be cloned freely.
+
+    Vibration (``vibration_per_speed``/``vibration_per_acceleration`` not all zero): beside
+    the white noise each axis gets ``σ_vib·n`` with ``σ_vib = a·‖v‖ + b·‖v̇‖`` at the sample
+    (n standard normal, from a stream of its own: the other draws are those of the same run
+    without vibration). `n_joints` (n) is then required: the size of the joint inputs.
     """
 
     _BLOCK = 4096  # samples of noise drawn at once
 
-    def __init__(self, config: SensorConfig):
+    def __init__(self, config: SensorConfig, n_joints: int | None = None):
         super().__init__()
         config.validate()  # the system is built on its own too, from a SensorConfig alone
         self.config = config
@@ -78,6 +91,9 @@ class NoisyForceTorqueSensor(LeafSystem):
                              float(config.temperature_rise_c),
                              float(config.temperature_time_constant_s))
         self._input = self.DeclareVectorInputPort("wrench_ideal", 6)
+        self._vibration = None
+        if config.vibrates and self._on:
+            self._declare_vibration(config, n_joints)
         # Three state groups so the outputs are plain state ports (no Python call per read).
         self._internal = self.DeclareDiscreteState(13)  # filter (6), drift (6), sample count
         self._reading = self.DeclareDiscreteState(6)
@@ -103,9 +119,50 @@ class NoisyForceTorqueSensor(LeafSystem):
         # (block index, its draws): the last noise block this sensor used.
         self._noise = (-1, np.zeros((self._BLOCK, 12)))
 
+    def _declare_vibration(self, config: SensorConfig, n_joints) -> None:
+        if n_joints is None or int(n_joints) < 1:
+            raise ConfigError(
+                "sensor.vibration_per_speed/vibration_per_acceleration: a vibrating sensor "
+                "reads the arm's motion; build NoisyForceTorqueSensor(config, n_joints=n) and "
+                "connect its joint_state and joint_acceleration inputs (build_station does)")
+        n = self.n_joints = int(n_joints)
+        self._state_port = self.DeclareVectorInputPort("joint_state", 2 * n)
+        self._accel_port = self.DeclareVectorInputPort("joint_acceleration", n)
+        self._per_speed = np.asarray(config.vibration_per_speed, dtype=float)
+        self._per_acceleration = np.asarray(config.vibration_per_acceleration, dtype=float)
+        self._vibration = (-1, np.zeros((self._BLOCK, 6)))  # (block index, its draws)
+        self._shake = np.zeros(6)
+
+    def vibration_std(self, speed, acceleration) -> np.ndarray:
+        """σ_vib (N, N·m; (..., 6)) at joint speed ‖v‖ (rad/s) and acceleration ‖v̇‖ (rad/s²),
+        arrays of the same shape (zeros without vibration)."""
+        if self._vibration is None:
+            return np.zeros((*np.shape(speed), 6))
+        return (np.multiply.outer(speed, self._per_speed)
+                + np.multiply.outer(acceleration, self._per_acceleration))
+
+    def _vibration_sample(self, context, count: int) -> np.ndarray:
+        """This sample's vibration (6): σ_vib at the arm's motion times its own draws."""
+        block, draws = self._vibration
+        if count // self._BLOCK != block:
+            block = count // self._BLOCK
+            draws = _noise_block(self.config.seed, block, self._BLOCK, stream=1, width=6)
+            self._vibration = (block, draws)
+        v = self._state_port.Eval(context)[self.n_joints:]
+        sigma = self.vibration_std(np.linalg.norm(v),
+                                   np.linalg.norm(self._accel_port.Eval(context)))
+        np.multiply(sigma, draws[count % self._BLOCK], out=self._shake)
+        return self._shake
+
     # -- what the sensor does to a wrench without randomness ---------------------------------
     def get_input_port_wrench_ideal(self):
         return self.GetInputPort("wrench_ideal")
+
+    def get_input_port_joint_state(self):
+        return self.GetInputPort("joint_state")
+
+    def get_input_port_joint_acceleration(self):
+        return self.GetInputPort("joint_acceleration")
 
     def get_output_port_wrench_measured(self):
         return self.GetOutputPort("wrench_measured")
@@ -149,25 +206,28 @@ class NoisyForceTorqueSensor(LeafSystem):
             _ideal_sample(internal, w, reading, saturated)
         else:
             block, noise = self._noise
-            if not _imperfect_sample(internal, w, self._constants, block, noise, reading,
-                                     saturated):
+            shake = (_NO_SHAKE if self._vibration is None
+                     else self._vibration_sample(context, int(internal[12])))
+            if not _imperfect_sample(internal, w, self._constants, block, noise, shake,
+                                     reading, saturated):
                 # This sample's draws are in another block (every 4096 samples, or a new run).
                 block = int(internal[12]) // self._BLOCK
                 self._noise = (block, _noise_block(self.config.seed, block, self._BLOCK))
-                _imperfect_sample(internal, w, self._constants, *self._noise, reading,
+                _imperfect_sample(internal, w, self._constants, *self._noise, shake, reading,
                                   saturated)
         if self._delayed is not None:
             _delay(discrete_state.get_mutable_value(self._delayed), reading, first)
 
 
 @numba.njit(cache=True)
-def _imperfect_sample(internal, w, constants, block, noise_block, reading, saturated):
+def _imperfect_sample(internal, w, constants, block, noise_block, shake, reading, saturated):
     """One sample of the imperfect sensor, written in place; False (nothing written) if this
     sample's draws are not in `noise_block`.
 
     `internal` is [filter (6), drift (6), sample count]; `constants` as built in
     NoisyForceTorqueSensor.__init__; `noise_block` is block number `block` of the draws
-    (12 per sample: white noise then drift increments).
+    (12 per sample: white noise then drift increments); `shake` (6) the vibration added to
+    the sample (an axis with 0 gets nothing added: without vibration the sum is as before).
     """
     count = int(internal[12])
     size = noise_block.shape[0]
@@ -187,6 +247,8 @@ def _imperfect_sample(internal, w, constants, block, noise_block, reading, satur
         drift = internal[6 + i] + axis[2, i] * noise[6 + i]
         value = (filtered + axis[0, i] + axis[6, i] * warm + drift
                  + axis[1, i] * noise[i])
+        if shake[i] != 0.0:
+            value += shake[i]
         limit = axis[3, i]
         if abs(value) >= limit:
             saturated[0] = 1.0
@@ -232,9 +294,13 @@ def _ideal_sample(internal, w, reading, saturated):
 
 
 @functools.lru_cache(maxsize=4)
-def _noise_block(seed: int, block: int, size: int) -> np.ndarray:
-    """Standard normal draws (size × 12) for samples [block·size, (block+1)·size)."""
-    return np.random.default_rng([seed, block]).standard_normal((size, 12))
+def _noise_block(seed: int, block: int, size: int, stream: int = 0,
+                 width: int = 12) -> np.ndarray:
+    """Standard normal draws (size × width) for samples [block·size, (block+1)·size):
+    stream 0 the white noise and drift increments (12 per sample), stream 1 the vibration's
+    (6)."""
+    key = [seed, block] if stream == 0 else [seed, block, stream]
+    return np.random.default_rng(key).standard_normal((size, width))
 
 
 def mounting_rotation(rpy_deg) -> np.ndarray:

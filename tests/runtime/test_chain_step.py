@@ -236,6 +236,12 @@ def test_the_step_equals_the_diagram_when_the_monitor_announces_a_payload(press)
                                                               chain.period), chain.period)
     assert_equal_outputs(diagram, stepped)
     assert diagram["payload_change"].max() == 1.0  # the monitor decided, the tracker heard it
+    # Undecided before the turn, then a payload change; the detector, which reads the
+    # previous sample's decision, reports no contact while a payload change is decided.
+    state = diagram["payload_state"][:, 0]
+    assert {1.0, 2.0} <= set(np.unique(state)) and 3.0 not in state
+    assert diagram["contact"][:-1, 0].any()
+    assert not diagram["contact"][1:, 0][state[:-1] == 2.0].any()
 
 
 @pytest.mark.parametrize("case", ["tracker_on", "track_payload"])

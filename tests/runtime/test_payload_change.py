@@ -14,7 +14,9 @@ from pydrake.math import RotationMatrix
 from pydrake.systems.analysis import Simulator
 
 from ftdrake.config import ConfigError, PayloadChangeConfig, SensorConfig
+from ftdrake.runtime.detector import PAYLOAD_DECIDED
 from ftdrake.runtime.payload_change import (
+    PAYLOAD_STATES,
     PayloadChangeMonitor,
     is_payload_change,
     payload_change_statistics,
@@ -91,7 +93,7 @@ def test_without_rotation_a_weight_is_not_decided(motion):
     assert not is_payload_change(stats, PayloadChangeConfig())
 
 
-def run_monitor(wrench, gravity, contact, config=None):
+def run_monitor(wrench, gravity, contact, config=None, with_state=False):
     """The monitor alone, fed one sample per period (its inputs held between samples)."""
     monitor = PayloadChangeMonitor(config or PayloadChangeConfig(), SensorConfig())
     simulator = Simulator(monitor)
@@ -99,13 +101,16 @@ def run_monitor(wrench, gravity, contact, config=None):
     ports = [monitor.get_input_port_wrench_contact().FixValue(context, wrench[0]),
              monitor.get_input_port_gravity_S().FixValue(context, gravity[0]),
              monitor.get_input_port_contact().FixValue(context, [contact[0]])]
-    flag, estimate = [], []
+    flag, estimate, state = [], [], []
     for k in range(len(wrench)):
         for port, value in zip(ports, (wrench[k], gravity[k], [contact[k]]), strict=True):
             port.GetMutableData().get_mutable_value().SetFromVector(value)
         simulator.AdvanceTo((k + 0.5) * monitor.period)
         flag.append(monitor.get_output_port_payload_change().Eval(context)[0])
         estimate.append(monitor.get_output_port_payload_change_estimate().Eval(context).copy())
+        state.append(monitor.get_output_port_payload_state().Eval(context)[0])
+    if with_state:
+        return np.array(flag), np.array(estimate), np.array(state)
     return np.array(flag), np.array(estimate)
 
 
@@ -147,3 +152,85 @@ def test_config_is_validated():
         dc.replace(PayloadChangeConfig(), max_unexplained=1.5).validate()
     with pytest.raises(ConfigError, match=r"window_s.*fewer than 5 samples"):
         dc.replace(PayloadChangeConfig(), window_s=0.05).validate()
+
+
+NONE, UNDECIDED, PAYLOAD, CONTACT = (PAYLOAD_STATES[k] for k in (
+    "none", "undecided", "payload", "contact"))
+
+
+def first(mask) -> int:
+    """The first index where `mask` holds (−1: nowhere)."""
+    return int(np.argmax(mask)) if np.any(mask) else -1
+
+
+def test_the_decision_is_undecided_until_the_tool_has_turned_then_payload(motion):
+    """A weight: undecided (1) while g_S has turned under min_rotation_deg, then a payload
+    change (2), held for the refractory time, then none (0: the contact has ended); never
+    a contact (3)."""
+    t, _, g = motion
+    contact = (t < 0.7).astype(float)  # the detector releases after the tracker took over
+    _, _, state = run_monitor(payload_wrench(g) + noise(len(g), 4), g, contact,
+                              with_state=True)
+    decided = first(state == PAYLOAD)
+    turn = np.degrees(np.arccos(np.clip(g @ g[0] / np.linalg.norm(g, axis=1) / 9.81, -1, 1)))
+    assert decided > 0 and turn[decided] >= 10.0 > turn[decided - 1]
+    assert (state[:decided] == UNDECIDED).all() and not (state == CONTACT).any()
+    held = round(PayloadChangeConfig().refractory_s / 0.02)
+    assert (state[decided:decided + held + 1] == PAYLOAD).all()
+    assert (state[decided + held + 1:] == NONE).all()
+    assert PAYLOAD == PAYLOAD_DECIDED  # the value the detector stands down on
+
+
+@pytest.mark.parametrize("force_W", [[4.905, 0.0, 0.0], [0.0, -3.5, 3.5]])
+def test_a_press_is_decided_a_contact_once_the_tool_has_turned(motion, force_W):
+    t, R_SW, g = motion
+    _, _, state = run_monitor(press(R_SW, force_W) + noise(len(g), 1), g, np.ones(len(g)),
+                              with_state=True)
+    decided = first(state == CONTACT)
+    print(f"contact decided at {t[decided]:.2f} s")
+    assert 0.45 <= t[decided] <= 0.6
+    assert (state[:decided] == UNDECIDED).all() and (state[decided:] == CONTACT).all()
+
+
+def test_without_rotation_a_weight_stays_undecided(motion):
+    """Held still, a weight is neither a payload change nor a contact; without contact the
+    decision is none."""
+    _, _, g = motion
+    still = np.tile(g[0], (len(g), 1))
+    wrench = payload_wrench(still) + noise(len(g), 3)
+    _, _, state = run_monitor(wrench, still, np.ones(len(g)), with_state=True)
+    assert (state == UNDECIDED).all()
+    _, _, state = run_monitor(wrench, still, np.zeros(len(g)), with_state=True)
+    assert (state == NONE).all()
+
+
+def held_poses(hold_s=0.6, period=0.02):
+    """A short log of three held poses (static gravity, by hand): the sensor tilted 0°, 25°
+    and 50° about an axis ⟂ to gravity, each held `hold_s`; (t, R_SW per sample, g_S)."""
+    t = np.arange(0.0, 3 * hold_s, period)
+    pose = np.minimum((t / hold_s).astype(int), 2)
+    axis = np.array([0.6, 0.8, 0.0])
+    R_SW = np.array([RotationMatrix(_axis_angle(axis, np.radians(25.0) * k)).inverse().matrix()
+                     for k in pose])
+    return t, pose, R_SW, R_SW @ G_W
+
+
+@pytest.mark.parametrize("what", ["weight", "press"])
+def test_three_held_poses_decide_within_a_sample_of_the_second_pose(what):
+    """The log of three held poses, the change present from its start and the detector
+    reporting contact throughout: undecided in the first pose, decided (payload for the
+    weight, contact for a press fixed in the world) at the first sample of the second."""
+    t, pose, R_SW, g = held_poses()
+    wrench = (payload_wrench(g) if what == "weight" else press(R_SW, [4.905, 0.0, 0.0]))
+    _, estimate, state = run_monitor(wrench + noise(len(g), 6), g, np.ones(len(g)),
+                                     with_state=True)
+    expected = PAYLOAD if what == "weight" else CONTACT
+    arrived = first(pose == 1)
+    assert (state[:arrived] == UNDECIDED).all()
+    assert state[arrived] == expected
+    print(f"{what}: decided {t[first(state == expected)] - t[arrived]:.2f} s after the turn")
+    if what == "weight":
+        assert estimate[arrived, 0] == pytest.approx(MASS, rel=0.02)
+        assert not (state == CONTACT).any()
+    else:
+        assert (state[arrived:] == CONTACT).all()

@@ -256,6 +256,13 @@ def test_an_unsignalled_grasp_is_announced_and_taken_over_by_the_tracker(trained
     print(f"turned 10° at {turned - grasp:.3f} s after the grasp; announced at "
           f"{announced[0] - grasp:.3f} s")
     assert len(announced) and announced[0] <= turned + 2.0
+    # The decision: none before the grasp, undecided until the announcement, a payload
+    # change then, and never a contact; decided within 1 s of the tool's turning 20°.
+    state = log[col.PAYLOAD_STATE].to_numpy()
+    assert (state[t < grasp] == 0).all() and not (state == 3).any()
+    assert (state[(t > grasp + 0.1) & (t < announced[0])] == 1).all()
+    assert (state[(t >= announced[0]) & (t < announced[0] + 0.5)] == 2).all()
+    assert announced[0] <= turn_t[np.argmax(turn >= 20.0)] + 1.0
     dm = log["payload_dm"].to_numpy()[t > announced[0] + 3.0].mean()
     assert dm == pytest.approx(config.events.grasp_mass_kg, rel=0.05)
     detected = log[col.CONTACT].to_numpy()
@@ -268,25 +275,42 @@ def test_an_unsignalled_grasp_is_announced_and_taken_over_by_the_tracker(trained
     assert len(offline) and abs(offline[0] - announced[0]) <= 0.05
 
 
-@pytest.mark.parametrize("direction", ["x", "45° down", "straight down"])
+@pytest.mark.parametrize(("direction", "ramp_s"), [("x", 4.0), ("45° down", 4.0),
+                                                   ("straight down", 4.0), ("x", 0.2)])
 def test_a_press_of_the_same_force_is_not_a_payload_change_unless_it_is_a_weight(
-        trained, direction):
-    """A push of 4.9 N (the grasp's weight): along the world's x or 45° down it is contact, not
-    a payload change. Straight down it is announced: to gravity a constant downward force at
-    the tool is a weight at its point of application (the monitor's documented limit)."""
+        trained, direction, ramp_s):
+    """A push of 4.9 N (the grasp's weight), slow (4 s ramp) or a press (0.2 s): along the
+    world's x or 45° down it is decided a contact, never a payload change. Straight down it
+    is announced: to gravity a constant downward force at the tool is a weight at its point
+    of application (the monitor's documented limit)."""
     model, config = trained
     force = config.events.grasp_mass_kg * 9.81 * {
         "x": np.array([1.0, 0.0, 0.0]), "45° down": np.array([1.0, 0.0, -1.0]) / np.sqrt(2),
         "straight down": np.array([0.0, 0.0, -1.0])}[direction]
     config = unsignalled(config, "push")
-    config = dc.replace(config, events=dc.replace(config.events, push_force_W=list(force)))
+    config = dc.replace(config, events=dc.replace(config.events, push_force_W=list(force),
+                                                  push_ramp_s=ramp_s))
     log = run(config, model)
     t = log[col.TIME].to_numpy()
     announced = t[log[col.PAYLOAD_CHANGE].to_numpy() > 0]
-    print(f"{direction}: contact {log[col.CONTACT].mean():.3f} of the run; announced at "
-          f"{announced[:1]} s")
-    assert log[col.CONTACT].to_numpy().any()
-    assert announced.size > 0 if direction == "straight down" else announced.size == 0
+    state, contact = log[col.PAYLOAD_STATE].to_numpy(), log[col.CONTACT].to_numpy()
+    decided = t[state == 3]
+    print(f"{direction}, ramp {ramp_s} s: contact {contact.mean():.3f} of the run from "
+          f"{t[np.argmax(contact > 0)]:.2f} s; announced at {announced[:1]} s; contact decided "
+          f"at {decided[:1]} s")
+    assert contact.any()
+    if direction == "straight down":
+        assert announced.size > 0
+        return
+    assert announced.size == 0 and not (state == 2).any()
+    # Judged while the detector reports contact: undecided until the tool has turned, then a
+    # contact, decided within 1 s of the tool's turning 20° after the contact began.
+    onset = t[np.argmax(contact > 0)]
+    turn_t, turn = gravity_turn_deg(config, log, onset)
+    assert decided.size > 0 and decided[0] <= turn_t[np.argmax(turn >= 20.0)] + 1.0
+    # (From a monitor sample after the onset: the monitor reads the detector's last flag.)
+    held = (contact > 0) & (np.interp(t - 0.05, t, contact) > 0.99)
+    assert set(np.unique(state[held])) <= {1.0, 3.0}
 
 
 def tracking_error(config, model):

@@ -183,3 +183,56 @@ def test_a_stream_delay_publishes_each_reading_whole_samples_late():
     np.testing.assert_array_equal(late[:8], np.tile(on_time[0], (8, 1)))  # first one held
     with pytest.raises(ConfigError, match="stream_delay_s"):
         SensorConfig(stream_delay_s=-0.01).validate()
+
+
+def run_vibrating(config, speed, acceleration, duration=2.0, n=3):
+    """The sensor with vibration fed a constant wrench and a constant joint motion: every
+    joint at `speed` rad/s and `acceleration` rad/s² (‖v‖ = √n·speed); the readings."""
+    builder = DiagramBuilder()
+    dut = builder.AddSystem(NoisyForceTorqueSensor(config, n_joints=n))
+    inputs = {"wrench_ideal": W, "joint_state": np.r_[np.zeros(n), np.full(n, speed)],
+              "joint_acceleration": np.full(n, acceleration)}
+    for name, value in inputs.items():
+        if not dut.HasInputPort(name):  # a sensor without vibration has only the wrench
+            continue
+        port = dut.GetInputPort(name)
+        builder.Connect(builder.AddSystem(ConstantVectorSource(value)).get_output_port(), port)
+    measured = LogVectorOutput(dut.get_output_port_wrench_measured(), builder, dut.period)
+    simulator = Simulator(builder.Build())
+    simulator.AdvanceTo(duration)
+    return measured.FindLog(simulator.get_context()).data().T[1:], dut
+
+
+PER_SPEED = [0.1, 0.1, 0.15, 0.004, 0.004, 0.004]
+PER_ACCELERATION = [0.05, 0.05, 0.05, 0.002, 0.002, 0.002]
+
+
+def test_vibration_grows_with_speed_and_acceleration_and_leaves_the_rest_alone():
+    """The reading minus the same run's without vibration is white noise of σ = a·‖v‖ + b·‖v̇‖
+    per axis; at rest the reading is bit-identical to the sensor without vibration."""
+    base = SensorConfig(**ALIGNED, resolution=ZERO6, seed=4)
+    vibrating = SensorConfig(**ALIGNED, resolution=ZERO6, seed=4,
+                             vibration_per_speed=PER_SPEED,
+                             vibration_per_acceleration=PER_ACCELERATION)
+    quiet, _ = run_vibrating(base, 0.0, 0.0)
+    at_rest, _ = run_vibrating(vibrating, 0.0, 0.0)
+    np.testing.assert_array_equal(at_rest, quiet)
+    moving, dut = run_vibrating(vibrating, 0.5, 2.0)
+    difference = moving - quiet
+    speed, acceleration = np.sqrt(3) * 0.5, np.sqrt(3) * 2.0
+    expected = (speed * np.asarray(PER_SPEED) + acceleration * np.asarray(PER_ACCELERATION))
+    np.testing.assert_allclose(dut.vibration_std(speed, acceleration), expected, rtol=1e-12)
+    np.testing.assert_allclose(difference.std(axis=0), expected, rtol=0.05)
+    assert np.all(np.abs(difference.mean(axis=0)) < 4 * expected / np.sqrt(len(difference)))
+    # White: consecutive samples uncorrelated.
+    lag1 = [np.corrcoef(difference[1:, i], difference[:-1, i])[0, 1] for i in range(6)]
+    assert np.abs(lag1).max() < 0.1
+
+
+def test_without_vibration_the_sensor_takes_no_joint_inputs_and_a_vibrating_one_needs_them():
+    assert not NoisyForceTorqueSensor(SensorConfig()).HasInputPort("joint_state")
+    config = SensorConfig(vibration_per_speed=PER_SPEED)
+    with pytest.raises(ConfigError, match="n_joints"):
+        NoisyForceTorqueSensor(config)
+    with pytest.raises(ConfigError, match="vibration_per_acceleration"):
+        NoisyForceTorqueSensor(SensorConfig(vibration_per_acceleration=[-0.1, *ZERO6[1:]]))

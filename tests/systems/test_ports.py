@@ -83,6 +83,7 @@ def instances():
     config.chain.bias_tracker.payload_change.enabled = True  # the PayloadChangeMonitor inside
     config.controller.adapt_to_payload = True  # PayloadFeedforward
     config.encoders.enabled = True  # JointEncoders
+    config.sensor.vibration_per_speed = [0.01] * 6  # the noisy sensor's joint inputs
     config.encoders.sag_stiffness = [0.0, 1e4, 0.0, 0.0, 0.0, 0.0, 0.0]
     model = temperature_forest()
     feedforward = TimeIndexedFeedforward(np.zeros((10, N)), 0.01)
