@@ -1,0 +1,226 @@
+"""MkDocs hook: the figures of the results pages, rendered from the result files at build time.
+
+A results page types no measured figure: it names the file that holds it, and the build reads
+the value from there. Three forms (``FILE`` is a path under ``docs/``, JSON):
+
+``<!-- result-source FILE -->``
+    becomes the line that says how the figures below were made, from the file's
+    ``provenance`` record (``ftdrake.version.result_provenance``): the command, the commit and
+    the date, with a link to the file. It also makes ``FILE`` the page's default file for the
+    values below it. A cited file without a ``provenance`` record with ``command`` and
+    ``commit`` fails the build.
+
+``{{ [FILE :] KEY.PATH [| FORMAT] [| MODIFIER] }}``
+    one value (``task.gp.tip_rms_mm[5]``, ``models["hybrid (chi2)"].detector``; ``[-1]`` is
+    the last item). ``FORMAT`` is Python's format spec (``.3g``, ``.2f``, ``.1%``; ``_``
+    groups thousands with a space); a list is formatted item by item and joined by spaces, or
+    by ``MODIFIER``: ``cells`` (table cells, `` | ``), ``range`` (``min–max``), ``comma``.
+    ``min``, ``max``, ``len`` reduce a list or a mapping to one number first.
+
+``<!-- result-table FILE`` ... ``-->``
+    a Markdown table of a mapping of mappings (``{"row": {"column": value}}``, e.g.
+    ``feedforward/transfer.json``), with lines ``key: PATH`` (the mapping inside the file;
+    default the whole file), ``rows: a=Label, b`` (default ``*``: every key but
+    ``provenance``, in the file's order), ``columns: x=Label, y`` (default ``*``: the first
+    row's keys), ``corner: TEXT`` (the header of the row labels), ``format: .2f`` and
+    ``missing: –`` (a cell a row does not have; default: the build fails).
+
+A key, a file or a record that is missing fails the build with the page, the file and the key,
+so a page can never show a figure its file does not hold. ``tests/project/
+test_results_pages.py`` checks that no table of a results page holds a typed figure and that no
+typed figure on it copies one of the files it cites.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import re
+from pathlib import Path
+
+DOCS = Path(__file__).resolve().parents[1]
+
+SOURCE = re.compile(r"<!--\s*result-source\s+(\S+)\s*-->")
+TABLE = re.compile(r"<!--\s*result-table\s+(\S+)\s*\n(.*?)-->", re.DOTALL)
+VALUE = re.compile(r"\{\{(?!\s*typed\b)(.+?)\}\}")
+TYPED = re.compile(r"\{\{\s*typed\s+(.+?)\s*\}\}")
+KEY_PART = re.compile(r'\["([^"]*)"\]|\[(-?\d+)\]|([^.\[\]]+)')
+REDUCERS = {"min": min, "max": max, "len": len}
+JOINERS = {"cells": " | ", "comma": ", ", "range": "–"}
+
+
+class ResultError(ValueError):
+    """A citation of a result file that the file does not hold."""
+
+
+def load(name: str, cache: dict | None = None):
+    """The JSON of ``docs/<name>``; a missing or unreadable file is a :class:`ResultError`."""
+    if cache is not None and name in cache:
+        return cache[name]
+    path = DOCS / name
+    if not path.is_file():
+        raise ResultError(f"result file docs/{name} does not exist")
+    try:
+        data = json.loads(path.read_text(encoding="utf-8"))
+    except json.JSONDecodeError as e:
+        raise ResultError(f"result file docs/{name} is not JSON: {e}") from e
+    if cache is not None:
+        cache[name] = data
+    return data
+
+
+def key_parts(path: str) -> list:
+    """``a.b[2]["c d"]`` → ``["a", "b", 2, "c d"]``."""
+    parts, pos = [], 0
+    path = path.strip()
+    for m in KEY_PART.finditer(path):
+        if path[pos:m.start()] not in ("", "."):
+            raise ResultError(f"key {path!r}: cannot read {path[pos:m.start()]!r}")
+        quoted, index, plain = m.groups()
+        parts.append(quoted if quoted is not None else int(index) if index is not None
+                     else plain.strip())
+        pos = m.end()
+    if not parts or path[pos:]:
+        raise ResultError(f"key {path!r}: cannot read it (write a.b[0][\"c d\"])")
+    return parts
+
+
+def lookup(data, path: str, name: str):
+    """The value at `path` in `data` (the JSON of ``docs/<name>``)."""
+    value = data
+    for i, part in enumerate(key_parts(path)):
+        try:
+            value = value[part]
+        except (KeyError, IndexError, TypeError):
+            where = "".join(f"[{p}]" if isinstance(p, int) else f".{p}"
+                            for p in key_parts(path)[:i]).lstrip(".") or "the top level"
+            have = (", ".join(map(str, list(value)[:12])) if isinstance(value, dict)
+                    else f"{len(value)} items" if isinstance(value, list) else repr(value))
+            raise ResultError(f"docs/{name} has no {part!r} under {where} (it has: {have})"
+                              ) from None
+    return value
+
+
+def fmt(value, spec: str = "") -> str:
+    """One value as the page shows it (`spec`: Python's format spec; ``_`` → thin space)."""
+    if isinstance(value, bool) or value is None or isinstance(value, str):
+        return str(value) if value is not None else "–"
+    if isinstance(value, (int, float)):
+        text = format(value, spec) if spec else f"{value:g}"
+        return text.replace("_", " ").replace("e-0", "e-").replace("e+0", "e+")
+    raise ResultError(f"{value!r} is not one number (name an item, or use len/min/max)")
+
+
+def render_value(expr: str, default: str | None, cache: dict | None = None) -> str:
+    """The text of one ``{{ [FILE :] KEY | FORMAT | MODIFIER }}``."""
+    head, *options = (s.strip() for s in expr.split("|"))
+    name, _, path = head.rpartition(":") if re.match(r"^[\w./-]+\.json\s*:", head) else (
+        "", "", head)
+    name = name.strip() or default
+    if not name:
+        raise ResultError(f"{{{{ {expr.strip()} }}}} names no file and no result-source "
+                          "is above it")
+    value = lookup(load(name, cache), path, name)
+    spec, joiner = "", " "
+    for option in options:
+        if option in REDUCERS:
+            value = REDUCERS[option](value.values() if isinstance(value, dict) else value)
+        elif option in JOINERS:
+            joiner = JOINERS[option]
+            if option == "range":
+                value = [min(value), max(value)]
+        else:
+            spec = option
+    if isinstance(value, (list, tuple)):
+        return joiner.join(fmt(v, spec) for v in value)
+    return fmt(value, spec)
+
+
+def source_line(name: str, page_path: str, cache: dict | None = None) -> str:
+    """The provenance line of ``docs/<name>`` as seen from the page at `page_path`."""
+    record = load(name, cache)
+    prov = record.get("provenance") if isinstance(record, dict) else None
+    if not isinstance(prov, dict) or not prov.get("command") or not prov.get("commit"):
+        raise ResultError(f"docs/{name} has no provenance record with command and commit "
+                          "(ftdrake.version.result_provenance; regenerate it with "
+                          "`ftdrake results --regenerate`)")
+    link = os.path.relpath(DOCS / name, (DOCS / page_path).parent).replace(os.sep, "/")
+    when = "; ".join(str(prov[k]) for k in ("written", "note") if prov.get(k))
+    return (f"**Measured** by `{prov['command']}` at commit `{prov['commit']}`"
+            + (f" ({when})" if when else "") + f", in [`{name}`]({link}).\n")
+
+
+def table_options(body: str) -> dict:
+    options = {}
+    for line in body.strip().splitlines():
+        key, sep, value = line.partition(":")
+        if not sep or key.strip() not in ("key", "rows", "columns", "corner", "format",
+                                           "missing"):
+            raise ResultError(f"result-table: cannot read {line.strip()!r} (lines are key:, "
+                              "rows:, columns:, corner:, format:, missing:)")
+        options[key.strip()] = value.strip()
+    return options
+
+
+def labelled(text: str, keys) -> list:
+    """``a=Label, b`` → ``[("a", "Label"), ("b", "b")]``; ``*`` → every key of `keys`."""
+    if text in ("", "*"):
+        return [(k, k) for k in keys if k != "provenance"]
+    pairs = []
+    for item in text.split(","):
+        key, _, label = item.partition("=")
+        pairs.append((key.strip(), label.strip() or key.strip()))
+    return pairs
+
+
+def render_table(name: str, body: str, cache: dict | None = None) -> str:
+    """The Markdown table of ``<!-- result-table FILE ... -->``."""
+    options = table_options(body)
+    data = load(name, cache)
+    table = lookup(data, options["key"], name) if options.get("key") else data
+    if not isinstance(table, dict):
+        raise ResultError(f"result-table docs/{name}: {options.get('key', 'the file')} is not "
+                          "a mapping of rows")
+    rows = labelled(options.get("rows", "*"), table)
+    first = table[rows[0][0]] if rows and rows[0][0] in table else {}
+    columns = labelled(options.get("columns", "*"), first)
+    lines = ["| " + " | ".join([options.get("corner", ""), *(c[1] for c in columns)]) + " |",
+             "|" + " --- |" * (len(columns) + 1)]
+    for key, label in rows:
+        row = lookup(data, f'{options.get("key", "")}["{key}"]'.lstrip("."), name)
+        cells = []
+        for column, _ in columns:
+            if column not in row and "missing" in options:
+                cells.append(options["missing"])
+            else:
+                cells.append(fmt(lookup(row, f'["{column}"]', name), options.get("format", "")))
+        lines.append("| " + " | ".join([label, *cells]) + " |")
+    return "\n".join(lines)
+
+
+def render(markdown: str, page_path: str) -> str:
+    """`markdown` of the page at `page_path` (relative to docs/) with every form rendered."""
+    cache: dict = {}
+    markdown = TABLE.sub(lambda m: render_table(m.group(1), m.group(2), cache), markdown)
+    out, default, pos = [], None, 0
+    for m in SOURCE.finditer(markdown):
+        out.append(_values(markdown[pos:m.start()], default, cache))
+        default = m.group(1)
+        out.append(source_line(default, page_path, cache))
+        pos = m.end()
+    out.append(_values(markdown[pos:], default, cache))
+    return "".join(out)
+
+
+def _values(text: str, default, cache) -> str:
+    text = VALUE.sub(lambda m: render_value(m.group(1), default, cache), text)
+    return TYPED.sub(lambda m: m.group(1), text)
+
+
+def on_page_markdown(markdown, page, config, files):  # noqa: ARG001
+    if "result-source" not in markdown and "result-table" not in markdown and "{{" not in markdown:
+        return markdown
+    try:
+        return render(markdown, page.file.src_uri)
+    except ResultError as e:
+        raise ResultError(f"{page.file.src_uri}: {e}") from None
