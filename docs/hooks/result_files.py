@@ -6,16 +6,19 @@ the value from there. Three forms (``FILE`` is a path under ``docs/``, JSON):
 ``<!-- result-source FILE -->``
     becomes the line that says how the figures below were made, from the file's
     ``provenance`` record (``ftdrake.version.result_provenance``): the command, the commit and
-    the date, with a link to the file. It also makes ``FILE`` the page's default file for the
-    values below it. A cited file without a ``provenance`` record with ``command`` and
-    ``commit`` fails the build.
+    the date, with a link to the file. It also makes ``FILE`` the default file of the values
+    below it (and the first one that of the values above it). A cited file without a
+    ``provenance`` record with ``command`` and ``commit`` fails the build.
 
 ``{{ [FILE :] KEY.PATH [| FORMAT] [| MODIFIER] }}``
     one value (``task.gp.tip_rms_mm[5]``, ``models["hybrid (chi2)"].detector``; ``[-1]`` is
-    the last item). ``FORMAT`` is Python's format spec (``.3g``, ``.2f``, ``.1%``; ``_``
-    groups thousands with a space); a list is formatted item by item and joined by spaces, or
-    by ``MODIFIER``: ``cells`` (table cells, `` | ``), ``range`` (``min–max``), ``comma``.
-    ``min``, ``max``, ``len`` reduce a list or a mapping to one number first.
+    the last item, ``[:3]`` the first three). ``FORMAT`` is Python's format spec (``.3g``,
+    ``.2f``, ``.1%``; ``_`` groups thousands with a space); a list is formatted item by item
+    and joined by spaces, or by ``MODIFIER``: ``cells`` (table cells, `` | ``), ``range``
+    (``min–max``), ``comma``.
+    ``min``, ``max``, ``len``, ``sum`` reduce a list or a mapping to one number first;
+    ``*1000`` scales (s → ms). ``presses[surface=wall][*].false_positives`` is the list of a
+    field over the items whose ``surface`` is ``wall``.
 
 ``<!-- result-table FILE`` ... ``-->``
     a Markdown table of a mapping of mappings (``{"row": {"column": value}}``, e.g.
@@ -44,8 +47,9 @@ SOURCE = re.compile(r"<!--\s*result-source\s+(\S+)\s*-->")
 TABLE = re.compile(r"<!--\s*result-table\s+(\S+)\s*\n(.*?)-->", re.DOTALL)
 VALUE = re.compile(r"\{\{(?!\s*typed\b)(.+?)\}\}")
 TYPED = re.compile(r"\{\{\s*typed\s+(.+?)\s*\}\}")
-KEY_PART = re.compile(r'\["([^"]*)"\]|\[(-?\d+)\]|([^.\[\]]+)')
-REDUCERS = {"min": min, "max": max, "len": len}
+KEY_PART = re.compile(r'\["([^"]*)"\]|\[(-?\d+)\]|\[(-?\d*:-?\d*)\]|\[(\*|\w+=[^\]]*)\]'
+                      r'|([^.\[\]]+)')
+REDUCERS = {"min": min, "max": max, "len": len, "sum": sum}
 JOINERS = {"cells": " | ", "comma": ", ", "range": "–"}
 
 
@@ -70,15 +74,22 @@ def load(name: str, cache: dict | None = None):
 
 
 def key_parts(path: str) -> list:
-    """``a.b[2]["c d"]`` → ``["a", "b", 2, "c d"]``."""
+    """``a.b[2]["c d"][:3][*][k=v]`` → ``["a", "b", 2, "c d", slice(None, 3), "[*]",
+    ("k", "v")]``."""
     parts, pos = [], 0
     path = path.strip()
     for m in KEY_PART.finditer(path):
         if path[pos:m.start()] not in ("", "."):
             raise ResultError(f"key {path!r}: cannot read {path[pos:m.start()]!r}")
-        quoted, index, plain = m.groups()
-        parts.append(quoted if quoted is not None else int(index) if index is not None
-                     else plain.strip())
+        quoted, index, span, each, plain = m.groups()
+        if span is not None:
+            start, stop = (int(x) if x else None for x in span.split(":"))
+            parts.append(slice(start, stop))
+        elif each is not None:
+            parts.append("[*]" if each == "*" else tuple(each.split("=", 1)))
+        else:
+            parts.append(quoted if quoted is not None else int(index) if index is not None
+                         else plain.strip())
         pos = m.end()
     if not parts or path[pos:]:
         raise ResultError(f"key {path!r}: cannot read it (write a.b[0][\"c d\"])")
@@ -86,19 +97,34 @@ def key_parts(path: str) -> list:
 
 
 def lookup(data, path: str, name: str):
-    """The value at `path` in `data` (the JSON of ``docs/<name>``)."""
-    value = data
-    for i, part in enumerate(key_parts(path)):
-        try:
-            value = value[part]
-        except (KeyError, IndexError, TypeError):
-            where = "".join(f"[{p}]" if isinstance(p, int) else f".{p}"
-                            for p in key_parts(path)[:i]).lstrip(".") or "the top level"
-            have = (", ".join(map(str, list(value)[:12])) if isinstance(value, dict)
-                    else f"{len(value)} items" if isinstance(value, list) else repr(value))
-            raise ResultError(f"docs/{name} has no {part!r} under {where} (it has: {have})"
-                              ) from None
-    return value
+    """The value at `path` in `data` (the JSON of ``docs/<name>``): ``[*]`` maps the rest of
+    the path over a list's items, ``[k=v]`` keeps the items whose ``k`` reads ``v``."""
+    return _walk(data, key_parts(path), [], name)
+
+
+def _walk(value, parts: list, done: list, name: str):
+    if not parts:
+        return value
+    part, rest = parts[0], parts[1:]
+    if part == "[*]" or isinstance(part, tuple):
+        if not isinstance(value, list):
+            raise ResultError(f"docs/{name}: {_where(done)} is not a list ({part})")
+        if isinstance(part, tuple):
+            kept = [v for v in value if isinstance(v, dict) and str(v.get(part[0])) == part[1]]
+            return _walk(kept, rest, [*done, f"{part[0]}={part[1]}"], name)
+        return [_walk(v, rest, [*done, "*"], name) for v in value]
+    try:
+        return _walk(value[part], rest, [*done, part], name)
+    except (KeyError, IndexError, TypeError):
+        have = (", ".join(map(str, list(value)[:12])) if isinstance(value, dict)
+                else f"{len(value)} items" if isinstance(value, list) else repr(value))
+        raise ResultError(f"docs/{name} has no {part!r} under {_where(done)} (it has: {have})"
+                          ) from None
+
+
+def _where(done: list) -> str:
+    return "".join(f"[{p}]" if isinstance(p, int) else f".{p}" for p in done
+                   ).lstrip(".") or "the top level"
 
 
 def fmt(value, spec: str = "") -> str:
@@ -107,7 +133,9 @@ def fmt(value, spec: str = "") -> str:
         return str(value) if value is not None else "–"
     if isinstance(value, (int, float)):
         text = format(value, spec) if spec else f"{value:g}"
-        return text.replace("_", " ").replace("e-0", "e-").replace("e+0", "e+")
+        text = (text.replace("_", " ").replace("e-0", "e-").replace("e+0", "e+")
+                .replace("-", "−"))  # the minus sign the pages write
+        return text[:-1] + " %" if text.endswith("%") else text
     raise ResultError(f"{value!r} is not one number (name an item, or use len/min/max)")
 
 
@@ -125,6 +153,10 @@ def render_value(expr: str, default: str | None, cache: dict | None = None) -> s
     for option in options:
         if option in REDUCERS:
             value = REDUCERS[option](value.values() if isinstance(value, dict) else value)
+        elif re.fullmatch(r"\*\s*[\d.e+-]+", option):
+            factor = float(option[1:])
+            value = ([v * factor for v in value] if isinstance(value, (list, tuple))
+                     else value * factor)
         elif option in JOINERS:
             joiner = JOINERS[option]
             if option == "range":
@@ -202,7 +234,8 @@ def render(markdown: str, page_path: str) -> str:
     """`markdown` of the page at `page_path` (relative to docs/) with every form rendered."""
     cache: dict = {}
     markdown = TABLE.sub(lambda m: render_table(m.group(1), m.group(2), cache), markdown)
-    out, default, pos = [], None, 0
+    first = SOURCE.search(markdown)
+    out, default, pos = [], first.group(1) if first else None, 0
     for m in SOURCE.finditer(markdown):
         out.append(_values(markdown[pos:m.start()], default, cache))
         default = m.group(1)
