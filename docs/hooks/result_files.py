@@ -142,9 +142,8 @@ def fmt(value, spec: str = "") -> str:
 def render_value(expr: str, default: str | None, cache: dict | None = None) -> str:
     """The text of one ``{{ [FILE :] KEY | FORMAT | MODIFIER }}``."""
     head, *options = (s.strip() for s in expr.split("|"))
-    name, _, path = head.rpartition(":") if re.match(r"^[\w./-]+\.json\s*:", head) else (
-        "", "", head)
-    name = name.strip() or default
+    named = re.match(r"^([\w./-]+\.json)\s*:(.*)$", head, re.DOTALL)
+    name, path = (named.group(1), named.group(2)) if named else (default, head)
     if not name:
         raise ResultError(f"{{{{ {expr.strip()} }}}} names no file and no result-source "
                           "is above it")

@@ -91,11 +91,14 @@ def typed_figures(row: str) -> list:
 
 
 def leaves(data):
-    """Every number in a JSON document."""
+    """Every number in a JSON document but those of its per-run records (lists of objects:
+    every press, every run, every point of a curve), which a page summarises, never copies."""
     if isinstance(data, dict):
         for v in data.values():
             yield from leaves(v)
     elif isinstance(data, list):
+        if any(isinstance(v, dict) for v in data):
+            return
         for v in data:
             yield from leaves(v)
     elif isinstance(data, (int, float)) and not isinstance(data, bool):
