@@ -98,7 +98,7 @@ def key_parts(path: str) -> list:
 
 def lookup(data, path: str, name: str):
     """The value at `path` in `data` (the JSON of ``docs/<name>``): ``[*]`` maps the rest of
-    the path over a list's items, ``[k=v]`` keeps the items whose ``k`` reads ``v``."""
+    the path over a list's items (a mapping's values), ``[k=v]`` keeps the items whose ``k`` reads ``v``."""
     return _walk(data, key_parts(path), [], name)
 
 
@@ -106,6 +106,8 @@ def _walk(value, parts: list, done: list, name: str):
     if not parts:
         return value
     part, rest = parts[0], parts[1:]
+    if part == "[*]" and isinstance(value, dict):
+        return [_walk(v, rest, [*done, "*"], name) for v in value.values()]
     if part == "[*]" or isinstance(part, tuple):
         if not isinstance(value, list):
             raise ResultError(f"docs/{name}: {_where(done)} is not a list ({part})")
