@@ -28,6 +28,11 @@ the value from there. Three forms (``FILE`` is a path under ``docs/``, JSON):
     row's keys), ``corner: TEXT`` (the header of the row labels), ``format: .2f`` and
     ``missing: –`` (a cell a row does not have; default: the build fails).
 
+``<!-- no-result-file: REASON -->``
+    a page whose figures no result file holds (a benchmark that prints them) says so, visibly.
+``{{ typed X }}``
+    a figure typed on purpose (a ground truth, an earlier round), shown as ``X``.
+
 A key, a file or a record that is missing fails the build with the page, the file and the key,
 so a page can never show a figure its file does not hold. ``tests/project/
 test_results_pages.py`` checks that no table of a results page holds a typed figure and that no
@@ -47,6 +52,7 @@ SOURCE = re.compile(r"<!--\s*result-source\s+(\S+)\s*-->")
 TABLE = re.compile(r"<!--\s*result-table\s+(\S+)\s*\n(.*?)-->", re.DOTALL)
 VALUE = re.compile(r"\{\{(?!\s*typed\b)(.+?)\}\}")
 TYPED = re.compile(r"\{\{\s*typed\s+(.+?)\s*\}\}")
+NO_FILE = re.compile(r"<!--\s*no-result-file:\s*(.+?)\s*-->", re.DOTALL)
 KEY_PART = re.compile(r'\["([^"]*)"\]|\[(-?\d+)\]|\[(-?\d*:-?\d*)\]|\[(\*|\w+=[^\]]*)\]'
                       r'|([^.\[\]]+)')
 REDUCERS = {"min": min, "max": max, "len": len, "sum": sum}
@@ -98,7 +104,8 @@ def key_parts(path: str) -> list:
 
 def lookup(data, path: str, name: str):
     """The value at `path` in `data` (the JSON of ``docs/<name>``): ``[*]`` maps the rest of
-    the path over a list's items (a mapping's values), ``[k=v]`` keeps the items whose ``k`` reads ``v``."""
+    the path over a list's items (a mapping's values), ``[k=v]`` keeps the items whose ``k``
+    reads ``v``."""
     return _walk(data, key_parts(path), [], name)
 
 
@@ -234,6 +241,8 @@ def render_table(name: str, body: str, cache: dict | None = None) -> str:
 def render(markdown: str, page_path: str) -> str:
     """`markdown` of the page at `page_path` (relative to docs/) with every form rendered."""
     cache: dict = {}
+    markdown = NO_FILE.sub(lambda m: f"*Not rendered from a result file: {m.group(1)}.*",
+                           markdown)
     markdown = TABLE.sub(lambda m: render_table(m.group(1), m.group(2), cache), markdown)
     first = SOURCE.search(markdown)
     out, default, pos = [], first.group(1) if first else None, 0
@@ -252,7 +261,7 @@ def _values(text: str, default, cache) -> str:
 
 
 def on_page_markdown(markdown, page, config, files):  # noqa: ARG001
-    if "result-source" not in markdown and "result-table" not in markdown and "{{" not in markdown:
+    if not any(k in markdown for k in ("result-source", "result-table", "no-result-file", "{{")):
         return markdown
     try:
         return render(markdown, page.file.src_uri)
