@@ -260,7 +260,21 @@ def _values(text: str, default, cache) -> str:
     return TYPED.sub(lambda m: m.group(1), text)
 
 
+def with_sibling_source(markdown: str, page_path: str) -> str:
+    """A table page a command writes beside its JSON (``detection/detection.md`` beside
+    ``detection.json``) gets that JSON's provenance line under its title."""
+    sibling = Path(page_path).with_suffix(".json").as_posix()
+    if not (DOCS / sibling).is_file() or page_path.startswith("results/"):
+        return markdown
+    record = load(sibling)
+    if not isinstance(record, dict) or "provenance" not in record:
+        return markdown
+    title, _, rest = markdown.partition("\n")
+    return f"{title}\n\n{source_line(sibling, page_path)}\n{rest}"
+
+
 def on_page_markdown(markdown, page, config, files):  # noqa: ARG001
+    markdown = with_sibling_source(markdown, page.file.src_uri)
     if not any(k in markdown for k in ("result-source", "result-table", "no-result-file", "{{")):
         return markdown
     try:
