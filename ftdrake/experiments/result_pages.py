@@ -24,7 +24,7 @@ import sys
 import time
 from pathlib import Path
 
-from ..errors import ConfigError
+from ..errors import ConfigError, FtdrakeError
 from ..io import atomic_path
 
 #: The checkout's docs folder (the result files live there).
@@ -87,7 +87,7 @@ class Result:
 
 
 _DEMO = Step("demo", ("demo", "--no-html", "--out", "{out}"),
-             quick=("--trajectories", "1", "--duration", "4"))
+             quick=("--trajectories", "1", "--duration", "12"))
 _MODELS = ("--model", "{work}/demo/model_forest.ftd", "--model", "{work}/demo/model_hybrid.ftd")
 
 #: Every result a page cites, in the order of the Results section.
@@ -109,7 +109,7 @@ RESULTS = (
             ("compare_tests", "detection.md", "detection/compare_tests/detection.md")), 3.3),
     Result("detection-all-surfaces", "results/detection.md",
            (Step("demo_all", ("demo", "--no-html", "--rehearse-all-surfaces", "--out",
-                              "{out}"), quick=("--trajectories", "1", "--duration", "4")),
+                              "{out}"), quick=("--trajectories", "1", "--duration", "12")),
             Step("all_surfaces", ("evaluate-detection", "--model",
                                   "{work}/demo_all/model_forest.ftd", "--model",
                                   "{work}/demo_all/model_hybrid.ftd", "--out", "{out}"),
@@ -134,13 +134,13 @@ RESULTS = (
            None),
     Result("feedforward", "results/feedforward.md",
            (Step("feedforward", ("learn-feedforward", "--out", "{out}"),
-                 quick=("--iterations", "1", "--duration", "2")),),
+                 quick=("--iterations", "1", "--duration", "12")),),
            (("feedforward", "summary.json", "feedforward/summary.json"),
             ("feedforward", "iterations.csv", "feedforward/iterations.csv"),
             ("feedforward", "tracking.png", "feedforward/tracking.png")), None),
     Result("feedforward-feedback-target", "results/feedforward.md",
            (Step("feedback_target", ("learn-feedforward", "--target", "feedback", "--out",
-                                     "{out}"), quick=("--iterations", "1", "--duration", "2")),),
+                                     "{out}"), quick=("--iterations", "1", "--duration", "12")),),
            (("feedback_target", "summary.json", "feedforward/summary_feedback_target.json"),),
            None),
     Result("transfer", "results/two-part.md",
@@ -186,9 +186,9 @@ def regenerate(results, work: Path, *, quick: bool = False, dry_run: bool = Fals
                quiet: bool = False) -> list:
     """Runs each result's steps into `work` (a step already run for an earlier result of the
     same call is not run again) and, unless `quick`, copies its files into docs/. Returns the
-    docs/ paths written. A failed step raises ``subprocess.CalledProcessError`` and leaves
-    docs/ as it was for that result. `quiet`: no progress lines, and each command gets
-    ``--quiet``."""
+    docs/ paths written. A failed step raises :class:`~ftdrake.errors.FtdrakeError` naming
+    the result and the command, and leaves docs/ as it was for that result. `quiet`: no
+    progress lines, and each command gets ``--quiet``."""
     say = (lambda *_: None) if quiet else print
     done: set = set()
     written = []
@@ -198,7 +198,8 @@ def regenerate(results, work: Path, *, quick: bool = False, dry_run: bool = Fals
             if step.name not in done:
                 say(f"[{r.name}] {step.shown(work, quick=quick)}")
                 if not dry_run:
-                    _run(step.command(work, quick=quick), dict(step.env), quiet=quiet)
+                    _run(r.name, step.command(work, quick=quick), dict(step.env),
+                         quiet=quiet)
                 done.add(step.name)
         if dry_run:
             continue
@@ -215,10 +216,14 @@ def regenerate(results, work: Path, *, quick: bool = False, dry_run: bool = Fals
     return written
 
 
-def _run(argv: list, env: dict, *, quiet: bool) -> None:
+def _run(result: str, argv: list, env: dict, *, quiet: bool) -> None:
     """Runs one step's command with this interpreter (``ftdrake`` as ``python -m ftdrake``)."""
+    shown = shlex.join(argv)
     if argv[0] == "ftdrake":
         argv = [sys.executable, "-m", "ftdrake", *argv[1:], *(["--quiet"] if quiet else [])]
     elif argv[0] == "python":
         argv = [sys.executable, *argv[1:]]
-    subprocess.run(argv, check=True, env={**os.environ, **env})
+    done = subprocess.run(argv, check=False, env={**os.environ, **env})
+    if done.returncode != 0:
+        raise FtdrakeError(f"result {result}: `{shown}` failed (exit {done.returncode}, its "
+                           "message above); docs/ is unchanged for this result")

@@ -10,7 +10,7 @@ from pathlib import Path
 import pytest
 
 from ftdrake.cli.main import build_parser, main
-from ftdrake.errors import ConfigError
+from ftdrake.errors import ConfigError, FtdrakeError
 from ftdrake.experiments import result_pages as rp
 from tests.helpers import ROOT
 
@@ -104,10 +104,8 @@ def test_regenerate_copies_the_written_file_into_docs(tmp_path, monkeypatch):
 
 
 def test_a_failed_or_silent_command_leaves_docs_as_it_was(tmp_path, monkeypatch):
-    import subprocess
-
     result, target = _fake(tmp_path, monkeypatch, "import sys; sys.exit(3)")
-    with pytest.raises(subprocess.CalledProcessError):
+    with pytest.raises(FtdrakeError, match=r"result fake: `.*python.* -c .*` failed \(exit 3"):
         rp.regenerate([result], tmp_path / "work", quiet=True)
     assert json.loads(target.read_text()) == {"old": True}
     result, target = _fake(tmp_path, monkeypatch, "pass")
