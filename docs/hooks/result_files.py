@@ -238,8 +238,23 @@ def render_table(name: str, body: str, cache: dict | None = None) -> str:
     return "\n".join(lines)
 
 
+CODE = re.compile(r"```.*?```|`[^`\n]*`", re.DOTALL)
+
+
 def render(markdown: str, page_path: str) -> str:
-    """`markdown` of the page at `page_path` (relative to docs/) with every form rendered."""
+    """`markdown` of the page at `page_path` (relative to docs/) with every form rendered;
+    code (a fenced block, an inline span) is left as written."""
+    code: list = []
+
+    def hide(m):
+        code.append(m.group(0))
+        return f"\x00{len(code) - 1}\x00"
+
+    rendered = _render(CODE.sub(hide, markdown), page_path)
+    return re.sub(r"\x00(\d+)\x00", lambda m: code[int(m.group(1))], rendered)
+
+
+def _render(markdown: str, page_path: str) -> str:
     cache: dict = {}
     markdown = NO_FILE.sub(lambda m: f"*Not rendered from a result file: {m.group(1)}.*",
                            markdown)

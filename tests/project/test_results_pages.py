@@ -209,6 +209,8 @@ def test_the_hook_renders_values_tables_and_provenance(tmp_path, monkeypatch):
                          ("{{ r/none.json : a }}", "does not exist")]:
         with pytest.raises(hook.ResultError, match=message):
             hook.render("<!-- result-source r/t.json -->" + bad, "results/p.md")
+    code = "`{{ list }}` and\n```\n<!-- result-source FILE -->\n```\n"
+    assert hook.render(code, "results/p.md") == code  # code is shown as written
     (tmp_path / "r" / "n.json").write_text("{}")
     with pytest.raises(hook.ResultError, match="no provenance"):
         hook.render("<!-- result-source r/n.json -->", "results/p.md")
