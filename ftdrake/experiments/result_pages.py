@@ -190,6 +190,9 @@ def regenerate(results, work: Path, *, quick: bool = False, dry_run: bool = Fals
     the result and the command, and leaves docs/ as it was for that result. `quiet`: no
     progress lines, and each command gets ``--quiet``."""
     say = (lambda *_: None) if quiet else print
+    if not (quick or dry_run) and not DOCS.is_dir():
+        raise FtdrakeError(f"no docs/ folder at {DOCS}: regenerating the results pages' files "
+                           "needs a checkout of ftdrake (git clone), not an installed wheel")
     done: set = set()
     written = []
     for r in results:

@@ -112,3 +112,10 @@ def test_a_failed_or_silent_command_leaves_docs_as_it_was(tmp_path, monkeypatch)
     with pytest.raises(ConfigError, match=r"did not write .*r\.json"):
         rp.regenerate([result], tmp_path / "work", quiet=True)
     assert json.loads(target.read_text()) == {"old": True}
+
+
+def test_without_a_checkouts_docs_folder_regenerate_says_so(tmp_path, monkeypatch):
+    monkeypatch.setattr(rp, "DOCS", tmp_path / "site-packages" / "docs")
+    with pytest.raises(FtdrakeError, match="needs a checkout of ftdrake"):
+        rp.regenerate(rp.RESULTS[:1], tmp_path / "work", quiet=True)
+    assert not (tmp_path / "work").exists()
