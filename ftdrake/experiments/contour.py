@@ -44,6 +44,7 @@ from ..sim.simulate import simulate
 from ..sim.station import build_station, robot_geometry
 from ..sim.tool_measurement import measure_contour, measure_timed, normal_deviation, timed_error
 from ..systems.learned_feedforward import LearnedFeedforward, fit_feedforward_gp
+from ..version import result_provenance
 from .hole_path import HolePath, hole_trajectory
 from .reference_correction import (
     ReferenceCorrection,
@@ -428,6 +429,7 @@ def write_outputs(out: Path, table, summary, task, contours, new_task, new_conto
     and contour.png, each atomically. The figure: per hole, the contours against the ideal
     circle at true scale and the radial error along the hole; the radial RMS per iteration."""
     out.mkdir(parents=True, exist_ok=True)
+    summary = {**summary, "provenance": result_provenance()}
     atomic_write_text(out / "summary.json", json.dumps(summary, indent=2) + "\n")
     with atomic_path(out / "iterations.csv") as tmp:
         table.to_csv(tmp, index=False)

@@ -57,6 +57,7 @@ from ..sim.collection import collect
 from ..sim.evaluation import evaluate_detection
 from ..sim.simulate import simulate
 from ..sim.station import build_station
+from ..version import result_provenance
 
 HELD_OUT_SEED = 1000
 #: The share of the training rows (whole runs, those farthest from the others) the hybrid's
@@ -317,6 +318,7 @@ def _write(out, summary, logs, models, meshcat, started, stages) -> None:
             (staging / "replay.html").write_text(meshcat.StaticHtml())
         summary["wall_time_s"] = time.perf_counter() - started
         summary["stage_times_s"] = _durations(stages, time.perf_counter())
+        summary["provenance"] = result_provenance()
         with atomic_path(staging / "summary.json") as tmp:
             tmp.write_text(json.dumps(summary, indent=2))
 

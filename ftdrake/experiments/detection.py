@@ -60,6 +60,7 @@ from ..sim.collection import collect
 from ..sim.evaluation import TOUCHDOWN_S, evaluate_detection
 from ..sim.simulate import simulate
 from ..sim.station import build_station
+from ..version import result_provenance
 from . import tracking
 from .detection_domain import markdown as domain_markdown
 from .detection_domain import plot_detectable_force_vs_domain
@@ -368,7 +369,8 @@ def run_detection_evaluation(out: Path, models: dict, config: ScenarioConfig | N
     with staged_outputs(out) as staging:
         with atomic_path(staging / "detection.json") as tmp:
             tmp.write_text(json.dumps({"plan": dc.asdict(plan), "models": results,
-                                       "tracker_events": events}, indent=2))
+                                       "tracker_events": events,
+                                       "provenance": result_provenance()}, indent=2))
         text = markdown(results, plan)
         if events is not None:
             text += "\n" + tracking.markdown(events, plan.events)

@@ -38,6 +38,7 @@ from ..sim.simulate import simulate
 from ..sim.station import build_station
 from ..systems.learned_feedforward import LearnedFeedforward, fit_feedforward_gp
 from ..systems.time_indexed_feedforward import TimeIndexedFeedforward
+from ..version import result_provenance
 
 logger = logging.getLogger(__name__)
 
@@ -298,6 +299,7 @@ def _summary(table: pd.DataFrame, general: dict, plan: FeedforwardPlan, scenario
 def write_outputs(out: Path, table: pd.DataFrame, summary: dict, model, plan) -> None:
     """summary.json, iterations.csv, tracking.png and the final model, each atomically."""
     out.mkdir(parents=True, exist_ok=True)
+    summary = {**summary, "provenance": result_provenance()}
     atomic_write_text(out / "summary.json", json.dumps(summary, indent=2) + "\n")
     with atomic_path(out / "iterations.csv") as tmp:
         table.to_csv(tmp, index=False)

@@ -17,7 +17,7 @@ from ftdrake.cli import study as study_cli
 from ftdrake.cli.main import build_parser, main
 
 COMMANDS = ["simulate", "collect", "train", "evaluate", "export", "replay", "calibrate", "serve",
-            "record", "demo", "evaluate-detection", "study", "learn-feedforward"]
+            "record", "demo", "evaluate-detection", "study", "learn-feedforward", "results"]
 # Every command that runs longer than a moment takes --quiet.
 LONG_COMMANDS = set(COMMANDS) - {"export"}
 

@@ -13,6 +13,7 @@ from ftdrake.experiments.demo import (
     print_table,
     run_demo,
 )
+from ftdrake.version import result_provenance
 
 
 @pytest.mark.slow
@@ -53,7 +54,9 @@ def test_demo_compares_forest_and_hybrid_on_the_same_held_out_contact(tmp_path, 
     bins = hybrid["domain_coverage"]
     assert sum(b["rows"] for b in bins.values()) > 1000
     assert all(len(b["coverage_95"]) == 6 for b in bins.values() if b["rows"])
-    assert json.loads((out / "summary.json").read_text())["better"] == summary["better"]
+    written = json.loads((out / "summary.json").read_text())
+    assert written["better"] == summary["better"]
+    assert written["provenance"] == result_provenance(written["provenance"]["command"])
     assert (out / "contact.png").stat().st_size > 10_000
     print_table(summary)
     table = capsys.readouterr().out

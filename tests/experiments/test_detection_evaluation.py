@@ -1,5 +1,7 @@
 """Detection evaluated like a safety function (experiments.detection)."""
 
+import json
+
 import numpy as np
 import pytest
 
@@ -10,6 +12,7 @@ from ftdrake.experiments.detection import (
     run_detection_evaluation,
     summarise,
 )
+from ftdrake.version import result_provenance
 
 
 def press(force, detected, delay=0.004):
@@ -53,6 +56,9 @@ def test_a_short_plan_runs_end_to_end_and_writes_its_report(tmp_path):
     assert np.isfinite(r["detector"]["force_on"])
     for name in ("detection.json", "detection.md", "detection_rate.png"):
         assert (tmp_path / "det" / name).is_file()
+    written = json.loads((tmp_path / "det" / "detection.json").read_text())
+    assert written["provenance"] == result_provenance(written["provenance"]["command"])
+    assert written["provenance"]["command"].startswith("python ")  # run by pytest, not the CLI
 
 
 def test_a_run_that_could_not_be_made_is_counted_in_the_results_table():

@@ -13,6 +13,7 @@ from ftdrake.cli import study as cli
 from ftdrake.experiments import study as dut
 from ftdrake.experiments.study import Finding, describe
 from ftdrake.sim.collection import collect
+from ftdrake.version import result_provenance
 
 # A grid of one candidate each (by registry name): the test checks the plumbing, not the tuning.
 TINY_GRID = {
@@ -43,6 +44,7 @@ def test_results_hold_every_cell(tiny_run):
     out, returned = tiny_run
     results = json.loads((out / "results.json").read_text())
     assert results["findings"] == returned["findings"]
+    assert results["provenance"] == result_provenance(results["provenance"]["command"])
     for dataset in dut.DATASETS:
         table = results["metrics"][dataset]
         assert set(table) == set(dut.METHODS)

@@ -20,6 +20,7 @@ from ... import conventions as col
 from ...compensation.estimators.tuning import param_grid
 from ...config import ScenarioConfig
 from ...io import atomic_path
+from ...version import result_provenance
 from .layout import AXES, FEATURES
 from .protocols import collect_study, protocol_findings, run_protocols, study_scenario
 from .report import protocols_markdown
@@ -100,7 +101,8 @@ def run_paper(out_dir, *, scheduler: str | None = None, features=("q",), search=
            "fitted_candidates": {k: {a: p.get("n_candidates_fitted") for a, p in v.items()}
                                  for k, v in _flat_params(best).items()},
            "collect_s": round(collect_s, 1),
-           "wall_time_s": round(time.perf_counter() - started, 1)}
+           "wall_time_s": round(time.perf_counter() - started, 1),
+           "provenance": result_provenance(command)}
     if search == "halving":
         out["exhaustive_s_estimate"] = exhaustive_seconds(
             best, train_rows=res["sizes"]["train_rows"], n_jobs=workers)

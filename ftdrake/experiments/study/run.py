@@ -32,6 +32,7 @@ from ...io import atomic_path, staged_outputs
 from ...sim.collection import simulate_one, trajectory_config
 from ...sim.station import plan_trajectory, robot_geometry
 from ...sim.trajectories import trajectory_extent
+from ...version import result_provenance
 from . import protocols
 from . import report as outputs
 from .estimate import estimate_seconds
@@ -140,6 +141,7 @@ def run_study(out_dir, *, preset="quick", trajectories: int = TRAJECTORIES,
         stage_s["figures"] = time.perf_counter() - t0
         results["stage_s"] = {k: round(v, 2) for k, v in stage_s.items()}
         results["wall_time_s"] = round(time.perf_counter() - started, 2)
+        results["provenance"] = result_provenance()
         with atomic_path(stage / "results.json") as tmp:
             tmp.write_text(json.dumps(results, indent=1))
         with atomic_path(stage / "results.md") as tmp:
