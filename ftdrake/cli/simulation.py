@@ -29,7 +29,7 @@ def register(sub) -> None:
     a.add_config(p)
     trajectory = a.add_trajectory(
         p, default="contact", help="what the arm does: contact presses the tool on the task's "
-        "surfaces; the others are free motion (fourier: smooth; --scenario free was fourier)")
+        "surfaces; the others are free motion (fourier: smooth)")
     a.add_deprecated(p, "--scenario", trajectory, values=_SCENARIOS)
     p.add_argument("--duration", type=a.positive_float, metavar="S",
                    help="seconds to simulate (default: the scenario's trajectory.duration_s)")
