@@ -125,8 +125,7 @@ def test_choices_are_written_one_way(monkeypatch):
 def test_a_flag_error_shows_the_short_usage_line(capsys):
     lines = error_of(capsys, "train", "--data", "no-such.csv", "--out", "m.ftd")
     assert lines == ["usage: ftdrake train --data FILE --out MODEL [OPTIONS]",
-                     "ftdrake train: error: argument --data: no-such.csv: no such file or "
-                     "folder"]
+                     "ftdrake train: error: argument --data: no-such.csv: no such file or folder"]
     lines = error_of(capsys, "serve")
     assert lines == ["usage: ftdrake serve --model FILE [OPTIONS]",
                      "ftdrake serve: error: the following arguments are required: --model"]
@@ -148,8 +147,7 @@ def test_train_quiet_prints_only_the_file_line(ftdrake, tmp_path):
     assert code == 0 and len(out.splitlines()) > 20  # the identified arm, as a table
     code, out, err = ftdrake(*argv, "--out", tmp_path / "quiet.ftd", "--quiet")
     assert code == 0, err
-    assert out.splitlines() == [f"saved {tmp_path / 'quiet.ftd'} "
-                                f"({out.rsplit('(', 1)[1].strip()}"]
+    assert len(out.splitlines()) == 1 and out.startswith(f"saved {tmp_path / 'quiet.ftd'} (")
     assert "fitting" not in err and "reading" not in err
 
 
