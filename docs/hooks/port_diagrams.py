@@ -81,7 +81,6 @@ def build_station():
 def _extra_instances(station, model) -> list:
     """Systems the simulated station does not hold."""
     import numpy as np  # noqa: PLC0415
-    from pydrake.geometry import Meshcat, MeshcatParams  # noqa: PLC0415
 
     import ftdrake  # noqa: PLC0415
     from ftdrake.config import PayloadChangeConfig, TransmissionConfig  # noqa: PLC0415
@@ -92,7 +91,7 @@ def _extra_instances(station, model) -> list:
     from ftdrake.systems.payload_feedforward import PayloadFeedforward  # noqa: PLC0415
     from ftdrake.systems.time_indexed_feedforward import TimeIndexedFeedforward  # noqa: PLC0415
     from ftdrake.systems.transmission import MotorSide  # noqa: PLC0415
-    from ftdrake.systems.wrench_arrows import WrenchArrows  # noqa: PLC0415
+    from ftdrake.systems.wrench_arrows import WrenchArrows, recording_meshcat  # noqa: PLC0415
 
     config = station.config
     n = station.plant.num_positions(station.scene.arm)
@@ -102,9 +101,7 @@ def _extra_instances(station, model) -> list:
     torque = ftdrake.GPRCompensator(features="q,qd,qdd", max_points=20).fit(
         X, rng.normal(size=(40, n)))
     control_plant = make_control_plant(config, station.scene)
-    params = MeshcatParams()
-    params.host, params.port = "localhost", 0  # loopback; any free port
-    meshcat = Meshcat(params)
+    meshcat = recording_meshcat()  # for WrenchArrows; no "listening" line in the build's log
     return [live, *live.GetSystems(), LearnedFeedforward(torque, n_joints=n),
             TimeIndexedFeedforward(np.zeros((10, n)), config.time_step),
             WrenchArrows(meshcat, station.plant, station.scene),

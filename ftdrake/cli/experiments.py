@@ -66,7 +66,8 @@ def run_demo_command(args) -> int:
                        progress=not args.quiet)
     print_table(summary)
     print(f"wrote {args.out}/summary.json, contact.png, model_forest.ftd, model_hybrid.ftd, "
-          "contact_log_*.parquet" + (", replay.html" if args.html else ""))
+          "contact_log_*.parquet" + (", replay.html (a self-contained Meshcat replay of the "
+                                     "hybrid's run: open it in a browser)" if args.html else ""))
     return 0
 
 
