@@ -36,6 +36,7 @@ MARKER = re.compile(r"<!-- ftdrake-diagram: ([\w]+) -->")
 LOG = logging.getLogger("mkdocs.plugins.ftdrake.port_diagrams")
 CHAR_W, ROW_H, PAD = 7.0, 20, 12
 FONT = "font-family:Menlo,Consolas,monospace;font-size:12px"
+COLUMN_PX = 760  # the text column's width in the site's theme (px), about
 HIDDEN_IN_STATION = ("VectorLogSink",)  # the station's loggers: one per signal, not the data path
 
 
@@ -364,9 +365,24 @@ def on_page_markdown(markdown, page, config, files):  # noqa: ARG001
         caption = {"station": "the simulated station, drawn from build_station",
                    "chain": "inside CompensationChain (as a live robot's station builds it)",
                    }.get(name, f"{name}: its ports, drawn from a live instance")
-        return f"![{caption}]({link})"
+        return wide_figure(_svgs[name], link, caption) or f"![{caption}]({link})"
 
     return MARKER.sub(replace, markdown)
+
+
+def wide_figure(svg: str, link: str, caption: str) -> str | None:
+    """A drawing wider than the text column (:data:`COLUMN_PX`) at its own size, scrolled
+    sideways inside the column, with a link to the drawing alone; None for a narrower one
+    (an image in the text, as it is)."""
+    width = float(re.search(r'width="([\d.]+)"', svg).group(1))
+    if width <= COLUMN_PX:
+        return None
+    alt, href = html.escape(caption), html.escape(link)
+    return (f'<figure class="ftdrake-wide">'
+            f'<div style="overflow-x: auto"><a href="{href}"><img src="{href}" alt="{alt}" '
+            f'style="max-width: none; width: {width:.0f}px"></a></div>'
+            f'<figcaption>{alt} ({width:.0f} px wide: scroll sideways, or '
+            f'<a href="{href}">open the drawing alone</a>)</figcaption></figure>')
 
 
 def on_page_content(html_text, page, config, files):  # noqa: ARG001

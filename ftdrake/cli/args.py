@@ -292,16 +292,31 @@ def add_deprecated(p, old: str, new: argparse.Action, *, values: dict | None = N
 class HelpFormatter(argparse.HelpFormatter):
     """One style for every command: an option's default after its help, ``(default: X)``,
     unless the help already says it or there is none to show (None; a flag without a value,
-    but for ``--x/--no-x``); an option's choices as its value, ``--flag A|B|C``."""
+    but for ``--x/--no-x``); an option's choices as its value, ``--flag A|B|C``, or when they
+    are too many to fit a line, ``--flag NAME`` and ``(NAME: A | B | C)`` in its help."""
+
+    #: The longest ``A|B|C`` shown as an option's value (characters).
+    CHOICES_WIDTH = 36
+
+    @classmethod
+    def choices_of(cls, action) -> str | None:
+        """``A|B|C`` for an option with choices (None without)."""
+        if action.metavar is not None or action.choices is None or not action.option_strings:
+            return None
+        return "|".join(str(choice) for choice in action.choices)
 
     def _metavar_formatter(self, action, default_metavar):
-        if action.metavar is None and action.choices is not None and action.option_strings:
-            text = "|".join(str(choice) for choice in action.choices)
+        choices = self.choices_of(action)
+        if choices is not None:
+            text = choices if len(choices) <= self.CHOICES_WIDTH else action.dest.upper()
             return lambda size: (text,) * size
         return super()._metavar_formatter(action, default_metavar)
 
     def _get_help_string(self, action):
         text = action.help or ""
+        choices = self.choices_of(action)
+        if choices is not None and len(choices) > self.CHOICES_WIDTH:
+            text = f"{text} ({action.dest.upper()}: {choices.replace('|', ' | ')})".lstrip()
         default = action.default
         if isinstance(action, argparse.BooleanOptionalAction) and default is not None:
             return f"{text} (default: {action.option_strings[0 if default else 1]})"

@@ -107,7 +107,9 @@ def test_defaults_are_written_one_way():
 
 
 def test_choices_are_written_one_way(monkeypatch):
-    """An option with choices shows them as its value, ``--flag A|B``, in usage and help."""
+    """An option with choices shows them as its value, ``--flag A|B``, or when they do not fit
+    a line, as ``--flag NAME`` with ``(NAME: A | B)`` in its help; never argparse's
+    ``{A,B}``."""
     monkeypatch.setenv("COLUMNS", "2000")
     shown = 0
     for name, parser in commands().items():
@@ -116,9 +118,21 @@ def test_choices_are_written_one_way(monkeypatch):
         for option in options(parser):
             if option.choices is None or option.nargs == 0:
                 continue
-            assert f"{option.option_strings[0]} {'|'.join(map(str, option.choices))}" in text
+            flag, choices = option.option_strings[0], [str(c) for c in option.choices]
+            name_ = option.dest.upper()
+            assert (f"{flag} {'|'.join(choices)}" in text
+                    or (f"{flag} {name_}" in text and f"({name_}: {' | '.join(choices)})" in text)
+                    ), (name, flag)
             shown += 1
     assert shown >= 10
+
+
+def test_usage_fits_78_columns(monkeypatch):
+    """At 80 columns (the site renders usage at that width) no line is wider than 78."""
+    monkeypatch.setenv("COLUMNS", "80")
+    for name, parser in {"ftdrake": build_parser(), **commands()}.items():
+        wide = [line for line in parser.format_help().splitlines() if len(line) > 78]
+        assert not wide, (name, wide)
 
 
 # -- errors ------------------------------------------------------------------------------------
