@@ -23,8 +23,10 @@ LOG = logging.getLogger("mkdocs.plugins.ftdrake.api_pages")
 
 
 def modules() -> dict[str, list[str]]:
-    """{package dotted name: [its modules' dotted names]}, packages in tree order; private
-    modules (a leading underscore) and ``__main__`` left out."""
+    """{package dotted name: [its modules' dotted names]}, packages in tree order; in a
+    package, the modules of its public names first (in its ``__all__``'s order: the
+    ``ftdrake.runtime`` page opens with ``CompensationChain``), then the others by name;
+    private modules (a leading underscore) and ``__main__`` left out."""
     packages: dict[str, list[str]] = {}
     for init in sorted(PACKAGE.rglob("__init__.py")):
         folder = init.parent
@@ -32,9 +34,23 @@ def modules() -> dict[str, list[str]]:
         if any(part.startswith(("_", ".")) for part in rel.parts):
             continue
         name = ".".join(rel.parts)
-        packages[name] = [f"{name}.{p.stem}" for p in sorted(folder.glob("*.py"))
-                          if not p.stem.startswith("_")]
+        stems = [p.stem for p in sorted(folder.glob("*.py")) if not p.stem.startswith("_")]
+        first = [m for m in _public_modules(init) if m in stems]
+        packages[name] = [f"{name}.{m}" for m in [*first, *(m for m in stems if m not in first)]]
     return packages
+
+
+def _public_modules(init: Path) -> list[str]:
+    """The modules (stems) of a package that define the names of its ``__all__``, in that
+    order (each once), from its ``from .module import Name`` lines."""
+    tree = ast.parse(init.read_text(encoding="utf-8"))
+    source = {alias.asname or alias.name: node.module for node in tree.body
+              if isinstance(node, ast.ImportFrom) and node.level == 1 and node.module
+              for alias in node.names}
+    exported = next((ast.literal_eval(node.value) for node in tree.body
+                     if isinstance(node, ast.Assign)
+                     and any(getattr(t, "id", None) == "__all__" for t in node.targets)), [])
+    return list(dict.fromkeys(source[n].split(".")[0] for n in exported if n in source))
 
 
 def module_path(dotted: str) -> Path:

@@ -19,7 +19,7 @@ from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[2]
 MARKER = re.compile(r"<!-- ftdrake-usage: ([\w*-]+) -->")
-WIDTH = "100"  # help text columns, whatever the terminal building the site
+WIDTH = "80"  # COLUMNS: argparse wraps at 78 columns, the code blocks' width on the site
 LOG = logging.getLogger("mkdocs.plugins.ftdrake.cli_usage")
 
 

@@ -36,6 +36,7 @@ MARKER = re.compile(r"<!-- ftdrake-diagram: ([\w]+) -->")
 LOG = logging.getLogger("mkdocs.plugins.ftdrake.port_diagrams")
 CHAR_W, ROW_H, PAD = 7.0, 20, 12
 FONT = "font-family:Menlo,Consolas,monospace;font-size:12px"
+COLUMN_PX = 760  # the text column's width in the site's theme (px), about
 HIDDEN_IN_STATION = ("VectorLogSink",)  # the station's loggers: one per signal, not the data path
 
 
@@ -81,7 +82,6 @@ def build_station():
 def _extra_instances(station, model) -> list:
     """Systems the simulated station does not hold."""
     import numpy as np  # noqa: PLC0415
-    from pydrake.geometry import Meshcat, MeshcatParams  # noqa: PLC0415
 
     import ftdrake  # noqa: PLC0415
     from ftdrake.config import ImuConfig, PayloadChangeConfig, TransmissionConfig  # noqa: PLC0415
@@ -93,7 +93,7 @@ def _extra_instances(station, model) -> list:
     from ftdrake.systems.payload_feedforward import PayloadFeedforward  # noqa: PLC0415
     from ftdrake.systems.time_indexed_feedforward import TimeIndexedFeedforward  # noqa: PLC0415
     from ftdrake.systems.transmission import MotorSide  # noqa: PLC0415
-    from ftdrake.systems.wrench_arrows import WrenchArrows  # noqa: PLC0415
+    from ftdrake.systems.wrench_arrows import WrenchArrows, recording_meshcat  # noqa: PLC0415
 
     config = station.config
     n = station.plant.num_positions(station.scene.arm)
@@ -103,9 +103,7 @@ def _extra_instances(station, model) -> list:
     torque = ftdrake.GPRCompensator(features="q,qd,qdd", max_points=20).fit(
         X, rng.normal(size=(40, n)))
     control_plant = make_control_plant(config, station.scene)
-    params = MeshcatParams()
-    params.host, params.port = "localhost", 0  # loopback; any free port
-    meshcat = Meshcat(params)
+    meshcat = recording_meshcat()  # for WrenchArrows; no "listening" line in the build's log
     return [live, *live.GetSystems(), LearnedFeedforward(torque, n_joints=n),
             TimeIndexedFeedforward(np.zeros((10, n)), config.time_step),
             WrenchArrows(meshcat, station.plant, station.scene),
@@ -369,9 +367,24 @@ def on_page_markdown(markdown, page, config, files):  # noqa: ARG001
         caption = {"station": "the simulated station, drawn from build_station",
                    "chain": "inside CompensationChain (as a live robot's station builds it)",
                    }.get(name, f"{name}: its ports, drawn from a live instance")
-        return f"![{caption}]({link})"
+        return wide_figure(_svgs[name], link, caption) or f"![{caption}]({link})"
 
     return MARKER.sub(replace, markdown)
+
+
+def wide_figure(svg: str, link: str, caption: str) -> str | None:
+    """A drawing wider than the text column (:data:`COLUMN_PX`) at its own size, scrolled
+    sideways inside the column, with a link to the drawing alone; None for a narrower one
+    (an image in the text, as it is)."""
+    width = float(re.search(r'width="([\d.]+)"', svg).group(1))
+    if width <= COLUMN_PX:
+        return None
+    alt, href = html.escape(caption), html.escape(link)
+    return (f'<figure class="ftdrake-wide">'
+            f'<div style="overflow-x: auto"><a href="{href}"><img src="{href}" alt="{alt}" '
+            f'style="max-width: none; width: {width:.0f}px"></a></div>'
+            f'<figcaption>{alt} ({width:.0f} px wide: scroll sideways, or '
+            f'<a href="{href}">open the drawing alone</a>)</figcaption></figure>')
 
 
 def on_page_content(html_text, page, config, files):  # noqa: ARG001

@@ -234,11 +234,11 @@ def add_joint_mapping(p) -> None:
     p.add_argument("--joints", metavar="NAME,NAME,..|FILE",
                    help="the joints of --robot the log's position columns hold, in their order "
                         "(when --robot has more: a torso, a head, fingers), or a YAML file of "
-                        "'joints: [...]' and 'fixed_joints: {NAME: VALUE}'; default: all of "
-                        "them, in the model's order")
+                        "'joints: [...]' and 'fixed_joints: {NAME: VALUE}' (default: all of "
+                        "them, in the model's order)")
     p.add_argument("--fixed-joints", metavar="NAME=V,..|FILE",
                    help="where the joints of --robot not in --joints stand (rad, or m for "
-                        "prismatic), or a YAML file mapping name to value; default 0")
+                        "prismatic), or a YAML file mapping name to value (default: 0)")
 
 
 def add_quiet(p, help: str = "no progress output"):
@@ -275,8 +275,10 @@ def add_deprecated(p, old: str, new: argparse.Action, *, values: dict | None = N
     """Adds `old` as a deprecated spelling of the argument `new` (what ``add_argument``
     returned): same destination and checks; `values` maps old values to new ones (its keys
     are the old spelling's choices). A flag without a value (``store_true``, ``--html``) sets
-    True. The help of `new` says which spelling it replaces."""
-    new.help = f"{new.help or ''} (replaces {old})".lstrip()
+    True. ``--help`` shows only the new spelling; using the old one prints which replaces it.
+    A required `new` is satisfied by either spelling (:class:`Parser` checks it)."""
+    if new.required:
+        new.required, new.needed_as = False, (*new.option_strings, old)
     if new.nargs == 0:
         p.add_argument(old, action=DeprecatedSpelling, new=new.option_strings[0],
                        dest=new.dest, nargs=0, const=True)
@@ -288,11 +290,33 @@ def add_deprecated(p, old: str, new: argparse.Action, *, values: dict | None = N
 
 # -- help --------------------------------------------------------------------------------------
 class HelpFormatter(argparse.HelpFormatter):
-    """Shows each option's default after its help, ``(default: X)``, unless the help already
-    says it or there is none to show (None; a flag without a value, but for ``--x/--no-x``)."""
+    """One style for every command: an option's default after its help, ``(default: X)``,
+    unless the help already says it or there is none to show (None; a flag without a value,
+    but for ``--x/--no-x``); an option's choices as its value, ``--flag A|B|C``, or when they
+    are too many to fit a line, ``--flag NAME`` and ``(NAME: A | B | C)`` in its help."""
+
+    #: The longest ``A|B|C`` shown as an option's value (characters).
+    CHOICES_WIDTH = 36
+
+    @classmethod
+    def choices_of(cls, action) -> str | None:
+        """``A|B|C`` for an option with choices (None without)."""
+        if action.metavar is not None or action.choices is None or not action.option_strings:
+            return None
+        return "|".join(str(choice) for choice in action.choices)
+
+    def _metavar_formatter(self, action, default_metavar):
+        choices = self.choices_of(action)
+        if choices is not None:
+            text = choices if len(choices) <= self.CHOICES_WIDTH else action.dest.upper()
+            return lambda size: (text,) * size
+        return super()._metavar_formatter(action, default_metavar)
 
     def _get_help_string(self, action):
         text = action.help or ""
+        choices = self.choices_of(action)
+        if choices is not None and len(choices) > self.CHOICES_WIDTH:
+            text = f"{text} ({action.dest.upper()}: {choices.replace('|', ' | ')})".lstrip()
         default = action.default
         if isinstance(action, argparse.BooleanOptionalAction) and default is not None:
             return f"{text} (default: {action.option_strings[0 if default else 1]})"
@@ -300,6 +324,70 @@ class HelpFormatter(argparse.HelpFormatter):
                 or default is None or default is argparse.SUPPRESS):
             return text
         return f"{text} (default: %(default)s)"
+
+
+_REQUIRED = "the following arguments are required: "
+
+
+class Parser(argparse.ArgumentParser):
+    """argparse's parser with errors a user reads at a glance: the command's short usage
+    (``usage: ftdrake train --data FILE --out MODEL [OPTIONS]``), then the error; an unknown
+    flag is reported by the command it was given to, with that command's usage."""
+
+    def short_usage(self) -> str:
+        """``usage: PROG``, its required options, ``[OPTIONS]`` for the others, then its
+        positional arguments (``COMMAND ...`` for a parser of commands)."""
+        required, positional, optional = [], [], False
+        for action in self._actions:
+            if isinstance(action, argparse._SubParsersAction):
+                positional.append(f"{action.metavar or 'COMMAND'} ...")
+            elif not action.option_strings:
+                positional.append(action.metavar or action.dest.upper())
+            elif action.required or getattr(action, "needed_as", None):
+                value = "" if action.nargs == 0 else f" {action.metavar or action.dest.upper()}"
+                required.append(action.option_strings[0] + value)
+            elif action.help is not argparse.SUPPRESS:
+                optional = True
+        return " ".join(["usage:", self.prog, *required, *(["[OPTIONS]"] if optional else []),
+                         *positional])
+
+    def error(self, message):
+        missing = [flag for flag in self._missing() if flag not in message]
+        if missing and message.startswith(_REQUIRED):
+            message = f"{message}, {', '.join(missing)}"
+        self.exit(2, f"{self.short_usage()}\n{self.prog}: error: {message}\n")
+
+    def _missing(self) -> list[str]:
+        """The required options with an old spelling (argparse does not see those given by
+        it) that the arguments being parsed do not give."""
+        given = {word.split("=", 1)[0] for word in getattr(self, "_argv", [])}
+        return [action.option_strings[0] for action in self._actions
+                if getattr(action, "needed_as", None) and not given & set(action.needed_as)]
+
+    def parse_known_args(self, args=None, namespace=None):
+        self._argv = list(sys.argv[1:] if args is None else args)
+        parsed, extras = super().parse_known_args(args, namespace)
+        missing = self._missing()
+        if missing:
+            self.error(f"{_REQUIRED}{', '.join(missing)}")
+        return parsed, extras
+
+    def parse_args(self, args=None, namespace=None):
+        parsed, extras = self.parse_known_args(args, namespace)
+        if extras:
+            self._parser_of(parsed, extras).error(f"unrecognized arguments: {' '.join(extras)}")
+        return parsed
+
+    def _parser_of(self, parsed, extras) -> argparse.ArgumentParser:
+        """The parser of the command `parsed` ran if `extras` came after its name, else
+        self."""
+        argv = self._argv
+        for action in self._actions:
+            if isinstance(action, argparse._SubParsersAction):
+                name = getattr(parsed, action.dest, None)
+                if name in argv and argv.index(extras[0]) > argv.index(name):
+                    return action.choices[name]
+        return self
 
 
 def add_command(subparsers, name: str, help: str, description: str = ""):

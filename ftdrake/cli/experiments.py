@@ -36,20 +36,21 @@ def register(sub) -> None:
     a.add_config(p)
     p.add_argument("--minutes", type=a.positive_float, default=None, metavar="MIN",
                    help="simulated minutes of free motion, split over the trajectory kinds "
-                        "(default 10)")
+                        "(default: 10; 2 with --quick)")
     p.add_argument("--budget", type=a.positive_float, default=None, metavar="PER_HOUR",
                    help="false positives per hour the thresholds are set for (default: the "
                         "scenario's detector.false_positives_per_hour)")
     p.add_argument("--quick", action="store_true",
-                   help="a short plan: --minutes of free motion (default 2 with --quick), "
-                        "five presses per surface, no tracker events")
+                   help="a short plan: --minutes of free motion, five presses per surface, "
+                        "no tracker events")
     p.add_argument("--compare-tests", action="store_true",
                    help="evaluate each model with the norm and the χ² test (each with its "
                         "thresholds for the budget), on the same runs")
     a.add_jobs(p)
     p.add_argument("--in-loop", action="store_true",
-                   help="simulate every run with each model in the loop (default: simulate "
-                        "each run once and replay every model over it; the same numbers)")
+                   help="simulate every run with each model in the loop, instead of "
+                        "simulating each run once and replaying every model over it (the same "
+                        "numbers)")
     p.add_argument("--out", type=a.output_folder, default="out/detection", metavar="DIR",
                    help="folder for detection.json, detection.md, detection_rate.png")
     a.add_quiet(p)
@@ -65,7 +66,8 @@ def run_demo_command(args) -> int:
                        progress=not args.quiet)
     print_table(summary)
     print(f"wrote {args.out}/summary.json, contact.png, model_forest.ftd, model_hybrid.ftd, "
-          "contact_log_*.parquet" + (", replay.html" if args.html else ""))
+          "contact_log_*.parquet" + (", replay.html (a self-contained Meshcat replay of the "
+                                     "hybrid's run: open it in a browser)" if args.html else ""))
     return 0
 
 

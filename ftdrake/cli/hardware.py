@@ -1,8 +1,9 @@
-"""`ftdrake serve` and `ftdrake record`: the compensator on a live robot's LCM streams.
+"""`ftdrake serve` and `ftdrake record`: the compensator on a live robot's LCM streams (with
+``--ros2``, its ROS 2 topics: cli/ros2.py).
 
     ftdrake serve --model m.ftd [--config scenario.yaml] [--hardware hw.yaml] [--lcm URL]
     ftdrake record --lcm URL --out log.parquet [--duration S]
-    ftdrake record --from-log lcmlog-2025-01-01.00 --out log.parquet
+    ftdrake record --data lcmlog-2025-01-01.00 --out log.parquet
 
 ``--hardware`` is a :class:`~ftdrake.hardware.config.HardwareConfig` YAML (channels, message
 types, timeouts, joint count); ``--lcm`` overrides its ``lcm_url``. ``--config`` is a chain config
@@ -36,7 +37,7 @@ if TYPE_CHECKING:
 
 def register(sub) -> None:
     """Adds ``serve`` and ``record`` to an ``argparse`` subparsers object."""
-    p = a.add_command(sub, "serve", "run a compensator on a live robot (LCM)",
+    p = a.add_command(sub, "serve", "run a compensator on a live robot (LCM or ROS 2)",
                       "Reads the joint state and F/T streams; publishes the contact wrench, "
                       "the compensated wrench and the contact state.")
     a.add_model_file(p, required=True)
@@ -48,10 +49,11 @@ def register(sub) -> None:
     ros2.add_options(p)
     p.set_defaults(run=run_serve)
 
-    p = a.add_command(sub, "record", "record a live robot (LCM) for train/evaluate",
+    p = a.add_command(sub, "record", "record a live robot (LCM or ROS 2) for train/evaluate",
                       "The joint state and F/T, in the Parquet layout of `collect`.")
-    p.add_argument("--from-log", type=a.existing_file, metavar="LCMLOG",
-                   help="convert an lcm-logger file instead of listening")
+    data = p.add_argument("--data", type=a.existing_file, metavar="LCMLOG",
+                          help="convert an lcm-logger file instead of listening")
+    a.add_deprecated(p, "--from-log", data)
     add_transport_flags(p)
     p.add_argument("--out", type=a.output_file, required=True, metavar="FILE",
                    help="FILE.parquet")
@@ -65,12 +67,15 @@ def register(sub) -> None:
 
 
 def add_transport_flags(p, lcm_help: str = "LCM URL, e.g. 'udpm://239.255.76.67:7667?ttl=0' "
-                        "or 'memq://' (default: the --hardware file's lcm_url)") -> None:
-    """``--hardware FILE`` and ``--lcm URL``: the live robot's channels and transport."""
+                        "or 'memq://' (default: the --hardware file's lcm_url)",
+                        lcm: bool = True) -> None:
+    """``--hardware FILE`` and (with `lcm`) ``--lcm URL``: the live robot's channels and
+    transport."""
     p.add_argument("--hardware", type=a.existing_file, metavar="FILE",
                    help="HardwareConfig YAML: channels, message types, timeouts, n_joints "
                         "(default: ftdrake's channels)")
-    p.add_argument("--lcm", metavar="URL", help=lcm_help)
+    if lcm:
+        p.add_argument("--lcm", metavar="URL", help=lcm_help)
 
 
 def hardware_from_args(args, live: LiveConfig | None = None) -> HardwareConfig:
@@ -83,9 +88,10 @@ def hardware_from_args(args, live: LiveConfig | None = None) -> HardwareConfig:
     else:
         with a.naming("--hardware", args.hardware):
             config = load_config(args.hardware, schema=HardwareConfig)
-    if args.lcm:
-        config.lcm_url = args.lcm
-    with a.naming("--lcm", args.lcm) if args.lcm else contextlib.nullcontext():
+    url = getattr(args, "lcm", None)  # replay reads a log: it has no --lcm
+    if url:
+        config.lcm_url = url
+    with a.naming("--lcm", url) if url else contextlib.nullcontext():
         return config.validate()
 
 
@@ -146,9 +152,9 @@ def run_record(args) -> int:
     from ..hardware.recording import read_lcm_log, table_from_messages, write_table
 
     hardware = hardware_from_args(args)
-    if args.from_log is not None:
-        with a.naming("--from-log", args.from_log):
-            table, report = read_lcm_log(args.from_log, hardware, args.tolerance)
+    if args.data is not None:
+        with a.naming("--data", args.data):
+            table, report = read_lcm_log(args.data, hardware, args.tolerance)
     else:
         transport = open_transport(args, hardware)
         messages = []

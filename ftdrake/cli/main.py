@@ -12,7 +12,7 @@ import importlib
 import sys
 
 from ..version import ftdrake_version
-from .args import HelpFormatter, run
+from .args import HelpFormatter, Parser, run
 
 #: Each command → the module of ``ftdrake.cli`` that registers and runs it, in the order
 #: ``ftdrake --help`` lists them: the rig, models, a live robot, the experiments.
@@ -50,7 +50,7 @@ def command_modules(commands=None) -> list:
 def build_parser(commands=None) -> argparse.ArgumentParser:
     """The ``ftdrake`` parser with the commands `commands` (default: every command of
     :data:`COMMANDS`)."""
-    parser = argparse.ArgumentParser(prog="ftdrake", description=DESCRIPTION,
+    parser = Parser(prog="ftdrake", description=DESCRIPTION,
                                      formatter_class=HelpFormatter)
     parser.add_argument("--version", action="version", version=f"ftdrake {ftdrake_version()}")
     parser.add_argument("--verbose", action="store_true",

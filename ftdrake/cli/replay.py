@@ -1,6 +1,6 @@
 """`ftdrake replay`: the runtime chain run offline over a logged stream, one update per row.
 
-    ftdrake replay --model FILE --log FILE --out FILE [--config YAML] [--robot FILE
+    ftdrake replay --model FILE --data FILE --out FILE [--config YAML] [--robot FILE
                    --sensor-frame NAME] [--pairing row|simulated]
                    [--view aligned|held] [--delay S | --align] [--budget [--noise-std S]]
                    [--resample]
@@ -8,8 +8,9 @@
 
 Writes the chain's outputs per row (:func:`ftdrake.offline.replay.replay`: compensated and
 contact wrench, std, bias, out-of-domain, fault and contact flags, contact force) as CSV or
-Parquet (by the suffix of --out) and prints a JSON summary. --log is a CSV/Parquet table, a
-ROS bag (with --wrench-topic) or an LCM log (read with --hardware's channels). --budget adds
+Parquet (by the suffix of --out) and prints a JSON summary. --data is a CSV/Parquet table, a
+ROS bag (with --wrench-topic) or an LCM log (read with --hardware's channels); ``--log`` is its
+old spelling. --budget adds
 what the in-motion residual is made of (offset, drift, stream delay, the sensor's filter,
 remainder: :func:`ftdrake.offline.residual_budget.residual_budget`) to the summary.
 --calibrate-detector writes the chain config with its detector's thresholds set for its budget
@@ -38,8 +39,9 @@ def register(sub) -> None:
         "Per row: the compensated and contact wrench, std, bias, out-of-domain, fault and "
         "contact flags, as the chain in the loop gives them.")
     a.add_model_file(p, required=True)
-    p.add_argument("--log", type=a.existing_path, required=True, metavar="FILE",
-                   help="CSV/Parquet table (t, q_i, qd_i, meas_*), ROS bag or LCM log")
+    data = p.add_argument("--data", type=a.existing_path, required=True, metavar="FILE",
+                          help="CSV/Parquet table (t, q_i, qd_i, meas_*), ROS bag or LCM log")
+    a.add_deprecated(p, "--log", data)
     p.add_argument("--out", type=a.output_file, required=True, metavar="FILE",
                    help="result table (.csv or .parquet)")
     a.add_chain_config(p)
@@ -56,9 +58,9 @@ def register(sub) -> None:
                    help="also split the in-motion residual into offset, drift, stream delay, "
                         "the sensor's filter and what is left, in units of the resting noise")
     p.add_argument("--noise-std", type=a.noise_values, metavar="S[,S...]",
-                   help="--budget: the sensor's resting noise std (N, N·m), one value or six; "
-                        "default: measured on the log's rows at rest, else the chain config "
-                        "sensor's (a warning says so)")
+                   help="--budget: the sensor's resting noise std (N, N·m), one value or six "
+                        "(default: measured on the log's rows at rest, else the chain config "
+                        "sensor's: a warning says so)")
     p.add_argument("--resample", action="store_true",
                    help="put the log on a uniform time grid at its median period first "
                         "(linear interpolation; events kept): what --budget needs of a log "
@@ -75,20 +77,20 @@ def register(sub) -> None:
                                  "'derive' to compute them from q as train does (so done when "
                                  "the log has no qd_* columns)")),
                                 ("--targets", "meas_*", "the sensor's wrench columns (N, N·m)")):
-        p.add_argument(flag, metavar="PAT", help=f"tables: {what}, default '{default}'; a glob, "
-                       "a comma-separated list or a regular expression after 're:'")
-    p.add_argument("--time", metavar="COL", help="tables: the time column (s), default 't'")
+        p.add_argument(flag, metavar="PAT", help=f"tables: {what}; a glob, a comma-separated "
+                       f"list or a regular expression after 're:' (default: '{default}')")
+    p.add_argument("--time", metavar="COL", help="tables: the time column (s) (default: 't')")
     p.add_argument("--gap-factor", type=a.number(float, lambda v: 1 < v < float("inf"),
                                                  "must be a number above 1"),
                    default=3.0, metavar="X",
                    help="a time step longer than X × the median step is a gap: the chain "
-                        "restarts after it (bias tracker, q̇/q̈ estimates, detector)")
+                        "restarts after it (bias tracker, q̇/q̈ estimates, detector) "
+                        "(default: %(default)s)")
     p.add_argument("--t-start", type=a.finite_float, metavar="S",
                    help="replay only the rows from this time on (s, the log's time axis)")
     p.add_argument("--t-end", type=a.finite_float, metavar="S",
                    help="replay only the rows up to this time (s, the log's time axis)")
-    add_transport_flags(p, lcm_help="unused by replay (an LCM log is read with --hardware's "
-                                    "channels)")
+    add_transport_flags(p, lcm=False)
     a.add_quiet(p, "no warnings on stderr; the JSON summary still prints")
     p.set_defaults(run=run_replay)
 
@@ -102,7 +104,7 @@ def run_replay(args) -> int:
     _check_flags(args)
     with a.naming("--model", args.model):
         model = load_model(args.model)
-    with a.naming("--log", args.log):
+    with a.naming("--data", args.data):
         frame = _prepared_log(args)
     config = a.load_chain(args) if _chain_given(args) else None
     delay, estimate = args.delay, None
@@ -249,11 +251,11 @@ def _read_log(args):
     from ..hardware.recording import read_lcm_log
     from ..offline.replay import read_replay_log, to_replay_layout
 
-    if is_table(args.log):
-        return to_replay_layout(read_replay_log(args.log), positions=args.positions,
+    if is_table(args.data):
+        return to_replay_layout(read_replay_log(args.data), positions=args.positions,
                                 velocities=args.velocities, targets=args.targets,
                                 time=args.time)
-    if is_bag(args.log):
-        return read_replay_log(args.log, wrench_topic=args.wrench_topic)
-    table, _ = read_lcm_log(args.log, hardware_from_args(args))
+    if is_bag(args.data):
+        return read_replay_log(args.data, wrench_topic=args.wrench_topic)
+    table, _ = read_lcm_log(args.data, hardware_from_args(args))
     return table

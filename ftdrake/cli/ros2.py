@@ -101,8 +101,8 @@ def serve(args) -> int:
 
 def record(args) -> int:
     """``ftdrake record --ros2``."""
-    if getattr(args, "from_log", None) is not None:
-        raise ConfigError("--from-log reads an LCM log; a ROS 2 bag needs no conversion: "
+    if getattr(args, "data", None) is not None:
+        raise ConfigError("--data reads an LCM log; a ROS 2 bag needs no conversion: "
                           "train and evaluate read it directly")
     from ..hardware.recording import write_table
     from ..hardware.ros2.recording import Ros2Recorder

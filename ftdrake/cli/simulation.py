@@ -29,7 +29,7 @@ def register(sub) -> None:
     a.add_config(p)
     trajectory = a.add_trajectory(
         p, default="contact", help="what the arm does: contact presses the tool on the task's "
-        "surfaces; the others are free motion (fourier: smooth; --scenario free was fourier)")
+        "surfaces; the others are free motion (fourier: smooth)")
     a.add_deprecated(p, "--scenario", trajectory, values=_SCENARIOS)
     p.add_argument("--duration", type=a.positive_float, metavar="S",
                    help="seconds to simulate (default: the scenario's trajectory.duration_s)")
@@ -69,16 +69,15 @@ def register(sub) -> None:
 
 
 def run_simulate(args) -> int:
-    from pydrake.geometry import Meshcat
-
     from .. import plots
     from ..data.logs import write_log
     from ..sim import station as sim_station
     from ..sim.lcm_publisher import simulate_on_lcm
     from ..sim.simulate import simulate
+    from ..systems.wrench_arrows import recording_meshcat
 
     config = a.scenario_from_args(args, args.trajectory)
-    meshcat = Meshcat() if args.html else None
+    meshcat = recording_meshcat() if args.html else None
     station = sim_station.build_station(config, meshcat=meshcat)
     if meshcat is not None:
         meshcat.StartRecording(set_visualizations_while_recording=False)

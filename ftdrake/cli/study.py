@@ -24,7 +24,8 @@ def register(subparsers) -> None:
     grid = p.add_mutually_exclusive_group()
     grid.add_argument("--quick", dest="preset", action="store_const", const="quick",
                       help="small grids, one search per protocol pair (see "
-                           "docs/study/quick_vs_full.md); under 5 min on 2 idle cores (default)")
+                           "docs/study/quick_vs_full.md); under 5 min on 2 idle cores; what runs "
+                           "without --paper")
     grid.add_argument("--paper", dest="preset", action="store_const", const="paper",
                       help="the study's full grids (days; not for CI)")
     p.add_argument("--out", type=a.output_folder, default="out/study", metavar="DIR",

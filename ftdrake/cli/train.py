@@ -33,7 +33,6 @@ reader dropped or reordered are printed as warnings with counts.
 
 from __future__ import annotations
 
-import argparse
 import dataclasses as dc
 import sys
 
@@ -57,29 +56,29 @@ COLUMNS_HELP = ("PAT is a glob ('q_*'), a comma-separated list of names, or a re
                  "its first joint state).")
 # ReadOptions field → (metavar, type, help). Every field is a flag of both commands.
 _READ_FLAGS = {
-    "positions": ("PAT", str, "joint position columns (rad), default 'q_*'; bags: joint names"),
-    "targets": ("PAT", str, ("target columns, default 'meas_*'; bags: effort, wrench or a "
-                            "pattern")),
-    "velocities": ("PAT", str, ("velocity columns (rad/s); default (or 'derive'): "
-                               "Savitzky–Golay of q")),
-    "accelerations": ("PAT", str, ("acceleration columns (rad/s²); default (or 'derive'): see "
-                                   "--qdd-estimate")),
-    "time": ("COL", str, "time column (s), default 't'"),
+    "positions": ("PAT", str, "joint position columns (rad); bags: joint names (default: 'q_*')"),
+    "targets": ("PAT", str, ("target columns; bags: effort, wrench or a pattern (default: "
+                            "'meas_*')")),
+    "velocities": ("PAT", str, ("velocity columns (rad/s), or 'derive': Savitzky–Golay of q "
+                               "(default: derive)")),
+    "accelerations": ("PAT", str, ("acceleration columns (rad/s²), or 'derive': see "
+                                   "--qdd-estimate (default: derive)")),
+    "time": ("COL", str, "time column (s) (default: 't')"),
     "group": ("COL", str, ("trajectory id column: reads a file joining several recordings "
-                          "as separate trajectories; default 'trajectory' if there is one")),
-    "joint_topic": ("T", str, "bags: JointState topic, default /joint_states"),
+                          "as separate trajectories (default: 'trajectory' if there is one)")),
+    "joint_topic": ("T", str, "bags: JointState topic (default: /joint_states)"),
     "wrench_topic": ("T", str, "bags: WrenchStamped topic"),
-    "position_unit": ("rad|deg", str, "angle unit of the joint columns, default rad"),
-    "qdd_estimate": ("savgol|causal", str, ("missing accelerations: savgol (Savitzky–Golay "
-                     "of q, default) or causal (the estimate the compensator makes in the "
-                     "loop, from q̇; use it for q,qd,qdd models that run in the loop)")),
+    "position_unit": (None, str, "angle unit of the joint columns (default: rad)"),
+    "qdd_estimate": (None, str, ("missing accelerations: savgol (Savitzky–Golay of q) or "
+                     "causal (the estimate the compensator makes in the loop, from q̇; use it "
+                     "for q,qd,qdd models that run in the loop) (default: savgol)")),
     "acceleration_cutoff_hz": ("HZ", a.positive_float, (
-        "cut-off of --qdd-estimate causal; default the dataset scenario's "
-        "compensator.acceleration_cutoff_hz, or 25")),
-    "sg_window": ("S", a.positive_float, "Savitzky–Golay window (s), default 0.1"),
-    "sg_polyorder": ("N", a.non_negative_int, "Savitzky–Golay polynomial order, default 4"),
+        "cut-off of --qdd-estimate causal (default: the dataset scenario's "
+        "compensator.acceleration_cutoff_hz, else 25)")),
+    "sg_window": ("S", a.positive_float, "Savitzky–Golay window (s) (default: 0.1)"),
+    "sg_polyorder": ("N", a.non_negative_int, "Savitzky–Golay polynomial order (default: 4)"),
     "gap_factor": ("X", a.positive_float, ("a time step longer than X × the median period is "
-                                           "a gap, default 3")),
+                                           "a gap (default: 3)")),
     "temperature": ("COL", str, ("the sensor's temperature column (°C, tables): read as the "
                                 "models' last input, so the model learns the zero drift "
                                 "with temperature; evaluate then needs it too")),
@@ -105,9 +104,9 @@ def register(subparsers) -> None:
         + "; physics and hybrid need --robot: on a wrench they identify the payload, on joint "
         "torques the whole arm (as arm). (default: hybrid when --robot is given, else rf)")
     a.add_deprecated(p, "--model", kind)
-    p.add_argument("--features", choices=FEATURE_SETS, metavar="q|q,qd|q,qd,qdd",
-                   help="inputs the model uses (default: q,qd,qdd; physics: q = static, "
-                        "q,qd,qdd = dynamic; hybrid: the residual forest's, default q)")
+    p.add_argument("--features", choices=FEATURE_SETS,
+                   help="inputs the model uses; physics: q = static, q,qd,qdd = dynamic; "
+                        "hybrid: the residual forest's (default: q,qd,qdd; hybrid: q)")
     p.add_argument("--preset", choices=["quick", "none"], default="quick",
                    help="quick: grid search with grouped CV (rf, svr; gpr, physics and hybrid "
                         "fit their parameters from data); none: the kind's own parameters")
@@ -137,7 +136,8 @@ def register(subparsers) -> None:
     a.add_stream_delay(p, corrected="corrected in training, kept in the model, applied live",
                        estimated="with the model fitted once; best with a physics or hybrid "
                                  "model")
-    a.add_quiet(p)
+    a.add_quiet(p, "no progress output and no table of what was identified: only the line "
+                   "naming the file written (warnings still print)")
     p.set_defaults(run=run_train)
 
 
@@ -239,7 +239,7 @@ def run_train(args) -> int:
     with option_names(flag_of):
         options = train_options(args)
         result = train(args.data, options, progress=None if args.quiet else say, warn=warn)
-    if result.summary is not None:  # physics and hybrid: the identified payload
+    if result.summary is not None and not args.quiet:  # physics, hybrid: the payload found
         print(result.summary)
     result.save(args.out)
     print(f"saved {args.out} ({file_size(args.out.stat().st_size)})")
@@ -301,7 +301,7 @@ def main(argv=None) -> int:
     """Runs train alone (``python -m ftdrake.cli.train``), with errors reported as
     the ``ftdrake`` command does: a :class:`~ftdrake.errors.FtdrakeError` is one line and exit
     code 2; any other exception is a bug and keeps its traceback."""
-    parser = argparse.ArgumentParser(prog="ftdrake")
+    parser = a.Parser(prog="ftdrake")
     register(parser.add_subparsers(dest="command", required=True))
     return a.run(parser.parse_args(argv))
 

@@ -35,7 +35,6 @@ from pathlib import Path
 
 import numpy as np
 import pandas as pd
-from pydrake.geometry import Meshcat
 from pydrake.math import RollPitchYaw, RotationMatrix
 
 from .. import conventions as col
@@ -57,9 +56,16 @@ from ..sim.collection import collect
 from ..sim.evaluation import evaluate_detection
 from ..sim.simulate import simulate
 from ..sim.station import build_station
+from ..systems.wrench_arrows import recording_meshcat
 from ..version import result_provenance
+from .stages import Stages
 
 HELD_OUT_SEED = 1000
+#: What the real-time factor the demo prints means.
+REAL_TIME_FACTOR = ("real-time factor: seconds of the contact run simulated per second of wall "
+                    "time, with the model and its detector in the loop (2× is twice as fast "
+                    "as the robot's clock; below 1× the simulation ran slower than real time, "
+                    "as on a busy machine)")
 #: The share of the training rows (whole runs, those farthest from the others) the hybrid's
 #: out-of-domain std is calibrated on (:class:`DomainCalibratedHybrid`).
 DOMAIN_HOLDOUT_SHARE = 0.2
@@ -82,25 +88,26 @@ def run_demo(out: Path, config: ScenarioConfig | None = None, *, fourier: int = 
     logs, the models and ``contact.png`` (and ``replay.html`` with `meshcat_html`) into `out`
     and returns the summary."""
     config = config or ScenarioConfig()
-    started = time.perf_counter()
-    stages = {}
-
-    def stage(name):
-        stages[name] = time.perf_counter()
-        if progress:
-            print(f"[demo] {name} …", flush=True)
-
-    stage("collect")
+    stages = Stages(4, label="[demo]", progress=progress)
+    surfaces = len(config.task.surfaces) - 1 if other_surfaces else 0
+    runs = (fourier + rehearsals + len(other_kinds) + surfaces + task_covering - 1,
+            1 + len(other_kinds) + surfaces + 1)  # one rehearsal held out of training
+    stages.start("collect", f"simulating {sum(runs)} free-motion runs of the arm at 1 kHz "
+                 f"({runs[0]} to train on, {runs[1]} held out)")
     data, held_out = _collect_free_motion(config, fourier, rehearsals, duration, other_kinds,
                                           other_surfaces, task_covering, progress)
-    stage("train")
     validation_id = fourier + rehearsals - 1  # a rehearsal: free motion like the task's
     train = data[data["trajectory"] != validation_id]
     validation = data[data["trajectory"] == validation_id]
+    stages.start("train", f"fitting the forest (a grid search, folds grouped by run) and the "
+                 f"hybrid (payload, mounting, cross-talk, cable; then a forest) on "
+                 f"{-(-len(train) // 4)} rows, then each model's detector thresholds on the "
+                 "held-out runs")
     models, search, X, hybrid_fit_s = _train(train, progress)
     detectors = _calibrate_detectors(models, config, validation, held_out)
 
-    stage("contact scenario")
+    stages.start("contact scenario", "simulating the contact scenario once with each model "
+                 "and its detector in the loop")
     scenario = dc.replace(
         config,
         trajectory=dc.replace(config.trajectory, kind="contact", seed=HELD_OUT_SEED),
@@ -112,7 +119,7 @@ def run_demo(out: Path, config: ScenarioConfig | None = None, *, fourier: int = 
     results["hybrid"]["domain_coverage"] = domain_coverage(
         models["hybrid"], *held_out_rows(config, validation, held_out))
 
-    stage("write")
+    stages.start("write", f"writing the summary, contact.png, the models and the logs to {out}")
     summary = {
         "models": results,
         "better": better_model(results),
@@ -123,7 +130,8 @@ def run_demo(out: Path, config: ScenarioConfig | None = None, *, fourier: int = 
         "sensor_preset": scenario.sensor.preset,
         "held_out_seed": HELD_OUT_SEED,
     }
-    _write(out, summary, logs, models, meshcat, started, stages)
+    _write(out, summary, logs, models, meshcat, stages)
+    stages.finish()
     return summary
 
 
@@ -257,7 +265,7 @@ def _contact_runs(models, detectors, scenario, config, validation, meshcat_html,
     results, logs = {}, {}
     for name, model in models.items():
         if meshcat_html and name == "hybrid":
-            meshcat = Meshcat()
+            meshcat = recording_meshcat()
             meshcat.StartRecording(set_visualizations_while_recording=False)
         run = simulate(build_station(scenario.with_chain(detector=detectors[name]), model,
                                      meshcat=meshcat if name == "hybrid" else None),
@@ -304,7 +312,7 @@ def _describe_models(results: dict, models: dict, search, hybrid_fit_s: float) -
     }
 
 
-def _write(out, summary, logs, models, meshcat, started, stages) -> None:
+def _write(out, summary, logs, models, meshcat, stages) -> None:
     with staged_outputs(out) as staging:
         plot_contact_comparison(logs, staging / "contact.png")
         for name, log in logs.items():
@@ -316,8 +324,8 @@ def _write(out, summary, logs, models, meshcat, started, stages) -> None:
             meshcat.StopRecording()
             meshcat.PublishRecording()
             (staging / "replay.html").write_text(meshcat.StaticHtml())
-        summary["wall_time_s"] = time.perf_counter() - started
-        summary["stage_times_s"] = _durations(stages, time.perf_counter())
+        summary["wall_time_s"] = stages.clock() - stages.started
+        summary["stage_times_s"] = stages.times()
         summary["provenance"] = result_provenance()
         with atomic_path(staging / "summary.json") as tmp:
             tmp.write_text(json.dumps(summary, indent=2))
@@ -333,12 +341,6 @@ def better_model(results: dict) -> str:
     return min(results, key=key)
 
 
-def _durations(stages: dict, end: float) -> dict:
-    names = list(stages)
-    times = [stages[n] for n in names] + [end]
-    return {n: round(times[i + 1] - times[i], 2) for i, n in enumerate(names)}
-
-
 def print_table(summary: dict) -> None:
     """The demo's headline numbers, the two models side by side."""
     names = list(summary["models"])
@@ -351,11 +353,12 @@ def print_table(summary: dict) -> None:
         ("false positives (free motion)", [str(r["false_positives"]) for r in results]),
         ("missed contacts", [str(r["missed_contacts"]) for r in results]),
         ("detector threshold", [threshold_text(r["detector"]) for r in results]),
-        ("real-time factor (in the loop)", [f"{r['real_time_factor']:.1f}×" for r in results]),
+        ("real-time factor, in the loop ¹", [f"{r['real_time_factor']:.1f}×" for r in results]),
     ]
     print(f"\n  {'':<34}{head}")
     for label, values in rows:
         print(f"  {label:<34}" + "".join(f"{v:>22}" for v in values))
+    print(f"  ¹ {REAL_TIME_FACTOR}")
     print("\n  free-motion compensation error RMS / sensor noise σ, and contact error RMS after "
           "touchdown:")
     print(f"  {'axis':<6}" + "".join(f"{n + ' err/σ':>16}{n + ' contact':>20}" for n in names))

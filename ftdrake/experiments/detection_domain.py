@@ -110,12 +110,40 @@ def _model_name(name: str) -> str:
 
 
 def plot_detectable_force_vs_domain(results: dict, path: Path) -> bool:
+    """The figure of :func:`detectable_force_figure` saved to `path`; False (nothing drawn)
+    when no model of `results` has a ``detectable_force_vs_domain`` entry."""
+    fig = detectable_force_figure(results)
+    if fig is None:
+        return False
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return True
+
+
+def plain_log_ticks(axis) -> None:
+    """Labels a log-scale `axis` in plain numbers (0.2, 0.5, 1, 2) rather than powers of ten
+    at every minor tick (``3×10⁻¹`` beside ``4×10⁻¹`` overlap): on an axis spanning a decade
+    or more, minor ticks are labelled at 2 and 5 × a power of ten only."""
+    from matplotlib.ticker import FuncFormatter  # noqa: PLC0415 (with matplotlib's import)
+
+    low, high = sorted(axis.get_view_interval())
+    wide = high / low >= 10
+
+    def label(value, _position):
+        leading = round(value / 10 ** np.floor(np.log10(value) + 1e-9), 6)
+        return f"{value:g}" if not wide or leading in (1.0, 2.0, 5.0) else ""
+
+    axis.set_major_formatter(FuncFormatter(label))
+    axis.set_minor_formatter(FuncFormatter(label))
+
+
+def detectable_force_figure(results: dict):
     """The detectable force against d, a line (median) and band (5–95 %) per model and test,
-    from the ``detectable_force_vs_domain`` entries of `results` (model name → result);
-    False (nothing drawn) when no model has one."""
+    from the ``detectable_force_vs_domain`` entries of `results` (model name → result), as a
+    matplotlib Figure; None when no model has one."""
     entries = distinct(results)
     if not entries:
-        return False
+        return None
     fig, ax = plt.subplots(figsize=(7, 4))
     for k, (name, entry) in enumerate(entries.items()):
         for test, style in zip(TESTS, ("-", "--"), strict=True):
@@ -138,10 +166,10 @@ def plot_detectable_force_vs_domain(results: dict, path: Path) -> bool:
     ax.grid(alpha=0.3, which="both")
     ax.legend(fontsize=8)
     ax.set_title("force a contact needs to be detected, free motion (median, 5–95 %)")
+    plain_log_ticks(ax.xaxis)
+    plain_log_ticks(ax.yaxis)
     fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
-    return True
+    return fig
 
 
 def markdown(results: dict) -> str:

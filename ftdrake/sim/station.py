@@ -164,21 +164,8 @@ def build_station(config: ScenarioConfig, compensator=None, *, meshcat=None,
         "trajectory_acceleration", TrajectorySource(placeholder.derivative(2)))
     controller, friction, transmission, payload_ff, encoders = _add_control(
         builder, config, scene, q_source, vd_source, feedforward)
-    joint_state = (plant.get_state_output_port(scene.arm) if encoders is None
-                   else encoders.get_output_port_measured_state())
-    if encoders is None and transmission is not None and config.transmission.chain_reads_motors:
-        joint_state = transmission.get_output_port_motor_state()  # the motor-side encoders
-
-    sensor = builder.AddNamedSystem("ft_sensor", ForceTorqueSensor(plant, scene.sensor_joint))
-    builder.Connect(plant.get_reaction_forces_output_port(),
-                    sensor.get_input_port_reaction_forces())
-    noisy = builder.AddNamedSystem("noisy_ft_sensor", NoisyForceTorqueSensor(
-        config.sensor, n_joints=plant.num_velocities(scene.arm)))
-    builder.Connect(sensor.get_output_port_wrench(), noisy.get_input_port_wrench_ideal())
-    if noisy.HasInputPort("joint_state"):  # vibration grows with the arm's true motion
-        builder.Connect(plant.get_state_output_port(scene.arm), noisy.get_input_port_joint_state())
-        builder.Connect(plant.get_generalized_acceleration_output_port(scene.arm),
-                        noisy.get_input_port_joint_acceleration())
+    joint_state = _measured_joint_state(config, scene, encoders, transmission)
+    sensor, noisy = _add_sensor(builder, config, scene)
 
     period = noisy.period
     events = add_sensor_events(builder, config.events, scene,
@@ -245,6 +232,33 @@ def build_station(config: ScenarioConfig, compensator=None, *, meshcat=None,
     return Station(config, diagram, scene, trajectory, controller, sensor, noisy, truth,
                    loggers, compensation, arrows, events, friction, feedforward, feedforward_log,
                    transmission, motor_state_log, payload_ff, encoders, imu)
+
+
+def _measured_joint_state(config: ScenarioConfig, scene: Scene, encoders, transmission):
+    """The joint state the loop reads: the plant's, the encoders' (with their offsets), or the
+    motor side's with compliant joints and ``transmission.chain_reads_motors``."""
+    if encoders is not None:
+        return encoders.get_output_port_measured_state()
+    if transmission is not None and config.transmission.chain_reads_motors:
+        return transmission.get_output_port_motor_state()  # the motor-side encoders
+    return scene.plant.get_state_output_port(scene.arm)
+
+
+def _add_sensor(builder, config: ScenarioConfig, scene: Scene):
+    """The ideal F/T sensor at the weld and its noisy reading (whose vibration, when on, grows
+    with the arm's true motion). Returns both."""
+    plant = scene.plant
+    sensor = builder.AddNamedSystem("ft_sensor", ForceTorqueSensor(plant, scene.sensor_joint))
+    builder.Connect(plant.get_reaction_forces_output_port(),
+                    sensor.get_input_port_reaction_forces())
+    noisy = builder.AddNamedSystem("noisy_ft_sensor", NoisyForceTorqueSensor(
+        config.sensor, n_joints=plant.num_velocities(scene.arm)))
+    builder.Connect(sensor.get_output_port_wrench(), noisy.get_input_port_wrench_ideal())
+    if noisy.HasInputPort("joint_state"):
+        builder.Connect(plant.get_state_output_port(scene.arm), noisy.get_input_port_joint_state())
+        builder.Connect(plant.get_generalized_acceleration_output_port(scene.arm),
+                        noisy.get_input_port_joint_acceleration())
+    return sensor, noisy
 
 
 def _add_control(builder, config: ScenarioConfig, scene: Scene, q_source, vd_source,

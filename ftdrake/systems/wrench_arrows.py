@@ -1,10 +1,13 @@
-"""WrenchArrows: the measured and compensated force drawn as arrows in Meshcat."""
+"""WrenchArrows: the measured and compensated force drawn as arrows in Meshcat; and
+:func:`recording_meshcat`, the Meshcat a replay file is recorded with."""
 
 from __future__ import annotations
 
+import logging
+
 import numpy as np
 from pydrake.common.value import AbstractValue
-from pydrake.geometry import Cylinder, Rgba
+from pydrake.geometry import Cylinder, Meshcat, MeshcatParams, Rgba
 from pydrake.math import RigidTransform, RotationMatrix
 from pydrake.systems.framework import LeafSystem
 
@@ -59,3 +62,19 @@ def _rotation_z_to(v) -> RotationMatrix:
     if n < 1e-12:
         return RotationMatrix()
     return RotationMatrix.MakeFromOneVector(np.asarray(v) / n, 2)
+
+
+def recording_meshcat() -> Meshcat:
+    """A Meshcat to record a run into a self-contained replay file (``StaticHtml``): on the
+    loopback, on any free port, without Drake's "Meshcat listening for connections at
+    http://…" line. Nothing is meant to connect to it, and its server ends with the process,
+    so that address would lead nowhere."""
+    params = MeshcatParams()
+    params.host, params.port = "localhost", 0  # loopback; any free port
+    drake = logging.getLogger("drake")
+    level = drake.level
+    drake.setLevel(logging.WARNING)
+    try:
+        return Meshcat(params)
+    finally:
+        drake.setLevel(level)

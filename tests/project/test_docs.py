@@ -31,6 +31,7 @@ def site(tmp_path_factory):
                             cwd=ROOT, env=env, capture_output=True, text=True, timeout=900,
                             check=False)
     assert result.returncode == 0, result.stderr[-5000:]
+    (out.parent / "build.log").write_text(result.stdout + result.stderr)  # beside the site
     return out
 
 
@@ -135,9 +136,7 @@ def test_every_internal_link_and_image_resolves(site):
                 continue
             base = site if parts.path.startswith("/") else path.parent  # 404.html: from the root
             target = (base / unquote(parts.path).lstrip("/")).resolve()
-            if target.is_dir() and any(target.iterdir()):  # a folder of result files
-                continue
-            if not target.is_file():
+            if not target.is_file():  # a folder too: only servers that list folders show it
                 broken.append(f"{path.relative_to(site)} -> {url}")
                 continue
             if parts.fragment and target.suffix == ".html":
@@ -145,3 +144,34 @@ def test_every_internal_link_and_image_resolves(site):
                 if anchor not in target.read_text(encoding="utf-8"):
                     broken.append(f"{path.relative_to(site)} -> {url} (no anchor)")
     assert not broken, "\n".join(broken[:20])
+
+
+# -- what a reader sees (issue 42, item 22) ------------------------------------------------------
+def test_the_build_prints_no_meshcat_address(site):
+    log = (site.parent / "build.log").read_text()
+    assert "listening" not in log.lower() and "localhost:" not in log
+
+
+def test_usage_blocks_fit_the_text_column(site):
+    reference = (site / "guide" / "commands" / "index.html").read_text(encoding="utf-8")
+    blocks = re.findall(r"<pre[^>]*>(.*?)</pre>", reference, re.DOTALL)
+    usage = [html.unescape(re.sub(r"<[^>]+>", "", b)) for b in blocks if "usage: ftdrake" in b]
+    assert len(usage) >= 13
+    wide = [line for block in usage for line in block.splitlines() if len(line) > 78]
+    assert not wide, wide[:5]
+
+
+def test_the_station_drawing_is_shown_at_its_size_with_a_link(site):
+    text = (site / "guide" / "diagram.html").read_text(encoding="utf-8")
+    figure = re.search(r'<figure class="ftdrake-wide">(.*?)</figure>', text, re.DOTALL).group(1)
+    assert 'href="../diagrams/station.svg"' in figure and "open the drawing alone" in figure
+    width = re.search(r'width="(\d+)"', (site / "diagrams" / "station.svg").read_text()).group(1)
+    assert f"max-width: none; width: {width}px" in figure
+
+
+def test_the_runtime_page_opens_with_the_chain(site):
+    text = (site / "api" / "ftdrake.runtime.html").read_text(encoding="utf-8")
+    modules = re.findall(r'<h2 id="(ftdrake\.runtime\.\w+)"', text)
+    assert modules[0] == "ftdrake.runtime.chain", modules
+    assert modules.index("ftdrake.runtime.chain") < modules.index(
+        "ftdrake.runtime.bias_estimator")
