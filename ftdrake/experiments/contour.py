@@ -51,6 +51,7 @@ from .reference_correction import (
     desired_states,
     tip_jacobian_pinv,
 )
+from .tool_files import register_simulated_scan, register_simulated_timed
 
 logger = logging.getLogger(__name__)
 
@@ -227,6 +228,8 @@ def tool_error_joint(task: Task, run: dict, measurement: str, plan: ContourPlan,
     t, path = run["t"], task.path
     if measurement == "timed":
         stamp, measured = measure_timed(t, run["p_link"], plan.tracker)
+        stamp, measured, _ = register_simulated_timed(stamp, measured, t, run["p_motor"],
+                                                      plan.tracker)
         if not plan.tracker.stamp_corrected:
             stamp = stamp - plan.tracker.latency_s  # a known latency is taken off
         rows = np.flatnonzero((t >= stamp[0]) & (t <= stamp[-1]))
@@ -237,6 +240,7 @@ def tool_error_joint(task: Task, run: dict, measurement: str, plan: ContourPlan,
         scan = measure_contour(run["contour_P"], plan.contour_scan)
         rows = np.flatnonzero(run["on_hole"])
         ideal = path.to_plane(path.position_W(t[rows]))
+        scan, _ = register_simulated_scan(scan, ideal, plan.contour_scan)
         normal = ideal / np.linalg.norm(ideal, axis=1, keepdims=True)
         deviation = normal_deviation(ideal, normal, scan)
         if target == "transmission":  # less what the motor angles' own path shows
