@@ -30,6 +30,7 @@ COMMANDS = {
     "evaluate-detection": "experiments",
     "study": "study",
     "learn-feedforward": "feedforward",
+    "export-correction": "correction",
 }
 
 DESCRIPTION = """\

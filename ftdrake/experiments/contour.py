@@ -52,6 +52,7 @@ from .reference_correction import (
     tip_jacobian_pinv,
 )
 from .tool_files import register_simulated_scan, register_simulated_timed
+from .two_part_model import TwoPartModel
 
 logger = logging.getLogger(__name__)
 
@@ -342,10 +343,15 @@ def _row(method, iteration, run, fit_s=0.0, hole="task"):
 
 def run_contour_experiment(config: ScenarioConfig | None = None,
                            plan: ContourPlan | None = None, out_dir=None, *,
-                           progress: bool = True) -> dict:
+                           progress: bool = True, model_out=None) -> dict:
     """Runs the benchmark; writes ``summary.json``, ``iterations.csv`` and ``contour.png``
-    to `out_dir` when given. Returns the summary."""
+    to `out_dir` when given, and with `model_out` the learned two-part model (the timed
+    method's, else the contour one's; :mod:`ftdrake.experiments.two_part_model`). Returns
+    the summary."""
     plan = (plan or ContourPlan()).validate()
+    if model_out is not None and not {"timed", "contour"} & set(plan.methods):
+        raise ConfigError("model_out: needs a two-part method ('timed' or 'contour') in "
+                          f"methods, got {list(plan.methods)}")
     scenario = contour_scenario(config or ScenarioConfig())
     start = time.perf_counter()
     runner = HoleRunner(scenario)
@@ -367,6 +373,8 @@ def run_contour_experiment(config: ScenarioConfig | None = None,
             if progress:
                 logger.warning("%s %d: radial RMS %.4f mm", method, k, last["radial_rms_mm"])
         contours[method] = last["contour_P"]
+    if model_out is not None:
+        _save_two_part(learners, plan, model_out)
 
     new_task = runner.task(plan.new_hole)
     new_runs = {"none": runner.run(new_task)}
@@ -381,6 +389,13 @@ def run_contour_experiment(config: ScenarioConfig | None = None,
         write_outputs(Path(out_dir), table, summary, task, contours, new_task,
                       {k: v["contour_P"] for k, v in new_runs.items()})
     return summary
+
+
+def _save_two_part(learners: dict, plan: ContourPlan, path) -> None:
+    method = "timed" if "timed" in learners else "contour"
+    TwoPartModel.from_learner(learners[method], info={
+        "hole": dc.asdict(plan.hole), "iterations": plan.iterations,
+        "reference_target": plan.reference_target}).save(path)
 
 
 def _summary(table: pd.DataFrame, plan: ContourPlan, first: dict, wall: float) -> dict:

@@ -20,8 +20,8 @@ from ftdrake.experiments.tool_files import (
 from ftdrake.sim.tool_measurement import measure_contour, measure_timed
 
 P_HOME = np.array([0.4, 0.0, 0.9])
-MISREGISTERED = dict(frame_rotation_rad=[0.003, -0.002, 0.4], frame_offset_m=[1.5, -0.4, 0.2],
-                     clock_offset_s=0.021, clock_skew=5e-5)
+MISREGISTERED = {"frame_rotation_rad": [0.003, -0.002, 0.4], "frame_offset_m": [1.5, -0.4, 0.2],
+                 "clock_offset_s": 0.021, "clock_skew": 5e-5}
 
 
 @pytest.fixture(scope="module")
@@ -59,15 +59,16 @@ def test_tracker_log_in_mm_with_orientation_is_read_and_registered(hole, tmp_pat
 
 
 @pytest.mark.parametrize(("columns", "message"), [
-    (dict(time=np.arange(20.0), x=0.0, y=0.0), r"lacks column\(s\) \['z'\]"),
-    (dict(time=np.arange(5.0), x=0.0, y=0.0, z=0.0), "5 rows are too few"),
-    (dict(time=np.r_[0, 1, 2, 2, 4:20], x=0.0, y=0.0, z=0.0),
+    ({"time": np.arange(20.0), "x": 0.0, "y": 0.0}, r"lacks column\(s\) \['z'\]"),
+    ({"time": np.arange(5.0), "x": 0.0, "y": 0.0, "z": 0.0}, "5 rows are too few"),
+    ({"time": np.r_[0, 1, 2, 2, 4:20], "x": 0.0, "y": 0.0, "z": 0.0},
      "time must increase strictly; row 4 has t = 2.0 after 2.0"),
-    (dict(time=np.arange(20.0), x=0.0, y=0.0, z=0.0, qw=1.0, qx=0.0),
+    ({"time": np.arange(20.0), "x": 0.0, "y": 0.0, "z": 0.0, "qw": 1.0, "qx": 0.0},
      r"needs all of \['qw', 'qx', 'qy', 'qz'\]"),
-    (dict(time=np.arange(20.0), x=0.0, y=0.0, z=0.0, qw=1.0, qx=0.5, qy=0.0, qz=0.0),
+    ({"time": np.arange(20.0), "x": 0.0, "y": 0.0, "z": 0.0, "qw": 1.0, "qx": 0.5, "qy": 0.0,
+      "qz": 0.0},
      "quaternion has norm 1.118"),
-    (dict(time=np.arange(20.0), x=np.r_[0.0, np.nan, np.zeros(18)], y=0.0, z=0.0),
+    ({"time": np.arange(20.0), "x": np.r_[0.0, np.nan, np.zeros(18)], "y": 0.0, "z": 0.0},
      "row 2 column 'x' is empty"),
 ])
 def test_bad_tracker_logs_are_named(tmp_path, columns, message):
@@ -110,7 +111,7 @@ def test_contour_file_2d_and_3d(tmp_path, hole):
 
 @pytest.mark.parametrize("registration", ["fiducials", "path"])
 def test_simulated_tracker_mis_registration_is_undone(hole, registration):
-    path, t, p = hole
+    _path, t, p = hole
     error = np.array([0.8e-3, -0.4e-3, 0.0])  # the tool's own rigid error
     true_stamp, true_p = measure_timed(t, p + error, TrackerConfig())
     config = TrackerConfig(**MISREGISTERED, registration=registration)
@@ -147,12 +148,12 @@ def test_simulated_scan_mis_registration_is_undone(hole, registration):
 
 
 def test_mis_registration_settings_are_checked():
-    with pytest.raises(ConfigError, match="tracker.frame_offset_m"):
+    with pytest.raises(ConfigError, match=r"tracker\.frame_offset_m"):
         TrackerConfig(frame_offset_m=[0.0, 1.0]).validate()
-    with pytest.raises(ConfigError, match="tracker.clock_skew"):
+    with pytest.raises(ConfigError, match=r"tracker\.clock_skew"):
         TrackerConfig(clock_skew=0.5).validate()
-    with pytest.raises(ConfigError, match="tracker.registration"):
+    with pytest.raises(ConfigError, match=r"tracker\.registration"):
         TrackerConfig(registration="guess").validate()
-    with pytest.raises(ConfigError, match="contour_scan.datums_m"):
+    with pytest.raises(ConfigError, match=r"contour_scan\.datums_m"):
         ContourScanConfig(datums_m=[[0.0, 0.0]]).validate()
     assert not TrackerConfig().misregistered and TrackerConfig(clock_skew=1e-6).misregistered
