@@ -6,6 +6,7 @@ import dataclasses as dc
 import numpy as np
 import pandas as pd
 import pytest
+from pydrake.trajectories import PiecewisePolynomial
 
 from ftdrake.config import ScenarioConfig
 from ftdrake.config.contour import HoleConfig
@@ -77,11 +78,26 @@ def test_exported_csv_gives_the_in_memory_reference_offsets(learned, tmp_path):
     replayed = corrected_reference(task.trajectory, offset_from_csv(csv, n))
     np.testing.assert_allclose(replayed.vector_values(t), in_memory.vector_values(t),
                                rtol=0, atol=1e-9)
-    # The std beside it: the confidence times the GP's std, as the correction computes it.
-    _, std, confidence = model.correction.evaluate(desired_states(task.trajectory, t))
-    np.testing.assert_allclose(written[[f"offset_std_{j}" for j in range(n)]].to_numpy(),
+
+
+def test_exported_std_is_the_confidence_times_the_gps_std(learned, tmp_path):
+    """Along a path that drifts out of the data (0.4 rad on every joint by its end) the
+    confidence falls from 1 to 0; the std column is ``confidence · σ`` throughout."""
+    _, task, learner = learned
+    model = TwoPartModel.from_learner(learner)
+    knots = np.arange(0.0, task.path.duration, 0.01)
+    drift = np.linspace(0.0, 0.4, len(knots))
+    zero = np.zeros((7, 1))
+    away = PiecewisePolynomial.CubicWithContinuousSecondDerivatives(
+        knots, task.trajectory.vector_values(knots) + drift, zero, zero)
+    written = export_reference_csv(model, away, 500.0, tmp_path / "away.csv")
+    t = written["time"].to_numpy()
+    _, std, confidence = model.correction.evaluate(desired_states(away, t))
+    assert confidence.max() == 1.0 and confidence.min() == 0.0
+    np.testing.assert_allclose(written[[f"offset_std_{j}" for j in range(7)]].to_numpy(),
                                confidence * std, rtol=1e-12)
-    assert ((confidence >= 0) & (confidence <= 1)).all()
+    np.testing.assert_allclose(written[[f"confidence_{j}" for j in range(7)]].to_numpy(),
+                               confidence, rtol=1e-12)
 
 
 def test_bad_model_files_are_named(learned, tmp_path):
