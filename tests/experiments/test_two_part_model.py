@@ -136,3 +136,22 @@ def test_joint_path_csv(learned, tmp_path):
         back = tmp_path / "back.csv"
         pd.DataFrame({"time": [0, 1, 0.5, 2], **{f"q_{j}": 0.0 for j in range(7)}}).to_csv(back)
         read_joint_path(back, 7)
+
+
+def test_per_step_calls_equal_the_gps_mean_and_std_with_the_rule(learned, tmp_path):
+    """What a loop runs each step (both parts' compiled one-row calls, from the loaded file)
+    against the GPs' own batch predictions and the confidence rule, to 1e-9, on rows on and
+    off the data (the confidence between 0 and 1)."""
+    _, task, learner = learned
+    model = TwoPartModel.load(TwoPartModel.from_learner(learner).save(tmp_path / "m.ftd"))
+    t = np.linspace(0.0, task.path.duration, 60)
+    X = desired_states(task.trajectory, t)
+    rows = np.vstack([X, X + np.linspace(0.0, 0.5, len(X))[:, None]])
+    for gp, dut in ((model.feedforward_model, model.feedforward()),
+                    (model.reference_model, model.correction)):
+        mean, std = gp.predict(rows), gp.predict_std(rows)
+        confidence = np.clip((0.9 - std / dut.prior_std) / (0.9 - 0.5), 0.0, 1.0)
+        assert 0 < confidence.mean() < 1
+        got = np.array([dut.evaluate_one(x).copy() for x in rows])
+        np.testing.assert_allclose(got, np.hstack([confidence * mean, std, confidence]),
+                                   rtol=0, atol=1e-9)
