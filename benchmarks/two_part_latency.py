@@ -14,7 +14,7 @@ part one, part two, both; and both corrections precomputed along the known path 
 controller's rate (the export's table: a row read per step). Goal: both ≤ 50 µs at p99. On a
 shared machine the wall-time tails measure the load (the load average is printed).
 Before timing, the compiled calls are checked against the GPs' own mean and std with the
-confidence rule (to 1e-9).
+confidence rule (to 1e-9 of the largest output; 1e-6 for an ill-conditioned GP).
 
     python benchmarks/two_part_latency.py [--model FILE] [--rows 5000]
 """
@@ -61,19 +61,26 @@ def hole_rows(model: TwoPartModel) -> np.ndarray:
     return desired_states(task.trajectory, t)
 
 
-def check_against_the_gps(model: TwoPartModel, part_one, part_two, rows) -> float:
-    """The largest difference of the compiled calls from the GPs' own mean and std with the
-    rule, over `rows`; raises AssertionError above 1e-9."""
-    worst = 0.0
-    for gp, dut in ((model.feedforward_model, part_one), (model.reference_model, part_two)):
+def check_against_the_gps(model: TwoPartModel, part_one, part_two, rows) -> dict:
+    """Per part, the largest difference of the compiled calls from the GPs' own mean and std
+    with the rule over `rows`, and the largest output; raises AssertionError above 1e-9 of
+    the largest output, or above 1e-6 of it where the GP is ill-conditioned (its noise
+    variance at the fit's floor: then the mean ``r · α`` sums large terms of both signs, and
+    the summation order shows)."""
+    worst = {}
+    for name, gp, dut in (("part_one", model.feedforward_model, part_one),
+                          ("part_two", model.reference_model, part_two)):
         mean, std = gp.predict(rows), gp.predict_std(rows)
         prior = dut.prior_std
         confidence = np.clip((dut.reject_ratio - std / prior)
                              / (dut.reject_ratio - dut.trust_ratio), 0.0, 1.0)
         expected = np.hstack([confidence * mean, std, confidence])
         got = np.array([dut.evaluate_one(x).copy() for x in rows])
-        worst = max(worst, float(np.abs(got - expected).max()))
-    assert worst <= 1e-9, worst
+        scale = float(np.abs(expected[:, :model.n]).max())
+        floor = bool(np.min(gp.noise_variance_) <= 1.0001e-8)
+        worst[name] = {"max_difference": float(np.abs(got - expected).max()),
+                       "max_output": scale, "noise_variance_at_floor": floor}
+        assert worst[name]["max_difference"] <= (1e-6 if floor else 1e-9) * max(scale, 1.0)
     return worst
 
 

@@ -1,7 +1,7 @@
 """`ftdrake export-correction`: a learned two-part model's reference correction as a CSV.
 
     ftdrake export-correction --model two_part.ftd --path joints.csv [--rate 1000] --out c.csv
-    ftdrake export-correction --model two_part.ftd --hole 26 [--hole-offset 4 -3 0] --out c.csv
+    ftdrake export-correction --model two_part.ftd --hole 26 [--hole-offset 4,-3,0] --out c.csv
 
 For a controller that takes a corrected joint path but no torque feedforward: the corrected
 reference ``q_ref_j``, its offset from the path ``offset_j`` and the offset's std
@@ -12,6 +12,8 @@ joint path solved by IK on the scenario's arm).
 """
 
 from __future__ import annotations
+
+import argparse
 
 from . import args as a
 
@@ -29,8 +31,8 @@ def register(subparsers) -> None:
                        help="the joint path: CSV with columns time, q_0 … q_{n-1} (s, rad)")
     where.add_argument("--hole", type=a.positive_float, metavar="MM",
                        help="the cutting benchmark's hole of this diameter instead")
-    p.add_argument("--hole-offset", type=float, nargs=3, default=[0.0, 0.0, 0.0],
-                   metavar=("X", "Y", "Z"), help="the hole's centre from the home tip (mm)")
+    p.add_argument("--hole-offset", type=_xyz, default=[0.0, 0.0, 0.0], metavar="X,Y,Z",
+                   help="the hole's centre from the home tip (mm)")
     p.add_argument("--speed", type=a.positive_float, default=30.0, metavar="MM/S",
                    help="the hole's cutting speed")
     p.add_argument("--rate", type=a.positive_float, default=1000.0, metavar="HZ",
@@ -39,6 +41,14 @@ def register(subparsers) -> None:
                    help="the CSV to write")
     a.add_config(p)
     p.set_defaults(run=run_command)
+
+
+def _xyz(text: str) -> list[float]:
+    """An argument type: three finite numbers separated by commas."""
+    parts = text.split(",")
+    if len(parts) != 3:
+        raise argparse.ArgumentTypeError(f"must be three numbers X,Y,Z; got {text!r}")
+    return [a.finite_float(part) for part in parts]
 
 
 def run_command(args) -> int:
