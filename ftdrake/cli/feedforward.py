@@ -2,6 +2,7 @@
 
     ftdrake learn-feedforward [--iterations 5] [--trajectory rehearsal] [--out DIR]
     ftdrake learn-feedforward --two-part [--measurement timed|contour|both] [--diameter MM]
+                              [--save-model FILE]
 
 Runs :func:`ftdrake.experiments.feedforward.run_feedforward_experiment` (friction on; the
 controller's model knows neither it nor the true tool) and writes ``summary.json``,
@@ -58,6 +59,9 @@ def register(subparsers) -> None:
                      help="the hole run without relearning (its centre moved)")
     two.add_argument("--speed", type=a.positive_float, default=30.0, metavar="MM/S",
                      help="cutting speed")
+    two.add_argument("--save-model", type=a.output_file, metavar="FILE",
+                     help="write the learned two-part model (the timed method's, else the "
+                          "contour one's) to FILE, for `ftdrake export-correction`")
     p.set_defaults(run=run_command)
 
 
@@ -101,10 +105,13 @@ def _run_two_part(args) -> int:
                             speed_m_s=args.speed / 1e3))
     out = args.out if args.out != Path("out/feedforward") else Path("out/two_part")
     summary = contour.run_contour_experiment(a.load_scenario(args), plan, out,
-                                             progress=not args.quiet)
+                                             progress=not args.quiet,
+                                             model_out=args.save_model)
     first = summary["first_run"]
     print(f"wrote {out}/summary.json, iterations.csv, contour.png in "
           f"{summary['wall_time_s']:.0f} s")
+    if args.save_model is not None:
+        print(f"wrote the two-part model {args.save_model}")
     print(f"no learning: radial RMS {first['radial_rms_mm']:.4f} mm, max "
           f"{first['radial_max_mm']:.4f} mm; the encoders miss "
           f"{100 * first['invisible_share']:.0f} % of the tool error (RMS)")

@@ -31,6 +31,7 @@ COMMANDS = {
     "study": "study",
     "learn-feedforward": "feedforward",
     "results": "results",
+    "export-correction": "correction",
 }
 
 DESCRIPTION = """\

@@ -17,6 +17,13 @@ def _check(ok: bool, where: str, message: str) -> None:
         raise ConfigError(f"{where}: {message}")
 
 
+def _check_registration(config, where: str, d: int) -> None:
+    for name in ("frame_rotation_rad", "frame_offset_m"):
+        value = getattr(config, name)
+        _check(len(value) == d and all(math.isfinite(v) for v in value), f"{where}.{name}",
+               f"must be {d} finite numbers, got {value}")
+
+
 @dc.dataclass
 class TrackerConfig:
     """A timed tool-tip position measurement, like a laser tracker's.
@@ -25,6 +32,15 @@ class TrackerConfig:
     ``noise_std_m`` per axis and reaches the user ``latency_s`` later, stamped with its
     arrival time (``stamp_corrected``: stamped with the time it was taken, as a tracker
     synchronised with the controller is).
+
+    Mis-registration (all zero by default: the tracker measures in the robot's base frame B
+    on the controller's clock): the tracker's frame T sits at ``frame_offset_m`` (p_BT, m)
+    rotated by ``frame_rotation_rad`` (R_BT as a rotation vector, rad), and its clock reads
+    ``(1 + clock_skew) · t + clock_offset_s``. When any is set, the experiment registers the
+    measurement before using it (:mod:`ftdrake.experiments.tool_registration`):
+    ``registration`` ``"fiducials"`` estimates the frame from ``fiducials_m`` (points known
+    in B, measured with the tracker's noise) and the clock from the path; ``"path"`` both
+    from the path (which hides the rigid part of the tool's error, see that module).
     """
 
     rate_hz: float = 1000.0  # laser trackers stream at up to 1 kHz (e.g. Leica AT960)
@@ -32,6 +48,20 @@ class TrackerConfig:
     latency_s: float = 0.0
     stamp_corrected: bool = True
     seed: int = 0
+    frame_rotation_rad: list[float] = dc.field(default_factory=lambda: [0.0, 0.0, 0.0])
+    frame_offset_m: list[float] = dc.field(default_factory=lambda: [0.0, 0.0, 0.0])
+    clock_offset_s: float = 0.0
+    clock_skew: float = 0.0
+    registration: str = "fiducials"
+    # Four nests around the robot's base (m, in B), as a tracker's set-up measures.
+    fiducials_m: list[list[float]] = dc.field(default_factory=lambda: [
+        [0.8, 0.6, 0.0], [0.8, -0.6, 0.0], [-0.3, 0.6, 0.2], [-0.3, -0.6, 0.5]])
+
+    @property
+    def misregistered(self) -> bool:
+        """True when the simulated tracker is off the base frame or the controller's clock."""
+        return bool(any(self.frame_rotation_rad) or any(self.frame_offset_m)
+                    or self.clock_offset_s or self.clock_skew)
 
     def validate(self, where: str = "tracker") -> "TrackerConfig":
         _check(math.isfinite(self.rate_hz) and self.rate_hz > 0, f"{where}.rate_hz",
@@ -40,6 +70,16 @@ class TrackerConfig:
                f"{where}.noise_std_m", f"must be >= 0 m, got {self.noise_std_m}")
         _check(math.isfinite(self.latency_s) and self.latency_s >= 0, f"{where}.latency_s",
                f"must be >= 0 s, got {self.latency_s}")
+        _check_registration(self, where, 3)
+        _check(math.isfinite(self.clock_offset_s), f"{where}.clock_offset_s",
+               f"must be finite (s), got {self.clock_offset_s}")
+        _check(math.isfinite(self.clock_skew) and abs(self.clock_skew) < 0.01,
+               f"{where}.clock_skew", f"must be within ±0.01 (a clock's rate error), got "
+               f"{self.clock_skew}")
+        _check(self.registration in ("fiducials", "path"), f"{where}.registration",
+               f"'fiducials' or 'path', got {self.registration!r}")
+        _check(len(self.fiducials_m) >= 3 and all(len(f) == 3 for f in self.fiducials_m),
+               f"{where}.fiducials_m", "must list >= 3 points [x, y, z] (m) not on one line")
         return self
 
 
@@ -55,12 +95,36 @@ class ContourScanConfig:
     spacing_m: float = 0.2e-3
     noise_std_m: float = 10e-6  # a measuring microscope / vision scan of a cut edge
     seed: int = 0
+    # Mis-registration (zero by default): the instrument's frame in the plane, rotated by
+    # ``frame_rotation_rad`` about the plane's normal and offset by ``frame_offset_m``
+    # (in-plane, m); the experiment then registers the scan to the commanded path, or to
+    # ``datums_m`` (in-plane points of the part known in the plane's frame, measured with
+    # the scan's noise) when ``registration`` is "datums".
+    frame_rotation_rad: float = 0.0
+    frame_offset_m: list[float] = dc.field(default_factory=lambda: [0.0, 0.0])
+    registration: str = "datums"
+    datums_m: list[list[float]] = dc.field(default_factory=lambda: [
+        [0.05, 0.05], [-0.05, 0.05], [0.0, -0.06]])
+
+    @property
+    def misregistered(self) -> bool:
+        """True when the simulated scan is off the plane's frame."""
+        return bool(self.frame_rotation_rad or any(self.frame_offset_m))
 
     def validate(self, where: str = "contour_scan") -> "ContourScanConfig":
         _check(math.isfinite(self.spacing_m) and self.spacing_m > 0, f"{where}.spacing_m",
                f"must be > 0 m, got {self.spacing_m}")
         _check(math.isfinite(self.noise_std_m) and self.noise_std_m >= 0,
                f"{where}.noise_std_m", f"must be >= 0 m, got {self.noise_std_m}")
+        _check(math.isfinite(self.frame_rotation_rad), f"{where}.frame_rotation_rad",
+               f"must be finite (rad), got {self.frame_rotation_rad}")
+        _check(len(self.frame_offset_m) == 2 and all(map(math.isfinite, self.frame_offset_m)),
+               f"{where}.frame_offset_m", f"must be 2 finite numbers (m), got "
+               f"{self.frame_offset_m}")
+        _check(self.registration in ("datums", "path"), f"{where}.registration",
+               f"'datums' or 'path', got {self.registration!r}")
+        _check(len(self.datums_m) >= 3 and all(len(f) == 2 for f in self.datums_m),
+               f"{where}.datums_m", "must list >= 3 in-plane points [x, y] (m) not in a line")
         return self
 
 

@@ -52,6 +52,8 @@ from .reference_correction import (
     desired_states,
     tip_jacobian_pinv,
 )
+from .tool_files import register_simulated_scan, register_simulated_timed
+from .two_part_model import TwoPartModel
 
 logger = logging.getLogger(__name__)
 
@@ -228,6 +230,8 @@ def tool_error_joint(task: Task, run: dict, measurement: str, plan: ContourPlan,
     t, path = run["t"], task.path
     if measurement == "timed":
         stamp, measured = measure_timed(t, run["p_link"], plan.tracker)
+        stamp, measured, _ = register_simulated_timed(stamp, measured, t, run["p_motor"],
+                                                      plan.tracker)
         if not plan.tracker.stamp_corrected:
             stamp = stamp - plan.tracker.latency_s  # a known latency is taken off
         rows = np.flatnonzero((t >= stamp[0]) & (t <= stamp[-1]))
@@ -238,6 +242,7 @@ def tool_error_joint(task: Task, run: dict, measurement: str, plan: ContourPlan,
         scan = measure_contour(run["contour_P"], plan.contour_scan)
         rows = np.flatnonzero(run["on_hole"])
         ideal = path.to_plane(path.position_W(t[rows]))
+        scan, _ = register_simulated_scan(scan, ideal, plan.contour_scan)
         normal = ideal / np.linalg.norm(ideal, axis=1, keepdims=True)
         deviation = normal_deviation(ideal, normal, scan)
         if target == "transmission":  # less what the motor angles' own path shows
@@ -339,10 +344,15 @@ def _row(method, iteration, run, fit_s=0.0, hole="task"):
 
 def run_contour_experiment(config: ScenarioConfig | None = None,
                            plan: ContourPlan | None = None, out_dir=None, *,
-                           progress: bool = True) -> dict:
+                           progress: bool = True, model_out=None) -> dict:
     """Runs the benchmark; writes ``summary.json``, ``iterations.csv`` and ``contour.png``
-    to `out_dir` when given. Returns the summary."""
+    to `out_dir` when given, and with `model_out` the learned two-part model (the timed
+    method's, else the contour one's; :mod:`ftdrake.experiments.two_part_model`). Returns
+    the summary."""
     plan = (plan or ContourPlan()).validate()
+    if model_out is not None and not {"timed", "contour"} & set(plan.methods):
+        raise ConfigError("model_out: needs a two-part method ('timed' or 'contour') in "
+                          f"methods, got {list(plan.methods)}")
     scenario = contour_scenario(config or ScenarioConfig())
     start = time.perf_counter()
     runner = HoleRunner(scenario)
@@ -364,6 +374,8 @@ def run_contour_experiment(config: ScenarioConfig | None = None,
             if progress:
                 logger.warning("%s %d: radial RMS %.4f mm", method, k, last["radial_rms_mm"])
         contours[method] = last["contour_P"]
+    if model_out is not None:
+        _save_two_part(learners, plan, model_out)
 
     new_task = runner.task(plan.new_hole)
     new_runs = {"none": runner.run(new_task)}
@@ -378,6 +390,13 @@ def run_contour_experiment(config: ScenarioConfig | None = None,
         write_outputs(Path(out_dir), table, summary, task, contours, new_task,
                       {k: v["contour_P"] for k, v in new_runs.items()})
     return summary
+
+
+def _save_two_part(learners: dict, plan: ContourPlan, path) -> None:
+    method = "timed" if "timed" in learners else "contour"
+    TwoPartModel.from_learner(learners[method], info={
+        "hole": dc.asdict(plan.hole), "iterations": plan.iterations,
+        "reference_target": plan.reference_target}).save(path)
 
 
 def _summary(table: pd.DataFrame, plan: ContourPlan, first: dict, wall: float) -> dict:

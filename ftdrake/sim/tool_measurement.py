@@ -24,12 +24,15 @@ from __future__ import annotations
 
 import numpy as np
 from scipy.spatial import cKDTree
+from scipy.spatial.transform import Rotation
 
 from ..config.contour import ContourScanConfig, TrackerConfig
 
 
 def measure_timed(t, p_WTip, config: TrackerConfig) -> tuple[np.ndarray, np.ndarray]:
-    """A tracker's samples of the tip positions `p_WTip` (N, 3), m, logged at times `t` (N,).
+    """A tracker's samples of the tip positions `p_WTip` (N, 3), m, logged at times `t` (N,)
+    (in the tracker's frame and on its clock when `config` mis-registers it:
+    :func:`misregister_timed`).
 
     Returns ``(t_stamp, p_measured)``: samples taken every ``1 / rate_hz`` s from ``t[0]``
     (linear interpolation of the log), with white noise, and only those that arrived
@@ -43,7 +46,47 @@ def measure_timed(t, p_WTip, config: TrackerConfig) -> tuple[np.ndarray, np.ndar
     rng = np.random.default_rng(config.seed)
     sampled += rng.normal(0.0, config.noise_std_m, sampled.shape)
     stamp = taken if config.stamp_corrected else taken + config.latency_s
+    if config.misregistered:
+        return misregister_timed(stamp, sampled, config)
     return stamp, sampled
+
+
+def _rotation_matrix(rotation_vector) -> np.ndarray:
+    return Rotation.from_rotvec(np.asarray(rotation_vector, dtype=float)).as_matrix()
+
+
+def misregister_timed(stamp, p_W, config: TrackerConfig) -> tuple[np.ndarray, np.ndarray]:
+    """Stamps (N,) on the controller's clock and positions (N, 3) in W as the tracker of
+    `config` reports them: ``p_T = R_BTᵀ (p_W − p_BT)``, ``t_T = (1 + skew) t + offset``."""
+    R_BT = _rotation_matrix(config.frame_rotation_rad)
+    p = (np.asarray(p_W, dtype=float) - np.asarray(config.frame_offset_m, dtype=float)) @ R_BT
+    return (1.0 + config.clock_skew) * np.asarray(stamp, dtype=float) + config.clock_offset_s, p
+
+
+def measure_fiducials(config: TrackerConfig) -> tuple[np.ndarray, np.ndarray]:
+    """(known in W, as the tracker measures them), each (K, 3), m: the tracker's fiducials
+    with its noise (seed ``seed + 1``) in its frame."""
+    known = np.asarray(config.fiducials_m, dtype=float)
+    rng = np.random.default_rng(config.seed + 1)
+    noisy = known + rng.normal(0.0, config.noise_std_m, known.shape)
+    return known, misregister_timed(np.zeros(len(known)), noisy, config)[1]
+
+
+def misregister_contour(points_P, config: ContourScanConfig) -> np.ndarray:
+    """In-plane points (N, 2) in P as the instrument of `config` reports them,
+    ``R(−θ) (p − offset)``."""
+    c, s = np.cos(config.frame_rotation_rad), np.sin(config.frame_rotation_rad)
+    R = np.array([[c, -s], [s, c]])
+    return (np.asarray(points_P, dtype=float) - np.asarray(config.frame_offset_m)) @ R
+
+
+def measure_datums(config: ContourScanConfig) -> tuple[np.ndarray, np.ndarray]:
+    """(known in P, as the instrument measures them), each (K, 2), m: the part's datum
+    points with the scan's noise (seed ``seed + 1``) in the instrument's frame."""
+    known = np.asarray(config.datums_m, dtype=float)
+    rng = np.random.default_rng(config.seed + 1)
+    return known, misregister_contour(known + rng.normal(0.0, config.noise_std_m, known.shape),
+                                      config)
 
 
 def timed_error(t_desired, p_desired, t_stamp, p_measured) -> np.ndarray:
@@ -70,11 +113,13 @@ def resample_by_arc_length(points, spacing: float) -> np.ndarray:
 
 def measure_contour(p_P, config: ContourScanConfig) -> np.ndarray:
     """An untimed scan of the path `p_P` (N, 2) in the cutting plane: (M, 2) points, m,
-    every ``spacing_m`` along it, each with white noise; no times."""
+    every ``spacing_m`` along it, each with white noise; no times (in the instrument's frame
+    when `config` mis-registers it: :func:`misregister_contour`)."""
     config.validate()
     points = resample_by_arc_length(p_P, config.spacing_m)
     rng = np.random.default_rng(config.seed)
-    return points + rng.normal(0.0, config.noise_std_m, points.shape)
+    points = points + rng.normal(0.0, config.noise_std_m, points.shape)
+    return misregister_contour(points, config) if config.misregistered else points
 
 
 def normal_deviation(ideal_P, normal_P, measured_P, *, neighbours: int = 5,
@@ -105,5 +150,6 @@ def normal_deviation(ideal_P, normal_P, measured_P, *, neighbours: int = 5,
     return out
 
 
-__all__ = ["measure_contour", "measure_timed", "normal_deviation", "resample_by_arc_length",
-           "timed_error", "to_plane"]
+__all__ = ["measure_contour", "measure_datums", "measure_fiducials", "measure_timed",
+           "misregister_contour", "misregister_timed", "normal_deviation",
+           "resample_by_arc_length", "timed_error", "to_plane"]

@@ -17,9 +17,10 @@ from ftdrake.cli import study as study_cli
 from ftdrake.cli.main import build_parser, main
 
 COMMANDS = ["simulate", "collect", "train", "evaluate", "export", "replay", "calibrate", "serve",
-            "record", "demo", "evaluate-detection", "study", "learn-feedforward", "results"]
+            "record", "demo", "evaluate-detection", "study", "learn-feedforward", "results",
+            "export-correction"]
 # Every command that runs longer than a moment takes --quiet.
-LONG_COMMANDS = set(COMMANDS) - {"export"}
+LONG_COMMANDS = set(COMMANDS) - {"export", "export-correction"}
 
 
 def commands() -> dict[str, argparse.ArgumentParser]:

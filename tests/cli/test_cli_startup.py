@@ -50,7 +50,7 @@ def heavy(modules: list[str]) -> list[str]:
 # train, evaluate and calibrate offer the compensator registry's kinds and options as flags,
 # and study the study's defaults, which their modules import: their --help loads them.
 LIGHT_COMMANDS = ["serve", "record", "replay", "simulate", "collect", "export", "demo",
-                  "evaluate-detection", "learn-feedforward"]
+                  "evaluate-detection", "learn-feedforward", "export-correction"]
 
 
 @pytest.mark.parametrize("argv", [["--version"], ["--verbose", "--version"],
