@@ -16,6 +16,23 @@ from ..errors import ConfigError
 JOINT_STATE_TYPES = ("iiwa_status", "panda_status", "robot_state")
 
 
+def check_outputs(outputs, where: str) -> tuple[str, ...]:
+    """The published outputs `outputs` (names of :data:`~ftdrake.conventions.PUBLISHED`)
+    as a tuple; ConfigError naming `where` (the ``outputs`` key) for an unknown name, one
+    twice or none."""
+    if not (isinstance(outputs, (list, tuple)) and outputs
+            and all(isinstance(name, str) for name in outputs)):
+        raise ConfigError(f"{where}: list the outputs to publish, e.g. [wrench_contact, "
+                          f"contact]; they are {', '.join(PUBLISHED)}")
+    unknown = [name for name in outputs if name not in PUBLISHED]
+    if unknown:
+        raise ConfigError(f"{where}: {unknown} not published outputs; choose from "
+                          f"{', '.join(PUBLISHED)}")
+    if len(set(outputs)) != len(outputs):
+        raise ConfigError(f"{where}: {list(outputs)} names an output twice")
+    return tuple(outputs)
+
+
 @dc.dataclass
 class HardwareConfig:
     """Where a live robot's streams are and how stale they may get.
@@ -36,7 +53,11 @@ class HardwareConfig:
     prefix ``FT_WRENCH_CONTACT``, ``FT_WRENCH_COMPENSATED``, ``FT_BIAS`` as
     ``lcmt_force_torque``, ``FT_PAYLOAD`` (:func:`encode_payload`), and ``FT_CONTACT_STATE``
     with contact, contact_force, fault, out_of_domain and payload_change
-    (``lcmt_drake_signal``, :func:`encode_contact_state`)). `external_wrench_channel` and
+    (``lcmt_drake_signal``, :func:`encode_contact_state`)). `outputs` lists the outputs
+    published (default: all): each channel costs a message per F/T sample (on a 2-core
+    machine the sends are most of the station's CPU per message, docs/results/live.md), so
+    list only those read; the contact state goes out when one of its five values is listed.
+    `external_wrench_channel` and
     `contact_channel` are the names of an earlier release, still read for one: the first is
     where ``wrench_compensated`` then goes, the second the contact state's channel.
     Temperature (only for a model trained with the sensor temperature): ``lcmt_drake_signal``
@@ -57,6 +78,7 @@ class HardwareConfig:
     velocity_channel: str = ""  # only for joint_state_type == "robot_state"
     ft_channel: str = "FT_SENSOR"
     output_prefix: str = "FT_"
+    outputs: list[str] = dc.field(default_factory=lambda: list(PUBLISHED))
     # Deprecated (see the class docstring): "" unless an older file sets them.
     external_wrench_channel: str = ""
     contact_channel: str = ""
@@ -98,10 +120,10 @@ class HardwareConfig:
         return self.output_prefix + "STATUS"
 
     def output_channels(self) -> dict[str, str]:
-        """{LCM channel: the published ports on it}, e.g. ``{"FT_CONTACT_STATE": "contact,
-        contact_force, ..."}``."""
+        """{LCM channel: the published ports on it (those in `outputs`)}, e.g.
+        ``{"FT_CONTACT_STATE": "contact, contact_force, ..."}``."""
         channels = {}
-        for port in PUBLISHED:
+        for port in (p for p in PUBLISHED if p in self.outputs):
             channels.setdefault(self.output_channel(port), []).append(port)
         return {channel: ", ".join(ports) for channel, ports in channels.items()}
 
@@ -115,6 +137,7 @@ class HardwareConfig:
         if self.joint_state_type == "robot_state" and not self.velocity_channel:
             raise ConfigError(f"{where}.velocity_channel: required when joint_state_type is "
                               "'robot_state' (that message carries positions only)")
+        check_outputs(self.outputs, f"{where}.outputs")
         self._check_channels(where)
         for field in ("sensor_timeout_s", "joint_state_timeout_s", "temperature_timeout_s",
                       "max_backlog_s", "status_period_s"):

@@ -12,6 +12,7 @@ import math
 from ...conventions import OUTPUTS as CHAIN_OUTPUTS_BY_PORT
 from ...conventions import PUBLISHED, ROS2_TYPES
 from ...errors import ConfigError
+from ..config import check_outputs
 from .dds import QOS_PROFILES, dds_topic
 
 #: Output topics under `output_namespace` and their ROS 2 types: the chain outputs
@@ -59,6 +60,10 @@ class Ros2Config:
       a ``diagnostic_msgs/msg/DiagnosticArray`` every `diagnostics_period_s` and at each fault
       change (level OK / WARN out of domain / ERROR fault; keys fault, reason, out_of_domain,
       payload_change, message rates, counts).
+    `outputs`: the outputs published (default: all of them; ``fault``, ``out_of_domain``
+      and ``payload_change`` are keys of the diagnostics, always published): each topic
+      costs a serialisation and a DDS write per F/T sample (most of the station's CPU per
+      message on a small machine, docs/results/live.md), so list only those read.
     `queue_depth`: samples a subscription (and each of ftdrake's writers) keeps while the
       station lags (1 s at 1 kHz); a lag beyond it loses the oldest.
     `max_backlog_s`: behind the wrench stream by more than this (s), the station drops the
@@ -94,6 +99,7 @@ class Ros2Config:
     diagnostics_period_s: float = 1.0
     sensor_timeout_s: float = 0.005
     joint_state_timeout_s: float = 0.02
+    outputs: list[str] = dc.field(default_factory=lambda: list(PUBLISHED))
     queue_depth: int = 1000
     max_backlog_s: float = 0.5
     pair_tolerance_s: float = 0.005
@@ -114,6 +120,7 @@ class Ros2Config:
         self._check_joint_names(where)
         self._check_topics(where)
         self._check_numbers(where)
+        check_outputs(self.outputs, f"{where}.outputs")
         if not isinstance(self.wrench_frame_id, str):
             raise ConfigError(f"{where}.wrench_frame_id: the sensor frame's name (a string; "
                               f"'' accepts any), got {self.wrench_frame_id!r}")

@@ -103,7 +103,8 @@ class Ros2Station(StationCore):
         self._contact_due = False  # its wrench was published: contact and force follow
         self._writers = {name: self.node.publisher(c.output_topic(name), msgtype,
                                                    depth=c.queue_depth)
-                         for name, msgtype in OUTPUTS.items() if self.has_output(name)}
+                         for name, msgtype in OUTPUTS.items()
+                         if self.has_output(name) and name in c.outputs}
         self._diagnostics = self.node.publisher(c.diagnostics_topic,
                                                 "diagnostic_msgs/msg/DiagnosticArray")
         self._types = {name: ros2_type(msgtype) for name, msgtype in (
@@ -223,9 +224,14 @@ class Ros2Station(StationCore):
         if not self._contact_due or fault:
             return False
         self._contact_due = False
+        w = self._writers
+        if "contact" not in w and "contact_force" not in w:
+            return False
         state = self.contact_state(t, fault)
-        self._writers["contact"].write(self._types["bool"](data=bool(state.contact)))
-        self._writers["contact_force"].write(self._types["float64"](data=float(state.contact_force)))
+        if "contact" in w:
+            w["contact"].write(self._types["bool"](data=bool(state.contact)))
+        if "contact_force" in w:
+            w["contact_force"].write(self._types["float64"](data=float(state.contact_force)))
         return True
 
     def _on_fault_change(self, event) -> None:
