@@ -41,6 +41,8 @@ from ...errors import ConfigError
 from ..core import StationCore
 from ..live_checks import check_joint_count, joint_names_problem, ros2_type_name
 from ..messages import JointSample, WrenchSample
+from .cdr import JointStateReader
+from .cdr import wrench_stamped as read_wrench_stamped
 from .config import OUTPUTS, Ros2Config
 from .dds import Ros2Node, dds_topic
 from .messages import from_stamp, header, ros2_type, wrench_of
@@ -122,10 +124,11 @@ class Ros2Station(StationCore):
             ("status", "diagnostic_msgs/msg/DiagnosticStatus"),
             ("key_value", "diagnostic_msgs/msg/KeyValue"))}
         depth = c.queue_depth
+        # The two per-sample inputs read from their bytes (ros2/cdr.py).
         self.node.subscribe(c.joint_state_topic, "sensor_msgs/msg/JointState", self._on_joint,
-                            c.joint_state_qos, depth)
+                            c.joint_state_qos, depth, read=JointStateReader().read)
         self.node.subscribe(c.wrench_topic, "geometry_msgs/msg/WrenchStamped", self._on_wrench,
-                            c.wrench_qos, depth)
+                            c.wrench_qos, depth, read=read_wrench_stamped)
         if self._temperature_in is not None:
             self.node.subscribe(c.temperature_topic, "sensor_msgs/msg/Temperature",
                                 self._on_temperature, c.wrench_qos, depth)
