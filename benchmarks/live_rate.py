@@ -31,7 +31,8 @@ serve is started first; the driver then appears and sends once matched. It sleep
 each message (or batch) is due, handling serve's outputs as they come, so that it does not
 keep a core busy. `--load-core` keeps one core busy with a second process during the runs
 (the issue's "second process loading one core"); `--outputs` sets serve's published
-outputs (the driver reads wrench_contact and contact); `--profile DIR` runs serve under
+outputs (the driver reads wrench_contact and contact), `--batch-period` its
+``batch_period_s``; `--profile DIR` runs serve under
 cProfile.
 
 The machine's 1-minute load average before and after each run is printed: on a shared
@@ -255,7 +256,7 @@ class LcmDriver:
 
 
 def start_serve(model, rate, kind, names, port, folder: Path, profile: Path | None = None,
-                outputs=()):
+                outputs=(), batch_period_s: float = 0.0):
     """serve in its own process on the transport of driver class `kind`; returns the
     process and the s it took to listen."""
     import yaml
@@ -263,9 +264,10 @@ def start_serve(model, rate, kind, names, port, folder: Path, profile: Path | No
     save_model(model, folder / "model.ftd", target_names=list(WRENCH_AXES),
                target_units=list(WRENCH_UNITS))
     live = {"chain": {"sensor": {"rate_hz": float(rate)}}, **kind.live_section(names)}
-    if outputs:
-        for section in live.values():
-            if "sensor_timeout_s" in section:
+    for section in live.values():
+        if "sensor_timeout_s" in section:  # the transport's
+            section["batch_period_s"] = float(batch_period_s)
+            if outputs:
                 section["outputs"] = list(outputs)
     (folder / "live.yaml").write_text(yaml.safe_dump(live))
     err_path = folder / "serve.err"
@@ -346,7 +348,8 @@ def run_one(model, name, rate, data, names, args, folder: Path) -> dict:
         profile = (Path(args.profile) / f"serve-{args.transport}-{rate:g}-{name}.prof"
                    if args.profile else None)
         serve, serve_start_s = start_serve(model, rate, kind, names, port, folder, profile,
-                                           args.outputs.split(",") if args.outputs else ())
+                                           args.outputs.split(",") if args.outputs else (),
+                                           args.batch_period)
         driver, appeared = start_driver(kind, names, port)
         run = drive(driver, serve, rate, data, args)
         serve.send_signal(signal.SIGINT)
@@ -380,6 +383,7 @@ def run_one(model, name, rate, data, names, args, folder: Path) -> dict:
             "first_output_s": (min(driver.back.values()) - appeared if driver.back
                                else None),
             "first_sent_s": run["first_sent"] - appeared, "load_core": int(args.load_core),
+            "batch_period_s": args.batch_period,
             "load_before": run["load_before"], "load_after": run["load_after"]}
 
 
@@ -398,6 +402,8 @@ def main() -> None:
     parser.add_argument("--outputs", default="",
                         help="serve's outputs (comma-separated; default: all); the driver "
                              "reads wrench_contact and contact")
+    parser.add_argument("--batch-period", type=float, default=0.0,
+                        help="serve's batch_period_s (s between its wake-ups; 0: per message)")
     parser.add_argument("--load-core", action="store_true",
                         help="a second process keeps one core busy during the runs")
     parser.add_argument("--profile", metavar="DIR",

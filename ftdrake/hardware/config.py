@@ -33,6 +33,13 @@ def check_outputs(outputs, where: str) -> tuple[str, ...]:
     return tuple(outputs)
 
 
+def check_batch_period(value, max_backlog_s: float, where: str) -> None:
+    """ConfigError naming `where`.batch_period_s unless 0 ≤ value < max_backlog_s / 2."""
+    if not (isinstance(value, (int, float)) and 0 <= value < 0.5 * max_backlog_s):
+        raise ConfigError(f"{where}.batch_period_s: seconds in [0, max_backlog_s / 2) "
+                          f"(0: a wake-up per message; 0.002 batches 2 ms), got {value!r}")
+
+
 @dc.dataclass
 class HardwareConfig:
     """Where a live robot's streams are and how stale they may get.
@@ -97,6 +104,10 @@ class HardwareConfig:
     # STATUS) carries the counts and rates every status_period_s and at each fault change.
     max_backlog_s: float = 0.5
     status_period_s: float = 1.0
+    # serve's loop wakes at most once per batch_period_s (s) and then handles every message
+    # that arrived: fewer wake-ups (less CPU per message) for up to that much more latency;
+    # 0 wakes for each message.
+    batch_period_s: float = 0.0
     # Each F/T sample is paired with the joint state whose stamp is within this (s) of its
     # own (live_inputs.StreamMonitor); none within it: a fault, never judged. 0: by arrival
     # only (drivers whose stamps are on different clocks).
@@ -149,6 +160,7 @@ class HardwareConfig:
                 and math.isfinite(self.pair_tolerance_s)):
             raise ConfigError(f"{where}.pair_tolerance_s: seconds ≥ 0 (0: pair by arrival), "
                               f"got {self.pair_tolerance_s!r}")
+        check_batch_period(self.batch_period_s, self.max_backlog_s, where)
         if not (isinstance(self.n_joints, int) and self.n_joints >= 1):
             raise ConfigError(f"{where}.n_joints: must be a positive integer, got "
                               f"{self.n_joints!r}")
