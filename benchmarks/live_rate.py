@@ -19,7 +19,21 @@ leave the host). Per rate and model:
 * serve p50/p99 (arrival → publication, serve's own), end-to-end p50/p99/p99.9 (this
   process's write of a wrench → its receipt of serve's contact wrench),
 * false_contacts: contact episodes (rising edges of the published contact flag) on the
-  free-motion log.
+  free-motion log,
+* cpu_us_per_msg_median: the median over the run's seconds of serve's CPU per message in
+  that second; main_thread_cpu_us_per_msg: its main thread's (the station's Python loop;
+  the rest is the transport's threads),
+* serve_start_s: serve's start to listening; first_output_s: the driver's topics
+  appearing (serve already listening) to the first output received (ROS 2: DDS discovery
+  included).
+
+serve is started first; the driver then appears and sends once matched. It sleeps until
+each message (or batch) is due, handling serve's outputs as they come, so that it does not
+keep a core busy. `--load-core` keeps one core busy with a second process during the runs
+(the issue's "second process loading one core"); `--outputs` sets serve's published
+outputs (the driver reads wrench_contact and contact), `--batch-period` its
+``batch_period_s``; `--profile DIR` runs serve under
+cProfile.
 
 The machine's 1-minute load average before and after each run is printed: on a shared
 machine the rates a run sustains depend on what else runs. The last line is one JSON object
@@ -27,7 +41,17 @@ machine the rates a run sustains depend on what else runs. The last line is one 
 "cpu_us_per_msg", "p99_ms", "false_contacts", ...}}}``.
 
     python benchmarks/live_rate.py [--transport ros2|lcm] [--rates 500,1000,2000,4000]
-                                   [--seconds 60] [--models physics,hybrid]
+                                   [--seconds 60] [--models physics,hybrid] [--load-core]
+                                   [--outputs wrench_contact,contact]
+
+The issue's soaks (long: run them on an otherwise idle machine)::
+
+    python benchmarks/live_rate.py --transport ros2 --rates 1000 --seconds 600
+    python benchmarks/live_rate.py --transport ros2 --rates 2000,4000 --seconds 60
+    python benchmarks/live_rate.py --transport lcm --rates 1000 --seconds 600
+    python benchmarks/live_rate.py --transport lcm --rates 2000,4000 --seconds 60
+
+(4000 Hz is sent in 16-sample batches; add ``--load-core`` for the loaded table.)
 """
 
 from __future__ import annotations
@@ -35,6 +59,7 @@ from __future__ import annotations
 import argparse
 import json
 import os
+import select
 import signal
 import subprocess
 import sys
@@ -85,10 +110,18 @@ def resampled(t, X, W, rate: float, count: int):
     return q, v, w
 
 
-def cpu_s(pid: int) -> float:
-    """User + system CPU time (s) of process `pid` so far (Linux /proc)."""
-    fields = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()
+def cpu_s(pid: int, task: int | None = None) -> float:
+    """User + system CPU time (s) of process `pid` so far (Linux /proc); of its thread
+    `task` only when given."""
+    path = f"/proc/{pid}/task/{task}/stat" if task is not None else f"/proc/{pid}/stat"
+    fields = Path(path).read_text().rsplit(")", 1)[1].split()
     return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
+
+
+def main_thread_cpu_s(pid: int) -> float:
+    """CPU time (s) of process `pid`'s main thread (the station's loop: Python), the rest
+    being the transport's threads (LCM's receive thread, Cyclone's)."""
+    return cpu_s(pid, pid)
 
 
 def compensator_us(model, X) -> float:
@@ -133,11 +166,15 @@ class Ros2Driver:
                             depth=200_000)
         self.node.subscribe(self.config.output_topic("contact"), "std_msgs/msg/Bool",
                             lambda m, _a: self.contacts.append(bool(m.data)), depth=200_000)
-        self.flags = ["--ros2"]
 
-    def live_section(self) -> dict:
-        return {"ros2": {"joint_names": self.names, "domain_id": DOMAIN, "queue_depth": 20_000,
+    @staticmethod
+    def live_section(names) -> dict:
+        return {"ros2": {"joint_names": list(names), "domain_id": DOMAIN, "queue_depth": 20_000,
                          "sensor_timeout_s": 0.5, "joint_state_timeout_s": 0.5}}
+
+    @staticmethod
+    def flags(_port) -> list:
+        return ["--ros2"]
 
     def ready(self) -> bool:
         return all(self.node.matched().values()) and len(self.node.matched()) >= 4
@@ -151,6 +188,10 @@ class Ros2Driver:
     def poll(self, timeout_ms: float = 0) -> None:
         self.node.spin(timeout_ms)
 
+    def wait(self, seconds: float) -> None:
+        """Handles serve's outputs as they come, for up to `seconds` (not spinning)."""
+        self.node.spin(seconds * 1e3)
+
     def close(self) -> None:
         self.node.close()
 
@@ -158,7 +199,7 @@ class Ros2Driver:
 class LcmDriver:
     """The same on LCM (multicast with ttl=0: it stays on this host)."""
 
-    def __init__(self, port: int):
+    def __init__(self, port: int, _names=None):
         import lcm
 
         from ftdrake.hardware.config import HardwareConfig
@@ -169,7 +210,7 @@ class LcmDriver:
             encode_wrench,
         )
 
-        self.url = f"udpm://239.255.76.67:{port}?ttl=0"
+        self.url = self.flags(port)[1]
         self.config = HardwareConfig(lcm_url=self.url).validate()
         self.lc = lcm.LCM(self.url)
         self.encode_joint_state, self.encode_wrench = encode_joint_state, encode_wrench
@@ -184,11 +225,14 @@ class LcmDriver:
         for channel, handler in ((self.config.output_channel("wrench_contact"), on_wrench),
                                  (self.config.output_channel("contact"), on_contact)):
             self.lc.subscribe(channel, handler).set_queue_capacity(200_000)
-        self.flags = ["--lcm", self.url]
-        self.started = None
 
-    def live_section(self) -> dict:
+    @staticmethod
+    def live_section(_names) -> dict:
         return {"lcm": {"sensor_timeout_s": 0.5, "joint_state_timeout_s": 0.5}}
+
+    @staticmethod
+    def flags(port) -> list:
+        return ["--lcm", f"udpm://239.255.76.67:{port}?ttl=0"]
 
     def ready(self) -> bool:
         return True
@@ -202,34 +246,57 @@ class LcmDriver:
         while self.lc.handle_timeout(int(timeout_ms)) > 0:
             timeout_ms = 0
 
+    def wait(self, seconds: float) -> None:
+        """Handles serve's outputs as they come, for up to `seconds` (not spinning)."""
+        if select.select([self.lc.fileno()], [], [], max(0.0, seconds))[0]:
+            self.poll(0)
+
     def close(self) -> None:
         pass
 
 
-def start_serve(model, rate, driver, folder: Path):
-    """serve in its own process on `driver`'s transport; returns the process once it
-    listens (and, on ROS 2, DDS discovery matched both ways)."""
+def start_serve(model, rate, kind, names, port, folder: Path, profile: Path | None = None,
+                outputs=(), batch_period_s: float = 0.0):
+    """serve in its own process on the transport of driver class `kind`; returns the
+    process and the s it took to listen."""
     import yaml
 
     save_model(model, folder / "model.ftd", target_names=list(WRENCH_AXES),
                target_units=list(WRENCH_UNITS))
-    live = {"chain": {"sensor": {"rate_hz": float(rate)}}, **driver.live_section()}
+    live = {"chain": {"sensor": {"rate_hz": float(rate)}}, **kind.live_section(names)}
+    for section in live.values():
+        if "sensor_timeout_s" in section:  # the transport's
+            section["batch_period_s"] = float(batch_period_s)
+            if outputs:
+                section["outputs"] = list(outputs)
     (folder / "live.yaml").write_text(yaml.safe_dump(live))
     err_path = folder / "serve.err"
     with open(err_path, "w") as err:
         serve = subprocess.Popen(
-            [sys.executable, "-m", "ftdrake", "serve", *driver.flags, "--model",
+            [sys.executable, *(["-m", "cProfile", "-o", profile] if profile else []), "-m",
+             "ftdrake", "serve", *kind.flags(port), "--model",
              folder / "model.ftd", "--config", folder / "live.yaml"],
             stdout=subprocess.PIPE, stderr=err, text=True)
     started = time.monotonic()
-    while not (driver.ready() and "out: " in err_path.read_text()):
+    while "out: " not in err_path.read_text():
         if serve.poll() is not None:
             raise RuntimeError(err_path.read_text())
-        driver.poll(10)
+        time.sleep(0.01)
         if time.monotonic() - started > 60:
-            raise RuntimeError("serve did not start (or DDS discovery did not complete) in 60 s")
-    time.sleep(0.5)
-    return serve
+            raise RuntimeError("serve did not start in 60 s")
+    return serve, time.monotonic() - started
+
+
+def start_driver(kind, names, port):
+    """The driver, once DDS discovery matched it with serve both ways (LCM: at once);
+    returns it and when it was made (its topics appeared then)."""
+    appeared = time.monotonic()
+    driver = kind(port if kind is LcmDriver else names)
+    while not driver.ready():
+        driver.poll(10)
+        if time.monotonic() - appeared > 60:
+            raise RuntimeError("DDS discovery did not complete in 60 s")
+    return driver, appeared
 
 
 def drive(driver, serve, rate, data, args) -> dict:
@@ -241,13 +308,21 @@ def drive(driver, serve, rate, data, args) -> dict:
     burst = args.burst if rate >= args.burst_at else 1
     sent, load_before = {}, os.getloadavg()[0]
     start = time.perf_counter()
-    cpu_start = cpu_s(serve.pid)
+    cpu_start, main_start = cpu_s(serve.pid), main_thread_cpu_s(serve.pid)
+    per_second, second = [], round(rate)  # serve's CPU µs per message, each second
+    first_sent = time.monotonic()
     for k in range(count):
-        if k % burst == 0:
-            while time.perf_counter() < start + (k + burst - 1) * period:
-                driver.poll(0)
+        if k % burst == 0:  # the driver sleeps until the batch is due, handling outputs
+            due = start + (k + burst - 1) * period
+            while (now := time.perf_counter()) < due:
+                driver.wait(due - now)
         if k == warmup:
-            cpu_start = cpu_s(serve.pid)
+            cpu_start, main_start = cpu_s(serve.pid), main_thread_cpu_s(serve.pid)
+            mark = cpu_start
+        elif k > warmup and (k - warmup) % second == 0:
+            cpu = cpu_s(serve.pid)
+            per_second.append((cpu - mark) / second * 1e6)
+            mark = cpu
         t = (k + 1) * period
         if k >= warmup:
             sent[round(t * 1e6)] = time.monotonic()
@@ -256,24 +331,34 @@ def drive(driver, serve, rate, data, args) -> dict:
     end = time.monotonic() + 10
     while len(driver.back) < count and time.monotonic() < end:
         driver.poll(10)
-    return {"count": count, "timed": count - warmup, "sent": sent,
-            "cpu_s": cpu_s(serve.pid) - cpu_start, "load_before": load_before,
+    return {"count": count, "timed": count - warmup, "sent": sent, "first_sent": first_sent,
+            "per_second_us": per_second,
+            "cpu_s": cpu_s(serve.pid) - cpu_start,
+            "main_cpu_s": main_thread_cpu_s(serve.pid) - main_start, "load_before": load_before,
             "load_after": os.getloadavg()[0]}
 
 
-def run_one(model, rate, data, names, args, folder: Path) -> dict:
-    driver = (Ros2Driver(names) if args.transport == "ros2"
-              else LcmDriver(7700 + os.getpid() % 200))
-    serve = None
+def run_one(model, name, rate, data, names, args, folder: Path) -> dict:
+    """serve started and listening first; then the driver (its topics appear), which sends
+    as soon as DDS discovery matched."""
+    kind = Ros2Driver if args.transport == "ros2" else LcmDriver
+    port = 7700 + os.getpid() % 200
+    serve = driver = None
     try:
-        serve = start_serve(model, rate, driver, folder)
+        profile = (Path(args.profile) / f"serve-{args.transport}-{rate:g}-{name}.prof"
+                   if args.profile else None)
+        serve, serve_start_s = start_serve(model, rate, kind, names, port, folder, profile,
+                                           args.outputs.split(",") if args.outputs else (),
+                                           args.batch_period)
+        driver, appeared = start_driver(kind, names, port)
         run = drive(driver, serve, rate, data, args)
         serve.send_signal(signal.SIGINT)
         out, _ = serve.communicate(timeout=60)
     finally:
         if serve is not None and serve.poll() is None:
             serve.kill()
-        driver.close()
+        if driver is not None:
+            driver.close()
     summary = json.loads(out.strip().splitlines()[-1])
     sent = run["sent"]
     trip = np.array([driver.back[key] - sent[key] for key in sent if key in driver.back]) * 1e3
@@ -286,11 +371,19 @@ def run_one(model, rate, data, names, args, folder: Path) -> dict:
             "lost": run["count"] - summary["processed"], "dropped": load.get("dropped_ft"),
             "lost_by_stamps": load.get("lost_ft"),
             "cpu_us_per_msg": run["cpu_s"] / run["timed"] * 1e6,
+            "cpu_us_per_msg_median": (float(np.median(run["per_second_us"]))
+                                      if run["per_second_us"] else None),
+            "main_thread_cpu_us_per_msg": run["main_cpu_s"] / run["timed"] * 1e6,
             "p50_ms": summary["latency_ms"]["p50"], "p99_ms": summary["latency_ms"]["p99"],
             "e2e_p50_ms": float(np.percentile(trip, 50)),
             "e2e_p99_ms": float(np.percentile(trip, 99)),
             "e2e_p999_ms": float(np.percentile(trip, 99.9)),
             "false_contacts": episodes, "sustained_hz": load.get("sustained_hz"),
+            "serve_start_s": serve_start_s,
+            "first_output_s": (min(driver.back.values()) - appeared if driver.back
+                               else None),
+            "first_sent_s": run["first_sent"] - appeared, "load_core": int(args.load_core),
+            "batch_period_s": args.batch_period,
             "load_before": run["load_before"], "load_after": run["load_after"]}
 
 
@@ -306,6 +399,15 @@ def main() -> None:
     parser.add_argument("--burst", type=int, default=16, help="samples per batch at high rates")
     parser.add_argument("--burst-at", type=float, default=4000.0,
                         help="rates from this one up are sent in batches of --burst")
+    parser.add_argument("--outputs", default="",
+                        help="serve's outputs (comma-separated; default: all); the driver "
+                             "reads wrench_contact and contact")
+    parser.add_argument("--batch-period", type=float, default=0.0,
+                        help="serve's batch_period_s (s between its wake-ups; 0: per message)")
+    parser.add_argument("--load-core", action="store_true",
+                        help="a second process keeps one core busy during the runs")
+    parser.add_argument("--profile", metavar="DIR",
+                        help="run serve under cProfile, its statistics in DIR (slower)")
     args = parser.parse_args()
     _, X, W, station = free_motion(args.train_s, seed=0)
     replay = free_motion(max(10.0, args.train_s / 2), seed=1)[:3]
@@ -319,27 +421,44 @@ def main() -> None:
         "hybrid": lambda: make_estimator("hybrid", robot=robot,
                                          target_names=[f"meas_{a}" for a in WRENCH_AXES]),
     }
+    busy = (subprocess.Popen([sys.executable, "-c", "while True: pass"]) if args.load_core
+            else None)
+    try:
+        results = run_all(args, makers, X, W, replay, names)
+    finally:
+        if busy is not None:
+            busy.kill()
+            busy.wait()
+    print(json.dumps(results))
+
+
+def run_all(args, makers, X, W, replay, names) -> dict:
+    """Every model at every rate: {rate: {model: row}}, each row printed as it comes."""
     results, costs = {}, {}
     for name in args.models.split(","):
         model = makers[name]().fit(X, W)
         costs[name] = compensator_us(model, replay[1])
         for rate in (float(r) for r in args.rates.split(",")):
             with tempfile.TemporaryDirectory() as folder:
-                row = run_one(model, rate, replay, names, args, Path(folder))
+                row = run_one(model, name, rate, replay, names, args, Path(folder))
             row["compensator_us"] = costs[name]
             row["cpu_ratio_to_compensator"] = row["cpu_us_per_msg"] / costs[name]
             results.setdefault(f"{rate:g}", {})[name] = row
             print(f"{args.transport} {rate:6.0f} Hz {name:<8} sent {row['sent']:>7} "
                   f"received {row['received']:>7} processed {row['processed']:>7} "
                   f"published {row['published']:>7} lost {row['lost']:>6} "
-                  f"cpu {row['cpu_us_per_msg']:7.1f} µs/msg "
+                  f"cpu {row['cpu_us_per_msg']:7.1f} µs/msg (median of seconds "
+                  f"{row['cpu_us_per_msg_median'] or float('nan'):.1f}) "
+                  f"(main thread {row['main_thread_cpu_us_per_msg']:.1f}) "
                   f"({row['cpu_ratio_to_compensator']:.0f}× the compensator's "
                   f"{costs[name]:.1f} µs)  serve p50/p99 {row['p50_ms']:.3f}/"
                   f"{row['p99_ms']:.3f} ms  e2e p50/p99/p99.9 {row['e2e_p50_ms']:.2f}/"
                   f"{row['e2e_p99_ms']:.2f}/{row['e2e_p999_ms']:.2f} ms  false contacts "
-                  f"{row['false_contacts']}  load {row['load_before']:.2f}→"
+                  f"{row['false_contacts']}  serve listening after {row['serve_start_s']:.2f} s, "
+                  f"first output {row['first_output_s'] or float('nan'):.2f} s after the "
+                  f"driver's topics appeared  load {row['load_before']:.2f}→"
                   f"{row['load_after']:.2f}", flush=True)
-    print(json.dumps(results))
+    return results
 
 
 if __name__ == "__main__":

@@ -74,15 +74,21 @@ class Status:
 
 def serve_until_stopped(station, duration_s: float | None, quiet: bool,
                         before_summary=None) -> dict:
-    """Spins `station` until Ctrl-C (SIGINT/SIGTERM) or `duration_s` of wall time, printing
-    the status line; returns its summary with the wall time, the last message rates and the
-    latencies (None where nothing was published). `before_summary()` runs after the loop."""
+    """Spins `station` until Ctrl-C (SIGINT/SIGTERM) or `duration_s` of wall time (waking
+    at most once per its config's ``batch_period_s``), printing the status line; returns its
+    summary with the wall time, the last message rates and the latencies (None where nothing
+    was published). `before_summary()` runs after the loop."""
     status = Status(station, quiet=quiet)
     start = time.monotonic()
+    batch = float(getattr(station.config, "batch_period_s", 0.0))  # s between wake-ups
     with stop_on_signals() as stop:
         while not stop[0]:
+            woke = time.monotonic()
             station.spin_once(timeout_ms=2)
             now = time.monotonic()
+            if batch > 0 and now - woke < batch:  # the next wake-up takes what came meanwhile
+                time.sleep(batch - (now - woke))
+                now = time.monotonic()
             status.maybe_print(now)
             if duration_s is not None and now - start >= duration_s:
                 break

@@ -16,6 +16,30 @@ from ..errors import ConfigError
 JOINT_STATE_TYPES = ("iiwa_status", "panda_status", "robot_state")
 
 
+def check_outputs(outputs, where: str) -> tuple[str, ...]:
+    """The published outputs `outputs` (names of :data:`~ftdrake.conventions.PUBLISHED`)
+    as a tuple; ConfigError naming `where` (the ``outputs`` key) for an unknown name, one
+    twice or none."""
+    if not (isinstance(outputs, (list, tuple)) and outputs
+            and all(isinstance(name, str) for name in outputs)):
+        raise ConfigError(f"{where}: list the outputs to publish, e.g. [wrench_contact, "
+                          f"contact]; they are {', '.join(PUBLISHED)}")
+    unknown = [name for name in outputs if name not in PUBLISHED]
+    if unknown:
+        raise ConfigError(f"{where}: {unknown} not published outputs; choose from "
+                          f"{', '.join(PUBLISHED)}")
+    if len(set(outputs)) != len(outputs):
+        raise ConfigError(f"{where}: {list(outputs)} names an output twice")
+    return tuple(outputs)
+
+
+def check_batch_period(value, max_backlog_s: float, where: str) -> None:
+    """ConfigError naming `where`.batch_period_s unless 0 ≤ value < max_backlog_s / 2."""
+    if not (isinstance(value, (int, float)) and 0 <= value < 0.5 * max_backlog_s):
+        raise ConfigError(f"{where}.batch_period_s: seconds in [0, max_backlog_s / 2) "
+                          f"(0: a wake-up per message; 0.002 batches 2 ms), got {value!r}")
+
+
 @dc.dataclass
 class HardwareConfig:
     """Where a live robot's streams are and how stale they may get.
@@ -36,7 +60,11 @@ class HardwareConfig:
     prefix ``FT_WRENCH_CONTACT``, ``FT_WRENCH_COMPENSATED``, ``FT_BIAS`` as
     ``lcmt_force_torque``, ``FT_PAYLOAD`` (:func:`encode_payload`), and ``FT_CONTACT_STATE``
     with contact, contact_force, fault, out_of_domain and payload_change
-    (``lcmt_drake_signal``, :func:`encode_contact_state`)). `external_wrench_channel` and
+    (``lcmt_drake_signal``, :func:`encode_contact_state`)). `outputs` lists the outputs
+    published (default: all): each channel costs a message per F/T sample (on a 2-core
+    machine the sends are most of the station's CPU per message, docs/results/live.md), so
+    list only those read; the contact state goes out when one of its five values is listed.
+    `external_wrench_channel` and
     `contact_channel` are the names of an earlier release, still read for one: the first is
     where ``wrench_compensated`` then goes, the second the contact state's channel.
     Temperature (only for a model trained with the sensor temperature): ``lcmt_drake_signal``
@@ -57,6 +85,7 @@ class HardwareConfig:
     velocity_channel: str = ""  # only for joint_state_type == "robot_state"
     ft_channel: str = "FT_SENSOR"
     output_prefix: str = "FT_"
+    outputs: list[str] = dc.field(default_factory=lambda: list(PUBLISHED))
     # Deprecated (see the class docstring): "" unless an older file sets them.
     external_wrench_channel: str = ""
     contact_channel: str = ""
@@ -75,6 +104,10 @@ class HardwareConfig:
     # STATUS) carries the counts and rates every status_period_s and at each fault change.
     max_backlog_s: float = 0.5
     status_period_s: float = 1.0
+    # serve's loop wakes at most once per batch_period_s (s) and then handles every message
+    # that arrived: fewer wake-ups (less CPU per message) for up to that much more latency;
+    # 0 wakes for each message.
+    batch_period_s: float = 0.0
     # Each F/T sample is paired with the joint state whose stamp is within this (s) of its
     # own (live_inputs.StreamMonitor); none within it: a fault, never judged. 0: by arrival
     # only (drivers whose stamps are on different clocks).
@@ -98,10 +131,10 @@ class HardwareConfig:
         return self.output_prefix + "STATUS"
 
     def output_channels(self) -> dict[str, str]:
-        """{LCM channel: the published ports on it}, e.g. ``{"FT_CONTACT_STATE": "contact,
-        contact_force, ..."}``."""
+        """{LCM channel: the published ports on it (those in `outputs`)}, e.g.
+        ``{"FT_CONTACT_STATE": "contact, contact_force, ..."}``."""
         channels = {}
-        for port in PUBLISHED:
+        for port in (p for p in PUBLISHED if p in self.outputs):
             channels.setdefault(self.output_channel(port), []).append(port)
         return {channel: ", ".join(ports) for channel, ports in channels.items()}
 
@@ -115,6 +148,7 @@ class HardwareConfig:
         if self.joint_state_type == "robot_state" and not self.velocity_channel:
             raise ConfigError(f"{where}.velocity_channel: required when joint_state_type is "
                               "'robot_state' (that message carries positions only)")
+        check_outputs(self.outputs, f"{where}.outputs")
         self._check_channels(where)
         for field in ("sensor_timeout_s", "joint_state_timeout_s", "temperature_timeout_s",
                       "max_backlog_s", "status_period_s"):
@@ -126,6 +160,7 @@ class HardwareConfig:
                 and math.isfinite(self.pair_tolerance_s)):
             raise ConfigError(f"{where}.pair_tolerance_s: seconds ≥ 0 (0: pair by arrival), "
                               f"got {self.pair_tolerance_s!r}")
+        check_batch_period(self.batch_period_s, self.max_backlog_s, where)
         if not (isinstance(self.n_joints, int) and self.n_joints >= 1):
             raise ConfigError(f"{where}.n_joints: must be a positive integer, got "
                               f"{self.n_joints!r}")

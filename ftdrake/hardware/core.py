@@ -89,6 +89,17 @@ class FaultEvent:
                 f"{self.detail}")
 
 
+def _warm_up(chain, context) -> None:
+    """Runs one update of a throwaway ChainStep (the chain's state copied from `context`,
+    nothing written back), so that the systems' compiled kernels are compiled or loaded
+    from their cache now, at start, and not on the first F/T message: that message would
+    otherwise wait seconds, and the backlog behind it be dropped as an overload."""
+    step = ChainStep(chain, context)
+    n = chain.compensator.n
+    step.update(max(0.0, chain.detector.arm_after_s), np.zeros(6), np.zeros(2 * n),
+                20.0 if chain.needs_temperature else None)
+
+
 class StationCore:
     """Holds the diagram, its context, the monitor and the counts (see the module).
 
@@ -139,6 +150,7 @@ class StationCore:
         # Each F/T sample updates the chain by the step (use_diagram(): by the diagram); the
         # step keeps its own state, written into `context` by chain_context().
         self._step = ChainStep(self.chain, self.context)
+        _warm_up(self.chain, self.context)
         self.joint_bounds = joint_bounds(model, self.n_joints, joint_names)
         self.monitor = StreamMonitor(
             self.n_joints, sensor_timeout_s, joint_state_timeout_s,
@@ -184,8 +196,13 @@ class StationCore:
     def output(self, name: str) -> np.ndarray:
         """The chain's output `name` now (see CompensationChain's ports), a copy: the
         ChainStep's, or the diagram's after use_diagram()."""
+        return self.value(name).copy()
+
+    def value(self, name: str) -> np.ndarray:
+        """The chain's output `name` now, not copied (the step's array, overwritten by the
+        next update): for reading at once, e.g. to encode a message."""
         if self._step is not None:
-            return self._step.outputs[name].copy()
+            return self._step.outputs[name]
         return self._out[name].Eval(self.context)
 
     def chain_context(self):
@@ -211,11 +228,12 @@ class StationCore:
     def contact_state(self, t: float, fault: bool) -> ContactState:
         """The detector's state now, stamped `t`, with `fault` (the inputs' fault) or the
         chain's own ``fault`` output once it has been updated."""
-        changed = "payload_change" in self._out and self.output("payload_change")[0] > 0.5
-        model_fault = self.processed > 0 and self.output("fault")[0] > 0.5
-        return ContactState(t, self.output("contact")[0] > 0.5,
-                            float(self.output("contact_force")[0]), bool(fault or model_fault),
-                            self.output("out_of_domain")[0] > 0.5, bool(changed))
+        value = self.value
+        changed = "payload_change" in self._out and value("payload_change")[0] > 0.5
+        model_fault = self.processed > 0 and value("fault")[0] > 0.5
+        return ContactState(t, bool(value("contact")[0] > 0.5),
+                            float(value("contact_force")[0]), bool(fault or model_fault),
+                            bool(value("out_of_domain")[0] > 0.5), bool(changed))
 
     # -- samples ------------------------------------------------------------------------------
     def on_joint_sample(self, sample, arrival: float, problem=None) -> None:
@@ -266,7 +284,7 @@ class StationCore:
                     self.monitor.temperature if self._temperature_in is not None else None)
             settling = self._settling > 0
             self._settling -= settling
-            if self.output("fault")[0] <= 0.5 and not settling:
+            if self.value("fault")[0] <= 0.5 and not settling:
                 self._publish_wrench(t)
                 self.latencies.append(self.clock() - arrival)
                 self.published += 1

@@ -27,6 +27,7 @@ encoding need no ``lcm`` package; only the transport and log files do.
 
 from __future__ import annotations
 
+import struct
 from typing import NamedTuple
 
 import numpy as np
@@ -110,7 +111,10 @@ def message_class(joint_state_type: str):
 
 def decode_joint_state(joint_state_type: str, data: bytes) -> JointSample:
     """Decodes one joint-state message. Raises ValueError on a malformed message
-    (bad fingerprint or a num_joints that disagrees with the array lengths)."""
+    (bad fingerprint or a num_joints that disagrees with the array lengths), struct.error
+    on a truncated one."""
+    if joint_state_type == "iiwa_status" and isinstance(data, (bytes, bytearray)):
+        return _decode_iiwa_status(data)
     cls = message_class(joint_state_type)
     msg = cls.decode(data)
     t = msg.utime * 1e-6
@@ -129,11 +133,38 @@ def decode_joint_state(joint_state_type: str, data: bytes) -> JointSample:
     return JointSample(t, q, v, tau)
 
 
+# The per-message codecs below pack and unpack the lcm-gen classes' layouts in one struct
+# call each (the classes build an object and a buffer per message); the bytes are the
+# classes' (tests/hardware/test_hardware_messages.py compares them).
+_FT = struct.Struct(">8sqdddddd")
+_FT_FINGERPRINT = lcmt_force_torque._get_packed_fingerprint()
+_IIWA_HEAD = struct.Struct(">8sqi")
+_IIWA_FINGERPRINT = lcmt_iiwa_status._get_packed_fingerprint()
+_IIWA_ARRAYS = 7  # lcmt_iiwa_status's arrays of num_joints doubles
+_IIWA_TAU = 4  # joint_torque_measured's place among them
+
+
+def _decode_iiwa_status(data: bytes) -> JointSample:
+    """``lcmt_iiwa_status`` bytes → (t, q = joint_position_measured, v =
+    joint_velocity_estimated, τ = joint_torque_measured), as decode_joint_state."""
+    fingerprint, utime, n = _IIWA_HEAD.unpack_from(data)
+    if fingerprint != _IIWA_FINGERPRINT:
+        raise ValueError("Decode error")
+    head = _IIWA_HEAD.size
+    if n < 0 or len(data) < head + _IIWA_ARRAYS * 8 * n:
+        raise struct.error(f"lcmt_iiwa_status: {len(data)} bytes for {n} joints")
+    values = np.frombuffer(data, ">f8", _IIWA_ARRAYS * n, head).astype(float)
+    tau = values[_IIWA_TAU * n:(_IIWA_TAU + 1) * n] if n else None
+    return JointSample(utime * 1e-6, values[:n], values[n:2 * n], tau)
+
+
 def decode_wrench(data: bytes) -> WrenchSample:
-    """Decodes ``lcmt_force_torque`` → (t s, [Fx Fy Fz Tx Ty Tz] N, N·m)."""
-    msg = lcmt_force_torque.decode(data)
-    return WrenchSample(msg.timestamp * 1e-6,
-                        np.array([msg.fx, msg.fy, msg.fz, msg.tx, msg.ty, msg.tz], dtype=float))
+    """Decodes ``lcmt_force_torque`` → (t s, [Fx Fy Fz Tx Ty Tz] N, N·m). Raises ValueError
+    for another message type, struct.error for a truncated one."""
+    fingerprint, timestamp, *wrench = _FT.unpack_from(data)
+    if fingerprint != _FT_FINGERPRINT:
+        raise ValueError("Decode error")
+    return WrenchSample(timestamp * 1e-6, np.array(wrench, dtype=float))
 
 
 def _utime(t: float) -> int:
@@ -143,23 +174,26 @@ def _utime(t: float) -> int:
 def encode_wrench(t: float, wrench) -> bytes:
     """``lcmt_force_torque`` bytes for a wrench ``[Fx Fy Fz Tx Ty Tz]`` (N, N·m) at t (s)."""
     w = np.asarray(wrench, dtype=float).reshape(6)
-    msg = lcmt_force_torque()
-    msg.timestamp = _utime(t)
-    msg.fx, msg.fy, msg.fz, msg.tx, msg.ty, msg.tz = (float(x) for x in w)
-    return msg.encode()
+    return _FT.pack(_FT_FINGERPRINT, _utime(t), *w.tolist())
 
 
 def encode_contact_state(state: ContactState) -> bytes:
     """``lcmt_drake_signal`` bytes: val = [contact 0/1, ‖F‖ N, fault 0/1, out_of_domain 0/1,
     payload_change 0/1] (``CONTACT_COORDS``)."""
-    msg = lcmt_drake_signal()
-    msg.timestamp = _utime(state.t)
-    msg.dim = len(CONTACT_COORDS)
-    msg.coord = list(CONTACT_COORDS)
-    msg.val = [float(bool(state.contact)), float(state.contact_force),
-               float(bool(state.fault)), float(bool(state.out_of_domain)),
-               float(bool(state.payload_change))]
-    return msg.encode()
+    return _CONTACT.pack(_SIGNAL_FINGERPRINT, len(CONTACT_COORDS), float(bool(state.contact)),
+                         float(state.contact_force), float(bool(state.fault)),
+                         float(bool(state.out_of_domain)), float(bool(state.payload_change)),
+                         _CONTACT_NAMES, _utime(state.t))
+
+
+def _signal_names(names) -> bytes:
+    """An lcmt_drake_signal's ``coord`` strings as lcm-gen encodes them."""
+    return b"".join(struct.pack(">I", len(n.encode()) + 1) + n.encode() + b"\0" for n in names)
+
+
+_SIGNAL_FINGERPRINT = lcmt_drake_signal._get_packed_fingerprint()
+_CONTACT_NAMES = _signal_names(CONTACT_COORDS)
+_CONTACT = struct.Struct(f">8si{len(CONTACT_COORDS)}d{len(_CONTACT_NAMES)}sq")
 
 
 def decode_contact_state(data: bytes) -> ContactState:

@@ -51,6 +51,7 @@ from .core import FaultEvent, StationCore  # noqa: F401 (FaultEvent: its home be
 from .live_checks import check_joint_count, lcm_decode_problem, lcm_type_found
 from .live_inputs import REASONS, RobotStatePairer
 from .messages import (
+    CONTACT_COORDS,
     PAYLOAD_COORD,
     TARE_COORD,
     decode_event,
@@ -101,8 +102,12 @@ class HardwareStation(StationCore):
         self._last_status = self.clock()
         # The published outputs (conventions.PUBLISHED) with an LCM message of their own; the
         # others are values of the contact state (_publish_contact).
-        self._own_channel = [port for port in PUBLISHED if self.has_output(port)
-                             and OUTPUTS[port].lcm_field is None]
+        # Only those listed in config.outputs.
+        self._own_channel = [(port, config.output_channel(port)) for port in PUBLISHED
+                             if self.has_output(port) and OUTPUTS[port].lcm_field is None
+                             and port in config.outputs]
+        self._contact_out = any(port in config.outputs for port in CONTACT_COORDS)
+        self._contact_channel = config.output_channel("contact")
         self._pairer = None
         kind = config.joint_state_type
         if kind == "robot_state":
@@ -190,14 +195,15 @@ class HardwareStation(StationCore):
 
     def _publish_wrench(self, t: float) -> None:
         """The published outputs of their own channel (wrenches, the payload) the chain has."""
-        for port in self._own_channel:
-            data = (encode_payload(t, self.output(port)) if port == "payload"
-                    else encode_wrench(t, self.output(port)))
-            self.lcm.publish(self.config.output_channel(port), data)
+        for port, channel in self._own_channel:
+            data = (encode_payload(t, self.value(port)) if port == "payload"
+                    else encode_wrench(t, self.value(port)))
+            self.lcm.publish(channel, data)
 
     def _publish_contact(self, t: float, fault: bool) -> bool:
-        self.lcm.publish(self.config.output_channel("contact"),
-                         encode_contact_state(self.contact_state(t, fault)))
+        if not self._contact_out:
+            return False
+        self.lcm.publish(self._contact_channel, encode_contact_state(self.contact_state(t, fault)))
         return True
 
     def _on_fault_change(self, event) -> None:

@@ -12,6 +12,7 @@ import math
 from ...conventions import OUTPUTS as CHAIN_OUTPUTS_BY_PORT
 from ...conventions import PUBLISHED, ROS2_TYPES
 from ...errors import ConfigError
+from ..config import check_batch_period, check_outputs
 from .dds import QOS_PROFILES, dds_topic
 
 #: Output topics under `output_namespace` and their ROS 2 types: the chain outputs
@@ -59,6 +60,13 @@ class Ros2Config:
       a ``diagnostic_msgs/msg/DiagnosticArray`` every `diagnostics_period_s` and at each fault
       change (level OK / WARN out of domain / ERROR fault; keys fault, reason, out_of_domain,
       payload_change, message rates, counts).
+    `outputs`: the outputs published (default: all of them; ``fault``, ``out_of_domain``
+      and ``payload_change`` are keys of the diagnostics, always published): each topic
+      costs a serialisation and a DDS write per F/T sample (most of the station's CPU per
+      message on a small machine, docs/results/live.md), so list only those read.
+    `batch_period_s`: serve's loop wakes at most once per this many s and then handles
+      every message that arrived: fewer wake-ups, less CPU per message, up to that much more
+      latency; 0 (default) wakes for each message.
     `queue_depth`: samples a subscription (and each of ftdrake's writers) keeps while the
       station lags (1 s at 1 kHz); a lag beyond it loses the oldest.
     `max_backlog_s`: behind the wrench stream by more than this (s), the station drops the
@@ -94,8 +102,10 @@ class Ros2Config:
     diagnostics_period_s: float = 1.0
     sensor_timeout_s: float = 0.005
     joint_state_timeout_s: float = 0.02
+    outputs: list[str] = dc.field(default_factory=lambda: list(PUBLISHED))
     queue_depth: int = 1000
     max_backlog_s: float = 0.5
+    batch_period_s: float = 0.0
     pair_tolerance_s: float = 0.005
     reorder_window_s: float = 0.0
     domain_id: int = 0
@@ -114,6 +124,8 @@ class Ros2Config:
         self._check_joint_names(where)
         self._check_topics(where)
         self._check_numbers(where)
+        check_outputs(self.outputs, f"{where}.outputs")
+        check_batch_period(self.batch_period_s, self.max_backlog_s, where)
         if not isinstance(self.wrench_frame_id, str):
             raise ConfigError(f"{where}.wrench_frame_id: the sensor frame's name (a string; "
                               f"'' accepts any), got {self.wrench_frame_id!r}")

@@ -41,9 +41,12 @@ from ...errors import ConfigError
 from ..core import StationCore
 from ..live_checks import check_joint_count, joint_names_problem, ros2_type_name
 from ..messages import JointSample, WrenchSample
+from .cdr import JointStateReader
+from .cdr import wrench_stamped as read_wrench_stamped
 from .config import OUTPUTS, Ros2Config
 from .dds import Ros2Node, dds_topic
-from .messages import from_stamp, header, ros2_type, wrench_of, wrench_stamped
+from .messages import from_stamp, header, ros2_type, wrench_of
+from .packing import ValueWriter, WrenchWriter
 
 #: ``diagnostic_msgs/msg/DiagnosticStatus`` levels.
 OK, WARN, ERROR = 0, 1, 2
@@ -103,7 +106,13 @@ class Ros2Station(StationCore):
         self._contact_due = False  # its wrench was published: contact and force follow
         self._writers = {name: self.node.publisher(c.output_topic(name), msgtype,
                                                    depth=c.queue_depth)
-                         for name, msgtype in OUTPUTS.items() if self.has_output(name)}
+                         for name, msgtype in OUTPUTS.items()
+                         if self.has_output(name) and name in c.outputs}
+        # The per-sample outputs packed (ros2/packing.py): wrenches, contact, contact force.
+        self._wrench_out = [(name, WrenchWriter(self._writers[name])) for name in WRENCH_TOPICS
+                            if name in self._writers]
+        self._value_out = {name: ValueWriter(self._writers[name], kind) for name, kind in (
+            ("contact", "bool"), ("contact_force", "float64")) if name in self._writers}
         self._diagnostics = self.node.publisher(c.diagnostics_topic,
                                                 "diagnostic_msgs/msg/DiagnosticArray")
         self._types = {name: ros2_type(msgtype) for name, msgtype in (
@@ -115,10 +124,11 @@ class Ros2Station(StationCore):
             ("status", "diagnostic_msgs/msg/DiagnosticStatus"),
             ("key_value", "diagnostic_msgs/msg/KeyValue"))}
         depth = c.queue_depth
+        # The two per-sample inputs read from their bytes (ros2/cdr.py).
         self.node.subscribe(c.joint_state_topic, "sensor_msgs/msg/JointState", self._on_joint,
-                            c.joint_state_qos, depth)
+                            c.joint_state_qos, depth, read=JointStateReader().read)
         self.node.subscribe(c.wrench_topic, "geometry_msgs/msg/WrenchStamped", self._on_wrench,
-                            c.wrench_qos, depth)
+                            c.wrench_qos, depth, read=read_wrench_stamped)
         if self._temperature_in is not None:
             self.node.subscribe(c.temperature_topic, "sensor_msgs/msg/Temperature",
                                 self._on_temperature, c.wrench_qos, depth)
@@ -206,9 +216,9 @@ class Ros2Station(StationCore):
     def _publish_wrench(self, t: float) -> None:
         h, types, w = self._header, self._types, self._writers
         del t  # the stamp is the input's header's
-        for name in WRENCH_TOPICS:
-            if name in w:  # bias: with the tracker
-                w[name].write(wrench_stamped(h, self.output(name)))
+        stamp = h.stamp
+        for name, out in self._wrench_out:  # bias: with the tracker
+            out.write(stamp.sec, stamp.nanosec, h.frame_id, self.value(name).tolist())
         self._contact_due = True
         if "payload" in w:
             dm, *mc = (float(x) for x in self.output("payload"))
@@ -223,9 +233,14 @@ class Ros2Station(StationCore):
         if not self._contact_due or fault:
             return False
         self._contact_due = False
+        out = self._value_out
+        if not out:
+            return False
         state = self.contact_state(t, fault)
-        self._writers["contact"].write(self._types["bool"](data=bool(state.contact)))
-        self._writers["contact_force"].write(self._types["float64"](data=float(state.contact_force)))
+        if "contact" in out:
+            out["contact"].write(state.contact)
+        if "contact_force" in out:
+            out["contact_force"].write(state.contact_force)
         return True
 
     def _on_fault_change(self, event) -> None:
