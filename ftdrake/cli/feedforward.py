@@ -35,7 +35,8 @@ def register(subparsers) -> None:
     p.add_argument("--out", type=a.output_folder, default="out/feedforward", metavar="DIR",
                    help="folder for summary.json, iterations.csv, tracking.png and the model")
     a.add_config(p)
-    a.add_seed(p, 0, "the trajectory's seed")
+    a.add_seed(p, 0, "every random draw: the trajectory, the GP fits; with --two-part also the "
+                     "tool measurements' noise")
     p.add_argument("--duration", type=a.positive_float, metavar="S",
                    help="seconds per run (default: the scenario's trajectory.duration_s)")
     p.add_argument("--target", choices=["model_error", "feedback"], default="model_error",
@@ -92,7 +93,7 @@ def run_command(args) -> int:
 def _run_two_part(args) -> int:
     from ..experiments import contour
 
-    plan = contour.ContourPlan(iterations=args.iterations, seed=args.seed)
+    plan = contour.ContourPlan(iterations=args.iterations).with_seed(args.seed)
     measured = ("timed", "contour") if args.measurement == "both" else (args.measurement,)
     plan = dc.replace(
         plan, methods=("torque", *measured, "ilc"),
