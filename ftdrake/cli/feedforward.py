@@ -90,6 +90,22 @@ def run_command(args) -> int:
     return 0
 
 
+def provenance() -> dict:
+    """The command line that runs now and the source's commit (``git describe``; "unknown"
+    outside a git checkout; ``-dirty`` when files differ from it)."""
+    import subprocess
+    import sys
+
+    root = Path(__file__).resolve().parents[2]
+    try:
+        commit = subprocess.run(["git", "describe", "--always", "--dirty", "--abbrev=7"],
+                                cwd=root, capture_output=True, text=True, timeout=10,
+                                check=True).stdout.strip() or "unknown"
+    except (OSError, subprocess.SubprocessError):
+        commit = "unknown"
+    return {"command": " ".join(["ftdrake", *sys.argv[1:]]), "commit": commit}
+
+
 def _run_two_part(args) -> int:
     from ..experiments import contour
 
@@ -102,7 +118,7 @@ def _run_two_part(args) -> int:
                             speed_m_s=args.speed / 1e3))
     out = args.out if args.out != Path("out/feedforward") else Path("out/two_part")
     summary = contour.run_contour_experiment(a.load_scenario(args), plan, out,
-                                             progress=not args.quiet)
+                                             progress=not args.quiet, provenance=provenance())
     first = summary["first_run"]
     print(f"wrote {out}/summary.json, iterations.csv, contour.png in "
           f"{summary['wall_time_s']:.0f} s")

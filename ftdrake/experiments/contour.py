@@ -346,9 +346,10 @@ def _row(method, iteration, run, fit_s=0.0, hole="task"):
 
 def run_contour_experiment(config: ScenarioConfig | None = None,
                            plan: ContourPlan | None = None, out_dir=None, *,
-                           progress: bool = True) -> dict:
+                           progress: bool = True, provenance: dict | None = None) -> dict:
     """Runs the benchmark; writes ``summary.json``, ``iterations.csv`` and ``contour.png``
-    to `out_dir` when given. Returns the summary."""
+    to `out_dir` when given. Returns the summary (with `provenance`, e.g. the command and
+    commit that ran it, under ``"provenance"`` when given)."""
     plan = (plan or ContourPlan()).validate()
     scenario = contour_scenario(config or ScenarioConfig())
     start = time.perf_counter()
@@ -381,6 +382,8 @@ def run_contour_experiment(config: ScenarioConfig | None = None,
         rows.append(_row(method, plan.iterations, new_runs[method], hole="new"))
     table = pd.DataFrame(rows)
     summary = _summary(table, plan, first, time.perf_counter() - start)
+    if provenance is not None:
+        summary["provenance"] = dict(provenance)
     if out_dir is not None:
         write_outputs(Path(out_dir), table, summary, task, contours, new_task,
                       {k: v["contour_P"] for k, v in new_runs.items()})

@@ -30,8 +30,12 @@ def _drop_times(summary: dict) -> dict:
 
 
 def test_contour_experiment_end_to_end_and_reproducible(tmp_path):
-    first = run_contour_experiment(plan=_tiny(3), out_dir=tmp_path / "a", progress=False)
-    again = run_contour_experiment(plan=_tiny(3), out_dir=tmp_path / "b", progress=False)
+    stamp = {"command": "ftdrake learn-feedforward --two-part", "commit": "abc1234"}
+    first = run_contour_experiment(plan=_tiny(3), out_dir=tmp_path / "a", progress=False,
+                                   provenance=stamp)
+    again = run_contour_experiment(plan=_tiny(3), out_dir=tmp_path / "b", progress=False,
+                                   provenance=stamp)
+    assert json.loads((tmp_path / "a" / "summary.json").read_text())["provenance"] == stamp
     # Every figure the run wrote, to the last digit (the wall times aside).
     assert json.dumps(_drop_times(first)) == json.dumps(_drop_times(again))
     tables = [pd.read_csv(tmp_path / d / "iterations.csv").drop(columns=["wall_time_s", "fit_s"])
