@@ -44,7 +44,7 @@ from ..sim.simulate import simulate
 from ..sim.station import build_station, robot_geometry
 from ..sim.tool_measurement import measure_contour, measure_timed, normal_deviation, timed_error
 from ..systems.learned_feedforward import LearnedFeedforward, fit_feedforward_gp
-from .hole_path import HolePath, hole_trajectory
+from .hole_path import Circle, HolePath, hole_trajectory
 from .reference_correction import (
     ReferenceCorrection,
     corrected_reference,
@@ -245,7 +245,8 @@ def tool_error_joint(task: Task, run: dict, measurement: str, plan: ContourPlan,
         scan = measure_contour(run["contour_P"], plan.contour_scan)
         rows = np.flatnonzero(run["on_hole"])
         ideal = path.to_plane(path.position_W(t[rows]))
-        normal = ideal / np.linalg.norm(ideal, axis=1, keepdims=True)
+        normal = (ideal / np.linalg.norm(ideal, axis=1, keepdims=True)
+                  if isinstance(path.outline, Circle) else path.normal_P(t[rows]))
         deviation = normal_deviation(ideal, normal, scan)
         if target == "transmission":  # less what the motor angles' own path shows
             deviation = deviation - normal_deviation(ideal, normal, run["contour_motor_P"])
