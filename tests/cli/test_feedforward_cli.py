@@ -14,3 +14,10 @@ def test_provenance_names_the_command_and_the_checked_out_commit(monkeypatch):
     head = subprocess.run(["git", "rev-parse", "HEAD"], cwd=ROOT, capture_output=True,
                           text=True, check=True).stdout.strip()
     assert head[:7] in dut["commit"]
+
+
+def test_family_needs_two_part(capsys):
+    from ftdrake.cli.main import main
+
+    assert main(["learn-feedforward", "--family", "quick"]) == 2
+    assert "add --two-part" in capsys.readouterr().err
