@@ -3,11 +3,13 @@ reproduces it to the last digit."""
 
 import json
 
+import matplotlib
+import matplotlib.pyplot as plt
 import numpy as np
 import pandas as pd
 
 from ftdrake.config.contour import HoleConfig
-from ftdrake.experiments.contour import ContourPlan, run_contour_experiment
+from ftdrake.experiments.contour import ContourPlan, plot_contours, run_contour_experiment
 
 
 def _tiny(seed: int = 0) -> ContourPlan:
@@ -27,6 +29,34 @@ def test_with_seed_seeds_every_noise_source():
 
 def _drop_times(summary: dict) -> dict:
     return {k: v for k, v in summary.items() if k != "wall_time_s"}
+
+
+def _colours_by_label(fig) -> dict:
+    colours: dict = {}
+    for ax in fig.axes:
+        for line in ax.get_lines():
+            colours.setdefault(line.get_label(), set()).add(matplotlib.colors.to_hex(
+                line.get_color()))
+    return colours
+
+
+def test_figure_gives_each_method_one_colour_in_every_panel(tmp_path, monkeypatch):
+    theta = np.linspace(0, 2 * np.pi, 50)
+    circle = np.column_stack([np.cos(theta), np.sin(theta)])
+    methods = ("torque", "timed", "contour", "ilc")
+    np.savez(tmp_path / "contours.npz", task_radius=0.01, new_radius=0.013,
+             **{f"{hole}_{m}": r * circle for hole, r in (("task", 0.0101), ("new", 0.0131))
+                for m in ("none", *methods)})
+    (tmp_path / "summary.json").write_text(json.dumps(
+        {"task": {m: {"radial_rms_mm": [0.9, 0.1, 0.01]} for m in methods}}))
+    figures = []
+    monkeypatch.setattr(plt, "close", figures.append)
+    plot_contours(tmp_path)
+    colours = _colours_by_label(figures[0])
+    assert set(colours) == {"ideal", "none", *methods}
+    assert all(len(c) == 1 for c in colours.values()), colours
+    assert len({next(iter(c)) for c in colours.values()}) == len(colours)
+    assert (tmp_path / "contour.png").stat().st_size > 0
 
 
 def test_contour_experiment_end_to_end_and_reproducible(tmp_path):
