@@ -2,7 +2,7 @@
 
 The paper's argument for a state-indexed correction over ILC is that it carries over to motion
 it has not run. :func:`run_contour_family` tests it on a family of contours
-(:data:`FAMILIES`): each method learns on the base hole
+(:data:`MEMBERS`, :data:`POOL`, :func:`family_plan`): each method learns on the base hole
 (:class:`~ftdrake.experiments.contour.ContourPlan`'s ``hole``) for ``iterations`` runs, as in
 :func:`~ftdrake.experiments.contour.run_contour_experiment`; then its final correction runs,
 without relearning, on each member of the family (another cutting speed, the other direction,
