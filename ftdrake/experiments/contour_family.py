@@ -149,6 +149,14 @@ class Pool:
         self.reference.append((task.X_d[rows], dq))
         self.contours.append(name)
 
+    def size(self, learner: Learner) -> dict:
+        """Rows pooled and rows each fitted GP kept (the farthest-point subset)."""
+        return {"contours": list(self.contours),
+                "torque_rows": sum(len(d[0]) for d in self.torque),
+                "torque_rows_kept": len(learner.torque_model.subset_indices_),
+                "reference_rows": sum(len(d[0]) for d in self.reference),
+                "reference_rows_kept": len(learner.reference_model.subset_indices_)}
+
     def learner(self, base_task) -> Learner:
         """A two-part timed learner holding the GPs fitted on the pooled data."""
         learner = Learner("timed", self.runner, base_task, self.plan)
@@ -242,6 +250,7 @@ def run_contour_family(config: ScenarioConfig | None = None, plan: FamilyPlan | 
         "transfer": transfer,
         "learning_curve": learning_curve,
         "pool_first_cut_radial_rms_mm": pool_rms,
+        "pool_size": pool.size(pooled),
         "goals": _goals(transfer, learning_curve),
         "wall_time_s": time.perf_counter() - start,
     }

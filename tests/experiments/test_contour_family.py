@@ -51,6 +51,11 @@ def test_family_transfer_table_and_learning_curve(tmp_path):
                                curve["radial_rms_mm"][0] / np.array(curve["radial_rms_mm"]))
     # Learned on the base hole at 50 mm/s, the corrections still help at 80 mm/s.
     assert transfer["fast"]["two_part_timed"] > 1.0 and transfer["fast"]["pooled"] > 1.0
+    # The pooled GPs stay bounded: max_points rows kept of everything pooled.
+    size = dut["pool_size"]
+    assert size["contours"] == ["base", "earlier"]
+    assert size["torque_rows_kept"] == size["reference_rows_kept"] == 20
+    assert size["torque_rows"] > 20 and size["reference_rows"] > 20
     summary = json.loads((tmp_path / "summary.json").read_text())
     assert summary["family"] == "tiny" and summary["transfer"] == transfer
 
