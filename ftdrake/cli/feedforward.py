@@ -67,6 +67,12 @@ def register(subparsers) -> None:
                           "of other contours (speed, direction, new holes; full: tilted "
                           "planes, a 3-D path, a slot) and on the pooled data of earlier "
                           "contours; writes transfer.json, learning_curve.json, summary.json")
+    two.add_argument("--members", type=lambda v: [m for m in v.split(",") if m],
+                     metavar="NAME,...",
+                     help="with --family: run these contours of the full family instead "
+                          "(speed_60, reversed, hole_40_elsewhere, hole_10_elsewhere, "
+                          "hole_60_elsewhere, tilted_x20, tilted_y20, 3d_reoriented, "
+                          "slot_corners)")
     p.set_defaults(run=run_command)
 
 
@@ -152,7 +158,7 @@ def _run_two_part(args) -> int:
 def _run_family(args) -> int:
     from ..experiments import contour_family as family
 
-    plan = family.family_plan(args.family, args.iterations, args.seed)
+    plan = family.family_plan(args.family, args.iterations, args.seed, args.members)
     out = (args.out if args.out != Path("out/feedforward")
            else Path(f"out/two_part_family_{args.family}"))
     summary = family.run_contour_family(a.load_scenario(args), plan, out,

@@ -111,10 +111,14 @@ class FamilyPlan:
         return self
 
 
-def family_plan(name: str, iterations: int | None = None, seed: int = 0) -> FamilyPlan:
+def family_plan(name: str, iterations: int | None = None, seed: int = 0,
+                members: list[str] | None = None) -> FamilyPlan:
     """The named family: ``quick`` (another speed, the other direction, one new hole; two
     earlier contours pooled after the base; 2 iterations) or ``full`` (every member of
-    :data:`MEMBERS`, every contour of :data:`POOL`; 5 iterations)."""
+    :data:`MEMBERS`, every contour of :data:`POOL`; 5 iterations). `members`: these members
+    of :data:`MEMBERS` instead of the family's (the learning curve on the first of them
+    unless the family's curve contour is among them)."""
+    chosen = members
     if name == "quick":
         members = {k: MEMBERS[k] for k in ("speed_60", "reversed", "hole_40_elsewhere")}
         pool = {k: POOL[k] for k in ("pool_hole_30_cw", "pool_hole_16")}
@@ -123,9 +127,15 @@ def family_plan(name: str, iterations: int | None = None, seed: int = 0) -> Fami
         members, pool, default_iterations = dict(MEMBERS), dict(POOL), 5
     else:
         raise ConfigError(f"--family: 'quick' or 'full', got {name!r}")
+    if chosen:
+        unknown = sorted(set(chosen) - set(MEMBERS))
+        if unknown:
+            raise ConfigError(f"--members: unknown {unknown}; choose from {sorted(MEMBERS)}")
+        members = {k: MEMBERS[k] for k in chosen}
+    curve = "hole_40_elsewhere" if "hole_40_elsewhere" in members else next(iter(members))
     contour = ContourPlan(iterations=iterations or default_iterations,
                           methods=("timed", "contour", "ilc")).with_seed(seed)
-    return FamilyPlan(contour, members, pool, "hole_40_elsewhere", name).validate()
+    return FamilyPlan(contour, members, pool, curve, name).validate()
 
 
 class Pool:

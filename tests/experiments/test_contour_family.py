@@ -69,6 +69,11 @@ def test_family_plans_and_their_errors():
     assert full.contour.iterations == 4 and full.contour.tracker.seed == 9
     with pytest.raises(ConfigError, match="--family"):
         family_plan("huge")
+    chosen = family_plan("quick", members=["slot_corners", "tilted_x20"])
+    assert list(chosen.members) == ["slot_corners", "tilted_x20"]
+    assert chosen.curve_contour == "slot_corners" and chosen.pool == quick.pool
+    with pytest.raises(ConfigError, match=r"--members: unknown \['nope'\]"):
+        family_plan("quick", members=["nope"])
     with pytest.raises(ConfigError, match="both a member and in the pool"):
         FamilyPlan(members={"a": HoleConfig()}, pool={"a": HoleConfig()},
                    curve_contour="a").validate()
