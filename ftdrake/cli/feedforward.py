@@ -3,6 +3,7 @@
     ftdrake learn-feedforward [--iterations 5] [--trajectory rehearsal] [--out DIR]
     ftdrake learn-feedforward --two-part [--measurement timed|contour|both] [--diameter MM]
                               [--save-model FILE]
+    ftdrake learn-feedforward --two-part --family quick|full [--out DIR]
 
 Runs :func:`ftdrake.experiments.feedforward.run_feedforward_experiment` (friction on; the
 controller's model knows neither it nor the true tool) and writes ``summary.json``,
@@ -11,7 +12,9 @@ controller's model knows neither it nor the true tool) and writes ``summary.json
 With ``--two-part``: the hole-cutting benchmark with compliant joints
 (:func:`ftdrake.experiments.contour.run_contour_experiment`): torque feedforward only, the
 two-part compensation with the chosen tool measurement, and ILC of the motor reference;
-writes ``summary.json``, ``iterations.csv`` and ``contour.png``.
+writes ``summary.json``, ``iterations.csv`` and ``contour.png``. With ``--family``: the
+transfer of each method's correction to other contours
+(:func:`ftdrake.experiments.contour_family.run_contour_family`).
 """
 
 from __future__ import annotations
@@ -29,14 +32,15 @@ def register(subparsers) -> None:
         subparsers, "learn-feedforward",
         "learn the torque feedforward (GP), ILC beside it",
         "A GP learns from earlier runs; a time-indexed ILC is the baseline.")
-    p.add_argument("--iterations", type=a.positive_int, default=5, metavar="N",
-                   help="learning iterations")
+    p.add_argument("--iterations", type=a.positive_int, metavar="N",
+                   help="learning iterations (default 5; with --family quick: 2)")
     a.add_trajectory(p, default="rehearsal",
                      help="the task's trajectory kind (rehearsal: the contact task in the air)")
     p.add_argument("--out", type=a.output_folder, default="out/feedforward", metavar="DIR",
                    help="folder for summary.json, iterations.csv, tracking.png and the model")
     a.add_config(p)
-    a.add_seed(p, 0, "the trajectory's seed")
+    a.add_seed(p, 0, "every random draw: the trajectory, the GP fits; with --two-part also the "
+                     "tool measurements' noise")
     p.add_argument("--duration", type=a.positive_float, metavar="S",
                    help="seconds per run (default: the scenario's trajectory.duration_s)")
     p.add_argument("--target", choices=["model_error", "feedback"], default="model_error",
@@ -62,6 +66,17 @@ def register(subparsers) -> None:
     two.add_argument("--save-model", type=a.output_file, metavar="FILE",
                      help="write the learned two-part model (the timed method's, else the "
                           "contour one's) to FILE, for `ftdrake export-correction`")
+    two.add_argument("--family", choices=["quick", "full"],
+                     help="learn on the hole, then run each method's correction on a family "
+                          "of other contours (speed, direction, new holes; full: tilted "
+                          "planes, a 3-D path, a slot) and on the pooled data of earlier "
+                          "contours; writes transfer.json, learning_curve.json, summary.json")
+    two.add_argument("--members", type=lambda v: [m for m in v.split(",") if m],
+                     metavar="NAME,...",
+                     help="with --family: run these contours of the full family instead "
+                          "(speed_60, reversed, hole_40_elsewhere, hole_10_elsewhere, "
+                          "hole_60_elsewhere, tilted_x20, tilted_y20, 3d_reoriented, "
+                          "slot_corners)")
     p.set_defaults(run=run_command)
 
 
@@ -69,9 +84,13 @@ def run_command(args) -> int:
     from ..experiments import feedforward as experiment
 
     logging.basicConfig(level=logging.WARNING, format="%(levelname)s %(name)s: %(message)s")
+    if args.family is not None and not args.two_part:
+        raise a.ConfigError("--family: runs the hole-cutting benchmark; add --two-part")
+    if args.family is not None:
+        return _run_family(args)
     if args.two_part:
         return _run_two_part(args)
-    plan = experiment.FeedforwardPlan(iterations=args.iterations, trajectory=args.trajectory,
+    plan = experiment.FeedforwardPlan(iterations=args.iterations or 5, trajectory=args.trajectory,
                                       seed=args.seed, duration_s=args.duration,
                                       target=args.target, ilc_gain=args.ilc_gain,
                                       ilc_cutoff_hz=args.ilc_cutoff)
@@ -93,10 +112,26 @@ def run_command(args) -> int:
     return 0
 
 
+def provenance() -> dict:
+    """The command line that runs now and the source's commit (``git describe``; "unknown"
+    outside a git checkout; ``-dirty`` when files differ from it)."""
+    import subprocess
+    import sys
+
+    root = Path(__file__).resolve().parents[2]
+    try:
+        commit = subprocess.run(["git", "describe", "--always", "--dirty", "--abbrev=7"],
+                                cwd=root, capture_output=True, text=True, timeout=10,
+                                check=True).stdout.strip() or "unknown"
+    except (OSError, subprocess.SubprocessError):
+        commit = "unknown"
+    return {"command": " ".join(["ftdrake", *sys.argv[1:]]), "commit": commit}
+
+
 def _run_two_part(args) -> int:
     from ..experiments import contour
 
-    plan = contour.ContourPlan(iterations=args.iterations, seed=args.seed)
+    plan = contour.ContourPlan(iterations=args.iterations or 5).with_seed(args.seed)
     measured = ("timed", "contour") if args.measurement == "both" else (args.measurement,)
     plan = dc.replace(
         plan, methods=("torque", *measured, "ilc"),
@@ -106,7 +141,8 @@ def _run_two_part(args) -> int:
     out = args.out if args.out != Path("out/feedforward") else Path("out/two_part")
     summary = contour.run_contour_experiment(a.load_scenario(args), plan, out,
                                              progress=not args.quiet,
-                                             model_out=args.save_model)
+                                             model_out=args.save_model,
+                                             provenance=provenance())
     first = summary["first_run"]
     print(f"wrote {out}/summary.json, iterations.csv, contour.png in "
           f"{summary['wall_time_s']:.0f} s")
@@ -122,6 +158,37 @@ def _run_two_part(args) -> int:
     print("new hole without relearning, radial RMS (mm): "
           + ", ".join(f"{k} {v['radial_rms_mm']:.4f} ({v['improvement']:.1f}×)"
                       for k, v in g.items()))
+    for goal, met in summary["goals"].items():
+        print(f"  {'yes' if met else 'NO '} {goal}")
+    return 0
+
+
+def _run_family(args) -> int:
+    from ..experiments import contour_family as family
+
+    plan = family.family_plan(args.family, args.iterations, args.seed, args.members)
+    out = (args.out if args.out != Path("out/feedforward")
+           else Path(f"out/two_part_family_{args.family}"))
+    summary = family.run_contour_family(a.load_scenario(args), plan, out,
+                                        progress=not args.quiet, provenance=provenance())
+    print(f"wrote {out}/transfer.json, learning_curve.json, summary.json in "
+          f"{summary['wall_time_s']:.0f} s")
+    base = summary["base_hole_radial_rms_mm"]
+    print("learned hole, radial RMS (mm) per iteration: "
+          + "; ".join(f"{k} " + " ".join(f"{x:.4f}" for x in v) for k, v in base.items()))
+    columns = list(family.TRANSFER_METHODS)
+    print("kept improvement K = radial RMS without learning / with the correction learned "
+          "elsewhere:")
+    print(f"  {'contour':<20}{'none (mm)':>10}" + "".join(f"{c:>18}" for c in columns))
+    for name, kept in summary["transfer"].items():
+        none = summary["radial_rms_mm"][name]["none"]
+        print(f"  {name:<20}{none:>10.4f}"
+              + "".join(f"{kept[c]:>17.1f}×" if c in kept else f"{'-':>18}" for c in columns))
+    curve = summary["learning_curve"]
+    print(f"learning curve on {curve['contour']} (radial RMS, mm, by contours pooled): "
+          + ", ".join(f"{n} {r:.4f} ({k:.1f}×)" for n, r, k in
+                      zip(curve["contours_learned_from"], curve["radial_rms_mm"],
+                          curve["improvement"], strict=True)))
     for goal, met in summary["goals"].items():
         print(f"  {'yes' if met else 'NO '} {goal}")
     return 0

@@ -130,19 +130,34 @@ class ContourScanConfig:
 
 @dc.dataclass
 class HoleConfig:
-    """A hole to cut: a circle in a plane, entered along an arc lead-in from its centre.
+    """A contour to cut: a circle (or a slot) in a plane, entered along an arc lead-in from
+    its centre.
 
-    The plane is horizontal (normal +z in W) at the tool tip's height at the scenario's
-    home pose plus ``offset_m[2]``; the centre is the home tip position plus ``offset_m``.
-    The tool points down, normal to the plane. The path: rest at the centre, a half-circle
-    lead-in of radius d/4 that meets the hole tangentially, one full turn at ``speed_m_s``,
-    a lead-out along the hole while slowing down, rest.
+    The plane passes through the tool tip's position at the scenario's home pose plus
+    ``offset_m`` (its centre); its normal is ``normal`` in W (default +z, horizontal); the tool
+    points against the normal. The path: rest at the centre, a half-circle lead-in that meets
+    the contour tangentially, one full turn at ``speed_m_s`` (``direction`` "ccw":
+    counter-clockwise about the normal, "cw": clockwise), a lead-out along the contour while
+    slowing down, rest.
+
+    The contour: a circle of ``diameter_m``; or, when ``slot_m`` = [length, width] is given, a
+    rectangle of those sides (along the plane's x and y) whose corners are rounded to
+    ``corner_radius_m``. ``height_m`` > 0 makes the path 3-D: it rises out of the plane by
+    ``height_m · sin²(2π u / L)`` (u: arc length along the contour, L its length), two bumps per
+    turn. ``tool_tilt_deg`` > 0 reorients the tool along the contour: it leans towards the
+    contour's outward normal by ``tool_tilt_deg · sin²(2π u / L)``.
     """
 
     diameter_m: float = 0.040
     speed_m_s: float = 0.030  # laser cutting of sheet metal: tens of mm/s
     offset_m: list[float] = dc.field(default_factory=lambda: [0.0, 0.0, 0.0])
     rest_s: float = 0.3
+    direction: str = "ccw"
+    normal: list[float] = dc.field(default_factory=lambda: [0.0, 0.0, 1.0])
+    slot_m: list[float] = dc.field(default_factory=list)
+    corner_radius_m: float = 0.002
+    height_m: float = 0.0
+    tool_tilt_deg: float = 0.0
 
     def validate(self, where: str = "hole") -> "HoleConfig":
         _check(math.isfinite(self.diameter_m) and 0.002 <= self.diameter_m <= 0.3,
@@ -153,4 +168,21 @@ class HoleConfig:
                f"{where}.offset_m", f"must be 3 finite numbers (m), got {self.offset_m}")
         _check(math.isfinite(self.rest_s) and self.rest_s >= 0, f"{where}.rest_s",
                f"must be >= 0 s, got {self.rest_s}")
+        _check(self.direction in ("ccw", "cw"), f"{where}.direction",
+               f"'ccw' or 'cw' (about the plane's normal), got {self.direction!r}")
+        _check(len(self.normal) == 3 and all(math.isfinite(v) for v in self.normal)
+               and math.hypot(*self.normal) > 1e-9, f"{where}.normal",
+               f"must be 3 finite numbers, not all zero (a direction in W), got {self.normal}")
+        _check(len(self.slot_m) in (0, 2) and all(math.isfinite(v) and 0.002 <= v <= 0.3
+                                                  for v in self.slot_m), f"{where}.slot_m",
+               f"[] (a circle) or [length, width], each in [2, 300] mm, got {self.slot_m}")
+        if self.slot_m:
+            _check(math.isfinite(self.corner_radius_m)
+                   and 0 < self.corner_radius_m <= 0.5 * min(self.slot_m),
+                   f"{where}.corner_radius_m", f"must be in (0, half the slot's width], got "
+                   f"{self.corner_radius_m} for a slot of {self.slot_m}")
+        _check(math.isfinite(self.height_m) and 0 <= self.height_m <= 0.05, f"{where}.height_m",
+               f"must be in [0, 50] mm, got {self.height_m}")
+        _check(math.isfinite(self.tool_tilt_deg) and 0 <= self.tool_tilt_deg <= 45,
+               f"{where}.tool_tilt_deg", f"must be in [0, 45] degrees, got {self.tool_tilt_deg}")
         return self

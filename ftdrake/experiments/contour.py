@@ -45,7 +45,7 @@ from ..sim.station import build_station, robot_geometry
 from ..sim.tool_measurement import measure_contour, measure_timed, normal_deviation, timed_error
 from ..systems.learned_feedforward import LearnedFeedforward, fit_feedforward_gp
 from ..version import result_provenance
-from .hole_path import HolePath, hole_trajectory
+from .hole_path import Circle, HolePath, hole_trajectory
 from .reference_correction import (
     ReferenceCorrection,
     corrected_reference,
@@ -88,7 +88,15 @@ class ContourPlan:
     # contour data cover only the hole) the offset would otherwise change in a few ms, and
     # the controller's feedforward of its second derivative would kick the motors.
     reference_cutoff_hz: float = 5.0
-    seed: int = 0
+    seed: int = 0  # the GP fits' (see :meth:`with_seed` for every noise source)
+
+    def with_seed(self, seed: int) -> ContourPlan:
+        """This plan with `seed` for every source of randomness: the GP fits, the tracker's
+        noise and the contour scan's noise (the simulation itself draws none: the F/T sensor
+        is ideal in this benchmark)."""
+        return dc.replace(self, seed=int(seed),
+                          tracker=dc.replace(self.tracker, seed=int(seed)),
+                          contour_scan=dc.replace(self.contour_scan, seed=int(seed)))
 
     def validate(self) -> ContourPlan:
         if self.iterations < 1:
@@ -243,7 +251,8 @@ def tool_error_joint(task: Task, run: dict, measurement: str, plan: ContourPlan,
         rows = np.flatnonzero(run["on_hole"])
         ideal = path.to_plane(path.position_W(t[rows]))
         scan, _ = register_simulated_scan(scan, ideal, plan.contour_scan)
-        normal = ideal / np.linalg.norm(ideal, axis=1, keepdims=True)
+        normal = (ideal / np.linalg.norm(ideal, axis=1, keepdims=True)
+                  if isinstance(path.outline, Circle) else path.normal_P(t[rows]))
         deviation = normal_deviation(ideal, normal, scan)
         if target == "transmission":  # less what the motor angles' own path shows
             deviation = deviation - normal_deviation(ideal, normal, run["contour_motor_P"])
@@ -344,11 +353,13 @@ def _row(method, iteration, run, fit_s=0.0, hole="task"):
 
 def run_contour_experiment(config: ScenarioConfig | None = None,
                            plan: ContourPlan | None = None, out_dir=None, *,
-                           progress: bool = True, model_out=None) -> dict:
+                           progress: bool = True, model_out=None,
+                           provenance: dict | None = None) -> dict:
     """Runs the benchmark; writes ``summary.json``, ``iterations.csv`` and ``contour.png``
     to `out_dir` when given, and with `model_out` the learned two-part model (the timed
     method's, else the contour one's; :mod:`ftdrake.experiments.two_part_model`). Returns
-    the summary."""
+    the summary (with `provenance`, e.g. the command and commit that ran it, under
+    ``"provenance"`` when given; else the written summary records this process's)."""
     plan = (plan or ContourPlan()).validate()
     if model_out is not None and not {"timed", "contour"} & set(plan.methods):
         raise ConfigError("model_out: needs a two-part method ('timed' or 'contour') in "
@@ -386,6 +397,8 @@ def run_contour_experiment(config: ScenarioConfig | None = None,
         rows.append(_row(method, plan.iterations, new_runs[method], hole="new"))
     table = pd.DataFrame(rows)
     summary = _summary(table, plan, first, time.perf_counter() - start)
+    if provenance is not None:
+        summary["provenance"] = dict(provenance)
     if out_dir is not None:
         write_outputs(Path(out_dir), table, summary, task, contours, new_task,
                       {k: v["contour_P"] for k, v in new_runs.items()})
@@ -443,12 +456,16 @@ def _summary(table: pd.DataFrame, plan: ContourPlan, first: dict, wall: float) -
     }
 
 
+#: One colour per method in every panel of the figure (the ideal contour: black, dashed).
+METHOD_COLOURS = {"none": "tab:gray", "torque": "tab:blue", "timed": "tab:orange",
+                  "contour": "tab:green", "ilc": "tab:red"}
+
+
 def write_outputs(out: Path, table, summary, task, contours, new_task, new_contours) -> None:
     """summary.json, iterations.csv, contours.npz (each method's final contour, in-plane m)
-    and contour.png, each atomically. The figure: per hole, the contours against the ideal
-    circle at true scale and the radial error along the hole; the radial RMS per iteration."""
+    and contour.png (:func:`plot_contours`), each atomically."""
     out.mkdir(parents=True, exist_ok=True)
-    summary = {**summary, "provenance": result_provenance()}
+    summary = {**summary, "provenance": summary.get("provenance") or result_provenance()}
     atomic_write_text(out / "summary.json", json.dumps(summary, indent=2) + "\n")
     with atomic_path(out / "iterations.csv") as tmp:
         table.to_csv(tmp, index=False)
@@ -456,27 +473,41 @@ def write_outputs(out: Path, table, summary, task, contours, new_task, new_conto
         np.savez(f, **{f"task_{k}": v for k, v in contours.items()},
                  **{f"new_{k}": v for k, v in new_contours.items()},
                  task_radius=task.path.radius, new_radius=new_task.path.radius)
+    plot_contours(out)
+
+
+def plot_contours(out: Path) -> Path:
+    """Draws ``out/contour.png`` from ``out/contours.npz`` and ``out/summary.json`` (so a
+    run's figure can be redrawn from its files): per hole, the contours against the ideal
+    circle at true scale and the radial error along the hole; the radial RMS per iteration.
+    Each method has one colour in every panel (:data:`METHOD_COLOURS`)."""
     import matplotlib  # noqa: PLC0415 (only when writing the figure)
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt  # noqa: PLC0415
 
+    out = Path(out)
+    summary = json.loads((out / "summary.json").read_text())
+    with np.load(out / "contours.npz") as data:
+        files = {k: data[k] for k in data.files}
     fig, axes = plt.subplots(2, 3, figsize=(15, 9))
-    for col_, (path, curves, title) in enumerate(((task.path, contours, "learned hole"),
-                                                  (new_task.path, new_contours,
-                                                   "new hole, no relearning"))):
+    for col_, (prefix, title) in enumerate((("task", "learned hole"),
+                                            ("new", "new hole, no relearning"))):
         ax, ax_err = axes[0, col_], axes[1, col_]
+        radius = float(files[f"{prefix}_radius"])
         theta = np.linspace(0, 2 * np.pi, 400)
-        ax.plot(1e3 * path.radius * np.cos(theta), 1e3 * path.radius * np.sin(theta), "k--",
+        ax.plot(1e3 * radius * np.cos(theta), 1e3 * radius * np.sin(theta), "k--",
                 lw=1.5, label="ideal")
-        for name, p in curves.items():
-            ax.plot(1e3 * p[:, 0], 1e3 * p[:, 1], lw=1, label=name)
+        names = [k[len(prefix) + 1:] for k in files if k.startswith(prefix + "_")
+                 and k != f"{prefix}_radius"]
+        for name in names:
+            p, colour = files[f"{prefix}_{name}"], METHOD_COLOURS.get(name)
+            ax.plot(1e3 * p[:, 0], 1e3 * p[:, 1], lw=1, label=name, color=colour)
             angle = np.degrees(np.unwrap(np.arctan2(p[:, 1], p[:, 0])))
-            ax_err.semilogy(angle - angle[0],
-                            1e3 * np.abs(np.linalg.norm(p, axis=1) - path.radius), lw=1,
-                            label=name)
+            ax_err.semilogy(angle - angle[0], 1e3 * np.abs(np.linalg.norm(p, axis=1) - radius),
+                            lw=1, label=name, color=colour)
         ax.set_aspect("equal")
-        ax.set_title(f"{title} (Ø {2e3 * path.radius:g} mm), true scale")
+        ax.set_title(f"{title} (Ø {2e3 * radius:g} mm), true scale")
         ax.set_xlabel("x (mm)")
         ax.set_ylabel("y (mm)")
         ax.legend(fontsize=8)
@@ -487,7 +518,7 @@ def write_outputs(out: Path, table, summary, task, contours, new_task, new_conto
     ax = axes[0, 2]
     for method, values in summary["task"].items():
         ax.semilogy(range(len(values["radial_rms_mm"])), values["radial_rms_mm"], "o-",
-                    label=method)
+                    label=method, color=METHOD_COLOURS.get(method))
     ax.set_xlabel("iteration")
     ax.set_ylabel("radial RMS error (mm)")
     ax.set_title("learned hole")
@@ -497,6 +528,8 @@ def write_outputs(out: Path, table, summary, task, contours, new_task, new_conto
     with atomic_path(out / "contour.png") as tmp:
         fig.savefig(tmp, format="png", dpi=100)
     plt.close(fig)
+    return out / "contour.png"
 
 
-__all__ = ["ContourPlan", "HoleRunner", "run_contour_experiment", "tool_error_joint"]
+__all__ = ["ContourPlan", "HoleRunner", "plot_contours", "run_contour_experiment",
+           "tool_error_joint"]

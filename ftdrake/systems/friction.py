@@ -10,11 +10,9 @@ is evaluated from the state at the start of each plant step (explicit in time), 
 stable while ``dt · (viscous + coulomb / velocity_scale) < 2 · inertia`` for each joint;
 :func:`check_explicit_stability` checks that with a margin and names the joint when not.
 
-Transmission compliance (the paper's motor-side encoder vs link angle) is not modelled: it
-needs a motor body and a spring per joint; a gearbox stiffness of 10⁴-10⁵ N·m/rad against
-this arm's wrist inertia (~10⁻³ kg·m²) has a natural frequency of 3-10 kHz, which a spring
-force element (explicit in Drake's discrete solver) cannot integrate at the 1 kHz plant step,
-and a 10× smaller step would make every run 10× slower.
+Transmission compliance (the paper's motor-side encoder vs link angle) is a separate system,
+:mod:`ftdrake.systems.transmission` (``scenario.transmission``, off by default): a motor and a
+gearbox spring per joint, the spring integrated implicitly by Drake's solver.
 """
 
 from __future__ import annotations
