@@ -33,7 +33,7 @@ def register(subparsers) -> None:
         "learn the torque feedforward (GP), ILC beside it",
         "A GP learns from earlier runs; a time-indexed ILC is the baseline.")
     p.add_argument("--iterations", type=a.positive_int, metavar="N",
-                   help="learning iterations (default 5; with --family quick: 2)")
+                   help="learning iterations; with --family quick 2 unless given (default: 5)")
     a.add_trajectory(p, default="rehearsal",
                      help="the task's trajectory kind (rehearsal: the contact task in the air)")
     p.add_argument("--out", type=a.output_folder, default="out/feedforward", metavar="DIR",
@@ -113,19 +113,10 @@ def run_command(args) -> int:
 
 
 def provenance() -> dict:
-    """The command line that runs now and the source's commit (``git describe``; "unknown"
-    outside a git checkout; ``-dirty`` when files differ from it)."""
-    import subprocess
-    import sys
+    """The result files' provenance record (:func:`ftdrake.version.result_provenance`)."""
+    from ..version import result_provenance
 
-    root = Path(__file__).resolve().parents[2]
-    try:
-        commit = subprocess.run(["git", "describe", "--always", "--dirty", "--abbrev=7"],
-                                cwd=root, capture_output=True, text=True, timeout=10,
-                                check=True).stdout.strip() or "unknown"
-    except (OSError, subprocess.SubprocessError):
-        commit = "unknown"
-    return {"command": " ".join(["ftdrake", *sys.argv[1:]]), "commit": commit}
+    return result_provenance()
 
 
 def _run_two_part(args) -> int:

@@ -91,6 +91,9 @@ _DEMO = Step("demo", ("demo", "--no-html", "--out", "{out}"),
 _MODELS = ("--model", "{work}/demo/model_forest.ftd", "--model", "{work}/demo/model_hybrid.ftd")
 
 #: Every result a page cites, in the order of the Results section.
+#: The contour runs' GP fits on one BLAS thread (their figures are reproducible so).
+_ONE_THREAD = (("OMP_NUM_THREADS", "1"),)
+
 RESULTS = (
     Result("demo", "results/demo.md", (_DEMO,),
            (("demo", "summary.json", "demo/summary.json"),
@@ -143,11 +146,26 @@ RESULTS = (
                                      "{out}"), quick=("--iterations", "1", "--duration", "12")),),
            (("feedback_target", "summary.json", "feedforward/summary_feedback_target.json"),),
            None),
-    Result("transfer", "results/two-part.md",
-           (Step("transfer", ("learn-feedforward", "--two-part", "--family", "full", "--out",
-                              "{out}"), quick=("--family", "quick"),
-                 env=(("OMP_NUM_THREADS", "1"),)),),
-           (("transfer", "transfer.json", "feedforward/transfer.json"),), None),
+    Result("two-part", "results/two-part.md",
+           (Step("two_part", ("learn-feedforward", "--two-part", "--out", "{out}"),
+                 quick=("--iterations", "1"), env=_ONE_THREAD),),
+           (("two_part", "summary.json", "two_part/summary.json"),
+            ("two_part", "iterations.csv", "two_part/iterations.csv"),
+            ("two_part", "contours.npz", "two_part/contours.npz"),
+            ("two_part", "contour.png", "two_part/contour.png")), None),
+    Result("two-part-family", "results/two-part.md",
+           (Step("family_quick", ("learn-feedforward", "--two-part", "--family", "quick",
+                                  "--out", "{out}"), quick=("--iterations", "1"), env=_ONE_THREAD),
+            Step("family_more", ("learn-feedforward", "--two-part", "--family", "quick",
+                                 "--members", "tilted_x20,3d_reoriented,slot_corners",
+                                 "--out", "{out}"), quick=("--iterations", "1"), env=_ONE_THREAD),
+            Step("family_rest", ("learn-feedforward", "--two-part", "--family", "quick",
+                                 "--members", "hole_10_elsewhere,hole_60_elsewhere,tilted_y20",
+                                 "--out", "{out}"), quick=("--iterations", "1"), env=_ONE_THREAD)),
+           tuple((run, name, f"feedforward/{run}/{name}")
+                 for run in ("family_quick", "family_more", "family_rest")
+                 for name in ("summary.json", "transfer.json", "learning_curve.json")),
+           None),
 )
 
 
