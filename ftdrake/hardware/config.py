@@ -64,6 +64,11 @@ class HardwareConfig:
     # trained with it; "" when the model needs none.
     temperature_channel: str = ""
     temperature_timeout_s: float = 1.0
+    # An IMU at the sensor (lcmt_drake_signal, messages.encode_imu), for a model that takes
+    # one; "" when the model needs none. Each F/T sample takes the IMU sample stamped nearest
+    # to it within imu_max_skew_s (s); none that close faults that sample.
+    imu_channel: str = ""
+    imu_max_skew_s: float = 0.002
     # Event signals for the bias tracker (lcmt_drake_signal; messages.encode_event); "" none.
     tare_channel: str = ""
     payload_channel: str = ""
@@ -117,7 +122,7 @@ class HardwareConfig:
                               "'robot_state' (that message carries positions only)")
         self._check_channels(where)
         for field in ("sensor_timeout_s", "joint_state_timeout_s", "temperature_timeout_s",
-                      "max_backlog_s", "status_period_s"):
+                      "max_backlog_s", "status_period_s", "imu_max_skew_s"):
             value = getattr(self, field)
             if not (isinstance(value, (int, float)) and value > 0 and math.isfinite(value)):
                 raise ConfigError(f"{where}.{field}: must be a positive number of seconds, "
@@ -145,7 +150,8 @@ class HardwareConfig:
             raise ConfigError(f"{where}.output_prefix: must be a non-empty channel prefix, "
                               "e.g. FT_")
         optional = tuple(f for f in ("velocity_channel", "temperature_channel",
-                                     "tare_channel", "payload_channel") if getattr(self, f))
+                                     "tare_channel", "payload_channel", "imu_channel")
+                         if getattr(self, f))
         fields = {field: getattr(self, field)
                   for field in ("joint_state_channel", "ft_channel", *optional)}
         fields.update({f"output_prefix ({ports})": channel

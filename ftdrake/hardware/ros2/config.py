@@ -87,6 +87,12 @@ class Ros2Config:
     wrench_frame_id: str = ""
     temperature_topic: str = ""
     temperature_timeout_s: float = 1.0
+    # A model that takes an IMU at the sensor: its sensor_msgs/msg/Imu topic (linear
+    # acceleration: proper acceleration, m/s², REP 145; angular velocity, rad/s; both in S),
+    # each wrench paired with the IMU message stamped nearest to it within imu_max_skew_s.
+    # "" (off) unless the model needs it.
+    imu_topic: str = ""
+    imu_max_skew_s: float = 0.002
     tare_topic: str = ""
     payload_topic: str = ""
     output_namespace: str = "/ftdrake"
@@ -133,8 +139,8 @@ class Ros2Config:
             raise ConfigError(f"{where}.joint_names: {names} names a joint twice")
 
     def _check_topics(self, where: str) -> None:
-        optional = [f for f in ("temperature_topic", "tare_topic", "payload_topic")
-                    if getattr(self, f)]
+        optional = [f for f in ("temperature_topic", "tare_topic", "payload_topic",
+                                "imu_topic") if getattr(self, f)]
         topics = {field: getattr(self, field) for field in (
             "joint_state_topic", "wrench_topic", "diagnostics_topic", *optional)}
         for name in OUTPUTS:
@@ -153,7 +159,7 @@ class Ros2Config:
 
     def _check_numbers(self, where: str) -> None:
         for field in ("sensor_timeout_s", "joint_state_timeout_s", "temperature_timeout_s",
-                      "diagnostics_period_s", "max_backlog_s"):
+                      "diagnostics_period_s", "max_backlog_s", "imu_max_skew_s"):
             value = getattr(self, field)
             if not (isinstance(value, (int, float)) and value > 0 and math.isfinite(value)):
                 raise ConfigError(f"{where}.{field}: must be a positive number of seconds, "
