@@ -42,6 +42,9 @@ class HardwareConfig:
     Temperature (only for a model trained with the sensor temperature): ``lcmt_drake_signal``
     with one value in °C (:func:`encode_temperature`) on `temperature_channel`; older than
     `temperature_timeout_s` it faults the inputs like a silent sensor.
+    IMU (only for a model that takes one): ``lcmt_drake_signal`` with six values
+    (:func:`encode_imu`: f_S in m/s², ω_S in rad/s) on `imu_channel`; each F/T sample takes
+    the IMU sample stamped nearest to it within `imu_max_skew_s`, none that close faults it.
     Events (optional; for ``chain.bias_tracker``): an ``lcmt_drake_signal``
     (:func:`encode_event`) on `tare_channel` says the driver re-zeroed the sensor, one on
     `payload_channel` that the gripper took or released a payload (needs ``track_payload``).

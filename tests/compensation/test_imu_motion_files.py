@@ -9,17 +9,13 @@ from ftdrake.compensation.estimators.forest import RandomForestCompensator
 from ftdrake.compensation.estimators.imu_physics import ImuPayloadCompensator
 from ftdrake.compensation.estimators.motion_std import MotionStdCompensator
 from ftdrake.compensation.files.persistence import load_model, read_manifest, save_model
+from tests.helpers import imu_rows
 
 
 def _imu_rows(n=300, seed=0):
-    """Rows [q, q̇, q̈, f_S, ω_S, α_S] of the 7-joint arm and a wrench a rigid tool gives there."""
-    rng = np.random.default_rng(seed)
-    X = np.hstack([rng.uniform(-1, 1, (n, 21)), rng.normal(0, 3, (n, 3)) + np.array([0, 0, 9.81]),
-                   rng.normal(0, 1, (n, 3)), rng.normal(0, 5, (n, 3))])
-    theta = np.zeros(ImuPayloadCompensator().regressor(X[:1]).shape[2])
-    theta[:10] = [0.8, 0.0, 0.0, 0.04, 0.004, 0.004, 0.002, 0.0, 0.0, 0.0]
-    Y = ImuPayloadCompensator().regressor(X) @ theta + rng.normal(0, 0.02, (n, 6))
-    return X, Y
+    """IMU rows and a rigid tool's wrench there, with noise."""
+    X, Y = imu_rows(n, seed)
+    return X, Y + np.random.default_rng(seed + 1).normal(0, 0.02, Y.shape)
 
 
 def test_the_imu_model_round_trips_and_names_its_imu_inputs(tmp_path):

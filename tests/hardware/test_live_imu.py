@@ -17,20 +17,14 @@ from ftdrake.hardware.messages import (
     encode_temperature,
     encode_wrench,
 )
+from tests.helpers import imu_rows
 
 N = 7
 
 
 def _imu_model():
     """The IMU model fitted to the wrench a rigid 0.8 kg tool gives at random IMU readings."""
-    rng = np.random.default_rng(0)
-    acc = rng.normal(0, 3, (300, 3)) + np.array([0, 0, 9.81])
-    X = np.hstack([rng.uniform(-1, 1, (300, 3 * N)), acc, rng.normal(0, 1, (300, 3)),
-                   rng.normal(0, 5, (300, 3))])
-    theta = np.zeros(ImuPayloadCompensator().regressor(X[:1]).shape[2])
-    theta[:10] = [0.8, 0.0, 0.0, 0.04, 0.004, 0.004, 0.002, 0.0, 0.0, 0.0]
-    Y = ImuPayloadCompensator().regressor(X) @ theta
-    return ImuPayloadCompensator().fit(X, Y)
+    return ImuPayloadCompensator().fit(*imu_rows())
 
 
 def test_the_imu_message_round_trips_and_refuses_other_signals():

@@ -11,6 +11,7 @@ import warnings
 
 import numpy as np
 import pytest
+from pydrake.systems.analysis import Simulator
 
 from ftdrake import CompensationChain
 from ftdrake import conventions as col
@@ -19,9 +20,9 @@ from ftdrake.compensation.estimators.motion_std import MotionStdCompensator
 from ftdrake.config import ScenarioConfig
 from ftdrake.data.dataset import imu_layout
 from ftdrake.errors import ConfigError
+from ftdrake.runtime.step import ChainStep
 from ftdrake.sim.simulate import simulate
 from ftdrake.sim.station import build_station
-from tests.runtime.test_chain_step import assert_equal_outputs, run_both
 
 
 def _config(duration):
@@ -56,6 +57,41 @@ def test_a_station_without_an_imu_refuses_the_model(trained):
     config, model, _ = trained
     with pytest.raises(ConfigError, match=r"scenario\.imu\.enabled"):
         build_station(dc.replace(config, imu=dc.replace(config.imu, enabled=False)), model)
+
+
+def run_both(chain, inputs: dict, period: float):
+    """The chain's outputs per sample (K × size per name) from the diagram, its inputs fixed
+    and advanced one update per sample, and from a ChainStep of the same chain."""
+    simulator = Simulator(chain)
+    context = simulator.get_mutable_context()
+    chain.initialize(context)
+    simulator.Initialize()
+    step = ChainStep(chain, context)
+    fixed = {chain.get_input_port(i).get_name(): chain.get_input_port(i)
+             for i in range(chain.num_input_ports())}
+    fixed = {name: port.FixValue(context, np.atleast_1d(inputs[name][0]))
+             for name, port in fixed.items()}
+    names = [chain.get_output_port(i).get_name() for i in range(chain.num_output_ports())]
+    diagram, stepped = {name: [] for name in names}, {name: [] for name in names}
+    for k in range(len(inputs["wrench_measured"])):
+        for name, value in fixed.items():
+            value.GetMutableData().get_mutable_value().SetFromVector(
+                np.atleast_1d(inputs[name][k]))
+        simulator.AdvanceTo((k + 0.5) * period)
+        out = step.update(k * period, inputs["wrench_measured"][k], inputs["joint_state"][k],
+                          tared=inputs["tared"][k], imu=inputs["imu"][k])
+        for name in names:
+            diagram[name].append(np.array(chain.GetOutputPort(name).Eval(context)))
+            stepped[name].append(out[name].copy())
+    return ({n: np.array(v) for n, v in diagram.items()},
+            {n: np.array(v) for n, v in stepped.items()})
+
+
+def assert_equal_outputs(diagram, stepped):
+    assert sorted(stepped) == sorted(diagram)
+    for name in diagram:
+        np.testing.assert_allclose(stepped[name], diagram[name], rtol=0, atol=1e-12,
+                                   err_msg=name)
 
 
 def _inputs(log, nan_rows=()):

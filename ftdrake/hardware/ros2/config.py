@@ -40,6 +40,9 @@ class Ros2Config:
         inputs (``frame_id``, naming both). "" (the default) accepts any.
       `temperature_topic` (only for a model trained with the sensor temperature):
         ``sensor_msgs/msg/Temperature`` (°C).
+      `imu_topic` (only for a model that takes an IMU at the sensor): ``sensor_msgs/msg/Imu``
+        (proper acceleration m/s², angular velocity rad/s, axes along S), each wrench paired
+        with the message stamped nearest to it within `imu_max_skew_s` (s); none: a fault.
       `tare_topic`, `payload_topic` (optional, for ``chain.bias_tracker``):
         ``std_msgs/msg/Empty``: the sensor was re-zeroed / a payload was grasped or let go.
       `*_qos`: ``reliable`` (rclcpp's default; what ros2_control's broadcasters offer) or

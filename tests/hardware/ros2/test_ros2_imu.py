@@ -6,10 +6,11 @@ import numpy as np
 import pytest
 
 from ftdrake import ConfigError, ScenarioConfig
+from ftdrake.compensation.estimators.imu_physics import ImuPayloadCompensator
 from ftdrake.hardware.ros2.config import Ros2Config
 from ftdrake.hardware.ros2.messages import header, ros2_type
 from ftdrake.hardware.ros2.station import Ros2Station, imu_sample
-from tests.hardware.test_live_imu import _imu_model
+from tests.helpers import imu_rows
 
 NAMES = [f"arm_joint_{k + 1}" for k in range(7)]
 
@@ -31,6 +32,7 @@ def test_a_model_that_needs_an_imu_needs_the_imu_topic():
     scenario = ScenarioConfig()
     scenario.chain.bias_tracker.enabled = False
     with pytest.raises(ConfigError, match=r"ros2\.imu_topic"):
-        Ros2Station(Ros2Config(joint_names=NAMES), _imu_model(), scenario.chain_config())
+        Ros2Station(Ros2Config(joint_names=NAMES), ImuPayloadCompensator().fit(*imu_rows()),
+                    scenario.chain_config())
     with pytest.raises(ConfigError, match=r"ros2\.imu_max_skew_s"):
         Ros2Config(joint_names=NAMES, imu_topic="/imu", imu_max_skew_s=0.0).validate()
