@@ -293,3 +293,19 @@ __all__ = [
     "times",
     "train",
 ]
+
+
+def imu_rows(n: int = 300, seed: int = 0):
+    """(X, Y): rows ``[q, q̇, q̈, f_S, ω_S, α_S]`` of the 7-joint arm at random IMU readings
+    and the wrench a rigid 0.8 kg tool gives there (the IMU model's regressor times its
+    parameters), for fitting an ImuPayloadCompensator without a simulation."""
+    from ftdrake.compensation.estimators.imu_physics import ImuPayloadCompensator
+
+    rng = np.random.default_rng(seed)
+    acc = rng.normal(0, 3, (n, 3)) + np.array([0, 0, 9.81])
+    X = np.hstack([rng.uniform(-1, 1, (n, 21)), acc, rng.normal(0, 1, (n, 3)),
+                   rng.normal(0, 5, (n, 3))])
+    A = ImuPayloadCompensator().regressor(X)
+    theta = np.zeros(A.shape[2])
+    theta[:10] = [0.8, 0.0, 0.0, 0.04, 0.004, 0.004, 0.002, 0.0, 0.0, 0.0]
+    return X, A @ theta

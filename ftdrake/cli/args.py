@@ -316,7 +316,12 @@ class HelpFormatter(argparse.HelpFormatter):
         text = action.help or ""
         choices = self.choices_of(action)
         if choices is not None and len(choices) > self.CHOICES_WIDTH:
-            text = f"{text} ({action.dest.upper()}: {choices.replace('|', ' | ')})".lstrip()
+            note = f"({action.dest.upper()}: {choices.replace('|', ' | ')})"
+            given = text.rfind(" (default: ")  # a default the help spells stays last
+            if given >= 0 and text.endswith(")"):
+                text = f"{text[:given]} {note}{text[given:]}"
+            else:
+                text = f"{text} {note}".lstrip()
         default = action.default
         if isinstance(action, argparse.BooleanOptionalAction) and default is not None:
             return f"{text} (default: {action.option_strings[0 if default else 1]})"

@@ -130,6 +130,9 @@ def register(subparsers) -> None:
     p.add_argument("--out", type=a.output_file, required=True, metavar="MODEL",
                    help="the model file to write (e.g. m.ftd)")
     _add_domain_flags(p)
+    p.add_argument("--motion-std", action="store_true",
+                   help="wrap the model in a std that grows with the motion (‖q̇‖, ‖q̈‖), "
+                        "fitted from its training residuals; not with a domain calibration")
     p.add_argument("--max-rows", type=a.positive_int, metavar="N",
                    help="fit on at most N rows covering the log's states (every k-th row, "
                         "then farthest-point in the model's inputs); reported in the model")
@@ -273,7 +276,8 @@ def train_options(args) -> TrainOptions:
         max_rows=args.max_rows, delay_s=args.delay, align=args.align,
         domain_holdout=args.domain_holdout, domain_calibration=args.domain_calibration,
         domain_shared_growth=args.domain_shared_growth, domain_level=args.domain_level,
-        read=with_flags(ReadOptions(), args), t_start=args.t_start, t_end=args.t_end)
+        read=with_flags(ReadOptions(), args), t_start=args.t_start, t_end=args.t_end,
+        motion_std=args.motion_std)
 
 
 def file_size(n_bytes: int) -> str:

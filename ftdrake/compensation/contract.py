@@ -67,6 +67,7 @@ class LoopView:
     """What the loop reads of one model, resolved once (:func:`loop_view`).
 
     n_joints, features: the layout. needs_temperature: the temperature is an input.
+    needs_imu: the rows continue with an IMU's nine columns (``[f_S, ω_S, α_S]``).
     has_std: the model gives a std. reading_std: that std is of a reading (the χ² test's).
     to_S: None, or T (6 × 6) turning ``measured − predicted`` into S. lo, hi: the training
     range of the inputs the model uses (empty: unknown). payload_map: None (identity) or K
@@ -78,6 +79,7 @@ class LoopView:
     n_joints: int
     features: str
     needs_temperature: bool
+    needs_imu: bool
     has_std: bool
     reading_std: bool
     to_S: np.ndarray | None
@@ -99,12 +101,6 @@ def loop_view(model, n_joints: int | None = None) -> LoopView:
             f"{type(model).__name__} is not a fitted ftdrake compensator: it lacks "
             f"{', '.join(missing)} (the loop contract, ftdrake.compensation.contract."
             "LoopModel; load a model with ftdrake.load_model or fit a compensator first)")
-    if getattr(model, "needs_imu", False):
-        raise ConfigError(
-            f"{type(model).__name__} takes an IMU's columns after [q, qd, qdd], which the "
-            "runtime chain does not feed yet: use it offline (predict on a log with the "
-            "imu_* columns, ftdrake.data.dataset.imu_layout), or fit a "
-            "PhysicsPayloadCompensator for the loop")
     used = check_feature_set(model.features)
     if int(model.n_outputs_) != 6:
         raise ConfigError(f"the model predicts {model.n_outputs_} outputs; a wrench needs 6 "
@@ -117,7 +113,8 @@ def loop_view(model, n_joints: int | None = None) -> LoopView:
     payload_map = model.payload_reading_map()
     return LoopView(
         model=model, n_joints=n, features=model.features,
-        needs_temperature=bool(model.temperature_in_), has_std=bool(model.provides_std),
+        needs_temperature=bool(model.temperature_in_),
+        needs_imu=bool(getattr(model, "needs_imu", False)), has_std=bool(model.provides_std),
         reading_std=bool(model.provides_std and model.std_includes_noise),
         to_S=None if to_S is None else np.ascontiguousarray(to_S, dtype=float),
         lo=lo, hi=hi, payload_map=None if payload_map is None else np.asarray(payload_map),

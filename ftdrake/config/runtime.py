@@ -19,9 +19,14 @@ class CompensatorConfig:
     # same estimate. Lower it for a noisy q̇: the white noise it passes grows about in
     # proportion to the cut-off (docs, Derivations).
     acceleration_cutoff_hz: float = DEFAULT_ACCELERATION_CUTOFF_HZ
+    # Cut-off (Hz) of the same tracker on the IMU's gyroscope that gives the angular
+    # acceleration α of S to a model that takes an IMU (ImuPayloadCompensator): the value its
+    # training log's imu_alpha_* columns were derived with (scenario.imu.alpha_cutoff_hz).
+    imu_alpha_cutoff_hz: float = 5.0
 
     def validate(self, where: str = "compensator") -> None:
         positive(self.acceleration_cutoff_hz, f"{where}.acceleration_cutoff_hz")
+        positive(self.imu_alpha_cutoff_hz, f"{where}.imu_alpha_cutoff_hz")
 
 
 #: The payload inertia's prior std (kg·m², per entry of ΔI_So), consistent with the default

@@ -70,6 +70,9 @@ class HardwareConfig:
     Temperature (only for a model trained with the sensor temperature): ``lcmt_drake_signal``
     with one value in °C (:func:`encode_temperature`) on `temperature_channel`; older than
     `temperature_timeout_s` it faults the inputs like a silent sensor.
+    IMU (only for a model that takes one): ``lcmt_drake_signal`` with six values
+    (:func:`encode_imu`: f_S in m/s², ω_S in rad/s) on `imu_channel`; each F/T sample takes
+    the IMU sample stamped nearest to it within `imu_max_skew_s`, none that close faults it.
     Events (optional; for ``chain.bias_tracker``): an ``lcmt_drake_signal``
     (:func:`encode_event`) on `tare_channel` says the driver re-zeroed the sensor, one on
     `payload_channel` that the gripper took or released a payload (needs ``track_payload``).
@@ -93,6 +96,11 @@ class HardwareConfig:
     # trained with it; "" when the model needs none.
     temperature_channel: str = ""
     temperature_timeout_s: float = 1.0
+    # An IMU at the sensor (lcmt_drake_signal, messages.encode_imu), for a model that takes
+    # one; "" when the model needs none. Each F/T sample takes the IMU sample stamped nearest
+    # to it within imu_max_skew_s (s); none that close faults that sample.
+    imu_channel: str = ""
+    imu_max_skew_s: float = 0.002
     # Event signals for the bias tracker (lcmt_drake_signal; messages.encode_event); "" none.
     tare_channel: str = ""
     payload_channel: str = ""
@@ -151,7 +159,7 @@ class HardwareConfig:
         check_outputs(self.outputs, f"{where}.outputs")
         self._check_channels(where)
         for field in ("sensor_timeout_s", "joint_state_timeout_s", "temperature_timeout_s",
-                      "max_backlog_s", "status_period_s"):
+                      "max_backlog_s", "status_period_s", "imu_max_skew_s"):
             value = getattr(self, field)
             if not (isinstance(value, (int, float)) and value > 0 and math.isfinite(value)):
                 raise ConfigError(f"{where}.{field}: must be a positive number of seconds, "
@@ -180,7 +188,8 @@ class HardwareConfig:
             raise ConfigError(f"{where}.output_prefix: must be a non-empty channel prefix, "
                               "e.g. FT_")
         optional = tuple(f for f in ("velocity_channel", "temperature_channel",
-                                     "tare_channel", "payload_channel") if getattr(self, f))
+                                     "tare_channel", "payload_channel", "imu_channel")
+                         if getattr(self, f))
         fields = {field: getattr(self, field)
                   for field in ("joint_state_channel", "ft_channel", *optional)}
         fields.update({f"output_prefix ({ports})": channel

@@ -47,6 +47,7 @@ from ..offline.recorder import UpdateRecorder, chain_outputs
 from ..runtime.chain import CompensationChain
 from ..runtime.step import ChainStep
 from .live_checks import RateCheck, joint_bounds
+from .live_imu import IMU_VALUES, ImuPairing
 from .live_inputs import StreamMonitor
 from .messages import ContactState
 from .overload import LoadMonitor
@@ -127,7 +128,8 @@ class StationCore:
                  sensor_timeout_s: float, joint_state_timeout_s: float,
                  temperature_timeout_s: float, events=(), clock=time.monotonic,
                  on_event=None, max_events: int = 10_000, on_warning=None, joint_names=None,
-                 max_backlog_s: float = 0.5, pair_tolerance_s: float = 0.0):
+                 max_backlog_s: float = 0.5, pair_tolerance_s: float = 0.0,
+                 imu_max_skew_s: float = 0.002):
         self.n_joints = int(n_joints)
         self._build(model, chain)
         self.period = self.chain.period
@@ -143,6 +145,13 @@ class StationCore:
         if self.chain.needs_temperature:
             self._temperature_in = self.diagram.GetInputPort("temperature").FixValue(
                 self.context, np.full(1, np.nan))
+        # A model that takes an IMU: its samples paired with the F/T stamps (live_imu).
+        self.imu = self._imu_in = None
+        self._imu_values = np.full(IMU_VALUES, np.nan)
+        if self.chain.needs_imu:
+            self.imu = ImuPairing(imu_max_skew_s)
+            self._imu_in = self.diagram.GetInputPort("imu").FixValue(self.context,
+                                                                    self._imu_values)
         self._signals = {name: EventSignal(self.diagram.GetInputPort(name).FixValue(
             self.context, [0.0])) for name in events}
         self._out = {o.port: self.diagram.GetOutputPort(o.port) for o in chain_outputs(self.chain)}
@@ -243,6 +252,11 @@ class StationCore:
         self._note(None)
         self.load.busy(self.clock() - arrival)
 
+    def on_imu_sample(self, sample, arrival: float) -> None:  # noqa: ARG002 (by stamp)
+        """An IMU sample ``(t s, [f_S; ω_S] (6,))`` (None when it failed to decode)."""
+        if self.imu is not None:
+            self.imu.on_imu(sample)
+
     def on_temperature_sample(self, sample, arrival: float) -> None:
         """A temperature sample ``(t s, °C)`` (None when it failed to decode)."""
         self.monitor.on_temperature(sample, arrival)
@@ -271,6 +285,8 @@ class StationCore:
         t = sample.t if sample is not None and np.isfinite(sample.t) else self._stream_time()
         if self.monitor.accepted["ft"] > accepted and self.rate_check.measured_hz is None:
             self.warn(self.rate_check.on_sample(t))
+        if fresh and self.imu is not None:  # NaN when no IMU sample is close: a fault
+            self._imu_values = self.imu.pair(sample.t)
         if fresh:
             if self._step is not None:
                 self._step_chain()
@@ -303,6 +319,8 @@ class StationCore:
         for name, signal in self._signals.items():  # high for one update after its message
             signals[name] = 1.0 if signal.pending else 0.0
             signal.pending = False
+        if self.imu is not None:
+            signals["imu"] = self._imu_values
         self._step.update(self.processed * self.period, m.wrench, m.joint_state,
                           m.temperature, **signals)
 
@@ -314,6 +332,8 @@ class StationCore:
         if self._temperature_in is not None:
             self._temperature_in.GetMutableData().get_mutable_value().SetFromVector(
                 [self.monitor.temperature])
+        if self._imu_in is not None:
+            self._imu_in.GetMutableData().get_mutable_value().SetFromVector(self._imu_values)
         for signal in self._signals.values():  # high for one update after its message
             signal.fixed.GetMutableData().get_mutable_value().SetFromVector(
                 [1.0 if signal.pending else 0.0])

@@ -20,6 +20,10 @@ Units and conventions (one place):
   driver re-zeroed the sensor) or ``PAYLOAD_COORD`` (a payload was grasped or released).
 * Sensor temperature (optional input): ``lcmt_drake_signal`` with one value, °C, named
   ``TEMPERATURE_COORD`` (no Drake message carries a temperature; this one names its value).
+* IMU at the sensor (optional input, for a model that takes one): ``lcmt_drake_signal``
+  with six values named ``IMU_COORDS``: the accelerometer's proper acceleration of So
+  (m/s², +9.81 up at rest) and the gyroscope's ω (rad/s), both in S; ``timestamp`` µs is
+  the sample's stamp (paired with the F/T stamp, :mod:`~ftdrake.hardware.live_imu`).
 
 The ``drake`` message classes are plain lcm-gen Python (struct packing): decoding and
 encoding need no ``lcm`` package; only the transport and log files do.
@@ -43,6 +47,8 @@ from ..conventions import CHAIN_OUTPUTS, OUTPUTS
 
 #: Name of the value in the temperature message (°C).
 TEMPERATURE_COORD = "temperature_c"
+#: Names of the values in the IMU message (:func:`encode_imu`), in order: f_S, then ω_S.
+IMU_COORDS = ("acc_x", "acc_y", "acc_z", "gyro_x", "gyro_y", "gyro_z")
 #: Names of the value in the event messages (:func:`encode_event`): the sensor was re-zeroed
 #: (re-tared), or a payload was grasped or released, at the message's timestamp.
 TARE_COORD = "tared"
@@ -262,6 +268,27 @@ def decode_temperature(data: bytes) -> tuple[float, float]:
     if msg.dim != 1 or list(msg.coord) != [TEMPERATURE_COORD]:
         raise ValueError(f"not a temperature signal: coord {list(msg.coord)}")
     return msg.timestamp * 1e-6, float(msg.val[0])
+
+
+def encode_imu(t: float, acceleration, angular_velocity) -> bytes:
+    """``lcmt_drake_signal`` bytes: an IMU sample at t (s), `acceleration` f_S (3, m/s²) and
+    `angular_velocity` ω_S (3, rad/s), in S."""
+    msg = lcmt_drake_signal()
+    msg.timestamp = _utime(t)
+    msg.dim = len(IMU_COORDS)
+    msg.coord = list(IMU_COORDS)
+    msg.val = [float(v) for v in (*np.ravel(acceleration), *np.ravel(angular_velocity))]
+    if len(msg.val) != msg.dim:
+        raise ValueError("encode_imu: acceleration and angular_velocity take 3 values each")
+    return msg.encode()
+
+
+def decode_imu(data: bytes) -> tuple[float, np.ndarray]:
+    """(t s, [f_S; ω_S] (6,)); ValueError for a signal that is not an IMU sample."""
+    msg = lcmt_drake_signal.decode(data)
+    if msg.dim != len(IMU_COORDS) or tuple(msg.coord) != IMU_COORDS:
+        raise ValueError(f"not an IMU signal: coord {list(msg.coord)}")
+    return msg.timestamp * 1e-6, np.array(msg.val, dtype=float)
 
 
 def encode_event(t: float, name: str) -> bytes:

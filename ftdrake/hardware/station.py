@@ -55,6 +55,7 @@ from .messages import (
     PAYLOAD_COORD,
     TARE_COORD,
     decode_event,
+    decode_imu,
     decode_joint_state,
     decode_temperature,
     decode_wrench,
@@ -96,7 +97,8 @@ class HardwareStation(StationCore):
                          events=tuple(self._coords), clock=clock,
                          on_event=self._on_fault_change, max_events=max_events,
                          on_warning=on_warning, max_backlog_s=config.max_backlog_s,
-                         pair_tolerance_s=config.pair_tolerance_s)
+                         pair_tolerance_s=config.pair_tolerance_s,
+                         imu_max_skew_s=config.imu_max_skew_s)
         self._user_on_event = on_event
         self.status_published = 0
         self._last_status = self.clock()
@@ -119,6 +121,8 @@ class HardwareStation(StationCore):
         self.lcm.subscribe(config.ft_channel, self._on_wrench)
         if self._temperature_in is not None:
             self.lcm.subscribe(config.temperature_channel, self._on_temperature)
+        if self.imu is not None:
+            self.lcm.subscribe(config.imu_channel, self._on_imu)
         for name in self._coords:
             self.lcm.subscribe(getattr(config, _EVENT_FIELDS[name]),
                                functools.partial(self._on_event_signal, name))
@@ -131,6 +135,11 @@ class HardwareStation(StationCore):
             raise ConfigError("hardware.payload_channel: a grasp goes to the bias tracker's "
                               "payload estimate; set chain.bias_tracker.enabled and "
                               "track_payload, or leave the channel empty")
+        if chain.needs_imu and not self.config.imu_channel:
+            raise ConfigError(
+                "hardware.imu_channel: the model takes an IMU at the sensor; name the LCM "
+                "channel that carries it (lcmt_drake_signal, messages.encode_imu: f_S in "
+                "m/s² and ω_S in rad/s, in S)")
         if chain.needs_temperature and not self.config.temperature_channel:
             raise ConfigError(
                 "hardware.temperature_channel: the model was trained with the sensor "
@@ -170,6 +179,9 @@ class HardwareStation(StationCore):
         self._pairer.dropped.clear()
         if joined is not None:
             self.on_joint_sample(joined, arrival)
+
+    def _on_imu(self, data: bytes):
+        self.on_imu_sample(_decoded(decode_imu, data), self.clock())
 
     def _on_temperature(self, data: bytes):
         arrival = self.clock()

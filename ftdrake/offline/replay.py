@@ -102,6 +102,7 @@ class ReplayInputs:
     temperature: np.ndarray | None = None  # (N,) °C
     tared: np.ndarray | None = None  # (N,) > 0.5 for a re-tare's sample
     payload_changed: np.ndarray | None = None  # (N,) > 0.5 for a grasp's sample
+    imu: np.ndarray | None = None  # (N, 6) [imu_acc (m/s²); imu_gyro (rad/s)] in S
 
 
 def replay(model, log, config: ChainConfig | None = None, *, pairing: str = "row",
@@ -134,7 +135,8 @@ def replay(model, log, config: ChainConfig | None = None, *, pairing: str = "row
     config = chain_config_of(frame, config)
     n = int(model.n_joints_)
     inputs = replay_inputs(frame, n, wrench=wrench,
-                           temperature=bool(model.temperature_in_))
+                           temperature=bool(model.temperature_in_),
+                           imu=bool(getattr(model, "needs_imu", False)))
     period = period if period is not None else _period(inputs.t, config)
     gaps = find_gaps(inputs.t, gap_factor)
     parts = []
@@ -210,6 +212,8 @@ def run_chain(chain: CompensationChain, inputs: ReplayInputs) -> dict[str, np.nd
                                    f"the log needs a {col.TEMPERATURE!r} column (°C)")
                 values = np.zeros(len(inputs.t))
             fixed[name] = np.asarray(values, dtype=float).reshape(len(inputs.t), 1)
+    if chain.HasInputPort("imu"):  # replay_inputs checked the columns (IMU_REPLAY)
+        fixed["imu"] = np.asarray(inputs.imu, dtype=float)
     ports = {name: chain.GetInputPort(name).FixValue(context, values[0])
              for name, values in fixed.items()}
     recorder = UpdateRecorder(chain)
@@ -224,8 +228,9 @@ def run_chain(chain: CompensationChain, inputs: ReplayInputs) -> dict[str, np.nd
 
 
 def replay_inputs(frame: pd.DataFrame, n: int, *, wrench: str = col.MEASURED,
-                  temperature: bool = False) -> ReplayInputs:
-    """The chain's inputs from a log DataFrame (see the module docstring for the columns)."""
+                  temperature: bool = False, imu: bool = False) -> ReplayInputs:
+    """The chain's inputs from a log DataFrame (see the module docstring for the columns;
+    with `imu`, a model that takes an IMU: the :data:`IMU_REPLAY` columns too)."""
     needed = {col.TIME: "the sample time in s",
               **{c: "joint positions (rad): the robot's joint-state stream"
                  for c in col.joint_columns(col.Q, n)},
@@ -236,6 +241,9 @@ def replay_inputs(frame: pd.DataFrame, n: int, *, wrench: str = col.MEASURED,
                  for c in col.wrench_columns(wrench)}}
     if temperature:
         needed[col.TEMPERATURE] = "the sensor's temperature (°C): the model was trained with it"
+    if imu:
+        needed.update(dict.fromkeys(IMU_REPLAY, "the IMU at the sensor (m/s², rad/s, in S): "
+                                    "the model takes it (scenario.imu.enabled)"))
     missing = [c for c in needed if c not in frame.columns]
     if missing:
         why = sorted({needed[c] for c in missing})
@@ -257,7 +265,12 @@ def replay_inputs(frame: pd.DataFrame, n: int, *, wrench: str = col.MEASURED,
         temperature=frame[col.TEMPERATURE].to_numpy(dtype=float) if temperature else None,
         tared=frame[TARED].to_numpy(dtype=float) if TARED in frame else None,
         payload_changed=(frame[PAYLOAD_CHANGED].to_numpy(dtype=float)
-                         if PAYLOAD_CHANGED in frame else None))
+                         if PAYLOAD_CHANGED in frame else None),
+        imu=frame[list(IMU_REPLAY)].to_numpy(dtype=float) if imu else None)
+
+
+#: The IMU columns replay feeds the chain's ``imu`` input (α is derived in the chain).
+IMU_REPLAY = (*col.imu_columns(col.IMU_ACC), *col.imu_columns(col.IMU_GYRO))
 
 
 def to_replay_layout(frame: pd.DataFrame, *, positions=None, velocities=None, targets=None,

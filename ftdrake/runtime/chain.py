@@ -57,6 +57,9 @@ class CompensationChain(Diagram):
         the sensor measures in (S, or its own frame Sm when the model identified a mounting).
       joint_state (2n): ``[q; v]`` in rad, rad/s, in the model's joint order.
       temperature (1; only when the model was trained with it): the sensor's temperature, °C.
+      imu (6; only when the model takes an IMU): ``[f_S; ω_S]`` of an IMU at So, axes along
+        S: proper acceleration in m/s², angular velocity in rad/s (α is derived from ω at
+        ``compensator.imu_alpha_cutoff_hz``); NaN for a missing or stale sample (a fault).
       tared (1; with the bias tracker): > 0.5 for a sample when the sensor was re-tared.
       payload_changed (1; with ``track_payload``): > 0.5 when a payload was grasped or let go.
         With ``bias_tracker.payload_change.enabled`` a change nobody signals is detected too.
@@ -127,7 +130,8 @@ class CompensationChain(Diagram):
         builder = DiagramBuilder()
         self.compensator = builder.AddNamedSystem("compensator", CompensatorSystem(
             view, period,
-            acceleration_cutoff_hz=config.compensator.acceleration_cutoff_hz))
+            acceleration_cutoff_hz=config.compensator.acceleration_cutoff_hz,
+            imu_alpha_cutoff_hz=config.compensator.imu_alpha_cutoff_hz))
         self.detector = builder.AddNamedSystem("contact_detector",
                                                ContactDetector(config.detector, period))
         self.tracker = self.gravity = self.delay_line = self.payload_monitor = None
@@ -148,6 +152,8 @@ class CompensationChain(Diagram):
         joint_state = builder.ExportInput(joint_state_in, "joint_state")
         if comp.needs_temperature:
             builder.ExportInput(comp.get_input_port_temperature(), "temperature")
+        if comp.needs_imu:
+            builder.ExportInput(comp.get_input_port_imu(), "imu")
         if self.tracker is not None:
             self._export_tracker_inputs(builder, gravity, joint_state, robot)
 
@@ -168,6 +174,11 @@ class CompensationChain(Diagram):
     def needs_temperature(self) -> bool:
         """Whether the model takes the sensor temperature (the ``temperature`` input exists)."""
         return self.compensator.needs_temperature
+
+    @property
+    def needs_imu(self) -> bool:
+        """Whether the model takes an IMU at the sensor (the ``imu`` input exists)."""
+        return self.compensator.needs_imu
 
     def initialize(self, root_context) -> None:
         """Sets the tracker's starting estimate from ``config.bias_tracker`` (``initial_bias``,
@@ -307,6 +318,9 @@ class CompensationChain(Diagram):
 
     def get_input_port_temperature(self):
         return self.GetInputPort("temperature")
+
+    def get_input_port_imu(self):
+        return self.GetInputPort("imu")
 
     def get_input_port_tared(self):
         return self.GetInputPort("tared")

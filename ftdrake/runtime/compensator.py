@@ -18,7 +18,15 @@ from ..compensation.compiled.loop import (
 from ..compensation.contract import loop_view
 from ..compensation.estimators.base import generic_row_predictor
 from ..errors import ConfigError
-from ..signals import DEFAULT_ACCELERATION_CUTOFF_HZ, acceleration_filter_gains, estimator_size
+from ..signals import (
+    DEFAULT_ACCELERATION_CUTOFF_HZ,
+    acceleration_filter_gains,
+    causal_acceleration_step,
+    estimator_size,
+)
+
+#: The columns an IMU adds to a row after [q, q̇, q̈]: f_S, ω_S, α_S.
+IMU_WIDTH = 9
 
 
 class CompensatorSystem(LeafSystem):
@@ -35,6 +43,13 @@ class CompensatorSystem(LeafSystem):
         (``model.temperature_in_``; ``needs_temperature``), which then requires it: a
         ConfigError names the port at the first sample if it is not connected. A NaN/inf
         temperature is a fault like any other input.
+      imu (6, only for a model that takes an IMU, ``needs_imu``): ``[f_S; ω_S]``, the
+        accelerometer's proper acceleration of So in S (m/s², +9.81 up at rest) and the
+        gyroscope's ω of S in S (rad/s), of an IMU at So with its axes along S. The angular
+        acceleration α of S (rad/s²) is derived here, the causal tracker of q̈ on ω at
+        `imu_alpha_cutoff_hz` (as a log's ``imu_alpha_*`` columns are). Required when the
+        model needs it (a ConfigError names the port); NaN/inf is a fault (a missing or
+        stale IMU sample must be given as NaN, never as the last value).
     Output ports (held between samples; updated every `period` s):
       wrench_internal (6): predicted internal wrench as the sensor reads it, N, N·m (in S,
         or in the sensor's own frame Sm for a model that identified its mounting).
@@ -63,7 +78,7 @@ class CompensatorSystem(LeafSystem):
 
     def __init__(self, model, period: float, *, n_joints: int | None = None,
                  acceleration_cutoff_hz: float = DEFAULT_ACCELERATION_CUTOFF_HZ,
-                 fast: bool = True):
+                 fast: bool = True, imu_alpha_cutoff_hz: float = 5.0):
         super().__init__()
         view = self.view = loop_view(model, n_joints)  # the loop contract, checked once
         if not (period > 0 and math.isfinite(period)):
@@ -73,10 +88,12 @@ class CompensatorSystem(LeafSystem):
         n = self.n = view.n_joints
         #: Whether the model takes the sensor temperature as its last input (°C).
         self.needs_temperature = view.needs_temperature
+        #: Whether the model takes an IMU's columns after [q, q̇, q̈] (the ``imu`` input).
+        self.needs_imu = view.needs_imu
         # The fused update takes the 3n joint row only; a temperature model runs its
         # own row predictor (compiled too, see Compensator.row_predictor).
-        self._fused = (model.fused_loop_update() if fast and not self.needs_temperature
-                       else None)
+        self._fused = (model.fused_loop_update()
+                       if fast and not (self.needs_temperature or self.needs_imu) else None)
         if self._fused is not None:
             self._predict = None
         elif fast:
@@ -90,11 +107,18 @@ class CompensatorSystem(LeafSystem):
         self._constants = np.array([*acceleration_filter_gains(acceleration_cutoff_hz,
                                                                self.period), self.period])
         self._no_acceleration = np.zeros(n)
+        self._imu_constants = (*acceleration_filter_gains(imu_alpha_cutoff_hz, self.period),
+                               self.period)
+        self._alpha = np.zeros(3)
 
         self._wrench_port = self.DeclareVectorInputPort("wrench_measured", 6)
         self._state_port = self.DeclareVectorInputPort("joint_state", 2 * n)
         self._accel_port = self.DeclareVectorInputPort("joint_acceleration", n)
         self._temperature_port = self.DeclareVectorInputPort("temperature", 1)
+        if self.needs_imu:
+            self._imu_port = self.DeclareVectorInputPort("imu", 6)
+            # α's tracker on ω (signals.estimator_size(3)).
+            self._imu_estimator = self.DeclareDiscreteState(estimator_size(3))
         self._nan_wrench = np.full(6, np.nan)
         # The q̈ estimator's state (signals.estimator_size), and copies of the fault and
         # out-of-domain outputs (so the compiled update knows when those change).
@@ -122,6 +146,10 @@ class CompensatorSystem(LeafSystem):
     def get_input_port_temperature(self):
         return self.GetInputPort("temperature")
 
+    def get_input_port_imu(self):
+        """The IMU input ``[f_S; ω_S]`` (6; only for a model that needs an IMU)."""
+        return self.GetInputPort("imu")
+
     def get_output_port_wrench_internal(self):
         return self.GetOutputPort("wrench_internal")
 
@@ -147,27 +175,34 @@ class CompensatorSystem(LeafSystem):
             self._temperature(context) if self.needs_temperature else math.nan,
             state.get_mutable_value(self._estimator), state.get_mutable_value(self._internal),
             state.get_mutable_value(self._external), state.get_mutable_value(self._std),
-            state.get_mutable_value(self._ood), state.get_mutable_value(self._fault))
+            state.get_mutable_value(self._ood), state.get_mutable_value(self._fault),
+            *((self._imu(context), state.get_mutable_value(self._imu_estimator))
+              if self.needs_imu else ()))
 
     def compensate(self, wrench, x, accel, measured, temperature, estimator, internal,
-                   external, std, ood, fault) -> None:
+                   external, std, ood, fault, imu=None, imu_estimator=None) -> None:
         """One sample on plain arrays (what ``_update`` does with the context's): the inputs
         (`accel` used when `measured`; `temperature` °C read only when the model needs it)
         and the state (q̈ estimator with the fault/out-of-domain copies, the five outputs),
-        updated in place. :class:`~ftdrake.runtime.step.ChainStep` calls it too, so the
-        diagram and the step run the same code."""
+        updated in place; `imu` (6) and α's tracker `imu_estimator` only when the model
+        needs an IMU. :class:`~ftdrake.runtime.step.ChainStep` calls it too, so the diagram
+        and the step run the same code."""
         if self._fused is not None:
             update, arrays = self._fused
             status = update(wrench, x, accel, measured, estimator, self._lo, self._hi,
                             self._constants, self._to_S, *arrays, internal, external, std)
         else:
-            row = np.empty(3 * self.n + self.needs_temperature)
+            row = np.empty(3 * self.n + self.needs_temperature + IMU_WIDTH * self.needs_imu)
             if self.needs_temperature:
                 row[-1] = temperature
                 if not math.isfinite(row[-1]):
                     wrench = self._nan_wrench  # a fault: _prepare_row then writes nothing
+            if self.needs_imu and not np.isfinite(imu).all():
+                wrench = self._nan_wrench  # a missing or stale IMU sample: a fault
             status = prepare_row(wrench, x, accel, measured, estimator, row, self._lo,
                                  self._hi, self._constants)
+            if self.needs_imu and not status & FAULT:
+                self._imu_row(imu, imu_estimator, row)
             if not status & FAULT:
                 mean, std_row = self._predict(row)
                 internal[:] = mean
@@ -178,6 +213,23 @@ class CompensatorSystem(LeafSystem):
             fault[0] = float(status & FAULT != 0)
         if status & OOD_CHANGED:
             ood[0] = float(status & OOD != 0)
+
+    def _imu_row(self, imu, imu_estimator, row) -> None:
+        """The IMU's nine columns after the 3n joint ones: f_S, ω_S, and α from α's tracker
+        on ω (updated once per good sample, as the q̈ tracker is)."""
+        n3 = 3 * self.n
+        row[n3:n3 + 6] = imu
+        causal_acceleration_step(np.ascontiguousarray(imu[3:6], dtype=float), imu_estimator,
+                                 *self._imu_constants, self._alpha)
+        row[n3 + 6:n3 + 9] = self._alpha
+
+    def _imu(self, context) -> np.ndarray:
+        if not self._imu_port.HasValue(context):
+            raise ConfigError(
+                f"CompensatorSystem {self.get_name()!r}: the model takes an IMU at the sensor "
+                "([f_S; ω_S], m/s², rad/s, in S), but the 'imu' input port is not connected; "
+                "connect the IMU's reading to it (get_input_port_imu())")
+        return self._imu_port.Eval(context)
 
     def _temperature(self, context) -> float:
         if not self._temperature_port.HasValue(context):

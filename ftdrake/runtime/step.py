@@ -73,6 +73,7 @@ class ChainStep:
         comp, tracker, detector = chain.compensator, chain.tracker, chain.detector
         self.n_joints = comp.n
         self.needs_temperature = comp.needs_temperature
+        self.needs_imu = comp.needs_imu
 
         self._states = []  # (system, discrete state index, the step's array)
 
@@ -86,6 +87,8 @@ class ChainStep:
         self._comp_state = [state(comp, i) for i in (comp._estimator, comp._internal,
                                                      comp._external, comp._std, comp._ood,
                                                      comp._fault)]
+        self._imu_state = (state(comp, comp._imu_estimator),) if self.needs_imu else ()
+        self._imu = np.zeros(6)
         self._no_acceleration = np.zeros(self.n_joints)
         self._wrench = np.zeros(6)
         self._joint_state = np.zeros(2 * self.n_joints)
@@ -150,7 +153,7 @@ class ChainStep:
             system.GetMyMutableContextFromRoot(root_context).SetDiscreteState(index, value)
 
     def update(self, t: float, wrench_measured, joint_state, temperature=None, tared=0.0,
-               payload_changed=0.0, gravity_S=None, motion_S=None) -> dict:
+               payload_changed=0.0, gravity_S=None, motion_S=None, imu=None) -> dict:
         """One update of the chain at time `t` (s, the chain's clock: the diagram's context
         time of that update; the detector is disarmed before ``detector.arm_after_s``).
 
@@ -159,11 +162,18 @@ class ChainStep:
         the model takes it, else not read); `tared`, `payload_changed` (> 0.5 for a signal;
         ignored where the chain has no such input); `gravity_S` (3, m/s², in S) and
         `motion_S` (6) only for a chain built with ``gravity="input"`` and payload tracking
-        (motion_S with ``track_payload_motion``). Returns :attr:`outputs`.
+        (motion_S with ``track_payload_motion``); `imu` (6: ``[f_S; ω_S]``, m/s², rad/s, in
+        S; NaN when missing or stale) required when the model takes an IMU, else not read.
+        Returns :attr:`outputs`.
         """
         if self.needs_temperature and temperature is None:
             raise ConfigError("ChainStep.update: the model was trained with the sensor "
                               "temperature (°C); pass temperature each update")
+        if self.needs_imu:
+            if imu is None:
+                raise ConfigError("ChainStep.update: the model takes an IMU at the sensor; "
+                                  "pass imu = [f_S; ω_S] (6) each update (NaN when missing)")
+            self._imu[:] = imu
         try:
             self._wrench[:] = wrench_measured
             self._joint_state[:] = joint_state
@@ -237,7 +247,8 @@ class ChainStep:
         estimator, internal, external, std, ood, fault = self._comp_state
         self._comp.compensate(wrench, x, self._no_acceleration, False,
                               float(temperature) if self.needs_temperature else math.nan,
-                              estimator, internal, external, std, ood, fault)
+                              estimator, internal, external, std, ood, fault,
+                              *((self._imu, *self._imu_state) if self.needs_imu else ()))
 
 
 def _whole_periods(sample_period: float, period: float) -> int:

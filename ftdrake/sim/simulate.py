@@ -272,11 +272,13 @@ def _add_imu_columns(frame: dict, station: Station, root_context, t, keep) -> No
     ti, values = _log_data(station.loggers.imu, root_context)
     if len(ti) != len(t) or not np.allclose(ti, t):
         raise RuntimeError("logger 'imu' is not sampled with the state logger")
+    values = values[keep]
+    # From the first kept row on, as the loop's chain derives α from the samples it reads.
     alpha = causal_acceleration(values[:, 3:], station.period,
                                 station.config.imu.alpha_cutoff_hz)
     for prefix, block in ((col.IMU_ACC, values[:, :3]), (col.IMU_GYRO, values[:, 3:]),
                           (col.IMU_ALPHA, alpha)):
-        frame.update(zip(col.imu_columns(prefix), block[keep].T, strict=True))
+        frame.update(zip(col.imu_columns(prefix), block.T, strict=True))
 
 
 def _add_sensor_columns(frame: dict, station: Station, root_context, t, keep, series) -> None:

@@ -28,7 +28,13 @@ import dataclasses as dc
 import numpy as np
 from pydrake.multibody.plant import MultibodyPlant
 from pydrake.systems.framework import Diagram, DiagramBuilder
-from pydrake.systems.primitives import Adder, LogVectorOutput, TrajectorySource, VectorLogSink
+from pydrake.systems.primitives import (
+    Adder,
+    LogVectorOutput,
+    TrajectorySource,
+    VectorLogSink,
+    ZeroOrderHold,
+)
 from pydrake.trajectories import PiecewisePolynomial
 
 from ..config import ConfigError, ScenarioConfig
@@ -197,7 +203,11 @@ def build_station(config: ScenarioConfig, compensator=None, *, meshcat=None,
     imu = None
     if config.imu.enabled:
         imu = add_imu(builder, plant, scene.sensor_frame, config.imu, period)
-        loggers.imu = log(imu.get_output_port_imu())
+        # Logged as the loop reads it: sampled at each update time before the discrete
+        # updates (the accelerometer's reading depends on the actuation they change).
+        hold = builder.AddNamedSystem("imu_sample", ZeroOrderHold(period, 6))
+        builder.Connect(imu.get_output_port_imu(), hold.get_input_port())
+        loggers.imu = log(hold.get_output_port())
     feedforward_log = (log(feedforward.get_output_port_status()) if feedforward is not None
                        else None)
     motor_state_log = (log(transmission.get_output_port_motor_state())
@@ -206,7 +216,7 @@ def build_station(config: ScenarioConfig, compensator=None, *, meshcat=None,
     if compensator is not None:
         compensation = _add_compensation(builder, config, compensator, scene, events, period,
                                          noisy.get_output_port_temperature(),
-                                         joint_state)
+                                         joint_state, imu)
         if payload_ff is not None:  # adaptive computed torque: the tracker's payload
             if not compensation.chain.HasOutputPort("payload"):
                 raise ConfigError("controller.adapt_to_payload: the payload comes from the "
@@ -355,9 +365,10 @@ def _add_arrows(builder, meshcat, scene: Scene, events: EventSignals,
 
 
 def _add_compensation(builder, config, model, scene, events: EventSignals, period,
-                      temperature, joint_state) -> Compensation:
-    """The runtime chain in the loop: the sensor's reading and the arm's state in; the
-    tracker's payload regressor from the plant's own kinematics (SensorGravity)."""
+                      temperature, joint_state, imu=None) -> Compensation:
+    """The runtime chain in the loop: the sensor's reading and the arm's state in (and the
+    IMU's reading for a model that takes one); the tracker's payload regressor from the
+    plant's own kinematics (SensorGravity)."""
     plant = scene.plant
     chain = builder.AddNamedSystem("compensation_chain", CompensationChain(
         model, config.chain_config(), period=period, n_joints=plant.num_positions(scene.arm),
@@ -366,6 +377,11 @@ def _add_compensation(builder, config, model, scene, events: EventSignals, perio
     builder.Connect(joint_state, chain.get_input_port_joint_state())
     if chain.needs_temperature:  # a model trained with the sensor temperature (°C)
         builder.Connect(temperature, chain.get_input_port_temperature())
+    if chain.needs_imu:  # a model with its kinematics from an IMU at the sensor
+        if imu is None:
+            raise ConfigError(f"the model ({type(chain.view.model).__name__}) takes an IMU at "
+                              "the sensor: set scenario.imu.enabled: true")
+        builder.Connect(imu.get_output_port_imu(), chain.get_input_port_imu())
     if events.tared is not None and chain.HasInputPort("tared"):
         builder.Connect(events.tared, chain.get_input_port_tared())
     if chain.HasInputPort("gravity_S"):

@@ -75,6 +75,10 @@ class TrainOptions:
       from: ``cross_fit`` (the fit's) or ``held_out`` (the calibration rows too).
     read: how the log is read (:class:`~ftdrake.data.training.ReadOptions`).
     t_start, t_end: keep the rows of this time window (s, on the log's own axis).
+    motion_std: wrap the fitted model in a
+      :class:`~ftdrake.compensation.estimators.motion_std.MotionStdCompensator` (a std that
+      grows with ‖q̇‖ and ‖q̈‖, fitted from its training residuals). Not with a domain
+      calibration.
     """
 
     kind: str | None = None
@@ -101,6 +105,7 @@ class TrainOptions:
     read: ReadOptions = dc.field(default_factory=ReadOptions)
     t_start: float | None = None
     t_end: float | None = None
+    motion_std: bool = False
 
     def __post_init__(self):
         self._check_choices()
@@ -147,6 +152,9 @@ class TrainOptions:
             raise ConfigError(f"{spelled_option('delay_s')} and {spelled_option('align')}: "
                               "give the delay or estimate it, not both")
         domain = self.domain_holdout is not None or self.domain_calibration is not None
+        if self.motion_std and domain:
+            raise ConfigError(f"{spelled_option('motion_std')} and a domain calibration: the "
+                              "std is the motion's or the domain's, not both; leave one out")
         if self.domain_holdout is not None and self.domain_calibration is not None:
             raise ConfigError(f"{spelled_option('domain_holdout')} and "
                               f"{spelled_option('domain_calibration')}: calibrate on held-out "

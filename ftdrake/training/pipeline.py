@@ -25,6 +25,7 @@ from ..compensation.estimators.build import BUILTIN_ROBOT, RobotOptions, is_wren
 from ..compensation.estimators.domain import MIN_GROUPS
 from ..compensation.estimators.domain_calibrated import DomainCalibratedHybrid
 from ..compensation.estimators.hybrid import HybridCompensator
+from ..compensation.estimators.motion_std import MotionStdCompensator
 from ..compensation.estimators.robot_file import check_robot_frames
 from ..compensation.estimators.tuning import segment_groups, tune
 from ..compensation.features import check_feature_set
@@ -35,6 +36,7 @@ from ..data.subsample import OVERSAMPLE, covering_rows
 from ..data.training import IN_MEMORY, TrainingData, load_training_data
 from ..errors import ConfigError, FtdrakeError, LogError, RobotModelError
 from ..parallel import dask_backend
+from .imu_rows import with_imu_columns
 from .notes import kept_rows, residual_gain, residual_gain_text
 from .options import TrainOptions, spelled_option
 from .provenance import provenance
@@ -96,6 +98,8 @@ def train(data, options: TrainOptions | None = None, *, progress: Say | None = N
     source = data
     data = _read(source, options, say, warn)
     kind, estimator = _estimator(options, data, say)
+    if getattr(estimator, "needs_imu", False):
+        data = with_imu_columns(source, data, options.read.time, options.read.group)
     units = options.units_for(data.target_names) or default_units(data.target_names)
     data, stream_delay = _align_streams(options, kind, data, estimator, say)
     data, subsample = _subsample(options, data, estimator, say)
@@ -103,6 +107,8 @@ def train(data, options: TrainOptions | None = None, *, progress: Say | None = N
     model, search = _tune_or_fit(options, kind, estimator, data, delay, say,
                                  bar=progress is not None)
     model, domain = _domain_calibration(options, model, data, say, warn)
+    if options.motion_std:
+        model = _with_motion_std(model, data, delay, say)
     gain = _report(model, data, say)
     extra = provenance(_source_name(source, data), data, model, search, kind=kind,
                        time_window=(options.t_start, options.t_end), dask=options.cluster)
@@ -135,6 +141,13 @@ def _estimator(options: TrainOptions, data: TrainingData, say: Say):
         if getattr(options, name) is not None:
             _needs_hybrid(estimator, name)
     return kind, estimator
+
+
+def _with_motion_std(model, data: TrainingData, delay, say: Say):
+    """The fitted `model`'s kind and parameters refitted inside a std of the motion."""
+    say(f"fitting a std of the motion (‖q̇‖, ‖q̈‖) on the residuals of {len(data.X)} rows …")
+    wrapped = MotionStdCompensator(clone(model))
+    return wrapped.fit(data.X, data.Y, **({} if delay is None else {"wrench_delay_s": delay}))
 
 
 def _domain_calibration(options: TrainOptions, model, data: TrainingData, say: Say,

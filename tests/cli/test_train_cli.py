@@ -239,10 +239,12 @@ def test_physics_needs_a_wrench_and_a_robot(ftdrake, tmp_path):
     assert "needs --robot" in line
     line = failure(ftdrake, "train", "--data", csv, *TORQUES, "--kind", "rf",
                    "--identify-mounting", "--out", tmp_path / "m.ftd")
-    assert "--identify-mounting is for --kind physics or hybrid on a wrench" in line
+    assert ("--identify-mounting is for --kind physics, hybrid or imu-physics on a wrench"
+                in line)
     line = failure(ftdrake, "train", "--data", csv, *TORQUES, "--kind", "rf",
                    "--weight-without-inertia", "--out", tmp_path / "m.ftd")
-    assert "--weight-without-inertia is for --kind physics or hybrid on a wrench" in line
+    assert ("--weight-without-inertia is for --kind physics, hybrid or imu-physics on a "
+            "wrench") in line
     # On joint torques the payload's options are refused, not dropped.
     for option in (("--identify-crosstalk",), ("--tether", "auto")):
         line = failure(ftdrake, "train", "--data", csv, *TORQUES, "--kind", "physics",

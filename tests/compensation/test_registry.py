@@ -77,7 +77,7 @@ def data():
 
 def test_every_shipped_compensator_is_registered_once_with_a_distinct_class():
     classes = [e.cls for e in registry.REGISTRY.values()]
-    assert registry.names() == ["rf", "svr", "gpr", "physics", "hybrid", "arm"]
+    assert registry.names() == ["rf", "svr", "gpr", "physics", "hybrid", "arm", "imu-physics"]
     assert len(set(classes)) == len(classes)
     for e in registry.REGISTRY.values():
         assert registry.entry_for(e.cls) is e and registry.entry(e.name) is e
@@ -141,8 +141,8 @@ def test_register_adds_an_entry_once(monkeypatch):
 
 
 def test_options_a_model_does_not_take_are_refused_naming_those_that_do():
-    with pytest.raises(ConfigError, match=r"^identify_mounting is for kind physics or "
-                                          r"hybrid on a wrench"):
+    with pytest.raises(ConfigError, match=r"^identify_mounting is for kind physics, hybrid or "
+                                          r"imu-physics on a wrench"):
         make_estimator("rf", options={"identify_mounting": True})
     with pytest.raises(ConfigError, match=r"^drive_gains is for kind physics, hybrid or "
                                           "arm on joint torques"):

@@ -23,7 +23,8 @@ pose.
 Input layout: ``X = [q, q̇, q̈, f_S (3), ω_S (3), α_S (3)]``, N × (3n + 9), the IMU columns in
 the order of :data:`ftdrake.conventions.IMU_INPUTS`. No temperature column (refused), mode
 "dynamic" only. The row path goes through ``predict`` (no compiled kernel and no fused loop
-update: the runtime chain does not feed an IMU yet).
+update). In the runtime chain the ``imu`` input (``[f_S, ω_S]``) feeds the IMU columns, α
+derived there from ω (:class:`~ftdrake.runtime.compensator.CompensatorSystem`).
 """
 
 from __future__ import annotations
@@ -52,7 +53,7 @@ class ImuPayloadCompensator(PhysicsPayloadCompensator):
     ω of S in S (rad/s) and α of S in S (rad/s²). Fitted attributes: the physics model's.
     """
 
-    #: Its X carries an IMU's nine columns (the loop contract refuses it: no chain feeds them).
+    #: Its X carries an IMU's nine columns (the chain's ``imu`` input feeds them).
     needs_imu = True
 
     def fit(self, X, y, *, wrench_delay_s: float | None = None):

@@ -151,6 +151,12 @@ class MotionStdCompensator(BaseEstimator):
         self.cv = cv
 
     @property
+    def needs_imu(self) -> bool:
+        """Whether the wrapped compensator's rows carry an IMU's nine columns."""
+        inner = getattr(self, "estimator_", self.estimator)
+        return bool(getattr(inner, "needs_imu", False))
+
+    @property
     def features(self) -> str:
         """The wrapped compensator's feature set."""
         inner = getattr(self, "estimator_", self.estimator)
@@ -171,7 +177,8 @@ class MotionStdCompensator(BaseEstimator):
             predicted = self.estimator_.predict(X)
         residual = Y.reshape(len(Y), -1) - np.asarray(predicted).reshape(len(Y), -1)
         noise = MotionNoiseModel() if self.noise is None else clone(self.noise)
-        self.noise_ = noise.fit(X, residual)
+        # The motion is the joints' [q, q̇, q̈]: an IMU model's nine columns after them are not.
+        self.noise_ = noise.fit(X[:, :3 * self.estimator_.n_joints_], residual)
         for name in ("n_joints_", "n_outputs_", "temperature_in_", "wrench_delay_s_",
                      "input_min_", "input_max_"):
             setattr(self, name, getattr(self.estimator_, name))

@@ -24,15 +24,18 @@ from .build import BuildRequest, RobotOptions, TrainOption, is_wrench, wrench_on
 from .forest import RandomForestCompensator
 from .gpr import GPRCompensator
 from .hybrid import HybridCompensator
+from .imu_physics import ImuPayloadCompensator
 from .physics import PhysicsPayloadCompensator
 from .robot_based import (
     ARM_DEFAULTS,
     DRIVE_GAINS,
     HYBRID_DEFAULTS,
+    IMU_PAYLOAD_OPTIONS,
     PAYLOAD_OPTIONS,
     PHYSICS_DEFAULTS,
     make_arm_entry,
     make_hybrid,
+    make_imu_physics,
     make_physics,
 )
 from .svr import SVRCompensator
@@ -127,6 +130,12 @@ REGISTRY: dict[str, CompensatorEntry] = {e.name: e for e in (
                      "joint torques: the arm's rigid-body dynamics + friction, physically "
                      "consistent", ARM_DEFAULTS, needs_robot=True, make=make_arm_entry,
                      train_options=(DRIVE_GAINS,)),
+    CompensatorEntry("imu-physics", ImuPayloadCompensator,
+                     "the physics payload model with ω, α and a − g from an IMU at the sensor "
+                     "(the log's imu_* columns)",
+                     {**PHYSICS_DEFAULTS, "features": "q,qd,qdd", "mode": "dynamic"},
+                     needs_robot=True, wrench_only=True, trusted_types=_PHYSICS_TYPES,
+                     make=make_imu_physics, train_options=IMU_PAYLOAD_OPTIONS),
 )}
 #: The model ``train`` fits when none is named: with a robot description, the hybrid
 #: (physics extrapolates where a black box cannot); without one, the random forest.
@@ -141,6 +150,9 @@ COMMON_TRUSTED_TYPES: tuple[str, ...] = (
     # scikit-learn's tree node storage. sklearn follows its node indices without bounds
     # checks, so every loaded tree is checked before the model is returned.
     "sklearn.tree._tree.Tree",
+    # A std that grows with the motion, around any of the above (train --motion-std).
+    "ftdrake.compensation.estimators.motion_std.MotionStdCompensator",
+    "ftdrake.compensation.estimators.motion_std.MotionNoiseModel",
 )
 
 

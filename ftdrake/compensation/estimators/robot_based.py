@@ -25,6 +25,7 @@ from .build import (
     wrench_only_error,
 )
 from .hybrid import HybridCompensator, default_residual, joint_torque_residual
+from .imu_physics import ImuPayloadCompensator
 from .physics import PhysicsPayloadCompensator
 
 #: ``train``'s arguments of each (the registry's defaults).
@@ -66,6 +67,8 @@ TETHER = TrainOption(
 PAYLOAD_OPTIONS = (DRIVE_GAINS, IDENTIFY_MOUNTING, IDENTIFY_CROSSTALK, WEIGHT_WITHOUT_INERTIA,
                    TETHER)
 _PAYLOAD_KINDS = ("physics", "hybrid")
+#: The IMU model's options: the payload's (it is on a wrench only: no drive gains).
+IMU_PAYLOAD_OPTIONS = tuple(o for o in PAYLOAD_OPTIONS if o is not DRIVE_GAINS)
 
 
 def make_physics(request: BuildRequest):
@@ -76,6 +79,20 @@ def make_physics(request: BuildRequest):
     if not is_wrench(request.target_names):
         raise wrench_only_error(request.kind, request.target_names)
     return payload_model(request, request.features or "q,qd,qdd")
+
+
+def make_imu_physics(request: BuildRequest):
+    """The payload model with its kinematics from an IMU at the sensor (dynamic, on a
+    wrench; :class:`~.imu_physics.ImuPayloadCompensator`), with the payload options and robot
+    of :func:`make_physics`."""
+    if not is_wrench(request.target_names):
+        raise wrench_only_error(request.kind, request.target_names)
+    if request.features not in (None, "q,qd,qdd"):
+        raise ConfigError(f"{option_name('kind')} imu-physics takes "
+                          f"{option_name('features')} q,qd,qdd (it is the dynamic model; "
+                          "the IMU gives its motion terms)")
+    physics = payload_model(request, "q,qd,qdd")
+    return ImuPayloadCompensator(**physics.get_params(deep=False))
 
 
 def make_hybrid(request: BuildRequest):

@@ -37,12 +37,13 @@ import skops.io as sio
 from sklearn.base import BaseEstimator
 from sklearn.utils.validation import check_is_fitted
 
-from ...conventions import TEMPERATURE, WRENCH_AXES, WRENCH_UNITS
+from ...conventions import IMU_INPUTS, TEMPERATURE, WRENCH_AXES, WRENCH_UNITS
 from ...errors import ConfigError, ModelFileError, RobotModelError
 from ...io import atomic_write_bytes
 from ...version import ftdrake_version
 from ..estimators.base import Compensator
 from ..estimators.build import is_wrench
+from ..estimators.motion_std import MotionStdCompensator
 from ..estimators.registry import trusted_types
 from ..estimators.robot_file import CarriesRobot, file_name_only
 from ..features import feature_names
@@ -56,6 +57,8 @@ MAGIC = b"FTDRAKE-MODEL\n"
 FORMAT_VERSION = 3
 READABLE_VERSIONS = (2, 3)
 _DIGEST = 32  # bytes of SHA-256
+#: What a model file holds: a compensator, or one with a std of the motion around it.
+SAVABLE = (Compensator, MotionStdCompensator)
 
 
 
@@ -112,7 +115,7 @@ def _default_targets(model, target_names, target_units) -> tuple[list, list]:
 
 
 def _manifest(model, target_names, target_units, sensor_frame, extra) -> dict:
-    if not isinstance(model, Compensator):
+    if not isinstance(model, SAVABLE):
         raise TypeError(f"expected a Compensator; got {type(model).__name__}")
     check_is_fitted(model)
     if _qualified_name(type(model)) not in trusted_types():
@@ -126,6 +129,8 @@ def _manifest(model, target_names, target_units, sensor_frame, extra) -> dict:
             f"{len(target_units)} target units"
         )
     inputs = feature_names("q,qd,qdd", model.n_joints_)
+    if getattr(model, "needs_imu", False):
+        inputs.extend(IMU_INPUTS)  # after [q, q̇, q̈]: the IMU model's nine columns
     if getattr(model, "temperature_in_", False):
         inputs.append(TEMPERATURE)  # X's last column, °C: its range is kept like the others'
     manifest = {
@@ -196,7 +201,9 @@ def load_model(path, *, expect_n_joints: int | None = None, expect_features: str
 
 def _robot_parts(model) -> list:
     """The parts of `model` built on a robot (a hybrid's physics part, or the model)."""
-    return [part for part in (model, getattr(model, "physics_", None))
+    inner = getattr(model, "estimator_", None)  # a MotionStdCompensator's mean
+    return [part for part in (model, getattr(model, "physics_", None), inner,
+                              getattr(inner, "physics_", None))
             if isinstance(part, CarriesRobot)]
 
 
@@ -311,7 +318,8 @@ def _check_expectations(manifest, path, expect_n_joints, expect_features) -> Non
 def _check_model(model, manifest: dict, path) -> None:
     """The rebuilt object is the model the manifest describes, and its trees are sound."""
     name = _qualified_name(type(model))
-    if name != current_name(str(manifest.get("model_class"))) or not isinstance(model, Compensator):
+    if (name != current_name(str(manifest.get("model_class")))
+            or not isinstance(model, SAVABLE)):
         raise ModelFileError(
             f"{path}: payload holds {name}, manifest says {manifest.get('model_class')}"
         )

@@ -41,6 +41,9 @@ class Ros2Config:
         inputs (``frame_id``, naming both). "" (the default) accepts any.
       `temperature_topic` (only for a model trained with the sensor temperature):
         ``sensor_msgs/msg/Temperature`` (°C).
+      `imu_topic` (only for a model that takes an IMU at the sensor): ``sensor_msgs/msg/Imu``
+        (proper acceleration m/s², angular velocity rad/s, axes along S), each wrench paired
+        with the message stamped nearest to it within `imu_max_skew_s` (s); none: a fault.
       `tare_topic`, `payload_topic` (optional, for ``chain.bias_tracker``):
         ``std_msgs/msg/Empty``: the sensor was re-zeroed / a payload was grasped or let go.
       `*_qos`: ``reliable`` (rclcpp's default; what ros2_control's broadcasters offer) or
@@ -95,6 +98,12 @@ class Ros2Config:
     wrench_frame_id: str = ""
     temperature_topic: str = ""
     temperature_timeout_s: float = 1.0
+    # A model that takes an IMU at the sensor: its sensor_msgs/msg/Imu topic (linear
+    # acceleration: proper acceleration, m/s², REP 145; angular velocity, rad/s; both in S),
+    # each wrench paired with the IMU message stamped nearest to it within imu_max_skew_s.
+    # "" (off) unless the model needs it.
+    imu_topic: str = ""
+    imu_max_skew_s: float = 0.002
     tare_topic: str = ""
     payload_topic: str = ""
     output_namespace: str = "/ftdrake"
@@ -145,8 +154,8 @@ class Ros2Config:
             raise ConfigError(f"{where}.joint_names: {names} names a joint twice")
 
     def _check_topics(self, where: str) -> None:
-        optional = [f for f in ("temperature_topic", "tare_topic", "payload_topic")
-                    if getattr(self, f)]
+        optional = [f for f in ("temperature_topic", "tare_topic", "payload_topic",
+                                "imu_topic") if getattr(self, f)]
         topics = {field: getattr(self, field) for field in (
             "joint_state_topic", "wrench_topic", "diagnostics_topic", *optional)}
         for name in OUTPUTS:
@@ -165,7 +174,7 @@ class Ros2Config:
 
     def _check_numbers(self, where: str) -> None:
         for field in ("sensor_timeout_s", "joint_state_timeout_s", "temperature_timeout_s",
-                      "diagnostics_period_s", "max_backlog_s"):
+                      "diagnostics_period_s", "max_backlog_s", "imu_max_skew_s"):
             value = getattr(self, field)
             if not (isinstance(value, (int, float)) and value > 0 and math.isfinite(value)):
                 raise ConfigError(f"{where}.{field}: must be a positive number of seconds, "

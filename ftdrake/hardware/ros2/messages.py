@@ -25,6 +25,7 @@ TYPES = (
     "sensor_msgs/msg/JointState",
     "geometry_msgs/msg/WrenchStamped",
     "sensor_msgs/msg/Temperature",
+    "sensor_msgs/msg/Imu",
     "std_msgs/msg/Bool",
     "std_msgs/msg/Empty",
     "std_msgs/msg/Float64",

@@ -97,7 +97,8 @@ class Ros2Station(StationCore):
                          temperature_timeout_s=c.temperature_timeout_s, events=events,
                          clock=clock, on_event=self._on_fault_change, max_events=max_events,
                          on_warning=self._on_warning, joint_names=c.joint_names,
-                         max_backlog_s=c.max_backlog_s, pair_tolerance_s=c.pair_tolerance_s)
+                         max_backlog_s=c.max_backlog_s, pair_tolerance_s=c.pair_tolerance_s,
+                         imu_max_skew_s=c.imu_max_skew_s)
         self.node = node if node is not None else Ros2Node(
             c.domain_id, c.dds_config, clock=clock, reorder_window_s=c.reorder_window_s)
         self._index = {name: k for k, name in enumerate(c.joint_names)}
@@ -132,6 +133,9 @@ class Ros2Station(StationCore):
         if self._temperature_in is not None:
             self.node.subscribe(c.temperature_topic, "sensor_msgs/msg/Temperature",
                                 self._on_temperature, c.wrench_qos, depth)
+        if self.imu is not None:
+            self.node.subscribe(c.imu_topic, "sensor_msgs/msg/Imu", self._on_imu,
+                                c.wrench_qos, depth)
         for name, topic in (("tared", c.tare_topic), ("payload_changed", c.payload_topic)):
             if topic:
                 self.node.subscribe(topic, "std_msgs/msg/Empty",
@@ -160,6 +164,9 @@ class Ros2Station(StationCore):
             raise ConfigError("ros2.payload_topic: a grasp goes to the bias tracker's payload "
                               "estimate; set chain.bias_tracker.enabled and track_payload, "
                               "or leave the topic empty")
+        if chain.needs_imu and not c.imu_topic:
+            raise ConfigError("ros2.imu_topic: the model takes an IMU at the sensor; name the "
+                              "sensor_msgs/msg/Imu topic (axes along the sensor frame S)")
         if chain.needs_temperature and not c.temperature_topic:
             raise ConfigError("ros2.temperature_topic: the model was trained with the sensor "
                               "temperature; name the sensor_msgs/msg/Temperature topic (°C)")
@@ -208,6 +215,9 @@ class Ros2Station(StationCore):
             "the model was trained in ('' accepts any)"))
         self.on_wrench_sample(WrenchSample(from_stamp(msg.header.stamp),
                                            np.array(wrench_of(msg), float)), arrival, problem)
+
+    def _on_imu(self, msg, arrival: float) -> None:
+        self.on_imu_sample(imu_sample(msg), arrival)
 
     def _on_temperature(self, msg, arrival: float) -> None:
         self.on_temperature_sample((from_stamp(msg.header.stamp), msg.temperature), arrival)
@@ -343,3 +353,11 @@ class Ros2Station(StationCore):
             self._last_diagnostics, self._last_received = now, dict(received)
             self.publish_diagnostics()
         return handled
+
+
+def imu_sample(msg) -> tuple[float, np.ndarray]:
+    """``(t s, [f_S; ω_S] (6,))`` of a ``sensor_msgs/msg/Imu``: its stamp, linear acceleration
+    (m/s², proper acceleration: +9.81 up at rest, REP 145) and angular velocity (rad/s), read
+    as in S (the IMU's axes along the sensor's)."""
+    a, w = msg.linear_acceleration, msg.angular_velocity
+    return from_stamp(msg.header.stamp), np.array([a.x, a.y, a.z, w.x, w.y, w.z], dtype=float)

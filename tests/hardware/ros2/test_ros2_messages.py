@@ -80,6 +80,13 @@ SAMPLES = {
     ],
     "sensor_msgs/msg/Temperature": [
         {"header": header(5, 6, "ft_sensor"), "temperature": 31.25, "variance": 0.0}],
+    "sensor_msgs/msg/Imu": [
+        {"header": header(9, 10, "ft_sensor"),
+         "orientation": {"x": 0.0, "y": 0.0, "z": 0.0, "w": 1.0},
+         "orientation_covariance": [-1.0] + [0.0] * 8,
+         "angular_velocity": vec(0.1, -0.2, 0.3), "angular_velocity_covariance": [0.0] * 9,
+         "linear_acceleration": vec(0.5, -1.0, 9.81),
+         "linear_acceleration_covariance": [1e-4] * 9}],
     "std_msgs/msg/Bool": [{"data": True}, {"data": False}],
     "std_msgs/msg/Empty": [{"structure_needs_at_least_one_member": 0}],
     "std_msgs/msg/Float64": [{"data": 17.5}, {"data": -0.0}],

@@ -1,0 +1,77 @@
+"""The IMU stream of a live station, for a model that takes an IMU at the sensor.
+
+Each accepted IMU sample ``(t s, [f_S (m/s²); ω_S (rad/s)])`` is kept in a short history;
+the F/T sample stamped t is paired with the IMU sample stamped nearest to t, within
+``max_skew_s``, as the joint state is paired by stamp. When none is that close (the IMU is
+late, silent or its stamps drift), the pair is NaN: the chain's compensator then faults
+for that sample (its outputs hold their last good values), so a stale IMU reading is never
+passed on as a fresh one. A malformed, non-finite or out-of-order IMU message is rejected
+and counted.
+"""
+
+from __future__ import annotations
+
+import collections
+
+import numpy as np
+
+#: Values per IMU sample: the accelerometer's f_S (3, m/s²), then the gyroscope's ω_S (3,
+#: rad/s), both in S (the chain's ``imu`` input).
+IMU_VALUES = 6
+
+
+class ImuPairing:
+    """IMU samples by stamp, paired with F/T stamps (module docstring).
+
+    `max_skew_s`: the largest |t_imu − t_ft| (s) of a pair. `history`: samples kept.
+    Counters: ``accepted``, ``rejected`` (reason → count), ``unpaired`` (F/T samples that
+    found no IMU sample close enough).
+    """
+
+    def __init__(self, max_skew_s: float, history: int = 64):
+        if not (max_skew_s > 0 and np.isfinite(max_skew_s)):
+            raise ValueError(f"max_skew_s must be a positive number of seconds; got "
+                             f"{max_skew_s!r}")
+        self.max_skew_s = float(max_skew_s)
+        self._samples: collections.deque = collections.deque(maxlen=int(history))
+        self._missing = np.full(IMU_VALUES, np.nan)
+        self.accepted = 0
+        self.unpaired = 0
+        self.rejected: collections.Counter = collections.Counter()
+        self.detail = ""  # why the last pairing failed
+
+    def on_imu(self, sample) -> bool:
+        """One IMU message ``(t, values (6,))`` (None when it failed to decode)."""
+        if sample is None:
+            self.rejected["malformed"] += 1
+            return False
+        t, values = sample
+        values = np.asarray(values, dtype=float)
+        if values.shape != (IMU_VALUES,):
+            self.rejected["malformed"] += 1
+            return False
+        if not (np.isfinite(t) and np.isfinite(values).all()):
+            self.rejected["not_finite"] += 1
+            return False
+        if self._samples and t <= self._samples[-1][0]:
+            self.rejected["out_of_order"] += 1
+            return False
+        self._samples.append((float(t), values))
+        self.accepted += 1
+        return True
+
+    def pair(self, t: float) -> np.ndarray:
+        """The IMU values stamped nearest to `t` (s) within ``max_skew_s``; NaN (6) when
+        there is none (``unpaired`` counts it, ``detail`` says why)."""
+        if not self._samples:
+            self.unpaired += 1
+            self.detail = "no IMU sample received yet (the model needs one)"
+            return self._missing
+        nearest_t, nearest = min(self._samples, key=lambda item: abs(item[0] - t))
+        if abs(nearest_t - t) <= self.max_skew_s:
+            return nearest
+        self.unpaired += 1
+        self.detail = (f"no IMU sample stamped within {self.max_skew_s * 1e3:g} ms of the F/T "
+                       f"sample at {t:.6f} s (nearest {(nearest_t - t) * 1e3:+.1f} ms): the "
+                       "wrench is not compensated")
+        return self._missing
