@@ -45,7 +45,7 @@ from pydrake.systems.analysis import Simulator
 from ..config import ChainConfig
 from ..offline.recorder import UpdateRecorder, chain_outputs
 from ..runtime.chain import CompensationChain
-from ..runtime.step import ChainStep
+from ..runtime.step import ChainStep, bridge_acceleration
 from .live_checks import RateCheck, joint_bounds
 from .live_imu import IMU_VALUES, ImuPairing
 from .live_inputs import StreamMonitor
@@ -55,7 +55,10 @@ from .overload import LoadMonitor
 #: After messages were dropped (overload), the chain runs this long (s of samples) on the
 #: messages that follow before its results are published again: its velocity and
 #: acceleration filters and the detector's window saw a gap (the contact state says fault
-#: meanwhile; nothing is judged).
+#: meanwhile; nothing is judged). Meanwhile the bias tracker and the payload monitor learn
+#: nothing and the detector is held released (ChainStep's ``hold``), and the q̈ estimates
+#: start across any gap of the F/T stamps from the mean acceleration over it
+#: (``ChainStep.bridge_gap``), so that no transient of the gap outlasts the window.
 SETTLE_AFTER_DROP_S = 0.1
 
 
@@ -167,6 +170,7 @@ class StationCore:
             joint_check=self.joint_bounds.check, pair_tolerance_s=pair_tolerance_s)
         self.rate_check = RateCheck(1.0 / self.period)
         self._settling = 0  # updates left whose results are not published (after drops)
+        self._last_t = None  # the stamp of the last F/T sample run through the chain
         self.load = LoadMonitor(self.period, max_backlog_s)
         self.warnings: list[str] = []
         self.on_warning = on_warning
@@ -287,33 +291,38 @@ class StationCore:
             self.warn(self.rate_check.on_sample(t))
         if fresh and self.imu is not None:  # NaN when no IMU sample is close: a fault
             self._imu_values = self.imu.pair(sample.t)
+        settling = False
         if fresh:
+            settling = self._settling > 0
+            self._settling -= settling
             if self._step is not None:
-                self._step_chain()
+                self._step_chain(t, settling)
             else:
-                self._advance_diagram()
+                self._advance_diagram(t)
             self.processed += 1
             if self.recorder is not None:
                 self.recorder.record_values(
                     {name: self.output(name) for name in self.recorder.ports}, t,
                     self.monitor.joint_state, self.monitor.wrench,
                     self.monitor.temperature if self._temperature_in is not None else None)
-            settling = self._settling > 0
-            self._settling -= settling
             if self.value("fault")[0] <= 0.5 and not settling:
                 self._publish_wrench(t)
                 self.latencies.append(self.clock() - arrival)
                 self.published += 1
-        else:
-            settling = False
         self.contact_published += bool(self._publish_contact(t, self.monitor.fault or settling))
         self._note(t)
         self.load.busy(self.clock() - arrival)
         if fresh:
             self.load.processed()
 
-    def _step_chain(self) -> None:
-        """One update of the chain by the ChainStep, from the monitor's held inputs."""
+    def _step_chain(self, t: float, settling: bool) -> None:
+        """One update of the chain by the ChainStep, from the monitor's held inputs, for the
+        F/T sample stamped `t`: across a gap of the stamps (samples lost or dropped) its q̈
+        estimates are bridged; while `settling` (after drops) it holds what learns or
+        judges (SETTLE_AFTER_DROP_S)."""
+        gap = self._gap(t)
+        if gap is not None:
+            self._step.bridge_gap(gap)
         m = self.monitor
         signals = {}
         for name, signal in self._signals.items():  # high for one update after its message
@@ -322,11 +331,28 @@ class StationCore:
         if self.imu is not None:
             signals["imu"] = self._imu_values
         self._step.update(self.processed * self.period, m.wrench, m.joint_state,
-                          m.temperature, **signals)
+                          m.temperature, hold=settling, **signals)
 
-    def _advance_diagram(self) -> None:
+    def _gap(self, t: float) -> float | None:
+        """The gap (s) of the F/T stamps before sample `t` run through the chain, None for
+        none (within 1.5 periods); remembers `t`."""
+        last, self._last_t = self._last_t, t
+        return t - last if last is not None and t - last > 1.5 * self.period else None
+
+    def _advance_diagram(self, t: float) -> None:
         """One update of the chain by the Drake diagram: inputs fixed, the Simulator advanced
-        past the next periodic update (the module docstring)."""
+        past the next periodic update (the module docstring); across a gap of the stamps its
+        q̈ estimators bridged as the step's (the settle window's hold is the step's only)."""
+        gap = self._gap(t)
+        if gap is not None:
+            v = self.monitor.joint_state[self.n_joints:]
+            systems = [self.compensator]
+            if self.tracker is not None and self.chain.gravity is not None:
+                systems.append(self.chain.gravity)
+            for system in systems:
+                state = system.GetMyMutableContextFromRoot(self.context).get_mutable_discrete_state(
+                    system._estimator)
+                bridge_acceleration(state.get_mutable_value(), v, gap, self.period)
         self._wrench_in.GetMutableData().get_mutable_value().SetFromVector(self.monitor.wrench)
         self._state_in.GetMutableData().get_mutable_value().SetFromVector(self.monitor.joint_state)
         if self._temperature_in is not None:

@@ -47,7 +47,7 @@ import numpy as np
 from ..errors import ConfigError
 from .joint_gravity import _apparent_gravity
 
-__all__ = ["ChainStep"]
+__all__ = ["ChainStep", "bridge_acceleration"]
 
 
 class ChainStep:
@@ -106,6 +106,8 @@ class ChainStep:
         self._line_state = (state(self._line, self._line._buffer)
                             if self._line is not None else None)
         self._delay_joint_state = self._line is not None and chain.wrench_delay_s > 0
+        self._gap_s = None  # bridge_gap's, for the next update
+        self._hold = False
         if tracker is not None:
             self._init_tracker(state)
 
@@ -152,8 +154,29 @@ class ChainStep:
         for system, index, value in self._states:
             system.GetMyMutableContextFromRoot(root_context).SetDiscreteState(index, value)
 
+    def bridge_gap(self, gap_s: float) -> None:
+        """The next update follows `gap_s` s (> one period) without updates (samples lost
+        or dropped). Its q̈ estimates (the compensator's, the joint-state gravity's) then
+        bridge the gap with q̈ taken as linear across it, instead of reading the jump of q̇
+        across the gap as one period's acceleration: from the estimate before the gap a₀
+        (q̈ half a period before that sample, as the backward difference gives it) and the
+        mean acceleration over the gap ā = (q̇ after − q̇ before) / `gap_s` (q̈ at the gap's
+        middle), the jerk is j = (ā − a₀) / ((`gap_s` + period) / 2) and the estimate after
+        ā + j (`gap_s` − period) / 2, again half a period before its sample
+        (:func:`bridge_acceleration`; on the diagram, apply it to those systems' estimator
+        states in the context)."""
+        self._gap_s = float(gap_s)
+
+    def _bridge(self, v) -> None:
+        """Puts the q̈ estimators across the gap (bridge_gap)."""
+        gap, self._gap_s = self._gap_s, None
+        bridge_acceleration(self._comp_state[0], v, gap, self.period)
+        if self._tracker is not None and self._gravity is not None:
+            bridge_acceleration(self._gravity_estimator, v, gap, self.period)
+
     def update(self, t: float, wrench_measured, joint_state, temperature=None, tared=0.0,
-               payload_changed=0.0, gravity_S=None, motion_S=None, imu=None) -> dict:
+               payload_changed=0.0, gravity_S=None, motion_S=None, imu=None,
+               hold=False) -> dict:
         """One update of the chain at time `t` (s, the chain's clock: the diagram's context
         time of that update; the detector is disarmed before ``detector.arm_after_s``).
 
@@ -163,9 +186,36 @@ class ChainStep:
         ignored where the chain has no such input); `gravity_S` (3, m/s², in S) and
         `motion_S` (6) only for a chain built with ``gravity="input"`` and payload tracking
         (motion_S with ``track_payload_motion``); `imu` (6: ``[f_S; ω_S]``, m/s², rad/s, in
-        S; NaN when missing or stale) required when the model takes an IMU, else not read.
-        Returns :attr:`outputs`.
+        S; NaN when missing or stale) required when the model takes an IMU, else not read;
+        `hold` (a live station's settle window after dropped samples): the tracker and the
+        payload monitor learn nothing and the detector is held released. Returns
+        :attr:`outputs`.
         """
+        self._take_inputs(wrench_measured, joint_state, temperature, imu)
+        wrench, x = self._wrench, self._joint_state
+        if self._gap_s is not None:
+            self._bridge(self._joint_state[self.n_joints:])
+        self._hold = bool(hold)
+        if self._line is not None:  # the stream that is ahead, delayed (direct feedthrough)
+            if self._delay_joint_state:
+                x = self._line.delayed(self._joint_state, self._line_state)
+            else:
+                wrench = self._line.delayed(self._wrench, self._line_state)
+        if self._tracker is not None:
+            self._update_tracker_side(t, tared, payload_changed, gravity_S, motion_S, x)
+        elif self._hold:
+            self._release()
+        elif t >= self._detector.arm_after_s:
+            self._detect(self.outputs["wrench_compensated"], None)
+        self._compensate(wrench, x, temperature)
+        if self._line is not None:
+            self._line.remember(self._joint_state if self._delay_joint_state else self._wrench,
+                                self._line_state)
+        return self.outputs
+
+    def _take_inputs(self, wrench_measured, joint_state, temperature, imu) -> None:
+        """Copies the update's inputs into the step's arrays; a missing input the model needs
+        is a ConfigError, a wrong size a ValueError."""
         if self.needs_temperature and temperature is None:
             raise ConfigError("ChainStep.update: the model was trained with the sensor "
                               "temperature (°C); pass temperature each update")
@@ -180,21 +230,6 @@ class ChainStep:
         except ValueError as e:
             raise ValueError(f"ChainStep.update: wrench_measured needs 6 entries, joint_state "
                              f"{2 * self.n_joints} ([q; v]) ({e})") from None
-        wrench, x = self._wrench, self._joint_state
-        if self._line is not None:  # the stream that is ahead, delayed (direct feedthrough)
-            if self._delay_joint_state:
-                x = self._line.delayed(self._joint_state, self._line_state)
-            else:
-                wrench = self._line.delayed(self._wrench, self._line_state)
-        if self._tracker is not None:
-            self._update_tracker_side(t, tared, payload_changed, gravity_S, motion_S, x)
-        elif t >= self._detector.arm_after_s:
-            self._detect(self.outputs["wrench_compensated"], None)
-        self._compensate(wrench, x, temperature)
-        if self._line is not None:
-            self._line.remember(self._joint_state if self._delay_joint_state else self._wrench,
-                                self._line_state)
-        return self.outputs
 
     def _update_tracker_side(self, t, tared, payload_changed, gravity_S, motion_S, x) -> None:
         """The payload monitor, the detector, the tracker and the joint-state gravity, each
@@ -210,14 +245,16 @@ class ChainStep:
             window, flag, estimate, payload_state = self._monitor_state
             # The monitor's flag and decision before it updates.
             changed, decided = max(changed, flag[0]), payload_state[0]
-            if self._monitor_due == 0:
+            if self._monitor_due == 0 and not self._hold:
                 self._monitor.monitor(corrected, g, flags[0], window, flag, estimate,
                                       payload_state)
             self._monitor_due = (self._monitor_due + 1) % self._monitor_every
-        if t >= self._detector.arm_after_s:
+        if self._hold:
+            self._release()
+        elif t >= self._detector.arm_after_s:
             self._detect(corrected, self._tracker_std, decided)
         _, ood, fault = self._comp_state[3:6]
-        flags[1], flags[2], flags[3] = ood[0], fault[0], float(tared)
+        flags[1], flags[2], flags[3] = ood[0], max(fault[0], float(self._hold)), float(tared)
         flags[4] = changed if self._tracker.track_payload else 0.0
         x_tracker, _, bias = self._tracker_state
         self._tracker.track(self.outputs["wrench_compensated"], g,
@@ -237,6 +274,10 @@ class ChainStep:
         motion = np.asarray(motion_S, dtype=float) if self._motion_used else self._no_motion
         return g, motion
 
+    def _release(self) -> None:
+        """The detector released: no contact, its debounce counter restarted."""
+        self._flag[0] = self._counter[0] = self._force[0] = 0.0
+
     def _detect(self, wrench_contact, tracker_std, payload_state=0.0) -> None:
         detector = self._detector
         std = self.outputs["wrench_std"] if detector.uses_std else None
@@ -249,6 +290,23 @@ class ChainStep:
                               float(temperature) if self.needs_temperature else math.nan,
                               estimator, internal, external, std, ood, fault,
                               *((self._imu, *self._imu_state) if self.needs_imu else ()))
+
+
+def bridge_acceleration(estimator, v, gap_s: float, period: float) -> None:
+    """Puts a q̈ estimator's state (:func:`~ftdrake.signals.causal_acceleration_step`'s, n
+    joints: q̇ before, q̈, jerk, primed; entries after those are left alone) across a gap of
+    `gap_s` s before the sample of q̇ `v`, as :meth:`ChainStep.bridge_gap` says: as of one
+    period before that sample, so that the sample's step gives the bridged estimate with no
+    innovation. Nothing for an estimator not yet primed or a non-finite `v`."""
+    n = len(v)
+    if estimator[3 * n] == 0.0 or not np.all(np.isfinite(v)):
+        return
+    mean = (v - estimator[:n]) / gap_s
+    jerk = (mean - estimator[n:2 * n]) / (0.5 * (gap_s + period))
+    after = mean + jerk * 0.5 * (gap_s - period)
+    estimator[2 * n:3 * n] = jerk
+    estimator[n:2 * n] = after - period * jerk  # the step's prediction: `after`
+    estimator[:n] = v - period * after  # its difference: `after`, no innovation
 
 
 def _whole_periods(sample_period: float, period: float) -> int:

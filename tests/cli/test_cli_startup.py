@@ -14,7 +14,7 @@ from pathlib import Path
 
 import pytest
 
-from ftdrake.cli.main import COMMANDS, build_parser, commands_named
+from ftdrake.cli.main import COMMANDS, SUMMARIES, build_parser, commands_named
 
 ROOT = Path(__file__).resolve().parents[2]
 HEAVY = ("pydrake", "sklearn", "pandas", "numba", "scipy", "matplotlib", "dask",
@@ -60,6 +60,32 @@ def test_version_and_help_load_no_heavy_library(argv):
     assert status == 0
     assert not heavy(modules), heavy(modules)
     assert ("ftdrake " if argv[-1] == "--version" else f"usage: ftdrake {argv[0]}") in output
+
+
+@pytest.mark.parametrize("argv", [["--help"], ["--verbose", "--help"], [], ["serv"]])
+def test_the_overview_imports_no_command_module(argv):
+    """``ftdrake --help`` (and no command, or a misspelt one) lists every command without
+    importing a command module: no library a command runs is loaded, whichever command."""
+    status, modules, output = loaded_by(argv)
+    assert status == (0 if "--help" in argv else 2)
+    assert not heavy(modules), heavy(modules)
+    commands = {f"ftdrake.cli.{m}" for m in COMMANDS.values()}
+    assert not commands & set(modules), sorted(commands & set(modules))
+    if status == 0:
+        assert "usage: ftdrake" in output
+        assert all(f"    {c}" in output and SUMMARIES[c] in " ".join(output.split())
+                   for c in COMMANDS)
+
+
+def test_the_overview_lists_each_command_by_the_line_its_module_registers():
+    """:data:`SUMMARIES` (the overview's lines) is what each command module registers as its
+    help, and the overview lists the commands in :data:`COMMANDS`' order."""
+    def lines(parser):
+        sub = next(x for x in parser._actions if isinstance(x, argparse._SubParsersAction))
+        return [(a.dest, a.help) for a in sub._choices_actions]
+
+    assert lines(build_parser(overview=True)) == lines(build_parser())
+    assert list(SUMMARIES) == list(COMMANDS)
 
 
 def test_a_command_that_runs_loads_what_it_needs():
