@@ -101,7 +101,8 @@ def _warm_up(chain, context) -> None:
     step = ChainStep(chain, context)
     n = chain.compensator.n
     step.update(max(0.0, chain.detector.arm_after_s), np.zeros(6), np.zeros(2 * n),
-                20.0 if chain.needs_temperature else None)
+                20.0 if chain.needs_temperature else None,
+                imu=np.zeros(IMU_VALUES) if step.needs_imu else None)
 
 
 class StationCore:
