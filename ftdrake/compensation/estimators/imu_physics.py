@@ -59,6 +59,7 @@ class ImuPayloadCompensator(PhysicsPayloadCompensator):
     def fit(self, X, y, *, wrench_delay_s: float | None = None):
         """Fits on rows `X` (N, 3n + 9) ``[q, q̇, q̈, f_S, ω_S, α_S]`` and wrench targets `y`
         (N, 6); see the physics model's ``fit``."""
+        self._validate_params()  # a bad parameter is named before the layout is checked
         shape = np.shape(X)
         if len(shape) != 2 or shape[1] < 3 + IMU_WIDTH or (shape[1] - IMU_WIDTH) % 3:
             raise ValueError(
