@@ -19,12 +19,14 @@ from pydrake.systems.framework import Diagram, InputPort, LeafSystem, OutputPort
 
 import ftdrake
 from ftdrake import CompensationChain, RandomForestCompensator, build_station
+from ftdrake.compensation.estimators.imu_physics import ImuPayloadCompensator
 from ftdrake.config import ImuConfig, TransmissionConfig
 from ftdrake.systems.imu import ImuNoise
 from ftdrake.systems.learned_feedforward import LearnedFeedforward, fit_feedforward_gp
 from ftdrake.systems.time_indexed_feedforward import TimeIndexedFeedforward
 from ftdrake.systems.transmission import MotorSide
 from ftdrake.testing import push_scenario
+from tests.helpers import imu_rows
 
 N = 7  # the scenario arm's joints
 PACKAGES_OF_SYSTEMS = ("ftdrake.runtime", "ftdrake.systems")
@@ -101,6 +103,7 @@ def instances():
         CompensationChain(model, delayed),  # a DelayLine inside
         MotorSide(TransmissionConfig(enabled=True), config.time_step),  # compliant joints
         ImuNoise(ImuConfig(), config.time_step),  # the IMU at the sensor
+        CompensationChain(ImuPayloadCompensator().fit(*imu_rows(60)), chain),  # an imu input
     ]
     systems = list(all_systems(station.diagram))
     for system in beside:
