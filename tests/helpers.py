@@ -26,8 +26,11 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 import pytest
+from pydrake.common.value import AbstractValue
+from pydrake.multibody.math import SpatialForce
+from pydrake.multibody.plant import ExternallyAppliedSpatialForce
 from pydrake.systems.analysis import Simulator
-from pydrake.systems.framework import DiagramBuilder
+from pydrake.systems.framework import DiagramBuilder, LeafSystem
 from pydrake.systems.primitives import LogVectorOutput, TrajectorySource
 from pydrake.trajectories import PiecewisePolynomial
 
@@ -309,3 +312,26 @@ def imu_rows(n: int = 300, seed: int = 0):
     theta = np.zeros(A.shape[2])
     theta[:10] = [0.8, 0.0, 0.0, 0.04, 0.004, 0.004, 0.002, 0.0, 0.0, 0.0]
     return X, A @ theta
+
+
+class Press(LeafSystem):
+    """A hand pressing on a body, as a user would write it in their own diagram: a constant
+    world-frame force `force_W` (N) on the body's origin from `start` to `end` (s); output
+    ``applied`` for the plant's applied_spatial_force input."""
+
+    def __init__(self, body, force_W, start, end):
+        super().__init__()
+        self._body, self._f = body.index(), np.asarray(force_W, float)
+        self._start, self._end = start, end
+        value = AbstractValue.Make([ExternallyAppliedSpatialForce()])
+        self.DeclareAbstractOutputPort("applied", lambda: value.Clone(), self._calc)
+
+    def _calc(self, context, output):
+        forces = []
+        if self._start <= context.get_time() < self._end:
+            push = ExternallyAppliedSpatialForce()
+            push.body_index = self._body
+            push.p_BoBq_B = np.zeros(3)
+            push.F_Bq_W = SpatialForce(np.zeros(3), self._f)
+            forces.append(push)
+        output.set_value(forces)

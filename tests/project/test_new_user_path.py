@@ -17,19 +17,17 @@ import shutil
 
 import numpy as np
 import pytest
-from pydrake.common.value import AbstractValue
-from pydrake.multibody.math import SpatialForce
 from pydrake.multibody.parsing import Parser
-from pydrake.multibody.plant import ExternallyAppliedSpatialForce, MultibodyPlant
+from pydrake.multibody.plant import MultibodyPlant
 from pydrake.systems.analysis import Simulator
 from pydrake.systems.controllers import InverseDynamicsController
-from pydrake.systems.framework import DiagramBuilder, LeafSystem
+from pydrake.systems.framework import DiagramBuilder
 from pydrake.systems.primitives import TrajectorySource
 from pydrake.trajectories import PiecewisePolynomial
 
 import ftdrake
 from ftdrake.compensation.identification.payload_kinematics import kinematics_for
-from tests.helpers import DATA
+from tests.helpers import DATA, Press
 
 URDF = DATA / "three_link_arm.urdf"
 PERIOD = 1e-3  # s: the sensor's rate
@@ -38,27 +36,6 @@ PRESS_N = np.array([0.0, 0.0, -6.0])  # N, world: a hand pressing down on the gr
 PRESS_START, PRESS_END = 3.0, 3.5  # s
 
 
-class Press(LeafSystem):
-    """The user's own disturbance: a constant world-frame force on a body's origin between
-    `start` and `end` (s); output ``applied`` (list of ExternallyAppliedSpatialForce) to the
-    plant's applied_spatial_force input."""
-
-    def __init__(self, body, force_W, start, end):
-        super().__init__()
-        self._body, self._f = body.index(), np.asarray(force_W, float)
-        self._start, self._end = start, end
-        value = AbstractValue.Make([ExternallyAppliedSpatialForce()])
-        self.DeclareAbstractOutputPort("applied", lambda: value.Clone(), self._calc)
-
-    def _calc(self, context, output):
-        forces = []
-        if self._start <= context.get_time() < self._end:
-            push = ExternallyAppliedSpatialForce()
-            push.body_index = self._body
-            push.p_BoBq_B = np.zeros(3)
-            push.F_Bq_W = SpatialForce(np.zeros(3), self._f)
-            forces.append(push)
-        output.set_value(forces)
 
 
 def arm(time_step):

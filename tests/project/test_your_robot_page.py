@@ -21,13 +21,11 @@ import lcm
 import numpy as np
 import pandas as pd
 import pytest
-from pydrake.common.value import AbstractValue
-from pydrake.multibody.math import SpatialForce
 from pydrake.multibody.parsing import Parser
-from pydrake.multibody.plant import ExternallyAppliedSpatialForce, MultibodyPlant
+from pydrake.multibody.plant import MultibodyPlant
 from pydrake.systems.analysis import Simulator
 from pydrake.systems.controllers import InverseDynamicsController
-from pydrake.systems.framework import DiagramBuilder, LeafSystem
+from pydrake.systems.framework import DiagramBuilder
 from pydrake.systems.primitives import TrajectorySource
 from pydrake.trajectories import PiecewisePolynomial
 
@@ -35,7 +33,7 @@ import ftdrake
 from ftdrake.cli.main import main
 from ftdrake.hardware import HardwareConfig
 from ftdrake.hardware.messages import encode_joint_state, encode_wrench
-from tests.helpers import DATA, ROOT
+from tests.helpers import DATA, ROOT, Press
 
 PAGE = ROOT / "docs" / "guide" / "your-robot.md"
 URDF = DATA / "seven_joint_arm.urdf"
@@ -56,25 +54,6 @@ def page_commands() -> list[list[str]]:
     return [c[1:] for c in commands]
 
 
-class Press(LeafSystem):
-    """A hand pressing on a body: a constant world-frame force on its origin between `start`
-    and `end` (s); output ``applied`` to the plant's applied_spatial_force input."""
-
-    def __init__(self, body, force_W, start, end):
-        super().__init__()
-        self._body, self._f, self._start, self._end = body.index(), force_W, start, end
-        value = AbstractValue.Make([ExternallyAppliedSpatialForce()])
-        self.DeclareAbstractOutputPort("applied", lambda: value.Clone(), self._calc)
-
-    def _calc(self, context, output):
-        forces = []
-        if self._start <= context.get_time() < self._end:
-            push = ExternallyAppliedSpatialForce()
-            push.body_index = self._body
-            push.p_BoBq_B = np.zeros(3)
-            push.F_Bq_W = SpatialForce(np.zeros(3), self._f)
-            forces.append(push)
-        output.set_value(forces)
 
 
 def arm(time_step):

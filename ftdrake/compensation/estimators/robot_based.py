@@ -35,14 +35,15 @@ ARM_DEFAULTS = {"identification": "consistent"}
 
 DRIVE_GAINS = TrainOption(
     "drive_gains", default="fixed", choices=("fixed", "identify"), scope="on joint torques",
-    description="joint-torque targets with {robot}: 'identify' when they are only proportional to "
-         "the torques (motor currents, as UR's CB3 driver publishes in effort, or another "
-         "sign convention): a gain per joint is identified with the arm's parameters")
+    description="joint-torque targets with {robot}: 'identify' when they are only "
+                "proportional to the torques (motor currents, as UR's CB3 driver publishes in "
+                "effort, or another sign convention): a gain per joint is identified with the "
+                "arm's parameters")
 IDENTIFY_MOUNTING = TrainOption(
     "identify_mounting", default=False, kind=bool,
     scope="on a wrench (the sensor's mounting rotation)",
-    description="physics/hybrid on a wrench: also identify the sensor's mounting rotation (the "
-         "wrench is then reported in the model's frame S)")
+    description="physics/hybrid on a wrench: also identify the sensor's mounting rotation "
+                "(the wrench is then reported in the model's frame S)")
 IDENTIFY_CROSSTALK = TrainOption(
     "identify_crosstalk", default=False, kind=bool,
     scope="on a wrench (the sensor calibration's cross-talk)",
@@ -53,16 +54,14 @@ WEIGHT_WITHOUT_INERTIA = TrainOption(
     "weight_without_inertia", default=False, kind=bool,
     scope="on a wrench (a weight the tool carries without its inertia)",
     description="physics/hybrid on a wrench, dynamic model: also identify a weight the tool "
-                "carries "
-         "without its inertia (a hanging cable), 4 parameters")
+                "carries without its inertia (a hanging cable), 4 parameters")
 TETHER = TrainOption(
     "tether", default=None, metavar="auto|world|JOINT",
     scope="on a wrench (a cable tethered to the tool)",
     description="physics/hybrid on a wrench, dynamic model, with {weight_without_inertia}: "
-                "also "
-         "identify a cable tethered to the tool, its other end fixed after joint JOINT or on "
-         "the world ('auto': the frame that explains the data best), 2 parameters and its "
-         "geometry")
+                "also identify a cable tethered to the tool, its other end fixed after joint "
+                "JOINT or on the world ('auto': the frame that explains the data best), 2 "
+                "parameters and its geometry")
 #: The options of physics and hybrid (arm takes DRIVE_GAINS only).
 PAYLOAD_OPTIONS = (DRIVE_GAINS, IDENTIFY_MOUNTING, IDENTIFY_CROSSTALK, WEIGHT_WITHOUT_INERTIA,
                    TETHER)

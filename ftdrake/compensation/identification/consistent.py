@@ -336,12 +336,9 @@ def identify_consistent(A, Y, *, weights=None, static=False, prior=None,
     active = active_constraints(theta_c, static, min_mass, m_ref, length)
 
     def full(v, fill):
-        out = np.full(width, fill, dtype=float)
-        out[cols] = v
-        return out
+        return _on_all_columns(v, cols, width, fill)
 
-    cov16 = np.full((width, width), np.nan)
-    cov16[np.ix_(cols, cols)] = cov
+    cov16 = _on_all_columns(cov, cols, width, np.nan)
     theta16 = full(theta_c, 0.0)
     theta_ls16 = full(theta_ls, 0.0)
     A16 = A if A.shape[-1] == width else _embed(A, cols)
@@ -406,12 +403,9 @@ def identify_least_squares(A, Y, *, weights=None, static=False,
     se[unseen] = np.inf
 
     def full(v, fill):
-        out = np.full(width, fill, dtype=float)
-        out[cols] = v
-        return out
+        return _on_all_columns(v, cols, width, fill)
 
-    cov16 = np.full((width, width), np.nan)
-    cov16[np.ix_(cols, cols)] = cov
+    cov16 = _on_all_columns(cov, cols, width, np.nan)
     theta16 = full(theta, 0.0)
     A16 = A if A.shape[-1] == width else _embed(A, cols)
     consistent = is_possible(theta16, static)
@@ -487,3 +481,16 @@ def _posterior(R_x, sigma2, data_cov_x, precision_x, n_phi):
     sensitivity = post_inv[:, :n_phi] @ precision_x
     share[:n_phi] = np.clip(np.diag(sensitivity[:n_phi]), 0.0, 1.0)
     return sigma2 * post_inv, share
+
+
+def _on_all_columns(v, cols, width: int, fill: float) -> np.ndarray:
+    """`v` (over the identified columns `cols`: a vector, or a square matrix) placed into the
+    model's `width` columns, `fill` elsewhere."""
+    v = np.asarray(v, dtype=float)
+    if v.ndim == 2:
+        out = np.full((width, width), fill, dtype=float)
+        out[np.ix_(cols, cols)] = v
+    else:
+        out = np.full(width, fill, dtype=float)
+        out[cols] = v
+    return out
