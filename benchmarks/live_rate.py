@@ -199,7 +199,7 @@ class Ros2Driver:
 class LcmDriver:
     """The same on LCM (multicast with ttl=0: it stays on this host)."""
 
-    def __init__(self, port: int, _names=None):
+    def __init__(self, port: int, _names=None, separate_outputs: bool = False):
         import lcm
 
         from ftdrake.hardware.config import HardwareConfig
@@ -213,6 +213,8 @@ class LcmDriver:
         self.url = self.flags(port)[1]
         self.config = HardwareConfig(lcm_url=self.url).validate()
         self.lc = lcm.LCM(self.url)
+        # serve's outputs: on the same group, or on their own (serve's output_url).
+        self.out = lcm.LCM(self.output_url(port)) if separate_outputs else self.lc
         self.encode_joint_state, self.encode_wrench = encode_joint_state, encode_wrench
         self.back, self.contacts = {}, []
 
@@ -224,7 +226,7 @@ class LcmDriver:
 
         for channel, handler in ((self.config.output_channel("wrench_contact"), on_wrench),
                                  (self.config.output_channel("contact"), on_contact)):
-            self.lc.subscribe(channel, handler).set_queue_capacity(200_000)
+            self.out.subscribe(channel, handler).set_queue_capacity(200_000)
 
     @staticmethod
     def live_section(_names) -> dict:
@@ -233,6 +235,10 @@ class LcmDriver:
     @staticmethod
     def flags(port) -> list:
         return ["--lcm", f"udpm://239.255.76.67:{port}?ttl=0"]
+
+    @staticmethod
+    def output_url(port) -> str:
+        return f"udpm://239.255.76.67:{port + 1}?ttl=0"
 
     def ready(self) -> bool:
         return True
@@ -243,12 +249,12 @@ class LcmDriver:
         self.lc.publish(c.ft_channel, self.encode_wrench(t, w))
 
     def poll(self, timeout_ms: float = 0) -> None:
-        while self.lc.handle_timeout(int(timeout_ms)) > 0:
+        while self.out.handle_timeout(int(timeout_ms)) > 0:
             timeout_ms = 0
 
     def wait(self, seconds: float) -> None:
         """Handles serve's outputs as they come, for up to `seconds` (not spinning)."""
-        if select.select([self.lc.fileno()], [], [], max(0.0, seconds))[0]:
+        if select.select([self.out.fileno()], [], [], max(0.0, seconds))[0]:
             self.poll(0)
 
     def close(self) -> None:
@@ -256,9 +262,9 @@ class LcmDriver:
 
 
 def start_serve(model, rate, kind, names, port, folder: Path, profile: Path | None = None,
-                outputs=(), batch_period_s: float = 0.0):
-    """serve in its own process on the transport of driver class `kind`; returns the
-    process and the s it took to listen."""
+                keys=None):
+    """serve in its own process on the transport of driver class `kind`, `keys` set in its
+    transport's section of the live file; returns the process and the s it took to listen."""
     import yaml
 
     save_model(model, folder / "model.ftd", target_names=list(WRENCH_AXES),
@@ -266,9 +272,7 @@ def start_serve(model, rate, kind, names, port, folder: Path, profile: Path | No
     live = {"chain": {"sensor": {"rate_hz": float(rate)}}, **kind.live_section(names)}
     for section in live.values():
         if "sensor_timeout_s" in section:  # the transport's
-            section["batch_period_s"] = float(batch_period_s)
-            if outputs:
-                section["outputs"] = list(outputs)
+            section.update(keys or {})
     (folder / "live.yaml").write_text(yaml.safe_dump(live))
     err_path = folder / "serve.err"
     with open(err_path, "w") as err:
@@ -287,11 +291,22 @@ def start_serve(model, rate, kind, names, port, folder: Path, profile: Path | No
     return serve, time.monotonic() - started
 
 
-def start_driver(kind, names, port):
+def serve_keys(args, kind, port) -> dict:
+    """The keys of serve's transport section the options set."""
+    keys = {"batch_period_s": float(args.batch_period),
+            "yield_io_threads": not args.no_yield_io_threads}
+    if args.outputs:
+        keys["outputs"] = args.outputs.split(",")
+    if args.separate_outputs and kind is LcmDriver:
+        keys["output_url"] = kind.output_url(port)
+    return keys
+
+
+def start_driver(kind, names, port, separate_outputs: bool = False):
     """The driver, once DDS discovery matched it with serve both ways (LCM: at once);
     returns it and when it was made (its topics appeared then)."""
     appeared = time.monotonic()
-    driver = kind(port if kind is LcmDriver else names)
+    driver = kind(port, separate_outputs=separate_outputs) if kind is LcmDriver else kind(names)
     while not driver.ready():
         driver.poll(10)
         if time.monotonic() - appeared > 60:
@@ -348,9 +363,8 @@ def run_one(model, name, rate, data, names, args, folder: Path) -> dict:
         profile = (Path(args.profile) / f"serve-{args.transport}-{rate:g}-{name}.prof"
                    if args.profile else None)
         serve, serve_start_s = start_serve(model, rate, kind, names, port, folder, profile,
-                                           args.outputs.split(",") if args.outputs else (),
-                                           args.batch_period)
-        driver, appeared = start_driver(kind, names, port)
+                                           serve_keys(args, kind, port))
+        driver, appeared = start_driver(kind, names, port, args.separate_outputs)
         run = drive(driver, serve, rate, data, args)
         serve.send_signal(signal.SIGINT)
         out, _ = serve.communicate(timeout=60)
@@ -384,6 +398,8 @@ def run_one(model, name, rate, data, names, args, folder: Path) -> dict:
                                else None),
             "first_sent_s": run["first_sent"] - appeared, "load_core": int(args.load_core),
             "batch_period_s": args.batch_period,
+            "yield_io_threads": int(not args.no_yield_io_threads),
+            "separate_outputs": int(args.separate_outputs and kind is LcmDriver),
             "load_before": run["load_before"], "load_after": run["load_after"]}
 
 
@@ -404,6 +420,12 @@ def main() -> None:
                              "reads wrench_contact and contact")
     parser.add_argument("--batch-period", type=float, default=0.0,
                         help="serve's batch_period_s (s between its wake-ups; 0: per message)")
+    parser.add_argument("--separate-outputs", action="store_true",
+                        help="LCM: serve publishes on its own URL (output_url), the driver "
+                             "reads there")
+    parser.add_argument("--no-yield-io-threads", action="store_true",
+                        help="serve's yield_io_threads false (its receive threads at the "
+                             "default policy)")
     parser.add_argument("--load-core", action="store_true",
                         help="a second process keeps one core busy during the runs")
     parser.add_argument("--profile", metavar="DIR",

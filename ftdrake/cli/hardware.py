@@ -110,7 +110,8 @@ def describe_channels(hardware) -> str:
         joint += f" + velocities {h.velocity_channel}"
     return (f"LCM {h.lcm_url}\n  in:  {joint}; F/T {h.ft_channel} (force_torque)\n"
             "  out: " + "; ".join(f"{channel} ({ports})"
-                                  for channel, ports in h.output_channels().items()))
+                                  for channel, ports in h.output_channels().items())
+            + (f" on {h.output_url}" if h.output_url and h.output_url != h.lcm_url else ""))
 
 
 

@@ -83,6 +83,10 @@ class HardwareConfig:
     """
 
     lcm_url: str = "udpm://239.255.76.67:7667?ttl=0"
+    # Where the outputs and the status go; "" = lcm_url. Another URL (another port or group)
+    # keeps serve from receiving its own outputs: on one multicast group every member gets
+    # every message, and each costs serve's receive thread a wake-up (docs/results/live.md).
+    output_url: str = ""
     joint_state_channel: str = "IIWA_STATUS"
     joint_state_type: str = "iiwa_status"
     velocity_channel: str = ""  # only for joint_state_type == "robot_state"
@@ -116,6 +120,9 @@ class HardwareConfig:
     # that arrived: fewer wake-ups (less CPU per message) for up to that much more latency;
     # 0 wakes for each message.
     batch_period_s: float = 0.0
+    # LCM's receive thread under SCHED_BATCH (hardware/threads.py): it does not preempt the
+    # chain's thread mid-sample; False keeps the default policy.
+    yield_io_threads: bool = True
     # Each F/T sample is paired with the joint state whose stamp is within this (s) of its
     # own (live_inputs.StreamMonitor); none within it: a fault, never judged. 0: by arrival
     # only (drivers whose stamps are on different clocks).
@@ -150,6 +157,12 @@ class HardwareConfig:
         """Checks every field; ConfigError names the first wrong one (`where` is its path)."""
         if not (isinstance(self.lcm_url, str) and self.lcm_url):
             raise ConfigError(f"{where}.lcm_url: must be a non-empty LCM URL")
+        if not isinstance(self.output_url, str):
+            raise ConfigError(f"{where}.output_url: an LCM URL, or \"\" for lcm_url's; got "
+                              f"{self.output_url!r}")
+        if not isinstance(self.yield_io_threads, bool):
+            raise ConfigError(f"{where}.yield_io_threads: true or false, got "
+                              f"{self.yield_io_threads!r}")
         if self.joint_state_type not in JOINT_STATE_TYPES:
             raise ConfigError(f"{where}.joint_state_type: {self.joint_state_type!r} is not one "
                               f"of {', '.join(JOINT_STATE_TYPES)}")

@@ -65,6 +65,7 @@ from .messages import (
     encode_status,
     encode_wrench,
 )
+from .threads import NewThreads
 from .transport import open_lcm
 
 
@@ -88,6 +89,10 @@ class HardwareStation(StationCore):
         check_joint_count(model, config.n_joints, "lcm.n_joints",
                           "the robot's joint count (the model's joints, in its order)")
         self.lcm = open_lcm(lcm if lcm is not None else config.lcm_url)
+        # The outputs' connection: publish-only, so it never receives (config.output_url).
+        self._sender = (open_lcm(config.output_url, "hardware.output_url")
+                        if config.output_url and config.output_url != config.lcm_url
+                        else self.lcm)
         self._coords = {name: coord for name, coord, channel in self._event_channels()
                         if channel}
         super().__init__(model, chain, n_joints=config.n_joints,
@@ -111,6 +116,13 @@ class HardwareStation(StationCore):
         self._contact_out = any(port in config.outputs for port in CONTACT_COORDS)
         self._contact_channel = config.output_channel("contact")
         self._pairer = None
+        with NewThreads() as receivers:  # LCM's receive thread starts on the first subscription
+            self._subscribe(config)
+        if config.yield_io_threads:
+            receivers.yield_to_caller()
+
+    def _subscribe(self, config: HardwareConfig) -> None:
+        """The station's subscriptions, its receive thread started (udpm://)."""
         kind = config.joint_state_type
         if kind == "robot_state":
             self._pairer = RobotStatePairer()
@@ -126,6 +138,7 @@ class HardwareStation(StationCore):
         for name in self._coords:
             self.lcm.subscribe(getattr(config, _EVENT_FIELDS[name]),
                                functools.partial(self._on_event_signal, name))
+        self.lcm.start_receiving()
 
     def _check_sources(self, chain) -> None:
         if self.config.tare_channel and not chain.HasInputPort("tared"):
@@ -210,12 +223,13 @@ class HardwareStation(StationCore):
         for port, channel in self._own_channel:
             data = (encode_payload(t, self.value(port)) if port == "payload"
                     else encode_wrench(t, self.value(port)))
-            self.lcm.publish(channel, data)
+            self._sender.publish(channel, data)
 
     def _publish_contact(self, t: float, fault: bool) -> bool:
         if not self._contact_out:
             return False
-        self.lcm.publish(self._contact_channel, encode_contact_state(self.contact_state(t, fault)))
+        self._sender.publish(self._contact_channel,
+                             encode_contact_state(self.contact_state(t, fault)))
         return True
 
     def _on_fault_change(self, event) -> None:
@@ -236,7 +250,7 @@ class HardwareStation(StationCore):
 
     def publish_status(self) -> None:
         """Publishes the status message now, stamped on the streams' clock."""
-        self.lcm.publish(self.config.status_channel,
+        self._sender.publish(self.config.status_channel,
                          encode_status(self._stream_time(), self.status()))
         self.status_published += 1
 

@@ -36,6 +36,11 @@ class LcmTransport:
     def publish(self, channel: str, data: bytes) -> None:
         self.lc.publish(channel, data)
 
+    def start_receiving(self) -> None:
+        """Starts the provider's receiving now (udpm://: its receive thread), not at the
+        first wait."""
+        self.lc.fileno()
+
     def handle(self, timeout_ms: int = 0) -> int:
         """Handles every pending message, waiting up to `timeout_ms` for the first one.
         Returns how many were handled."""
@@ -63,6 +68,9 @@ class DrakeTransport:
 
     def publish(self, channel: str, data: bytes) -> None:
         self.lc.Publish(channel, data)
+
+    def start_receiving(self) -> None:
+        """DrakeLcm receives on its own once subscribed."""
 
     def handle(self, timeout_ms: int = 0) -> int:
         return self.lc.HandleSubscriptions(int(timeout_ms))
