@@ -292,6 +292,8 @@ class StationCore:
             self.warn(self.rate_check.on_sample(t))
         if fresh and self.imu is not None:  # NaN when no IMU sample is close: a fault
             self._imu_values = self.imu.pair(sample.t)
+            if self.imu.problem is not None:  # said as the inputs' fault (live_imu)
+                self.monitor.flag(*self.imu.problem)
         settling = False
         if fresh:
             settling = self._settling > 0
@@ -446,7 +448,8 @@ class StationCore:
     def summary(self) -> dict:
         """Counts so far: messages received/accepted per stream, rejected per reason, F/T
         messages processed, wrenches and contact states published, fault episodes per reason,
-        latency p50/p99 (ms), and the current fault."""
+        latency p50/p99 (ms), the current fault and, with an IMU, its counts (``imu``:
+        accepted, rejected per reason, F/T samples unpaired)."""
         m = self.monitor
         p50, p99 = self.latency_percentiles()
         return {
@@ -461,4 +464,5 @@ class StationCore:
             "rate_hz": {"configured": 1.0 / self.period, "measured": self.rate_check.measured_hz},
             "warnings": list(self.warnings),
             "load": self.load.summary(),
+            **({"imu": self.imu.counts()} if self.imu is not None else {}),
         }

@@ -5,8 +5,10 @@ the F/T sample stamped t is paired with the IMU sample stamped nearest to t, wit
 ``max_skew_s``, as the joint state is paired by stamp. When none is that close (the IMU is
 late, silent or its stamps drift), the pair is NaN: the chain's compensator then faults
 for that sample (its outputs hold their last good values), so a stale IMU reading is never
-passed on as a fresh one. A malformed, non-finite or out-of-order IMU message is rejected
-and counted.
+passed on as a fresh one; ``problem`` then names why (``imu_missing``: no IMU sample yet;
+``imu_stamp_gap``: none stamped close enough) with the fix, and the station faults its
+inputs with it (the StreamMonitor's reason, the status, ``/diagnostics``, the fault
+episodes). A malformed, non-finite or out-of-order IMU message is rejected and counted.
 """
 
 from __future__ import annotations
@@ -24,11 +26,15 @@ class ImuPairing:
     """IMU samples by stamp, paired with F/T stamps (module docstring).
 
     `max_skew_s`: the largest |t_imu − t_ft| (s) of a pair. `history`: samples kept.
+    `source` and `skew_key` name, in the details, the configured IMU input and the skew's
+    config key (e.g. ``"hardware.imu_channel 'FT_IMU'"``, ``"hardware.imu_max_skew_s"``).
     Counters: ``accepted``, ``rejected`` (reason → count), ``unpaired`` (F/T samples that
-    found no IMU sample close enough).
+    found no IMU sample close enough). ``problem``: (reason, detail) of the last pairing
+    that failed, None after one that succeeded.
     """
 
-    def __init__(self, max_skew_s: float, history: int = 64):
+    def __init__(self, max_skew_s: float, history: int = 64, *,
+                 source: str = "the IMU input", skew_key: str = "imu_max_skew_s"):
         if not (max_skew_s > 0 and np.isfinite(max_skew_s)):
             raise ValueError(f"max_skew_s must be a positive number of seconds; got "
                              f"{max_skew_s!r}")
@@ -38,7 +44,18 @@ class ImuPairing:
         self.accepted = 0
         self.unpaired = 0
         self.rejected: collections.Counter = collections.Counter()
-        self.detail = ""  # why the last pairing failed
+        self.source, self.skew_key = source, skew_key
+        self.problem: tuple[str, str] | None = None  # why the last pairing failed
+
+    @property
+    def detail(self) -> str:
+        """Why the last pairing failed, in words ("" after one that succeeded)."""
+        return self.problem[1] if self.problem is not None else ""
+
+    def counts(self) -> dict:
+        """``accepted``, ``rejected`` (reason → count) and ``unpaired`` so far."""
+        return {"accepted": self.accepted, "rejected": dict(self.rejected),
+                "unpaired": self.unpaired}
 
     def on_imu(self, sample) -> bool:
         """One IMU message ``(t, values (6,))`` (None when it failed to decode)."""
@@ -62,16 +79,29 @@ class ImuPairing:
 
     def pair(self, t: float) -> np.ndarray:
         """The IMU values stamped nearest to `t` (s) within ``max_skew_s``; NaN (6) when
-        there is none (``unpaired`` counts it, ``detail`` says why)."""
+        there is none (``unpaired`` counts it, ``problem`` says why)."""
         if not self._samples:
             self.unpaired += 1
-            self.detail = "no IMU sample received yet (the model needs one)"
+            rejected = ", ".join(f"{n} {r}" for r, n in sorted(self.rejected.items()))
+            self.problem = ("imu_missing", (
+                "no IMU sample received yet"
+                + (f" ({rejected} rejected)" if rejected else "")
+                + ": the model takes an IMU at the sensor, so the wrench is not compensated. "
+                f"Fix: publish the IMU on {self.source}, or set it to the one that carries "
+                "it"))
             return self._missing
         nearest_t, nearest = min(self._samples, key=lambda item: abs(item[0] - t))
         if abs(nearest_t - t) <= self.max_skew_s:
+            self.problem = None
             return nearest
         self.unpaired += 1
-        self.detail = (f"no IMU sample stamped within {self.max_skew_s * 1e3:g} ms of the F/T "
-                       f"sample at {t:.6f} s (nearest {(nearest_t - t) * 1e3:+.1f} ms): the "
-                       "wrench is not compensated")
+        newest = self._samples[-1][0]
+        why = (f"the newest IMU sample is {(t - newest) * 1e3:.1f} ms older: the IMU is late "
+               "or silent" if newest < t - self.max_skew_s
+               else "the IMU's stamps are off the F/T sensor's, or it samples too slowly")
+        self.problem = ("imu_stamp_gap", (
+            f"no IMU sample stamped within {self.max_skew_s * 1e3:g} ms of the F/T sample at "
+            f"{t:.6f} s (nearest {(nearest_t - t) * 1e3:+.1f} ms; {why}): the wrench is not "
+            f"compensated. Fix: the IMU's driver on {self.source}, its clock or stamps, or "
+            f"{self.skew_key}"))
         return self._missing

@@ -18,7 +18,10 @@ message or timeout until the inputs are good again:
   the newest joint state when its stamp is within the tolerance of the wrench's, else the
   nearest-stamped of the last :data:`JOINT_HISTORY` joint states within it; with none within
   it the F/T sample faults (``stamp_gap``) and is never judged (a wrench paired with a stale
-  joint state would read as contact). 0 pairs by arrival only (the newest joint state).
+  joint state would read as contact). 0 pairs by arrival only (the newest joint state);
+* for a model that takes an IMU, an F/T sample with no IMU sample paired to it faults
+  (``imu_missing``, ``imu_stamp_gap``; raised by the station through ``flag``) until one
+  pairs again.
 
 ``reason`` names the cause (one of :data:`REASONS`) and ``detail`` says it in words for a
 person ("joint state has 6 joints, expected 7"). While ``fault`` is True the held values are
@@ -46,10 +49,13 @@ from .messages import JointSample, WrenchSample
 #: message dropped because the station is too far behind the stream (overload.LoadMonitor).
 #: ``stamp_gap``: no joint state stamped within the pairing tolerance of an F/T sample;
 #: ``qos``: a publisher on an input topic whose QoS the subscription cannot match (ROS 2).
+#: ``imu_missing`` / ``imu_stamp_gap`` (a model that takes an IMU): no IMU sample yet / none
+#: stamped within ``imu_max_skew_s`` of an F/T sample (live_imu.ImuPairing; StreamMonitor.flag).
+#: New reasons go at the end: the LCM status message carries a reason's index.
 REASONS = ("sensor_timeout", "joint_timeout", "temperature_timeout", "out_of_order",
            "duplicate", "not_finite", "joint_count", "malformed", "unpaired", "joint_names",
            "degrees", "joint_range", "wrong_type", "frame_id", "overload",
-           "stamp_gap", "qos")
+           "stamp_gap", "qos", "imu_missing", "imu_stamp_gap")
 #: Joint states kept to pair an F/T sample with by stamp.
 JOINT_HISTORY = 64
 
@@ -106,6 +112,12 @@ class StreamMonitor:
         names do not match): counted as received and rejected, faulted like a bad sample."""
         self.received["joint"] += 1
         return self._reject("joint", reason, detail)
+
+    def flag(self, reason: str, detail: str) -> None:
+        """Faults the inputs of the F/T sample just accepted for a cause found outside the
+        monitor (no IMU sample paired with it): until an F/T sample that ``on_wrench``
+        accepts fault-free and nothing flags."""
+        self.fault, self.reason, self.detail = True, reason, detail
 
     def count_unpaired(self, detail: str = "") -> None:
         """A joint message that was received but never formed a sample (robot_state)."""

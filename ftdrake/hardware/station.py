@@ -104,6 +104,9 @@ class HardwareStation(StationCore):
                          on_warning=on_warning, max_backlog_s=config.max_backlog_s,
                          pair_tolerance_s=config.pair_tolerance_s,
                          imu_max_skew_s=config.imu_max_skew_s)
+        if self.imu is not None:  # its faults name the keys to change
+            self.imu.source = f"lcm.imu_channel {config.imu_channel!r}"
+            self.imu.skew_key = "lcm.imu_max_skew_s"
         self._user_on_event = on_event
         self.status_published = 0
         self._last_status = self.clock()

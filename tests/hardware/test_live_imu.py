@@ -1,6 +1,7 @@
 """A live LCM station (memq://) with a model that takes an IMU at the sensor: the IMU channel
 is required, each F/T sample is compensated with the IMU sample of its stamp, and a missing
-or stale IMU publishes no wrench (a fault) until fresh IMU samples come back."""
+or stale IMU publishes no wrench (a fault) until fresh IMU samples come back; that fault is
+the inputs' (the status message's reason, one fault episode, the summary's IMU counts)."""
 
 import numpy as np
 import pytest
@@ -9,8 +10,11 @@ from ftdrake import ConfigError, ScenarioConfig
 from ftdrake.compensation.estimators.imu_physics import ImuPayloadCompensator
 from ftdrake.hardware import HardwareConfig, HardwareStation
 from ftdrake.hardware.live_imu import ImuPairing
+from ftdrake.hardware.live_inputs import REASONS
 from ftdrake.hardware.messages import (
+    decode_contact_state,
     decode_imu,
+    decode_status,
     decode_wrench,
     encode_imu,
     encode_joint_state,
@@ -88,3 +92,86 @@ def test_the_station_compensates_with_the_imu_of_the_stamp_and_faults_without_it
     assert len(wrenches) == 5 and dut.output("fault")[0] == 1.0 and dut.imu.unpaired == 3
     step(0.012, imu_t=0.012)  # back
     assert len(wrenches) == 6 and dut.output("fault")[0] == 0.0
+
+
+class ImuRig:
+    """An LCM station on memq:// with the IMU model and a test clock; records the wrenches,
+    contact states and status messages it publishes and its fault episodes."""
+
+    def __init__(self):
+        scenario = ScenarioConfig()
+        scenario.chain.bias_tracker.enabled = False
+        self.config = config = HardwareConfig(lcm_url="memq://", imu_channel="FT_IMU")
+        self.now = 0.0
+        self.events = []
+        self.dut = HardwareStation(config, _imu_model(), scenario.chain_config(), "memq://",
+                                   clock=lambda: self.now, on_event=self.events.append)
+        self.got = {"wrench": [], "contact": [], "status": []}
+        for name, channel, decode in (
+                ("wrench", config.output_channel("wrench_compensated"), decode_wrench),
+                ("contact", config.output_channel("contact"), decode_contact_state),
+                ("status", config.status_channel, decode_status)):
+            self.dut.lcm.subscribe(channel, lambda d, n=name, f=decode: self.got[n].append(f(d)))
+
+    def step(self, t, imu=True, data=None):
+        """At wall time t: an IMU message stamped t (`data`: these bytes instead; none
+        without `imu`), a joint state and an F/T message stamped t, spun through."""
+        self.now = t
+        if imu:
+            self.dut.lcm.publish(self.config.imu_channel, data if data is not None else
+                                 encode_imu(t, [0.3, -0.2, 9.7], [0.05, 0.1, -0.2]))
+        self.dut.lcm.publish(self.config.joint_state_channel, encode_joint_state(
+            "iiwa_status", t, np.linspace(-0.5, 0.5, N), np.zeros(N)))
+        self.dut.lcm.publish(self.config.ft_channel, encode_wrench(t, np.ones(6)))
+        self.dut.spin_once(0)
+        self.dut.lcm.handle(0)
+
+    def status(self):
+        """The last status message's reason (a name, "" without a fault) and fault flag."""
+        values = self.got["status"][-1][1]
+        index = int(values["reason"])
+        return (REASONS[index - 1] if index > 0 else ""), bool(values["fault"])
+
+
+def test_an_imu_that_never_arrives_faults_the_inputs_once_and_names_the_imu():
+    rig = ImuRig()
+    rig.step(0.000, data=b"not an imu message")  # one IMU message, rejected
+    for k in range(1, 20):
+        rig.step(0.001 * k, imu=False)
+    m = rig.dut.monitor
+    assert m.fault and m.reason == "imu_missing"
+    assert "no IMU sample received yet (1 malformed rejected)" in m.detail
+    assert "lcm.imu_channel 'FT_IMU'" in m.detail
+    assert rig.status() == ("imu_missing", True)
+    assert [(e.kind, e.reason) for e in rig.events] == [("fault", "imu_missing")]
+    assert rig.events[0].detail == m.detail
+    assert not rig.got["wrench"] and rig.dut.published == 0
+    assert len(rig.got["contact"]) == 20 and all(c.fault for c in rig.got["contact"])
+    summary = rig.dut.summary()
+    assert summary["reason"] == "imu_missing" and summary["fault_episodes"] == {"imu_missing": 1}
+    assert summary["imu"] == {"accepted": 0, "rejected": {"malformed": 1}, "unpaired": 20}
+
+
+def test_an_imu_that_stops_mid_stream_faults_then_recovers_when_it_resumes():
+    rig = ImuRig()
+    for k in range(5):
+        rig.step(0.001 * k)
+    assert not rig.dut.monitor.fault and len(rig.got["wrench"]) == 5
+    assert [e.kind for e in rig.events] == ["recovered"]  # from "no data yet"
+    assert rig.status() == ("", False)
+    for k in range(5, 15):  # the IMU goes silent; 2 ms later no IMU sample pairs
+        rig.step(0.001 * k, imu=False)
+    m = rig.dut.monitor
+    assert m.fault and m.reason == "imu_stamp_gap"
+    assert "newest IMU sample is 10.0 ms older: the IMU is late or silent" in m.detail
+    assert "lcm.imu_max_skew_s" in m.detail
+    assert rig.status() == ("imu_stamp_gap", True)
+    faults = [e for e in rig.events if e.kind == "fault"]
+    assert [(e.reason, round(e.t, 6)) for e in faults] == [("imu_stamp_gap", 0.007)]
+    assert len(rig.got["wrench"]) == 7  # 5 and 6 pair with the IMU sample at 4 ms
+    assert [c.fault for c in rig.got["contact"][7:]] == [True] * 8
+    rig.step(0.015)  # the IMU is back
+    assert not m.fault and rig.status() == ("", False) and len(rig.got["wrench"]) == 8
+    assert [e.kind for e in rig.events] == ["recovered", "fault", "recovered"]
+    assert not rig.got["contact"][-1].fault
+    assert rig.dut.summary()["imu"] == {"accepted": 6, "rejected": {}, "unpaired": 8}

@@ -59,6 +59,13 @@ WRENCH_TOPICS = tuple(name for name, msgtype in OUTPUTS.items()
                       if msgtype == "geometry_msgs/msg/WrenchStamped")
 
 
+def _imu_values(imu) -> dict:
+    """The IMU's counts (live_imu.ImuPairing) as diagnostic values."""
+    return {"received_imu": imu.accepted + sum(imu.rejected.values()),
+            "unpaired_imu": imu.unpaired,
+            **{f"rejected_imu_{k}": v for k, v in imu.rejected.items()}}
+
+
 def _load_values(load) -> dict:
     """The LoadMonitor's counts and rates as diagnostic values."""
     rate = {k: "" if v is None else f"{v:.1f}" for k, v in (
@@ -99,6 +106,9 @@ class Ros2Station(StationCore):
                          on_warning=self._on_warning, joint_names=c.joint_names,
                          max_backlog_s=c.max_backlog_s, pair_tolerance_s=c.pair_tolerance_s,
                          imu_max_skew_s=c.imu_max_skew_s)
+        if self.imu is not None:  # its faults name the keys to change
+            self.imu.source = f"ros2.imu_topic {c.imu_topic!r}"
+            self.imu.skew_key = "ros2.imu_max_skew_s"
         self.node = node if node is not None else Ros2Node(
             c.domain_id, c.dds_config, clock=clock, reorder_window_s=c.reorder_window_s)
         self._index = {name: k for k, name in enumerate(c.joint_names)}
@@ -316,6 +326,7 @@ class Ros2Station(StationCore):
                   **{f"rejected_{k}": v for k, v in m.rejected.items()},
                   "processed": self.processed, "published": self.published,
                   **_load_values(self.load),
+                  **(_imu_values(self.imu) if self.imu is not None else {}),
                   "latency_p50_ms": f"{p50 * 1e3:.3f}", "latency_p99_ms": f"{p99 * 1e3:.3f}"}
         return types["status"](
             level=level, name=DIAGNOSTIC_NAME, message=message,
