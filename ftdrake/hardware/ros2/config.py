@@ -70,6 +70,11 @@ class Ros2Config:
     `batch_period_s`: serve's loop wakes at most once per this many s and then handles
       every message that arrived: fewer wake-ups, less CPU per message, up to that much more
       latency; 0 (default) wakes for each message.
+    `yield_io_threads`: Cyclone DDS's threads, started with the station's participant, run
+      under ``SCHED_BATCH`` (:mod:`ftdrake.hardware.threads`): a receive thread does not
+      preempt the chain's thread mid-sample; false keeps the default policy. The first
+      participant in a process starts them; a station made on a node the caller opened
+      changes none.
     `queue_depth`: samples a subscription (and each of ftdrake's writers) keeps while the
       station lags (1 s at 1 kHz); a lag beyond it loses the oldest.
     `max_backlog_s`: behind the wrench stream by more than this (s), the station drops the
@@ -115,6 +120,7 @@ class Ros2Config:
     queue_depth: int = 1000
     max_backlog_s: float = 0.5
     batch_period_s: float = 0.0
+    yield_io_threads: bool = True
     pair_tolerance_s: float = 0.005
     reorder_window_s: float = 0.0
     domain_id: int = 0
@@ -135,6 +141,9 @@ class Ros2Config:
         self._check_numbers(where)
         check_outputs(self.outputs, f"{where}.outputs")
         check_batch_period(self.batch_period_s, self.max_backlog_s, where)
+        if not isinstance(self.yield_io_threads, bool):
+            raise ConfigError(f"{where}.yield_io_threads: true or false, got "
+                              f"{self.yield_io_threads!r}")
         if not isinstance(self.wrench_frame_id, str):
             raise ConfigError(f"{where}.wrench_frame_id: the sensor frame's name (a string; "
                               f"'' accepts any), got {self.wrench_frame_id!r}")

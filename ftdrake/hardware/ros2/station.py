@@ -41,6 +41,7 @@ from ...errors import ConfigError
 from ..core import StationCore
 from ..live_checks import check_joint_count, joint_names_problem, ros2_type_name
 from ..messages import JointSample, WrenchSample
+from ..threads import NewThreads
 from .cdr import JointStateReader
 from .cdr import wrench_stamped as read_wrench_stamped
 from .config import OUTPUTS, Ros2Config
@@ -109,8 +110,11 @@ class Ros2Station(StationCore):
         if self.imu is not None:  # its faults name the keys to change
             self.imu.source = f"ros2.imu_topic {c.imu_topic!r}"
             self.imu.skew_key = "ros2.imu_max_skew_s"
-        self.node = node if node is not None else Ros2Node(
-            c.domain_id, c.dds_config, clock=clock, reorder_window_s=c.reorder_window_s)
+        with NewThreads() as dds_threads:  # Cyclone's, started with the first participant
+            self.node = node if node is not None else Ros2Node(
+                c.domain_id, c.dds_config, clock=clock, reorder_window_s=c.reorder_window_s)
+        if c.yield_io_threads:
+            dds_threads.yield_to_caller()
         self._index = {name: k for k, name in enumerate(c.joint_names)}
         self._order = (None, None)  # (names of the last message, their permutation)
         self._header = None  # the wrench message being processed
