@@ -37,6 +37,7 @@ from __future__ import annotations
 
 import collections
 import dataclasses as dc
+import math
 import time
 
 import numpy as np
@@ -242,7 +243,8 @@ class StationCore:
     def contact_state(self, t: float, fault: bool) -> ContactState:
         """The detector's state now, stamped `t`, with `fault` (the inputs' fault) or the
         chain's own ``fault`` output once it has been updated."""
-        value = self.value
+        out = self._step.outputs if self._step is not None else None
+        value = out.__getitem__ if out is not None else self.value
         changed = "payload_change" in self._out and value("payload_change")[0] > 0.5
         model_fault = self.processed > 0 and value("fault")[0] > 0.5
         return ContactState(t, bool(value("contact")[0] > 0.5),
@@ -281,13 +283,13 @@ class StationCore:
         transport's (reason, detail) for a message it refused): checks, one diagram update
         when fresh, the wrench published when fault-free, the contact state always."""
         accepted = self.monitor.accepted["ft"]
-        timed = problem is None and sample is not None and np.isfinite(sample.t)
+        timed = problem is None and sample is not None and math.isfinite(sample.t)
         if timed and self.load.on_ft(sample.t, arrival):  # too far behind: drop the oldest
             problem = ("overload", self.load.detail())
             # After the gap the chain's filters settle before anything is judged again.
             self._settling = max(1, round(SETTLE_AFTER_DROP_S / self.period))
         fresh = self.monitor.on_wrench(sample, arrival, problem)
-        t = sample.t if sample is not None and np.isfinite(sample.t) else self._stream_time()
+        t = sample.t if sample is not None and math.isfinite(sample.t) else self._stream_time()
         if self.monitor.accepted["ft"] > accepted and self.rate_check.measured_hz is None:
             self.warn(self.rate_check.on_sample(t))
         if fresh and self.imu is not None:  # NaN when no IMU sample is close: a fault

@@ -25,6 +25,7 @@ from __future__ import annotations
 
 import functools
 import math
+import operator
 from typing import NamedTuple
 
 import numpy as np
@@ -52,8 +53,8 @@ class JointBounds(NamedTuple):
     def check(self, q) -> tuple[str, str] | None:
         """None when every |q_j| ≤ limit_j, else (reason, detail): ``degrees`` when q read
         as degrees fits, ``joint_range`` otherwise."""
-        over = np.abs(q) > self.limit
-        if not over.any():
+        values = q.tolist() if hasattr(q, "tolist") else list(q)
+        if all(map(operator.le, map(abs, values), self.limit.tolist())):  # per message: cheap
             return None
         j = int(np.argmax(np.abs(q) / self.limit))
         name, value, bound = self.names[j], float(q[j]), float(self.limit[j])

@@ -179,8 +179,9 @@ def _utime(t: float) -> int:
 
 def encode_wrench(t: float, wrench) -> bytes:
     """``lcmt_force_torque`` bytes for a wrench ``[Fx Fy Fz Tx Ty Tz]`` (N, N·m) at t (s)."""
-    w = np.asarray(wrench, dtype=float).reshape(6)
-    return _FT.pack(_FT_FINGERPRINT, _utime(t), *w.tolist())
+    if not (type(wrench) is np.ndarray and wrench.shape == (6,) and wrench.dtype == float):
+        wrench = np.asarray(wrench, dtype=float).reshape(6)
+    return _FT.pack(_FT_FINGERPRINT, _utime(t), *wrench.tolist())
 
 
 def encode_contact_state(state: ContactState) -> bytes:
