@@ -26,10 +26,15 @@ leave the host). Per rate and model:
 * serve_start_s: serve's start to listening; first_output_s: the driver's topics
   appearing (serve already listening) to the first output received (ROS 2: DDS discovery
   included).
+* rejected, fault_episodes: serve's counts of the samples it refused, per reason, and of
+  its fault episodes: where samples received but not processed went.
 
 serve is started first; the driver then appears and sends once matched. It sleeps until
 each message (or batch) is due, handling serve's outputs as they come, so that it does not
-keep a core busy. `--load-core` keeps one core busy with a second process during the runs
+keep a core busy. `--no-yield-io-threads` leaves serve's receive threads at the default
+policy (``yield_io_threads: false``); `--separate-outputs` (LCM) has serve publish on a URL
+of its own (``output_url``), where the driver listens. `--load-core` keeps one core busy
+with a second process during the runs
 (the issue's "second process loading one core"); `--outputs` sets serve's published
 outputs (the driver reads wrench_contact and contact), `--batch-period` its
 ``batch_period_s``; `--profile DIR` runs serve under
@@ -398,6 +403,9 @@ def run_one(model, name, rate, data, names, args, folder: Path) -> dict:
                                else None),
             "first_sent_s": run["first_sent"] - appeared, "load_core": int(args.load_core),
             "batch_period_s": args.batch_period,
+            # Where samples received but not processed went (serve's summary).
+            "rejected": summary.get("rejected", {}),
+            "fault_episodes": summary.get("fault_episodes", {}),
             "yield_io_threads": int(not args.no_yield_io_threads),
             "separate_outputs": int(args.separate_outputs and kind is LcmDriver),
             "load_before": run["load_before"], "load_after": run["load_after"]}
@@ -479,7 +487,8 @@ def run_all(args, makers, X, W, replay, names) -> dict:
                   f"{row['false_contacts']}  serve listening after {row['serve_start_s']:.2f} s, "
                   f"first output {row['first_output_s'] or float('nan'):.2f} s after the "
                   f"driver's topics appeared  load {row['load_before']:.2f}→"
-                  f"{row['load_after']:.2f}", flush=True)
+                  f"{row['load_after']:.2f}  rejected {row['rejected'] or 'none'}  fault "
+                  f"episodes {row['fault_episodes'] or 'none'}", flush=True)
     return results
 
 

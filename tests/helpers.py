@@ -314,6 +314,21 @@ def imu_rows(n: int = 300, seed: int = 0):
     return X, A @ theta
 
 
+def imu_message(t, acc=(1.0, 2.0, 9.8), gyro=(0.1, -0.2, 0.3)):
+    """A ``sensor_msgs/msg/Imu`` stamped `t` with specific force `acc` (m/s²) and `gyro`
+    (rad/s) in the sensor frame (needs cyclonedds)."""
+    from ftdrake.hardware.ros2.messages import header, ros2_type
+
+    imu, vector = ros2_type("sensor_msgs/msg/Imu"), ros2_type("geometry_msgs/msg/Vector3")
+    return imu(header=header(t, "ft_sensor"),
+               orientation=ros2_type("geometry_msgs/msg/Quaternion")(x=0.0, y=0.0, z=0.0, w=1.0),
+               orientation_covariance=[0.0] * 9,
+               angular_velocity=vector(**dict(zip("xyz", gyro, strict=True))),
+               angular_velocity_covariance=[0.0] * 9,
+               linear_acceleration=vector(**dict(zip("xyz", acc, strict=True))),
+               linear_acceleration_covariance=[0.0] * 9)
+
+
 class Press(LeafSystem):
     """A hand pressing on a body, as a user would write it in their own diagram: a constant
     world-frame force `force_W` (N) on the body's origin from `start` to `end` (s); output

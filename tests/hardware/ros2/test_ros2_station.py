@@ -14,6 +14,7 @@ import pytest
 pytest.importorskip("cyclonedds")
 
 from ftdrake import ConfigError, RandomForestCompensator, ScenarioConfig
+from ftdrake.compensation.estimators.imu_physics import ImuPayloadCompensator
 from ftdrake.hardware.ros2.config import Ros2Config
 from ftdrake.hardware.ros2.dds import Ros2Node
 from ftdrake.hardware.ros2.messages import (
@@ -24,6 +25,7 @@ from ftdrake.hardware.ros2.messages import (
     wrench_stamped,
 )
 from ftdrake.hardware.ros2.station import ERROR, OK, WARN, Ros2Station
+from tests.helpers import imu_message, imu_rows
 
 N = 7
 NAMES = [f"arm_joint_{k + 1}" for k in range(N)]
@@ -312,5 +314,45 @@ def test_tare_and_payload_topics_reach_the_tracker_and_its_estimates_are_publish
         payload = outputs["payload"][-1]
         assert payload.header.frame_id == "ft_sensor"
         assert payload.inertia.m == rig.dut.output("payload")[0]
+    finally:
+        rig.close()
+
+
+def test_an_imu_that_stops_is_an_error_on_diagnostics_until_it_resumes():
+    scenario = ScenarioConfig()
+    scenario.chain.bias_tracker.enabled = False
+    rig = Rig(scenario, model=ImuPayloadCompensator().fit(*imu_rows()), imu_topic="/ft_imu")
+    try:
+        imu = rig.driver.publisher("/ft_imu", "sensor_msgs/msg/Imu")
+        wait_for(lambda: all(rig.driver.matched().values()), "the IMU topic to match")
+
+        def step(t, with_imu=True):
+            if with_imu:  # received before the wrench of its stamp
+                accepted = rig.dut.imu.accepted
+                imu.write(imu_message(t))
+                wait_for(lambda: (rig.dut.spin_once(0), rig.dut.imu.accepted)[1] > accepted,
+                         "the station to receive the IMU sample")
+            rig.step(t)
+
+        for k in range(5):
+            step(0.001 * k)
+        assert len(rig.got["wrench"]) == 5 and not rig.dut.monitor.fault
+        for k in range(5, 10):  # silent: from 7 ms on no IMU sample is within 2 ms
+            step(0.001 * k, with_imu=False)
+        status, values = rig.last_status()
+        assert status.level == ERROR and values["reason"] == "imu_stamp_gap"
+        assert status.message.startswith("fault imu_stamp_gap: no IMU sample stamped within")
+        assert "Fix: the IMU's driver on ros2.imu_topic '/ft_imu'" in status.message
+        assert values["unpaired_imu"] == "1" and values["received_imu"] == "5"  # at the rise
+        assert [(e.kind, e.reason) for e in rig.events] == [("recovered", ""),
+                                                             ("fault", "imu_stamp_gap")]
+        assert len(rig.got["wrench"]) == 7
+        step(0.010)
+        status, values = rig.last_status()
+        # No fault; WARN for the start-up warning (these joint names are not the model's
+        # robot's).
+        assert status.level == WARN and "joint_names" in status.message
+        assert values["fault"] == "false" and len(rig.got["wrench"]) == 8
+        assert rig.events[-1].kind == "recovered"
     finally:
         rig.close()
