@@ -157,7 +157,17 @@ class Ros2Node:
                  where: str = "ros2.dds_config"):
         self.participant = None
         self.participant = open_participant(domain_id, dds_config, where)
-        from cyclonedds.core import WaitSet  # noqa: PLC0415 (cyclonedds only for ROS 2)
+        from cyclonedds._clayer import ddspy_take  # noqa: PLC0415 (cyclonedds only for ROS 2)
+        from cyclonedds.core import (  # noqa: PLC0415 (as above)
+            InstanceState,
+            SampleState,
+            ViewState,
+            WaitSet,
+        )
+
+        # What _take_bytes calls per reader and wake-up, looked up once.
+        self._ddspy_take = ddspy_take
+        self._any_sample = SampleState.Any | ViewState.Any | InstanceState.Any
 
         self.clock = clock
         self.reorder_window_s = float(reorder_window_s)
@@ -222,18 +232,14 @@ class Ros2Node:
                                               self._taken, handler, sample, now))
 
     def _take_bytes(self, reader, kind, handler, depth, read, now) -> None:
-        """_take for a reader whose messages `read` reads from their bytes."""
-        from cyclonedds._clayer import ddspy_take  # noqa: PLC0415 (cyclonedds only for ROS 2)
-        from cyclonedds.core import (  # noqa: PLC0415 (as above)
-            DDSException,
-            InstanceState,
-            SampleState,
-            ViewState,
-        )
-
-        mask = SampleState.Any | ViewState.Any | InstanceState.Any
-        while items := ddspy_take(reader._ref, mask, depth):
+        """_take for a reader whose messages `read` reads from their bytes. A take of fewer
+        than `depth` samples emptied the reader: no second call to find it empty (what
+        arrives meanwhile, _complete's second pass or the next wake-up takes)."""
+        take, mask = self._ddspy_take, self._any_sample
+        while items := take(reader._ref, mask, depth):
             if isinstance(items, int):
+                from cyclonedds.core import DDSException  # noqa: PLC0415 (as above)
+
                 raise DDSException(items, f"Occurred while taking data in {reader!r}")
             for data, info in items:
                 if not info.valid_data:  # a writer went away
@@ -247,6 +253,8 @@ class Ros2Node:
                 self._taken += 1
                 self._pending.append((info.source_timestamp, self._taken, handler, sample,
                                       now))
+            if len(items) < depth:
+                break
 
     def _due(self, limit) -> list:
         """The pending messages to hand over now, in publication order: those published no
