@@ -48,6 +48,7 @@ machine the rates a run sustains depend on what else runs. The last line is one 
     python benchmarks/live_rate.py [--transport ros2|lcm] [--rates 500,1000,2000,4000]
                                    [--seconds 60] [--models physics,hybrid] [--load-core]
                                    [--outputs wrench_contact,contact]
+                                   [--separate-outputs] [--no-yield-io-threads]
 
 The issue's soaks (long: run them on an otherwise idle machine)::
 
