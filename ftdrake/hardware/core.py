@@ -243,8 +243,7 @@ class StationCore:
     def contact_state(self, t: float, fault: bool) -> ContactState:
         """The detector's state now, stamped `t`, with `fault` (the inputs' fault) or the
         chain's own ``fault`` output once it has been updated."""
-        out = self._step.outputs if self._step is not None else None
-        value = out.__getitem__ if out is not None else self.value
+        value = self._step.outputs.__getitem__ if self._step is not None else self.value
         changed = "payload_change" in self._out and value("payload_change")[0] > 0.5
         model_fault = self.processed > 0 and value("fault")[0] > 0.5
         return ContactState(t, bool(value("contact")[0] > 0.5),
