@@ -40,6 +40,12 @@ def check_batch_period(value, max_backlog_s: float, where: str) -> None:
                           f"(0: a wake-up per message; 0.002 batches 2 ms), got {value!r}")
 
 
+def check_yield_io_threads(value, where: str) -> None:
+    """ConfigError naming `where`.yield_io_threads unless it is a bool."""
+    if not isinstance(value, bool):
+        raise ConfigError(f"{where}.yield_io_threads: true or false, got {value!r}")
+
+
 @dc.dataclass
 class HardwareConfig:
     """Where a live robot's streams are and how stale they may get.
@@ -160,9 +166,7 @@ class HardwareConfig:
         if not isinstance(self.output_url, str):
             raise ConfigError(f"{where}.output_url: an LCM URL, or \"\" for lcm_url's; got "
                               f"{self.output_url!r}")
-        if not isinstance(self.yield_io_threads, bool):
-            raise ConfigError(f"{where}.yield_io_threads: true or false, got "
-                              f"{self.yield_io_threads!r}")
+        check_yield_io_threads(self.yield_io_threads, where)
         if self.joint_state_type not in JOINT_STATE_TYPES:
             raise ConfigError(f"{where}.joint_state_type: {self.joint_state_type!r} is not one "
                               f"of {', '.join(JOINT_STATE_TYPES)}")

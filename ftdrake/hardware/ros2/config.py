@@ -12,7 +12,7 @@ import math
 from ...conventions import OUTPUTS as CHAIN_OUTPUTS_BY_PORT
 from ...conventions import PUBLISHED, ROS2_TYPES
 from ...errors import ConfigError
-from ..config import check_batch_period, check_outputs
+from ..config import check_batch_period, check_outputs, check_yield_io_threads
 from .dds import QOS_PROFILES, dds_topic
 
 #: Output topics under `output_namespace` and their ROS 2 types: the chain outputs
@@ -141,9 +141,7 @@ class Ros2Config:
         self._check_numbers(where)
         check_outputs(self.outputs, f"{where}.outputs")
         check_batch_period(self.batch_period_s, self.max_backlog_s, where)
-        if not isinstance(self.yield_io_threads, bool):
-            raise ConfigError(f"{where}.yield_io_threads: true or false, got "
-                              f"{self.yield_io_threads!r}")
+        check_yield_io_threads(self.yield_io_threads, where)
         if not isinstance(self.wrench_frame_id, str):
             raise ConfigError(f"{where}.wrench_frame_id: the sensor frame's name (a string; "
                               f"'' accepts any), got {self.wrench_frame_id!r}")
