@@ -40,6 +40,11 @@ outputs (the driver reads wrench_contact and contact), `--batch-period` its
 ``batch_period_s``; `--profile DIR` runs serve under
 cProfile.
 
+`--floor` measures the transport's own cost at the same settings: serve runs as always
+(transport, receive threads, decode, its loop and status) but each F/T message publishes the
+outputs' values without the checks, the chain's update or any bookkeeping (`FLOOR_SERVE`);
+the CPU per message of a normal run minus the floor's is the cost of ftdrake's own work.
+
 The machine's 1-minute load average before and after each run is printed: on a shared
 machine the rates a run sustains depend on what else runs. The last line is one JSON object
 ``{"<rate>": {"<model>": {"sent", "received", "processed", "published", "lost",
@@ -48,7 +53,7 @@ machine the rates a run sustains depend on what else runs. The last line is one 
     python benchmarks/live_rate.py [--transport ros2|lcm] [--rates 500,1000,2000,4000]
                                    [--seconds 60] [--models physics,hybrid] [--load-core]
                                    [--outputs wrench_contact,contact]
-                                   [--separate-outputs] [--no-yield-io-threads]
+                                   [--separate-outputs] [--no-yield-io-threads] [--floor]
 
 The issue's soaks (long: run them on an otherwise idle machine)::
 
@@ -91,6 +96,28 @@ from ftdrake.sim.station import build_station
 
 DOMAIN = 170 + os.getpid() % 30
 N = 7
+
+# serve with the per-message work taken out (--floor): a decoded F/T message publishes the
+# outputs as they stand (the chain's initial values, the contact state with no fault) and is
+# counted; a joint state is decoded and dropped. Everything around it is serve's own.
+FLOOR_SERVE = """
+import sys
+from ftdrake.cli.main import main
+from ftdrake.hardware.core import StationCore
+
+def on_wrench_sample(self, sample, arrival, problem=None):
+    if sample is None:
+        return
+    self._publish_wrench(sample.t)
+    self._publish_contact(sample.t, False)
+    self.latencies.append(self.clock() - arrival)
+    self.processed += 1
+    self.published += 1
+
+StationCore.on_wrench_sample = on_wrench_sample
+StationCore.on_joint_sample = lambda self, sample, arrival, problem=None: None
+sys.exit(main(sys.argv[1:]))
+"""
 
 
 def free_motion(seconds: float, seed: int):
@@ -268,9 +295,10 @@ class LcmDriver:
 
 
 def start_serve(model, rate, kind, names, port, folder: Path, profile: Path | None = None,
-                keys=None):
+                keys=None, floor: bool = False):
     """serve in its own process on the transport of driver class `kind`, `keys` set in its
-    transport's section of the live file; returns the process and the s it took to listen."""
+    transport's section of the live file (`floor`: with FLOOR_SERVE's per-message work);
+    returns the process and the s it took to listen."""
     import yaml
 
     save_model(model, folder / "model.ftd", target_names=list(WRENCH_AXES),
@@ -283,8 +311,9 @@ def start_serve(model, rate, kind, names, port, folder: Path, profile: Path | No
     err_path = folder / "serve.err"
     with open(err_path, "w") as err:
         serve = subprocess.Popen(
-            [sys.executable, *(["-m", "cProfile", "-o", profile] if profile else []), "-m",
-             "ftdrake", "serve", *kind.flags(port), "--model",
+            [sys.executable, *(["-m", "cProfile", "-o", profile] if profile else []),
+             *(["-c", FLOOR_SERVE] if floor else ["-m", "ftdrake"]), "serve",
+             *kind.flags(port), "--model",
              folder / "model.ftd", "--config", folder / "live.yaml"],
             stdout=subprocess.PIPE, stderr=err, text=True)
     started = time.monotonic()
@@ -369,7 +398,7 @@ def run_one(model, name, rate, data, names, args, folder: Path) -> dict:
         profile = (Path(args.profile) / f"serve-{args.transport}-{rate:g}-{name}.prof"
                    if args.profile else None)
         serve, serve_start_s = start_serve(model, rate, kind, names, port, folder, profile,
-                                           serve_keys(args, kind, port))
+                                           serve_keys(args, kind, port), args.floor)
         driver, appeared = start_driver(kind, names, port, args.separate_outputs)
         run = drive(driver, serve, rate, data, args)
         serve.send_signal(signal.SIGINT)
@@ -409,6 +438,7 @@ def run_one(model, name, rate, data, names, args, folder: Path) -> dict:
             "fault_episodes": summary.get("fault_episodes", {}),
             "yield_io_threads": int(not args.no_yield_io_threads),
             "separate_outputs": int(args.separate_outputs and kind is LcmDriver),
+            "floor": int(args.floor),
             "load_before": run["load_before"], "load_after": run["load_after"]}
 
 
@@ -437,9 +467,14 @@ def main() -> None:
                              "default policy)")
     parser.add_argument("--load-core", action="store_true",
                         help="a second process keeps one core busy during the runs")
+    parser.add_argument("--floor", action="store_true",
+                        help="serve without its per-message work (FLOOR_SERVE): the "
+                             "transport's own CPU per message at these settings")
     parser.add_argument("--profile", metavar="DIR",
                         help="run serve under cProfile, its statistics in DIR (slower)")
     args = parser.parse_args()
+    if args.floor and args.profile:
+        parser.error("--floor and --profile: cProfile cannot run serve's floor (python -c)")
     _, X, W, station = free_motion(args.train_s, seed=0)
     replay = free_motion(max(10.0, args.train_s / 2), seed=1)[:3]
     from ftdrake.sim.ros2_publisher import arm_joint_names
@@ -475,8 +510,9 @@ def run_all(args, makers, X, W, replay, names) -> dict:
             row["compensator_us"] = costs[name]
             row["cpu_ratio_to_compensator"] = row["cpu_us_per_msg"] / costs[name]
             results.setdefault(f"{rate:g}", {})[name] = row
-            print(f"{args.transport} {rate:6.0f} Hz {name:<8} sent {row['sent']:>7} "
-                  f"received {row['received']:>7} processed {row['processed']:>7} "
+            print(f"{args.transport} {rate:6.0f} Hz {name:<8} {'FLOOR ' * args.floor}"
+                  f"sent {row['sent']:>7} received {row['received']:>7} "
+                  f"processed {row['processed']:>7} "
                   f"published {row['published']:>7} lost {row['lost']:>6} "
                   f"cpu {row['cpu_us_per_msg']:7.1f} µs/msg (median of seconds "
                   f"{row['cpu_us_per_msg_median'] or float('nan'):.1f}) "
