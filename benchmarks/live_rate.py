@@ -106,6 +106,7 @@ from ftdrake.cli.main import main
 from ftdrake.hardware.core import StationCore
 
 def on_wrench_sample(self, sample, arrival, problem=None):
+    self.monitor.received["ft"] += 1
     if sample is None:
         return
     self._publish_wrench(sample.t)
@@ -114,8 +115,11 @@ def on_wrench_sample(self, sample, arrival, problem=None):
     self.processed += 1
     self.published += 1
 
+def on_joint_sample(self, sample, arrival, problem=None):
+    self.monitor.received["joint"] += 1
+
 StationCore.on_wrench_sample = on_wrench_sample
-StationCore.on_joint_sample = lambda self, sample, arrival, problem=None: None
+StationCore.on_joint_sample = on_joint_sample
 sys.exit(main(sys.argv[1:]))
 """
 

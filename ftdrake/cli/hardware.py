@@ -28,7 +28,7 @@ from typing import TYPE_CHECKING
 from ..config import load_config
 from . import args as a
 from . import ros2
-from .live import load_live, serve_until_stopped, stop_on_signals
+from .live import load_live, serve_until_stopped, starting, stop_on_signals
 
 if TYPE_CHECKING:
     from ..hardware.config import HardwareConfig
@@ -126,9 +126,6 @@ def run_serve(args) -> int:
 
     live = load_live(args)
     hardware = hardware_from_args(args, live)
-    with a.naming("--model", args.model):
-        model = load_model(args.model)  # its joint count against lcm.n_joints: the station's
-    transport = open_transport(args, hardware)
 
     def on_event(event) -> None:
         print(f"ftdrake serve: {event}", file=sys.stderr, flush=True)
@@ -136,8 +133,12 @@ def run_serve(args) -> int:
     def on_warning(warning: str) -> None:
         print(f"ftdrake serve: warning: {warning}", file=sys.stderr, flush=True)
 
-    station = HardwareStation(hardware, model, live.chain, transport, on_event=on_event,
-                              on_warning=on_warning)
+    with starting(args.model, args.quiet):
+        with a.naming("--model", args.model):
+            model = load_model(args.model)  # its joint count against lcm.n_joints: the station's
+        transport = open_transport(args, hardware)
+        station = HardwareStation(hardware, model, live.chain, transport, on_event=on_event,
+                                  on_warning=on_warning)
     if not args.quiet:
         print(f"ftdrake serve: {type(model).__name__} from {args.model}, "
               f"{1 / station.period:g} Hz updates\n{describe_channels(hardware)}",

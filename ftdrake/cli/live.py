@@ -35,6 +35,22 @@ def stop_on_signals():
             signal.signal(s, h)
 
 
+@contextlib.contextmanager
+def starting(model_path, quiet: bool):
+    """Says, around the model's loading and the station's build, that serve is starting and
+    then how long it took: the build compiles the chain's kernels on the first run after an
+    install (numba caches them for the next runs), which takes tens of seconds."""
+    if not quiet:
+        print(f"ftdrake serve: loading {model_path} and building the chain (the first run "
+              "after an install compiles its kernels, up to a minute; later runs load them "
+              "from numba's cache)", file=sys.stderr, flush=True)
+    start = time.monotonic()
+    yield
+    if not quiet:
+        print(f"ftdrake serve: ready in {time.monotonic() - start:.1f} s", file=sys.stderr,
+              flush=True)
+
+
 class Status:
     """The throttled status line: message rates per stream, counts, the current state. The
     rates are measured also when `quiet` (the summary reports the last ones)."""

@@ -24,7 +24,7 @@ import time
 from ..config import load_config
 from ..errors import ConfigError
 from . import args as a
-from .live import load_live, serve_until_stopped, stop_on_signals
+from .live import load_live, serve_until_stopped, starting, stop_on_signals
 
 
 def add_options(p) -> None:
@@ -78,8 +78,6 @@ def serve(args) -> int:
 
     live = load_live(args)
     config = config_from_args(args, live)
-    with a.naming("--model", args.model):
-        model = load_model(args.model)  # its joints against ros2.joint_names: the station's
 
     def on_event(event) -> None:
         print(f"ftdrake serve: {event}", file=sys.stderr, flush=True)
@@ -87,7 +85,11 @@ def serve(args) -> int:
     def on_warning(warning: str) -> None:
         print(f"ftdrake serve: warning: {warning}", file=sys.stderr, flush=True)
 
-    station = Ros2Station(config, model, live.chain, on_event=on_event, on_warning=on_warning)
+    with starting(args.model, args.quiet):
+        with a.naming("--model", args.model):
+            model = load_model(args.model)  # its joints against ros2.joint_names: the station's
+        station = Ros2Station(config, model, live.chain, on_event=on_event,
+                              on_warning=on_warning)
     print(f"ftdrake serve: {type(model).__name__} from {args.model}, "
           f"{1 / station.period:g} Hz updates\n{describe_topics(config)}",
           file=sys.stderr, flush=True)

@@ -72,7 +72,9 @@ def test_a_scenario_file_still_loads_with_a_warning_naming_the_layout(tmp_path):
 
 
 def test_serve_runs_on_a_live_file(tmp_path, capsys):
-    """``serve --config live.yaml``: the chain's rate and the file's LCM URL, no other flag."""
+    """``serve --config live.yaml``: the chain's rate and the file's LCM URL, no other flag;
+    it says it is building before the build (which compiles for tens of seconds on a first
+    run) and how long that took, before the channels."""
     import numpy as np
 
     forest = ftdrake.RandomForestCompensator(features="q", n_estimators=2).fit(
@@ -83,3 +85,9 @@ def test_serve_runs_on_a_live_file(tmp_path, capsys):
                  str(tmp_path / "live.yaml"), "--duration", "0.1"]) == 0
     err = capsys.readouterr().err
     assert "500 Hz updates" in err and "MY_FT" in err
+    lines = err.splitlines()
+
+    def first(text):
+        return next(i for i, line in enumerate(lines) if text in line)
+
+    assert first("m.ftd and building the chain") < first("ready in") < first("Hz updates")
