@@ -42,8 +42,9 @@ cProfile.
 
 `--floor` measures the transport's own cost at the same settings: serve runs as always
 (transport, receive threads, decode, its loop and status) but each F/T message publishes the
-outputs' values without the checks, the chain's update or any bookkeeping (`FLOOR_SERVE`);
-the CPU per message of a normal run minus the floor's is the cost of ftdrake's own work.
+outputs' values without the checks, the chain's update or any bookkeeping
+(``station_floor.py``); the CPU per message of a normal run minus the floor's is the cost of
+ftdrake's own work.
 
 The machine's 1-minute load average before and after each run is printed: on a shared
 machine the rates a run sustains depend on what else runs. The last line is one JSON object
@@ -97,29 +98,13 @@ from ftdrake.sim.station import build_station
 DOMAIN = 170 + os.getpid() % 30
 N = 7
 
-# serve with the per-message work taken out (--floor): a decoded F/T message publishes the
-# outputs as they stand (the chain's initial values, the contact state with no fault) and is
-# counted; a joint state is decoded and dropped. Everything around it is serve's own.
-FLOOR_SERVE = """
+# serve with the per-message work taken out (--floor; station_floor.py, beside this file).
+FLOOR_SERVE = f"""
 import sys
+sys.path.insert(0, {str(Path(__file__).resolve().parent)!r})
+import station_floor
 from ftdrake.cli.main import main
-from ftdrake.hardware.core import StationCore
-
-def on_wrench_sample(self, sample, arrival, problem=None):
-    self.monitor.received["ft"] += 1
-    if sample is None:
-        return
-    self._publish_wrench(sample.t)
-    self._publish_contact(sample.t, False)
-    self.latencies.append(self.clock() - arrival)
-    self.processed += 1
-    self.published += 1
-
-def on_joint_sample(self, sample, arrival, problem=None):
-    self.monitor.received["joint"] += 1
-
-StationCore.on_wrench_sample = on_wrench_sample
-StationCore.on_joint_sample = on_joint_sample
+station_floor.install()
 sys.exit(main(sys.argv[1:]))
 """
 

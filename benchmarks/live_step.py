@@ -19,6 +19,10 @@ median over batches; the two paths' batches interleaved so that both see the sam
   ``Ros2Station`` (joint names reordered, checks, one chain update, the wrench, contact and
   contact force written to DDS, nobody listening; the DDS receive and deserialisation and
   the periodic diagnostics are not in it);
+* floor (``station_floor.py``): the same stations' callbacks with the per-message work taken
+  out (decode, encode and publish of the same outputs, no checks, no chain update), so that
+  station − floor is ftdrake's own per-message work (``live_rate.py --floor`` measures the
+  same split live);
 * chain: the chain's update alone (diagram: inputs fixed, ``Simulator.AdvanceTo``, the
   published outputs evaluated; step: ``ChainStep.update``);
 * compensator: ``CompensatorSystem.compensate`` on arrays, the compiled compensator sample
@@ -30,6 +34,8 @@ shared machine only the ratios travel; the load average is printed with the numb
 line is one JSON object.
 
     nice -n 5 python benchmarks/live_step.py [--messages 1000] [--batches 7]
+
+(run from anywhere: it imports ``station_floor`` from its own folder)
 """
 
 from __future__ import annotations
@@ -43,6 +49,7 @@ import warnings
 
 import numpy as np
 from pydrake.systems.analysis import Simulator
+from station_floor import floor
 
 from ftdrake import ChainConfig, CompensationChain
 from ftdrake.compensation.estimators.hybrid import HybridCompensator
@@ -136,7 +143,7 @@ def lcm_stations(model, scenario, states, Y):
     config = HardwareConfig(lcm_url="memq://", n_joints=N, sensor_timeout_s=1e6,
                             joint_state_timeout_s=1e6)
     stations = {path: HardwareStation(config, model, scenario, "memq://")
-                for path in ("diagram", "step")}
+                for path in ("diagram", "step", "floor")}
     stations["diagram"].use_diagram()
     messages = [(encode_joint_state("iiwa_status", (k + 1) * 1e-3, x[:N], x[N:]),
                  encode_wrench((k + 1) * 1e-3, w))
@@ -158,7 +165,7 @@ def ros2_stations(model, scenario, states, Y):
     stations = {path: Ros2Station(Ros2Config(
         joint_names=names, domain_id=domain, sensor_timeout_s=1e6, joint_state_timeout_s=1e6,
         output_namespace=f"/ftdrake_{path}_{os.getpid()}"), model, scenario)
-        for path in ("diagram", "step")}
+        for path in ("diagram", "step", "floor")}
     stations["diagram"].use_diagram()
     joint_state = ros2_type("sensor_msgs/msg/JointState")
     messages = [(joint_state(header=header((k + 1) * 1e-3, "base_link"), name=names,
@@ -186,24 +193,32 @@ def measure(model, rows, Y, n_messages: int, batches: int) -> dict:
     diagram_chain = DiagramChain(CompensationChain(model, scenario, n_joints=N))
     step_chain = ChainStep(CompensationChain(model, scenario, n_joints=N))
     comp = step_chain.chain.compensator
-    times = {key: [] for key in ("station_diagram", "station_step", "chain_diagram",
-                                 "chain_step", "compensator")}
+    times = {key: [] for key in ("station_diagram", "station_step", "station_floor",
+                                 "chain_diagram", "chain_step", "compensator")}
     size = n_messages // batches
     warm = slice(0, min(200, size))  # compile the kernels, fill the caches
     station_batch(stations["diagram"], messages[warm])
     station_batch(stations["step"], messages[warm])
+    with floor():
+        station_batch(stations["floor"], messages[warm])
     if ros2 is not None:
         for path in ("diagram", "step"):
             times[f"ros2_station_{path}"] = []
             ros2_station_batch(ros2[0][path], ros2[1][warm])
+        times["ros2_station_floor"] = []
     for b in range(batches):
         part = slice(b * size, (b + 1) * size)
         times["station_diagram"].append(station_batch(stations["diagram"], messages[part]))
         times["station_step"].append(station_batch(stations["step"], messages[part]))
+        with floor():
+            times["station_floor"].append(station_batch(stations["floor"], messages[part]))
         if ros2 is not None:
             for path in ("diagram", "step"):
                 times[f"ros2_station_{path}"].append(ros2_station_batch(ros2[0][path],
                                                                         ros2[1][part]))
+            with floor():
+                times["ros2_station_floor"].append(ros2_station_batch(ros2[0]["floor"],
+                                                                      ros2[1][part]))
         times["chain_diagram"].append(chain_batch(diagram_chain.update, Y[part], states[part]))
         times["chain_step"].append(step_batch(step_chain, b * size, Y[part], states[part]))
         times["compensator"].append(compensator_batch(comp, Y[part], states[part]))
@@ -238,6 +253,10 @@ def main() -> None:
             print(f"{name:<8} {path:<8} {r[f'station_{path}']:12.1f} {ros2:14.1f} "
                   f"{r[f'chain_{path}']:13.1f} {r['compensator']:12.1f} "
                   f"{r[f'station_{path}'] / r['compensator']:26.1f}")
+        print(f"{name:<8} {'floor':<8} {r['station_floor']:12.1f} "
+              f"{r.get('ros2_station_floor', np.nan):14.1f}")
+        print(f"{name:<8} {'step − floor':<12} {r['station_step'] - r['station_floor']:8.1f} "
+              f"{r.get('ros2_station_step', np.nan) - r.get('ros2_station_floor', np.nan):14.1f}")
         print(f"{name:<8} {'diagram / step':<23} {r['station_ratio_diagram_to_step']:5.1f} "
               f"{r.get('ros2_station_diagram', np.nan) / r.get('ros2_station_step', np.nan):14.1f}"
               f" {r['chain_diagram'] / r['chain_step']:13.1f}")
