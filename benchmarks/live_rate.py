@@ -44,7 +44,10 @@ cProfile.
 (transport, receive threads, decode, its loop and status) but each F/T message publishes the
 outputs' values without the checks, the chain's update or any bookkeeping
 (``station_floor.py``); the CPU per message of a normal run minus the floor's is the cost of
-ftdrake's own work.
+ftdrake's own work. `--echo` starts ``transport_echo.py`` instead of serve: the wrench
+echoed back with a contact flag on the same transport, the least a Python process does per
+message there (ROS 2: `--echo listener` takes the messages on Cyclone's receive thread
+instead of waking the main thread).
 
 The machine's 1-minute load average before and after each run is printed: on a shared
 machine the rates a run sustains depend on what else runs. The last line is one JSON object
@@ -55,6 +58,7 @@ machine the rates a run sustains depend on what else runs. The last line is one 
                                    [--seconds 60] [--models physics,hybrid] [--load-core]
                                    [--outputs wrench_contact,contact]
                                    [--separate-outputs] [--no-yield-io-threads] [--floor]
+                                   [--echo [wait|listener]]
 
 The issue's soaks (long: run them on an otherwise idle machine)::
 
@@ -284,10 +288,11 @@ class LcmDriver:
 
 
 def start_serve(model, rate, kind, names, port, folder: Path, profile: Path | None = None,
-                keys=None, floor: bool = False):
+                keys=None, floor: bool = False, echo: str = ""):
     """serve in its own process on the transport of driver class `kind`, `keys` set in its
-    transport's section of the live file (`floor`: with FLOOR_SERVE's per-message work);
-    returns the process and the s it took to listen."""
+    transport's section of the live file (`floor`: with FLOOR_SERVE's per-message work;
+    `echo`: transport_echo.py in its place, with that delivery); returns the process and
+    the s it took to listen."""
     import yaml
 
     save_model(model, folder / "model.ftd", target_names=list(WRENCH_AXES),
@@ -300,6 +305,7 @@ def start_serve(model, rate, kind, names, port, folder: Path, profile: Path | No
     err_path = folder / "serve.err"
     with open(err_path, "w") as err:
         serve = subprocess.Popen(
+            echo_command(kind, port, keys or {}, echo) if echo else
             [sys.executable, *(["-m", "cProfile", "-o", profile] if profile else []),
              *(["-c", FLOOR_SERVE] if floor else ["-m", "ftdrake"]), "serve",
              *kind.flags(port), "--model",
@@ -313,6 +319,15 @@ def start_serve(model, rate, kind, names, port, folder: Path, profile: Path | No
         if time.monotonic() - started > 60:
             raise RuntimeError("serve did not start in 60 s")
     return serve, time.monotonic() - started
+
+
+def echo_command(kind, port, keys: dict, delivery: str) -> list:
+    """transport_echo.py's command line on the transport of driver class `kind`."""
+    script = str(Path(__file__).resolve().parent / "transport_echo.py")
+    if kind is LcmDriver:
+        return [sys.executable, script, "lcm", kind.flags(port)[1],
+                *([keys["output_url"]] if "output_url" in keys else [])]
+    return [sys.executable, script, "ros2", str(DOMAIN), delivery]
 
 
 def serve_keys(args, kind, port) -> dict:
@@ -387,7 +402,8 @@ def run_one(model, name, rate, data, names, args, folder: Path) -> dict:
         profile = (Path(args.profile) / f"serve-{args.transport}-{rate:g}-{name}.prof"
                    if args.profile else None)
         serve, serve_start_s = start_serve(model, rate, kind, names, port, folder, profile,
-                                           serve_keys(args, kind, port), args.floor)
+                                           serve_keys(args, kind, port), args.floor,
+                                           args.echo)
         driver, appeared = start_driver(kind, names, port, args.separate_outputs)
         run = drive(driver, serve, rate, data, args)
         serve.send_signal(signal.SIGINT)
@@ -427,7 +443,7 @@ def run_one(model, name, rate, data, names, args, folder: Path) -> dict:
             "fault_episodes": summary.get("fault_episodes", {}),
             "yield_io_threads": int(not args.no_yield_io_threads),
             "separate_outputs": int(args.separate_outputs and kind is LcmDriver),
-            "floor": int(args.floor),
+            "floor": int(args.floor), "echo": args.echo,
             "load_before": run["load_before"], "load_after": run["load_after"]}
 
 
@@ -459,11 +475,20 @@ def main() -> None:
     parser.add_argument("--floor", action="store_true",
                         help="serve without its per-message work (FLOOR_SERVE): the "
                              "transport's own CPU per message at these settings")
+    parser.add_argument("--echo", nargs="?", const="wait", default="",
+                        choices=("wait", "listener"),
+                        help="transport_echo.py in serve's place: the least a Python process "
+                             "does per message on the transport (ROS 2: 'listener' takes "
+                             "each message on Cyclone's receive thread)")
     parser.add_argument("--profile", metavar="DIR",
                         help="run serve under cProfile, its statistics in DIR (slower)")
     args = parser.parse_args()
     if args.floor and args.profile:
         parser.error("--floor and --profile: cProfile cannot run serve's floor (python -c)")
+    if args.echo and (args.floor or args.profile or args.outputs):
+        parser.error("--echo replaces serve: no --floor, --profile or --outputs with it")
+    if args.echo == "listener" and args.transport != "ros2":
+        parser.error("--echo listener: a Cyclone DDS delivery, only with --transport ros2")
     _, X, W, station = free_motion(args.train_s, seed=0)
     replay = free_motion(max(10.0, args.train_s / 2), seed=1)[:3]
     from ftdrake.sim.ros2_publisher import arm_joint_names
@@ -499,7 +524,8 @@ def run_all(args, makers, X, W, replay, names) -> dict:
             row["compensator_us"] = costs[name]
             row["cpu_ratio_to_compensator"] = row["cpu_us_per_msg"] / costs[name]
             results.setdefault(f"{rate:g}", {})[name] = row
-            print(f"{args.transport} {rate:6.0f} Hz {name:<8} {'FLOOR ' * args.floor}"
+            what = "FLOOR " * args.floor + "ECHO " * bool(args.echo)
+            print(f"{args.transport} {rate:6.0f} Hz {name:<8} {what}"
                   f"sent {row['sent']:>7} received {row['received']:>7} "
                   f"processed {row['processed']:>7} "
                   f"published {row['published']:>7} lost {row['lost']:>6} "
