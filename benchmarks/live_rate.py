@@ -47,7 +47,8 @@ outputs' values without the checks, the chain's update or any bookkeeping
 ftdrake's own work. `--echo` starts ``transport_echo.py`` instead of serve: the wrench
 echoed back with a contact flag on the same transport, the least a Python process does per
 message there (ROS 2: `--echo listener` takes the messages on Cyclone's receive thread
-instead of waking the main thread).
+instead of waking the main thread). `--cpu-affinity` sets serve's ``cpu_affinity`` (all
+its threads on those CPUs); `--driver-cpus` keeps this process, the driver, on others.
 
 The machine's 1-minute load average before and after each run is printed: on a shared
 machine the rates a run sustains depend on what else runs. The last line is one JSON object
@@ -58,7 +59,8 @@ machine the rates a run sustains depend on what else runs. The last line is one 
                                    [--seconds 60] [--models physics,hybrid] [--load-core]
                                    [--outputs wrench_contact,contact]
                                    [--separate-outputs] [--no-yield-io-threads] [--floor]
-                                   [--echo [wait|listener]]
+                                   [--echo [wait|listener]] [--cpu-affinity 1]
+                                   [--driver-cpus 0]
 
 The issue's soaks (long: run them on an otherwise idle machine)::
 
@@ -338,6 +340,8 @@ def serve_keys(args, kind, port) -> dict:
         keys["outputs"] = args.outputs.split(",")
     if args.separate_outputs and kind is LcmDriver:
         keys["output_url"] = kind.output_url(port)
+    if args.cpu_affinity:
+        keys["cpu_affinity"] = [int(cpu) for cpu in args.cpu_affinity.split(",")]
     return keys
 
 
@@ -444,6 +448,7 @@ def run_one(model, name, rate, data, names, args, folder: Path) -> dict:
             "yield_io_threads": int(not args.no_yield_io_threads),
             "separate_outputs": int(args.separate_outputs and kind is LcmDriver),
             "floor": int(args.floor), "echo": args.echo,
+            "cpu_affinity": args.cpu_affinity, "driver_cpus": args.driver_cpus,
             "load_before": run["load_before"], "load_after": run["load_after"]}
 
 
@@ -470,6 +475,11 @@ def main() -> None:
     parser.add_argument("--no-yield-io-threads", action="store_true",
                         help="serve's yield_io_threads false (its receive threads at the "
                              "default policy)")
+    parser.add_argument("--cpu-affinity", default="",
+                        help="serve's cpu_affinity: CPUs for all its threads, e.g. 1")
+    parser.add_argument("--driver-cpus", default="",
+                        help="CPUs this process (the driver) keeps to, e.g. 0 (default: the "
+                             "scheduler's choice)")
     parser.add_argument("--load-core", action="store_true",
                         help="a second process keeps one core busy during the runs")
     parser.add_argument("--floor", action="store_true",
@@ -489,6 +499,8 @@ def main() -> None:
         parser.error("--echo replaces serve: no --floor, --profile or --outputs with it")
     if args.echo == "listener" and args.transport != "ros2":
         parser.error("--echo listener: a Cyclone DDS delivery, only with --transport ros2")
+    if args.driver_cpus:  # before the driver's transport threads start: they inherit it
+        os.sched_setaffinity(0, {int(cpu) for cpu in args.driver_cpus.split(",")})
     _, X, W, station = free_motion(args.train_s, seed=0)
     replay = free_motion(max(10.0, args.train_s / 2), seed=1)[:3]
     from ftdrake.sim.ros2_publisher import arm_joint_names

@@ -28,7 +28,7 @@ from typing import TYPE_CHECKING
 from ..config import load_config
 from . import args as a
 from . import ros2
-from .live import load_live, serve_until_stopped, starting, stop_on_signals
+from .live import describe_cpus, load_live, serve_until_stopped, starting, stop_on_signals
 
 if TYPE_CHECKING:
     from ..hardware.config import HardwareConfig
@@ -111,7 +111,8 @@ def describe_channels(hardware) -> str:
     return (f"LCM {h.lcm_url}\n  in:  {joint}; F/T {h.ft_channel} (force_torque)\n"
             "  out: " + "; ".join(f"{channel} ({ports})"
                                   for channel, ports in h.output_channels().items())
-            + (f" on {h.output_url}" if h.output_url and h.output_url != h.lcm_url else ""))
+            + (f" on {h.output_url}" if h.output_url and h.output_url != h.lcm_url else "")
+            + describe_cpus(h))
 
 
 

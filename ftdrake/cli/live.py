@@ -51,6 +51,13 @@ def starting(model_path, quiet: bool):
               flush=True)
 
 
+def describe_cpus(config) -> str:
+    """The line serve's header adds for a transport config's ``cpu_affinity`` ("" unset)."""
+    cpus = getattr(config, "cpu_affinity", None)
+    return (f"\n  every thread on CPU {', '.join(map(str, cpus))} (cpu_affinity)" if cpus
+            else "")
+
+
 class Status:
     """The throttled status line: message rates per stream, counts, the current state. The
     rates are measured also when `quiet` (the summary reports the last ones)."""

@@ -24,7 +24,7 @@ import time
 from ..config import load_config
 from ..errors import ConfigError
 from . import args as a
-from .live import load_live, serve_until_stopped, starting, stop_on_signals
+from .live import describe_cpus, load_live, serve_until_stopped, starting, stop_on_signals
 
 
 def add_options(p) -> None:
@@ -68,7 +68,7 @@ def describe_topics(config) -> str:
     return (f"ROS 2 domain {c.domain_id} (DDS: {c.dds_config})\n"
             f"  in:  {c.joint_state_topic} (JointState, {c.joint_state_qos}); "
             f"{c.wrench_topic} (WrenchStamped, {c.wrench_qos})\n"
-            f"  out: {outs}; {c.diagnostics_topic} (DiagnosticArray)")
+            f"  out: {outs}; {c.diagnostics_topic} (DiagnosticArray)" + describe_cpus(c))
 
 
 def serve(args) -> int:

@@ -11,6 +11,7 @@ import warnings
 
 from ..conventions import OUTPUTS, PUBLISHED
 from ..errors import ConfigError
+from .threads import usable_cpus
 
 #: Joint-state message types understood by :func:`ftdrake.hardware.messages.decode_joint_state`.
 JOINT_STATE_TYPES = ("iiwa_status", "panda_status", "robot_state")
@@ -44,6 +45,23 @@ def check_yield_io_threads(value, where: str) -> None:
     """ConfigError naming `where`.yield_io_threads unless it is a bool."""
     if not isinstance(value, bool):
         raise ConfigError(f"{where}.yield_io_threads: true or false, got {value!r}")
+
+
+def check_cpu_affinity(value, where: str) -> None:
+    """ConfigError naming `where`.cpu_affinity unless it lists distinct CPUs this process may
+    run on (empty: the scheduler's choice)."""
+    if isinstance(value, (list, tuple)) and not value:
+        return
+    usable = usable_cpus()
+    if not usable:
+        raise ConfigError(f"{where}.cpu_affinity: this platform cannot pin a process to CPUs; "
+                          "leave it empty")
+    if not (isinstance(value, (list, tuple)) and all(
+            isinstance(cpu, int) and not isinstance(cpu, bool) for cpu in value)
+            and len(set(value)) == len(value) and set(value) <= usable):
+        raise ConfigError(f"{where}.cpu_affinity: a list of distinct CPU ids this process may "
+                          f"run on ({sorted(usable)}), e.g. [{max(usable)}]; [] leaves it to "
+                          f"the scheduler; got {value!r}")
 
 
 @dc.dataclass
@@ -129,6 +147,9 @@ class HardwareConfig:
     # LCM's receive thread under SCHED_BATCH (hardware/threads.py): it does not preempt the
     # chain's thread mid-sample; False keeps the default policy.
     yield_io_threads: bool = True
+    # CPUs the whole process (every thread) is kept on (hardware/threads.py: the chain's data
+    # stays in those cores' caches); [] leaves it to the scheduler.
+    cpu_affinity: list[int] = dc.field(default_factory=list)
     # Each F/T sample is paired with the joint state whose stamp is within this (s) of its
     # own (live_inputs.StreamMonitor); none within it: a fault, never judged. 0: by arrival
     # only (drivers whose stamps are on different clocks).
@@ -167,6 +188,7 @@ class HardwareConfig:
             raise ConfigError(f"{where}.output_url: an LCM URL, or \"\" for lcm_url's; got "
                               f"{self.output_url!r}")
         check_yield_io_threads(self.yield_io_threads, where)
+        check_cpu_affinity(self.cpu_affinity, where)
         if self.joint_state_type not in JOINT_STATE_TYPES:
             raise ConfigError(f"{where}.joint_state_type: {self.joint_state_type!r} is not one "
                               f"of {', '.join(JOINT_STATE_TYPES)}")

@@ -65,7 +65,7 @@ from .messages import (
     encode_status,
     encode_wrench,
 )
-from .threads import NewThreads
+from .threads import NewThreads, pin_process
 from .transport import open_lcm
 
 
@@ -123,6 +123,8 @@ class HardwareStation(StationCore):
             self._subscribe(config)
         if config.yield_io_threads:
             receivers.yield_to_caller()
+        if config.cpu_affinity:
+            pin_process(config.cpu_affinity)
 
     def _subscribe(self, config: HardwareConfig) -> None:
         """The station's subscriptions, its receive thread started (udpm://)."""

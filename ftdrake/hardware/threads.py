@@ -15,6 +15,11 @@ The measured effect on ``serve`` is in docs/results/live.md.
 threads before and after the transport is opened. Only those are changed; the chain's own
 thread and the caller's keep their policy. Where the platform has no ``SCHED_BATCH``
 (not Linux) nothing is changed.
+
+:func:`pin_process` keeps every thread of the process on the CPUs given (the stations'
+``cpu_affinity``): the chain's working set (the compiled kernels, the model's and the
+filters' arrays) then stays in those cores' caches between messages instead of following
+the scheduler's moves, and threads started later inherit the set from their creator.
 """
 
 from __future__ import annotations
@@ -68,3 +73,25 @@ class NewThreads:
                 continue
             changed.append(tid)
         return changed
+
+
+def usable_cpus() -> set[int]:
+    """The CPUs this process may run on (empty where the platform cannot say)."""
+    try:
+        return set(os.sched_getaffinity(0))
+    except (AttributeError, OSError):
+        return set()
+
+
+def pin_process(cpus) -> list[int]:
+    """Puts every thread of this process on `cpus` (ids from :func:`usable_cpus`); returns
+    the thread ids changed (a thread that ended meanwhile is skipped)."""
+    cpus = set(cpus)
+    changed = []
+    for tid in sorted(thread_ids() or {0}):
+        try:
+            os.sched_setaffinity(tid, cpus)
+        except ProcessLookupError:  # ended meanwhile
+            continue
+        changed.append(tid)
+    return changed

@@ -1,5 +1,6 @@
-"""The transports' receive threads yield to the chain's thread (hardware/threads.py), and an
-LCM station's outputs on a connection of their own (``output_url``).
+"""The transports' receive threads yield to the chain's thread (hardware/threads.py), a
+station keeps every thread of the process on the CPUs of ``cpu_affinity``, and an LCM
+station's outputs go on a connection of their own (``output_url``).
 
 Over UDP multicast with ttl=0 (it stays on this machine); skipped where that or
 ``SCHED_BATCH`` (Linux) is unavailable."""
@@ -15,7 +16,7 @@ from ftdrake.errors import ConfigError
 from ftdrake.hardware import HardwareConfig
 from ftdrake.hardware.messages import decode_wrench, encode_joint_state, encode_wrench
 from ftdrake.hardware.station import HardwareStation
-from ftdrake.hardware.threads import NewThreads
+from ftdrake.hardware.threads import NewThreads, pin_process, thread_ids, usable_cpus
 
 lcm = pytest.importorskip("lcm")
 BATCH = getattr(os, "SCHED_BATCH", None)
@@ -98,8 +99,56 @@ def test_outputs_on_their_own_url_reach_its_subscribers_and_not_the_input_group(
     assert seen["input group"] == []
 
 
+def _affinities() -> dict:
+    return {tid: frozenset(os.sched_getaffinity(tid)) for tid in thread_ids()}
+
+
+@pytest.fixture
+def restored_affinity():
+    """The process's CPUs before the test, put back after it (a test pins every thread)."""
+    cpus = usable_cpus()
+    if len(cpus) < 2:
+        pytest.skip("pinning is seen only with two CPUs or more")
+    yield cpus
+    pin_process(cpus)
+
+
+def test_pin_process_puts_every_thread_on_the_cpus(restored_affinity):
+    release = threading.Event()
+    worker = threading.Thread(target=release.wait)
+    worker.start()
+    try:
+        cpu = max(restored_affinity)
+        changed = pin_process([cpu])
+        assert {os.getpid(), worker.native_id} <= set(changed)
+        assert set(_affinities().values()) == {frozenset({cpu})}
+        seen = []
+        later = threading.Thread(target=lambda: seen.append(os.sched_getaffinity(0)))
+        later.start()
+        later.join()
+        assert seen == [{cpu}]  # a thread started later inherits its creator's CPUs
+    finally:
+        release.set()
+        worker.join()
+
+
+def test_an_lcm_station_pins_every_thread_of_the_process_when_told(restored_affinity):
+    cpu = min(restored_affinity)
+    _station(PORT + 3, cpu_affinity=[cpu])
+    assert set(_affinities().values()) == {frozenset({cpu})}
+    # Without the key the station leaves the process where it was.
+    pin_process(restored_affinity)
+    _station(PORT + 4)
+    assert set(_affinities().values()) == {frozenset(restored_affinity)}
+
+
 def test_bad_thread_and_output_keys_name_the_key():
     with pytest.raises(ConfigError, match=r"hardware\.yield_io_threads"):
         HardwareConfig(yield_io_threads="yes").validate()
     with pytest.raises(ConfigError, match=r"hardware\.output_url"):
         HardwareConfig(output_url=7667).validate()
+    not_ours = max(usable_cpus() or {0}) + 1
+    for bad in ([not_ours], [0, 0], "0", [True], [0.0]):
+        with pytest.raises(ConfigError, match=r"hardware\.cpu_affinity: a list of distinct"):
+            HardwareConfig(cpu_affinity=bad).validate()
+    assert HardwareConfig(cpu_affinity=[]).validate().cpu_affinity == []

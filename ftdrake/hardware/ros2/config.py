@@ -12,7 +12,12 @@ import math
 from ...conventions import OUTPUTS as CHAIN_OUTPUTS_BY_PORT
 from ...conventions import PUBLISHED, ROS2_TYPES
 from ...errors import ConfigError
-from ..config import check_batch_period, check_outputs, check_yield_io_threads
+from ..config import (
+    check_batch_period,
+    check_cpu_affinity,
+    check_outputs,
+    check_yield_io_threads,
+)
 from .dds import QOS_PROFILES, dds_topic
 
 #: Output topics under `output_namespace` and their ROS 2 types: the chain outputs
@@ -75,6 +80,9 @@ class Ros2Config:
       preempt the chain's thread mid-sample; false keeps the default policy. The first
       participant in a process starts them; a station made on a node the caller opened
       changes none.
+    `cpu_affinity`: CPUs the whole process (every thread) is kept on
+      (:func:`ftdrake.hardware.threads.pin_process`): the chain's data stays in those cores'
+      caches between messages; [] (default) leaves it to the scheduler.
     `queue_depth`: samples a subscription (and each of ftdrake's writers) keeps while the
       station lags (1 s at 1 kHz); a lag beyond it loses the oldest.
     `max_backlog_s`: behind the wrench stream by more than this (s), the station drops the
@@ -121,6 +129,7 @@ class Ros2Config:
     max_backlog_s: float = 0.5
     batch_period_s: float = 0.0
     yield_io_threads: bool = True
+    cpu_affinity: list[int] = dc.field(default_factory=list)
     pair_tolerance_s: float = 0.005
     reorder_window_s: float = 0.0
     domain_id: int = 0
@@ -142,6 +151,7 @@ class Ros2Config:
         check_outputs(self.outputs, f"{where}.outputs")
         check_batch_period(self.batch_period_s, self.max_backlog_s, where)
         check_yield_io_threads(self.yield_io_threads, where)
+        check_cpu_affinity(self.cpu_affinity, where)
         if not isinstance(self.wrench_frame_id, str):
             raise ConfigError(f"{where}.wrench_frame_id: the sensor frame's name (a string; "
                               f"'' accepts any), got {self.wrench_frame_id!r}")

@@ -41,7 +41,7 @@ from ...errors import ConfigError
 from ..core import StationCore
 from ..live_checks import check_joint_count, joint_names_problem, ros2_type_name
 from ..messages import JointSample, WrenchSample
-from ..threads import NewThreads
+from ..threads import NewThreads, pin_process
 from .cdr import JointStateReader
 from .cdr import wrench_stamped as read_wrench_stamped
 from .config import OUTPUTS, Ros2Config
@@ -115,6 +115,8 @@ class Ros2Station(StationCore):
                 c.domain_id, c.dds_config, clock=clock, reorder_window_s=c.reorder_window_s)
         if c.yield_io_threads:
             dds_threads.yield_to_caller()
+        if c.cpu_affinity:
+            pin_process(c.cpu_affinity)
         self._index = {name: k for k, name in enumerate(c.joint_names)}
         self._order = (None, None)  # (names of the last message, their permutation)
         self._header = None  # the wrench message being processed
