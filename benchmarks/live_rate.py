@@ -98,6 +98,7 @@ from ftdrake.conventions import (
     joint_columns,
     wrench_columns,
 )
+from ftdrake.hardware.threads import pin_process, usable_cpus
 from ftdrake.sim.simulate import simulate
 from ftdrake.sim.station import build_station
 
@@ -402,12 +403,15 @@ def run_one(model, name, rate, data, names, args, folder: Path) -> dict:
     kind = Ros2Driver if args.transport == "ros2" else LcmDriver
     port = 7700 + os.getpid() % 200
     serve = driver = None
+    everywhere = usable_cpus()
     try:
         profile = (Path(args.profile) / f"serve-{args.transport}-{rate:g}-{name}.prof"
                    if args.profile else None)
         serve, serve_start_s = start_serve(model, rate, kind, names, port, folder, profile,
                                            serve_keys(args, kind, port), args.floor,
                                            args.echo)
+        if args.driver_cpus:  # serve started on every CPU; the driver's threads inherit this
+            pin_process({int(cpu) for cpu in args.driver_cpus.split(",")})
         driver, appeared = start_driver(kind, names, port, args.separate_outputs)
         run = drive(driver, serve, rate, data, args)
         serve.send_signal(signal.SIGINT)
@@ -417,6 +421,8 @@ def run_one(model, name, rate, data, names, args, folder: Path) -> dict:
             serve.kill()
         if driver is not None:
             driver.close()
+        if args.driver_cpus:  # the next serve starts on every CPU
+            pin_process(everywhere)
     summary = json.loads(out.strip().splitlines()[-1])
     sent = run["sent"]
     trip = np.array([driver.back[key] - sent[key] for key in sent if key in driver.back]) * 1e3
@@ -499,8 +505,6 @@ def main() -> None:
         parser.error("--echo replaces serve: no --floor, --profile or --outputs with it")
     if args.echo == "listener" and args.transport != "ros2":
         parser.error("--echo listener: a Cyclone DDS delivery, only with --transport ros2")
-    if args.driver_cpus:  # before the driver's transport threads start: they inherit it
-        os.sched_setaffinity(0, {int(cpu) for cpu in args.driver_cpus.split(",")})
     _, X, W, station = free_motion(args.train_s, seed=0)
     replay = free_motion(max(10.0, args.train_s / 2), seed=1)[:3]
     from ftdrake.sim.ros2_publisher import arm_joint_names
