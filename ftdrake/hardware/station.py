@@ -80,6 +80,8 @@ class HardwareStation(StationCore):
     `on_warning(str)` on every warning. A message that does not decode as the configured type
     faults the inputs with ``wrong_type``, naming the channel, the type found and the one
     expected; ``config.n_joints`` other than the model's is a ConfigError naming the key.
+    With ``config.cpu_affinity`` set, building the station keeps every thread of this
+    process on those CPUs (:func:`~ftdrake.hardware.threads.pin_process`).
     """
 
     def __init__(self, config: HardwareConfig, model, chain: ChainConfig | None = None,

@@ -82,7 +82,9 @@ class Ros2Station(StationCore):
     ``ChainConfig()``; joint-state gravity on the model's own robot unless ``chain.robot``
     names one). `node`: a :class:`~ftdrake.hardware.ros2.dds.Ros2Node` (default: one on
     ``config.domain_id`` with ``config.dds_config`` and `clock`). `clock` gives arrival times
-    in s (monotonic); `on_event(FaultEvent)` is called on every fault change.
+    in s (monotonic); `on_event(FaultEvent)` is called on every fault change. With
+    ``config.cpu_affinity`` set, building the station keeps every thread of this process
+    on those CPUs (:func:`~ftdrake.hardware.threads.pin_process`).
     """
 
     def __init__(self, config: Ros2Config, model, chain: ChainConfig | None = None,
