@@ -39,11 +39,11 @@ def stop_on_signals():
 def starting(model_path, quiet: bool):
     """Says, around the model's loading and the station's build, that serve is starting and
     then how long it took: the build compiles the chain's kernels on the first run after an
-    install (numba caches them for the next runs), which takes tens of seconds."""
+    install (numba caches them for the next runs), which takes seconds."""
     if not quiet:
-        print(f"ftdrake serve: loading {model_path} and building the chain (the first run "
-              "after an install compiles its kernels, up to a minute; later runs load them "
-              "from numba's cache)", file=sys.stderr, flush=True)
+        print(f"ftdrake serve: loading {model_path} and building the chain (a first run "
+              "after an install compiles its kernels; later runs load them from numba's "
+              "cache)", file=sys.stderr, flush=True)
     start = time.monotonic()
     yield
     if not quiet:
