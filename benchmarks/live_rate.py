@@ -333,6 +333,17 @@ def echo_command(kind, port, keys: dict, delivery: str) -> list:
     return [sys.executable, script, "ros2", str(DOMAIN), delivery]
 
 
+def cpu_list(text: str) -> str:
+    """An option's CPU ids, e.g. ``1`` or ``0,1`` ("": none; argparse's type: a clear
+    error)."""
+    try:
+        [int(cpu) for cpu in text.split(",") if text]
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"CPU ids separated by commas, e.g. 1 or 0,1; got "
+                                         f"{text!r}") from None
+    return text
+
+
 def serve_keys(args, kind, port) -> dict:
     """The keys of serve's transport section the options set."""
     keys = {"batch_period_s": float(args.batch_period),
@@ -481,9 +492,9 @@ def main() -> None:
     parser.add_argument("--no-yield-io-threads", action="store_true",
                         help="serve's yield_io_threads false (its receive threads at the "
                              "default policy)")
-    parser.add_argument("--cpu-affinity", default="",
+    parser.add_argument("--cpu-affinity", default="", type=cpu_list,
                         help="serve's cpu_affinity: CPUs for all its threads, e.g. 1")
-    parser.add_argument("--driver-cpus", default="",
+    parser.add_argument("--driver-cpus", default="", type=cpu_list,
                         help="CPUs this process (the driver) keeps to, e.g. 0 (default: the "
                              "scheduler's choice)")
     parser.add_argument("--load-core", action="store_true",
@@ -501,8 +512,13 @@ def main() -> None:
     args = parser.parse_args()
     if args.floor and args.profile:
         parser.error("--floor and --profile: cProfile cannot run serve's floor (python -c)")
-    if args.echo and (args.floor or args.profile or args.outputs):
-        parser.error("--echo replaces serve: no --floor, --profile or --outputs with it")
+    ignored = [flag for flag, value in (
+        ("--floor", args.floor), ("--profile", args.profile), ("--outputs", args.outputs),
+        ("--cpu-affinity", args.cpu_affinity), ("--batch-period", args.batch_period),
+        ("--no-yield-io-threads", args.no_yield_io_threads)) if value]
+    if args.echo and ignored:
+        parser.error(f"--echo replaces serve (two outputs, receive threads yielding): "
+                     f"{', '.join(ignored)} would be ignored")
     if args.echo == "listener" and args.transport != "ros2":
         parser.error("--echo listener: a Cyclone DDS delivery, only with --transport ros2")
     _, X, W, station = free_motion(args.train_s, seed=0)

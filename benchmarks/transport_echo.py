@@ -85,45 +85,32 @@ def ros2_echo(domain: int, delivery: str, counts: dict):
     def on_joint(_msg, _arrival=None) -> None:
         counts["joint"] += 1
 
-    inputs = ((config.wrench_topic, "geometry_msgs/msg/WrenchStamped", on_wrench, read_wrench,
-               config.wrench_qos),
-              (config.joint_state_topic, "sensor_msgs/msg/JointState", on_joint,
-               JointStateReader().read, config.joint_state_qos))
+    for topic, msgtype, handler, read, profile in (
+            (config.wrench_topic, "geometry_msgs/msg/WrenchStamped", on_wrench, read_wrench,
+             config.wrench_qos),
+            (config.joint_state_topic, "sensor_msgs/msg/JointState", on_joint,
+             JointStateReader().read, config.joint_state_qos)):
+        node.subscribe(topic, msgtype, handler, profile=profile, depth=config.queue_depth,
+                       read=read)
     if delivery == "wait":
-        for topic, msgtype, handler, read, profile in inputs:
-            node.subscribe(topic, msgtype, handler, profile=profile, depth=config.queue_depth,
-                           read=read)
         return (lambda: node.spin(2)), node
-    return listen(node, inputs), node
+    return on_cyclones_thread(node), node
 
 
-def listen(node, inputs):
-    """Cyclone hands each input's data to a callback on its receive thread; returns the
-    main thread's sleep."""
-    from cyclonedds._clayer import ddspy_take
-    from cyclonedds.core import InstanceState, Listener, SampleState, ViewState
-    from cyclonedds.sub import DataReader
+def on_cyclones_thread(node):
+    """The node's readers hand their messages over from a listener, on the Cyclone thread
+    that received them (the node's own delivery, ``spin(0)``, run there); returns the main
+    thread's sleep."""
+    from cyclonedds.core import Listener
 
-    from ftdrake.hardware.ros2.dds import qos
+    lock = threading.Lock()  # one delivery at a time, whichever thread Cyclone calls it on
 
-    mask = SampleState.Any | ViewState.Any | InstanceState.Any
-    lock = threading.Lock()  # one callback at a time, whichever thread Cyclone calls it on
+    def on_data_available(_reader) -> None:
+        with lock:
+            node.spin(0)
 
-    def taking(handler, read, depth):
-        def on_data_available(reader) -> None:
-            with lock:
-                while items := ddspy_take(reader._ref, mask, depth):
-                    for data, info in items:
-                        if info.valid_data:
-                            handler(read(data))
-                    if len(items) < depth:
-                        break
-        return on_data_available
-
-    node.echo_readers = [
-        DataReader(node.participant, node._topic(topic, msgtype), qos(profile, 100),
-                   listener=Listener(on_data_available=taking(handler, read, 100)))
-        for topic, msgtype, handler, read, profile in inputs]
+    for reader in node._readers:
+        reader.set_listener(Listener(on_data_available=on_data_available))
     return lambda: time.sleep(0.05)
 
 

@@ -53,7 +53,7 @@ def starting(model_path, quiet: bool):
 
 def describe_cpus(config) -> str:
     """The line serve's header adds for a transport config's ``cpu_affinity`` ("" unset)."""
-    cpus = getattr(config, "cpu_affinity", None)
+    cpus = config.cpu_affinity
     return (f"\n  every thread on CPU {', '.join(map(str, cpus))} (cpu_affinity)" if cpus
             else "")
 

@@ -73,8 +73,8 @@ def test_a_scenario_file_still_loads_with_a_warning_naming_the_layout(tmp_path):
 
 def test_serve_runs_on_a_live_file(tmp_path, capsys):
     """``serve --config live.yaml``: the chain's rate and the file's LCM URL, no other flag;
-    it says it is building before the build (which compiles for tens of seconds on a first
-    run) and how long that took, before the channels."""
+    it says it is building before the build (which compiles for seconds on a first run)
+    and how long that took, before the channels."""
     import numpy as np
 
     forest = ftdrake.RandomForestCompensator(features="q", n_estimators=2).fit(
