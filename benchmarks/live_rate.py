@@ -49,6 +49,9 @@ echoed back with a contact flag on the same transport, the least a Python proces
 message there (ROS 2: `--echo listener` takes the messages on Cyclone's receive thread
 instead of waking the main thread). `--cpu-affinity` sets serve's ``cpu_affinity`` (all
 its threads on those CPUs); `--driver-cpus` keeps this process, the driver, on others.
+`--phases` splits serve's main thread by phase (``serve_phases.py``: the wait, the receive,
+the joint-state and F/T callbacks, each output's write, the loop around them; µs per F/T
+message over the timed messages, timed with the thread's clock, which adds a little to each).
 
 The machine's 1-minute load average before and after each run is printed: on a shared
 machine the rates a run sustains depend on what else runs. The last line is one JSON object
@@ -105,15 +108,20 @@ from ftdrake.sim.station import build_station
 DOMAIN = 170 + os.getpid() % 30
 N = 7
 
-# serve with the per-message work taken out (--floor; station_floor.py, beside this file).
-FLOOR_SERVE = f"""
+# serve with the per-message work taken out (--floor; station_floor.py, beside this file),
+# or with its phases timed (--phases; serve_phases.py).
+SERVE_WITH = """
 import sys
-sys.path.insert(0, {str(Path(__file__).resolve().parent)!r})
-import station_floor
+sys.path.insert(0, {folder!r})
+import {module}
 from ftdrake.cli.main import main
-station_floor.install()
+{module}.install()
 sys.exit(main(sys.argv[1:]))
 """
+FLOOR_SERVE = SERVE_WITH.format(folder=str(Path(__file__).resolve().parent),
+                                module="station_floor")
+PHASES_SERVE = SERVE_WITH.format(folder=str(Path(__file__).resolve().parent),
+                                 module="serve_phases")
 
 
 def free_motion(seconds: float, seed: int):
@@ -291,11 +299,12 @@ class LcmDriver:
 
 
 def start_serve(model, rate, kind, names, port, folder: Path, profile: Path | None = None,
-                keys=None, floor: bool = False, echo: str = ""):
+                keys=None, floor: bool = False, echo: str = "", phases: bool = False):
     """serve in its own process on the transport of driver class `kind`, `keys` set in its
     transport's section of the live file (`floor`: with FLOOR_SERVE's per-message work;
-    `echo`: transport_echo.py in its place, with that delivery); returns the process and
-    the s it took to listen."""
+    `echo`: transport_echo.py in its place, with that delivery; `phases`: its phases timed,
+    written to `folder`/phases.json at its exit); returns the process and the s it took to
+    listen."""
     import yaml
 
     save_model(model, folder / "model.ftd", target_names=list(WRENCH_AXES),
@@ -310,10 +319,13 @@ def start_serve(model, rate, kind, names, port, folder: Path, profile: Path | No
         serve = subprocess.Popen(
             echo_command(kind, port, keys or {}, echo) if echo else
             [sys.executable, *(["-m", "cProfile", "-o", profile] if profile else []),
-             *(["-c", FLOOR_SERVE] if floor else ["-m", "ftdrake"]), "serve",
+             *(["-c", FLOOR_SERVE] if floor else ["-c", PHASES_SERVE] if phases
+               else ["-m", "ftdrake"]), "serve",
              *kind.flags(port), "--model",
              folder / "model.ftd", "--config", folder / "live.yaml"],
-            stdout=subprocess.PIPE, stderr=err, text=True)
+            stdout=subprocess.PIPE, stderr=err, text=True,
+            env={**os.environ, "FTDRAKE_PHASES_FILE": str(folder / "phases.json")}
+            if phases else None)
     started = time.monotonic()
     while "out: " not in err_path.read_text():
         if serve.poll() is not None:
@@ -389,6 +401,8 @@ def drive(driver, serve, rate, data, args) -> dict:
         if k == warmup:
             cpu_start, main_start = cpu_s(serve.pid), main_thread_cpu_s(serve.pid)
             mark = cpu_start
+            if args.phases:  # serve_phases: the sums start now
+                serve.send_signal(signal.SIGUSR1)
         elif k > warmup and (k - warmup) % second == 0:
             cpu = cpu_s(serve.pid)
             per_second.append((cpu - mark) / second * 1e6)
@@ -420,7 +434,7 @@ def run_one(model, name, rate, data, names, args, folder: Path) -> dict:
                    if args.profile else None)
         serve, serve_start_s = start_serve(model, rate, kind, names, port, folder, profile,
                                            serve_keys(args, kind, port), args.floor,
-                                           args.echo)
+                                           args.echo, args.phases)
         if args.driver_cpus:  # serve started on every CPU; the driver's threads inherit this
             pin_process({int(cpu) for cpu in args.driver_cpus.split(",")})
         driver, appeared = start_driver(kind, names, port, args.separate_outputs)
@@ -466,6 +480,8 @@ def run_one(model, name, rate, data, names, args, folder: Path) -> dict:
             "separate_outputs": int(args.separate_outputs and kind is LcmDriver),
             "floor": int(args.floor), "echo": args.echo,
             "cpu_affinity": args.cpu_affinity, "driver_cpus": args.driver_cpus,
+            "phases": (json.loads((folder / "phases.json").read_text()) if args.phases
+                       else None),
             "load_before": run["load_before"], "load_after": run["load_after"]}
 
 
@@ -507,11 +523,17 @@ def main() -> None:
                         help="transport_echo.py in serve's place: the least a Python process "
                              "does per message on the transport (ROS 2: 'listener' takes "
                              "each message on Cyclone's receive thread)")
+    parser.add_argument("--phases", action="store_true",
+                        help="serve's main thread split by phase (serve_phases.py), µs per "
+                             "F/T message")
     parser.add_argument("--profile", metavar="DIR",
                         help="run serve under cProfile, its statistics in DIR (slower)")
     args = parser.parse_args()
     if args.floor and args.profile:
         parser.error("--floor and --profile: cProfile cannot run serve's floor (python -c)")
+    if args.phases and (args.floor or args.profile or args.echo):
+        parser.error("--phases times serve's own methods: not with --floor, --profile or "
+                     "--echo")
     ignored = [flag for flag, value in (
         ("--floor", args.floor), ("--profile", args.profile), ("--outputs", args.outputs),
         ("--cpu-affinity", args.cpu_affinity), ("--batch-period", args.batch_period),
@@ -573,6 +595,10 @@ def run_all(args, makers, X, W, replay, names) -> dict:
                   f"driver's topics appeared  load {row['load_before']:.2f}→"
                   f"{row['load_after']:.2f}  rejected {row['rejected'] or 'none'}  fault "
                   f"episodes {row['fault_episodes'] or 'none'}", flush=True)
+            if row["phases"]:
+                print("  phases, µs per F/T message: " + "  ".join(
+                    f"{key} {value:.1f}" for key, value in row["phases"].items()
+                    if key != "ft_messages"), flush=True)
     return results
 
 
