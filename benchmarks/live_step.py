@@ -27,7 +27,12 @@ median over batches; the two paths' batches interleaved so that both see the sam
   published outputs evaluated; step: ``ChainStep.update``);
 * compensator: ``CompensatorSystem.compensate`` on arrays, the compiled compensator sample
   both paths run (input checks, q̈ estimate, the model's prediction and std, the
-  compensated wrench).
+  compensated wrench);
+* ROS 2 receive (with cyclonedds; once, not per model): the ROS 2 node's ``spin`` for a
+  joint state and a wrench that another participant in this process has just written (the
+  takes of both readers, the CDR reads, the hand-over to handlers that do nothing), timed
+  with the thread's clock around each spin: the receive the ROS 2 station's figure leaves
+  out, but for Cyclone's own receive thread (a local write is delivered in the writer's).
 
 The messages are consecutive samples of an unseen stretch of the same motion at 1 kHz. On a
 shared machine only the ratios travel; the load average is printed with the numbers. The last
@@ -185,6 +190,46 @@ def ros2_station_batch(station, messages) -> float:
     return (time.process_time() - start) / len(messages) * 1e6
 
 
+def ros2_receive(pairs: int, batches: int) -> float | None:
+    """CPU µs of ``Ros2Node.spin`` per joint-state + wrench pair (module docstring), the
+    median over `batches` batches of `pairs`; None without cyclonedds."""
+    try:
+        from ftdrake.hardware.ros2.cdr import JointStateReader
+        from ftdrake.hardware.ros2.cdr import wrench_stamped as read_wrench_stamped
+        from ftdrake.hardware.ros2.dds import Ros2Node
+        from ftdrake.hardware.ros2.messages import header, ros2_type, wrench_stamped
+    except ImportError:
+        return None
+    domain = 100 + os.getpid() % 100
+    joint_type, wrench_type = "sensor_msgs/msg/JointState", "geometry_msgs/msg/WrenchStamped"
+    with Ros2Node(domain) as node, Ros2Node(domain) as driver:
+        for topic, msgtype, read in (("/live_step/joint_states", joint_type,
+                                      JointStateReader().read),
+                                     ("/live_step/wrench", wrench_type, read_wrench_stamped)):
+            node.subscribe(topic, msgtype, lambda _msg, _arrival: None, read=read)
+        joints = driver.publisher("/live_step/joint_states", joint_type)
+        wrenches = driver.publisher("/live_step/wrench", wrench_type)
+        end = time.monotonic() + 10
+        while min(node.matched().values()) < 1 and time.monotonic() < end:
+            time.sleep(0.01)
+        joint_state = ros2_type(joint_type)(
+            header=header(1.0, "base_link"), name=[f"joint_{k + 1}" for k in range(N)],
+            position=[0.1] * N, velocity=[0.2] * N, effort=[])
+        wrench = wrench_stamped(header(1.0, "ft_sensor"), [1.0] * 6)
+        medians = []
+        for _ in range(batches + 1):  # the first warms
+            spent = 0
+            for _ in range(pairs):
+                joints.write(joint_state)
+                wrenches.write(wrench)
+                start = time.thread_time_ns()
+                if node.spin(2) != 2:
+                    raise RuntimeError("the ROS 2 node did not hand over both messages")
+                spent += time.thread_time_ns() - start
+            medians.append(spent / pairs / 1e3)
+    return float(np.median(medians[1:]))
+
+
 def measure(model, rows, Y, n_messages: int, batches: int) -> dict:
     scenario = ChainConfig()  # the defaults: bias tracker and detector on
     states = rows[:, :2 * N]
@@ -238,6 +283,7 @@ def main() -> None:
     models, rows, Y = models_and_stream(args.messages)
     results = {}
     load = os.getloadavg()[0]
+    receive = ros2_receive(args.messages // args.batches, args.batches)
     for name, model in models.items():
         results[name] = r = measure(model, rows, Y, args.messages, args.batches)
         r["station_ratio_diagram_to_step"] = r["station_diagram"] / r["station_step"]
@@ -260,6 +306,9 @@ def main() -> None:
         print(f"{name:<8} {'diagram / step':<23} {r['station_ratio_diagram_to_step']:5.1f} "
               f"{r.get('ros2_station_diagram', np.nan) / r.get('ros2_station_step', np.nan):14.1f}"
               f" {r['chain_diagram'] / r['chain_step']:13.1f}")
+    if receive is not None:
+        print(f"ROS 2 node's receive (spin: a joint state and a wrench from another participant "
+              f"in this process): {receive:.1f} µs per pair")
     for key, what in (("station_step", "LCM station by the step"),
                       ("ros2_station_step", "ROS 2 station by the step (DDS receive not in)")):
         if all(key in r for r in results.values()):
@@ -268,6 +317,7 @@ def main() -> None:
                   f"{'met' if met else 'NOT met'}")
     print(json.dumps({"benchmark": "live_step", "messages": args.messages,
                       "batches": args.batches, "goal_us": GOAL_US, "results": results,
+                      "ros2_receive_us": receive,
                       "load": [load, os.getloadavg()[0]],
                       "machine": {"cpus": os.cpu_count(), "platform": platform.platform(),
                                   "python": platform.python_version()}}))
