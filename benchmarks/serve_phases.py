@@ -18,8 +18,9 @@ ends, zeroes the sums) and divided by the F/T messages handled in it:
   diagnostics and their writes).
 
 The sums are written to ``$FTDRAKE_PHASES_FILE`` (JSON) when serve exits. Each wrapped call
-adds two clock readings (about 0.5 µs each on the test machine) to its phase and the one
-around it: the phases add up to more than the main thread of a run without them.
+adds two readings of the thread's clock and a Python call, to its phase and the one around
+it: the phases add up to more than the main thread of a run without them, and each reads
+somewhat high.
 """
 
 from __future__ import annotations
