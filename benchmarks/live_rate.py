@@ -51,7 +51,8 @@ instead of waking the main thread). `--cpu-affinity` sets serve's ``cpu_affinity
 its threads on those CPUs); `--driver-cpus` keeps this process, the driver, on others.
 `--phases` splits serve's main thread by phase (``serve_phases.py``: the wait, the receive,
 the joint-state and F/T callbacks, each output's write, the loop around them; µs per F/T
-message over the timed messages, timed with the thread's clock, which adds a little to each).
+message over the timed messages, timed with the thread's clock, whose readings make each
+read somewhat high).
 
 The machine's 1-minute load average before and after each run is printed: on a shared
 machine the rates a run sustains depend on what else runs. The last line is one JSON object
