@@ -120,10 +120,9 @@ from ftdrake.cli.main import main
 {module}.install()
 sys.exit(main(sys.argv[1:]))
 """
-FLOOR_SERVE = SERVE_WITH.format(folder=str(Path(__file__).resolve().parent),
-                                module="station_floor")
-PHASES_SERVE = SERVE_WITH.format(folder=str(Path(__file__).resolve().parent),
-                                 module="serve_phases")
+FLOOR_SERVE, PHASES_SERVE = (SERVE_WITH.format(folder=str(Path(__file__).resolve().parent),
+                                               module=module)
+                             for module in ("station_floor", "serve_phases"))
 
 
 def free_motion(seconds: float, seed: int):
