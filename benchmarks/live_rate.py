@@ -44,7 +44,10 @@ cProfile.
 (transport, receive threads, decode, its loop and status) but each F/T message publishes the
 outputs' values without the checks, the chain's update or any bookkeeping
 (``station_floor.py``); the CPU per message of a normal run minus the floor's is the cost of
-ftdrake's own work. `--echo` starts ``transport_echo.py`` instead of serve: the wrench
+ftdrake's own work. `--no-chain` runs serve as always but for the chain's update
+(``chain_held.py``: each update returns the outputs as they stand): a normal run minus it is
+what the chain's update costs live; it minus the floor, the rest of ftdrake's work. `--echo`
+starts ``transport_echo.py`` instead of serve: the wrench
 echoed back with a contact flag on the same transport, the least a Python process does per
 message there (ROS 2: `--echo listener` takes the messages on Cyclone's receive thread
 instead of waking the main thread). `--cpu-affinity` sets serve's ``cpu_affinity`` (all
@@ -63,6 +66,7 @@ machine the rates a run sustains depend on what else runs. The last line is one 
                                    [--seconds 60] [--models physics,hybrid] [--load-core]
                                    [--outputs wrench_contact,contact]
                                    [--separate-outputs] [--no-yield-io-threads] [--floor]
+                                   [--no-chain]
                                    [--echo [wait|listener]] [--cpu-affinity 1]
                                    [--driver-cpus 0]
 
@@ -111,7 +115,8 @@ DOMAIN = 170 + os.getpid() % 30
 N = 7
 
 # serve with the per-message work taken out (--floor; station_floor.py, beside this file),
-# or with its phases timed (--phases; serve_phases.py).
+# with its phases timed (--phases; serve_phases.py), or without the chain's update
+# (--no-chain; chain_held.py).
 SERVE_WITH = """
 import sys
 sys.path.insert(0, {folder!r})
@@ -120,9 +125,9 @@ from ftdrake.cli.main import main
 {module}.install()
 sys.exit(main(sys.argv[1:]))
 """
-FLOOR_SERVE, PHASES_SERVE = (SERVE_WITH.format(folder=str(Path(__file__).resolve().parent),
-                                               module=module)
-                             for module in ("station_floor", "serve_phases"))
+FLOOR_SERVE, PHASES_SERVE, NO_CHAIN_SERVE = (
+    SERVE_WITH.format(folder=str(Path(__file__).resolve().parent), module=module)
+    for module in ("station_floor", "serve_phases", "chain_held"))
 
 
 def free_motion(seconds: float, seed: int):
@@ -311,12 +316,13 @@ class LcmDriver:
 
 
 def start_serve(model, rate, kind, names, port, folder: Path, profile: Path | None = None,
-                keys=None, floor: bool = False, echo: str = "", phases: bool = False):
+                keys=None, floor: bool = False, echo: str = "", phases: bool = False,
+                no_chain: bool = False):
     """serve in its own process on the transport of driver class `kind`, `keys` set in its
     transport's section of the live file (`floor`: with FLOOR_SERVE's per-message work;
     `echo`: transport_echo.py in its place, with that delivery; `phases`: its phases timed,
-    written to `folder`/phases.json at its exit); returns the process and the s it took to
-    listen."""
+    written to `folder`/phases.json at its exit; `no_chain`: without the chain's update);
+    returns the process and the s it took to listen."""
     import yaml
 
     save_model(model, folder / "model.ftd", target_names=list(WRENCH_AXES),
@@ -332,7 +338,7 @@ def start_serve(model, rate, kind, names, port, folder: Path, profile: Path | No
             echo_command(kind, port, keys or {}, echo) if echo else
             [sys.executable, *(["-m", "cProfile", "-o", profile] if profile else []),
              *(["-c", FLOOR_SERVE] if floor else ["-c", PHASES_SERVE] if phases
-               else ["-m", "ftdrake"]), "serve",
+               else ["-c", NO_CHAIN_SERVE] if no_chain else ["-m", "ftdrake"]), "serve",
              *kind.flags(port), "--model",
              folder / "model.ftd", "--config", folder / "live.yaml"],
             stdout=subprocess.PIPE, stderr=err, text=True,
@@ -446,7 +452,7 @@ def run_one(model, name, rate, data, names, args, folder: Path) -> dict:
                    if args.profile else None)
         serve, serve_start_s = start_serve(model, rate, kind, names, port, folder, profile,
                                            serve_keys(args, kind, port), args.floor,
-                                           args.echo, args.phases)
+                                           args.echo, args.phases, args.no_chain)
         if args.driver_cpus:  # serve started on every CPU; the driver's threads inherit this
             pin_process({int(cpu) for cpu in args.driver_cpus.split(",")})
         driver, appeared = start_driver(kind, names, port, args.separate_outputs)
@@ -490,7 +496,7 @@ def run_one(model, name, rate, data, names, args, folder: Path) -> dict:
             "fault_episodes": summary.get("fault_episodes", {}),
             "yield_io_threads": int(not args.no_yield_io_threads),
             "separate_outputs": int(args.separate_outputs and kind is LcmDriver),
-            "floor": int(args.floor), "echo": args.echo,
+            "floor": int(args.floor), "no_chain": int(args.no_chain), "echo": args.echo,
             "cpu_affinity": args.cpu_affinity, "driver_cpus": args.driver_cpus,
             "phases": (json.loads((folder / "phases.json").read_text()) if args.phases
                        else None),
@@ -530,6 +536,9 @@ def main() -> None:
     parser.add_argument("--floor", action="store_true",
                         help="serve without its per-message work (FLOOR_SERVE): the "
                              "transport's own CPU per message at these settings")
+    parser.add_argument("--no-chain", action="store_true",
+                        help="serve as always but for the chain's update (chain_held.py): "
+                             "what the update costs live, by difference")
     parser.add_argument("--echo", nargs="?", const="wait", default="",
                         choices=("wait", "listener"),
                         help="transport_echo.py in serve's place: the least a Python process "
@@ -546,8 +555,12 @@ def main() -> None:
     if args.phases and (args.floor or args.profile or args.echo):
         parser.error("--phases times serve's own methods: not with --floor, --profile or "
                      "--echo")
+    if args.no_chain and (args.floor or args.profile or args.phases):
+        parser.error("--no-chain runs serve without the chain's update: not with --floor "
+                     "(which has none either), --profile or --phases")
     ignored = [flag for flag, value in (
-        ("--floor", args.floor), ("--profile", args.profile), ("--outputs", args.outputs),
+        ("--floor", args.floor), ("--no-chain", args.no_chain), ("--profile", args.profile),
+        ("--outputs", args.outputs),
         ("--cpu-affinity", args.cpu_affinity), ("--batch-period", args.batch_period),
         ("--no-yield-io-threads", args.no_yield_io_threads)) if value]
     if args.echo and ignored:
@@ -590,7 +603,7 @@ def run_all(args, makers, X, W, replay, names) -> dict:
             row["compensator_us"] = costs[name]
             row["cpu_ratio_to_compensator"] = row["cpu_us_per_msg"] / costs[name]
             results.setdefault(f"{rate:g}", {})[name] = row
-            what = "FLOOR " * args.floor + "ECHO " * bool(args.echo)
+            what = "FLOOR " * args.floor + "NO CHAIN " * args.no_chain + "ECHO " * bool(args.echo)
             print(f"{args.transport} {rate:6.0f} Hz {name:<8} {what}"
                   f"sent {row['sent']:>7} received {row['received']:>7} "
                   f"processed {row['processed']:>7} "
