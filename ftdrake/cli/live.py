@@ -58,19 +58,34 @@ def describe_cpus(config) -> str:
             else "")
 
 
-class Status:
-    """The throttled status line: message rates per stream, counts, the current state. The
-    rates are measured also when `quiet` (the summary reports the last ones)."""
+def cpu_use(cpu_s: float, wall_s: float, processed: int) -> dict:
+    """serve's own CPU over an interval: `cpu_s` s of the process's CPU time (every thread:
+    the transport's receive threads too) over `wall_s` s of wall time in which it processed
+    `processed` F/T messages. ``core_percent``: % of one core; ``us_per_message``: CPU µs
+    per processed F/T message (None without one)."""
+    return {"core_percent": 100.0 * cpu_s / wall_s if wall_s > 0 else None,
+            "us_per_message": cpu_s / processed * 1e6 if processed > 0 else None}
 
-    def __init__(self, station, stream=None, quiet: bool = False):
+
+class Status:
+    """The throttled status line: message rates per stream, counts, the current state and
+    serve's CPU (:func:`cpu_use` since the last line; `cpu_clock`: the process's CPU time in
+    s). The rates and the CPU are measured also when `quiet` (the summary reports the last
+    ones)."""
+
+    def __init__(self, station, stream=None, quiet: bool = False,
+                 cpu_clock=time.process_time):
         # sys.stderr when called, not when this module was imported (the command line imports
         # it on first use, and a caller may have replaced sys.stderr in between).
         stream = sys.stderr if stream is None else stream
         self.station, self.stream, self.quiet = station, stream, quiet
         self.tty = stream.isatty() and not quiet
+        self.cpu_clock = cpu_clock
         self.last = time.monotonic()
         self.last_counts = dict(station.monitor.received)
+        self.last_cpu, self.last_processed = cpu_clock(), station.processed
         self.rates = {}
+        self.cpu = cpu_use(0.0, 0.0, 0)
 
     def maybe_print(self, now: float) -> None:
         if now - self.last < STATUS_PERIOD_S:
@@ -79,10 +94,13 @@ class Status:
         dt = now - self.last
         self.rates = {k: (received[k] - self.last_counts.get(k, 0)) / dt
                       for k in ("joint", "ft")}
+        s = self.station
+        cpu = self.cpu_clock()
+        self.cpu = cpu_use(cpu - self.last_cpu, dt, s.processed - self.last_processed)
         self.last, self.last_counts = now, dict(received)
+        self.last_cpu, self.last_processed = cpu, s.processed
         if self.quiet:
             return
-        s = self.station
         m = s.monitor
         state = f"FAULT {m.reason}" if m.fault else "ok"
         contact = s.output("contact")[0] > 0.5
@@ -90,19 +108,28 @@ class Status:
                 f"processed {s.processed}  published {s.published}  "
                 f"rejected {sum(m.rejected.values())}  lost {s.load.lost}  "
                 f"dropped {s.load.dropped}  behind {s.load.backlog_s * 1e3:.0f} ms  {state}  "
-                f"contact {'YES' if contact else 'no'}")
+                f"contact {'YES' if contact else 'no'}  {_describe_cpu(self.cpu)}")
         end = "\r" if self.tty else "\n"
         print(line.ljust(100), end=end, file=self.stream, flush=True)
 
 
+def _describe_cpu(cpu: dict) -> str:
+    if cpu["core_percent"] is None:
+        return ""
+    per_message = ("" if cpu["us_per_message"] is None
+                   else f" ({cpu['us_per_message']:.0f} µs/msg)")
+    return f"CPU {cpu['core_percent']:.0f} %{per_message}"
+
+
 def serve_until_stopped(station, duration_s: float | None, quiet: bool,
-                        before_summary=None) -> dict:
+                        before_summary=None, cpu_clock=time.process_time) -> dict:
     """Spins `station` until Ctrl-C (SIGINT/SIGTERM) or `duration_s` of wall time (waking
     at most once per its config's ``batch_period_s``), printing the status line; returns its
-    summary with the wall time, the last message rates and the latencies (None where nothing
-    was published). `before_summary()` runs after the loop."""
-    status = Status(station, quiet=quiet)
-    start = time.monotonic()
+    summary with the wall time, the last message rates, the latencies (None where nothing
+    was published) and ``cpu``: :func:`cpu_use` over the whole loop (`cpu_clock`: the
+    process's CPU time in s). `before_summary()` runs after the loop."""
+    status = Status(station, quiet=quiet, cpu_clock=cpu_clock)
+    start, cpu_start, processed_start = time.monotonic(), cpu_clock(), station.processed
     batch = float(getattr(station.config, "batch_period_s", 0.0))  # s between wake-ups
     with stop_on_signals() as stop:
         while not stop[0]:
@@ -121,6 +148,8 @@ def serve_until_stopped(station, duration_s: float | None, quiet: bool,
         print(file=sys.stderr)
     summary = station.summary()
     summary["wall_time_s"] = time.monotonic() - start
+    summary["cpu"] = cpu_use(cpu_clock() - cpu_start, summary["wall_time_s"],
+                             station.processed - processed_start)
     summary["last_rates_hz"] = status.rates
     summary["latency_ms"] = {k: (None if math.isnan(v) else v)  # nothing published: null
                              for k, v in summary["latency_ms"].items()}
