@@ -58,20 +58,11 @@ def describe_cpus(config) -> str:
             else "")
 
 
-def cpu_use(cpu_s: float, wall_s: float, processed: int) -> dict:
-    """serve's own CPU over an interval: `cpu_s` s of the process's CPU time (every thread:
-    the transport's receive threads too) over `wall_s` s of wall time in which it processed
-    `processed` F/T messages. ``core_percent``: % of one core; ``us_per_message``: CPU µs
-    per processed F/T message (None without one)."""
-    return {"core_percent": 100.0 * cpu_s / wall_s if wall_s > 0 else None,
-            "us_per_message": cpu_s / processed * 1e6 if processed > 0 else None}
-
-
 class Status:
     """The throttled status line: message rates per stream, counts, the current state and
-    serve's CPU (:func:`cpu_use` since the last line; `cpu_clock`: the process's CPU time in
-    s). The rates and the CPU are measured also when `quiet` (the summary reports the last
-    ones)."""
+    serve's CPU since the last line (:class:`~ftdrake.hardware.overload.CpuMeter`;
+    `cpu_clock`: the process's CPU time in s). The rates and the CPU are measured also when
+    `quiet` (the summary reports the last rates)."""
 
     def __init__(self, station, stream=None, quiet: bool = False,
                  cpu_clock=time.process_time):
@@ -80,10 +71,13 @@ class Status:
         stream = sys.stderr if stream is None else stream
         self.station, self.stream, self.quiet = station, stream, quiet
         self.tty = stream.isatty() and not quiet
-        self.cpu_clock = cpu_clock
         self.last = time.monotonic()
         self.last_counts = dict(station.monitor.received)
-        self.last_cpu, self.last_processed = cpu_clock(), station.processed
+        # Here, not at the top: `serve --help` imports this module, and ftdrake.hardware
+        # (which overload's package imports) takes a second; the station has it by now.
+        from ..hardware.overload import CpuMeter, cpu_use
+
+        self.cpu_meter = CpuMeter(self.last, station.processed, cpu_clock)
         self.rates = {}
         self.cpu = cpu_use(0.0, 0.0, 0)
 
@@ -95,10 +89,8 @@ class Status:
         self.rates = {k: (received[k] - self.last_counts.get(k, 0)) / dt
                       for k in ("joint", "ft")}
         s = self.station
-        cpu = self.cpu_clock()
-        self.cpu = cpu_use(cpu - self.last_cpu, dt, s.processed - self.last_processed)
+        self.cpu = self.cpu_meter.reading(now, s.processed)
         self.last, self.last_counts = now, dict(received)
-        self.last_cpu, self.last_processed = cpu, s.processed
         if self.quiet:
             return
         m = s.monitor
@@ -126,10 +118,14 @@ def serve_until_stopped(station, duration_s: float | None, quiet: bool,
     """Spins `station` until Ctrl-C (SIGINT/SIGTERM) or `duration_s` of wall time (waking
     at most once per its config's ``batch_period_s``), printing the status line; returns its
     summary with the wall time, the last message rates, the latencies (None where nothing
-    was published) and ``cpu``: :func:`cpu_use` over the whole loop (`cpu_clock`: the
-    process's CPU time in s). `before_summary()` runs after the loop."""
+    was published) and ``cpu``: :func:`~ftdrake.hardware.overload.cpu_use` over the whole
+    loop (`cpu_clock`: the process's CPU time in s). `before_summary()` runs after the
+    loop."""
     status = Status(station, quiet=quiet, cpu_clock=cpu_clock)
-    start, cpu_start, processed_start = time.monotonic(), cpu_clock(), station.processed
+    start = time.monotonic()
+    from ..hardware.overload import CpuMeter  # here: see Status
+
+    whole_run = CpuMeter(start, station.processed, cpu_clock)
     batch = float(getattr(station.config, "batch_period_s", 0.0))  # s between wake-ups
     with stop_on_signals() as stop:
         while not stop[0]:
@@ -148,8 +144,7 @@ def serve_until_stopped(station, duration_s: float | None, quiet: bool,
         print(file=sys.stderr)
     summary = station.summary()
     summary["wall_time_s"] = time.monotonic() - start
-    summary["cpu"] = cpu_use(cpu_clock() - cpu_start, summary["wall_time_s"],
-                             station.processed - processed_start)
+    summary["cpu"] = whole_run.reading(start + summary["wall_time_s"], station.processed)
     summary["last_rates_hz"] = status.rates
     summary["latency_ms"] = {k: (None if math.isnan(v) else v)  # nothing published: null
                              for k, v in summary["latency_ms"].items()}

@@ -22,11 +22,15 @@ exceeds `max_backlog_s`, F/T messages are counted as ``dropped`` and not run thr
 station catches up with the newest messages, and processing resumes once it is less than half
 `max_backlog_s` behind. Never the newest: a queue that fills up (LCM's per-subscription
 capacity, a DDS reader's ``queue_depth``) would drop the messages still to come.
+
+:class:`CpuMeter` says the headroom before that: the process's CPU time (every thread, the
+transport's receive threads too) per processed F/T message and as a share of one core.
 """
 
 from __future__ import annotations
 
 import collections
+import time
 
 #: F/T messages the sustained rate and the input rate are averaged over.
 WINDOW = 1000
@@ -118,3 +122,30 @@ class LoadMonitor:
                 "max_backlog_ms": self.max_backlog_seen_s * 1e3,
                 "sustained_hz": self.sustained_hz, "input_hz": self.input_hz,
                 "overloaded": self.overloaded}
+
+
+def cpu_use(cpu_s: float, wall_s: float, processed: int) -> dict:
+    """The CPU over an interval: `cpu_s` s of the process's CPU time over `wall_s` s of wall
+    time in which `processed` F/T messages were processed. ``core_percent``: % of one core
+    (None for no wall time); ``us_per_message``: CPU µs per processed F/T message (None
+    without one)."""
+    return {"core_percent": 100.0 * cpu_s / wall_s if wall_s > 0 else None,
+            "us_per_message": cpu_s / processed * 1e6 if processed > 0 else None}
+
+
+class CpuMeter:
+    """:func:`cpu_use` from one reading to the next. `now` (s, any wall clock) and
+    `processed` (F/T messages processed so far) start it; `cpu_clock` gives the process's
+    CPU time (s; default ``time.process_time``: every thread of the process)."""
+
+    def __init__(self, now: float, processed: int, cpu_clock=time.process_time):
+        self.cpu_clock = cpu_clock
+        self._last = (now, cpu_clock(), processed)
+
+    def reading(self, now: float, processed: int) -> dict:
+        """:func:`cpu_use` since the last reading (or the start), at `now` with `processed`
+        F/T messages processed so far."""
+        cpu = self.cpu_clock()
+        then, cpu_then, processed_then = self._last
+        self._last = (now, cpu, processed)
+        return cpu_use(cpu - cpu_then, now - then, processed - processed_then)

@@ -9,7 +9,8 @@ import numpy as np
 import pytest
 
 from ftdrake.cli import live
-from ftdrake.cli.live import Status, cpu_use, serve_until_stopped
+from ftdrake.cli.live import Status, serve_until_stopped
+from ftdrake.hardware.overload import cpu_use
 
 
 class CountingStation:

@@ -15,6 +15,7 @@ pytest.importorskip("cyclonedds")
 
 from ftdrake import ConfigError, RandomForestCompensator, ScenarioConfig
 from ftdrake.compensation.estimators.imu_physics import ImuPayloadCompensator
+from ftdrake.hardware.overload import CpuMeter
 from ftdrake.hardware.ros2.config import Ros2Config
 from ftdrake.hardware.ros2.dds import Ros2Node
 from ftdrake.hardware.ros2.messages import (
@@ -231,6 +232,23 @@ def test_periodic_diagnostics_carry_rates(rig):
     assert status.level == WARN and "chain.sensor.rate_hz is 1000 Hz" in status.message
     assert values["rate_ft_hz"] == values["rate_joint_hz"] == "2.0"
     assert values["processed"] == values["published"] == values["received_ft"] == "8"
+
+
+def test_periodic_diagnostics_carry_serves_cpu_since_the_last(rig):
+    """cpu_core_percent and cpu_us_per_message: the process's CPU time between two periodic
+    diagnostics over their wall time and per F/T message processed in between."""
+    cpu = [5.0]  # the process's CPU clock (s), advanced by hand
+    rig.dut.cpu_meter = CpuMeter(rig.now, rig.dut.processed, cpu_clock=lambda: cpu[0])
+    rig.step(1.0)  # the stamps' first second: a warning, then the periodic diagnostics
+    processed, n = rig.dut.processed, len(rig.got["diagnostics"])
+    cpu[0] += 0.002  # 2 ms of CPU until the next periodic diagnostics
+    rig.step(2.0)
+    assert len(rig.got["diagnostics"]) == n + 1
+    _, values = rig.last_status()
+    messages = rig.dut.processed - processed
+    assert messages > 0
+    assert float(values["cpu_us_per_message"]) == pytest.approx(2000 / messages, abs=0.05)
+    assert float(values["cpu_core_percent"]) == pytest.approx(0.2, abs=0.05)  # 2 ms in 1 s
 
 
 def test_config_errors():
