@@ -65,9 +65,14 @@ CONTACT_COORDS_V1 = ("contact", "contact_force", "fault", "out_of_domain")
 #: ``HardwareConfig.status_channel``): the fault flag and its reason (the index in
 #: ``live_inputs.REASONS`` + 1; 0 without a fault, -1 for "no_data"), the overload flag, the
 #: F/T input rate and the rate the station sustains (Hz), how far behind the stream it is
-#: (ms), F/T messages lost (stamp gaps) and dropped (overload), processed and published.
+#: (ms), F/T messages lost (stamp gaps) and dropped (overload), processed and published,
+#: and the station's CPU between its two last periodic statuses: % of one core and µs per
+#: processed F/T message (the whole process's; NaN before the first or without a message).
 STATUS_COORDS = ("fault", "reason", "overload", "input_hz", "sustained_hz", "backlog_ms",
-                 "lost_ft", "dropped_ft", "processed", "published")
+                 "lost_ft", "dropped_ft", "processed", "published", "cpu_core_percent",
+                 "cpu_us_per_message")
+#: The message before it carried the CPU; still decoded (those two values then NaN).
+STATUS_COORDS_V1 = STATUS_COORDS[:-2]
 #: Names of the values in the payload message (:func:`encode_payload`): its log columns.
 PAYLOAD_COORDS = OUTPUTS["payload"].columns
 
@@ -246,11 +251,14 @@ def encode_status(t: float, values: dict) -> bytes:
 
 
 def decode_status(data: bytes) -> tuple[float, dict]:
-    """(t s, {name: value}) of :func:`encode_status`; ValueError for another signal."""
+    """(t s, {name: value}) of :func:`encode_status` (or of the earlier message without the
+    CPU: those values NaN); ValueError for another signal."""
     msg = lcmt_drake_signal.decode(data)
-    if tuple(msg.coord) != STATUS_COORDS:
+    if tuple(msg.coord) not in (STATUS_COORDS, STATUS_COORDS_V1):
         raise ValueError(f"not a status signal: coord {list(msg.coord)}")
-    return msg.timestamp * 1e-6, dict(zip(STATUS_COORDS, msg.val, strict=True))
+    values = dict.fromkeys(STATUS_COORDS, float("nan"))
+    values.update(zip(msg.coord, msg.val, strict=True))
+    return msg.timestamp * 1e-6, values
 
 
 def encode_temperature(t: float, celsius: float) -> bytes:

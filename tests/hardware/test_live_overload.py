@@ -3,7 +3,10 @@ to 2 ms of its test clock per F/T message while the driver sends at 1 kHz) drops
 messages, faults the inputs as ``overload`` naming the input rate and the rate it sustains,
 counts what it dropped and what the stamps say was lost, says so on the console's events,
 on the LCM status channel and on the ROS 2 diagnostics, and processes the newest again once
-it has caught up. No timing is asserted: the test's clock is the station's."""
+it has caught up. No timing is asserted: the test's clock is the station's, and the CPU the
+status gives is a clock advanced by the same cost per update."""
+
+import math
 
 import numpy as np
 import pytest
@@ -17,7 +20,7 @@ from ftdrake.hardware.messages import (
     encode_joint_state,
     encode_wrench,
 )
-from ftdrake.hardware.overload import LoadMonitor
+from ftdrake.hardware.overload import CpuMeter, LoadMonitor
 
 N = 7
 Q = np.linspace(-0.5, 0.5, N)
@@ -46,9 +49,13 @@ class SlowRig:
         self.dut = HardwareStation(self.config, forest(), chain, "memq://",
                                    clock=lambda: self.now, on_event=self.events.append)
         update = self.dut._step.update
+        # The station's CPU as its status measures it: COST per update, nothing else.
+        self.cpu_s = 0.0
+        self.dut.cpu_meter = CpuMeter(self.now, 0, cpu_clock=lambda: self.cpu_s)
 
         def slowed(*args, **kwargs):
             self.now += COST
+            self.cpu_s += COST
             return update(*args, **kwargs)
 
         self.dut._step.update = slowed
@@ -98,6 +105,18 @@ def test_overload_is_a_fault_naming_both_rates(slow):
     detail = overloads[0].detail
     assert "F/T messages arrive at 1000 Hz, the station sustains 500 Hz" in detail
     assert "the oldest are dropped" in detail
+
+
+def test_the_status_gives_the_cpu_per_message_and_a_whole_core_while_overloaded(slow):
+    """The status's cpu_* values: COST of CPU per processed message in every interval, and
+    all of a core while the station cannot keep up (busy from one message to the next)."""
+    readings = [v for _, v in slow.status if not math.isnan(v["cpu_us_per_message"])]
+    assert readings
+    for values in readings:
+        assert values["cpu_us_per_message"] == pytest.approx(COST * 1e6)
+        assert values["cpu_core_percent"] <= 100.0 + 1e-9
+    overloaded = [v["cpu_core_percent"] for v in readings if v["overload"] > 0.5]
+    assert overloaded and np.median(overloaded) == pytest.approx(100.0)
 
 
 def test_what_is_dropped_is_counted_and_the_rest_processed(slow):
@@ -194,3 +213,23 @@ def test_ros2_diagnostics_say_overload_and_the_sustained_rate():
         assert values["sustained_hz"] == "500.0" and values["input_hz"] == "1000.0"
     finally:
         dut.close()
+
+
+def test_the_status_message_round_trips_and_the_earlier_one_still_decodes():
+    """encode_status → decode_status gives every value back (None as NaN); a status message
+    of the earlier layout (no CPU values) decodes with those two NaN."""
+    from drake import lcmt_drake_signal
+
+    from ftdrake.hardware.messages import STATUS_COORDS, STATUS_COORDS_V1, encode_status
+
+    values = {k: float(i) for i, k in enumerate(STATUS_COORDS)} | {"cpu_core_percent": None}
+    t, decoded = decode_status(encode_status(1.5, values))
+    assert t == 1.5 and math.isnan(decoded.pop("cpu_core_percent"))
+    assert decoded == {k: v for k, v in values.items() if k != "cpu_core_percent"}
+    old = lcmt_drake_signal()
+    old.timestamp, old.dim, old.coord = 2000, len(STATUS_COORDS_V1), list(STATUS_COORDS_V1)
+    old.val = [float(i) for i in range(len(STATUS_COORDS_V1))]
+    t, decoded = decode_status(old.encode())
+    assert t == 0.002 and list(decoded) == list(STATUS_COORDS)
+    assert [decoded[k] for k in STATUS_COORDS_V1] == old.val
+    assert math.isnan(decoded["cpu_core_percent"]) and math.isnan(decoded["cpu_us_per_message"])
