@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import contextlib
 import math
+import shutil
 import signal
 import sys
 import time
@@ -94,15 +95,30 @@ class Status:
         if self.quiet:
             return
         m = s.monitor
-        state = f"FAULT {m.reason}" if m.fault else "ok"
-        contact = s.output("contact")[0] > 0.5
-        line = (f"joint {self.rates['joint']:6.0f} Hz  F/T {self.rates['ft']:6.0f} Hz  "
-                f"processed {s.processed}  published {s.published}  "
-                f"rejected {sum(m.rejected.values())}  lost {s.load.lost}  "
-                f"dropped {s.load.dropped}  behind {s.load.backlog_s * 1e3:.0f} ms  {state}  "
-                f"contact {'YES' if contact else 'no'}  {_describe_cpu(self.cpu)}")
-        end = "\r" if self.tty else "\n"
-        print(line.ljust(100), end=end, file=self.stream, flush=True)
+        # (rank, text): a terminal too narrow for the line drops the lowest ranks first.
+        fields = [(3, f"joint {self.rates['joint']:6.0f} Hz"),
+                  (4, f"F/T {self.rates['ft']:6.0f} Hz"), (1, f"processed {s.processed}"),
+                  (0, f"published {s.published}"),
+                  (2, f"rejected {sum(m.rejected.values())}"), (2, f"lost {s.load.lost}"),
+                  (2, f"dropped {s.load.dropped}"),
+                  (3, f"behind {s.load.backlog_s * 1e3:.0f} ms"),
+                  (5, f"FAULT {m.reason}" if m.fault else "ok"),
+                  (5, f"contact {'YES' if s.output('contact')[0] > 0.5 else 'no'}"),
+                  (3, _describe_cpu(self.cpu))]
+        if self.tty:  # rewritten in place: a line that wraps would leave its start behind
+            width = shutil.get_terminal_size().columns - 1
+            print(_fitted(fields, width).ljust(width), end="\r", file=self.stream, flush=True)
+        else:
+            print("  ".join(text for _, text in fields if text), file=self.stream, flush=True)
+
+
+def _fitted(fields, width: int) -> str:
+    """The fields' texts joined by two spaces in their order, the lowest-ranked (first of
+    equals) left out until the line fits `width` columns; the one left cut to fit."""
+    kept = [field for field in fields if field[1]]
+    while len(kept) > 1 and len("  ".join(text for _, text in kept)) > width:
+        kept.remove(min(kept, key=lambda field: field[0]))
+    return "  ".join(text for _, text in kept)[:width]
 
 
 def _describe_cpu(cpu: dict) -> str:

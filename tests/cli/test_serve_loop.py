@@ -3,6 +3,7 @@
 status line and summary give serve's own CPU per processed F/T message and share of a core."""
 
 import io
+import os
 import types
 
 import numpy as np
@@ -107,3 +108,46 @@ def test_the_status_line_gives_the_cpu_since_the_last_line(monkeypatch):
     station.processed, cpu.s = 500, cpu.s + 0.03  # the next line: only what came since
     status.maybe_print(status.last + 0.5)
     assert "CPU 6 % (300 µs/msg)" in stream.getvalue().splitlines()[-1]
+
+
+class Terminal(io.StringIO):
+    def isatty(self) -> bool:
+        return True
+
+
+@pytest.mark.parametrize("columns", [50, 80, 200])
+def test_on_a_terminal_the_line_fits_its_width_keeping_the_state_and_the_contact(
+        monkeypatch, columns):
+    """Rewritten in place with a carriage return, a line wider than the terminal would wrap
+    and leave its start behind at every update: on a terminal the line fits its width,
+    dropping the counts before the state, the contact flag and the F/T rate."""
+    cpu = FakeCpu()
+    station = ServingStation(cpu, per_spin=0, cost_s=0.0)
+    terminal = Terminal()
+    status = Status(station, stream=terminal, cpu_clock=cpu)
+    station.processed, station.published, cpu.s = 123456, 123456, cpu.s + 0.06
+    monkeypatch.setattr(live.shutil, "get_terminal_size",
+                        lambda: os.terminal_size((columns, 24)))
+    status.maybe_print(status.last + 0.5)
+    line = terminal.getvalue()
+    assert line.endswith("\r") and "\n" not in line
+    line = line[:-1]
+    assert len(line) == columns - 1  # padded over what the last line left
+    for kept in ("ok", "contact no", "F/T"):
+        assert kept in line
+    assert ("published 123456" in line) == (columns == 200)
+    assert ("CPU 12 % (0 µs/msg)" in line) == (columns >= 80)
+
+
+def test_in_a_log_the_line_is_whole():
+    cpu = FakeCpu()
+    station = ServingStation(cpu, per_spin=0, cost_s=0.0)
+    log = io.StringIO()
+    status = Status(station, stream=log, cpu_clock=cpu)
+    station.processed = station.published = 123456
+    status.maybe_print(status.last + 0.5)
+    line = log.getvalue()
+    assert line.endswith("\n") and line.count("\n") == 1
+    for field in ("joint", "F/T", "processed 123456", "published 123456", "rejected 0",
+                  "lost 0", "dropped 0", "behind 0 ms", "ok", "contact no", "CPU 0 %"):
+        assert field in line
