@@ -76,11 +76,10 @@ class Status:
         self.last_counts = dict(station.monitor.received)
         # Here, not at the top: `serve --help` imports this module, and ftdrake.hardware
         # (which overload's package imports) takes a second; the station has it by now.
-        from ..hardware.overload import CpuMeter, cpu_use
+        from ..hardware.overload import CpuMeter
 
         self.cpu_meter = CpuMeter(self.last, station.processed, cpu_clock)
         self.rates = {}
-        self.cpu = cpu_use(0.0, 0.0, 0)
 
     def maybe_print(self, now: float) -> None:
         if now - self.last < STATUS_PERIOD_S:
@@ -90,7 +89,7 @@ class Status:
         self.rates = {k: (received[k] - self.last_counts.get(k, 0)) / dt
                       for k in ("joint", "ft")}
         s = self.station
-        self.cpu = self.cpu_meter.reading(now, s.processed)
+        self.cpu_meter.reading(now, s.processed)
         self.last, self.last_counts = now, dict(received)
         if self.quiet:
             return
@@ -104,7 +103,7 @@ class Status:
                   (3, f"behind {s.load.backlog_s * 1e3:.0f} ms"),
                   (5, f"FAULT {m.reason}" if m.fault else "ok"),
                   (5, f"contact {'YES' if s.output('contact')[0] > 0.5 else 'no'}"),
-                  (3, _describe_cpu(self.cpu))]
+                  (3, _describe_cpu(self.cpu_meter.last))]
         if self.tty:  # rewritten in place: a line that wraps would leave its start behind
             width = shutil.get_terminal_size().columns - 1
             print(_fitted(fields, width).ljust(width), end="\r", file=self.stream, flush=True)

@@ -65,7 +65,7 @@ from .messages import (
     encode_status,
     encode_wrench,
 )
-from .overload import CpuMeter, cpu_use
+from .overload import CpuMeter
 from .threads import NewThreads, pin_process
 from .transport import open_lcm
 
@@ -115,7 +115,6 @@ class HardwareStation(StationCore):
         self._last_status = self.clock()
         # The process's CPU between two periodic statuses (status()'s cpu_* values).
         self.cpu_meter = CpuMeter(self._last_status, self.processed)
-        self.cpu = cpu_use(0.0, 0.0, 0)
         # The published outputs (conventions.PUBLISHED) with an LCM message of their own; the
         # others are values of the contact state (_publish_contact).
         # Only those listed in config.outputs.
@@ -257,7 +256,8 @@ class HardwareStation(StationCore):
                 "input_hz": load.input_hz, "sustained_hz": load.sustained_hz,
                 "backlog_ms": load.backlog_s * 1e3, "lost_ft": load.lost,
                 "dropped_ft": load.dropped, "processed": self.processed,
-                "published": self.published, **{f"cpu_{k}": v for k, v in self.cpu.items()}}
+                "published": self.published,
+                **{f"cpu_{k}": v for k, v in self.cpu_meter.last.items()}}
 
     def publish_status(self) -> None:
         """Publishes the status message now, stamped on the streams' clock."""
@@ -275,7 +275,7 @@ class HardwareStation(StationCore):
         now = self.clock()
         if now - self._last_status >= self.config.status_period_s:
             self._last_status = now
-            self.cpu = self.cpu_meter.reading(now, self.processed)
+            self.cpu_meter.reading(now, self.processed)
             self.publish_status()
         return handled
 

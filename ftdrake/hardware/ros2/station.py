@@ -41,7 +41,7 @@ from ...errors import ConfigError
 from ..core import StationCore
 from ..live_checks import check_joint_count, joint_names_problem, ros2_type_name
 from ..messages import JointSample, WrenchSample
-from ..overload import CpuMeter, cpu_use
+from ..overload import CpuMeter
 from ..threads import NewThreads, pin_process
 from .cdr import JointStateReader
 from .cdr import wrench_stamped as read_wrench_stamped
@@ -166,7 +166,6 @@ class Ros2Station(StationCore):
         self.rates_hz: dict[str, float] = {}
         # serve's CPU between two periodic diagnostics (the process's: every thread).
         self.cpu_meter = CpuMeter(self._last_diagnostics, self.processed)
-        self.cpu = cpu_use(0.0, 0.0, 0)
         # DDS discovery's publications, to name another type published on an input topic.
         self._inputs = {dds_topic(c.joint_state_topic): ("joint", "sensor_msgs/msg/JointState",
                                                          "joint_state_topic"),
@@ -340,7 +339,8 @@ class Ros2Station(StationCore):
                   **_load_values(self.load),
                   **(_imu_values(self.imu) if self.imu is not None else {}),
                   "latency_p50_ms": f"{p50 * 1e3:.3f}", "latency_p99_ms": f"{p99 * 1e3:.3f}",
-                  **{f"cpu_{k}": "" if v is None else f"{v:.1f}" for k, v in self.cpu.items()}}
+                  **{f"cpu_{k}": "" if v is None else f"{v:.1f}"
+                     for k, v in self.cpu_meter.last.items()}}
         return types["status"](
             level=level, name=DIAGNOSTIC_NAME, message=message,
             hardware_id=self.config.wrench_topic,
@@ -375,7 +375,7 @@ class Ros2Station(StationCore):
             self.rates_hz = {k: (received[k] - self._last_received.get(k, 0)) / dt
                              for k in ("joint", "ft")}
             self._last_diagnostics, self._last_received = now, dict(received)
-            self.cpu = self.cpu_meter.reading(now, self.processed)
+            self.cpu_meter.reading(now, self.processed)
             self.publish_diagnostics()
         return handled
 
