@@ -103,7 +103,7 @@ class Status:
                   (3, f"behind {s.load.backlog_s * 1e3:.0f} ms"),
                   (5, f"FAULT {m.reason}" if m.fault else "ok"),
                   (5, f"contact {'YES' if s.output('contact')[0] > 0.5 else 'no'}"),
-                  (3, _describe_cpu(self.cpu_meter.last))]
+                  (3, _describe_cpu(self.cpu_meter.latest))]
         if self.tty:  # rewritten in place: a line that wraps would leave its start behind
             width = shutil.get_terminal_size().columns - 1
             print(_fitted(fields, width).ljust(width), end="\r", file=self.stream, flush=True)

@@ -136,19 +136,19 @@ def cpu_use(cpu_s: float, wall_s: float, processed: int) -> dict:
 class CpuMeter:
     """:func:`cpu_use` from one reading to the next. `now` (s, any wall clock) and
     `processed` (F/T messages processed so far) start it; `cpu_clock` gives the process's
-    CPU time (s; default ``time.process_time``: every thread of the process). ``last`` is
+    CPU time (s; default ``time.process_time``: every thread of the process). ``latest`` is
     the last reading (its values None before the first)."""
 
     def __init__(self, now: float, processed: int, cpu_clock=time.process_time):
         self.cpu_clock = cpu_clock
         self._start = (now, cpu_clock(), processed)
-        self.last = cpu_use(0.0, 0.0, 0)
+        self.latest = cpu_use(0.0, 0.0, 0)
 
     def reading(self, now: float, processed: int) -> dict:
         """:func:`cpu_use` since the last reading (or the start), at `now` with `processed`
-        F/T messages processed so far; kept as ``last``."""
+        F/T messages processed so far; kept as ``latest``."""
         cpu = self.cpu_clock()
         then, cpu_then, processed_then = self._start
         self._start = (now, cpu, processed)
-        self.last = cpu_use(cpu - cpu_then, now - then, processed - processed_then)
-        return self.last
+        self.latest = cpu_use(cpu - cpu_then, now - then, processed - processed_then)
+        return self.latest

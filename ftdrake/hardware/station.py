@@ -257,7 +257,7 @@ class HardwareStation(StationCore):
                 "backlog_ms": load.backlog_s * 1e3, "lost_ft": load.lost,
                 "dropped_ft": load.dropped, "processed": self.processed,
                 "published": self.published,
-                **{f"cpu_{k}": v for k, v in self.cpu_meter.last.items()}}
+                **{f"cpu_{k}": v for k, v in self.cpu_meter.latest.items()}}
 
     def publish_status(self) -> None:
         """Publishes the status message now, stamped on the streams' clock."""

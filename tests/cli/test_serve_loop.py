@@ -103,7 +103,7 @@ def test_the_status_line_gives_the_cpu_since_the_last_line(monkeypatch):
     station.processed, cpu.s = 400, cpu.s + 0.04  # 400 messages at 100 µs each
     monkeypatch.setattr(live, "STATUS_PERIOD_S", 0.0)
     status.maybe_print(status.last + 0.5)
-    assert status.cpu_meter.last == pytest.approx({"core_percent": 8.0,
+    assert status.cpu_meter.latest == pytest.approx({"core_percent": 8.0,
                                                    "us_per_message": 100.0})
     assert "CPU 8 % (100 µs/msg)" in stream.getvalue()
     station.processed, cpu.s = 500, cpu.s + 0.03  # the next line: only what came since

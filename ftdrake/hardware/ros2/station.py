@@ -340,7 +340,7 @@ class Ros2Station(StationCore):
                   **(_imu_values(self.imu) if self.imu is not None else {}),
                   "latency_p50_ms": f"{p50 * 1e3:.3f}", "latency_p99_ms": f"{p99 * 1e3:.3f}",
                   **{f"cpu_{k}": "" if v is None else f"{v:.1f}"
-                     for k, v in self.cpu_meter.last.items()}}
+                     for k, v in self.cpu_meter.latest.items()}}
         return types["status"](
             level=level, name=DIAGNOSTIC_NAME, message=message,
             hardware_id=self.config.wrench_topic,
