@@ -41,6 +41,30 @@ def check_batch_period(value, max_backlog_s: float, where: str) -> None:
                           f"(0: a wake-up per message; 0.002 batches 2 ms), got {value!r}")
 
 
+def rate_levers(config, section: str) -> str:
+    """The settings of a live config's `section` (``lcm``: a :class:`HardwareConfig`;
+    ``ros2``: a ``Ros2Config``) that lower serve's CPU per F/T message and that `config`
+    does not use yet, in words naming their keys ("" for none): what the overload and the
+    little-headroom warning (:mod:`~ftdrake.hardware.overload`) offer as the fix. Only
+    settings that lowered it on that transport are offered (docs/results/live.md): on LCM
+    fewer outputs, the outputs on a URL of their own, a CPU of serve's own and batches; on
+    ROS 2 only batches (fewer outputs and pinning did not lower it there)."""
+    levers = []
+    if section == "lcm":
+        if len(config.outputs) > 2:
+            levers.append(f"publish only the outputs read ({section}.outputs, e.g. "
+                          "[wrench_contact, contact])")
+        if config.output_url in ("", config.lcm_url):
+            levers.append(f"publish them on a URL of their own, which serve does not receive "
+                          f"({section}.output_url, e.g. another port)")
+        if not config.cpu_affinity:
+            levers.append(f"give serve a CPU nothing else runs on ({section}.cpu_affinity)")
+    if not config.batch_period_s:
+        levers.append(f"handle the messages in batches ({section}.batch_period_s, e.g. 0.002, "
+                      "adding that much latency)")
+    return "; ".join(levers)
+
+
 def check_yield_io_threads(value, where: str) -> None:
     """ConfigError naming `where`.yield_io_threads unless it is a bool."""
     if not isinstance(value, bool):

@@ -317,7 +317,7 @@ class StationCore:
         self._note(t)
         self.load.busy(self.clock() - arrival)
         if fresh:
-            self.load.processed()
+            self.warn(self.load.processed())
 
     def _step_chain(self, t: float, settling: bool) -> None:
         """One update of the chain by the ChainStep, from the monitor's held inputs, for the

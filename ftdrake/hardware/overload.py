@@ -34,15 +34,22 @@ import time
 
 #: F/T messages the sustained rate and the input rate are averaged over.
 WINDOW = 1000
+#: The share of the stream's time the handlers may be busy before little headroom is said.
+BUSY_WARNING = 0.8
 
 
 class LoadMonitor:
     """See the module. `period`: the configured F/T period (s); `max_backlog_s`: the lag (s)
-    beyond which the oldest messages are dropped."""
+    beyond which the oldest messages are dropped; `levers`: the transport's settings that
+    would lower the cost per message, in words naming their keys (:attr:`fix` starts with
+    them)."""
 
-    def __init__(self, period: float, max_backlog_s: float):
+    def __init__(self, period: float, max_backlog_s: float, levers: str = ""):
         self.period = float(period)
         self.max_backlog_s = float(max_backlog_s)
+        self.levers = levers
+        self.headroom_warned = False
+        self._until_headroom_check = WINDOW
         self.lost = 0
         self.dropped = 0
         self.backlog_s = 0.0
@@ -80,15 +87,40 @@ class LoadMonitor:
             self.dropped += 1
         return self.overloaded
 
-    def processed(self) -> None:
+    def processed(self) -> str | None:
         """Closes the F/T message just run through the chain: its lag may lower the
         baseline (only such messages do: a faulted one, e.g. stamped far from the joint
         states, does not move it), and its handler time (and the handlers' since the
         previous one: joint states, dropped or faulted messages) enters the sustained
-        rate."""
+        rate. Returns the little-headroom warning (the module) the first time it applies,
+        checked once per WINDOW processed messages; else None."""
         self._min_lag = self._lag if self._min_lag is None else min(self._min_lag, self._lag)
         self._busy.append(self._pending_busy)
         self._pending_busy = 0.0
+        self._until_headroom_check -= 1
+        if self._until_headroom_check > 0 or self.headroom_warned:
+            return None
+        self._until_headroom_check = WINDOW
+        return self._headroom_warning()
+
+    def _headroom_warning(self) -> str | None:
+        """The warning when the handlers were busy more than BUSY_WARNING of the stream's
+        time over the last WINDOW messages (once)."""
+        sustained, rate_in = self.sustained_hz, self.input_hz
+        if sustained is None or rate_in is None or sustained * BUSY_WARNING > rate_in:
+            return None
+        self.headroom_warned = True
+        return (f"little headroom: F/T messages arrive at {rate_in:.0f} Hz and the station "
+                f"sustains {sustained:.0f} Hz ({1e6 / sustained:.0f} µs per message on this "
+                f"machine now), busy {100 * rate_in / sustained:.0f} % of the stream's time: "
+                f"a burst or more load on this machine would make it drop messages. "
+                f"{self.fix}")
+
+    @property
+    def fix(self) -> str:
+        """What lowers the cost per message: the transport's unused settings first."""
+        levers = f"{self.levers}; or " if self.levers else ""
+        return f"Fix: {levers}a lighter model, a less loaded machine, or a lower driver rate"
 
     @property
     def sustained_hz(self) -> float | None:
@@ -112,8 +144,7 @@ class LoadMonitor:
                 f"{sustained} ({cost:.0f} µs per message on this machine now) and is "
                 f"{self.backlog_s * 1e3:.0f} ms behind the stream: the oldest are dropped "
                 f"(not run through the chain) until it is less than "
-                f"{0.5 * self.max_backlog_s * 1e3:.0f} ms behind. Fix: a lighter model, a "
-                "less loaded machine, or a lower driver rate")
+                f"{0.5 * self.max_backlog_s * 1e3:.0f} ms behind. {self.fix}")
 
     def summary(self) -> dict:
         """The counts and rates (JSON-ready)."""

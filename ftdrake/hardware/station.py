@@ -46,7 +46,7 @@ import numpy as np
 from ..config import ChainConfig
 from ..conventions import OUTPUTS, PUBLISHED
 from ..errors import ConfigError
-from .config import JOINT_STATE_TYPES, HardwareConfig
+from .config import JOINT_STATE_TYPES, HardwareConfig, rate_levers
 from .core import FaultEvent, StationCore  # noqa: F401 (FaultEvent: its home before core)
 from .live_checks import check_joint_count, lcm_decode_problem, lcm_type_found
 from .live_inputs import REASONS, RobotStatePairer
@@ -107,6 +107,7 @@ class HardwareStation(StationCore):
                          on_warning=on_warning, max_backlog_s=config.max_backlog_s,
                          pair_tolerance_s=config.pair_tolerance_s,
                          imu_max_skew_s=config.imu_max_skew_s)
+        self.load.levers = rate_levers(config, "lcm")  # its warnings name the keys to change
         if self.imu is not None:  # its faults name the keys to change
             self.imu.source = f"lcm.imu_channel {config.imu_channel!r}"
             self.imu.skew_key = "lcm.imu_max_skew_s"

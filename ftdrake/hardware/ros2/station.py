@@ -38,6 +38,7 @@ import numpy as np
 
 from ...config import ChainConfig
 from ...errors import ConfigError
+from ..config import rate_levers
 from ..core import StationCore
 from ..live_checks import check_joint_count, joint_names_problem, ros2_type_name
 from ..messages import JointSample, WrenchSample
@@ -110,6 +111,7 @@ class Ros2Station(StationCore):
                          on_warning=self._on_warning, joint_names=c.joint_names,
                          max_backlog_s=c.max_backlog_s, pair_tolerance_s=c.pair_tolerance_s,
                          imu_max_skew_s=c.imu_max_skew_s)
+        self.load.levers = rate_levers(c, "ros2")  # its warnings name the keys to change
         if self.imu is not None:  # its faults name the keys to change
             self.imu.source = f"ros2.imu_topic {c.imu_topic!r}"
             self.imu.skew_key = "ros2.imu_max_skew_s"
