@@ -175,7 +175,8 @@ class HardwareConfig:
     # stays in those cores' caches); [] leaves it to the scheduler.
     cpu_affinity: list[int] = dc.field(default_factory=list)
     # Each F/T sample is paired with the joint state whose stamp is within this (s) of its
-    # own (live_inputs.StreamMonitor); none within it: a fault, never judged. 0: by arrival
+    # own, an older one brought forward to the F/T stamp (live_inputs.StreamMonitor); none
+    # within it: a fault, never judged. At least the joint stream's period. 0: by arrival
     # only (drivers whose stamps are on different clocks).
     pair_tolerance_s: float = 0.005
 

@@ -18,7 +18,12 @@ message or timeout until the inputs are good again:
   the newest joint state when its stamp is within the tolerance of the wrench's, else the
   nearest-stamped of the last :data:`JOINT_HISTORY` joint states within it; with none within
   it the F/T sample faults (``stamp_gap``) and is never judged (a wrench paired with a stale
-  joint state would read as contact). 0 pairs by arrival only (the newest joint state);
+  joint state would read as contact). A paired joint state stamped before the wrench is
+  brought forward to the wrench's stamp (:func:`joint_state_at`): a joint stream slower
+  than the F/T stream, or one that lost messages, would otherwise hold q̇ over several F/T
+  samples and then jump, which the chain's q̈ estimate (a difference of q̇ per F/T period)
+  reads as a burst of acceleration and the detector as contact. 0 pairs by arrival only
+  (the newest joint state, as it is);
 * for a model that takes an IMU, an F/T sample with no IMU sample paired to it faults
   (``imu_missing``, ``imu_stamp_gap``; raised by the station through ``flag``) until one
   pairs again.
@@ -65,6 +70,25 @@ def all_finite(values) -> bool:
 
 #: Joint states kept to pair an F/T sample with by stamp.
 JOINT_HISTORY = 64
+
+
+def joint_state_at(t: float, t_joint: float, x, before=None) -> np.ndarray:
+    """The joint state `x` ([q; q̇], 2n: rad, rad/s) stamped `t_joint` (s) brought to the
+    stamp `t` (s) with δ = t − t_joint: ``[q + q̇δ + ½q̈δ²; q̇ + q̈δ]``, q̈ (rad/s²) the
+    difference of q̇ from `before` (``(t_before, x_before)``, the joint state accepted before
+    it, stamped earlier) over their stamps; without `before`, q̈ = 0. A new array; `x` when
+    δ is 0."""
+    delta = t - t_joint
+    if delta == 0.0:
+        return x
+    n = len(x) // 2
+    q, v = x[:n], x[n:]
+    if before is None:
+        a = np.zeros(n)
+    else:
+        t_before, x_before = before
+        a = (v - x_before[n:]) / (t_joint - t_before)
+    return np.concatenate([q + delta * v + (0.5 * delta * delta) * a, v + delta * a])
 
 
 class StreamMonitor:
@@ -255,22 +279,35 @@ class StreamMonitor:
     def _pair(self, t: float) -> tuple[str, str] | None:
         """Puts into ``joint_state`` the joint state paired with an F/T sample stamped `t`
         (see the module); (reason, detail) when none is within the tolerance."""
-        tol = self.pair_tolerance_s
-        if tol <= 0 or not self._history:
+        tol, history = self.pair_tolerance_s, self._history
+        if tol <= 0 or not history:
             return None
-        newest_t, newest = self._history[-1]
-        if abs(newest_t - t) <= tol:
-            self.joint_state[:] = newest
+        newest = len(history) - 1
+        if abs(history[newest][0] - t) <= tol:
+            self._take_joint_state(newest, t)
             return None
-        nearest_t, nearest = min(self._history, key=lambda item: abs(item[0] - t))
+        nearest = min(range(len(history)), key=lambda i: abs(history[i][0] - t))
+        nearest_t = history[nearest][0]
         if abs(nearest_t - t) <= tol:
-            self.joint_state[:] = nearest
+            self._take_joint_state(nearest, t)
             return None
         return "stamp_gap", (
             f"no joint state stamped within {tol * 1e3:g} ms of the F/T sample at {t:.6f} s "
             f"(the nearest of the last {len(self._history)} is {(nearest_t - t) * 1e3:+.1f} ms "
             "away): the wrench is not judged. Fix: the drivers' clocks or stamps, or "
             "pair_tolerance_s")
+
+    def _take_joint_state(self, index: int, t: float) -> None:
+        """``joint_state`` = the joint state `index` of the history; one stamped before the
+        F/T stamp `t` brought forward to it (joint_state_at; q̈ from the one before it, when
+        kept). One stamped after `t` is taken as it is: that is a wrench arriving after the
+        next sample's joint state, as the simulated robot's do (lcm_publisher), whose chain
+        the live one equals."""
+        t_joint, x = self._history[index]
+        if t > t_joint:
+            before = self._history[index - 1] if index > 0 else None
+            x = joint_state_at(t, t_joint, x, before)
+        self.joint_state[:] = x
 
     def check_timeouts(self, now: float) -> bool:
         """Call periodically (same clock as the arrivals, s). Raises the fault when a stream

@@ -162,9 +162,11 @@ class ChainStep:
         (q̈ half a period before that sample, as the backward difference gives it) and the
         mean acceleration over the gap ā = (q̇ after − q̇ before) / `gap_s` (q̈ at the gap's
         middle), the jerk is j = (ā − a₀) / ((`gap_s` + period) / 2) and the estimate after
-        ā + j (`gap_s` − period) / 2, again half a period before its sample
-        (:func:`bridge_acceleration`; on the diagram, apply it to those systems' estimator
-        states in the context)."""
+        ā + j (`gap_s` − period) / 2, again half a period before its sample. The estimators
+        keep their own jerk: j, carried on, would amplify the error of the estimate before
+        the gap at every gap, and gaps that recur (a stream that loses every few samples)
+        would make the estimate diverge (:func:`bridge_acceleration`; on the diagram, apply
+        it to those systems' estimator states in the context)."""
         self._gap_s = float(gap_s)
 
     def _bridge(self, v) -> None:
@@ -297,15 +299,17 @@ def bridge_acceleration(estimator, v, gap_s: float, period: float) -> None:
     joints: q̇ before, q̈, jerk, primed; entries after those are left alone) across a gap of
     `gap_s` s before the sample of q̇ `v`, as :meth:`ChainStep.bridge_gap` says: as of one
     period before that sample, so that the sample's step gives the bridged estimate with no
-    innovation. Nothing for an estimator not yet primed or a non-finite `v`."""
+    innovation; its jerk is left as it is. Nothing for an estimator not yet primed or a
+    non-finite `v`."""
     n = len(v)
     if estimator[3 * n] == 0.0 or not np.all(np.isfinite(v)):
         return
     mean = (v - estimator[:n]) / gap_s
     jerk = (mean - estimator[n:2 * n]) / (0.5 * (gap_s + period))
     after = mean + jerk * 0.5 * (gap_s - period)
-    estimator[2 * n:3 * n] = jerk
-    estimator[n:2 * n] = after - period * jerk  # the step's prediction: `after`
+    # The filter keeps its own jerk: this gap's, carried on, would grow with every gap that
+    # recurs (it amplifies the error of the estimate before the gap).
+    estimator[n:2 * n] = after - period * estimator[2 * n:3 * n]  # the step predicts `after`
     estimator[:n] = v - period * after  # its difference: `after`, no innovation
 
 

@@ -104,3 +104,24 @@ def test_a_wrench_with_no_joint_state_within_the_tolerance_is_a_fault_not_judged
 def test_the_tolerance_is_checked():
     with pytest.raises(ConfigError, match=r"hardware\.pair_tolerance_s"):
         HardwareConfig(pair_tolerance_s=-1.0).validate()
+
+
+def test_a_joint_state_is_brought_to_the_wrench_stamp_exactly_under_constant_acceleration():
+    """joint_state_at: q + q̇δ + ½q̈δ², q̇ + q̈δ, q̈ from the joint state before it by their
+    stamps — exact for a motion of constant q̈, ahead of the joint state or behind it; the
+    joint state itself when the stamps are equal; q̈ = 0 without one before it."""
+    from ftdrake.hardware.live_inputs import joint_state_at
+
+    q0, v0, a = np.linspace(-1, 1, N), np.linspace(0.5, -0.3, N), np.linspace(2, -3, N)
+
+    def x(t):
+        return np.r_[q0 + v0 * t + 0.5 * a * t**2, v0 + a * t]
+
+    before = (0.010, x(0.010))
+    for t in (0.0132, 0.0101, 0.0087):  # after the joint state at 12 ms, and before it
+        np.testing.assert_allclose(joint_state_at(t, 0.012, x(0.012), before), x(t),
+                                   rtol=0, atol=1e-13)
+    held = x(0.012)
+    assert joint_state_at(0.012, 0.012, held, before) is held
+    np.testing.assert_allclose(joint_state_at(0.013, 0.012, held),
+                               np.r_[held[:N] + 0.001 * held[N:], held[N:]], rtol=0, atol=1e-15)

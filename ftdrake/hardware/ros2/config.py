@@ -91,9 +91,11 @@ class Ros2Config:
       (:mod:`ftdrake.hardware.overload`); the diagnostics carry ``lost_ft``, ``dropped_ft``,
       ``backlog_ms`` and ``sustained_hz``.
     `pair_tolerance_s`: each wrench is paired with the joint state whose ``header.stamp`` is
-      within this (s) of its own: the newest when it is, else the nearest of the last 64; none
-      within it faults the inputs (``stamp_gap``) and the wrench is not judged. 0 pairs by
-      arrival only (the newest joint state).
+      within this (s) of its own: the newest when it is, else the nearest of the last 64; an
+      older one is brought forward to the wrench's stamp
+      (:func:`~ftdrake.hardware.live_inputs.joint_state_at`);
+      none within it faults the inputs (``stamp_gap``) and the wrench is not judged. At least
+      the joint-state period. 0 pairs by arrival only (the newest joint state, as it is).
     `reorder_window_s`: 0 hands messages to the station as they arrive (lowest latency, as
       on LCM); > 0 holds them that long and hands them over in publication order, so a joint
       state retransmitted after a lost datagram still precedes the wrench published after it
