@@ -29,6 +29,8 @@ leave the host). Per rate and model:
   included).
 * rejected, fault_episodes: serve's counts of the samples it refused, per reason, and of
   its fault episodes: where samples received but not processed went.
+* warnings: what serve warned of (its summary's), e.g. little headroom; printed under the
+  run's line.
 
 serve is started first; the driver then appears and sends once matched. It sleeps until
 each message (or batch) is due, handling serve's outputs as they come, so that it does not
@@ -497,6 +499,8 @@ def run_one(model, name, rate, data, names, args, folder: Path) -> dict:
             # Where samples received but not processed went (serve's summary).
             "rejected": summary.get("rejected", {}),
             "fault_episodes": summary.get("fault_episodes", {}),
+            # What serve warned of (e.g. little headroom), as its summary gives it.
+            "warnings": summary.get("warnings", []),
             "yield_io_threads": int(not args.no_yield_io_threads),
             "separate_outputs": int(args.separate_outputs and kind is LcmDriver),
             "floor": int(args.floor), "no_chain": int(args.no_chain), "echo": args.echo,
@@ -624,6 +628,8 @@ def run_all(args, makers, X, W, replay, names) -> dict:
                   f"driver's topics appeared  load {row['load_before']:.2f}→"
                   f"{row['load_after']:.2f}  rejected {row['rejected'] or 'none'}  fault "
                   f"episodes {row['fault_episodes'] or 'none'}", flush=True)
+            for warning in row["warnings"]:
+                print(f"  serve warned: {warning}", flush=True)
             if row["phases"]:
                 print("  phases, µs per F/T message: " + "  ".join(
                     f"{key} {value:.1f}" for key, value in row["phases"].items()
