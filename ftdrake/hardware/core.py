@@ -316,8 +316,8 @@ class StationCore:
         self.contact_published += bool(self._publish_contact(t, self.monitor.fault or settling))
         self._note(t)
         self.load.busy(self.clock() - arrival)
-        if fresh:
-            self.warn(self.load.processed())
+        if fresh and (warning := self.load.processed()) is not None:
+            self.warn(warning)
 
     def _step_chain(self, t: float, settling: bool) -> None:
         """One update of the chain by the ChainStep, from the monitor's held inputs, for the

@@ -282,14 +282,15 @@ class StreamMonitor:
         tol, history = self.pair_tolerance_s, self._history
         if tol <= 0 or not history:
             return None
-        newest = len(history) - 1
-        if abs(history[newest][0] - t) <= tol:
-            self._take_joint_state(newest, t)
+        newest_t, newest = history[-1]
+        if abs(newest_t - t) <= tol:  # per message: the common case inline
+            self.joint_state[:] = (newest if t <= newest_t
+                                   else self._brought_forward(len(history) - 1, t))
             return None
         nearest = min(range(len(history)), key=lambda i: abs(history[i][0] - t))
-        nearest_t = history[nearest][0]
+        nearest_t, x = history[nearest]
         if abs(nearest_t - t) <= tol:
-            self._take_joint_state(nearest, t)
+            self.joint_state[:] = x if t <= nearest_t else self._brought_forward(nearest, t)
             return None
         return "stamp_gap", (
             f"no joint state stamped within {tol * 1e3:g} ms of the F/T sample at {t:.6f} s "
@@ -297,17 +298,15 @@ class StreamMonitor:
             "away): the wrench is not judged. Fix: the drivers' clocks or stamps, or "
             "pair_tolerance_s")
 
-    def _take_joint_state(self, index: int, t: float) -> None:
-        """``joint_state`` = the joint state `index` of the history; one stamped before the
-        F/T stamp `t` brought forward to it (joint_state_at; q̈ from the one before it, when
-        kept). One stamped after `t` is taken as it is: that is a wrench arriving after the
-        next sample's joint state, as the simulated robot's do (lcm_publisher), whose chain
-        the live one equals."""
+    def _brought_forward(self, index: int, t: float) -> np.ndarray:
+        """The joint state `index` of the history, stamped before the F/T stamp `t`, brought
+        forward to it (joint_state_at; q̈ from the one before it, when kept). _pair takes one
+        stamped after `t` as it is: that is a wrench arriving after the next sample's joint
+        state, as the simulated robot's do (lcm_publisher), whose chain the live one
+        equals."""
         t_joint, x = self._history[index]
-        if t > t_joint:
-            before = self._history[index - 1] if index > 0 else None
-            x = joint_state_at(t, t_joint, x, before)
-        self.joint_state[:] = x
+        before = self._history[index - 1] if index > 0 else None
+        return joint_state_at(t, t_joint, x, before)
 
     def check_timeouts(self, now: float) -> bool:
         """Call periodically (same clock as the arrivals, s). Raises the fault when a stream

@@ -98,10 +98,10 @@ class LoadMonitor:
         self._busy.append(self._pending_busy)
         self._pending_busy = 0.0
         self._until_headroom_check -= 1
-        if self._until_headroom_check > 0 or self.headroom_warned:
+        if self._until_headroom_check:
             return None
         self._until_headroom_check = WINDOW
-        return self._headroom_warning()
+        return None if self.headroom_warned else self._headroom_warning()
 
     def _headroom_warning(self) -> str | None:
         """The warning when the handlers were busy more than BUSY_WARNING of the stream's
