@@ -30,13 +30,9 @@ from live_rate import free_motion, resampled
 
 from ftdrake import ChainConfig, RobotOptions, make_estimator
 from ftdrake.conventions import WRENCH_AXES
-from ftdrake.hardware import HardwareConfig, HardwareStation
-from ftdrake.hardware.messages import (
-    decode_contact_state,
-    decode_wrench,
-    encode_joint_state,
-    encode_wrench,
-)
+from ftdrake.hardware import HardwareConfig
+from ftdrake.hardware.messages import encode_joint_state, encode_wrench
+from ftdrake.testing import listening_station
 
 RATE = 1000.0
 
@@ -59,12 +55,7 @@ def run_case(model, q, v, w, joint_sent, wrench_sent) -> dict:
     """The station fed the replay with the case's messages left out; its outputs measured."""
     config = HardwareConfig(lcm_url="memq://", sensor_timeout_s=1.0, joint_state_timeout_s=1.0)
     now = [0.0]
-    dut = HardwareStation(config, model, ChainConfig(), "memq://", clock=lambda: now[0])
-    contacts, wrenches = [], []
-    dut.lcm.subscribe(config.output_channel("contact"),
-                      lambda d: contacts.append(decode_contact_state(d)))
-    dut.lcm.subscribe(config.output_channel("wrench_compensated"),
-                      lambda d: wrenches.append(decode_wrench(d)))
+    dut, contacts, wrenches = listening_station(model, ChainConfig(), config, lambda: now[0])
     lc = dut.lcm.lc
     for k in range(len(q)):
         t = (k + 1) / RATE

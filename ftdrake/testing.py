@@ -11,6 +11,7 @@ Joint-state rows ``[q (7), q̇ (7), q̈ (7)]`` in rad, rad/s, rad/s²:
 What the sensor reads for them: :func:`readings`, :func:`pose_tables` (static poses as tables of
 joint angles and of sensor orientations, the way ``ftdrake calibrate`` reads them).
 Simulated scenarios and models: :func:`push_scenario`, :func:`fit_forest`, :func:`demo_models`.
+A live station whose outputs are kept: :func:`listening_station`.
 Summaries: :func:`identification_spread` and its goals, :func:`split_by_trajectory`.
 
 Everything is deterministic for a given seed or generator. Units: SI throughout; wrenches in
@@ -49,6 +50,7 @@ __all__ = [
     "demo_models",
     "fit_forest",
     "identification_spread",
+    "listening_station",
     "median_us_per_row",
     "pose_tables",
     "push_scenario",
@@ -216,6 +218,23 @@ def demo_models():
 
 
 # -- Summaries -------------------------------------------------------------------------------
+def listening_station(model, chain, config, clock):
+    """A :class:`~ftdrake.hardware.station.HardwareStation` on `config` (its ``lcm_url``,
+    e.g. ``memq://``) with the station's `clock`, and what it publishes: returns (station,
+    contact states, compensated wrenches), two lists that grow as its outputs are handled
+    (``ContactState``, ``WrenchSample`` of ``wrench_compensated``)."""
+    from .hardware import HardwareStation  # noqa: PLC0415 (LCM only for the stations)
+    from .hardware.messages import decode_contact_state, decode_wrench  # noqa: PLC0415
+
+    station = HardwareStation(config, model, chain, config.lcm_url, clock=clock)
+    contacts, wrenches = [], []
+    station.lcm.subscribe(config.output_channel("contact"),
+                          lambda data: contacts.append(decode_contact_state(data)))
+    station.lcm.subscribe(config.output_channel("wrench_compensated"),
+                          lambda data: wrenches.append(decode_wrench(data)))
+    return station, contacts, wrenches
+
+
 def identification_spread(masses, coms) -> dict:
     """The spread of identified masses (kg) and centres of mass (m, n × 3) across runs: the
     mean mass, the range (max − min) and std relative to it, and per coordinate the range and

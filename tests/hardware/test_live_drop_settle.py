@@ -12,14 +12,10 @@ import numpy as np
 import pytest
 
 from ftdrake import ChainConfig, RandomForestCompensator
-from ftdrake.hardware import HardwareConfig, HardwareStation
+from ftdrake.hardware import HardwareConfig
 from ftdrake.hardware.core import SETTLE_AFTER_DROP_S
-from ftdrake.hardware.messages import (
-    decode_contact_state,
-    decode_wrench,
-    encode_joint_state,
-    encode_wrench,
-)
+from ftdrake.hardware.messages import encode_joint_state, encode_wrench
+from ftdrake.testing import listening_station
 
 N = 7
 PERIOD = 0.001
@@ -62,12 +58,7 @@ def run(model, lag_s: float, press: bool = False, lost=range(0), joint_sent=None
     now = [0.0]
     chain = ChainConfig()
     chain.detector.test = "norm"  # force_on 2.5 N, torque_on 0.25 N·m
-    dut = HardwareStation(config, model, chain, "memq://", clock=lambda: now[0])
-    contacts, wrenches = [], []
-    dut.lcm.subscribe(config.output_channel("contact"),
-                      lambda d: contacts.append(decode_contact_state(d)))
-    dut.lcm.subscribe(config.output_channel("wrench_compensated"),
-                      lambda d: wrenches.append(decode_wrench(d)))
+    dut, contacts, wrenches = listening_station(model, chain, config, lambda: now[0])
     lc = dut.lcm.lc
     times = np.arange(1, 2501) * PERIOD
     q, qd, qdd = motion(times)
