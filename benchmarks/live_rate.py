@@ -40,7 +40,8 @@ of its own (``output_url``), where the driver listens. `--load-core` keeps one c
 with a second process during the runs
 (the issue's "second process loading one core"); `--outputs` sets serve's published
 outputs (the driver reads wrench_contact and contact), `--batch-period` its
-``batch_period_s``; `--profile DIR` runs serve under
+``batch_period_s``; `--joint-every N` sends a joint state with every N-th wrench only (a
+joint stream at the rate / N); `--profile DIR` runs serve under
 cProfile.
 
 `--floor` measures the transport's own cost at the same settings: serve runs as always
@@ -71,7 +72,7 @@ machine the rates a run sustains depend on what else runs. The last line is one 
                                    [--separate-outputs] [--no-yield-io-threads] [--floor]
                                    [--no-chain]
                                    [--echo [wait|listener]] [--cpu-affinity 1]
-                                   [--driver-cpus 0]
+                                   [--driver-cpus 0] [--joint-every 2]
 
 The issue's soaks (long: run them on an otherwise idle machine)::
 
@@ -225,10 +226,11 @@ class Ros2Driver:
     def ready(self) -> bool:
         return all(self.node.matched().values()) and len(self.node.matched()) >= 4
 
-    def send(self, t, q, v, w) -> None:
-        self.joints.write(self.JointState(header=self.header(t), name=self.names,
-                                          position=[float(x) for x in q],
-                                          velocity=[float(x) for x in v], effort=[]))
+    def send(self, t, q, v, w, joint: bool = True) -> None:
+        if joint:
+            self.joints.write(self.JointState(header=self.header(t), name=self.names,
+                                              position=[float(x) for x in q],
+                                              velocity=[float(x) for x in v], effort=[]))
         self.wrenches.write(self.wrench_stamped(self.header(t, "ft_sensor"), w))
 
     def poll(self, timeout_ms: float = 0) -> None:
@@ -292,9 +294,11 @@ class LcmDriver:
     def ready(self) -> bool:
         return True
 
-    def send(self, t, q, v, w) -> None:
+    def send(self, t, q, v, w, joint: bool = True) -> None:
         c = self.config
-        self.lc.publish(c.joint_state_channel, self.encode_joint_state("iiwa_status", t, q, v))
+        if joint:
+            self.lc.publish(c.joint_state_channel,
+                            self.encode_joint_state("iiwa_status", t, q, v))
         self.lc.publish(c.ft_channel, self.encode_wrench(t, w))
 
     def poll(self, timeout_ms: float = 0) -> None:
@@ -431,7 +435,7 @@ def drive(driver, serve, rate, data, args) -> dict:
         t = (k + 1) * period
         if k >= warmup:
             sent[round(t * 1e6)] = time.monotonic()
-        driver.send(t, q[k], v[k], w[k])
+        driver.send(t, q[k], v[k], w[k], joint=k % args.joint_every == 0)
         driver.poll(0)
     end = time.monotonic() + 10
     while len(driver.back) < count and time.monotonic() < end:
@@ -495,7 +499,7 @@ def run_one(model, name, rate, data, names, args, folder: Path) -> dict:
             "first_output_s": (min(driver.back.values()) - appeared if driver.back
                                else None),
             "first_sent_s": run["first_sent"] - appeared, "load_core": int(args.load_core),
-            "batch_period_s": args.batch_period,
+            "batch_period_s": args.batch_period, "joint_every": args.joint_every,
             # Where samples received but not processed went (serve's summary).
             "rejected": summary.get("rejected", {}),
             "fault_episodes": summary.get("fault_episodes", {}),
@@ -508,6 +512,30 @@ def run_one(model, name, rate, data, names, args, folder: Path) -> dict:
             "phases": (json.loads((folder / "phases.json").read_text()) if args.phases
                        else None),
             "load_before": run["load_before"], "load_after": run["load_after"]}
+
+
+def refuse_combinations(parser, args) -> None:
+    """parser.error for options that cannot run together (or a bad value)."""
+    if args.joint_every < 1:
+        parser.error("--joint-every: a whole number ≥ 1 (1: a joint state with every wrench)")
+    if args.floor and args.profile:
+        parser.error("--floor and --profile: cProfile cannot run serve's floor (python -c)")
+    if args.phases and (args.floor or args.profile or args.echo):
+        parser.error("--phases times serve's own methods: not with --floor, --profile or "
+                     "--echo")
+    if args.no_chain and (args.floor or args.profile or args.phases):
+        parser.error("--no-chain runs serve without the chain's update: not with --floor "
+                     "(which has none either), --profile or --phases")
+    ignored = [flag for flag, value in (
+        ("--floor", args.floor), ("--no-chain", args.no_chain), ("--profile", args.profile),
+        ("--outputs", args.outputs),
+        ("--cpu-affinity", args.cpu_affinity), ("--batch-period", args.batch_period),
+        ("--no-yield-io-threads", args.no_yield_io_threads)) if value]
+    if args.echo and ignored:
+        parser.error(f"--echo replaces serve (two outputs, receive threads yielding): "
+                     f"{', '.join(ignored)} would be ignored")
+    if args.echo == "listener" and args.transport != "ros2":
+        parser.error("--echo listener: a Cyclone DDS delivery, only with --transport ros2")
 
 
 def main() -> None:
@@ -554,27 +582,13 @@ def main() -> None:
     parser.add_argument("--phases", action="store_true",
                         help="serve's main thread split by phase (serve_phases.py), µs per "
                              "F/T message")
+    parser.add_argument("--joint-every", type=int, default=1, metavar="N",
+                        help="a joint state with every N-th wrench only (a joint stream at "
+                             "rate / N, as a 500 Hz /joint_states beside a 1 kHz sensor)")
     parser.add_argument("--profile", metavar="DIR",
                         help="run serve under cProfile, its statistics in DIR (slower)")
     args = parser.parse_args()
-    if args.floor and args.profile:
-        parser.error("--floor and --profile: cProfile cannot run serve's floor (python -c)")
-    if args.phases and (args.floor or args.profile or args.echo):
-        parser.error("--phases times serve's own methods: not with --floor, --profile or "
-                     "--echo")
-    if args.no_chain and (args.floor or args.profile or args.phases):
-        parser.error("--no-chain runs serve without the chain's update: not with --floor "
-                     "(which has none either), --profile or --phases")
-    ignored = [flag for flag, value in (
-        ("--floor", args.floor), ("--no-chain", args.no_chain), ("--profile", args.profile),
-        ("--outputs", args.outputs),
-        ("--cpu-affinity", args.cpu_affinity), ("--batch-period", args.batch_period),
-        ("--no-yield-io-threads", args.no_yield_io_threads)) if value]
-    if args.echo and ignored:
-        parser.error(f"--echo replaces serve (two outputs, receive threads yielding): "
-                     f"{', '.join(ignored)} would be ignored")
-    if args.echo == "listener" and args.transport != "ros2":
-        parser.error("--echo listener: a Cyclone DDS delivery, only with --transport ros2")
+    refuse_combinations(parser, args)
     _, X, W, station = free_motion(args.train_s, seed=0)
     replay = free_motion(max(10.0, args.train_s / 2), seed=1)[:3]
     from ftdrake.sim.ros2_publisher import arm_joint_names
