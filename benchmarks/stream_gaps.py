@@ -36,6 +36,7 @@ from ftdrake.testing import listening_station
 
 RATE = 1000.0
 
+
 def every(m: int):
     """Message k is sent when k is a multiple of `m` (a stream at 1/m of the rate)."""
     return lambda k: k % m == 0
