@@ -59,7 +59,9 @@ its threads on those CPUs); `--driver-cpus` keeps this process, the driver, on o
 `--phases` splits serve's main thread by phase (``serve_phases.py``: the wait, the receive,
 the joint-state and F/T callbacks, each output's write, the loop around them; µs per F/T
 message over the timed messages, timed with the thread's clock, whose readings make each
-read somewhat high).
+read somewhat high). `--perf DIR` samples serve with Linux ``perf`` over the same
+messages (``cpu_by_library.py``): its CPU by library (the interpreter, numpy, the compiled
+kernels, the transport's library, the kernel, libc), each a share and µs per message.
 
 The machine's 1-minute load average before and after each run is printed: on a shared
 machine the rates a run sustains depend on what else runs. The last line is one JSON object
@@ -72,7 +74,7 @@ machine the rates a run sustains depend on what else runs. The last line is one 
                                    [--separate-outputs] [--no-yield-io-threads] [--floor]
                                    [--no-chain]
                                    [--echo [wait|listener]] [--cpu-affinity 1]
-                                   [--driver-cpus 0] [--joint-every 2]
+                                   [--driver-cpus 0] [--joint-every 2] [--perf DIR]
 
 The issue's soaks (long: run them on an otherwise idle machine)::
 
@@ -98,6 +100,7 @@ import tempfile
 import time
 from pathlib import Path
 
+import cpu_by_library
 import numpy as np
 
 from ftdrake import RobotOptions, ScenarioConfig, make_estimator, save_model
@@ -406,8 +409,9 @@ def start_driver(kind, names, port, separate_outputs: bool = False):
     return driver, appeared
 
 
-def drive(driver, serve, rate, data, args) -> dict:
-    """Sends the messages paced by the wall clock; returns what was sent and measured."""
+def drive(driver, serve, rate, data, args, perf_data: Path | None = None) -> dict:
+    """Sends the messages paced by the wall clock; returns what was sent and measured (with
+    `perf_data`, serve's CPU by library over the timed messages: cpu_by_library.py)."""
     period = 1.0 / rate
     warmup = round(args.warmup * rate)
     count = warmup + round(args.seconds * rate)
@@ -415,7 +419,7 @@ def drive(driver, serve, rate, data, args) -> dict:
     burst = args.burst if rate >= args.burst_at else 1
     sent, load_before = {}, os.getloadavg()[0]
     start = time.perf_counter()
-    cpu_start, main_start = cpu_s(serve.pid), main_thread_cpu_s(serve.pid)
+    cpu_start, main_start, recorder = cpu_s(serve.pid), main_thread_cpu_s(serve.pid), None
     per_second, second = [], round(rate)  # serve's CPU µs per message, each second
     first_sent = time.monotonic()
     for k in range(count):
@@ -424,10 +428,8 @@ def drive(driver, serve, rate, data, args) -> dict:
             while (now := time.perf_counter()) < due:
                 driver.wait(due - now)
         if k == warmup:
-            cpu_start, main_start = cpu_s(serve.pid), main_thread_cpu_s(serve.pid)
+            cpu_start, main_start, recorder = timed_part_starts(serve, args, perf_data)
             mark = cpu_start
-            if args.phases:  # serve_phases: the sums start now
-                serve.send_signal(signal.SIGUSR1)
         elif k > warmup and (k - warmup) % second == 0:
             cpu = cpu_s(serve.pid)
             per_second.append((cpu - mark) / second * 1e6)
@@ -437,6 +439,8 @@ def drive(driver, serve, rate, data, args) -> dict:
             sent[round(t * 1e6)] = time.monotonic()
         driver.send(t, q[k], v[k], w[k], joint=k % args.joint_every == 0)
         driver.poll(0)
+    if recorder is not None:
+        cpu_by_library.stop(recorder)
     end = time.monotonic() + 10
     while len(driver.back) < count and time.monotonic() < end:
         driver.poll(10)
@@ -444,7 +448,17 @@ def drive(driver, serve, rate, data, args) -> dict:
             "per_second_us": per_second,
             "cpu_s": cpu_s(serve.pid) - cpu_start,
             "main_cpu_s": main_thread_cpu_s(serve.pid) - main_start, "load_before": load_before,
-            "load_after": os.getloadavg()[0]}
+            "load_after": os.getloadavg()[0],
+            "cpu_by_library": cpu_by_library.shares(perf_data) if perf_data else None}
+
+
+def timed_part_starts(serve, args, perf_data: Path | None):
+    """At the end of the warm-up: serve's process and main-thread CPU times (s), and perf
+    sampling serve from now on (None without `perf_data`); serve_phases' sums start now."""
+    if args.phases:
+        serve.send_signal(signal.SIGUSR1)
+    recorder = cpu_by_library.start(serve.pid, perf_data) if perf_data is not None else None
+    return cpu_s(serve.pid), main_thread_cpu_s(serve.pid), recorder
 
 
 def run_one(model, name, rate, data, names, args, folder: Path) -> dict:
@@ -463,7 +477,9 @@ def run_one(model, name, rate, data, names, args, folder: Path) -> dict:
         if args.driver_cpus:  # serve started on every CPU; the driver's threads inherit this
             pin_process({int(cpu) for cpu in args.driver_cpus.split(",")})
         driver, appeared = start_driver(kind, names, port, args.separate_outputs)
-        run = drive(driver, serve, rate, data, args)
+        run = drive(driver, serve, rate, data, args,
+                    Path(args.perf) / f"serve-{args.transport}-{rate:g}-{name}.perf.data"
+                    if args.perf else None)
         serve.send_signal(signal.SIGINT)
         out, _ = serve.communicate(timeout=60)
     finally:
@@ -511,13 +527,16 @@ def run_one(model, name, rate, data, names, args, folder: Path) -> dict:
             "cpu_affinity": args.cpu_affinity, "driver_cpus": args.driver_cpus,
             "phases": (json.loads((folder / "phases.json").read_text()) if args.phases
                        else None),
-            "load_before": run["load_before"], "load_after": run["load_after"]}
+            "load_before": run["load_before"], "load_after": run["load_after"],
+            "cpu_by_library": run["cpu_by_library"]}
 
 
 def refuse_combinations(parser, args) -> None:
     """parser.error for options that cannot run together (or a bad value)."""
     if args.joint_every < 1:
         parser.error("--joint-every: a whole number ≥ 1 (1: a joint state with every wrench)")
+    if args.perf and args.profile:
+        parser.error("--perf and --profile: perf would sample cProfile's own work")
     if args.floor and args.profile:
         parser.error("--floor and --profile: cProfile cannot run serve's floor (python -c)")
     if args.phases and (args.floor or args.profile or args.echo):
@@ -587,8 +606,14 @@ def main() -> None:
                              "rate / N, as a 500 Hz /joint_states beside a 1 kHz sensor)")
     parser.add_argument("--profile", metavar="DIR",
                         help="run serve under cProfile, its statistics in DIR (slower)")
+    parser.add_argument("--perf", metavar="DIR",
+                        help="sample serve with Linux perf over the timed messages, its files "
+                             "in DIR: serve's CPU by library (cpu_by_library.py)")
     args = parser.parse_args()
     refuse_combinations(parser, args)
+    if args.perf:
+        cpu_by_library.require_perf()
+        Path(args.perf).mkdir(parents=True, exist_ok=True)
     _, X, W, station = free_motion(args.train_s, seed=0)
     replay = free_motion(max(10.0, args.train_s / 2), seed=1)[:3]
     from ftdrake.sim.ros2_publisher import arm_joint_names
@@ -644,11 +669,20 @@ def run_all(args, makers, X, W, replay, names) -> dict:
                   f"episodes {row['fault_episodes'] or 'none'}", flush=True)
             for warning in row["warnings"]:
                 print(f"  serve warned: {warning}", flush=True)
+            if row["cpu_by_library"]:
+                print_by_library(row["cpu_by_library"], row["cpu_us_per_msg"])
             if row["phases"]:
                 print("  phases, µs per F/T message: " + "  ".join(
                     f"{key} {value:.1f}" for key, value in row["phases"].items()
                     if key != "ft_messages"), flush=True)
     return results
+
+
+def print_by_library(shares: dict, cpu_us_per_msg: float) -> None:
+    """serve's CPU by library group: % of perf's samples and µs per message."""
+    print(f"  CPU by library (perf, {shares['samples']} samples): " + ", ".join(
+        f"{group} {share:.0f} % ({share / 100 * cpu_us_per_msg:.0f} µs)"
+        for group, share in shares["groups"].items()), flush=True)
 
 
 if __name__ == "__main__":
