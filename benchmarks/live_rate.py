@@ -553,8 +553,8 @@ def refuse_combinations(parser, args) -> None:
     if args.echo and ignored:
         parser.error(f"--echo replaces serve (two outputs, receive threads yielding): "
                      f"{', '.join(ignored)} would be ignored")
-    if args.echo == "listener" and args.transport != "ros2":
-        parser.error("--echo listener: a Cyclone DDS delivery, only with --transport ros2")
+    if args.echo in ("listener", "compiled") and args.transport != "ros2":
+        parser.error(f"--echo {args.echo}: a Cyclone DDS delivery, only with --transport ros2")
 
 
 def main() -> None:
@@ -594,10 +594,11 @@ def main() -> None:
                         help="serve as always but for the chain's update (chain_held.py): "
                              "what the update costs live, by difference")
     parser.add_argument("--echo", nargs="?", const="wait", default="",
-                        choices=("wait", "listener"),
+                        choices=("wait", "listener", "compiled"),
                         help="transport_echo.py in serve's place: the least a Python process "
                              "does per message on the transport (ROS 2: 'listener' takes "
-                             "each message on Cyclone's receive thread)")
+                             "each message on Cyclone's receive thread; 'compiled' runs the "
+                             "loop compiled, compiled_echo.py)")
     parser.add_argument("--phases", action="store_true",
                         help="serve's main thread split by phase (serve_phases.py), µs per "
                              "F/T message")

@@ -9,11 +9,13 @@ transport's receive and send, on the same channels or topics, QoS, receive threa
 (``yield_io_threads``'s policy) and wake-ups serve uses.
 
     python benchmarks/transport_echo.py lcm URL [OUTPUT_URL]
-    python benchmarks/transport_echo.py ros2 DOMAIN wait|listener
+    python benchmarks/transport_echo.py ros2 DOMAIN wait|listener|compiled
 
 ``wait``: the ROS 2 station's own delivery (``Ros2Node.spin`` in the main thread, woken by
 a wait set); ``listener``: Cyclone DDS hands each reader's data to a callback on its own
-receive thread (no wake-up of another thread; the main thread sleeps). It prints
+receive thread (no wake-up of another thread; the main thread sleeps); ``compiled``: the
+main thread's loop compiled (``compiled_echo.py``: the least a compiled per-message path
+would cost). It prints
 ``out: ready`` on stderr once listening and, after SIGINT, one JSON line with the counts
 in the keys of serve's summary that ``live_rate.py`` reads.
 """
@@ -70,10 +72,10 @@ def ros2_echo(domain: int, delivery: str, counts: dict):
     config = Ros2Config(joint_names=[f"joint_{k}" for k in range(7)], domain_id=domain,
                         queue_depth=20_000).validate()
     node = Ros2Node(domain)
-    wrench_out = WrenchWriter(node.publisher(config.output_topic("wrench_contact"),
-                                             "geometry_msgs/msg/WrenchStamped"))
-    contact_out = ValueWriter(node.publisher(config.output_topic("contact"),
-                                             "std_msgs/msg/Bool"), "bool")
+    writers = (node.publisher(config.output_topic("wrench_contact"),
+                              "geometry_msgs/msg/WrenchStamped"),
+               node.publisher(config.output_topic("contact"), "std_msgs/msg/Bool"))
+    wrench_out, contact_out = WrenchWriter(writers[0]), ValueWriter(writers[1], "bool")
 
     def on_wrench(msg, _arrival=None) -> None:
         counts["ft"] += 1
@@ -94,6 +96,10 @@ def ros2_echo(domain: int, delivery: str, counts: dict):
                        read=read)
     if delivery == "wait":
         return (lambda: node.spin(2)), node
+    if delivery == "compiled":  # compiled_echo.py, beside this file
+        from compiled_echo import compiled_spin
+
+        return compiled_spin(node, *node._readers, *writers, counts), node
     return on_cyclones_thread(node), node
 
 
