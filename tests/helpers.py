@@ -14,6 +14,8 @@
 - The whole arm's torques with known friction and gains: :data:`FRICTION`, :func:`arm_torques`.
 - A chain's input stream and its configs: :data:`CHAIN_PERIOD`, :func:`chain_forest`,
   :func:`chain_stream`, :func:`chain_configs`.
+- A tool's payload model on four arms and settings, with its truth: :data:`PAYLOAD_PHI`,
+  :data:`CABLE_WEIGHT`, :data:`PAYLOAD_CASES`, :func:`payload_rows`.
 
 Units: SI; wrenches ``[Fx Fy Fz Tx Ty Tz]`` (N, N·m) in the sensor frame S.
 """
@@ -350,3 +352,32 @@ class Press(LeafSystem):
             push.F_Bq_W = SpatialForce(np.zeros(3), self._f)
             forces.append(push)
         output.set_value(forces)
+
+
+_USER_ARM = str(DATA / "prismatic_arm.urdf")  # 6 joints, one prismatic
+# [m, m·c, I_So, biases] of a tool, in S.
+PAYLOAD_PHI = np.array([1.5, 0.03, 0.01, 0.13, 0.012, 0.0, 0.001, 0.012, 0.0, 0.004,
+                        0.6, -0.4, 1.2, 0.01, -0.02, 0.005])
+# and a weight carried without inertia [m_w, m_w·c_w] (a hanging cable), in S.
+CABLE_WEIGHT = np.array([0.12, -0.005, 0.0, 0.005])
+
+
+def payload_rows(n, count, seed):
+    """`count` rows [q, q̇, q̈] (3n) drawn uniformly, within the arms' ranges."""
+    X = np.random.default_rng(seed).uniform(-1, 1, (count, 3 * n))
+    X[:, 2 * n:] *= 4  # q̈ up to 4 rad/s²
+    if n == 6:
+        X[:, 1] /= 6  # the user arm's prismatic joint within its travel (m)
+    return X
+
+
+PAYLOAD_CASES = {
+    "ftdrake arm": (lambda: PhysicsPayloadCompensator(), 7),
+    "static payload, rotated mounting": (
+        lambda: PhysicsPayloadCompensator(mode="static", features="q"), 7),
+    "weight without inertia, rotated mounting": (
+        lambda: PhysicsPayloadCompensator(weight_without_inertia=True), 7),
+    "user URDF, other gravity": (
+        lambda: PhysicsPayloadCompensator(robot=_USER_ARM, sensor_frame="ft_sensor",
+                                          gravity=(0.5, -0.3, -9.7)), 6),
+}

@@ -69,11 +69,12 @@ class CompensatorSystem(LeafSystem):
     and predicts 6 outputs. `n_joints`, if given, must match the model (e.g.
     ``plant.num_positions(arm)``). Each sample runs the model's ``row_predictor()`` (the
     compensator protocol, :mod:`ftdrake.compensation.estimators.base`); a model whose
-    ``fused_loop_update()`` gives a compiled update (a forest, a hybrid with a forest
-    residual) runs the input checks, the acceleration estimate and its prediction in that one
-    compiled call (:mod:`ftdrake.compensation.compiled.loop`). ``fast=False`` goes
-    through ``predict``/``predict_std`` instead (for checking the compiled paths). The q̈
-    estimate is :func:`ftdrake.signals.causal_acceleration`, row by row.
+    ``fused_loop_update()`` gives a compiled update (a forest, the physics payload model, a
+    hybrid with a forest residual) runs the input checks, the acceleration estimate and its
+    prediction in that one compiled call (:mod:`ftdrake.compensation.compiled.loop`).
+    ``fast=False`` goes through ``predict``/``predict_std`` instead (for checking the
+    compiled paths). The q̈ estimate is :func:`ftdrake.signals.causal_acceleration`, row by
+    row.
     """
 
     def __init__(self, model, period: float, *, n_joints: int | None = None,

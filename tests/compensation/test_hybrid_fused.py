@@ -16,22 +16,10 @@ from ftdrake.compensation.estimators.forest import RandomForestCompensator
 from ftdrake.compensation.estimators.hybrid import HybridCompensator
 from ftdrake.compensation.estimators.physics import PhysicsPayloadCompensator
 from ftdrake.runtime.compensator import CompensatorSystem
-from tests.helpers import DATA
-
-USER_ARM = str(DATA / "prismatic_arm.urdf")  # 6 joints, one prismatic
-# [m, m·c, I_So, biases] of a tool, in S.
-PHI = np.array([1.5, 0.03, 0.01, 0.13, 0.012, 0.0, 0.001, 0.012, 0.0, 0.004,
-                0.6, -0.4, 1.2, 0.01, -0.02, 0.005])
-# and a weight carried without inertia [m_w, m_w·c_w] (a hanging cable), in S.
-WEIGHT = np.array([0.12, -0.005, 0.0, 0.005])
-
-
-def rows(n, count, seed):
-    X = np.random.default_rng(seed).uniform(-1, 1, (count, 3 * n))
-    X[:, 2 * n:] *= 4  # q̈ up to 4 rad/s²
-    if n == 6:
-        X[:, 1] /= 6  # the user arm's prismatic joint within its travel (m)
-    return X
+from tests.helpers import CABLE_WEIGHT as WEIGHT
+from tests.helpers import PAYLOAD_CASES as CASES
+from tests.helpers import PAYLOAD_PHI as PHI
+from tests.helpers import payload_rows as rows
 
 
 def fitted_hybrid(physics, n, temperature=False):
@@ -63,18 +51,6 @@ def two_call_row(model):
         return mean + residual(x)[0], np.sqrt(std * std + model.residual_noise_var_)
 
     return row
-
-
-CASES = {
-    "ftdrake arm": (lambda: PhysicsPayloadCompensator(), 7),
-    "static payload, rotated mounting": (
-        lambda: PhysicsPayloadCompensator(mode="static", features="q"), 7),
-    "weight without inertia, rotated mounting": (
-        lambda: PhysicsPayloadCompensator(weight_without_inertia=True), 7),
-    "user URDF, other gravity": (
-        lambda: PhysicsPayloadCompensator(robot=USER_ARM, sensor_frame="ft_sensor",
-                                          gravity=(0.5, -0.3, -9.7)), 6),
-}
 
 
 @pytest.fixture(scope="module", params=list(CASES))

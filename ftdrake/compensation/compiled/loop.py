@@ -12,8 +12,9 @@ that checks the inputs (:func:`prepare_row`), predicts the internal wrench and i
 `internal` and `std`, and writes ``external = to_S · (wrench − internal)``
 (:func:`external_wrench`). A compensator offers one through its ``fused_loop_update()``
 (the compensator protocol, :mod:`ftdrake.compensation.estimators.base`), returning ``(update,
-arrays)``: the forest's and the hybrid's are below; :func:`fused_update` builds one from any
-compiled row kernel ``kernel(row (3n), *arrays, mean (6), std (6))``.
+arrays)``: the forest's, the physics payload model's and the hybrid's are below;
+:func:`fused_update` builds one from any compiled row kernel ``kernel(row (3n), *arrays,
+mean (6), std (6))``.
 
 Status bits: :data:`FAULT` (NaN/inf in the inputs: nothing written but the fault copy),
 :data:`FAULT_CHANGED`, :data:`OOD` (a used input outside its training range),
@@ -28,6 +29,7 @@ import numpy as np
 from ...signals import causal_acceleration_step, hold_acceleration
 from .forest import forest_accumulate_with_std
 from .hybrid import hybrid_row
+from .payload import payload_mean_std
 
 # Bits of the status a fused update returns.
 FAULT = 1
@@ -105,6 +107,20 @@ def compensate_with_forest(wrench, x, accel, measured, estimator, lo, hi, consta
     status = prepare_row(wrench, x, accel, measured, estimator, row, lo, hi, constants)
     if not status & FAULT:
         forest_accumulate_with_std(row, nodes, leaf_values, trees, n_trees, internal, std)
+        external_wrench(wrench, internal, to_S, external)
+    return status
+
+
+@numba.njit(cache=True)
+def compensate_with_payload(wrench, x, accel, measured, estimator, lo, hi, constants, to_S,
+                            reals, ints, internal, external, std):
+    """prepare_row, then the physics payload model
+    (:func:`~ftdrake.compensation.compiled.payload.payload_mean_std`) into `internal` and
+    `std`, and the external wrench (:func:`external_wrench`)."""
+    row = np.empty(3 * len(accel))
+    status = prepare_row(wrench, x, accel, measured, estimator, row, lo, hi, constants)
+    if not status & FAULT:
+        payload_mean_std(row, reals, ints, internal, std)
         external_wrench(wrench, internal, to_S, external)
     return status
 

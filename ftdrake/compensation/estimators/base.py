@@ -27,8 +27,9 @@ The protocol a compensator follows to run in a control loop and leave Python:
 * ``fused_loop_update()`` – ``(update, arrays)``: a compiled update that runs a whole
   ``CompensatorSystem`` sample (input checks, q̈ estimate, prediction, compensated wrench) in
   one call, with the model's arrays it takes (:mod:`ftdrake.compensation.compiled.loop`), or
-  None (the loop then calls ``row_predictor()``). Forests and hybrids with a forest residual
-  have one; it takes the 3n joint row only, so a model trained with the temperature has none.
+  None (the loop then calls ``row_predictor()``). Forests, the physics payload model and
+  hybrids with a forest residual have one; it takes the 3n joint row only, so a model trained
+  with the temperature (or an IMU) has none.
 * ``robot_description()`` – the robot the model was trained on (physics and hybrid models
   carry it in their file), or None: the chain computes gravity at the sensor on it.
 * ``onnx_parts()`` – what :mod:`ftdrake.compensation.files.onnx_export` writes as a graph, or

@@ -114,6 +114,9 @@ class ImuPayloadCompensator(PhysicsPayloadCompensator):
             raise ConfigError("the IMU model's row path gives the std with noise only")
         return generic_row_predictor(self)
 
+    def fused_loop_update(self):
+        """None: the compiled loop update computes the kinematics from joints only."""
+
     def packed_row(self, *_args, **_kwargs):
         """Refused: the compiled payload kernel computes the kinematics from joints only."""
         raise TypeError(f"{type(self).__name__} has no compiled row kernel (its kinematics "

@@ -1,0 +1,108 @@
+"""The physics payload model's fused loop update (input checks, q̈ estimate, payload row and
+compensated wrench in one compiled call), against the row-predictor path it replaced and
+against predict / predict_std, in CompensatorSystem, faults included."""
+
+import warnings
+
+import numpy as np
+import pytest
+from pydrake.systems.analysis import Simulator
+from pydrake.systems.framework import DiagramBuilder
+from pydrake.systems.primitives import ConstantVectorSource, LogVectorOutput, TrajectorySource
+from pydrake.trajectories import PiecewisePolynomial
+from scipy.spatial.transform import Rotation
+
+from ftdrake.compensation.compiled.loop import compensate_with_payload
+from ftdrake.compensation.estimators.physics_rows import PayloadRowKernels
+from ftdrake.runtime.compensator import CompensatorSystem
+from tests.helpers import CABLE_WEIGHT as WEIGHT
+from tests.helpers import PAYLOAD_CASES as CASES
+from tests.helpers import PAYLOAD_PHI as PHI
+from tests.helpers import payload_rows as rows
+
+OUTPUTS = ("wrench_internal", "wrench_compensated", "wrench_std", "fault", "out_of_domain")
+
+
+def fitted_physics(make, n, temperature=False):
+    physics = make()
+    X = rows(n, 300, seed=0)
+    A = physics.regressor(X)
+    phi = PHI if A.shape[-1] == 16 else np.concatenate([PHI, WEIGHT])
+    Y = A @ phi + np.random.default_rng(1).normal(0, 0.02, (len(X), 6))
+    if temperature:
+        T = 25 + 5 * np.sin(np.linspace(0, 3, len(X)))
+        X, Y = np.column_stack([X, T]), Y + 0.01 * (T - 25)[:, None]
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # excitation warnings are tested elsewhere
+        return physics.fit(X, Y)
+
+
+@pytest.fixture(scope="module", params=list(CASES))
+def case(request):
+    make, n = CASES[request.param]
+    model = fitted_physics(make, n)
+    if "rotated" in request.param:
+        # A mounting error, as identify_mounting finds it: the fused update must rotate too.
+        model.mounting_rotation_ = Rotation.from_euler("xyz", [2, -3, 1],
+                                                       degrees=True).as_matrix()
+    return model, n
+
+
+def run_compensator(model, n, wrench, fast=True):
+    """CompensatorSystem on `model` over 15 ms of moving joints (q̈ estimate not zero) and a
+    constant `wrench` (6); its outputs logged at 1 kHz."""
+    X = rows(n, 2, seed=4)
+    state = PiecewisePolynomial.FirstOrderHold([0.0, 0.02], np.column_stack(
+        [X[0, :2 * n], X[1, :2 * n]]))
+    builder = DiagramBuilder()
+    dut = builder.AddSystem(CompensatorSystem(model, 1e-3, fast=fast))
+    builder.Connect(builder.AddSystem(ConstantVectorSource(wrench)).get_output_port(),
+                    dut.get_input_port_wrench_measured())
+    builder.Connect(builder.AddSystem(TrajectorySource(state)).get_output_port(),
+                    dut.get_input_port_joint_state())
+    loggers = {name: LogVectorOutput(dut.GetOutputPort(name), builder, 1e-3)
+               for name in OUTPUTS}
+    simulator = Simulator(builder.Build())
+    simulator.AdvanceTo(0.015)
+    return dut, {name: log.FindLog(simulator.get_context()).data().T
+                 for name, log in loggers.items()}
+
+
+def test_the_compensator_runs_the_fused_update_and_it_equals_the_row_path(case, monkeypatch):
+    """Bit for bit against the row predictor's path (what ran before), and to 1e-12 against
+    predict / predict_std (``fast=False``)."""
+    model, n = case
+    update, _ = model.fused_loop_update()
+    assert update is compensate_with_payload
+    wrench = np.random.default_rng(5).normal(size=6) * 5
+    dut, fused = run_compensator(model, n, wrench)
+    assert dut._fused is not None and dut._fused[0] is compensate_with_payload
+    monkeypatch.setattr(PayloadRowKernels, "fused_loop_update", lambda _self: None)
+    row_dut, row_path = run_compensator(model, n, wrench)
+    assert row_dut._fused is None  # the reference ran the row predictor
+    _, reference = run_compensator(model, n, wrench, fast=False)
+    scale = max(1.0, np.abs(reference["wrench_internal"]).max())
+    for name in OUTPUTS:
+        np.testing.assert_array_equal(fused[name], row_path[name], err_msg=name)
+        np.testing.assert_allclose(fused[name], reference[name], rtol=0,
+                                   atol=1e-12 * scale, err_msg=name)
+    assert np.ptp(fused["wrench_internal"][2:], axis=0).max() > 1e-3  # it moved
+    assert fused["fault"].max() == 0.0
+
+
+def test_a_nan_reading_faults_the_fused_update_as_the_row_path(case, monkeypatch):
+    model, n = case
+    wrench = np.array([1.0, np.nan, 0.0, 0.0, 0.0, 0.0])
+    _, fused = run_compensator(model, n, wrench)
+    monkeypatch.setattr(PayloadRowKernels, "fused_loop_update", lambda _self: None)
+    _, row_path = run_compensator(model, n, wrench)
+    for name in OUTPUTS:
+        np.testing.assert_array_equal(fused[name], row_path[name], err_msg=name)
+    assert fused["fault"][1:].min() == 1.0
+
+
+def test_a_temperature_model_has_no_fused_update_and_runs_its_row_predictor():
+    model = fitted_physics(CASES["ftdrake arm"][0], 7, temperature=True)
+    assert model.fused_loop_update() is None
+    dut = CompensatorSystem(model, 1e-3)
+    assert dut._fused is None and dut._predict is not None
