@@ -345,7 +345,7 @@ def start_serve(model, rate, kind, names, port, folder: Path, profile: Path | No
     err_path = folder / "serve.err"
     with open(err_path, "w") as err:
         serve = subprocess.Popen(
-            echo_command(kind, port, keys or {}, echo) if echo else
+            echo_command(kind, port, keys or {}, echo, folder / "model.ftd") if echo else
             [sys.executable, *(["-m", "cProfile", "-o", profile] if profile else []),
              *(["-c", FLOOR_SERVE] if floor else ["-c", PHASES_SERVE] if phases
                else ["-c", NO_CHAIN_SERVE] if no_chain else ["-m", "ftdrake"]), "serve",
@@ -364,13 +364,15 @@ def start_serve(model, rate, kind, names, port, folder: Path, profile: Path | No
     return serve, time.monotonic() - started
 
 
-def echo_command(kind, port, keys: dict, delivery: str) -> list:
-    """transport_echo.py's command line on the transport of driver class `kind`."""
+def echo_command(kind, port, keys: dict, delivery: str, model: Path) -> list:
+    """transport_echo.py's command line on the transport of driver class `kind` (`model`:
+    the chain's, for the ``chain`` delivery)."""
     script = str(Path(__file__).resolve().parent / "transport_echo.py")
     if kind is LcmDriver:
         return [sys.executable, script, "lcm", kind.flags(port)[1],
                 *([keys["output_url"]] if "output_url" in keys else [])]
-    return [sys.executable, script, "ros2", str(DOMAIN), delivery]
+    return [sys.executable, script, "ros2", str(DOMAIN), delivery,
+            *([str(model)] if delivery == "chain" else [])]
 
 
 def cpu_list(text: str) -> str:
@@ -553,7 +555,7 @@ def refuse_combinations(parser, args) -> None:
     if args.echo and ignored:
         parser.error(f"--echo replaces serve (two outputs, receive threads yielding): "
                      f"{', '.join(ignored)} would be ignored")
-    if args.echo in ("listener", "compiled") and args.transport != "ros2":
+    if args.echo in ("listener", "compiled", "chain") and args.transport != "ros2":
         parser.error(f"--echo {args.echo}: a Cyclone DDS delivery, only with --transport ros2")
 
 
@@ -594,11 +596,12 @@ def main() -> None:
                         help="serve as always but for the chain's update (chain_held.py): "
                              "what the update costs live, by difference")
     parser.add_argument("--echo", nargs="?", const="wait", default="",
-                        choices=("wait", "listener", "compiled"),
+                        choices=("wait", "listener", "compiled", "chain"),
                         help="transport_echo.py in serve's place: the least a Python process "
                              "does per message on the transport (ROS 2: 'listener' takes "
                              "each message on Cyclone's receive thread; 'compiled' runs the "
-                             "loop compiled, compiled_echo.py)")
+                             "loop compiled, compiled_echo.py; 'chain' that loop with the "
+                             "chain's update, compiled_serve.py)")
     parser.add_argument("--phases", action="store_true",
                         help="serve's main thread split by phase (serve_phases.py), µs per "
                              "F/T message")
