@@ -15,7 +15,8 @@
 - A chain's input stream and its configs: :data:`CHAIN_PERIOD`, :func:`chain_forest`,
   :func:`chain_stream`, :func:`chain_configs`.
 - A tool's payload model on four arms and settings, with its truth: :data:`PAYLOAD_PHI`,
-  :data:`CABLE_WEIGHT`, :data:`PAYLOAD_CASES`, :func:`payload_rows`.
+  :data:`CABLE_WEIGHT`, :data:`PAYLOAD_CASES`, :func:`payload_rows`; a compensator run on
+  them: :func:`compensator_run`.
 
 Units: SI; wrenches ``[Fx Fy Fz Tx Ty Tz]`` (N, N·m) in the sensor frame S.
 """
@@ -33,7 +34,7 @@ from pydrake.multibody.math import SpatialForce
 from pydrake.multibody.plant import ExternallyAppliedSpatialForce
 from pydrake.systems.analysis import Simulator
 from pydrake.systems.framework import DiagramBuilder, LeafSystem
-from pydrake.systems.primitives import LogVectorOutput, TrajectorySource
+from pydrake.systems.primitives import ConstantVectorSource, LogVectorOutput, TrajectorySource
 from pydrake.trajectories import PiecewisePolynomial
 
 from ftdrake import RandomForestCompensator, ScenarioConfig, SensorConfig
@@ -44,6 +45,7 @@ from ftdrake.compensation.files.persistence import read_manifest
 from ftdrake.conventions import WRENCH_AXES
 from ftdrake.physics.rigid_body import sensor_kinematics
 from ftdrake.physics.scenario_robot import robot_description
+from ftdrake.runtime.compensator import CompensatorSystem
 from ftdrake.systems.noisy_sensor import NoisyForceTorqueSensor
 from ftdrake.testing import HOME, SIGMA, THETA
 
@@ -381,3 +383,24 @@ PAYLOAD_CASES = {
         lambda: PhysicsPayloadCompensator(robot=_USER_ARM, sensor_frame="ft_sensor",
                                           gravity=(0.5, -0.3, -9.7)), 6),
 }
+
+
+def compensator_run(model, n, wrench, outputs, fast=True):
+    """CompensatorSystem on `model` (n joints) over 15 ms of moving joints (two of
+    :func:`payload_rows`, linear between them: the q̈ estimate is not zero) and a constant
+    `wrench` (6); (the system, {output: its log at 1 kHz} for the names in `outputs`)."""
+    X = payload_rows(n, 2, seed=4)
+    state = PiecewisePolynomial.FirstOrderHold([0.0, 0.02], np.column_stack(
+        [X[0, :2 * n], X[1, :2 * n]]))
+    builder = DiagramBuilder()
+    dut = builder.AddSystem(CompensatorSystem(model, 1e-3, fast=fast))
+    builder.Connect(builder.AddSystem(ConstantVectorSource(wrench)).get_output_port(),
+                    dut.get_input_port_wrench_measured())
+    builder.Connect(builder.AddSystem(TrajectorySource(state)).get_output_port(),
+                    dut.get_input_port_joint_state())
+    loggers = {name: LogVectorOutput(dut.GetOutputPort(name), builder, 1e-3)
+               for name in outputs}
+    simulator = Simulator(builder.Build())
+    simulator.AdvanceTo(0.015)
+    return dut, {name: log.FindLog(simulator.get_context()).data().T
+                 for name, log in loggers.items()}

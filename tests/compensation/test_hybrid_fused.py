@@ -5,20 +5,16 @@ import warnings
 
 import numpy as np
 import pytest
-from pydrake.systems.analysis import Simulator
-from pydrake.systems.framework import DiagramBuilder
-from pydrake.systems.primitives import ConstantVectorSource, LogVectorOutput, TrajectorySource
-from pydrake.trajectories import PiecewisePolynomial
 from scipy.spatial.transform import Rotation
 
 from ftdrake.compensation.compiled.hybrid import CompiledHybrid
 from ftdrake.compensation.estimators.forest import RandomForestCompensator
 from ftdrake.compensation.estimators.hybrid import HybridCompensator
 from ftdrake.compensation.estimators.physics import PhysicsPayloadCompensator
-from ftdrake.runtime.compensator import CompensatorSystem
 from tests.helpers import CABLE_WEIGHT as WEIGHT
 from tests.helpers import PAYLOAD_CASES as CASES
 from tests.helpers import PAYLOAD_PHI as PHI
+from tests.helpers import compensator_run
 from tests.helpers import payload_rows as rows
 
 
@@ -109,25 +105,10 @@ def test_compensator_system_runs_the_fused_hybrid_as_predict_does(case):
     """The fused update (input checks, q̈ estimate, hybrid row) against ``fast=False``
     (``predict`` / ``predict_std`` on the same rows), sample by sample."""
     model, n = case
-    X = rows(n, 2, seed=4)
-    times = [0.0, 0.02]
-    state = PiecewisePolynomial.FirstOrderHold(times, np.column_stack(
-        [X[0, :2 * n], X[1, :2 * n]]))  # q and q̇ moving: the q̈ estimate is not zero
     wrench = np.random.default_rng(5).normal(size=6) * 5
-    logs = {}
-    for fast in (True, False):
-        builder = DiagramBuilder()
-        dut = builder.AddSystem(CompensatorSystem(model, 1e-3, fast=fast))
-        builder.Connect(builder.AddSystem(ConstantVectorSource(wrench)).get_output_port(),
-                        dut.get_input_port_wrench_measured())
-        builder.Connect(builder.AddSystem(TrajectorySource(state)).get_output_port(),
-                        dut.get_input_port_joint_state())
-        loggers = {name: LogVectorOutput(dut.GetOutputPort(name), builder, 1e-3)
-                   for name in ("wrench_internal", "wrench_compensated", "wrench_std")}
-        simulator = Simulator(builder.Build())
-        simulator.AdvanceTo(0.015)
-        logs[fast] = {name: log.FindLog(simulator.get_context()).data().T
-                      for name, log in loggers.items()}
+    names = ("wrench_internal", "wrench_compensated", "wrench_std")
+    logs = {fast: compensator_run(model, n, wrench, names, fast=fast)[1]
+            for fast in (True, False)}
     fused, reference = logs[True], logs[False]
     scale = max(1.0, np.abs(reference["wrench_internal"]).max())
     for name in ("wrench_internal", "wrench_compensated"):

@@ -6,10 +6,6 @@ import warnings
 
 import numpy as np
 import pytest
-from pydrake.systems.analysis import Simulator
-from pydrake.systems.framework import DiagramBuilder
-from pydrake.systems.primitives import ConstantVectorSource, LogVectorOutput, TrajectorySource
-from pydrake.trajectories import PiecewisePolynomial
 from scipy.spatial.transform import Rotation
 
 from ftdrake.compensation.compiled.loop import compensate_with_payload
@@ -18,6 +14,7 @@ from ftdrake.runtime.compensator import CompensatorSystem
 from tests.helpers import CABLE_WEIGHT as WEIGHT
 from tests.helpers import PAYLOAD_CASES as CASES
 from tests.helpers import PAYLOAD_PHI as PHI
+from tests.helpers import compensator_run
 from tests.helpers import payload_rows as rows
 
 OUTPUTS = ("wrench_internal", "wrench_compensated", "wrench_std", "fault", "out_of_domain")
@@ -48,26 +45,6 @@ def case(request):
     return model, n
 
 
-def run_compensator(model, n, wrench, fast=True):
-    """CompensatorSystem on `model` over 15 ms of moving joints (q̈ estimate not zero) and a
-    constant `wrench` (6); its outputs logged at 1 kHz."""
-    X = rows(n, 2, seed=4)
-    state = PiecewisePolynomial.FirstOrderHold([0.0, 0.02], np.column_stack(
-        [X[0, :2 * n], X[1, :2 * n]]))
-    builder = DiagramBuilder()
-    dut = builder.AddSystem(CompensatorSystem(model, 1e-3, fast=fast))
-    builder.Connect(builder.AddSystem(ConstantVectorSource(wrench)).get_output_port(),
-                    dut.get_input_port_wrench_measured())
-    builder.Connect(builder.AddSystem(TrajectorySource(state)).get_output_port(),
-                    dut.get_input_port_joint_state())
-    loggers = {name: LogVectorOutput(dut.GetOutputPort(name), builder, 1e-3)
-               for name in OUTPUTS}
-    simulator = Simulator(builder.Build())
-    simulator.AdvanceTo(0.015)
-    return dut, {name: log.FindLog(simulator.get_context()).data().T
-                 for name, log in loggers.items()}
-
-
 def test_the_compensator_runs_the_fused_update_and_it_equals_the_row_path(case, monkeypatch):
     """Bit for bit against the row predictor's path (what ran before), and to 1e-12 against
     predict / predict_std (``fast=False``)."""
@@ -75,12 +52,12 @@ def test_the_compensator_runs_the_fused_update_and_it_equals_the_row_path(case, 
     update, _ = model.fused_loop_update()
     assert update is compensate_with_payload
     wrench = np.random.default_rng(5).normal(size=6) * 5
-    dut, fused = run_compensator(model, n, wrench)
+    dut, fused = compensator_run(model, n, wrench, OUTPUTS)
     assert dut._fused is not None and dut._fused[0] is compensate_with_payload
     monkeypatch.setattr(PayloadRowKernels, "fused_loop_update", lambda _self: None)
-    row_dut, row_path = run_compensator(model, n, wrench)
+    row_dut, row_path = compensator_run(model, n, wrench, OUTPUTS)
     assert row_dut._fused is None  # the reference ran the row predictor
-    _, reference = run_compensator(model, n, wrench, fast=False)
+    _, reference = compensator_run(model, n, wrench, OUTPUTS, fast=False)
     scale = max(1.0, np.abs(reference["wrench_internal"]).max())
     for name in OUTPUTS:
         np.testing.assert_array_equal(fused[name], row_path[name], err_msg=name)
@@ -93,9 +70,9 @@ def test_the_compensator_runs_the_fused_update_and_it_equals_the_row_path(case, 
 def test_a_nan_reading_faults_the_fused_update_as_the_row_path(case, monkeypatch):
     model, n = case
     wrench = np.array([1.0, np.nan, 0.0, 0.0, 0.0, 0.0])
-    _, fused = run_compensator(model, n, wrench)
+    _, fused = compensator_run(model, n, wrench, OUTPUTS)
     monkeypatch.setattr(PayloadRowKernels, "fused_loop_update", lambda _self: None)
-    _, row_path = run_compensator(model, n, wrench)
+    _, row_path = compensator_run(model, n, wrench, OUTPUTS)
     for name in OUTPUTS:
         np.testing.assert_array_equal(fused[name], row_path[name], err_msg=name)
     assert fused["fault"][1:].min() == 1.0
