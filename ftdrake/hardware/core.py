@@ -29,6 +29,11 @@ When a stream goes silent (:meth:`StationCore.check_timeouts`), one contact stat
 fault is published at once, stamped with the detection time on the stream's clock: the last
 F/T timestamp plus the wall time elapsed since it arrived.
 
+A stream whose clock restarts (its stamps going back :data:`~.live_inputs.CLOCK_RESTART_S`
+or more: a looped bag, a restarted driver) is taken up again from its new time; the chain's
+q̈ estimates restart and nothing is judged for :data:`SETTLE_AFTER_DROP_S`, as after a drop;
+it is said through :meth:`StationCore.warn`.
+
 Fault episodes (the fault rising, its reason changing, the fault clearing) are kept in
 ``events`` and passed to `on_event`; ``summary()`` counts everything.
 """
@@ -46,7 +51,7 @@ from pydrake.systems.analysis import Simulator
 from ..config import ChainConfig
 from ..offline.recorder import UpdateRecorder, chain_outputs
 from ..runtime.chain import CompensationChain
-from ..runtime.step import ChainStep, bridge_acceleration
+from ..runtime.step import ChainStep, bridge_acceleration, restart_acceleration
 from .live_checks import RateCheck, joint_bounds
 from .live_imu import IMU_VALUES, ImuPairing
 from .live_inputs import StreamMonitor
@@ -170,6 +175,7 @@ class StationCore:
             self.n_joints, sensor_timeout_s, joint_state_timeout_s,
             temperature_timeout_s if self._temperature_in is not None else None,
             joint_check=self.joint_bounds.check, pair_tolerance_s=pair_tolerance_s)
+        self.monitor.on_restart = self._on_clock_restart
         self.rate_check = RateCheck(1.0 / self.period)
         self._settling = 0  # updates left whose results are not published (after drops)
         self._last_t = None  # the stamp of the last F/T sample run through the chain
@@ -337,6 +343,38 @@ class StationCore:
         self._step.update(self.processed * self.period, m.wrench, m.joint_state,
                           m.temperature, hold=settling, **signals)
 
+    def _on_clock_restart(self, stream: str, detail: str, t: float, arrival: float) -> None:
+        """A stream's clock restarted (StreamMonitor, at the message stamped `t`): said, the
+        chain's q̈ estimates start again (no gap is bridged across it) and nothing is judged
+        while the chain's filters settle; the F/T stream's rate and load are measured
+        afresh from this message."""
+        if stream == "ft":
+            self.load.restart(t, arrival)
+            if self.rate_check.measured_hz is None:
+                self.rate_check = RateCheck(1.0 / self.period)
+        self._last_t = None
+        self._settling = max(1, round(SETTLE_AFTER_DROP_S / self.period))
+        if self._step is not None:
+            self._step.restart_acceleration()
+        else:
+            for state in self._acceleration_states():
+                restart_acceleration(state, self.n_joints)
+            if self.compensator.needs_imu:
+                restart_acceleration(self.compensator.GetMyMutableContextFromRoot(
+                    self.context).get_mutable_discrete_state(
+                    self.compensator._imu_estimator).get_mutable_value(), 3)
+        self.warn(f"{detail}; nothing is judged for {SETTLE_AFTER_DROP_S:g} s while the "
+                  "chain's filters settle")
+
+    def _acceleration_states(self) -> list:
+        """The diagram's q̈ estimator states (the compensator's; the joint-state gravity's
+        with the tracker), writable in the station's context."""
+        systems = [self.compensator]
+        if self.tracker is not None and self.chain.gravity is not None:
+            systems.append(self.chain.gravity)
+        return [system.GetMyMutableContextFromRoot(self.context).get_mutable_discrete_state(
+            system._estimator).get_mutable_value() for system in systems]
+
     def _gap(self, t: float) -> float | None:
         """The gap (s) of the F/T stamps before sample `t` run through the chain, None for
         none (within 1.5 periods); remembers `t`."""
@@ -350,13 +388,8 @@ class StationCore:
         gap = self._gap(t)
         if gap is not None:
             v = self.monitor.joint_state[self.n_joints:]
-            systems = [self.compensator]
-            if self.tracker is not None and self.chain.gravity is not None:
-                systems.append(self.chain.gravity)
-            for system in systems:
-                state = system.GetMyMutableContextFromRoot(self.context).get_mutable_discrete_state(
-                    system._estimator)
-                bridge_acceleration(state.get_mutable_value(), v, gap, self.period)
+            for state in self._acceleration_states():
+                bridge_acceleration(state, v, gap, self.period)
         self._wrench_in.GetMutableData().get_mutable_value().SetFromVector(self.monitor.wrench)
         self._state_in.GetMutableData().get_mutable_value().SetFromVector(self.monitor.joint_state)
         if self._temperature_in is not None:
@@ -464,6 +497,7 @@ class StationCore:
             "fault": bool(m.fault), "reason": m.reason,
             "rate_hz": {"configured": 1.0 / self.period, "measured": self.rate_check.measured_hz},
             "warnings": list(self.warnings),
+            "clock_restarts": dict(m.restarts),
             "load": self.load.summary(),
             **({"imu": self.imu.counts()} if self.imu is not None else {}),
         }

@@ -8,7 +8,9 @@ for that sample (its outputs hold their last good values), so a stale IMU readin
 passed on as a fresh one; ``problem`` then names why (``imu_missing``: no IMU sample yet;
 ``imu_stamp_gap``: none stamped close enough) with the fix, and the station faults its
 inputs with it (the StreamMonitor's reason, the status, ``/diagnostics``, the fault
-episodes). A malformed, non-finite or out-of-order IMU message is rejected and counted.
+episodes). A malformed, non-finite or out-of-order IMU message is rejected and counted;
+one stamped :data:`~.live_inputs.CLOCK_RESTART_S` or more before the last is the IMU's
+clock restarting (a looped bag, a restarted driver): the history starts again from it.
 """
 
 from __future__ import annotations
@@ -16,6 +18,8 @@ from __future__ import annotations
 import collections
 
 import numpy as np
+
+from .live_inputs import CLOCK_RESTART_S
 
 #: Values per IMU sample: the accelerometer's f_S (3, m/s²), then the gyroscope's ω_S (3,
 #: rad/s), both in S (the chain's ``imu`` input).
@@ -43,6 +47,7 @@ class ImuPairing:
         self._missing = np.full(IMU_VALUES, np.nan)
         self.accepted = 0
         self.unpaired = 0
+        self.restarts = 0  # times the IMU's stamps went back CLOCK_RESTART_S or more
         self.rejected: collections.Counter = collections.Counter()
         self.source, self.skew_key = source, skew_key
         self.problem: tuple[str, str] | None = None  # why the last pairing failed
@@ -53,9 +58,10 @@ class ImuPairing:
         return self.problem[1] if self.problem is not None else ""
 
     def counts(self) -> dict:
-        """``accepted``, ``rejected`` (reason → count) and ``unpaired`` so far."""
+        """``accepted``, ``rejected`` (reason → count), ``unpaired`` and ``clock_restarts``
+        so far."""
         return {"accepted": self.accepted, "rejected": dict(self.rejected),
-                "unpaired": self.unpaired}
+                "unpaired": self.unpaired, "clock_restarts": self.restarts}
 
     def on_imu(self, sample) -> bool:
         """One IMU message ``(t, values (6,))`` (None when it failed to decode)."""
@@ -71,8 +77,11 @@ class ImuPairing:
             self.rejected["not_finite"] += 1
             return False
         if self._samples and t <= self._samples[-1][0]:
-            self.rejected["out_of_order"] += 1
-            return False
+            if self._samples[-1][0] - t < CLOCK_RESTART_S:
+                self.rejected["out_of_order"] += 1
+                return False
+            self._samples.clear()  # the IMU's clock restarted (live_inputs.CLOCK_RESTART_S)
+            self.restarts += 1
         self._samples.append((float(t), values))
         self.accepted += 1
         return True

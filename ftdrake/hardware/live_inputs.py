@@ -24,6 +24,9 @@ message or timeout until the inputs are good again:
   samples and then jump, which the chain's q̈ estimate (a difference of q̇ per F/T period)
   reads as a burst of acceleration and the detector as contact. 0 pairs by arrival only
   (the newest joint state, as it is);
+* a stamp :data:`CLOCK_RESTART_S` or more before its stream's last is that stream's clock
+  restarting (a looped bag, a restarted driver): the stream is taken up again from its new
+  time and ``on_restart`` is told; a stamp back by less is a message out of order, refused;
 * for a model that takes an IMU, an F/T sample with no IMU sample paired to it faults
   (``imu_missing``, ``imu_stamp_gap``; raised by the station through ``flag``) until one
   pairs again.
@@ -70,6 +73,11 @@ def all_finite(values) -> bool:
 
 #: Joint states kept to pair an F/T sample with by stamp.
 JOINT_HISTORY = 64
+
+#: s: a stamp this much or more before its stream's last is the driver's clock restarting (a
+#: looped bag, a restarted driver or simulator), not a message out of order: no transport
+#: delays one message of a stream by that much behind the next.
+CLOCK_RESTART_S = 0.5
 
 
 def joint_state_at(t: float, t_joint: float, x, before=None) -> np.ndarray:
@@ -128,6 +136,11 @@ class StreamMonitor:
         # stream → (reason, detail): why it has no message yet, when a transport knows
         # (another type published on its topic); said instead of "no_data".
         self.missing: dict[str, tuple[str, str]] = {}
+        # A stream's clock restarted: its stamps taken up again from the new time, counted
+        # per stream, and on_restart(stream, detail, t, arrival) called for the message that
+        # showed it (the station settles its chain).
+        self.restarts = collections.Counter()
+        self.on_restart = None
 
     # -- bookkeeping --------------------------------------------------------------------------
     def _reject(self, stream: str, reason: str, detail: str) -> bool:
@@ -165,15 +178,31 @@ class StreamMonitor:
         """Arrival (the caller's clock, s) of the last accepted message of `stream`."""
         return self._last_arrival[stream]
 
-    def _check_time(self, stream: str, t: float) -> tuple[str, str] | None:
+    def _check_time(self, stream: str, t: float, arrival: float) -> tuple[str, str] | None:
         last = self._last_t[stream]
         if last is None or t > last:
             return None
         name = "F/T" if stream == "ft" else "joint state"
         if t == last:
             return "duplicate", f"{name} message with the same timestamp {t:.6f} s again"
+        if last - t >= CLOCK_RESTART_S:
+            self._restart(stream, name, last, t, arrival)
+            return None
         return "out_of_order", (f"{name} time went back from {last:.6f} s to {t:.6f} s "
                                 f"({(t - last) * 1e3:.3f} ms)")
+
+    def _restart(self, stream: str, name: str, last: float, t: float, arrival: float) -> None:
+        """The stream's clock restarted: its stamps start again from `t` (a joint stream's
+        history for pairing with it)."""
+        self._last_t[stream] = None
+        if stream == "joint":
+            self._history.clear()
+        self.restarts[stream] += 1
+        if self.on_restart is not None:
+            self.on_restart(stream, (
+                f"{name} clock restarted: its time went back {last - t:.3f} s, from "
+                f"{last:.6f} s to {t:.6f} s (a looped bag, a restarted driver or simulator); "
+                "the stream is taken up again from its new time"), t, arrival)
 
     # -- messages -----------------------------------------------------------------------------
     def on_joint(self, sample: JointSample | None, arrival: float,
@@ -191,7 +220,7 @@ class StreamMonitor:
                 f"{'no' if nv is None else nv} velocities, expected {self.n}"))
         if not (math.isfinite(sample.t) and all_finite(sample.q) and all_finite(sample.v)):
             return self._reject("joint", "not_finite", "joint state holds NaN or inf")
-        bad = self._check_time("joint", sample.t)
+        bad = self._check_time("joint", sample.t, arrival)
         if bad:
             return self._reject("joint", *bad)
         bad = self.joint_check(sample.q) if self.joint_check is not None else None
@@ -248,7 +277,7 @@ class StreamMonitor:
         if not (math.isfinite(sample.t) and all_finite(sample.wrench)):
             return self._reject("ft", "not_finite", f"F/T message at {sample.t:.6f} s holds "
                                 "NaN or inf")
-        bad = self._check_time("ft", sample.t)
+        bad = self._check_time("ft", sample.t, arrival)
         if bad:
             return self._reject("ft", *bad)
         self.wrench[:] = sample.wrench

@@ -68,15 +68,19 @@ class LoadMonitor:
 
     def on_ft(self, t: float, handled_at: float) -> bool:
         """An F/T message stamped `t` (s), handled at `handled_at` (the station's clock, s).
-        Returns True when it is to be dropped (the station is too far behind)."""
-        if self._last_t is not None and t > self._last_t:
+        Returns True when it is to be dropped (the station is too far behind). A stamp
+        not after the last one (out of order, or a restarted clock: the stream monitor says
+        which) tells nothing of the backlog and is not dropped here (its lag, should it be
+        processed, still counts for the baseline)."""
+        self._lag = lag = handled_at - t
+        if self._last_t is not None and t <= self._last_t:
+            return False
+        if self._last_t is not None:
             gap = round((t - self._last_t) / self.period)
             if (t - self._last_t) > 1.5 * self.period:
                 self.lost += gap - 1
-        if self._last_t is None or t > self._last_t:
-            self._last_t = t
-            self._stamps.append(t)
-        self._lag = lag = handled_at - t
+        self._last_t = t
+        self._stamps.append(t)
         self.backlog_s = 0.0 if self._min_lag is None else max(0.0, lag - self._min_lag)
         self.max_backlog_seen_s = max(self.max_backlog_seen_s, self.backlog_s)
         if self.backlog_s > self.max_backlog_s:
@@ -86,6 +90,15 @@ class LoadMonitor:
         if self.overloaded:
             self.dropped += 1
         return self.overloaded
+
+    def restart(self, t: float, handled_at: float) -> None:
+        """The stream's clock restarted at the F/T message stamped `t`, handled at
+        `handled_at`: its stamps and the lag baseline start again from it (the counts
+        stay)."""
+        self._last_t = self._min_lag = None
+        self._stamps.clear()
+        self.backlog_s, self.overloaded = 0.0, False
+        self.on_ft(t, handled_at)
 
     def processed(self) -> str | None:
         """Closes the F/T message just run through the chain: its lag may lower the

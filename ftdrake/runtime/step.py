@@ -47,7 +47,7 @@ import numpy as np
 from ..errors import ConfigError
 from .joint_gravity import _apparent_gravity
 
-__all__ = ["ChainStep", "bridge_acceleration"]
+__all__ = ["ChainStep", "bridge_acceleration", "restart_acceleration"]
 
 
 class ChainStep:
@@ -168,6 +168,18 @@ class ChainStep:
         would make the estimate diverge (:func:`bridge_acceleration`; on the diagram, apply
         it to those systems' estimator states in the context)."""
         self._gap_s = float(gap_s)
+
+    def restart_acceleration(self) -> None:
+        """The streams' clock restarted (a looped bag, a restarted driver): the q̈ estimators
+        (the compensator's, the joint-state gravity's, and α's for an IMU) start afresh at
+        the next update, as at the first one (:func:`restart_acceleration`), and a pending
+        bridge_gap is dropped: a jump of q̇ across a restart is no acceleration."""
+        self._gap_s = None
+        restart_acceleration(self._comp_state[0], self.n_joints)
+        if self._tracker is not None and self._gravity is not None:
+            restart_acceleration(self._gravity_estimator, self.n_joints)
+        if self.needs_imu:
+            restart_acceleration(self._imu_state[0], 3)
 
     def _bridge(self, v) -> None:
         """Puts the q̈ estimators across the gap (bridge_gap)."""
@@ -311,6 +323,13 @@ def bridge_acceleration(estimator, v, gap_s: float, period: float) -> None:
     # recurs (it amplifies the error of the estimate before the gap).
     estimator[n:2 * n] = after - period * estimator[2 * n:3 * n]  # the step predicts `after`
     estimator[:n] = v - period * after  # its difference: `after`, no innovation
+
+
+def restart_acceleration(estimator, n: int) -> None:
+    """Puts a q̈ estimator's state (:func:`~ftdrake.signals.causal_acceleration_step`'s, `n`
+    signals: previous q̇, q̈, jerk, primed; entries after those are left alone) back to
+    unprimed: its next step starts afresh (q̈ = 0 at that sample)."""
+    estimator[3 * n] = 0.0
 
 
 def _whole_periods(sample_period: float, period: float) -> int:

@@ -4,9 +4,14 @@ as the oldest) declares no contact once it publishes again. The model's internal
 depends on q̈, which the station estimates from q̇ (the chain's causal estimate): across a
 dropped stretch q̇ jumps, and that jump must not read as an acceleration, be learned into the
 bias tracker's estimate, or leave the detector holding a contact. The same holds for
-wrenches lost every few samples, and for wrenches between joint states (a slower joint
-stream, joint states lost), which are compensated at their own stamp. No timing is
-asserted: the test's clock is the station's."""
+wrenches lost every few samples, for wrenches between joint states (a slower joint
+stream, joint states lost), which are compensated at their own stamp, and for a driver
+whose clock restarts (a looped bag, a restarted driver or simulator): the stamps of both
+streams go back to where they began while the station runs on. The station says so, takes
+the streams up again from their new time and settles the chain as after a drop; it neither
+refuses the new stamps as out of order until they pass the old ones, nor reads the jump as
+falling behind. A stamp back by less than CLOCK_RESTART_S is still a message out of order,
+refused. No timing is asserted: the test's clock is the station's."""
 
 import numpy as np
 import pytest
@@ -14,6 +19,7 @@ import pytest
 from ftdrake import ChainConfig, RandomForestCompensator
 from ftdrake.hardware import HardwareConfig
 from ftdrake.hardware.core import SETTLE_AFTER_DROP_S
+from ftdrake.hardware.live_inputs import CLOCK_RESTART_S
 from ftdrake.hardware.messages import encode_joint_state, encode_wrench
 from ftdrake.testing import listening_station
 
@@ -145,3 +151,84 @@ def test_wrenches_between_joint_states_are_compensated_at_their_own_stamp(model,
     assert force_error_rms(wrenches) < 1.5 * force_error_rms(reference)
     declared = [(c.t, c.fault) for c in contacts if c.contact]
     assert not declared, declared[:5]
+
+
+# -- a driver whose clock restarts (a looped bag, a restarted driver or simulator) ------
+LOOP = 1500  # samples per pass of the "bag": 1.5 s
+
+
+def play(model, passes: int, pair_tolerance_s: float = 0.005, back=None, press=False):
+    """A station (memq://, the default chain) fed `passes` passes of 1.5 s of free motion
+    at 1 kHz, as a looped bag plays it: each pass's stamps and motion start again at 1 ms,
+    while the station's clock runs on. With `back`, the second pass instead re-sends the
+    motion from `back` s before the first pass's end and goes on from there (its stamps
+    and motion continuous with the first's). With `press`, 10 N along z from 0.6 to 0.9 s
+    of each pass. Returns the station and, per pass, the contact states and compensated
+    wrenches it published during it."""
+    config = HardwareConfig(lcm_url="memq://", pair_tolerance_s=pair_tolerance_s)
+    now = [0.0]
+    chain = ChainConfig()
+    chain.detector.test = "norm"  # force_on 2.5 N, torque_on 0.25 N·m
+    dut, contacts, wrenches = listening_station(model, chain, config, lambda: now[0])
+    lc = dut.lcm.lc
+    passes_out = []
+    for p in range(passes):
+        start = (len(contacts), len(wrenches))
+        offset = 0.0 if back is None or p == 0 else LOOP * PERIOD - back
+        times = offset + np.arange(1, LOOP + 1) * PERIOD
+        q, qd, qdd = motion(times)
+        wrench = internal(q, qdd)
+        if press:
+            wrench[(times - offset >= 0.6) & (times - offset < 0.9), 2] += 10.0
+        for k, t in enumerate(times):
+            now[0] = (p * LOOP + k + 1) * PERIOD
+            lc.publish(config.joint_state_channel, encode_joint_state("iiwa_status", t, q[k],
+                                                                      qd[k]))
+            lc.publish(config.ft_channel, encode_wrench(t, wrench[k]))
+            while lc.handle_timeout(0) > 0:
+                pass
+        passes_out.append((contacts[start[0]:], wrenches[start[1]:]))
+    return dut, passes_out
+
+
+@pytest.mark.parametrize("pair_tolerance_s", [0.005, 0.0], ids=["paired by stamp",
+                                                                  "paired by arrival"])
+def test_a_looped_bag_is_taken_up_again_at_each_loop(model, pair_tolerance_s):
+    dut, passes = play(model, 3, pair_tolerance_s)
+    settle = round(SETTLE_AFTER_DROP_S / PERIOD)
+    # Every message of every pass is run through the chain; nothing is dropped or refused.
+    assert dut.processed == 3 * LOOP
+    assert dut.load.dropped == 0 and not dut.monitor.rejected
+    assert dut.published == 3 * LOOP - 2 * settle  # nothing published while settling
+    # Said once per stream and restart, with the jump and what the station does.
+    said = [w for w in dut.warnings if "clock restarted" in w]
+    assert len(said) == 4 and all("went back 1.499 s" in w and "looped bag" in w for w in said)
+    assert sorted(w.split(" clock")[0] for w in said) == ["F/T"] * 2 + ["joint state"] * 2
+    assert dut.summary()["clock_restarts"] == {"ft": 2, "joint": 2}
+    # Each pass compensates as the first did, and no pass declares contact.
+    first = force_error_rms(passes[0][1])
+    for contacts, wrenches in passes:
+        assert not any(c.contact for c in contacts)
+        assert force_error_rms(wrenches) < 1.2 * first
+    assert not any(e.reason == "overload" for e in dut.events)
+
+
+def test_a_press_after_the_restart_is_found(model):
+    _, passes = play(model, 2, press=True)
+    for contacts, _ in passes:
+        declared = [c.t for c in contacts if c.contact]
+        assert declared and 0.6 < min(declared) < 0.61 and max(declared) < 1.0
+
+
+def test_a_stamp_back_by_less_than_the_restart_threshold_is_out_of_order(model):
+    """The second pass re-sends the last 0.2 s (less than CLOCK_RESTART_S back): those
+    messages are refused as out of order (the first, as a duplicate) and the stream goes on
+    from there; the station reads no backlog from them (no overload)."""
+    assert CLOCK_RESTART_S > 0.2
+    dut, passes = play(model, 2, back=0.2)
+    refused = dut.monitor.rejected_by["ft"]
+    assert refused["out_of_order"] == 199 and refused["duplicate"] == 1
+    assert dut.processed == 2 * LOOP - 200 and not dut.summary()["clock_restarts"]
+    assert dut.load.dropped == 0 and not any(e.reason == "overload" for e in dut.events)
+    assert not any("clock restarted" in w for w in dut.warnings)
+    assert not any(c.contact for contacts, _ in passes for c in contacts)

@@ -10,7 +10,7 @@ from ftdrake import ConfigError, ScenarioConfig
 from ftdrake.compensation.estimators.imu_physics import ImuPayloadCompensator
 from ftdrake.hardware import HardwareConfig, HardwareStation
 from ftdrake.hardware.live_imu import ImuPairing
-from ftdrake.hardware.live_inputs import REASONS
+from ftdrake.hardware.live_inputs import CLOCK_RESTART_S, REASONS
 from ftdrake.hardware.messages import (
     decode_contact_state,
     decode_imu,
@@ -149,7 +149,8 @@ def test_an_imu_that_never_arrives_faults_the_inputs_once_and_names_the_imu():
     assert len(rig.got["contact"]) == 20 and all(c.fault for c in rig.got["contact"])
     summary = rig.dut.summary()
     assert summary["reason"] == "imu_missing" and summary["fault_episodes"] == {"imu_missing": 1}
-    assert summary["imu"] == {"accepted": 0, "rejected": {"malformed": 1}, "unpaired": 20}
+    assert summary["imu"] == {"accepted": 0, "rejected": {"malformed": 1}, "unpaired": 20,
+                              "clock_restarts": 0}
 
 
 def test_an_imu_that_stops_mid_stream_faults_then_recovers_when_it_resumes():
@@ -174,4 +175,20 @@ def test_an_imu_that_stops_mid_stream_faults_then_recovers_when_it_resumes():
     assert not m.fault and rig.status() == ("", False) and len(rig.got["wrench"]) == 8
     assert [e.kind for e in rig.events] == ["recovered", "fault", "recovered"]
     assert not rig.got["contact"][-1].fault
-    assert rig.dut.summary()["imu"] == {"accepted": 6, "rejected": {}, "unpaired": 8}
+    assert rig.dut.summary()["imu"] == {"accepted": 6, "rejected": {}, "unpaired": 8,
+                                        "clock_restarts": 0}
+
+
+def test_an_imu_clock_that_restarts_is_taken_up_again():
+    """An IMU stamp CLOCK_RESTART_S or more before the last (a looped bag, a restarted
+    driver) starts the history again from it, counted; one back by less is out of order."""
+    pairing = ImuPairing(max_skew_s=0.002)
+    values = np.arange(6.0)
+    for t in (1.0, 1.001, 1.002):
+        assert pairing.on_imu((t, values))
+    assert not pairing.on_imu((1.002 - 0.9 * CLOCK_RESTART_S, values))
+    assert pairing.counts()["rejected"] == {"out_of_order": 1}
+    assert pairing.on_imu((0.001, values + 1))
+    assert pairing.counts()["clock_restarts"] == 1
+    np.testing.assert_array_equal(pairing.pair(0.0015), values + 1)  # the new sample only
+    assert pairing.on_imu((0.002, values + 2))

@@ -217,6 +217,25 @@ def test_a_stamp_gap_counts_lost_messages():
     assert load.lost == 3 and load.dropped == 0 and not load.overloaded
 
 
+def test_a_stamp_that_goes_back_is_no_backlog():
+    """A stamp not after the last (out of order, or a restarted clock) is neither dropped
+    nor read as the station falling behind; when such a message is processed after all (its
+    stamp repeats one the stream monitor refused for another cause, e.g. a NaN wrench seconds
+    before), its own lag sets the baseline, not the earlier message's."""
+    load = LoadMonitor(period=0.001, max_backlog_s=0.05)
+    assert not load.on_ft(0.0, 0.0)  # refused by the stream monitor (NaN): not processed
+    assert not load.on_ft(0.0, 5.0)  # the stream proper, seconds later, from the same stamp
+    load.processed()
+    assert not load.on_ft(0.001, 5.001) and load.backlog_s == 0.0
+    assert not load.on_ft(0.0005, 6.0)  # a second behind, but out of order: no backlog
+    assert load.backlog_s == 0.0 and not load.overloaded and load.dropped == 0
+    load.restart(0.0001, 7.0)  # a restarted clock: the lag baseline starts again from it
+    load.processed()
+    assert not load.on_ft(0.0011, 7.001) and load.backlog_s == pytest.approx(0.0)
+    assert load.on_ft(0.0021, 7.1)  # and a real backlog is still one
+    assert load.backlog_s == pytest.approx(0.098)
+
+
 def test_a_station_that_keeps_up_is_not_overloaded():
     load = LoadMonitor(PERIOD, 0.05)
     for k in range(1, 500):  # handled 0.2 ms after its stamp, every time

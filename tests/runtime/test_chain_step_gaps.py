@@ -91,3 +91,21 @@ def test_hold_learns_nothing_and_judges_nothing(step):
     for k in range(150, 150 + step.chain.config.detector.debounce_on + 1):
         out = step.update(k * PERIOD, pressed, x)
     assert out["contact"][0] == 1.0 and out["contact_force"][0] > 15.0
+
+
+def test_after_a_restart_the_estimate_starts_afresh(step):
+    """restart_acceleration (a live station's streams whose clock restarted): the next
+    update starts the q̈ estimate as the first update of a new step does (q̈ = 0 there), not
+    from the jump of q̇ between the old stream and the new; a pending bridge is dropped."""
+    wrench = np.zeros(6)
+    for k in range(200):
+        step.update(k * PERIOD, wrench, state(k * PERIOD))
+    assert np.abs(acceleration_estimate(step)).max() > 0.1
+    step.bridge_gap(0.5)
+    step.restart_acceleration()
+    fresh = ChainStep(CompensationChain(chain_forest(False), ChainConfig(), n_joints=N))
+    again = state(0.05)  # the stream from another time: q̇ jumps
+    step.update(200 * PERIOD, wrench, again)
+    fresh.update(0.0, wrench, again)
+    np.testing.assert_array_equal(step._comp_state[0], fresh._comp_state[0])
+    assert not acceleration_estimate(step).any()
