@@ -95,9 +95,10 @@ class Rig:
     def wrench(self, t, w):
         self.ft.write(wrench_stamped(header(t, "ft_sensor"), np.full(6, w)))
 
-    def step(self, t, w=1.0, names=NAMES, joint=True):
-        """At wall time = t: a joint message (if `joint`), an F/T message, spun through."""
-        self.now = t
+    def step(self, t, w=1.0, names=NAMES, joint=True, wall=None):
+        """At wall time `wall` (default t): a joint message stamped t (if `joint`), an F/T
+        message stamped t, spun through."""
+        self.now = t if wall is None else wall
         received = sum(self.dut.monitor.received.values()) + 1 + joint
         if joint:
             self.joint(t, names)
@@ -200,6 +201,23 @@ def test_time_going_back_and_nan(rig):
     np.testing.assert_allclose(wrench_of(rig.got["wrench"][-1]), rig.expected(3.0), atol=1e-12)
     assert rig.dut.monitor.rejected == {"out_of_order": 1, "not_finite": 1}
     assert rig.dut.summary()["processed"] == 6
+
+
+def test_a_driver_whose_clock_restarts_is_said_on_diagnostics_and_taken_up_again(rig):
+    """A looped bag: the stamps go back from 1 s to 1 ms while the station's clock runs on.
+    Both streams are taken up again at once (nothing refused, nothing read as overload) and
+    a warning says so on /diagnostics."""
+    rig.step(1.0)
+    processed = rig.dut.processed
+    for k in (1, 2, 3):
+        rig.step(0.001 * k, wall=1.0 + 0.001 * k)
+    assert rig.dut.processed == processed + 3 and not rig.dut.monitor.rejected
+    assert rig.dut.summary()["clock_restarts"] == {"joint": 1, "ft": 1}
+    said = [status for message in rig.got["diagnostics"] for status in message.status
+            if "clock restarted" in status.message]
+    assert said and all(status.level == WARN for status in said)
+    assert "went back 0.999 s, from 1.000000 s to 0.001000 s" in said[-1].message
+    assert not any(event.reason == "overload" for event in rig.events)
 
 
 def test_silence_is_published_at_once(rig):
