@@ -183,6 +183,12 @@ class StreamMonitor:
         if last is None or t > last:
             return None
         name = "F/T" if stream == "ft" else "joint state"
+        if t == last == 0.0:
+            return "duplicate", (
+                f"{name} messages are not stamped (their stamp is 0 again): the station "
+                "orders, pairs and times the streams by their stamps, so it takes only the "
+                "first. Fix: have the driver stamp each message with its sampling time (ROS 2: "
+                "header.stamp; LCM: timestamp or utime, µs)")
         if t == last:
             return "duplicate", f"{name} message with the same timestamp {t:.6f} s again"
         if last - t >= CLOCK_RESTART_S:

@@ -52,3 +52,20 @@ def test_stale_joint_state_faults_wrench(dut):
     assert dut.fault and dut.reason == "joint_timeout"
     assert dut.on_joint(joint(0.030), arrival=0.030)
     assert dut.on_wrench(wrench(0.031), arrival=0.031) and not dut.fault
+
+
+def test_unstamped_messages_are_named_with_the_fix():
+    """A driver that leaves the stamp at 0 (a hand-made publisher, a driver that does not
+    stamp): the second message is a duplicate, and the fault says the messages carry no
+    stamp and how to give them one; a repeated real stamp says only that."""
+    dut = StreamMonitor(N, sensor_timeout_s=0.005, joint_state_timeout_s=0.02)
+    assert dut.on_joint(joint(0.0), arrival=0.0) and dut.on_wrench(wrench(0.0), arrival=0.0)
+    assert not dut.on_wrench(wrench(0.0), arrival=0.001) and dut.reason == "duplicate"
+    assert "F/T messages are not stamped" in dut.detail and "Fix: have the driver" in dut.detail
+    assert "header.stamp" in dut.detail
+    assert not dut.on_joint(joint(0.0), arrival=0.001) and dut.reason == "duplicate"
+    assert dut.detail.startswith("joint state messages are not stamped")
+    assert dut.on_wrench(wrench(0.002), arrival=0.002) is False  # the joint state is stale
+    assert dut.on_joint(joint(0.002), arrival=0.002) and dut.on_wrench(wrench(0.003), 0.003)
+    assert not dut.on_wrench(wrench(0.003), arrival=0.004)
+    assert dut.detail == "F/T message with the same timestamp 0.003000 s again"
