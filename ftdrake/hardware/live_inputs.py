@@ -141,6 +141,7 @@ class StreamMonitor:
         # showed it (the station settles its chain).
         self.restarts = collections.Counter()
         self.on_restart = None
+        self.pair_key = "pair_tolerance_s"  # the config key a stamp gap's fix names
 
     # -- bookkeeping --------------------------------------------------------------------------
     def _reject(self, stream: str, reason: str, detail: str) -> bool:
@@ -327,11 +328,19 @@ class StreamMonitor:
         if abs(nearest_t - t) <= tol:
             self.joint_state[:] = x if t <= nearest_t else self._brought_forward(nearest, t)
             return None
+        if abs(nearest_t - t) >= CLOCK_RESTART_S:  # no transport delays a stream that much
+            return "stamp_gap", (
+                f"the F/T stamps and the joint states' are on different clocks: the nearest "
+                f"joint state is {nearest_t - t:+.3f} s from the F/T sample at {t:.6f} s, "
+                f"the tolerance {tol * 1e3:g} ms: the wrench is not judged. Fix: stamp both "
+                "streams on one clock (the time each was sampled), or set "
+                f"{self.pair_key}: 0 to pair each wrench with the newest joint state as it "
+                "arrives")
         return "stamp_gap", (
             f"no joint state stamped within {tol * 1e3:g} ms of the F/T sample at {t:.6f} s "
             f"(the nearest of the last {len(self._history)} is {(nearest_t - t) * 1e3:+.1f} ms "
-            "away): the wrench is not judged. Fix: the drivers' clocks or stamps, or "
-            "pair_tolerance_s")
+            f"away): the wrench is not judged. Fix: the drivers' clocks or stamps, or "
+            f"{self.pair_key}")
 
     def _brought_forward(self, index: int, t: float) -> np.ndarray:
         """The joint state `index` of the history, stamped before the F/T stamp `t`, brought

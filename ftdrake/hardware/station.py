@@ -108,6 +108,7 @@ class HardwareStation(StationCore):
                          pair_tolerance_s=config.pair_tolerance_s,
                          imu_max_skew_s=config.imu_max_skew_s)
         self.load.levers = rate_levers(config, "lcm")  # its warnings name the keys to change
+        self.monitor.pair_key = "lcm.pair_tolerance_s"  # its stamp gaps name the key
         if self.imu is not None:  # its faults name the keys to change
             self.imu.source = f"lcm.imu_channel {config.imu_channel!r}"
             self.imu.skew_key = "lcm.imu_max_skew_s"

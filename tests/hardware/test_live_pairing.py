@@ -94,11 +94,30 @@ def test_a_wrench_with_no_joint_state_within_the_tolerance_is_a_fault_not_judged
     m = rig.dut.monitor
     assert m.fault and m.reason == "stamp_gap"
     assert "no joint state stamped within 5 ms of the F/T sample at 0.111000 s" in m.detail
-    assert "-100.0 ms away" in m.detail and "pair_tolerance_s" in m.detail
+    assert "-100.0 ms away" in m.detail and "lcm.pair_tolerance_s" in m.detail
     assert len(rig.wrenches) == published  # nothing judged from it
     assert rig.contacts[-1].fault and not rig.contacts[-1].contact
     rig.send(112, 112)
     assert not m.fault and len(rig.wrenches) == published + 1
+
+
+def test_streams_stamped_on_different_clocks_are_named_with_both_fixes():
+    """Joint states stamped with one clock and wrenches with another (a sensor's own clock
+    against the robot's, sim time against wall time): every wrench is a stamp gap, and the
+    fault says the clocks differ, by how much, and both fixes, the key named. Paired by
+    arrival (pair_tolerance_s 0) the same stream is compensated."""
+    rig = Rig(pair_tolerance_s=0.005)
+    offset = 1000  # periods: 1 s
+    for k in range(1, 6):
+        rig.send(k, k + offset)
+    m = rig.dut.monitor
+    assert m.fault and m.reason == "stamp_gap" and not rig.wrenches
+    assert "on different clocks" in m.detail and "-1.000 s" in m.detail
+    assert "set lcm.pair_tolerance_s: 0" in m.detail
+    rig = Rig(pair_tolerance_s=0.0)
+    for k in range(1, 6):
+        rig.send(k, k + offset)
+    assert not rig.dut.monitor.fault and len(rig.wrenches) == 5
 
 
 def test_the_tolerance_is_checked():

@@ -112,6 +112,7 @@ class Ros2Station(StationCore):
                          max_backlog_s=c.max_backlog_s, pair_tolerance_s=c.pair_tolerance_s,
                          imu_max_skew_s=c.imu_max_skew_s)
         self.load.levers = rate_levers(c, "ros2")  # its warnings name the keys to change
+        self.monitor.pair_key = "ros2.pair_tolerance_s"  # its stamp gaps name the key
         if self.imu is not None:  # its faults name the keys to change
             self.imu.source = f"ros2.imu_topic {c.imu_topic!r}"
             self.imu.skew_key = "ros2.imu_max_skew_s"

@@ -220,6 +220,18 @@ def test_a_driver_whose_clock_restarts_is_said_on_diagnostics_and_taken_up_again
     assert not any(event.reason == "overload" for event in rig.events)
 
 
+def test_wrenches_stamped_on_another_clock_name_the_ros2_key_on_diagnostics(rig):
+    rig.now = 0.005
+    rig.joint(0.005)
+    rig.wrench(1.005, 1.0)  # the sensor's clock, 1 s off the robot's
+    wait_for(lambda: (rig.dut.spin_once(0), rig.dut.monitor.received["ft"])[1] >= 6,
+             "the station to receive")
+    rig.collect()
+    status, values = rig.last_status()
+    assert values["reason"] == "stamp_gap" and "on different clocks" in status.message
+    assert "set ros2.pair_tolerance_s: 0" in status.message
+
+
 def test_silence_is_published_at_once(rig):
     rig.now = 0.004 + 0.0061  # 6.1 ms of silence
     rig.spin()
