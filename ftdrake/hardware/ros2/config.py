@@ -36,9 +36,10 @@ class Ros2Config:
     Inputs (the driver's topics):
       `joint_state_topic`: ``sensor_msgs/msg/JointState`` (position rad, velocity rad/s, by
         name). `joint_names` are the model's joints in the model's order: each message is
-        reordered by name into it; a message missing one of them, or naming a joint not in
-        the list (another arm's, a gripper's: publish those on another topic), is faulted as
-        ``joint_count`` with the names in the detail. Velocities are required.
+        reordered by name into it; a message missing one of them, or naming one twice, is
+        faulted as ``joint_names`` with the names in the detail. Joints a message carries
+        beyond them (another arm's, a gripper's, as a robot's ``/joint_states`` holds them)
+        are ignored, said once as a warning. Velocities are required.
       `wrench_topic`: ``geometry_msgs/msg/WrenchStamped`` (N, N·m) in the sensor frame, as
         ``force_torque_sensor_broadcaster`` publishes it; each message runs the chain once.
       `wrench_frame_id`: the sensor frame the model compensates readings in (the

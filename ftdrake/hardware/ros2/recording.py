@@ -2,9 +2,10 @@
 
 :class:`Ros2Recorder` subscribes to a :class:`~ftdrake.hardware.ros2.config.Ros2Config`'s
 JointState and WrenchStamped topics and keeps their samples (header stamps, s): the joint
-states reordered by name into ``joint_names`` (a message missing one of them or naming an
-unknown one is not used, counted as ``joint_names``; one without velocities as
-``joint_count``). :meth:`Ros2Recorder.table` pairs them as
+states reordered by name into ``joint_names``, other joints a message carries ignored (a
+gripper's, another arm's; as the station reads them). A message missing one of them, or
+naming one twice, is not used, counted as ``joint_names``; one without velocities as
+``joint_count``. :meth:`Ros2Recorder.table` pairs them as
 :func:`~ftdrake.hardware.recording.table_from_samples` does for LCM: one row per wrench, with
 the latest joint state at or before its stamp within the tolerance.
 
@@ -40,7 +41,7 @@ class Ros2Recorder:
 
     def _on_joint(self, msg, _arrival) -> None:
         names = list(msg.name)
-        if sorted(names) != sorted(self.config.joint_names):
+        if any(names.count(n) != 1 for n in self.config.joint_names):  # missing or twice
             self.rejected["joint_names"] += 1
             return
         if len(msg.position) != len(names) or len(msg.velocity) != len(names):

@@ -15,7 +15,9 @@ The outputs are the LCM station's, under the same names (:data:`ftdrake.conventi
 The message-driven loop, the checks (:class:`~ftdrake.hardware.live_inputs.StreamMonitor`),
 the fault episodes and the counts are :class:`~ftdrake.hardware.core.StationCore`'s, the same
 as on LCM: each fault-free wrench message updates the diagram once; a silent stream, time going
-back, NaN, or a joint state whose names do not match ``joint_names`` faults the inputs, and
+back, NaN, or a joint state that lacks one of ``joint_names`` (or names one twice) faults
+the inputs (joints it carries beyond them, another arm's or a gripper's, are ignored, said
+once as a warning), and
 then no wrench, contact, bias or payload is published (a stale value is never published as
 fresh) while the diagnostics say why, at once. Messages of all topics are handled in the
 order they arrived (:class:`~ftdrake.hardware.ros2.dds.Ros2Node`).
@@ -124,6 +126,7 @@ class Ros2Station(StationCore):
         if c.cpu_affinity:
             pin_process(c.cpu_affinity)
         self._index = {name: k for k, name in enumerate(c.joint_names)}
+        self._ignored: list[str] = []  # joints of the messages not in joint_names
         self._order = (None, None)  # (names of the last message, their permutation)
         self._header = None  # the wrench message being processed
         self._contact_due = False  # its wrench was published: contact and force follow
@@ -202,12 +205,17 @@ class Ros2Station(StationCore):
             return self._order[1]
         unknown = [n for n in names if n not in self._index]
         missing = [n for n in self.config.joint_names if n not in names]
-        if unknown or missing or len(names) != len(set(names)):
+        twice = [n for n in self.config.joint_names if names.count(n) > 1]
+        if missing or twice:
             parts = [f"unknown {unknown}" if unknown else "",
                      f"missing {missing}" if missing else "",
-                     "a name twice" if len(names) != len(set(names)) else ""]
+                     f"{twice} twice" if twice else ""]
             return ("joint state names " + ", ".join(p for p in parts if p)
                     + f"; ros2.joint_names is {self.config.joint_names}")
+        if unknown and unknown != self._ignored:  # another arm's, a gripper's: said once
+            self._ignored = unknown
+            self.warn(f"joint states also carry {unknown}, not in ros2.joint_names: ignored "
+                      "(the model's joints are taken from them by name)")
         order = np.array([names.index(n) for n in self.config.joint_names])
         self._order = (list(names), order)
         return order

@@ -79,6 +79,27 @@ def test_record_writes_the_collect_layout(tmp_path):
                                rtol=0, atol=1e-12)  # stamps: integer ns
 
 
+def test_the_recorder_takes_the_configured_joints_by_name_and_ignores_others():
+    """A robot's /joint_states with a gripper's joint among the arm's: the arm's are kept in
+    joint_names' order; a message missing one, or naming one twice, is not used."""
+    from ftdrake.hardware.ros2.messages import header, ros2_type
+    from ftdrake.hardware.ros2.recording import Ros2Recorder
+
+    names = [f"arm_joint_{k}" for k in range(1, 8)]
+    recorder = Ros2Recorder(Ros2Config(joint_names=names, domain_id=DOMAIN).validate())
+    joint_state = ros2_type("sensor_msgs/msg/JointState")
+    try:
+        for sent in (["finger_joint", *reversed(names)], names[:6], [*names, names[0]]):
+            q = [float(names.index(n)) if n in names else 9.0 for n in sent]
+            recorder._on_joint(joint_state(header=header(0.001), name=sent, position=q,
+                                           velocity=[0.5 * x for x in q], effort=[]), 0.0)
+    finally:
+        recorder.close()
+    (row,) = recorder.joints
+    np.testing.assert_array_equal(row, [0.001, *range(7), *(0.5 * np.arange(7))])
+    assert recorder.rejected == {"joint_names": 2}
+
+
 def write_bag(log, path, storage, names):
     """The log as a ROS 2 bag: JointState on /joint_states, WrenchStamped on /ft_sensor/wrench,
     both stamped with the row's time, serialised by rosbags."""

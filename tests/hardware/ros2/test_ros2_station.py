@@ -172,7 +172,7 @@ def test_joints_in_another_order_are_reordered(rig):
     ([*NAMES[:6], "gripper_finger_joint"],
      "unknown ['gripper_finger_joint'], missing ['arm_joint_7']"),
     (NAMES[:6], "missing ['arm_joint_7']"),
-    ([*NAMES, "gripper_finger_joint"], "unknown ['gripper_finger_joint']"),
+    ([*NAMES, NAMES[2]], "['arm_joint_3'] twice"),
 ])
 def test_unknown_or_missing_joint_names_fault(rig, names, says):
     rig.step(0.005, names=names)  # the F/T message is good; the joint state it would use is not
@@ -187,6 +187,24 @@ def test_unknown_or_missing_joint_names_fault(rig, names, says):
     assert rig.last_status()[0].level == OK
     np.testing.assert_allclose(wrench_of(rig.got["wrench"][-1]), rig.expected(4.0), atol=1e-12)
     assert rig.dut.monitor.rejected == {"joint_names": 1}
+
+
+def test_joints_beyond_joint_names_are_ignored_and_said_once(rig):
+    """A robot's /joint_states with a gripper's (or another arm's) joints among the arm's:
+    the arm's are taken by name, the others ignored; a warning names them once, on
+    /diagnostics too."""
+    names = ["gripper_finger_joint", *reversed(NAMES), "torso_joint"]
+    rig.step(0.005, w=2.0, names=names)
+    rig.step(0.006, w=3.0, names=names)
+    assert not rig.dut.monitor.fault and not rig.dut.monitor.rejected
+    np.testing.assert_array_equal(rig.dut.monitor.joint_state[:N], rig.q)
+    np.testing.assert_allclose(wrench_of(rig.got["wrench"][-1]), rig.expected(3.0), atol=1e-12)
+    said = [w for w in rig.dut.warnings if "ignored" in w]
+    assert said == [("joint states also carry ['gripper_finger_joint', 'torso_joint'], not in "
+                     "ros2.joint_names: ignored (the model's joints are taken from them by "
+                     "name)")]
+    assert any("torso_joint" in status.message for message in rig.got["diagnostics"]
+               for status in message.status)
 
 
 def test_time_going_back_and_nan(rig):
