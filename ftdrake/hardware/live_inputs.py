@@ -51,7 +51,8 @@ from .messages import JointSample, WrenchSample
 #: Reasons a message is rejected or the inputs are faulted. ``unpaired`` (robot_state only)
 #: counts a position or velocity message that never met its partner; it is not a fault by
 #: itself (nothing stale is used; a silent pair stream faults by timeout). ``joint_names``
-#: (joint states by name, ROS 2): a configured joint missing or an unknown one present.
+#: (joint states by name, ROS 2): a configured joint missing or named twice (joints beyond
+#: them are ignored).
 #: ``degrees`` / ``joint_range``: joint positions radians cannot be (live_checks.JointBounds);
 #: ``wrong_type``: a message of another type on an input channel or topic; ``frame_id``: a
 #: wrench in another frame than the configured sensor frame (ROS 2); ``overload``: an F/T
