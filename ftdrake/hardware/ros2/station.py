@@ -127,6 +127,7 @@ class Ros2Station(StationCore):
             pin_process(c.cpu_affinity)
         self._index = {name: k for k, name in enumerate(c.joint_names)}
         self._ignored: list[str] = []  # joints of the messages not in joint_names
+        self.joint_states_ignored = 0  # messages naming none of joint_names (another device's)
         self._order = (None, None)  # (names of the last message, their permutation)
         self._header = None  # the wrench message being processed
         self._contact_due = False  # its wrench was published: contact and force follow
@@ -200,9 +201,12 @@ class Ros2Station(StationCore):
 
     # -- inputs -------------------------------------------------------------------------------
     def _permutation(self, names: list[str]):
-        """Indices of joint_names in the message's `names`, or a detail saying what is wrong."""
+        """Indices of joint_names in the message's `names`, a detail saying what is wrong, or
+        None for a message that names none of them."""
         if names == self._order[0]:
             return self._order[1]
+        if not any(n in self._index for n in names):
+            return None  # none of the model's joints: another device's state
         unknown = [n for n in names if n not in self._index]
         missing = [n for n in self.config.joint_names if n not in names]
         twice = [n for n in self.config.joint_names if names.count(n) > 1]
@@ -223,6 +227,13 @@ class Ros2Station(StationCore):
     def _on_joint(self, msg, arrival: float) -> None:
         names = list(msg.name)
         order = self._permutation(names)
+        if order is None:  # a gripper driver's own JointState on the same topic: not ours
+            self.joint_states_ignored += 1
+            if self.joint_states_ignored == 1:
+                self.warn(f"joint states that name none of ros2.joint_names arrive on "
+                          f"{self.config.joint_state_topic} (e.g. {names}): ignored, as "
+                          "another device's (the summary counts them)")
+            return
         if isinstance(order, str):
             self.monitor.reject_joint("joint_names", order)
             self._note(None)
@@ -236,6 +247,11 @@ class Ros2Station(StationCore):
             return
         self.on_joint_sample(JointSample(from_stamp(msg.header.stamp), q[order],
                                          v[order] if len(v) else None, None), arrival)
+
+    def summary(self) -> dict:
+        """StationCore's counts, and ``joint_states_ignored``: joint-state messages that
+        named none of ``joint_names`` (another device's, not used)."""
+        return {**super().summary(), "joint_states_ignored": self.joint_states_ignored}
 
     def _on_wrench(self, msg, arrival: float) -> None:
         self._header = msg.header

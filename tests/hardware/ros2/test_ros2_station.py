@@ -207,6 +207,20 @@ def test_joints_beyond_joint_names_are_ignored_and_said_once(rig):
                for status in message.status)
 
 
+def test_another_devices_joint_states_on_the_topic_are_ignored(rig):
+    """A gripper driver publishing its own JointState on /joint_states beside the arm's:
+    its messages name none of joint_names and are ignored (counted, said once), not a
+    fault between two of the arm's."""
+    for k in (5, 6, 7):
+        rig.joint(0.001 * k - 0.0005, names=["gripper_finger_joint"])
+        rig.step(0.001 * k, w=2.0)
+    assert not rig.dut.monitor.fault and not rig.dut.monitor.rejected
+    assert published_times(rig) == [0, 1, 2, 3, 4, 5, 6, 7]
+    assert rig.dut.summary()["joint_states_ignored"] == 3
+    said = [w for w in rig.dut.warnings if "name none of ros2.joint_names" in w]
+    assert len(said) == 1 and "gripper_finger_joint" in said[0]
+
+
 def test_time_going_back_and_nan(rig):
     rig.step(0.002, w=9.0, joint=False)  # F/T back in time: 2 ms < 4 ms
     assert rig.dut.monitor.reason == "out_of_order"
