@@ -63,9 +63,30 @@ get_entity_sertype = _function("dds_get_entity_sertype", c_int32, c_int32, c_uin
 
 
 @numba.njit(nogil=True, cache=False)
-def _write(writer, sertype, data, size, iov) -> int:
+def write_bytes(writer, sertype, data, size, iov) -> int:
+    """Writes the `size` CDR bytes at address `data` on `writer` (its type `sertype`);
+    Cyclone's return code (0: written)."""
     iov[0], iov[1] = data, size
     return writecdr(writer, serdata_from_ser_iov(sertype, SDK_DATA, 1, iov.ctypes.data, size))
+
+
+@numba.njit(nogil=True, cache=False)
+def take(reader, mask, samples, infos) -> int:
+    """Takes the reader's samples as serialised data into `samples` (their infos into
+    `infos`); how many (0 on an error)."""
+    return max(takecdr(reader, samples.ctypes.data, samples.shape[0], infos.ctypes.data,
+                       mask), 0)
+
+
+@numba.njit(nogil=True, cache=False)
+def serialized(sample, data) -> int:
+    """A taken sample's CDR bytes into `data`; their size, or -1 when they do not fit (then
+    nothing is read: the caller counts it as an error)."""
+    size = serdata_size(sample)
+    if size > data.shape[0]:
+        return -1
+    serdata_to_ser(sample, 0, size, data.ctypes.data)
+    return size
 
 
 @numba.njit(nogil=True, cache=False)
@@ -73,23 +94,23 @@ def echo_rounds(entities, sertypes, mask, samples, infos, data, iov, contact, co
                 rounds, timeout_ns) -> None:
     """`rounds` wake-ups: entities = [wait set, wrench reader, joint reader, wrench writer,
     contact writer], sertypes = [wrench writer's, contact writer's]; counts [wrenches,
-    joint states, write errors] += what was handled."""
+    joint states, errors (a write that failed, a sample too large to read)] += what was
+    handled."""
     for _ in range(rounds):
         waitset_wait(entities[0], 0, 0, timeout_ns)
         for slot in (2, 1):  # the joint states first, as the station's spin
-            taken = takecdr(entities[slot], samples.ctypes.data, samples.shape[0],
-                            infos.ctypes.data, mask)
-            for i in range(max(taken, 0)):
+            for i in range(take(entities[slot], mask, samples, infos)):
                 if infos[i * INFO_BYTES + VALID_DATA]:
                     if slot == 2:
                         counts[1] += 1
+                    elif (size := serialized(samples[i], data)) < 0:
+                        counts[2] += 1
                     else:
-                        size = min(serdata_size(samples[i]), data.shape[0])  # ours: < 200
-                        serdata_to_ser(samples[i], 0, size, data.ctypes.data)
-                        counts[2] += _write(entities[3], sertypes[0], data.ctypes.data, size,
-                                            iov) != 0
-                        counts[2] += _write(entities[4], sertypes[1], contact.ctypes.data,
-                                            contact.shape[0], iov) != 0
+                        counts[2] += write_bytes(entities[3], sertypes[0], data.ctypes.data,
+                                                 size, iov) != 0
+                        counts[2] += write_bytes(entities[4], sertypes[1],
+                                                 contact.ctypes.data, contact.shape[0],
+                                                 iov) != 0
                         counts[0] += 1
                 serdata_unref(samples[i])
 
@@ -116,8 +137,9 @@ def compiled_spin(node, wrench_reader, joint_reader, wrench_writer, contact_writ
     infos = np.zeros(MAX_SAMPLES * INFO_BYTES, dtype=np.uint8)
     data = np.zeros(4096, dtype=np.uint8)
     iov = np.zeros(2, dtype=np.uint64)
-    # std_msgs/Bool false: CDR little-endian header, then the byte (padded to 4).
-    contact = np.array([0, 1, 0, 0, 0, 0, 0, 0], dtype=np.uint8)[:5]
+    # std_msgs/Bool false: CDR little-endian header, then the byte padded to 4, as
+    # ftdrake's ValueWriter sends it.
+    contact = np.array([0, 1, 0, 0, 0, 0, 0, 0], dtype=np.uint8)
     compiled = np.zeros(3, dtype=np.int64)
 
     def spin() -> None:
@@ -125,7 +147,7 @@ def compiled_spin(node, wrench_reader, joint_reader, wrench_writer, contact_writ
                     20, 2_000_000)
         counts["ft"], counts["joint"] = int(compiled[0]), int(compiled[1])
         if compiled[2]:
-            raise RuntimeError(f"{compiled[2]} writes failed")
+            raise RuntimeError(f"{compiled[2]} writes failed or samples did not fit")
 
     spin()  # compiles
     return spin

@@ -29,16 +29,13 @@ import numpy as np
 from compiled_echo import (
     INFO_BYTES,
     MAX_SAMPLES,
-    SDK_DATA,
     VALID_DATA,
-    serdata_from_ser_iov,
-    serdata_size,
-    serdata_to_ser,
     serdata_unref,
+    serialized,
     sertype_of,
-    takecdr,
+    take,
     waitset_wait,
-    writecdr,
+    write_bytes,
 )
 
 from ftdrake.compensation.compiled.loop import FAULT, FAULT_CHANGED, OOD, OOD_CHANGED
@@ -91,19 +88,17 @@ def read_joint_state(buf, n, x, scratch) -> bool:
     return True
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=False)  # it calls Cyclone's C functions (their addresses)
 def write_wrench(writer, sertype, head, head_size, out, values, iov, scratch) -> int:
     """A WrenchStamped with the input's header bytes (`head`) and `values` (6)."""
     out[:head_size] = head[:head_size]
     for i in range(6):
         scratch.view(np.float64)[0] = values[i]
         out[head_size + 8 * i:head_size + 8 * i + 8] = scratch
-    size = head_size + 48
-    iov[0], iov[1] = out.ctypes.data, size
-    return writecdr(writer, serdata_from_ser_iov(sertype, SDK_DATA, 1, iov.ctypes.data, size))
+    return write_bytes(writer, sertype, out.ctypes.data, head_size + 48, iov)
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=False)  # it calls Cyclone's C functions (their addresses)
 def write_value(writer, sertype, out, value, is_bool, iov, scratch) -> int:
     """A std_msgs Bool (padded to 8 bytes, as ftdrake's writer sends) or Float64."""
     out[0], out[1], out[2], out[3] = 0, 1, 0, 0  # CDR, little-endian
@@ -113,9 +108,7 @@ def write_value(writer, sertype, out, value, is_bool, iov, scratch) -> int:
     else:
         scratch.view(np.float64)[0] = value
         out[4:12] = scratch
-    size = 8 if is_bool else 12
-    iov[0], iov[1] = out.ctypes.data, size
-    return writecdr(writer, serdata_from_ser_iov(sertype, SDK_DATA, 1, iov.ctypes.data, size))
+    return write_bytes(writer, sertype, out.ctypes.data, 8 if is_bool else 12, iov)
 
 
 @numba.njit(cache=True)
@@ -139,7 +132,7 @@ def _detect_and_track(t, detector, tracker, comp) -> None:
                  noise_std, prior_std, corrected, bias, payload, inertia, tracking, tracker_std)
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=False)  # it writes through Cyclone (write_value, write_wrench)
 def _write_outputs(entities, sertypes, data, head, out, iov, scratch, detector, tracker,
                    comp) -> int:
     """serve's five outputs; the number of writes that failed."""
@@ -197,13 +190,11 @@ def make_loop(update):
         for _ in range(rounds):
             waitset_wait(entities[0], 0, 0, timeout_ns)
             for slot in (2, 1):  # the joint states first
-                taken = takecdr(entities[slot], samples.ctypes.data, samples.shape[0],
-                                infos.ctypes.data, mask)
-                for i in range(max(taken, 0)):
+                for i in range(take(entities[slot], mask, samples, infos)):
                     if infos[i * INFO_BYTES + VALID_DATA]:
-                        size = min(serdata_size(samples[i]), data.shape[0])
-                        serdata_to_ser(samples[i], 0, size, data.ctypes.data)
-                        if slot == 2:
+                        if serialized(samples[i], data) < 0:
+                            counts[2] += 1
+                        elif slot == 2:
                             counts[1] += read_joint_state(data, n, x, scratch)
                         else:
                             on_wrench(data, out, iov, scratch, x, wrench, entities, sertypes,
@@ -261,7 +252,7 @@ def chain_spin(node, model_path, wrench_reader, joint_reader, writers, counts):
              compiled, rounds, 2_000_000)
         counts["ft"], counts["joint"] = int(compiled[0]), int(compiled[1])
         if compiled[2]:
-            raise RuntimeError(f"{compiled[2]} writes failed")
+            raise RuntimeError(f"{compiled[2]} writes failed or samples did not fit")
 
     spin(0)  # compiles
     return spin
