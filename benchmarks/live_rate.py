@@ -54,8 +54,12 @@ what the chain's update costs live; it minus the floor, the rest of ftdrake's wo
 starts ``transport_echo.py`` instead of serve: the wrench
 echoed back with a contact flag on the same transport, the least a Python process does per
 message there (ROS 2: `--echo listener` takes the messages on Cyclone's receive thread
-instead of waking the main thread). `--cpu-affinity` sets serve's ``cpu_affinity`` (all
-its threads on those CPUs); `--driver-cpus` keeps this process, the driver, on others.
+instead of waking the main thread; `--echo compiled` runs its loop compiled,
+``compiled_echo.py``: the least a compiled path costs). `--python-path` runs serve on ROS 2
+with ``compiled_path: false``: every message through the Python path, to compare with the
+compiled one (serve's summary says how many messages each path took). `--cpu-affinity`
+sets serve's ``cpu_affinity`` (all its threads on those CPUs); `--driver-cpus` keeps this
+process, the driver, on others.
 `--phases` splits serve's main thread by phase (``serve_phases.py``: the wait, the receive,
 the joint-state and F/T callbacks, each output's write, the loop around them; µs per F/T
 message over the timed messages, timed with the thread's clock, whose readings make each
@@ -73,7 +77,8 @@ machine the rates a run sustains depend on what else runs. The last line is one 
                                    [--outputs wrench_contact,contact]
                                    [--separate-outputs] [--no-yield-io-threads] [--floor]
                                    [--no-chain]
-                                   [--echo [wait|listener]] [--cpu-affinity 1]
+                                   [--echo [wait|listener|compiled]] [--python-path]
+                                   [--cpu-affinity 1]
                                    [--driver-cpus 0] [--joint-every 2] [--perf DIR]
 
 The issue's soaks (long: run them on an otherwise idle machine)::
@@ -371,8 +376,8 @@ def echo_command(kind, port, keys: dict, delivery: str, model: Path) -> list:
     if kind is LcmDriver:
         return [sys.executable, script, "lcm", kind.flags(port)[1],
                 *([keys["output_url"]] if "output_url" in keys else [])]
-    return [sys.executable, script, "ros2", str(DOMAIN), delivery,
-            *([str(model)] if delivery == "chain" else [])]
+    del model  # the echo has no chain
+    return [sys.executable, script, "ros2", str(DOMAIN), delivery]
 
 
 def cpu_list(text: str) -> str:
@@ -396,6 +401,8 @@ def serve_keys(args, kind, port) -> dict:
         keys["output_url"] = kind.output_url(port)
     if args.cpu_affinity:
         keys["cpu_affinity"] = [int(cpu) for cpu in args.cpu_affinity.split(",")]
+    if args.python_path and kind is not LcmDriver:
+        keys["compiled_path"] = False
     return keys
 
 
@@ -526,6 +533,9 @@ def run_one(model, name, rate, data, names, args, folder: Path) -> dict:
             "yield_io_threads": int(not args.no_yield_io_threads),
             "separate_outputs": int(args.separate_outputs and kind is LcmDriver),
             "floor": int(args.floor), "no_chain": int(args.no_chain), "echo": args.echo,
+            # ROS 2: whether serve's compiled per-message path ran, the messages it handled
+            # and those it handed to the Python path (serve's summary).
+            "compiled_path": summary.get("compiled_path"),
             "cpu_affinity": args.cpu_affinity, "driver_cpus": args.driver_cpus,
             "phases": (json.loads((folder / "phases.json").read_text()) if args.phases
                        else None),
@@ -555,7 +565,7 @@ def refuse_combinations(parser, args) -> None:
     if args.echo and ignored:
         parser.error(f"--echo replaces serve (two outputs, receive threads yielding): "
                      f"{', '.join(ignored)} would be ignored")
-    if args.echo in ("listener", "compiled", "chain") and args.transport != "ros2":
+    if args.echo in ("listener", "compiled") and args.transport != "ros2":
         parser.error(f"--echo {args.echo}: a Cyclone DDS delivery, only with --transport ros2")
 
 
@@ -596,12 +606,14 @@ def main() -> None:
                         help="serve as always but for the chain's update (chain_held.py): "
                              "what the update costs live, by difference")
     parser.add_argument("--echo", nargs="?", const="wait", default="",
-                        choices=("wait", "listener", "compiled", "chain"),
+                        choices=("wait", "listener", "compiled"),
                         help="transport_echo.py in serve's place: the least a Python process "
                              "does per message on the transport (ROS 2: 'listener' takes "
                              "each message on Cyclone's receive thread; 'compiled' runs the "
-                             "loop compiled, compiled_echo.py; 'chain' that loop with the "
-                             "chain's update, compiled_serve.py)")
+                             "loop compiled, compiled_echo.py)")
+    parser.add_argument("--python-path", action="store_true",
+                        help="ROS 2: serve with ros2.compiled_path false (every message in "
+                             "Python), to compare with its compiled path")
     parser.add_argument("--phases", action="store_true",
                         help="serve's main thread split by phase (serve_phases.py), µs per "
                              "F/T message")
@@ -653,7 +665,8 @@ def run_all(args, makers, X, W, replay, names) -> dict:
             row["compensator_us"] = costs[name]
             row["cpu_ratio_to_compensator"] = row["cpu_us_per_msg"] / costs[name]
             results.setdefault(f"{rate:g}", {})[name] = row
-            what = "FLOOR " * args.floor + "NO CHAIN " * args.no_chain + "ECHO " * bool(args.echo)
+            what = ("FLOOR " * args.floor + "NO CHAIN " * args.no_chain
+                    + "ECHO " * bool(args.echo) + "PYTHON PATH " * args.python_path)
             print(f"{args.transport} {rate:6.0f} Hz {name:<8} {what}"
                   f"sent {row['sent']:>7} received {row['received']:>7} "
                   f"processed {row['processed']:>7} "
@@ -673,6 +686,8 @@ def run_all(args, makers, X, W, replay, names) -> dict:
                   f"episodes {row['fault_episodes'] or 'none'}", flush=True)
             for warning in row["warnings"]:
                 print(f"  serve warned: {warning}", flush=True)
+            if row["compiled_path"]:
+                print(f"  serve's compiled path: {row['compiled_path']}", flush=True)
             if row["cpu_by_library"]:
                 print_by_library(row["cpu_by_library"], row["cpu_us_per_msg"])
             if row["phases"]:

@@ -10,14 +10,12 @@ transport's receive and send, on the same channels or topics, QoS, receive threa
 
     python benchmarks/transport_echo.py lcm URL [OUTPUT_URL]
     python benchmarks/transport_echo.py ros2 DOMAIN wait|listener|compiled
-    python benchmarks/transport_echo.py ros2 DOMAIN chain MODEL
 
 ``wait``: the ROS 2 station's own delivery (``Ros2Node.spin`` in the main thread, woken by
 a wait set); ``listener``: Cyclone DDS hands each reader's data to a callback on its own
 receive thread (no wake-up of another thread; the main thread sleeps); ``compiled``: the
 main thread's loop compiled (``compiled_echo.py``: the least a compiled per-message path
-would cost); ``chain``: that loop with the chain's update and serve's five outputs
-(``compiled_serve.py``, a prototype of serve's path compiled). It prints
+costs, to set against serve's own compiled path). It prints
 ``out: ready`` on stderr once listening and, after SIGINT, one JSON line with the counts
 in the keys of serve's summary that ``live_rate.py`` reads.
 """
@@ -61,7 +59,7 @@ def lcm_echo(url: str, output_url: str | None, counts: dict):
     return (lambda: lc.handle(2)), (lc, out)
 
 
-def ros2_echo(domain: int, delivery: str, counts: dict, model: str | None = None):
+def ros2_echo(domain: int, delivery: str, counts: dict):
     """Readers and writers on the default topics of `domain`; returns the function that
     handles what arrived (``wait``), or that sleeps while the listeners do (``listener``),
     and the node (to keep: its participant closes with it)."""
@@ -98,15 +96,6 @@ def ros2_echo(domain: int, delivery: str, counts: dict, model: str | None = None
                        read=read)
     if delivery == "wait":
         return (lambda: node.spin(2)), node
-    if delivery == "chain":  # compiled_serve.py, beside this file: serve's five outputs
-        from compiled_serve import chain_spin
-
-        outputs = [node.publisher(config.output_topic(name), msgtype) for name, msgtype in (
-            ("wrench_compensated", "geometry_msgs/msg/WrenchStamped"),
-            ("bias", "geometry_msgs/msg/WrenchStamped"),
-            ("contact_force", "std_msgs/msg/Float64"))]
-        return chain_spin(node, model, *node._readers, [outputs[0], writers[0], outputs[1],
-                                                        writers[1], outputs[2]], counts), node
     if delivery == "compiled":  # compiled_echo.py, beside this file
         from compiled_echo import compiled_spin
 
@@ -137,7 +126,7 @@ def main(argv: list[str]) -> None:
         if argv[0] == "lcm":
             spin, _kept = lcm_echo(argv[1], argv[2] if len(argv) > 2 else None, counts)
         else:
-            spin, _kept = ros2_echo(int(argv[1]), argv[2], counts, *argv[3:4])
+            spin, _kept = ros2_echo(int(argv[1]), argv[2], counts)
     receivers.yield_to_caller()
     stop = [False]
     signal.signal(signal.SIGINT, lambda *_: stop.__setitem__(0, True))

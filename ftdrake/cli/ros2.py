@@ -90,9 +90,12 @@ def serve(args) -> int:
             model = load_model(args.model)  # its joints against ros2.joint_names: the station's
         station = Ros2Station(config, model, live.chain, on_event=on_event,
                               on_warning=on_warning)
+    compiled = station.compiled
+    path = (f"compiled (ready in {compiled.compile_s:.1f} s)" if compiled.why_not is None
+            else f"Python ({compiled.why_not})")
     print(f"ftdrake serve: {type(model).__name__} from {args.model}, "
-          f"{1 / station.period:g} Hz updates\n{describe_topics(config)}",
-          file=sys.stderr, flush=True)
+          f"{1 / station.period:g} Hz updates, per-message path: {path}\n"
+          f"{describe_topics(config)}", file=sys.stderr, flush=True)
     summary = serve_until_stopped(station, args.duration, args.quiet,
                                   before_summary=lambda: station.node.wait_for_acks(1.0))
     summary["diagnostics_published"] = station.diagnostics_published

@@ -101,6 +101,11 @@ class Ros2Config:
       on LCM); > 0 holds them that long and hands them over in publication order, so a joint
       state retransmitted after a lost datagram still precedes the wrench published after it
       (DDS keeps each topic in order, not the two topics together); adds that much latency.
+    `compiled_path`: the per-message work (take, checks, chain update, publish) runs in one
+      compiled loop whenever the station is in its ordinary state, and in Python otherwise,
+      with the same results (:mod:`ftdrake.hardware.ros2.fast`); false: always in Python.
+      Used only where it applies (the summary's ``compiled_path`` says whether and why
+      not); the first start compiles it (tens of seconds), later starts load it.
     DDS: `domain_id` is ROS_DOMAIN_ID; `dds_config` is ``loopback`` (this machine only),
       ``environment`` (CYCLONEDDS_URI or Cyclone's defaults, as a ROS 2 node has) or a
       Cyclone XML / ``file://`` URL (:mod:`ftdrake.hardware.ros2.dds`).
@@ -135,6 +140,7 @@ class Ros2Config:
     cpu_affinity: list[int] = dc.field(default_factory=list)
     pair_tolerance_s: float = 0.005
     reorder_window_s: float = 0.0
+    compiled_path: bool = True
     domain_id: int = 0
     dds_config: str = "loopback"
 
@@ -154,6 +160,9 @@ class Ros2Config:
         check_outputs(self.outputs, f"{where}.outputs")
         check_batch_period(self.batch_period_s, self.max_backlog_s, where)
         check_yield_io_threads(self.yield_io_threads, where)
+        if not isinstance(self.compiled_path, bool):
+            raise ConfigError(f"{where}.compiled_path: true or false, got "
+                              f"{self.compiled_path!r}")
         check_cpu_affinity(self.cpu_affinity, where)
         if not isinstance(self.wrench_frame_id, str):
             raise ConfigError(f"{where}.wrench_frame_id: the sensor frame's name (a string; "

@@ -28,6 +28,13 @@ Python entry point::
     while running:
         station.spin_once(timeout_ms=2)
 
+Per message the work is done by a compiled loop whenever the station is in its ordinary
+state (:class:`~ftdrake.hardware.ros2.fast.path.CompiledPath`: Cyclone's C take and write,
+the CDR, the checks, the chain's update and the outputs in one call without the GIL), and
+by the Python path above otherwise; anything unusual in a message goes to the Python path,
+so the two publish and count the same (``ros2.compiled_path``; ``summary()["compiled_path"]``
+says whether it runs and why not).
+
 ``ftdrake serve --ros2`` runs exactly this (:mod:`ftdrake.cli.ros2`). See
 :class:`~ftdrake.hardware.ros2.config.Ros2Config` for the topics and their types.
 """
@@ -50,6 +57,7 @@ from .cdr import JointStateReader
 from .cdr import wrench_stamped as read_wrench_stamped
 from .config import OUTPUTS, Ros2Config
 from .dds import Ros2Node, dds_topic
+from .fast.path import BUDGET_S, CompiledPath
 from .messages import from_stamp, header, ros2_type, wrench_of
 from .packing import ValueWriter, WrenchWriter
 
@@ -131,15 +139,7 @@ class Ros2Station(StationCore):
         self._order = (None, None)  # (names of the last message, their permutation)
         self._header = None  # the wrench message being processed
         self._contact_due = False  # its wrench was published: contact and force follow
-        self._writers = {name: self.node.publisher(c.output_topic(name), msgtype,
-                                                   depth=c.queue_depth)
-                         for name, msgtype in OUTPUTS.items()
-                         if self.has_output(name) and name in c.outputs}
-        # The per-sample outputs packed (ros2/packing.py): wrenches, contact, contact force.
-        self._wrench_out = [(name, WrenchWriter(self._writers[name])) for name in WRENCH_TOPICS
-                            if name in self._writers]
-        self._value_out = {name: ValueWriter(self._writers[name], kind) for name, kind in (
-            ("contact", "bool"), ("contact_force", "float64")) if name in self._writers}
+        self._open_writers(c)
         self._diagnostics = self.node.publisher(c.diagnostics_topic,
                                                 "diagnostic_msgs/msg/DiagnosticArray")
         self._types = {name: ros2_type(msgtype) for name, msgtype in (
@@ -182,6 +182,20 @@ class Ros2Station(StationCore):
         self._last_type_check = -np.inf
         if names is not None:
             self.warn(names[0])
+        # Last: it reads the node's readers and writers and the station's state.
+        self.compiled = CompiledPath(self, 0.0 if c.batch_period_s > 0 else BUDGET_S)
+
+    def _open_writers(self, c: Ros2Config) -> None:
+        """The outputs' writers; the per-sample ones packed (ros2/packing.py): wrenches,
+        contact, contact force."""
+        self._writers = {name: self.node.publisher(c.output_topic(name), msgtype,
+                                                   depth=c.queue_depth)
+                         for name, msgtype in OUTPUTS.items()
+                         if self.has_output(name) and name in c.outputs}
+        self._wrench_out = [(name, WrenchWriter(self._writers[name])) for name in WRENCH_TOPICS
+                            if name in self._writers]
+        self._value_out = {name: ValueWriter(self._writers[name], kind) for name, kind in (
+            ("contact", "bool"), ("contact_force", "float64")) if name in self._writers}
 
     def _check_sources(self, chain) -> None:
         c = self.config
@@ -251,7 +265,8 @@ class Ros2Station(StationCore):
     def summary(self) -> dict:
         """StationCore's counts, and ``joint_states_ignored``: joint-state messages that
         named none of ``joint_names`` (another device's, not used)."""
-        return {**super().summary(), "joint_states_ignored": self.joint_states_ignored}
+        return {**super().summary(), "joint_states_ignored": self.joint_states_ignored,
+                "compiled_path": self.compiled.summary()}
 
     def _on_wrench(self, msg, arrival: float) -> None:
         self._header = msg.header
@@ -389,7 +404,10 @@ class Ros2Station(StationCore):
         """Handles the messages that arrived (waiting up to `timeout_ms` for one), checks the
         timeouts (a silent stream's fault is published at once), and publishes the periodic
         diagnostics. Returns the number of messages handled."""
-        handled = self.node.spin(timeout_ms)
+        if self.compiled.why_not is None and self.compiled.ready():
+            handled = self.compiled.spin(timeout_ms)
+        else:
+            handled = self.node.spin(timeout_ms)
         self.check_timeouts()
         now = self.clock()
         if (self.monitor.last_time("ft") is None or self.monitor.last_time("joint") is None) \
