@@ -91,8 +91,15 @@ def serve(args) -> int:
         station = Ros2Station(config, model, live.chain, on_event=on_event,
                               on_warning=on_warning)
     compiled = station.compiled
-    path = (f"compiled (ready in {compiled.compile_s:.1f} s)" if compiled.why_not is None
-            else f"Python ({compiled.why_not})")
+    if compiled.why_not is not None:
+        path = f"Python ({compiled.why_not})"
+    elif compiled.compile_s is None:  # loading or compiling in a process of its own
+        path = "Python until the compiled one is loaded"
+        compiled.on_ready = lambda done: print(
+            f"ftdrake serve: per-message path: compiled, ready {done.compile_s:.1f} s after "
+            f"start (loaded in {done.load_s:.2f} s)", file=sys.stderr, flush=True)
+    else:
+        path = "compiled"
     print(f"ftdrake serve: {type(model).__name__} from {args.model}, "
           f"{1 / station.period:g} Hz updates, per-message path: {path}\n"
           f"{describe_topics(config)}", file=sys.stderr, flush=True)

@@ -397,7 +397,8 @@ class Ros2Station(StationCore):
 
     # -- running ------------------------------------------------------------------------------
     def close(self) -> None:
-        """Leaves DDS (deletes the node's participant)."""
+        """Leaves DDS (deletes the node's participant); stops a compile still running."""
+        self.compiled.close()
         self.node.close()
 
     def spin_once(self, timeout_ms: float = 1) -> int:

@@ -71,7 +71,9 @@ def station(model, compiled: bool, **config):
                         output_namespace=f"/ft_{os.getpid()}_{int(compiled)}",
                         sensor_timeout_s=5.0, joint_state_timeout_s=5.0, max_backlog_s=100.0,
                         **config)
-    return Ros2Station(config, model, ChainConfig())
+    dut = Ros2Station(config, model, ChainConfig())
+    dut.compiled.wait()
+    return dut
 
 
 class Twin:
@@ -284,3 +286,27 @@ def test_where_the_compiled_path_does_not_apply_it_says_why():
         dut.close()
     with pytest.raises(ConfigError, match=r"ros2\.compiled_path: true or false"):
         Ros2Config(joint_names=list(NAMES), compiled_path="yes").validate()
+
+
+def test_the_loop_is_compiled_in_a_process_of_its_own_and_a_failure_there_is_said(
+        monkeypatch):
+    """While the loop compiles (or loads) in its own process the station serves in Python;
+    once it is done the loop is loaded here. A compile that fails keeps the Python path and
+    says why, as a warning."""
+    dut = station(forest(), True)
+    try:
+        assert dut.compiled._loaded and dut.compiled.compile_s > 0
+        assert dut.summary()["compiled_path"]["ready_after_s"] == dut.compiled.compile_s
+    finally:
+        dut.close()
+    monkeypatch.setattr("ftdrake.hardware.ros2.fast.path.sys.executable", "/bin/false")
+    config = Ros2Config(joint_names=list(NAMES), domain_id=DOMAIN)
+    dut = Ros2Station(config, forest(), ChainConfig())
+    try:
+        assert not dut.compiled.ready()  # compiling meanwhile: the Python path serves
+        assert not dut.compiled.wait()
+        assert dut.compiled.why_not == "compiling it failed (exit 1: no message)"
+        assert any("compiled per-message path is not used" in w for w in dut.warnings)
+        dut.spin_once(0)  # the Python path
+    finally:
+        dut.close()

@@ -22,9 +22,16 @@ chain the compiled update does not cover (:func:`.chain.chain_problem`).
 
 from __future__ import annotations
 
+import os
+import pickle
+import shutil
 import struct
+import subprocess
+import sys
+import tempfile
 import time
 
+import numba
 import numpy as np
 
 from ...overload import WINDOW
@@ -55,16 +62,23 @@ _SOURCES = {"wrench_compensated": 0, "wrench_contact": 1, "bias": 2, "contact": 
 class CompiledPath:
     """The compiled per-message path of a :class:`~ftdrake.hardware.ros2.station.Ros2Station`
     (see the module). `budget_s`: s per call (0: one pass over what has arrived, for
-    ``batch_period_s``)."""
+    ``batch_period_s``). `background`: the loop is compiled (first start after an install:
+    tens of seconds) or loaded from numba's cache in a process of its own
+    (:mod:`.warm`), the station's Python path serving meanwhile, and loaded here once that
+    is done; False: here and now, before the station serves."""
 
-    def __init__(self, station, budget_s: float = BUDGET_S):
+    def __init__(self, station, budget_s: float = BUDGET_S, background: bool = True):
         self.station = station
         self.budget_s = float(budget_s)
         self.calls = self.handed_back = self.loop_messages = 0
-        self.compile_s = 0.0  # s the loop took to compile or load at start
+        self.compile_s = None  # s from start until the loop was loaded (None: not yet)
+        self.load_s = None  # s the load took in this process
+        self.on_ready = None  # called with this path once the loop is loaded
+        self._child = None
+        self._loaded = False
         self.why_not = self._problem()
         if self.why_not is None:
-            self._build()
+            self._build(background)
         self.calls = 0
 
     # -- whether ------------------------------------------------------------------------------
@@ -93,7 +107,10 @@ class CompiledPath:
         return None
 
     def ready(self) -> bool:
-        """Whether the station is in the state the compiled loop handles (the module)."""
+        """Whether the loop is loaded and the station is in the state it handles (the
+        module)."""
+        if not self._loaded and not self._compiled_meanwhile():
+            return False
         s = self.station
         m, load = s.monitor, s.load
         return not (m.fault or s._settling or s.node._pending or load.overloaded
@@ -105,7 +122,7 @@ class CompiledPath:
                     or self._outputs_for(s._header.frame_id) is None)
 
     # -- building -----------------------------------------------------------------------------
-    def _build(self) -> None:
+    def _build(self, background: bool) -> None:
         from cyclonedds.core import InstanceState, SampleState, ViewState  # noqa: PLC0415
 
         s = self.station
@@ -137,9 +154,72 @@ class CompiledPath:
         self._x_new = np.zeros(2 * n)
         self._wrench_new = np.zeros(6)
         self._sertypes = {}
+        self._started = time.monotonic()
+        self._pack(self._f, self._k, 0.0, dry=True)
+        arguments = self._arguments(dry=True)
+        if background and _survives_pickling(arguments):
+            self._start_compiling(arguments)
+        else:
+            self._load()
+
+    def _load(self) -> None:
+        """The loop compiled, or loaded from numba's cache, in this process."""
         started = time.monotonic()
-        self._spin(dry=True)  # compiles the loop, or loads it from numba's cache
-        self.compile_s = time.monotonic() - started
+        self._spin(dry=True)
+        self.load_s = time.monotonic() - started  # the station's messages wait this long
+        self.compile_s = time.monotonic() - self._started
+        self._loaded = True
+        if self.on_ready is not None:
+            self.on_ready(self)
+
+    def _start_compiling(self, arguments) -> None:
+        """:mod:`.warm` in a process of its own, on the dry call's arguments (pickled)."""
+        self._folder = tempfile.mkdtemp(prefix="ftdrake_compile_")
+        path = os.path.join(self._folder, "arguments.pkl")
+        with open(path, "wb") as f:
+            pickle.dump(arguments, f)
+        self._child_err = open(os.path.join(self._folder, "stderr"), "w+b")  # noqa: SIM115
+        self._child = subprocess.Popen(
+            [sys.executable, "-m", "ftdrake.hardware.ros2.fast.warm", path],
+            stdout=subprocess.DEVNULL, stderr=self._child_err)
+
+    def _compiled_meanwhile(self) -> bool:
+        """Whether the process compiling the loop is done; then the loop is loaded here
+        (from the cache it wrote), or, when that process failed, the Python path kept and
+        said why."""
+        if self._child is None or self._child.poll() is None:
+            return False
+        code, self._child = self._child.returncode, None
+        self._child_err.seek(0)
+        err = self._child_err.read().decode(errors="replace").strip().splitlines()
+        self._child_err.close()
+        shutil.rmtree(self._folder, ignore_errors=True)
+        if code != 0:
+            self.why_not = (f"compiling it failed (exit {code}: "
+                            f"{err[-1] if err else 'no message'})")
+            self.station.warn(f"the compiled per-message path is not used: {self.why_not}; "
+                              "every message goes through the Python path")
+            return False
+        self._load()
+        return True
+
+    def wait(self, timeout_s: float = 300.0) -> bool:
+        """Blocks until the loop is loaded (or compiling it failed); whether it is."""
+        end = time.monotonic() + timeout_s
+        while self._child is not None and time.monotonic() < end:
+            if self._compiled_meanwhile():
+                break
+            time.sleep(0.05)
+        return self._loaded
+
+    def close(self) -> None:
+        """Stops a compile still running."""
+        if self._child is not None:
+            self._child.kill()
+            self._child.wait()
+            self._child = None
+            self._child_err.close()
+            shutil.rmtree(self._folder, ignore_errors=True)
 
     def _outputs_for(self, frame_id: str):
         """(expected frame bytes, the outputs tuple) for wrenches in `frame_id`; None when a
@@ -184,9 +264,12 @@ class CompiledPath:
 
     def summary(self) -> dict:
         """``used`` (whether the compiled loop runs when the station is in its ordinary
-        state), ``why_not`` (None, or why not), ``calls``, ``messages`` (those it handled)
-        and ``handed_back`` (those it gave to the Python path)."""
-        return {"used": self.why_not is None, "why_not": self.why_not, "calls": self.calls,
+        state), ``why_not`` (None, or why not), ``ready_after_s`` (s from the station's
+        start until the loop was loaded; None: not yet), ``load_s`` (s its load took in
+        this process: the messages waited that long), ``calls``, ``messages`` (those it
+        handled) and ``handed_back`` (those it gave to the Python path)."""
+        return {"used": self.why_not is None, "why_not": self.why_not,
+                "ready_after_s": self.compile_s, "load_s": self.load_s, "calls": self.calls,
                 "messages": self.loop_messages, "handed_back": self.handed_back}
 
     # -- running ------------------------------------------------------------------------------
@@ -205,21 +288,24 @@ class CompiledPath:
         return m.received["joint"] + m.received["ft"]
 
     def _spin(self, timeout_s: float = 0.0, dry: bool = False) -> None:
+        self._pack(self._f, self._k, timeout_s, dry)
+        run(self._c, *self._arguments(dry))
+        self.calls += 1
+        if not dry:
+            self._unpack(self._f, self._k)
+
+    def _arguments(self, dry: bool) -> tuple:
+        """:func:`.loop.run`'s arguments after the C functions."""
         s = self.station
-        f, k = self._f, self._k
-        self._pack(f, k, timeout_s, dry)
-        frame, outputs = (self._outputs_for(s._header.frame_id) if not dry
-                          else self._outputs_for(""))
+        frame, outputs = self._outputs_for("" if dry else s._header.frame_id)
         names, order, values = self._names_for_or_dummy(dry)
         joint = (names, order, self._x_new, values, self._limit, self._scratch,
                  s.monitor.joint_state)
         ft = (frame, self._wrench_new, self._scratch, s.monitor.wrench, s.monitor.joint_state,
               s._step._wrench, s._step._joint_state, self._chain_out)
-        run(self._c, s.node._waitset._ref, self._readers, self._mask, self._items, f, k,
-            joint, ft, self._rings, self._chain, outputs, self._buffers, self._take)
-        self.calls += 1
-        if not dry:
-            self._unpack(f, k)
+        return (s.node._waitset._ref, self._readers, self._mask, self._items, self._f,
+                self._k, joint, ft, self._rings, self._chain, outputs, self._buffers,
+                self._take)
 
     def _names_for_or_dummy(self, dry: bool):
         if dry:
@@ -323,3 +409,16 @@ class CompiledPath:
         self.handed_back += count
         return count
 
+
+
+def _numba_types(value):
+    if isinstance(value, tuple):
+        return tuple(_numba_types(v) for v in value)
+    return numba.typeof(value)
+
+
+def _survives_pickling(arguments) -> bool:
+    """Whether `arguments` have the same numba types after a pickle round trip (a
+    non-contiguous or read-only array would not: the process compiling them would then
+    compile another signature than this one loads)."""
+    return _numba_types(pickle.loads(pickle.dumps(arguments))) == _numba_types(arguments)
