@@ -65,13 +65,13 @@ def physics():
     return model.fit(X, Y + np.random.default_rng(1).normal(0, 0.02, Y.shape))
 
 
-def station(model, compiled: bool, **config):
+def station(model, compiled: bool, chain=None, **config):
     """A station on the real clock (the compiled path's), its own output namespace."""
     config = Ros2Config(joint_names=list(NAMES), domain_id=DOMAIN, compiled_path=compiled,
                         output_namespace=f"/ft_{os.getpid()}_{int(compiled)}",
                         sensor_timeout_s=5.0, joint_state_timeout_s=5.0, max_backlog_s=100.0,
                         **config)
-    dut = Ros2Station(config, model, ChainConfig())
+    dut = Ros2Station(config, model, chain or ChainConfig())
     dut.compiled.wait()
     return dut
 
@@ -79,8 +79,8 @@ def station(model, compiled: bool, **config):
 class Twin:
     """Two stations (compiled path on / off) on one driver's topics, a listener on both."""
 
-    def __init__(self, model):
-        self.on, self.off = station(model, True), station(model, False)
+    def __init__(self, model, chain):
+        self.on, self.off = station(model, True, chain), station(model, False, chain)
         self.driver = Ros2Node(DOMAIN)
         self.joints = self.driver.publisher("/joint_states", "sensor_msgs/msg/JointState",
                                             depth=5000)
@@ -90,6 +90,8 @@ class Twin:
         self.got = {}
         for dut in (self.on, self.off):
             for name, msgtype in OUTPUTS.items():
+                if not dut.has_output(name):
+                    continue
                 got = self.got[(dut.config.compiled_path, name)] = []
                 self.listener.subscribe(dut.config.output_topic(name), msgtype,
                                         lambda m, _a, got=got: got.append(m), depth=5000)
@@ -163,8 +165,11 @@ def drive(twin):
     twin.spin_all()
 
 
-def test_the_compiled_path_publishes_and_counts_as_the_python_path():
-    twin = Twin(forest())
+@pytest.mark.parametrize("tracker", [True, False], ids=["tracker on", "tracker off"])
+def test_the_compiled_path_publishes_and_counts_as_the_python_path(tracker):
+    chain = ChainConfig()
+    chain.bias_tracker.enabled = tracker
+    twin = Twin(forest(), chain)
     try:
         assert twin.on.compiled.why_not is None, twin.on.compiled.why_not
         assert twin.off.compiled.why_not == "ros2.compiled_path is false"
@@ -178,6 +183,8 @@ def test_the_compiled_path_publishes_and_counts_as_the_python_path():
         assert on["rejected"] == {"not_finite": 1, "out_of_order": 1, "joint_range": 1}
         assert on["processed"] > 1650
         for name in OUTPUTS:
+            if not twin.on.has_output(name):
+                continue
             got_on = [_values(m) for m in twin.got[(True, name)]]
             got_off = [_values(m) for m in twin.got[(False, name)]]
             assert got_on == got_off, name
@@ -195,15 +202,18 @@ def test_the_compiled_path_publishes_and_counts_as_the_python_path():
         twin.close()
 
 
-@pytest.mark.parametrize("make", [forest, physics], ids=["forest", "physics"])
-def test_the_compiled_chain_update_equals_the_chain_step(make):
+@pytest.mark.parametrize(("make", "tracker"), [(forest, True), (physics, True),
+                                               (physics, False)],
+                         ids=["forest", "physics", "physics, tracker off"])
+def test_the_compiled_chain_update_equals_the_chain_step(make, tracker):
     """Bit for bit, over free motion, a press and a NaN reading (faults included)."""
     model = make()
     n = model.n_joints_
+    chain = ChainConfig()
+    chain.bias_tracker.enabled = tracker
 
     def step():
-        return ChainStep(CompensationChain(model, ChainConfig(), n_joints=n,
-                                           gravity="joint_state"))
+        return ChainStep(CompensationChain(model, chain, n_joints=n, gravity="joint_state"))
 
     reference, dut = step(), step()
     arguments = step_arguments(dut)
@@ -277,11 +287,12 @@ def test_wrong_declarations_keep_the_python_path(monkeypatch):
 
 def test_where_the_compiled_path_does_not_apply_it_says_why():
     chain = ChainConfig()
-    chain.bias_tracker.enabled = False
+    chain.sensor.wrench_delay_s = 0.002
     config = Ros2Config(joint_names=list(NAMES), domain_id=DOMAIN)
     dut = Ros2Station(config, forest(), chain)
     try:
-        assert dut.compiled.why_not == "the bias tracker is off (chain.bias_tracker.enabled)"
+        assert dut.compiled.why_not == ("the wrench is delayed against the joint state "
+                                        "(chain.sensor.wrench_delay_s)")
     finally:
         dut.close()
     with pytest.raises(ConfigError, match=r"ros2\.compiled_path: true or false"):

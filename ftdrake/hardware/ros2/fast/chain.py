@@ -3,10 +3,11 @@ for one F/T sample, on the ChainStep's own arrays, from compiled code.
 
 Supported (:func:`chain_problem` says why not otherwise): a compensator with a fused loop
 update (the forest, the physics payload model, the hybrid; :data:`KINDS`), neither
-temperature nor IMU; the bias tracker on, without payload tracking (no joint-state gravity)
-and without the payload-change monitor; no wrench delay line. That is the default chain.
-The order is ChainStep's: the detector on the tracker's contact wrench from before the
-update, the tracker on the compensated wrench from before it, then the compensator
+temperature nor IMU; the bias tracker off, or on without payload tracking (no joint-state
+gravity) and without the payload-change monitor; no wrench delay line. The default chain
+is one. The order is ChainStep's: the detector on the tracker's contact wrench from before
+the update (without a tracker, on the compensated wrench), the tracker on the compensated
+wrench from before it, then the compensator
 (tests/hardware/ros2/test_fast_path.py checks the outputs equal ChainStep's, bit for bit).
 
 Which fused update runs is chosen at compile time by the type of a marker array
@@ -66,6 +67,14 @@ def _compensate(kind, wrench, x, no_accel, estimator, lo, hi,  # noqa: ARG001 (t
 
 
 @numba.njit(cache=True)
+def _judge(w, std, chi2, constants, flag, counter, force) -> None:
+    if chi2:
+        detect_chi2(w, std, constants, flag, counter, force)
+    else:
+        _detect(w, std, constants, flag, counter, force)
+
+
+@numba.njit(cache=True)
 def chain_update(t, wrench, x, kind, comp, arrays, detector, tracker) -> None:
     """One update at chain time `t` (s) with the inputs `wrench` (6) and `x` (2n) (already
     in the step's input arrays); `comp`, `detector`, `tracker`: :func:`step_arguments`."""
@@ -74,19 +83,19 @@ def chain_update(t, wrench, x, kind, comp, arrays, detector, tracker) -> None:
      no_std) = detector
     (flags, g, motion, n, payload_map, x_tracker, tracker_constants, steps, noise_std,
      prior_std, corrected, bias, payload, inertia, tracking, tracker_std) = tracker
-    flags[0] = flag[0]  # the detector's flag before it updates
-    if t >= arm_after:
-        judged = no_std
-        if uses_std:
-            judged = _in_quadrature(std, tracker_std, std_both)
-        if chi2:
-            detect_chi2(corrected, judged, det_constants, flag, counter, force)
-        else:
-            _detect(corrected, judged, det_constants, flag, counter, force)
-    flags[1], flags[2], flags[3], flags[4] = ood[0], max(fault[0], 0.0), 0.0, 0.0
-    track_sample(external, g, motion, flags, n, payload_map, x_tracker, tracker_constants,
-                 steps, noise_std, prior_std, corrected, bias, payload, inertia, tracking,
-                 tracker_std)
+    if n == 0:  # no tracker: the detector on the compensated wrench (ChainStep's)
+        if t >= arm_after:
+            _judge(external, std if uses_std else no_std, chi2, det_constants, flag, counter,
+                   force)
+    else:
+        flags[0] = flag[0]  # the detector's flag before it updates
+        if t >= arm_after:
+            judged = _in_quadrature(std, tracker_std, std_both) if uses_std else no_std
+            _judge(corrected, judged, chi2, det_constants, flag, counter, force)
+        flags[1], flags[2], flags[3], flags[4] = ood[0], max(fault[0], 0.0), 0.0, 0.0
+        track_sample(external, g, motion, flags, n, payload_map, x_tracker,
+                     tracker_constants, steps, noise_std, prior_std, corrected, bias, payload,
+                     inertia, tracking, tracker_std)
     status = compensate(kind, wrench, x, no_accel, estimator, lo, hi, constants, to_S, arrays,
                         internal, external, std)
     if status & FAULT_CHANGED:
@@ -102,9 +111,8 @@ def chain_problem(step) -> str | None:
         return f"the model ({type(comp.model).__name__}) has no compiled loop update it runs"
     if step.needs_temperature or step.needs_imu:
         return "the model takes the sensor temperature or an IMU"
-    if step._tracker is None:
-        return "the bias tracker is off (chain.bias_tracker.enabled)"
-    if step._tracker.track_payload or step._gravity is not None or step._monitor is not None:
+    tracks_payload = step._tracker is not None and step._tracker.track_payload
+    if tracks_payload or step._gravity is not None or step._monitor is not None:
         return "the bias tracker tracks the payload (chain.bias_tracker.track_payload)"
     if step._line is not None:
         return "the wrench is delayed against the joint state (chain.sensor.wrench_delay_s)"
@@ -124,10 +132,15 @@ def step_arguments(step) -> tuple:
     detector_args = (float(detector.arm_after_s), bool(detector.uses_std), bool(detector._chi2),
                      detector._constants, step._flag, step._counter, step._force,
                      detector._std, detector._no_std)
-    x_tracker, corrected, bias = step._tracker_state
-    motion = step._motion if step._motion_used else step._no_motion
-    tracker_args = (step._flags, step._g, motion, int(tracker.n), tracker.payload_map,
-                    x_tracker, tracker._constants, tracker._steps, tracker.noise_std,
-                    tracker.prior_std, corrected, bias, step._payload, step._inertia,
-                    step._tracking, step._tracker_std)
+    if tracker is None:  # the types of a tracker's arguments, n = 0 saying there is none
+        none = np.zeros(6)
+        tracker_args = (np.zeros(5), np.zeros(3), none, 0, np.zeros((6, 0)), none, none, none,
+                        none, none, none, none, none, none, none, none)
+    else:
+        x_tracker, corrected, bias = step._tracker_state
+        motion = step._motion if step._motion_used else step._no_motion
+        tracker_args = (step._flags, step._g, motion, int(tracker.n), tracker.payload_map,
+                        x_tracker, tracker._constants, tracker._steps, tracker.noise_std,
+                        tracker.prior_std, corrected, bias, step._payload, step._inertia,
+                        step._tracking, step._tracker_std)
     return marker(update), comp_args, tuple(arrays), detector_args, tracker_args

@@ -146,7 +146,8 @@ class CompiledPath:
         self._chain = step_arguments(step)
         outputs = step.outputs
         self._chain_out = (outputs["wrench_compensated"], outputs["wrench_contact"],
-                           outputs["bias"], outputs["contact"], outputs["contact_force"],
+                           outputs.get("bias", np.zeros(6)), outputs["contact"],
+                           outputs["contact_force"],
                            outputs["fault"])
         self._names = (None, None)  # (names list, (CDR bytes, order, values scratch))
         self._frames: dict[str, tuple | None] = {}
