@@ -181,14 +181,16 @@ def _write(c, writer, sertype, out, size, iov) -> int:
 
 
 @numba.njit(cache=True)
-def _publish(c, data, end, outputs, chain_out, out, iov, scratch) -> int:
-    """The station's per-sample outputs (wrenches with the input's header, then contact and
-    contact force); the writes that failed."""
+def _publish(c, data, end, outputs, chain_out, out, iov, scratch, wrenches) -> int:
+    """The station's per-sample outputs, the wrenches (with the input's header: `wrenches`
+    True) or the contact and contact force (False); the writes that failed."""
     writers, sertypes, heads, sources, _ = outputs
     flag, force = chain_out[3][0], chain_out[4][0]
     errors = 0
     for i in range(len(writers)):
         source = sources[i]
+        if (source < 3) != wrenches:
+            continue
         if source < 3:
             size = wrench_bytes(out, heads[i], data, end, chain_out[source], scratch)
         elif source == 3:
@@ -234,9 +236,11 @@ def _on_wrench(c, data, size, arrival, f, k, ft, rings, chain, outputs, buffers)
     chain_update(k[PROC] * period, step_wrench, step_x, kind, comp, arrays, detector, tracker)
     k[PROC] += 1
     if chain_out[5][0] <= 0.5:  # the model's fault: nothing published (as Python's path)
-        k[ERR] += _publish(c, data, end, outputs, chain_out, out, iov, scratch)
+        # The latency to the wrenches' publication, then contact and force (Python's order).
+        k[ERR] += _publish(c, data, end, outputs, chain_out, out, iov, scratch, True)
         _push(rings[2], k, NLAT, now(c, spec) - arrival)
         k[PUB] += 1
+        k[ERR] += _publish(c, data, end, outputs, chain_out, out, iov, scratch, False)
         if outputs[4]:
             k[CPUB] += 1
     f[BUSY] += max(0.0, now(c, spec) - arrival)
