@@ -98,6 +98,7 @@ import gc
 import json
 import os
 import select
+import shutil
 import signal
 import subprocess
 import sys
@@ -498,6 +499,10 @@ def run_one(model, name, rate, data, names, args, folder: Path) -> dict:
             driver.close()
         if args.driver_cpus:  # the next serve starts on every CPU
             pin_process(everywhere)
+    if args.keep_logs:  # serve's console: its header, warnings and fault events
+        Path(args.keep_logs).mkdir(parents=True, exist_ok=True)
+        shutil.copy(folder / "serve.err",
+                    Path(args.keep_logs) / f"serve-{args.transport}-{rate:g}-{name}.err")
     summary = json.loads(out.strip().splitlines()[-1])
     sent = run["sent"]
     trip = np.array([driver.back[key] - sent[key] for key in sent if key in driver.back]) * 1e3
@@ -611,6 +616,8 @@ def main() -> None:
                              "does per message on the transport (ROS 2: 'listener' takes "
                              "each message on Cyclone's receive thread; 'compiled' runs the "
                              "loop compiled, compiled_echo.py)")
+    parser.add_argument("--keep-logs", metavar="DIR",
+                        help="copy each run's serve console (stderr) into DIR")
     parser.add_argument("--python-path", action="store_true",
                         help="ROS 2: serve with ros2.compiled_path false (every message in "
                              "Python), to compare with its compiled path")

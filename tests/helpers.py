@@ -24,6 +24,7 @@ Units: SI; wrenches ``[Fx Fy Fz Tx Ty Tz]`` (N, N·m) in the sensor frame S.
 from __future__ import annotations
 
 import dataclasses as dc
+import time
 from pathlib import Path
 
 import numpy as np
@@ -273,6 +274,16 @@ def chain_configs():
             "track_payload": (payload, True)}
 
 
+def wait_for(condition, what: str, timeout: float = 10.0) -> None:
+    """Polls `condition()` every ms until it is true; AssertionError naming `what` after
+    `timeout` s (the live tests' wait for messages over a transport)."""
+    end = time.monotonic() + timeout
+    while not condition():
+        if time.monotonic() > end:
+            raise AssertionError(f"timed out waiting for {what}")
+        time.sleep(0.001)
+
+
 __all__ = [
     "CHAIN_PERIOD",
     "DATA",
@@ -299,6 +310,7 @@ __all__ = [
     "static_readings",
     "times",
     "train",
+    "wait_for",
 ]
 
 

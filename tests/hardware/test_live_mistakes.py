@@ -7,7 +7,6 @@ mistake, the config key and the fix — never "ok" with a result computed from i
 
 import json
 import os
-import time
 
 import numpy as np
 import pytest
@@ -22,7 +21,7 @@ from ftdrake.hardware.messages import (
     encode_wrench,
 )
 from ftdrake.physics.robot import RobotDescription
-from tests.helpers import DATA
+from tests.helpers import DATA, wait_for
 
 N = 7
 
@@ -231,14 +230,6 @@ def ros2():
     yield Rig
     for node in made:
         node.close()
-
-
-def wait_for(condition, what, timeout=10.0):
-    end = time.monotonic() + timeout
-    while not condition():
-        if time.monotonic() > end:
-            raise AssertionError(f"timed out waiting for {what}")
-        time.sleep(0.001)
 
 
 def test_ros2_degrees_are_a_fault_on_the_diagnostics(ros2):

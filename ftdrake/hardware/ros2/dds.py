@@ -242,19 +242,24 @@ class Ros2Node:
 
                 raise DDSException(items, f"Occurred while taking data in {reader!r}")
             for data, info in items:
-                if not info.valid_data:  # a writer went away
-                    continue
-                try:
-                    sample = read(data)
-                except (struct.error, UnicodeDecodeError):
-                    sample = None
-                if sample is None:
-                    sample = kind.deserialize(data)
-                self._taken += 1
-                self._pending.append((info.source_timestamp, self._taken, handler, sample,
-                                      now))
+                if info.valid_data:  # not: a writer went away
+                    self.hold(info.source_timestamp, data, kind, handler, read, now)
             if len(items) < depth:
                 break
+
+    def hold(self, stamp: int, data: bytes, kind, handler, read, now: float) -> None:
+        """A sample's CDR bytes `data` (source timestamp `stamp`, ns), read by `read` (else,
+        or when it cannot, by cyclonedds' deserialiser `kind.deserialize`), held for
+        `handler` in publication order, as taken at `now` (what :meth:`spin` hands over;
+        the compiled path gives back the samples it leaves this way)."""
+        try:
+            sample = read(data) if read is not None else None
+        except (struct.error, UnicodeDecodeError):
+            sample = None
+        if sample is None:
+            sample = kind.deserialize(data)
+        self._taken += 1
+        self._pending.append((stamp, self._taken, handler, sample, now))
 
     def _due(self, limit) -> list:
         """The pending messages to hand over now, in publication order: those published no

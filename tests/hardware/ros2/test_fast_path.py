@@ -8,7 +8,6 @@ parts: its chain update against ChainStep's (forest and physics model), its CDR 
 cyclonedds', and the check of Cyclone's C declarations."""
 
 import os
-import time
 
 import numpy as np
 import pytest
@@ -26,7 +25,7 @@ from ftdrake.hardware.ros2.messages import from_stamp, header, ros2_type, wrench
 from ftdrake.hardware.ros2.station import Ros2Station
 from ftdrake.runtime.chain import CompensationChain
 from ftdrake.runtime.step import ChainStep
-from tests.helpers import CABLE_WEIGHT, PAYLOAD_CASES, PAYLOAD_PHI, payload_rows
+from tests.helpers import CABLE_WEIGHT, PAYLOAD_CASES, PAYLOAD_PHI, payload_rows, wait_for
 
 N = 7
 NAMES = [f"arm_joint_{k + 1}" for k in range(N)]
@@ -38,14 +37,6 @@ OUTPUTS = {"wrench_contact": "geometry_msgs/msg/WrenchStamped",
            "contact_force": "std_msgs/msg/Float64"}
 COUNTS = ("received", "accepted", "rejected", "processed", "published_wrench",
           "published_contact", "fault_episodes", "clock_restarts")
-
-
-def wait_for(condition, what, timeout=10.0):
-    end = time.monotonic() + timeout
-    while not condition():
-        if time.monotonic() > end:
-            raise AssertionError(f"timed out waiting for {what}")
-        time.sleep(0.0005)
 
 
 def forest():

@@ -38,6 +38,7 @@ from ftdrake.sim.ros2_publisher import arm_joint_names
 from ftdrake.sim.simulate import simulate
 from ftdrake.sim.station import build_station
 from ftdrake.testing import fit_forest, push_scenario
+from tests.helpers import wait_for
 
 DOMAIN = 1 + os.getpid() % 99  # distinct between concurrent test runs
 
@@ -51,14 +52,6 @@ def _wait_for(path, text, proc, timeout=60.0):
             break
         time.sleep(0.05)
     raise AssertionError(f"{text!r} not in {path}: {path.read_text()}")
-
-
-def _wait_until(condition, what, timeout=20.0):
-    end = time.monotonic() + timeout
-    while not condition():
-        if time.monotonic() > end:
-            raise AssertionError(f"timed out waiting for {what}")
-        time.sleep(0.01)
 
 
 def test_simulate_and_serve_over_dds(tmp_path):
@@ -104,9 +97,9 @@ def test_simulate_and_serve_over_dds(tmp_path):
              tmp_path / "scenario.yaml"], stdout=subprocess.PIPE, stderr=err, text=True, env=env)
     try:
         _wait_for(serve_err, "out: ", serve)
-        _wait_until(lambda: all(injector.matched().values()) and
-                    listener.matched()["rt" + config.output_topic("wrench_contact")] == 1,
-                    "discovery")
+        wait_for(lambda: all(injector.matched().values()) and
+                 listener.matched()["rt" + config.output_topic("wrench_contact")] == 1,
+                 "discovery", timeout=20.0)
         # Bad messages before the stream: a NaN wrench, a joint state with an unknown joint.
         bad_ft.write(wrench_stamped(header(0.0, "ft_sensor"), np.full(6, np.nan)))
         bad_joint.write(ros2_type("sensor_msgs/msg/JointState")(

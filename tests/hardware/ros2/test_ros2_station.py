@@ -26,20 +26,12 @@ from ftdrake.hardware.ros2.messages import (
     wrench_stamped,
 )
 from ftdrake.hardware.ros2.station import ERROR, OK, WARN, Ros2Station
-from tests.helpers import imu_message, imu_rows
+from tests.helpers import imu_message, imu_rows, wait_for
 
 N = 7
 NAMES = [f"arm_joint_{k + 1}" for k in range(N)]
 DOMAIN = 100 + os.getpid() % 100
 JointState = ros2_type("sensor_msgs/msg/JointState")
-
-
-def wait_for(condition, what, timeout=5.0):
-    end = time.monotonic() + timeout
-    while not condition():
-        if time.monotonic() > end:
-            raise AssertionError(f"timed out waiting for {what}")
-        time.sleep(0.001)
 
 
 class Rig:

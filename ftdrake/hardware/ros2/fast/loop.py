@@ -43,13 +43,14 @@ from .cyclone import CLOCK_MONOTONIC, INFO_BYTES, SDK_DATA, SOURCE_TIMESTAMP, VA
 F = {name: i for i, name in enumerate((
     "period", "joint_timeout", "pair_tolerance", "max_backlog", "last_t_joint",
     "last_arrival_joint", "last_t_ft", "last_arrival_ft", "core_last_t", "load_last_t",
-    "min_lag", "lag", "backlog", "max_backlog_seen", "pending_busy", "budget", "wait"))}
+    "min_lag", "lag", "backlog", "max_backlog_seen", "pending_busy", "budget", "wait",
+    "sensor_timeout"))}
 #: Indices of the count state ``k``.
 K = {name: i for i, name in enumerate((
     "received_joint", "received_ft", "processed", "published", "contact_published",
     "until_headroom", "errors", "stop", "history", "latencies", "busy", "stamps", "handback",
     "wakeups", "dry"))}
-F_SIZE, K_SIZE = 17, 15
+F_SIZE, K_SIZE = 18, 15
 #: Why :func:`run` returned (``k[K["stop"]]``).
 STOP_BUDGET, STOP_HANDBACK, STOP_HEADROOM, STOP_RING = 0, 1, 2, 3
 #: Samples taken per dds_takecdr call; items held at most.
@@ -58,7 +59,7 @@ TAKE, ITEMS = 256, 4096
 RING = 16384
 
 (P, JT, TOL, MAXB, LTJ, LAJ, LTF, LAF, CLT, LLT, MINLAG, LAG, BACKLOG, MAXSEEN, BUSY, BUDGET,
- WAIT) = range(F_SIZE)
+ WAIT, ST) = range(F_SIZE)
 (RJ, RF, PROC, PUB, CPUB, HEAD, ERR, STOP, HIST, NLAT, NBUSY, NSTAMP, HB, WAKE, DRY) = range(
     K_SIZE)
 
@@ -258,6 +259,13 @@ def _push(ring, k, index, value) -> None:
 
 
 @numba.njit(cache=True)
+def _silent(t, f) -> bool:
+    """Whether a stream has been silent past its timeout at `t` (StreamMonitor's
+    check_timeouts would fault it)."""
+    return t - f[LAF] > f[ST] or t - f[LAJ] > f[JT]
+
+
+@numba.njit(cache=True)
 def _room(k, rings) -> bool:
     """Whether every ring has room for the items of one more round."""
     free = len(rings[2]) - ITEMS
@@ -268,8 +276,8 @@ def _room(k, rings) -> bool:
 def run(c, waitset, readers, mask, items, f, k, joint, ft, rings, chain, outputs, buffers,
         take_buffers):
     """Handles messages until ``f[budget]`` s have passed (waiting at most ``f[wait]`` s at a
-    time; a wait that times out returns, so that Python checks the streams' timeouts as
-    often as its own loop would), or until a message must go to Python (``k[stop]``
+    time; once a stream has been silent past its timeout it returns, so that Python
+    raises that fault at once), or until a message must go to Python (``k[stop]``
     STOP_HANDBACK: the items from ``items[0][:k[handback]]`` on, not yet handled and still
     referenced, in order), or the headroom check is due (STOP_HEADROOM) or a ring is
     nearly full (STOP_RING); anything taken and not handled is handed back likewise."""
@@ -287,9 +295,10 @@ def run(c, waitset, readers, mask, items, f, k, joint, ft, rings, chain, outputs
             left = f[BUDGET] - (now(c, spec) - start)
             if left <= 0:
                 return
-            if c[0](waitset, 0, 0, np.int64(min(left, f[WAIT]) * 1e9)) <= 0:
-                return  # quiet for f[wait] s: Python checks the streams' timeouts
+            c[0](waitset, 0, 0, np.int64(min(left, f[WAIT]) * 1e9))
             k[WAKE] += 1
+            if _silent(now(c, spec), f):
+                return  # Python raises the timeout's fault at once
             continue
         limit = stamps[:count].max()
         count = _take_both(c, readers, mask, samples, infos, ptrs, stamps, streams, count)

@@ -25,7 +25,6 @@ from __future__ import annotations
 import os
 import pickle
 import shutil
-import struct
 import subprocess
 import sys
 import tempfile
@@ -322,6 +321,7 @@ class CompiledPath:
         f[F["period"]], f[F["joint_timeout"]] = s.period, m.joint_state_timeout_s
         f[F["pair_tolerance"]], f[F["max_backlog"]] = m.pair_tolerance_s, load.max_backlog_s
         f[F["budget"]], f[F["wait"]] = self.budget_s, timeout_s
+        f[F["sensor_timeout"]] = m.sensor_timeout_s
         k[K["dry"]] = dry
         if dry:
             return
@@ -396,17 +396,7 @@ class CompiledPath:
                                                 .ctypes.data))
             c.serdata_unref(pointer)
             kind, handler, read = self._handlers[int(streams[i])]
-            data = bytes(data)
-            sample = None
-            if read is not None:
-                try:
-                    sample = read(data)
-                except (struct.error, UnicodeDecodeError):
-                    sample = None
-            if sample is None:
-                sample = kind.deserialize(data)
-            node._taken += 1
-            node._pending.append((int(stamps[i]), node._taken, handler, sample, now))
+            node.hold(int(stamps[i]), bytes(data), kind, handler, read, now)
         self.handed_back += count
         return count
 
