@@ -1,9 +1,9 @@
 """CompiledPath: the ROS 2 station's per-message work done by the compiled loop
 (:mod:`.loop`) whenever the station is in its ordinary state, by its Python path otherwise.
 
-Why: the Python path costs 170–180 µs of CPU per message at 1 kHz on a 2-core machine, half
-of it the interpreter spread over decode, checks, chain update and encode; a compiled loop
-over the same work measured 53–68 (docs/results/live.md). The two paths share one state:
+Why: about half of the Python path's CPU per message is the interpreter, spread over
+decode, checks, chain update and encode; what each path costs is on the results page
+(docs/results/live.md). The two paths share one state:
 before each call the compiled loop gets the station's (the monitor's stamps, arrivals and
 history, the load monitor's baseline, the counts) and after it the station gets it back,
 with the counts, latencies and history the Python objects keep; the chain's arrays are the
@@ -49,9 +49,11 @@ from .loop import (
     run,
 )
 
-#: s the compiled loop works per call before Python's periodic work (timeouts, discovery,
-#: diagnostics, the console) runs again.
-BUDGET_S = 0.01
+#: s the compiled loop works per call before Python's periodic work (diagnostics, the
+#: console, Ctrl-C) runs again; a stream silent past its timeout returns at once. Each call
+#: costs the interpreter about as much as a few messages, so it is made long (the results
+#: page has what a shorter one cost).
+BUDGET_S = 0.05
 #: bytes of the largest message the loop reads itself (larger ones go to Python).
 MAX_MESSAGE = 65536
 _SOURCES = {"wrench_compensated": 0, "wrench_contact": 1, "bias": 2, "contact": 3,
@@ -157,9 +159,9 @@ class CompiledPath:
         self._started = time.monotonic()
         self._pack(self._f, self._k, 0.0, dry=True)
         arguments = self._arguments(dry=True)
-        if background and _survives_pickling(arguments):
+        if background and not _in_cache(self._c, arguments) and _survives_pickling(arguments):
             self._start_compiling(arguments)
-        else:
+        else:  # from numba's cache (tens of ms), or compiled here, before serving
             self._load()
 
     def _load(self) -> None:
@@ -413,3 +415,15 @@ def _survives_pickling(arguments) -> bool:
     non-contiguous or read-only array would not: the process compiling them would then
     compile another signature than this one loads)."""
     return _numba_types(pickle.loads(pickle.dumps(arguments))) == _numba_types(arguments)
+
+
+def _in_cache(c, arguments) -> bool:
+    """Whether numba's on-disk cache holds the loop for these arguments' types (then it
+    is loaded before the station serves, not by a pause of the stream later). Asks the
+    dispatcher's cache as its own compile() does; False if numba's internals moved (the
+    loop is then compiled or loaded in the background)."""
+    try:
+        signature = tuple(run.typeof_pyval(a) for a in (c, *arguments))
+        return run._cache.load_overload(signature, run.targetctx) is not None
+    except (AttributeError, TypeError):
+        return False
