@@ -105,9 +105,9 @@ class Ros2Config:
       compiled loop whenever the station is in its ordinary state, and in Python otherwise,
       with the same results (:mod:`ftdrake.hardware.ros2.fast`); false: always in Python.
       Used only where it applies (the summary's ``compiled_path`` says whether and why
-      not). It is compiled in a process of its own while the Python path serves (the first
-      start after an install: tens of seconds; later starts load it from numba's cache in
-      a few).
+      not). Found in numba's cache it is loaded before the station serves; else it is
+      compiled in a process of its own while the Python path serves (a first start after
+      an install), then loaded.
     DDS: `domain_id` is ROS_DOMAIN_ID; `dds_config` is ``loopback`` (this machine only),
       ``environment`` (CYCLONEDDS_URI or Cyclone's defaults, as a ROS 2 node has) or a
       Cyclone XML / ``file://`` URL (:mod:`ftdrake.hardware.ros2.dds`).

@@ -1,4 +1,4 @@
-"""Cyclone DDS's C functions, for the compiled per-message path (:mod:`.compiled`).
+"""Cyclone DDS's C functions, for the compiled per-message path (:mod:`.path`).
 
 The cyclonedds wheel ships its C library (``libddsc``) but no headers, so the functions the
 compiled loop calls are declared here by hand, after Cyclone DDS 11's signatures, with
