@@ -80,7 +80,6 @@ class CompiledPath:
         self.why_not = self._problem()
         if self.why_not is None:
             self._build(background)
-        self.calls = 0
 
     # -- whether ------------------------------------------------------------------------------
     def _problem(self) -> str | None:
@@ -292,8 +291,8 @@ class CompiledPath:
     def _spin(self, timeout_s: float = 0.0, dry: bool = False) -> None:
         self._pack(self._f, self._k, timeout_s, dry)
         run(self._c, *self._arguments(dry))
-        self.calls += 1
         if not dry:
+            self.calls += 1
             self._unpack(self._f, self._k)
 
     def _arguments(self, dry: bool) -> tuple:
