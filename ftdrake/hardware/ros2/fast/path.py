@@ -63,10 +63,10 @@ _SOURCES = {"wrench_compensated": 0, "wrench_contact": 1, "bias": 2, "contact": 
 class CompiledPath:
     """The compiled per-message path of a :class:`~ftdrake.hardware.ros2.station.Ros2Station`
     (see the module). `budget_s`: s per call (0: one pass over what has arrived, for
-    ``batch_period_s``). `background`: the loop is compiled (first start after an install:
-    tens of seconds) or loaded from numba's cache in a process of its own
-    (:mod:`.warm`), the station's Python path serving meanwhile, and loaded here once that
-    is done; False: here and now, before the station serves."""
+    ``batch_period_s``). Found in numba's cache, the loop is loaded here at once, before
+    the station serves. Else, with `background`, it is compiled in a process of its own
+    (:mod:`.warm`; a first start after an install) while the station's Python path
+    serves, and loaded here once that is done; without, it is compiled here and now."""
 
     def __init__(self, station, budget_s: float = BUDGET_S, background: bool = True):
         self.station = station
