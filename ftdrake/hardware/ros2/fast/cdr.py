@@ -57,10 +57,8 @@ def header_end(buf, size) -> int:
 
 @numba.njit(cache=True)
 def frame_is(buf, expected) -> bool:
-    """Whether the header's frame_id string (with its NUL) is `expected`'s bytes (those of
-    the configured frame and a NUL; empty: any frame)."""
-    if len(expected) == 0:
-        return True
+    """Whether the header's frame_id string (with its NUL) is `expected`'s bytes (a frame's
+    name and a NUL)."""
     length = u32(buf, 12)
     if length != len(expected):
         return False

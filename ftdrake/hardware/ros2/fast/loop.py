@@ -49,8 +49,8 @@ F = {name: i for i, name in enumerate((
 K = {name: i for i, name in enumerate((
     "received_joint", "received_ft", "processed", "published", "contact_published",
     "until_headroom", "errors", "stop", "history", "latencies", "busy", "stamps", "handback",
-    "wakeups", "dry"))}
-F_SIZE, K_SIZE = 18, 15
+    "dry"))}
+F_SIZE, K_SIZE = 18, 14
 #: Why :func:`run` returned (``k[K["stop"]]``).
 STOP_BUDGET, STOP_HANDBACK, STOP_HEADROOM, STOP_RING = 0, 1, 2, 3
 #: Samples taken per dds_takecdr call; items held at most.
@@ -60,7 +60,7 @@ RING = 16384
 
 (P, JT, TOL, MAXB, LTJ, LAJ, LTF, LAF, CLT, LLT, MINLAG, LAG, BACKLOG, MAXSEEN, BUSY, BUDGET,
  WAIT, ST) = range(F_SIZE)
-(RJ, RF, PROC, PUB, CPUB, HEAD, ERR, STOP, HIST, NLAT, NBUSY, NSTAMP, HB, WAKE, DRY) = range(
+(RJ, RF, PROC, PUB, CPUB, HEAD, ERR, STOP, HIST, NLAT, NBUSY, NSTAMP, HB, DRY) = range(
     K_SIZE)
 
 
@@ -296,7 +296,6 @@ def run(c, waitset, readers, mask, items, f, k, joint, ft, rings, chain, outputs
             if left <= 0:
                 return
             c[0](waitset, 0, 0, np.int64(min(left, f[WAIT]) * 1e9))
-            k[WAKE] += 1
             if _silent(now(c, spec), f):
                 return  # Python raises the timeout's fault at once
             continue
