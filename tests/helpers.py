@@ -416,3 +416,23 @@ def compensator_run(model, n, wrench, outputs, fast=True):
     simulator.AdvanceTo(0.015)
     return dut, {name: log.FindLog(simulator.get_context()).data().T
                  for name, log in loggers.items()}
+
+
+def fused_forest():
+    """A small forest on q, q̇, q̈ of 7 joints predicting about 1 N: a model the compiled
+    per-message paths run (a fused loop update's kind)."""
+    rng = np.random.default_rng(0)
+    X = rng.uniform(-1, 1, size=(300, 3 * _N))
+    return RandomForestCompensator(features="q,qd,qdd", n_estimators=3, random_state=0).fit(
+        X, np.sin(X[:, :6]) + 0.1 * X[:, 7:13])
+
+
+def fused_physics():
+    """A physics payload model of 7 joints fitted on noisy rows of a known payload: the
+    other kind of model the compiled per-message paths run."""
+    make, n = PAYLOAD_CASES["weight without inertia, rotated mounting"]
+    model = make()
+    X = payload_rows(n, 300, seed=0)
+    A = model.regressor(X)
+    Y = A @ np.concatenate([PAYLOAD_PHI, CABLE_WEIGHT])
+    return model.fit(X, Y + np.random.default_rng(1).normal(0, 0.02, Y.shape))

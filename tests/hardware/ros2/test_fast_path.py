@@ -4,8 +4,8 @@ loopback in one process: two stations read the same driver's messages, one with
 bit for bit) and count the same, through ordinary messages and unusual ones (NaN, a stamp
 going back, lost samples, a new joint order, another frame, a joint state beyond its
 bounds, a contact). The compiled path's
-parts: its chain update against ChainStep's (forest and physics model), its CDR against
-cyclonedds', and the check of Cyclone's C declarations."""
+parts: its CDR against cyclonedds', and the check of Cyclone's C declarations (its chain
+update: tests/hardware/test_fast_chain.py)."""
 
 import os
 
@@ -14,18 +14,15 @@ import pytest
 
 pytest.importorskip("cyclonedds")
 
-from ftdrake import ChainConfig, ConfigError, RandomForestCompensator
+from ftdrake import ChainConfig, ConfigError
 from ftdrake.hardware.ros2 import packing
 from ftdrake.hardware.ros2.config import Ros2Config
 from ftdrake.hardware.ros2.dds import Ros2Node
 from ftdrake.hardware.ros2.fast import cyclone
 from ftdrake.hardware.ros2.fast.cdr import names_cdr, read_joint_state, read_wrench, wrench_bytes
-from ftdrake.hardware.ros2.fast.chain import chain_update, step_arguments
 from ftdrake.hardware.ros2.messages import from_stamp, header, ros2_type, wrench_stamped
 from ftdrake.hardware.ros2.station import Ros2Station
-from ftdrake.runtime.chain import CompensationChain
-from ftdrake.runtime.step import ChainStep
-from tests.helpers import CABLE_WEIGHT, PAYLOAD_CASES, PAYLOAD_PHI, payload_rows, wait_for
+from tests.helpers import fused_forest, wait_for
 
 N = 7
 NAMES = [f"arm_joint_{k + 1}" for k in range(N)]
@@ -37,23 +34,6 @@ OUTPUTS = {"wrench_contact": "geometry_msgs/msg/WrenchStamped",
            "contact_force": "std_msgs/msg/Float64"}
 COUNTS = ("received", "accepted", "rejected", "processed", "published_wrench",
           "published_contact", "fault_episodes", "clock_restarts")
-
-
-def forest():
-    """A small forest on q, q̇, q̈ predicting about 1 N (a fused loop update's kind)."""
-    rng = np.random.default_rng(0)
-    X = rng.uniform(-1, 1, size=(300, 3 * N))
-    return RandomForestCompensator(features="q,qd,qdd", n_estimators=3, random_state=0).fit(
-        X, np.sin(X[:, :6]) + 0.1 * X[:, 7:13])
-
-
-def physics():
-    make, n = PAYLOAD_CASES["weight without inertia, rotated mounting"]
-    model = make()
-    X = payload_rows(n, 300, seed=0)
-    A = model.regressor(X)
-    Y = A @ np.concatenate([PAYLOAD_PHI, CABLE_WEIGHT])
-    return model.fit(X, Y + np.random.default_rng(1).normal(0, 0.02, Y.shape))
 
 
 def station(model, compiled: bool, chain=None, **config):
@@ -160,7 +140,7 @@ def drive(twin):
 def test_the_compiled_path_publishes_and_counts_as_the_python_path(tracker):
     chain = ChainConfig()
     chain.bias_tracker.enabled = tracker
-    twin = Twin(forest(), chain)
+    twin = Twin(fused_forest(), chain)
     try:
         assert twin.on.compiled.why_not is None, twin.on.compiled.why_not
         assert twin.off.compiled.why_not == "ros2.compiled_path is false"
@@ -191,38 +171,6 @@ def test_the_compiled_path_publishes_and_counts_as_the_python_path(tracker):
         assert twin.on.compiled.loop_messages > 500
     finally:
         twin.close()
-
-
-@pytest.mark.parametrize(("make", "tracker"), [(forest, True), (physics, True),
-                                               (physics, False)],
-                         ids=["forest", "physics", "physics, tracker off"])
-def test_the_compiled_chain_update_equals_the_chain_step(make, tracker):
-    """Bit for bit, over free motion, a press and a NaN reading (faults included)."""
-    model = make()
-    n = model.n_joints_
-    chain = ChainConfig()
-    chain.bias_tracker.enabled = tracker
-
-    def step():
-        return ChainStep(CompensationChain(model, chain, n_joints=n, gravity="joint_state"))
-
-    reference, dut = step(), step()
-    arguments = step_arguments(dut)
-    rng = np.random.default_rng(3)
-    contacts = 0
-    for k in range(600):
-        t = k * dut.period
-        x = np.r_[0.5 * np.sin(t * (1 + np.arange(n))), 0.5 * np.cos(t * (1 + np.arange(n)))]
-        w = rng.normal(size=6) * 0.05 + (30.0 if 300 <= k < 400 else 0.0)
-        if k == 1100:
-            w[1] = np.nan
-        expected = reference.update(t, w, x)
-        dut._wrench[:], dut._joint_state[:] = w, x
-        chain_update(t, dut._wrench, dut._joint_state, *arguments)
-        for name, value in expected.items():
-            np.testing.assert_array_equal(dut.outputs[name], value, err_msg=f"{name} at {k}")
-        contacts += expected["contact"][0] > 0.5
-    assert contacts > 50
 
 
 def test_cdr_reads_and_writes_the_bytes_cyclonedds_does():
@@ -268,7 +216,7 @@ def test_wrong_declarations_keep_the_python_path(monkeypatch):
         assert problem is not None and "not laid out as declared" in problem
     finally:
         participant.close()
-    dut = station(forest(), True)
+    dut = station(fused_forest(), True)
     try:
         assert dut.compiled.why_not.startswith("Cyclone DDS's C declarations do not hold")
         assert dut.summary()["compiled_path"]["used"] is False
@@ -280,7 +228,7 @@ def test_where_the_compiled_path_does_not_apply_it_says_why():
     chain = ChainConfig()
     chain.sensor.wrench_delay_s = 0.002
     config = Ros2Config(joint_names=list(NAMES), domain_id=DOMAIN)
-    dut = Ros2Station(config, forest(), chain)
+    dut = Ros2Station(config, fused_forest(), chain)
     try:
         assert dut.compiled.why_not == ("the wrench is delayed against the joint state "
                                         "(chain.sensor.wrench_delay_s)")
@@ -296,16 +244,16 @@ def test_the_loop_is_compiled_in_a_process_of_its_own_and_a_failure_there_is_sai
     compiles in its own process while the station serves in Python, and is loaded here once
     that is done. A compile that fails keeps the Python path and says why, as a
     warning."""
-    dut = station(forest(), True)
+    dut = station(fused_forest(), True)
     try:
         assert dut.compiled._loaded and dut.compiled.compile_s > 0
         assert dut.summary()["compiled_path"]["ready_after_s"] == dut.compiled.compile_s
     finally:
         dut.close()
-    monkeypatch.setattr("ftdrake.hardware.ros2.fast.path._in_cache", lambda *_: False)
-    monkeypatch.setattr("ftdrake.hardware.ros2.fast.path.sys.executable", "/bin/false")
+    monkeypatch.setattr("ftdrake.hardware.fast.path._in_cache", lambda *_: False)
+    monkeypatch.setattr("ftdrake.hardware.fast.path.sys.executable", "/bin/false")
     config = Ros2Config(joint_names=list(NAMES), domain_id=DOMAIN)
-    dut = Ros2Station(config, forest(), ChainConfig())
+    dut = Ros2Station(config, fused_forest(), ChainConfig())
     try:
         assert not dut.compiled.ready()  # compiling meanwhile: the Python path serves
         assert not dut.compiled.wait()

@@ -15,18 +15,42 @@ back untouched, with everything after it: Python runs it through the station's o
 path, which refuses, faults, warns or bridges as it always does. So the compiled loop
 changes no behaviour; it only does the common case's work in compiled code.
 
-State crosses by the arrays ``f`` (floats, :data:`F`) and ``k`` (counts, :data:`K`) that
-:class:`~.path.CompiledPath` fills before the call and reads back after it, and the rings
-of what the Python objects keep (joint history, latencies, busy times, F/T stamps).
+What it does with a message once read is :mod:`ftdrake.hardware.fast.accept`'s, shared with
+the LCM station's loop; its state crosses as that module says.
 """
 
 from __future__ import annotations
 
-import math
-
 import numba
 import numpy as np
 
+from ...fast.accept import (
+    BUDGET,
+    BUSY,
+    CPUB,
+    DRY,
+    ERR,
+    HB,
+    HEAD,
+    NLAT,
+    PUB,
+    ROUND,
+    STOP,
+    STOP_BUDGET,
+    STOP_HANDBACK,
+    STOP_HEADROOM,
+    STOP_RING,
+    WAIT,
+    joint_accepted,
+    push,
+    room,
+    silent,
+    wrench_done,
+    wrench_due,
+    wrench_update,
+)
+from ...fast.accept import now as clock_now
+from . import cyclone
 from .cdr import (
     bool_bytes,
     float64_bytes,
@@ -36,39 +60,16 @@ from .cdr import (
     stamp,
     wrench_bytes,
 )
-from .chain import chain_update
-from .cyclone import CLOCK_MONOTONIC, INFO_BYTES, SDK_DATA, SOURCE_TIMESTAMP, VALID_DATA
+from .cyclone import INFO_BYTES, SDK_DATA, SOURCE_TIMESTAMP, VALID_DATA
 
-#: Indices of the float state ``f``.
-F = {name: i for i, name in enumerate((
-    "period", "joint_timeout", "pair_tolerance", "max_backlog", "last_t_joint",
-    "last_arrival_joint", "last_t_ft", "last_arrival_ft", "core_last_t", "load_last_t",
-    "min_lag", "lag", "backlog", "max_backlog_seen", "pending_busy", "budget", "wait",
-    "sensor_timeout"))}
-#: Indices of the count state ``k``.
-K = {name: i for i, name in enumerate((
-    "received_joint", "received_ft", "processed", "published", "contact_published",
-    "until_headroom", "errors", "stop", "history", "latencies", "busy", "stamps", "handback",
-    "dry"))}
-F_SIZE, K_SIZE = 18, 14
-#: Why :func:`run` returned (``k[K["stop"]]``).
-STOP_BUDGET, STOP_HANDBACK, STOP_HEADROOM, STOP_RING = 0, 1, 2, 3
 #: Samples taken per dds_takecdr call; items held at most.
-TAKE, ITEMS = 256, 4096
-#: Entries of each ring (joint history, latencies, busy times, F/T stamps) per call.
-RING = 16384
-
-(P, JT, TOL, MAXB, LTJ, LAJ, LTF, LAF, CLT, LLT, MINLAG, LAG, BACKLOG, MAXSEEN, BUSY, BUDGET,
- WAIT, ST) = range(F_SIZE)
-(RJ, RF, PROC, PUB, CPUB, HEAD, ERR, STOP, HIST, NLAT, NBUSY, NSTAMP, HB, DRY) = range(
-    K_SIZE)
+TAKE, ITEMS = 256, ROUND
 
 
 @numba.njit(cache=True)
 def now(c, spec) -> float:
-    """time.monotonic (CLOCK_MONOTONIC, as CPython converts it)."""
-    c[7](CLOCK_MONOTONIC, spec.ctypes.data)
-    return float(spec[0] * 1_000_000_000 + spec[1]) / 1e9
+    """time.monotonic, by Cyclone's tuple's clock_gettime."""
+    return clock_now(c[7], spec)
 
 
 @numba.njit(cache=True)
@@ -113,62 +114,13 @@ def _sort(ptrs, stamps, streams, start, count) -> None:
 
 
 @numba.njit(cache=True)
-def _finite(values) -> bool:
-    for value in values:
-        if not math.isfinite(value):
-            return False
-    return True
-
-
-@numba.njit(cache=True)
 def _on_joint(data, size, arrival, f, k, joint, rings) -> bool:
     """A joint state as StreamMonitor.on_joint accepts it; False (nothing changed) for
     anything else."""
     names, order, x_new, values, limit, scratch, joint_state = joint
-    hist_t, hist_x = rings[0], rings[1]
     if not read_joint_state(data, size, names, order, x_new, values, scratch):
         return False
-    t = stamp(data)
-    if not (math.isfinite(t) and _finite(x_new) and t > f[LTJ]):
-        return False
-    n = len(order)
-    for j in range(n):
-        if abs(x_new[j]) > limit[j]:
-            return False
-    k[RJ] += 1
-    joint_state[:] = x_new
-    if f[TOL] > 0:
-        m = k[HIST]
-        hist_t[m] = t
-        hist_x[m, :] = x_new
-        k[HIST] = m + 1
-    f[LTJ], f[LAJ] = t, arrival
-    return True
-
-
-@numba.njit(cache=True)
-def _paired(t, f, k, rings, joint_state) -> bool:
-    """StreamMonitor._pair's common case: the newest joint state within the tolerance of
-    `t`, brought forward to it when stamped before (joint_state_at); False for none."""
-    if f[TOL] <= 0:
-        return True
-    hist_t, hist_x = rings[0], rings[1]
-    m = k[HIST]
-    if m == 0 or abs(hist_t[m - 1] - t) > f[TOL]:
-        return False
-    t_joint, x = hist_t[m - 1], hist_x[m - 1]
-    delta = t - t_joint
-    if t <= t_joint or delta == 0.0:
-        joint_state[:] = x
-        return True
-    n = len(x) // 2
-    for j in range(n):
-        a = 0.0
-        if m >= 2:
-            a = (x[n + j] - hist_x[m - 2][n + j]) / (t_joint - hist_t[m - 2])
-        joint_state[j] = x[j] + delta * x[n + j] + (0.5 * delta * delta) * a
-        joint_state[n + j] = x[n + j] + delta * a
-    return True
+    return joint_accepted(stamp(data), x_new, arrival, f, k, limit, joint_state, rings)
 
 
 @numba.njit(cache=True)
@@ -213,63 +165,20 @@ def _on_wrench(c, data, size, arrival, f, k, ft, rings, chain, outputs, buffers)
     if end < 0 or not frame_is(data, frame):
         return False
     t = stamp(data)
-    if not (math.isfinite(t) and _finite(wrench_new)):
+    if not wrench_due(t, wrench_new, arrival, f, k, rings, joint_state):
         return False
-    period, lag = f[P], arrival - t
-    if not (t > f[LTF] and t > f[LLT] and t - f[LLT] <= 1.5 * period
-            and t - f[CLT] <= 1.5 * period):
-        return False  # out of order, a restart, or a gap to count and bridge: Python's
-    backlog = max(0.0, lag - f[MINLAG])
-    if backlog > f[MAXB] or arrival - f[LAJ] > f[JT]:
-        return False
-    if not _paired(t, f, k, rings, joint_state):
-        return False
-    # Accepted: the load, the monitor and the chain as Python's path leaves them.
-    f[LAG], f[LLT], f[BACKLOG] = lag, t, backlog
-    f[MAXSEEN] = max(f[MAXSEEN], backlog)
-    _push(rings[4], k, NSTAMP, t)
-    k[RF] += 1
-    wrench[:] = wrench_new
-    f[LTF], f[LAF], f[CLT] = t, arrival, t
-    step_wrench[:] = wrench
-    step_x[:] = joint_state
-    kind, comp, arrays, detector, tracker = chain
-    chain_update(k[PROC] * period, step_wrench, step_x, kind, comp, arrays, detector, tracker)
-    k[PROC] += 1
+    wrench_update(t, wrench_new, arrival, f, k, rings, wrench, joint_state, step_wrench,
+                  step_x, chain)
     if chain_out[5][0] <= 0.5:  # the model's fault: nothing published (as Python's path)
         # The latency to the wrenches' publication, then contact and force (Python's order).
         k[ERR] += _publish(c, data, end, outputs, chain_out, out, iov, scratch, True)
-        _push(rings[2], k, NLAT, now(c, spec) - arrival)
+        push(rings[2], k, NLAT, now(c, spec) - arrival)
         k[PUB] += 1
         k[ERR] += _publish(c, data, end, outputs, chain_out, out, iov, scratch, False)
         if outputs[4]:
             k[CPUB] += 1
-    f[BUSY] += max(0.0, now(c, spec) - arrival)
-    f[MINLAG] = min(f[MINLAG], lag)
-    _push(rings[3], k, NBUSY, f[BUSY])
-    f[BUSY] = 0.0
-    k[HEAD] -= 1
+    wrench_done(t, arrival, now(c, spec), f, k, rings)
     return True
-
-
-@numba.njit(cache=True)
-def _push(ring, k, index, value) -> None:
-    ring[k[index]] = value
-    k[index] += 1
-
-
-@numba.njit(cache=True)
-def _silent(t, f) -> bool:
-    """Whether a stream has been silent past its timeout at `t` (StreamMonitor's
-    check_timeouts would fault it)."""
-    return t - f[LAF] > f[ST] or t - f[LAJ] > f[JT]
-
-
-@numba.njit(cache=True)
-def _room(k, rings) -> bool:
-    """Whether every ring has room for the items of one more round."""
-    free = len(rings[2]) - ITEMS
-    return (k[HIST] < free and k[NLAT] < free and k[NBUSY] < free and k[NSTAMP] < free)
 
 
 @numba.njit(cache=True, nogil=True)
@@ -296,7 +205,7 @@ def run(c, waitset, readers, mask, items, f, k, joint, ft, rings, chain, outputs
             if left <= 0:
                 return
             c[0](waitset, 0, 0, np.int64(min(left, f[WAIT]) * 1e9))
-            if _silent(now(c, spec), f):
+            if silent(now(c, spec), f):
                 return  # Python raises the timeout's fault at once
             continue
         limit = stamps[:count].max()
@@ -349,6 +258,16 @@ def _stop(count, stamps, limit, k, rings) -> int:
         return STOP_HANDBACK
     if k[HEAD] <= 0:
         return STOP_HEADROOM
-    if not _room(k, rings):
+    if not room(k, rings):
         return STOP_RING
     return STOP_BUDGET
+
+
+def warm(arguments) -> str | None:
+    """One dry call of :func:`run` on `arguments` (``fast.warm``'s child): compiles it into
+    numba's cache; or why Cyclone's C functions cannot be had."""
+    c = cyclone.load()
+    if isinstance(c, str):
+        return c
+    run(c, *arguments)
+    return None

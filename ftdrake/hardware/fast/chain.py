@@ -8,7 +8,7 @@ gravity) and without the payload-change monitor; no wrench delay line. The defau
 is one. The order is ChainStep's: the detector on the tracker's contact wrench from before
 the update (without a tracker, on the compensated wrench), the tracker on the compensated
 wrench from before it, then the compensator
-(tests/hardware/ros2/test_fast_path.py checks the outputs equal ChainStep's, bit for bit).
+(tests/hardware/test_fast_chain.py checks the outputs equal ChainStep's, bit for bit).
 
 Which fused update runs is chosen at compile time by the type of a marker array
 (:func:`marker`), so that the loop calling it is one cacheable function per model kind (a
@@ -21,7 +21,7 @@ import numba
 import numpy as np
 from numba.extending import overload
 
-from ....compensation.compiled.loop import (
+from ...compensation.compiled.loop import (
     FAULT,
     FAULT_CHANGED,
     OOD,
@@ -30,8 +30,8 @@ from ....compensation.compiled.loop import (
     compensate_with_hybrid,
     compensate_with_payload,
 )
-from ....runtime.bias_estimator import track_sample
-from ....runtime.detector import _detect, _in_quadrature, detect_chi2
+from ...runtime.bias_estimator import track_sample
+from ...runtime.detector import _detect, _in_quadrature, detect_chi2
 
 #: The fused updates the compiled path runs, and the dtype of their marker.
 KINDS = {compensate_with_forest: np.int8, compensate_with_payload: np.int16,
