@@ -55,7 +55,7 @@ starts ``transport_echo.py`` instead of serve: the wrench
 echoed back with a contact flag on the same transport, the least a Python process does per
 message there (ROS 2: `--echo listener` takes the messages on Cyclone's receive thread
 instead of waking the main thread; `--echo compiled` runs its loop compiled,
-``compiled_echo.py``: the least a compiled path costs). `--python-path` runs serve on ROS 2
+``compiled_echo.py``: the least a compiled path costs). `--python-path` runs serve
 with ``compiled_path: false``: every message through the Python path, to compare with the
 compiled one (serve's summary says how many messages each path took). `--cpu-affinity`
 sets serve's ``cpu_affinity`` (all its threads on those CPUs); `--driver-cpus` keeps this
@@ -402,7 +402,7 @@ def serve_keys(args, kind, port) -> dict:
         keys["output_url"] = kind.output_url(port)
     if args.cpu_affinity:
         keys["cpu_affinity"] = [int(cpu) for cpu in args.cpu_affinity.split(",")]
-    if args.python_path and kind is not LcmDriver:
+    if args.python_path:
         keys["compiled_path"] = False
     return keys
 
@@ -619,8 +619,8 @@ def main() -> None:
     parser.add_argument("--keep-logs", metavar="DIR",
                         help="copy each run's serve console (stderr) into DIR")
     parser.add_argument("--python-path", action="store_true",
-                        help="ROS 2: serve with ros2.compiled_path false (every message in "
-                             "Python), to compare with its compiled path")
+                        help="serve with compiled_path false (every message in Python), to "
+                             "compare with its compiled path")
     parser.add_argument("--phases", action="store_true",
                         help="serve's main thread split by phase (serve_phases.py), µs per "
                              "F/T message")

@@ -28,7 +28,14 @@ from typing import TYPE_CHECKING
 from ..config import load_config
 from . import args as a
 from . import ros2
-from .live import describe_cpus, load_live, serve_until_stopped, starting, stop_on_signals
+from .live import (
+    describe_cpus,
+    describe_path,
+    load_live,
+    serve_until_stopped,
+    starting,
+    stop_on_signals,
+)
 
 if TYPE_CHECKING:
     from ..hardware.config import HardwareConfig
@@ -100,7 +107,7 @@ def open_transport(args, hardware: HardwareConfig):
 
     where = (f"--lcm {args.lcm}" if args.lcm
              else f"--hardware {args.hardware}" if args.hardware else "hardware.lcm_url")
-    return open_lcm(hardware.lcm_url, where=where)
+    return open_lcm(hardware.lcm_url, where=where, native=hardware.compiled_path)
 
 
 def describe_channels(hardware) -> str:
@@ -142,9 +149,13 @@ def run_serve(args) -> int:
                                   on_warning=on_warning)
     if not args.quiet:
         print(f"ftdrake serve: {type(model).__name__} from {args.model}, "
-              f"{1 / station.period:g} Hz updates\n{describe_channels(hardware)}",
+              f"{1 / station.period:g} Hz updates, per-message path: "
+              f"{describe_path(station.compiled)}\n{describe_channels(hardware)}",
               file=sys.stderr, flush=True)
-    summary = serve_until_stopped(station, args.duration, args.quiet)
+    try:
+        summary = serve_until_stopped(station, args.duration, args.quiet)
+    finally:
+        station.close()
     print(json.dumps(summary))
     return 0
 

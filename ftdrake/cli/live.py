@@ -128,6 +128,19 @@ def _describe_cpu(cpu: dict) -> str:
     return f"CPU {cpu['core_percent']:.0f} %{per_message}"
 
 
+def describe_path(compiled) -> str:
+    """Which per-message path serve runs (a station's ``compiled``), for its header; when
+    the compiled loop is still being compiled, a line is printed once it is loaded."""
+    if compiled.why_not is not None:
+        return f"Python ({compiled.why_not})"
+    if compiled.compile_s is None:  # loading or compiling in a process of its own
+        compiled.on_ready = lambda done: print(
+            f"ftdrake serve: per-message path: compiled, ready {done.compile_s:.1f} s after "
+            f"start (loaded in {done.load_s:.2f} s)", file=sys.stderr, flush=True)
+        return "Python until the compiled one is loaded"
+    return "compiled"
+
+
 def serve_until_stopped(station, duration_s: float | None, quiet: bool,
                         before_summary=None, cpu_clock=time.process_time) -> dict:
     """Spins `station` until Ctrl-C (SIGINT/SIGTERM) or `duration_s` of wall time (waking

@@ -24,7 +24,14 @@ import time
 from ..config import load_config
 from ..errors import ConfigError
 from . import args as a
-from .live import describe_cpus, load_live, serve_until_stopped, starting, stop_on_signals
+from .live import (
+    describe_cpus,
+    describe_path,
+    load_live,
+    serve_until_stopped,
+    starting,
+    stop_on_signals,
+)
 
 
 def add_options(p) -> None:
@@ -90,18 +97,9 @@ def serve(args) -> int:
             model = load_model(args.model)  # its joints against ros2.joint_names: the station's
         station = Ros2Station(config, model, live.chain, on_event=on_event,
                               on_warning=on_warning)
-    compiled = station.compiled
-    if compiled.why_not is not None:
-        path = f"Python ({compiled.why_not})"
-    elif compiled.compile_s is None:  # loading or compiling in a process of its own
-        path = "Python until the compiled one is loaded"
-        compiled.on_ready = lambda done: print(
-            f"ftdrake serve: per-message path: compiled, ready {done.compile_s:.1f} s after "
-            f"start (loaded in {done.load_s:.2f} s)", file=sys.stderr, flush=True)
-    else:
-        path = "compiled"
     print(f"ftdrake serve: {type(model).__name__} from {args.model}, "
-          f"{1 / station.period:g} Hz updates, per-message path: {path}\n"
+          f"{1 / station.period:g} Hz updates, per-message path: "
+          f"{describe_path(station.compiled)}\n"
           f"{describe_topics(config)}", file=sys.stderr, flush=True)
     summary = serve_until_stopped(station, args.duration, args.quiet,
                                   before_summary=lambda: station.node.wait_for_acks(1.0))

@@ -71,6 +71,12 @@ def check_yield_io_threads(value, where: str) -> None:
         raise ConfigError(f"{where}.yield_io_threads: true or false, got {value!r}")
 
 
+def check_compiled_path(value, where: str) -> None:
+    """ConfigError naming `where`.compiled_path unless it is a bool."""
+    if not isinstance(value, bool):
+        raise ConfigError(f"{where}.compiled_path: true or false, got {value!r}")
+
+
 def check_cpu_affinity(value, where: str) -> None:
     """ConfigError naming `where`.cpu_affinity unless it lists distinct CPUs this process may
     run on (empty: the scheduler's choice)."""
@@ -128,6 +134,13 @@ class HardwareConfig:
     it re-initialises its bias or payload estimate and averages over ``tare_settle_s`` /
     ``payload_settle_s`` of free motion. With ``track_payload`` the station computes gravity
     at the sensor from the joint state on the model's robot (``JointStateGravity``).
+    `compiled_path`: the per-message work (wait, read, checks, chain update, publish) runs
+    in one compiled loop on liblcm's own connection whenever the station is in its ordinary
+    state, and in Python otherwise, with the same results (:mod:`ftdrake.hardware.lcm.fast`);
+    false: always in Python, over the ``lcm`` package's connection. Used only where it
+    applies (the summary's ``compiled_path`` says whether and why not); found in numba's
+    cache it is loaded before the station serves, else compiled in a process of its own
+    while the Python path serves (a first start after an install), then loaded.
     """
 
     lcm_url: str = "udpm://239.255.76.67:7667?ttl=0"
@@ -179,6 +192,8 @@ class HardwareConfig:
     # within it: a fault, never judged. At least the joint stream's period. 0: by arrival
     # only (drivers whose stamps are on different clocks).
     pair_tolerance_s: float = 0.005
+    # The per-message work in one compiled loop while the streams are ordinary (see above).
+    compiled_path: bool = True
 
     def output_channel(self, port: str) -> str:
         """The LCM channel of the chain output `port` (a port of
@@ -213,6 +228,7 @@ class HardwareConfig:
             raise ConfigError(f"{where}.output_url: an LCM URL, or \"\" for lcm_url's; got "
                               f"{self.output_url!r}")
         check_yield_io_threads(self.yield_io_threads, where)
+        check_compiled_path(self.compiled_path, where)
         check_cpu_affinity(self.cpu_affinity, where)
         if self.joint_state_type not in JOINT_STATE_TYPES:
             raise ConfigError(f"{where}.joint_state_type: {self.joint_state_type!r} is not one "

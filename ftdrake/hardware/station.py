@@ -31,6 +31,13 @@ message's timestamp. When a stream goes silent (``spin_once`` checks the timeout
 contact state with ``fault = 1`` is published at once, stamped with the detection time on the
 stream's clock.
 
+Per message the work is done by a compiled loop whenever the station is in its ordinary
+state (:class:`~ftdrake.hardware.lcm.fast.path.CompiledPath`: liblcm's wait and publish,
+the messages' bytes, the checks, the chain's update and the outputs in one call without the
+GIL), and by the Python callbacks above otherwise; anything unusual in a message goes to
+them, so the two publish and count the same (``lcm.compiled_path``;
+``summary()["compiled_path"]`` says whether it runs and why not).
+
 Fault episodes are kept in ``events`` and passed to `on_event` (``serve`` prints them);
 ``summary()`` counts everything.
 """
@@ -48,6 +55,7 @@ from ..conventions import OUTPUTS, PUBLISHED
 from ..errors import ConfigError
 from .config import JOINT_STATE_TYPES, HardwareConfig, rate_levers
 from .core import FaultEvent, StationCore  # noqa: F401 (FaultEvent: its home before core)
+from .lcm.fast.path import BUDGET_S, CompiledPath
 from .live_checks import check_joint_count, lcm_decode_problem, lcm_type_found
 from .live_inputs import REASONS, RobotStatePairer
 from .messages import (
@@ -91,9 +99,10 @@ class HardwareStation(StationCore):
         self.config = config.validate()
         check_joint_count(model, config.n_joints, "lcm.n_joints",
                           "the robot's joint count (the model's joints, in its order)")
-        self.lcm = open_lcm(lcm if lcm is not None else config.lcm_url)
+        native = config.compiled_path  # URLs opened by liblcm, for the compiled path
+        self.lcm = open_lcm(lcm if lcm is not None else config.lcm_url, native=native)
         # The outputs' connection: publish-only, so it never receives (config.output_url).
-        self._sender = (open_lcm(config.output_url, "hardware.output_url")
+        self._sender = (open_lcm(config.output_url, "hardware.output_url", native=native)
                         if config.output_url and config.output_url != config.lcm_url
                         else self.lcm)
         self._coords = {name: coord for name, coord, channel in self._event_channels()
@@ -132,6 +141,9 @@ class HardwareStation(StationCore):
             receivers.yield_to_caller()
         if config.cpu_affinity:
             pin_process(config.cpu_affinity)
+        if hasattr(self.lcm, "dispatch"):  # liblcm's: a message cut short is said
+            self.lcm.on_warning = self.warn
+        self.compiled = CompiledPath(self, 0.0 if config.batch_period_s > 0 else BUDGET_S)
 
     def _subscribe(self, config: HardwareConfig) -> None:
         """The station's subscriptions, its receive thread started (udpm://)."""
@@ -261,6 +273,20 @@ class HardwareStation(StationCore):
                 "published": self.published,
                 **{f"cpu_{k}": v for k, v in self.cpu_meter.latest.items()}}
 
+    def summary(self) -> dict:
+        """StationCore's counts, with ``compiled_path``: whether the compiled loop runs, why
+        not, and what it handled (:meth:`CompiledPathBase.summary
+        <ftdrake.hardware.fast.path.CompiledPathBase.summary>`)."""
+        return {**super().summary(), "compiled_path": self.compiled.summary()}
+
+    def close(self) -> None:
+        """Stops a compile of the compiled loop still running, and closes the station's
+        own liblcm connections."""
+        self.compiled.close()
+        for transport in {id(t): t for t in (self.lcm, self._sender)}.values():
+            if hasattr(transport, "dispatch"):
+                transport.close()
+
     def publish_status(self) -> None:
         """Publishes the status message now, stamped on the streams' clock."""
         self._sender.publish(self.config.status_channel,
@@ -269,10 +295,14 @@ class HardwareStation(StationCore):
 
     # -- running ------------------------------------------------------------------------------
     def spin_once(self, timeout_ms: int = 1) -> int:
-        """Handles pending messages (waiting up to `timeout_ms` for one), then checks the
-        timeouts, publishing the fault at once when a stream went silent, and publishes the
-        periodic status. Returns the number of messages handled."""
-        handled = self.lcm.handle(timeout_ms)
+        """Handles pending messages (waiting up to `timeout_ms` for one; by the compiled
+        loop for up to its budget when it may run), then checks the timeouts, publishing the
+        fault at once when a stream went silent, and publishes the periodic status. Returns
+        the number of messages handled."""
+        if self.compiled.why_not is None and self.compiled.ready():
+            handled = self.compiled.spin(timeout_ms)
+        else:
+            handled = self.lcm.handle(timeout_ms)
         self.check_timeouts()
         now = self.clock()
         if now - self._last_status >= self.config.status_period_s:

@@ -76,12 +76,20 @@ class DrakeTransport:
         return self.lc.HandleSubscriptions(int(timeout_ms))
 
 
-def open_lcm(url_or_transport, where: str = "hardware.lcm_url"):
+def open_lcm(url_or_transport, where: str = "hardware.lcm_url", native: bool = False):
     """A transport from an LCM URL (``udpm://239.255.76.67:7667?ttl=0``, ``memq://``), an
     ``lcm.LCM``, a ``DrakeLcm`` or a transport. A URL LCM cannot open raises ConfigError
-    naming `where`."""
-    if isinstance(url_or_transport, (LcmTransport, DrakeTransport)):
+    naming `where`. `native`: a URL is opened by liblcm's C API
+    (:class:`~ftdrake.hardware.lcm.fast.liblcm.LiblcmTransport`, which the station's
+    compiled path reads too) where liblcm can be loaded, else by the ``lcm`` package."""
+    if isinstance(url_or_transport, (LcmTransport, DrakeTransport)) or hasattr(
+            url_or_transport, "dispatch"):  # ours (a LiblcmTransport)
         return url_or_transport
+    if isinstance(url_or_transport, str) and native:
+        from .lcm.fast import liblcm  # noqa: PLC0415 (numba only for the compiled path)
+
+        if not isinstance(liblcm.load(), str):
+            return liblcm.LiblcmTransport(url_or_transport, where)
     if isinstance(url_or_transport, str):
         import lcm  # noqa: PLC0415 (the lcm package only for a live connection)
 

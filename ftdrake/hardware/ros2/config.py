@@ -14,6 +14,7 @@ from ...conventions import PUBLISHED, ROS2_TYPES
 from ...errors import ConfigError
 from ..config import (
     check_batch_period,
+    check_compiled_path,
     check_cpu_affinity,
     check_outputs,
     check_yield_io_threads,
@@ -162,9 +163,7 @@ class Ros2Config:
         check_outputs(self.outputs, f"{where}.outputs")
         check_batch_period(self.batch_period_s, self.max_backlog_s, where)
         check_yield_io_threads(self.yield_io_threads, where)
-        if not isinstance(self.compiled_path, bool):
-            raise ConfigError(f"{where}.compiled_path: true or false, got "
-                              f"{self.compiled_path!r}")
+        check_compiled_path(self.compiled_path, where)
         check_cpu_affinity(self.cpu_affinity, where)
         if not isinstance(self.wrench_frame_id, str):
             raise ConfigError(f"{where}.wrench_frame_id: the sensor frame's name (a string; "
