@@ -50,7 +50,9 @@ outputs' values without the checks, the chain's update or any bookkeeping
 (``station_floor.py``); the CPU per message of a normal run minus the floor's is the cost of
 ftdrake's own work. `--no-chain` runs serve as always but for the chain's update
 (``chain_held.py``: each update returns the outputs as they stand): a normal run minus it is
-what the chain's update costs live; it minus the floor, the rest of ftdrake's work. `--echo`
+what the chain's update costs live; it minus the floor, the rest of ftdrake's work. These
+measure serve's Python path: `--phases` and `--no-chain` set ``compiled_path: false``, and
+the floor never reaches the compiled path's ordinary state. `--echo`
 starts ``transport_echo.py`` instead of serve: the wrench
 echoed back with a contact flag on the same transport, the least a Python process does per
 message there (ROS 2: `--echo listener` takes the messages on Cyclone's receive thread
@@ -402,7 +404,7 @@ def serve_keys(args, kind, port) -> dict:
         keys["output_url"] = kind.output_url(port)
     if args.cpu_affinity:
         keys["cpu_affinity"] = [int(cpu) for cpu in args.cpu_affinity.split(",")]
-    if args.python_path:
+    if args.python_path or args.phases or args.no_chain:  # those time or alter Python's
         keys["compiled_path"] = False
     return keys
 
