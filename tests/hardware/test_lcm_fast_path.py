@@ -15,6 +15,7 @@ import pytest
 
 from ftdrake import ChainConfig, ConfigError
 from ftdrake.hardware.config import HardwareConfig
+from ftdrake.hardware.fast import path as fast_path
 from ftdrake.hardware.lcm.fast import codec, liblcm
 from ftdrake.hardware.messages import (
     _FT_FINGERPRINT,
@@ -237,3 +238,25 @@ def test_where_the_compiled_path_cannot_run_it_says_why():
         HardwareConfig(compiled_path="yes").validate("lcm")
     for dut in (given, panda):
         dut.close()
+
+
+def test_stations_of_one_kind_share_one_compile(monkeypatch):
+    """Two stations whose loops have the same types start one compiling process, not two;
+    both load the loop once it is done (here a process that compiles nothing: the loop is
+    then compiled, or found in numba's cache, by the first to load it)."""
+    started = []
+    popen = fast_path.subprocess.Popen
+    monkeypatch.setattr(fast_path, "_in_cache", lambda *_: False)
+    monkeypatch.setattr(fast_path.sys, "executable", "/bin/true")
+    monkeypatch.setattr(fast_path.subprocess, "Popen",
+                        lambda *a, **k: started.append(a) or popen(*a, **k))
+    model = fused_forest()
+    duts = [HardwareStation(HardwareConfig(lcm_url="memq://"), model, ChainConfig())
+            for _ in range(2)]
+    try:
+        assert len(started) == 1
+        assert all(dut.compiled.wait(60) for dut in duts)
+        assert not fast_path._Compile.running
+    finally:
+        for dut in duts:
+            dut.close()

@@ -35,6 +35,7 @@ import subprocess
 import sys
 import tempfile
 import time
+from typing import ClassVar
 
 import numba
 import numpy as np
@@ -177,30 +178,24 @@ class CompiledPathBase:
             self.on_ready(self)
 
     def _start_compiling(self, arguments) -> None:
-        """``fast.warm`` in a process of its own, on the dry call's arguments (pickled)."""
-        self._folder = tempfile.mkdtemp(prefix="ftdrake_compile_")
-        path = os.path.join(self._folder, "arguments.pkl")
-        with open(path, "wb") as f:
-            pickle.dump(arguments, f)
-        self._child_err = open(os.path.join(self._folder, "stderr"), "w+b")  # noqa: SIM115
-        self._child = subprocess.Popen(
-            [sys.executable, "-m", "ftdrake.hardware.fast.warm", self.WARM_MODULE, path],
-            stdout=subprocess.DEVNULL, stderr=self._child_err)
+        """``fast.warm`` in a process of its own on the dry call's arguments, or the one
+        already compiling the same types (:class:`_Compile`)."""
+        self._child = _Compile.of(self.WARM_MODULE, arguments)
+        self._child.users += 1
 
     def _compiled_meanwhile(self) -> bool:
         """Whether the process compiling the loop is done; then the loop is loaded here
         (from the cache it wrote), or, when that process failed, the Python path kept and
         said why."""
-        if self._child is None or self._child.poll() is None:
+        if self._child is None:
             return False
-        code, self._child = self._child.returncode, None
-        self._child_err.seek(0)
-        err = self._child_err.read().decode(errors="replace").strip().splitlines()
-        self._child_err.close()
-        shutil.rmtree(self._folder, ignore_errors=True)
+        result = self._child.poll()
+        if result is None:
+            return False
+        self._child = None
+        code, last_line = result
         if code != 0:
-            self.why_not = (f"compiling it failed (exit {code}: "
-                            f"{err[-1] if err else 'no message'})")
+            self.why_not = f"compiling it failed (exit {code}: {last_line})"
             self.station.warn(f"the compiled per-message path is not used: {self.why_not}; "
                               "every message goes through the Python path")
             return False
@@ -217,13 +212,12 @@ class CompiledPathBase:
         return self._loaded
 
     def close(self) -> None:
-        """Stops a compile still running."""
+        """Stops a compile still running that no other path waits for."""
         if self._child is not None:
-            self._child.kill()
-            self._child.wait()
+            self._child.users -= 1
+            if self._child.users <= 0:
+                self._child.kill()
             self._child = None
-            self._child_err.close()
-            shutil.rmtree(self._folder, ignore_errors=True)
 
     def summary(self) -> dict:
         """``used`` (whether the compiled loop runs when the station is in its ordinary
@@ -324,6 +318,56 @@ class CompiledPathBase:
             load._until_headroom_check = WINDOW
             if not load.headroom_warned:
                 s.warn(load._headroom_warning())
+
+
+class _Compile:
+    """One compile of a loop for one signature in a process of its own
+    (``python -m ftdrake.hardware.fast.warm MODULE ARGUMENTS.pkl``), shared by the paths of
+    one process that need it: a process that builds several stations of one kind (a test
+    suite, a program with two sensors) starts one, not one per station."""
+
+    running: ClassVar[dict] = {}  # (module, the arguments' numba types) → _Compile
+
+    @classmethod
+    def of(cls, module: str, arguments) -> _Compile:
+        key = (module, _numba_types(arguments))
+        found = cls.running.get(key)
+        if found is None:
+            found = cls.running[key] = cls(module, arguments, key)
+        return found
+
+    def __init__(self, module: str, arguments, key):
+        self.key, self.users, self.result = key, 0, None
+        self.folder = tempfile.mkdtemp(prefix="ftdrake_compile_")
+        path = os.path.join(self.folder, "arguments.pkl")
+        with open(path, "wb") as f:
+            pickle.dump(arguments, f)
+        self.err = open(os.path.join(self.folder, "stderr"), "w+b")  # noqa: SIM115
+        self.child = subprocess.Popen(
+            [sys.executable, "-m", "ftdrake.hardware.fast.warm", module, path],
+            stdout=subprocess.DEVNULL, stderr=self.err)
+
+    def poll(self) -> tuple[int, str] | None:
+        """None while it runs; then (exit code, the last line it wrote to stderr)."""
+        if self.result is None and self.child.poll() is not None:
+            self.err.seek(0)
+            lines = self.err.read().decode(errors="replace").strip().splitlines()
+            self.result = (self.child.returncode, lines[-1] if lines else "no message")
+            self._forget()
+        return self.result
+
+    def kill(self) -> None:
+        if self.result is None:
+            self.child.kill()
+            self.child.wait()
+            self.result = (self.child.returncode, "stopped")
+            self._forget()
+
+    def _forget(self) -> None:
+        self.err.close()
+        shutil.rmtree(self.folder, ignore_errors=True)
+        if _Compile.running.get(self.key) is self:
+            del _Compile.running[self.key]
 
 
 def _numba_types(value):
