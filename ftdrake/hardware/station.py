@@ -99,7 +99,8 @@ class HardwareStation(StationCore):
         self.config = config.validate()
         check_joint_count(model, config.n_joints, "lcm.n_joints",
                           "the robot's joint count (the model's joints, in its order)")
-        native = config.compiled_path  # URLs opened by liblcm, for the compiled path
+        # URLs opened by liblcm, for the compiled path (which runs on the real clock only).
+        native = config.compiled_path and clock is time.monotonic
         self.lcm = open_lcm(lcm if lcm is not None else config.lcm_url, native=native)
         # The outputs' connection: publish-only, so it never receives (config.output_url).
         self._sender = (open_lcm(config.output_url, "hardware.output_url", native=native)
