@@ -89,7 +89,7 @@ def open_lcm(url_or_transport, where: str = "hardware.lcm_url", native: bool = F
         from .lcm.fast import liblcm  # noqa: PLC0415 (numba only for the compiled path)
 
         if not isinstance(liblcm.load(), str):
-            return liblcm.LiblcmTransport(url_or_transport, where)
+            return liblcm.LiblcmTransport(url_or_transport, where, QUEUE_CAPACITY)
     if isinstance(url_or_transport, str):
         import lcm  # noqa: PLC0415 (the lcm package only for a live connection)
 

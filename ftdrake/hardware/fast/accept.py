@@ -6,7 +6,7 @@ message. Each check returns False, having changed nothing, for anything else: th
 hands the message to the station's Python path.
 
 State crosses by the arrays ``f`` (floats, :data:`F`) and ``k`` (counts, :data:`K`) that
-:class:`~.path.CompiledPath` fills before a call and reads back after it, and the rings of
+:class:`~.path.CompiledPathBase` fills before a call and reads back after it, and the rings of
 what the Python objects keep (joint history, latencies, busy times, F/T stamps).
 Times are in s on the station's clock (time.monotonic) and the streams' stamps.
 """

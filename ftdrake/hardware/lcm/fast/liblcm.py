@@ -23,8 +23,8 @@ the connection's inbox (an int64 table of entries and a byte buffer, :data:`ENTR
 :data:`INBOX_BYTES`); whoever called ``lcm_handle_timeout`` then reads the inbox: the
 Python path hands each entry's bytes to the subscription's handler, as the ``lcm``
 package's subscriptions do, and the compiled loop reads them itself. LCM keeps at most the
-subscription's queue capacity of undelivered messages (:data:`~..transport.QUEUE_CAPACITY`
-here, as the Python transport sets).
+subscription's queue capacity of undelivered messages (`capacity`; the station's
+:func:`~ftdrake.hardware.transport.open_lcm` sets the Python transport's).
 """
 
 from __future__ import annotations
@@ -42,7 +42,6 @@ from numba import carray, types
 from numba.extending import intrinsic
 
 from ....errors import ConfigError
-from ...transport import QUEUE_CAPACITY
 
 #: Entries the inbox holds between two reads (one dispatch fills one per matching
 #: subscription).
@@ -154,14 +153,15 @@ class LiblcmTransport:
     """An LCM connection by liblcm's C API (:func:`load`): the transport interface of
     :class:`~ftdrake.hardware.transport.LcmTransport` (subscribe, publish, start_receiving,
     handle), with the inbox the compiled loop reads. `url` an LCM URL; ConfigError naming
-    `where` when liblcm cannot open it."""
+    `where` when liblcm cannot open it. `capacity`: messages LCM may hold per subscription
+    before it drops (LCM's default is 30)."""
 
-    def __init__(self, url: str, where: str = "hardware.lcm_url"):
+    def __init__(self, url: str, where: str = "hardware.lcm_url", capacity: int = 30):
         loaded = load()
         if isinstance(loaded, str):
             raise RuntimeError(loaded)  # noqa: TRY004 (why liblcm cannot be had)
         self.c, self._f = loaded
-        self.url = url
+        self.url, self.capacity = url, int(capacity)
         self.lcm = int(self._f["create"](url.encode()) or 0)
         if not self.lcm:
             raise ConfigError(f"{where}: cannot open LCM at {url!r} (see the LCM URL forms "
@@ -185,7 +185,7 @@ class LiblcmTransport:
                                    user.ctypes.data)
         if not sub:
             raise ConfigError(f"cannot subscribe to the LCM channel {channel!r}")
-        self._f["capacity"](sub, QUEUE_CAPACITY)
+        self._f["capacity"](sub, self.capacity)
         self._users.append(user)
         self.channels.append(channel)
         self.handlers.append(handler)
