@@ -1,8 +1,9 @@
 """End to end over UDP multicast (ttl=0: stays on this machine), two processes:
 ``ftdrake simulate --lcm URL --realtime`` publishes a simulated robot, ``ftdrake serve``
-compensates it. Checked: no message lost or processed twice (counted on both sides and by a
-third listener, this test), the published wrench equals the in-simulation compensator's to
-1e-9 and the contact flag its detector's, sample for sample; bad messages injected before
+compensates it, its per-message path compiled once the F/T rate is measured. Checked: no
+message lost or processed twice (counted on both sides and by a third listener, this test),
+the published wrench equals the in-simulation compensator's to 1e-9 and the contact flag its
+detector's, sample for sample; bad messages injected before
 the stream starts are faulted, printed, counted, and the station recovers; when the stream
 stops, the timeout fault is printed and serve stops cleanly on SIGINT with its summary.
 Skipped where UDP multicast is unavailable (the memq:// version is in
@@ -78,6 +79,9 @@ def test_simulate_and_serve_over_udp(tmp_path):
             stdout=subprocess.PIPE, stderr=err, text=True, env=env)
     try:
         _wait_for(serve_err, "  out: ", serve)
+        # serve's compiled per-message path loaded (compiled in its own process on a first
+        # run): the numbers below are then its own.
+        _wait_for(serve_err, "per-message path: compiled", serve, timeout=300.0)
         # Bad messages before the stream: a NaN wrench, a 6-joint state.
         lc.publish(hardware.ft_channel, encode_wrench(0.0, np.full(6, np.nan)))
         lc.publish(hardware.joint_state_channel,
@@ -117,6 +121,8 @@ def test_simulate_and_serve_over_udp(tmp_path):
     assert summary["accepted"] == {"joint": K + 1, "ft": K}
     assert summary["rejected"] == {"not_finite": 1, "joint_count": 1}
     assert summary["processed"] == summary["published_wrench"] == K
+    # After the first second (the F/T rate measured, by Python) the compiled path took them.
+    assert summary["compiled_path"]["used"] and summary["compiled_path"]["messages"] > K
     wrenches = [decode_wrench(d) for d in got[hardware.output_channel("wrench_compensated")]]
     contacts = [decode_contact_state(d) for d in got[hardware.output_channel("contact")]]
     assert len(wrenches) == K
