@@ -436,3 +436,36 @@ def fused_physics():
     A = model.regressor(X)
     Y = A @ np.concatenate([PAYLOAD_PHI, CABLE_WEIGHT])
     return model.fit(X, Y + np.random.default_rng(1).normal(0, 0.02, Y.shape))
+
+
+#: The counts a compiled path and its Python path must give alike (the twin-station tests).
+TWIN_COUNTS = ("received", "accepted", "rejected", "processed", "published_wrench",
+               "published_contact", "fault_episodes", "clock_restarts")
+
+
+def twin_stream():
+    """The twin-station tests' stream: (k, t, q, v, w) for 1.7 s at 1 kHz of 7 joints, the
+    F/T rate measured over the first second (by Python), then the unusual samples: five lost
+    (k 1200–1204, not yielded: a gap of the stamps), NaN in the wrench at k 1100 and a 30 N
+    press along z from k 1400 to 1499. Each transport's test adds its own unusual messages
+    at the other k."""
+    rng = np.random.default_rng(2)
+    joints = 1.0 + np.arange(_N)
+    for k in range(1700):
+        t = 0.001 * (k + 1)
+        q = 0.5 * np.sin(t * joints)
+        v = 0.5 * joints * np.cos(t * joints)
+        w = np.sin(q[:6]) + 0.02 * rng.normal(size=6)
+        if 1400 <= k < 1500:
+            w[2] += 30.0
+        if 1200 <= k < 1205:
+            continue
+        if k == 1100:
+            w[0] = np.nan
+        yield k, t, q, v, w
+
+
+def assert_twins_count_alike(on: dict, off: dict) -> None:
+    """The two stations' summaries give the same TWIN_COUNTS."""
+    for key in TWIN_COUNTS:
+        assert on[key] == off[key], key
