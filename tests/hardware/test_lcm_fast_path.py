@@ -245,3 +245,22 @@ def test_stations_of_one_kind_share_one_compile(monkeypatch):
     finally:
         for dut in duts:
             dut.close()
+
+
+def test_a_handler_that_raises_does_not_leave_its_message_to_be_handed_over_again():
+    t = liblcm.LiblcmTransport("memq://")
+    got = []
+
+    def handler(data):
+        got.append(data)
+        if data == b"bad":
+            raise ValueError("the station's own error")
+
+    t.subscribe("A", handler)
+    t.publish("A", b"bad")
+    with pytest.raises(ValueError, match="own error"):
+        t.handle(10)
+    t.publish("A", b"good")
+    assert t.handle(10) == 1
+    assert got == [b"bad", b"good"]
+    t.close()

@@ -251,8 +251,8 @@ class CompiledPathBase:
             self._unpack()
 
     def _monitor_state(self):
-        """(joint, ft): the loop's view of the monitor's held joint state and wrench and
-        the step's input arrays."""
+        """The arrays the loop writes in place: the monitor's held joint state and wrench,
+        and the step's wrench and joint-state inputs."""
         s = self.station
         return (s.monitor.joint_state, s.monitor.wrench, s._step._wrench, s._step._joint_state)
 

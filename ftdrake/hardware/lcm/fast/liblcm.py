@@ -221,15 +221,17 @@ class LiblcmTransport:
         inbox, data = self.inbox, self.inbox_bytes
         count = int(inbox[0])
         self._say_losses()
-        for i in range(first, count):
-            sub, size, kept, _, offset = inbox[HEAD + i * FIELDS:HEAD + (i + 1) * FIELDS]
-            if kept < size:
-                self.cut_short += 1
-                self._warn(f"a message of {size} bytes on the LCM channel "
-                           f"{self.channels[sub]!r} was cut to the station's "
-                           f"{INBOX_BYTES} bytes; it is not the configured type")
-            self.handlers[sub](data[offset:offset + kept].tobytes())
-        inbox[0] = inbox[1] = 0
+        try:
+            for i in range(first, count):
+                sub, size, kept, _, offset = inbox[HEAD + i * FIELDS:HEAD + (i + 1) * FIELDS]
+                if kept < size:
+                    self.cut_short += 1
+                    self._warn(f"a message of {size} bytes on the LCM channel "
+                               f"{self.channels[sub]!r} was cut to the station's "
+                               f"{INBOX_BYTES} bytes; it is not the configured type")
+                self.handlers[sub](data[offset:offset + kept].tobytes())
+        finally:  # emptied even when a handler raised: no entry is handed over twice
+            inbox[0] = inbox[1] = 0
         return count - first
 
     def _say_losses(self) -> None:
