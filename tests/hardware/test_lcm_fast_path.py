@@ -216,12 +216,22 @@ def test_where_the_compiled_path_cannot_run_it_says_why():
     given = HardwareStation(HardwareConfig(lcm_url="memq://"), model, ChainConfig(),
                             lcm.LCM("memq://"))
     assert "was given to it" in given.compiled.why_not
+    own = HardwareStation(HardwareConfig(lcm_url="memq://"), model, ChainConfig())
+    assert own.compiled.why_not is None
+    # Given another station's own connection: still not its own.
+    shared = HardwareStation(HardwareConfig(lcm_url="memq://", output_prefix="OTHER_"), model,
+                             ChainConfig(), own.lcm)
+    assert "was given to it" in shared.compiled.why_not
+    # Driven through the diagram after it was built: the compiled path steps aside.
+    own.use_diagram()
+    assert not own.compiled.ready()
+    assert own.compiled.why_not == "the chain is driven through the Drake diagram"
     panda = HardwareStation(HardwareConfig(lcm_url="memq://", joint_state_type="panda_status"),
                             model, ChainConfig())
     assert "panda_status" in panda.compiled.why_not
     with pytest.raises(ConfigError, match=r"lcm\.compiled_path"):
         HardwareConfig(compiled_path="yes").validate("lcm")
-    for dut in (given, panda):
+    for dut in (given, panda, own, shared):
         dut.close()
 
 

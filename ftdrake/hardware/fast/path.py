@@ -126,9 +126,12 @@ class CompiledPathBase:
     def ready(self) -> bool:
         """Whether the loop is loaded and the station is in the state it handles (the
         module)."""
+        s = self.station
+        if s._step is None:  # use_diagram() since: the diagram is the reference, in Python
+            self.why_not = "the chain is driven through the Drake diagram"
+            return False
         if not self._loaded and not self._compiled_meanwhile():
             return False
-        s = self.station
         m, load = s.monitor, s.load
         return not (m.fault or s._settling or load.overloaded
                     or s.rate_check.measured_hz is None or s.recorder is not None

@@ -37,7 +37,8 @@ class CompiledPath(CompiledPathBase):
 
     def _transport_problem(self) -> str | None:
         s, c = self.station, self.station.config
-        if not (isinstance(s.lcm, LiblcmTransport) and isinstance(s._sender, LiblcmTransport)):
+        if not (s.opened_lcm and isinstance(s.lcm, LiblcmTransport)
+                and isinstance(s._sender, LiblcmTransport)):
             return ("the station's LCM connection was given to it (an lcm.LCM, a DrakeLcm or "
                     "a transport), or liblcm was not found; the compiled path needs the one "
                     "it opens from lcm.lcm_url")
