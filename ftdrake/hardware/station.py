@@ -102,8 +102,11 @@ class HardwareStation(StationCore):
         # URLs opened by liblcm, for the compiled path (which runs on the real clock only).
         native = config.compiled_path and clock is time.monotonic
         self.lcm = open_lcm(lcm if lcm is not None else config.lcm_url, native=native)
-        # Whether the station opened its connection (the compiled path reads only its own).
-        self.opened_lcm = lcm is None or isinstance(lcm, str)
+        # The compiled path reads only a liblcm connection no other station reads (opened
+        # here from a URL, or by serve for this station).
+        self.owns_lcm = getattr(self.lcm, "owner", False) is None
+        if self.owns_lcm:
+            self.lcm.owner = self
         # The outputs' connection: publish-only, so it never receives (config.output_url).
         self._sender = (open_lcm(config.output_url, "hardware.output_url", native=native)
                         if config.output_url and config.output_url != config.lcm_url

@@ -175,6 +175,7 @@ class LiblcmTransport:
         self._errors = 0
         self.cut_short = self.lost = 0
         self.on_warning = None  # called with a sentence when a message was cut short or lost
+        self.owner = None  # the station whose compiled path reads this connection
 
     def subscribe(self, channel: str, handler) -> None:
         """`handler(bytes)` for each message on `channel` (LCM's channel regex, as the lcm

@@ -2,12 +2,13 @@
 whenever the station is in its ordinary state, by its Python path otherwise
 (:class:`~ftdrake.hardware.fast.path.CompiledPathBase` says when and why).
 
-What LCM adds: the station's connections must be its own liblcm ones
+What LCM adds: the station's connections must be liblcm ones no other station reads
 (:class:`~.liblcm.LiblcmTransport`, opened from ``lcm.lcm_url`` and ``lcm.output_url``
-with ``lcm.compiled_path`` true), and the joint states ``iiwa_status``. Not at all (said at
-start): a connection given to the station (an ``lcm.LCM``, a ``DrakeLcm``, another
-transport); liblcm not found; another joint-state type (``panda_status``,
-``robot_state``: the Python path reads them); the payload output.
+with ``lcm.compiled_path`` true, by the station or by serve for it), and the joint states
+``iiwa_status``. Not at all (said at start): a connection given to the station (an
+``lcm.LCM``, a ``DrakeLcm``, another transport, another station's); liblcm not found;
+another joint-state type (``panda_status``, ``robot_state``: the Python path reads them);
+the payload output.
 """
 
 from __future__ import annotations
@@ -37,11 +38,11 @@ class CompiledPath(CompiledPathBase):
 
     def _transport_problem(self) -> str | None:
         s, c = self.station, self.station.config
-        if not (s.opened_lcm and isinstance(s.lcm, LiblcmTransport)
+        if not (s.owns_lcm and isinstance(s.lcm, LiblcmTransport)
                 and isinstance(s._sender, LiblcmTransport)):
-            return ("the station's LCM connection was given to it (an lcm.LCM, a DrakeLcm or "
-                    "a transport), or liblcm was not found; the compiled path needs the one "
-                    "it opens from lcm.lcm_url")
+            return ("the station's LCM connection was given to it (an lcm.LCM, a DrakeLcm, "
+                    "a transport, another station's), or liblcm was not found; the compiled "
+                    "path needs a liblcm connection of its own, opened from lcm.lcm_url")
         if c.joint_state_type != "iiwa_status":
             return (f"lcm.joint_state_type is {c.joint_state_type!r}; the compiled path reads "
                     "iiwa_status")
