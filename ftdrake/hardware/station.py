@@ -55,6 +55,7 @@ from ..conventions import OUTPUTS, PUBLISHED
 from ..errors import ConfigError
 from .config import JOINT_STATE_TYPES, HardwareConfig, rate_levers
 from .core import FaultEvent, StationCore  # noqa: F401 (FaultEvent: its home before core)
+from .lcm.fast.liblcm import LiblcmTransport
 from .lcm.fast.path import BUDGET_S, CompiledPath
 from .live_checks import check_joint_count, lcm_decode_problem, lcm_type_found
 from .live_inputs import REASONS, RobotStatePairer
@@ -147,7 +148,7 @@ class HardwareStation(StationCore):
             receivers.yield_to_caller()
         if config.cpu_affinity:
             pin_process(config.cpu_affinity)
-        if hasattr(self.lcm, "dispatch"):  # liblcm's: a message cut short is said
+        if self.owns_lcm:  # liblcm's: a message cut short is said
             self.lcm.on_warning = self.warn
         self.compiled = CompiledPath(self, 0.0 if config.batch_period_s > 0 else BUDGET_S)
 
@@ -287,11 +288,12 @@ class HardwareStation(StationCore):
 
     def close(self) -> None:
         """Stops a compile of the compiled loop still running, and closes the station's
-        own liblcm connections."""
+        own liblcm connections (not one given to it by another station)."""
         self.compiled.close()
-        for transport in {id(t): t for t in (self.lcm, self._sender)}.values():
-            if hasattr(transport, "dispatch"):
-                transport.close()
+        if self.owns_lcm:
+            self.lcm.close()
+        if self._sender is not self.lcm and isinstance(self._sender, LiblcmTransport):
+            self._sender.close()  # opened here, from output_url
 
     def publish_status(self) -> None:
         """Publishes the status message now, stamped on the streams' clock."""

@@ -154,6 +154,10 @@ def test_the_compiled_path_publishes_and_counts_as_the_python_path(tracker):
         assert compiled["used"] and compiled["calls"] > 10 and compiled["handed_back"] >= 5
         assert off["compiled_path"]["calls"] == 0
         assert twin.on.compiled.loop_messages > 500
+        # Once closed, the station says so rather than reading freed memory.
+        twin.on.close()
+        with pytest.raises(RuntimeError, match="is closed"):
+            twin.on.spin_once(1)
     finally:
         twin.close()
 
@@ -209,6 +213,8 @@ def test_the_connection_hands_messages_over_in_order_and_says_one_cut_short():
     assert got[5] == ("A", bytes(liblcm.INBOX_BYTES))
     assert t.cut_short == 1 and "cut to the station's" in warnings[0]
     t.close()
+    with pytest.raises(RuntimeError, match="is closed"):
+        t.handle(0)
 
 
 def test_where_the_compiled_path_cannot_run_it_says_why():
@@ -222,6 +228,12 @@ def test_where_the_compiled_path_cannot_run_it_says_why():
     shared = HardwareStation(HardwareConfig(lcm_url="memq://", output_prefix="OTHER_"), model,
                              ChainConfig(), own.lcm)
     assert "was given to it" in shared.compiled.why_not
+    # Closing it leaves the connection to the station that owns it.
+    shared.close()
+    got = []
+    own.lcm.subscribe("PROBE", got.append)
+    own.lcm.publish("PROBE", b"still open")
+    assert own.lcm.handle(10) == 1 and got == [b"still open"]
     # Driven through the diagram after it was built: the compiled path steps aside.
     own.use_diagram()
     assert not own.compiled.ready()
@@ -231,7 +243,7 @@ def test_where_the_compiled_path_cannot_run_it_says_why():
     assert "panda_status" in panda.compiled.why_not
     with pytest.raises(ConfigError, match=r"lcm\.compiled_path"):
         HardwareConfig(compiled_path="yes").validate("lcm")
-    for dut in (given, panda, own, shared):
+    for dut in (given, panda, own):
         dut.close()
 
 

@@ -182,7 +182,7 @@ class LiblcmTransport:
         package's)."""
         user = np.array([len(self.handlers), self.inbox.ctypes.data,
                          self.inbox_bytes.ctypes.data], dtype=np.int64)
-        sub = self._f["subscribe"](self.lcm, channel.encode(), on_message.address,
+        sub = self._f["subscribe"](self._open(), channel.encode(), on_message.address,
                                    user.ctypes.data)
         if not sub:
             raise ConfigError(f"cannot subscribe to the LCM channel {channel!r}")
@@ -192,19 +192,20 @@ class LiblcmTransport:
         self.handlers.append(handler)
 
     def publish(self, channel: str, data: bytes) -> None:
-        if self._f["publish"](self.lcm, channel.encode(), data, len(data)) < 0:
+        if self._f["publish"](self._open(), channel.encode(), data, len(data)) < 0:
             raise OSError(f"LCM: publishing on {channel!r} failed")
 
     def start_receiving(self) -> None:
         """Starts the provider's receiving now (udpm://: its receive thread)."""
-        self._f["fileno"](self.lcm)
+        self._f["fileno"](self._open())
 
     def handle(self, timeout_ms: int = 0) -> int:
         """Handles every pending message, waiting up to `timeout_ms` for the first one.
         Returns how many were handled."""
         handled = 0
         while True:
-            result = self.c.handle_timeout(self.lcm, int(timeout_ms) if handled == 0 else 0)
+            result = self.c.handle_timeout(self._open(),
+                                           int(timeout_ms) if handled == 0 else 0)
             if result < 0:  # a signal interrupted the wait (Ctrl-C), or a socket error
                 self._errors += 1
                 if self._errors > 100:
@@ -248,5 +249,16 @@ class LiblcmTransport:
             self.on_warning(sentence)
 
     def close(self) -> None:
-        """Destroys the connection (its receive thread stops)."""
+        """Destroys the connection (its receive thread stops); using it after is an error,
+        not a call into freed memory."""
         self._finalizer()
+
+    @property
+    def is_open(self) -> bool:
+        return self._finalizer.alive
+
+    def _open(self) -> int:
+        """The lcm_t pointer; RuntimeError once closed."""
+        if not self.is_open:
+            raise RuntimeError(f"the LCM connection to {self.url} is closed")
+        return self.lcm

@@ -57,7 +57,7 @@ class CompiledPath(CompiledPathBase):
         return None
 
     def _transport_ready(self) -> bool:
-        return True
+        return self.station.lcm.is_open  # closed: the Python path says so
 
     def _build_transport(self) -> None:
         s = self.station
