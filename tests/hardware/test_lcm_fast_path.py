@@ -286,3 +286,11 @@ def test_a_handler_that_raises_does_not_leave_its_message_to_be_handed_over_agai
     assert t.handle(10) == 1
     assert got == [b"bad", b"good"]
     t.close()
+
+
+def test_without_liblcm_the_station_serves_in_python_and_says_why(monkeypatch):
+    monkeypatch.setattr(liblcm, "_loaded", "liblcm was not found (a test)")
+    dut = HardwareStation(HardwareConfig(lcm_url="memq://"), fused_forest(), ChainConfig())
+    assert dut.compiled.why_not == "liblcm was not found (a test)"
+    assert not isinstance(dut.lcm, liblcm.LiblcmTransport)  # the lcm package's
+    dut.close()

@@ -19,7 +19,7 @@ from ...fast.accept import K
 from ...fast.path import BUDGET_S, CompiledPathBase  # noqa: F401 (BUDGET_S: the station's)
 from ...messages import _FT_FINGERPRINT, _IIWA_FINGERPRINT, ContactState, encode_contact_state
 from .codec import WRENCH_BYTES
-from .liblcm import LiblcmTransport
+from .liblcm import LiblcmTransport, load
 from .loop import STOP_WAIT_FAILED, run
 
 _SOURCES = {"wrench_compensated": 0, "wrench_contact": 1, "bias": 2}
@@ -38,11 +38,14 @@ class CompiledPath(CompiledPathBase):
 
     def _transport_problem(self) -> str | None:
         s, c = self.station, self.station.config
+        loaded = load()
+        if isinstance(loaded, str):
+            return loaded
         if not (s.owns_lcm and isinstance(s.lcm, LiblcmTransport)
                 and isinstance(s._sender, LiblcmTransport)):
             return ("the station's LCM connection was given to it (an lcm.LCM, a DrakeLcm, "
-                    "a transport, another station's), or liblcm was not found; the compiled "
-                    "path needs a liblcm connection of its own, opened from lcm.lcm_url")
+                    "a transport, another station's); the compiled path needs a liblcm "
+                    "connection of its own, opened from lcm.lcm_url")
         if c.joint_state_type != "iiwa_status":
             return (f"lcm.joint_state_type is {c.joint_state_type!r}; the compiled path reads "
                     "iiwa_status")
